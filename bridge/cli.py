@@ -1,0 +1,80 @@
+"""The `viewer-bridge` command line."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import threading
+from collections.abc import Iterator, Sequence
+
+from bridge.demo import run_demo
+from bridge.dump import as_json, as_text
+from bridge.transports.lcm import DEFAULT_URL, LcmEvent, read_log, subscribe
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="viewer-bridge", description="Translate Drake's viewer scene between ecosystems.")
+    commands = parser.add_subparsers(dest="command", required=True)
+
+    dump = commands.add_parser("dump", help="decode an LCM log (or a live LCM bus) to text or JSON")
+    dump.add_argument("log", nargs="?", help="an .lcmlog file (omit with --live)")
+    dump.add_argument("--live", nargs="?", const=DEFAULT_URL, metavar="URL", help=f"listen on an LCM URL (default {DEFAULT_URL})")
+    dump.add_argument("--channel", default=".*", metavar="REGEX", help="only channels that fully match REGEX")
+    dump.add_argument("--json", action="store_true", help="one JSON object per message")
+    dump.add_argument("--duration", type=float, help="with --live: stop after this many seconds")
+    dump.add_argument("--demo", action="store_true", help="with --live: also publish the demo scene on the same URL")
+
+    demo = commands.add_parser("demo", help="publish a moving Drake-like scene with every shape over LCM")
+    demo.add_argument("--url", default=DEFAULT_URL, help="LCM URL to publish on")
+    demo.add_argument("--duration", type=float, help="stop after this many seconds (default: until Ctrl-C)")
+    demo.add_argument("--rate", type=float, default=60.0, help="draw messages per second")
+    return parser
+
+
+def _dump(args: argparse.Namespace) -> int:
+    if (args.log is None) == (args.live is None):
+        print("viewer-bridge dump: give either a log file or --live [URL]", file=sys.stderr)
+        return 2
+    stop = threading.Event()
+    demo: threading.Thread | None = None
+    events: Iterator[LcmEvent]
+    if args.live is not None:
+        if args.demo:
+            demo = threading.Thread(target=run_demo, args=(args.live, args.duration), kwargs={"stop": stop}, daemon=True)
+            demo.start()
+        events = subscribe(args.live, args.channel, args.duration)
+    else:
+        events = read_log(args.log, args.channel)
+    render = as_json if args.json else as_text
+    try:
+        for event in events:
+            print(render(event), flush=True)
+    except KeyboardInterrupt:
+        pass
+    except BrokenPipeError:
+        sys.stderr.close()  # e.g. piped into `head`: stop quietly
+    finally:
+        stop.set()
+        if demo is not None:
+            demo.join()
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    try:
+        sent = run_demo(args.url, args.duration, args.rate)
+    except KeyboardInterrupt:
+        return 0
+    print(f"published {sent} draw messages on {args.url}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    if args.command == "dump":
+        return _dump(args)
+    return _demo(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,52 @@
+"""The typed errors viewer-bridge raises at its edges.
+
+Every error names what was wrong and where, so that the router can count it by kind and log one
+useful line, and so that a user reading a message knows which field of which type to look at.
+"""
+
+from __future__ import annotations
+
+
+class BridgeError(Exception):
+    """Base of every error viewer-bridge raises on purpose."""
+
+
+class SchemaError(BridgeError):
+    """An `.lcm` schema file could not be parsed or resolved."""
+
+    def __init__(self, path: str, line: int, reason: str) -> None:
+        self.path = path
+        self.line = line
+        self.reason = reason
+        super().__init__(f"{path}:{line}: {reason}")
+
+
+class DecodeError(BridgeError):
+    """Bytes (or text inside a message) that do not form a valid message.
+
+    `type_name` is the fully qualified message type, `field` the path of the offending field
+    (e.g. `link[2].geom[0].float_data`), `offset` where the problem was found, counted in
+    `unit`: bytes of the buffer, elements of an array field, or characters of an embedded JSON.
+    """
+
+    def __init__(self, type_name: str, field: str, offset: int, reason: str, unit: str = "byte") -> None:
+        self.type_name = type_name
+        self.field = field
+        self.offset = offset
+        self.reason = reason
+        self.unit = unit
+        super().__init__(f"{type_name}.{field} at {unit} {offset}: {reason}")
+
+
+class EncodeError(BridgeError):
+    """A message whose content cannot be encoded (wrong length, out-of-range value, ...)."""
+
+    def __init__(self, type_name: str, field: str, reason: str) -> None:
+        self.type_name = type_name
+        self.field = field
+        self.reason = reason
+        super().__init__(f"{type_name}.{field}: {reason}")
+
+
+class SceneError(BridgeError):
+    """A scene that a target format cannot express, or a message that makes no valid scene."""

@@ -1,0 +1,461 @@
+"""Drake's LCM viewer messages to and from the scene model.
+
+`lcmt_viewer_load_robot` carries the geometry of every link; `lcmt_viewer_draw` every link's pose.
+How Drake fills a geometry (see PROTOCOLS.md section 1): the type code chooses the shape, and
+`float_data` holds its parameters, with two traps: a cylinder or capsule is [radius, length]
+(radius first), and a MESH is one of three things told apart by `string_data`: a file path, an
+in-memory mesh as JSON, or (when empty) a mesh array [V, T, 3V vertex floats, 3T index floats].
+A HalfSpace arrives as a 50 x 50 x 1 box shifted half a metre down; it cannot be told from a box.
+
+The draw message also has a fast path, `DrawDecoder`, that returns numpy views into the buffer.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import struct
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from bridge.errors import DecodeError, EncodeError
+from bridge.lcmcodec import DRAW, GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, Buffer, LcmMessage
+from bridge.scene import (
+    Box,
+    Capsule,
+    Cylinder,
+    Ellipsoid,
+    FileContents,
+    Geometry,
+    HalfSpace,
+    InMemoryMesh,
+    Link,
+    LinkPoses,
+    MeshFile,
+    Pose,
+    Scene,
+    Shape,
+    Sphere,
+    TriangleMesh,
+    Vector3,
+)
+
+
+def _geometry_code(name: str) -> int:
+    return int(GEOMETRY_DATA.constant(name))
+
+
+# The geometry type codes, as the schema (lcmtypes/lcmt_viewer_geometry_data.lcm) declares them.
+BOX, SPHERE, CYLINDER, MESH, CAPSULE, ELLIPSOID = map(
+    _geometry_code, ("BOX", "SPHERE", "CYLINDER", "MESH", "CAPSULE", "ELLIPSOID")
+)
+_LOAD_TYPE = LOAD_ROBOT.type_name
+
+# Drake's stand-in for an infinite half-space (geometry/drake_visualizer.cc).
+HALF_SPACE_BOX: Vector3 = (50.0, 50.0, 1.0)
+_HALF_SPACE_OFFSET = Pose((0.0, 0.0, -0.5))
+
+
+class _ShapeDataError(Exception):
+    """Raised inside shape parsing; turned into a DecodeError with the field path outside."""
+
+    def __init__(self, reason: str, offset: int = 0, unit: str = "element", field: str = "float_data") -> None:
+        super().__init__(reason)
+        self.reason = reason
+        self.offset = offset
+        self.unit = unit
+        self.field = field
+
+
+# --- load_robot -> scene -------------------------------------------------------------------------
+
+
+def _floats(data: Sequence[float], count: int, shape_name: str) -> list[float]:
+    if len(data) < count:
+        raise _ShapeDataError(f"{shape_name} needs {count} floats, got {len(data)}", len(data))
+    return [float(value) for value in data[:count]]
+
+
+def _box(data: Sequence[float], text: str) -> Shape:
+    x, y, z = _floats(data, 3, "box")
+    return Box((x, y, z))
+
+
+def _sphere(data: Sequence[float], text: str) -> Shape:
+    return Sphere(_floats(data, 1, "sphere")[0])
+
+
+def _cylinder(data: Sequence[float], text: str) -> Shape:
+    radius, length = _floats(data, 2, "cylinder")  # radius FIRST in Drake's message
+    return Cylinder(radius, length)
+
+
+def _capsule(data: Sequence[float], text: str) -> Shape:
+    radius, length = _floats(data, 2, "capsule")
+    return Capsule(radius, length)
+
+
+def _ellipsoid(data: Sequence[float], text: str) -> Shape:
+    a, b, c = _floats(data, 3, "ellipsoid")
+    return Ellipsoid((a, b, c))
+
+
+def _mesh(data: Sequence[float], text: str) -> Shape:
+    if not text:
+        return _triangle_mesh(data)
+    scale = _scale(data)
+    if text.lstrip().startswith("{"):
+        return _in_memory_mesh(text, scale)
+    return MeshFile(text, scale)
+
+
+def _scale(data: Sequence[float]) -> Vector3:
+    if len(data) >= 3:
+        return (float(data[0]), float(data[1]), float(data[2]))
+    if len(data) == 1:  # uniform scale, as older Drake versions sent it
+        return (float(data[0]), float(data[0]), float(data[0]))
+    return (1.0, 1.0, 1.0)
+
+
+def _triangle_mesh(data: Sequence[float]) -> TriangleMesh:
+    if len(data) < 2:
+        raise _ShapeDataError(f"mesh array needs V and T, got {len(data)} floats", len(data))
+    vertex_count, triangle_count = data[0], data[1]
+    for index, count in enumerate((vertex_count, triangle_count)):
+        if count < 0 or count != int(count):
+            raise _ShapeDataError(f"mesh array count {count} is not a whole number >= 0", index)
+    v, t = int(vertex_count), int(triangle_count)
+    expected = 2 + 3 * v + 3 * t
+    if len(data) != expected:
+        raise _ShapeDataError(
+            f"mesh array with V={v}, T={t} needs {expected} floats, got {len(data)}", len(data)
+        )
+    values = np.asarray(data, dtype=np.float64)
+    vertices = values[2 : 2 + 3 * v].reshape(v, 3)
+    index_floats = values[2 + 3 * v :]
+    if index_floats.size and (
+        (index_floats < 0).any() or (index_floats >= v).any() or (index_floats != np.floor(index_floats)).any()
+    ):
+        bad = int(np.flatnonzero((index_floats < 0) | (index_floats >= v) | (index_floats != np.floor(index_floats)))[0])
+        raise _ShapeDataError(
+            f"mesh array index {index_floats[bad]} is not a vertex index below V={v}", 2 + 3 * v + bad
+        )
+    return TriangleMesh(vertices, index_floats.astype(np.int64).reshape(t, 3))
+
+
+def _in_memory_mesh(text: str, scale: Vector3) -> InMemoryMesh:
+    try:
+        document = json.loads(text)
+    except json.JSONDecodeError as error:
+        raise _ShapeDataError(f"in-memory mesh JSON: {error.msg}", error.pos, "character", "string_data") from None
+    root = _json_object(document, "in_memory_mesh", "the document")
+    mesh_file = _file_contents(_json_object(root, "mesh_file", "in_memory_mesh"), "mesh_file")
+    supporting: dict[str, FileContents | str] = {}
+    files = root.get("supporting_files", {})
+    if not isinstance(files, dict):
+        raise _ShapeDataError("in-memory mesh: supporting_files is not an object", 0, "character", "string_data")
+    for name, entry in files.items():
+        if isinstance(entry, dict) and isinstance(entry.get("path"), str) and "contents" not in entry:
+            supporting[name] = entry["path"]
+        elif isinstance(entry, dict):
+            supporting[name] = _file_contents(entry, f"supporting_files.{name}")
+        else:
+            raise _ShapeDataError(f"in-memory mesh: supporting file {name!r} is not an object", 0, "character", "string_data")
+    return InMemoryMesh(mesh_file, supporting, scale)
+
+
+def _json_object(parent: Any, key: str, where: str) -> dict[str, Any]:
+    value = parent.get(key) if isinstance(parent, dict) else None
+    if not isinstance(value, dict):
+        raise _ShapeDataError(f"in-memory mesh: {where} has no object {key!r}", 0, "character", "string_data")
+    return value
+
+
+def _file_contents(entry: dict[str, Any], where: str) -> FileContents:
+    contents, extension = entry.get("contents"), entry.get("extension")
+    hint = entry.get("filename_hint", "")
+    if not isinstance(contents, str) or not isinstance(extension, str) or not isinstance(hint, str):
+        raise _ShapeDataError(
+            f"in-memory mesh: {where} needs string 'contents' and 'extension'", 0, "character", "string_data"
+        )
+    try:
+        data = base64.b64decode(contents, validate=True)
+    except ValueError as error:  # binascii.Error, or non-ASCII text
+        raise _ShapeDataError(f"in-memory mesh: {where}.contents is not base64 ({error})", 0, "character", "string_data") from None
+    return FileContents(data, extension, hint)
+
+
+_SHAPE_READERS: dict[int, Callable[[Sequence[float], str], Shape]] = {
+    BOX: _box,
+    SPHERE: _sphere,
+    CYLINDER: _cylinder,
+    MESH: _mesh,
+    CAPSULE: _capsule,
+    ELLIPSOID: _ellipsoid,
+}
+
+
+def geometry_from_lcm(message: LcmMessage) -> Geometry:
+    """One `lcmt_viewer_geometry_data` as a scene geometry (raises `_ShapeDataError`)."""
+    reader = _SHAPE_READERS.get(message.type)
+    if reader is None:
+        raise _ShapeDataError(f"unknown geometry type {message.type}", 0, "element", "type")
+    shape = reader(message.float_data, message.string_data)
+    x, y, z = message.position
+    qw, qx, qy, qz = message.quaternion
+    r, g, b, a = message.color
+    return Geometry(shape, Pose((x, y, z), (qw, qx, qy, qz)), (r, g, b, a))
+
+
+def scene_from_load(message: LcmMessage) -> Scene:
+    """A decoded `lcmt_viewer_load_robot` as a scene with no poses yet.
+
+    Raises `DecodeError` naming `link[i].geom[j].<field>` for a geometry that makes no shape.
+    """
+    links = []
+    for link_index, link in enumerate(message.link):
+        links.append(Link(link.name, link.robot_num, _link_geometries(link, f"link[{link_index}]")))
+    return Scene(tuple(links))
+
+
+def link_from_lcm(message: LcmMessage) -> Link:
+    """A decoded `lcmt_viewer_link_data` (e.g. from `DRAKE_VIEWER_DEFORMABLE`) as a link."""
+    return Link(message.name, message.robot_num, _link_geometries(message, "", LINK_DATA.type_name))
+
+
+def _link_geometries(link: LcmMessage, prefix: str, type_name: str = _LOAD_TYPE) -> tuple[Geometry, ...]:
+    geometries = []
+    for index, geometry in enumerate(link.geom):
+        try:
+            geometries.append(geometry_from_lcm(geometry))
+        except _ShapeDataError as error:
+            field = f"{prefix}.geom[{index}].{error.field}".lstrip(".")
+            raise DecodeError(type_name, field, error.offset, error.reason, unit=error.unit) from None
+    return tuple(geometries)
+
+
+def decode_load(data: Buffer) -> Scene:
+    """Bytes of an `lcmt_viewer_load_robot` straight to a scene."""
+    return scene_from_load(LOAD_ROBOT.decode(data))
+
+
+# --- scene -> load_robot -------------------------------------------------------------------------
+
+
+def _shape_fields(shape: Shape) -> tuple[int, list[float], str]:
+    """Type code, float_data and string_data for one shape, as Drake writes them."""
+    match shape:
+        case Box(size):
+            return BOX, list(size), ""
+        case Sphere(radius):
+            return SPHERE, [radius], ""
+        case Cylinder(radius, length):
+            return CYLINDER, [radius, length], ""
+        case Capsule(radius, length):
+            return CAPSULE, [radius, length], ""
+        case Ellipsoid(radii):
+            return ELLIPSOID, list(radii), ""
+        case HalfSpace():
+            return BOX, list(HALF_SPACE_BOX), ""
+        case MeshFile(path, scale):
+            return MESH, list(scale), path
+        case TriangleMesh(vertices, triangles):
+            counts = [float(len(vertices)), float(len(triangles))]
+            return MESH, counts + vertices.ravel().tolist() + triangles.ravel().astype(float).tolist(), ""
+        case InMemoryMesh(mesh_file, supporting_files, scale):
+            return MESH, list(scale), _in_memory_json(mesh_file, supporting_files)
+    raise EncodeError(_LOAD_TYPE, "geom", f"no Drake geometry for {shape!r}")
+
+
+def _in_memory_json(mesh_file: FileContents, supporting: Any) -> str:
+    def contents(file: FileContents) -> dict[str, str]:
+        return {
+            "contents": base64.b64encode(file.contents).decode("ascii"),
+            "extension": file.extension,
+            "filename_hint": file.filename_hint,
+        }
+
+    root: dict[str, Any] = {"mesh_file": contents(mesh_file)}
+    if supporting:
+        root["supporting_files"] = {
+            name: {"path": entry} if isinstance(entry, str) else contents(entry)
+            for name, entry in supporting.items()
+        }
+    # Drake writes compact JSON with sorted keys; so do we, so that bytes survive a round trip.
+    return json.dumps({"in_memory_mesh": root}, separators=(",", ":"), sort_keys=True)
+
+
+def geometry_to_lcm(geometry: Geometry) -> LcmMessage:
+    type_code, float_data, string_data = _shape_fields(geometry.shape)
+    pose = geometry.pose
+    if isinstance(geometry.shape, HalfSpace):
+        pose = pose.compose(_HALF_SPACE_OFFSET)
+    return GEOMETRY_DATA.message_class(
+        type=type_code,
+        position=list(pose.position),
+        quaternion=list(pose.quaternion_wxyz),
+        color=list(geometry.color),
+        string_data=string_data,
+        num_float_data=len(float_data),
+        float_data=float_data,
+    )
+
+
+def link_to_lcm(link: Link) -> LcmMessage:
+    geoms = [geometry_to_lcm(geometry) for geometry in link.geometries]
+    return LINK_DATA.message_class(name=link.name, robot_num=link.robot_num, num_geom=len(geoms), geom=geoms)
+
+
+def load_from_scene(scene: Scene) -> LcmMessage:
+    """The `lcmt_viewer_load_robot` that describes the scene's geometry."""
+    links = [link_to_lcm(link) for link in scene.links]
+    return LOAD_ROBOT.message_class(num_links=len(links), link=links)
+
+
+# --- draw <-> poses ------------------------------------------------------------------------------
+
+
+def poses_from_draw(message: LcmMessage) -> LinkPoses:
+    """A decoded `lcmt_viewer_draw` as arrays (copies, native float64)."""
+    count = message.num_links
+    return LinkPoses(
+        timestamp_ms=message.timestamp,
+        names=tuple(message.link_name),
+        robot_nums=np.asarray(message.robot_num, dtype=np.int32).reshape(count),
+        positions=np.asarray(message.position, dtype=np.float64).reshape(count, 3),
+        quaternions_wxyz=np.asarray(message.quaternion, dtype=np.float64).reshape(count, 4),
+    )
+
+
+def draw_from_poses(poses: LinkPoses) -> LcmMessage:
+    """The `lcmt_viewer_draw` message of a frame (float32 on the wire, as Drake sends it)."""
+    return DRAW.message_class(
+        timestamp=int(poses.timestamp_ms),
+        num_links=len(poses),
+        link_name=list(poses.names),
+        robot_num=[int(value) for value in poses.robot_nums],
+        position=np.asarray(poses.positions, dtype=np.float64).tolist(),
+        quaternion=np.asarray(poses.quaternions_wxyz, dtype=np.float64).tolist(),
+    )
+
+
+_HEADER = struct.Struct(">qi")
+_U32 = struct.Struct(">I")
+
+
+class DrawDecoder:
+    """Fast `lcmt_viewer_draw` decoding into numpy views.
+
+    The link names rarely change between frames, so the parsed name block is kept and reused
+    while the next frame's bytes at that place are the same: a memory comparison instead of
+    N string decodes. The returned arrays are read-only big-endian float32 / int32 views into
+    `data`; they stay valid as long as `data` does. Anything irregular is handed to the generic
+    decoder, so the same inputs raise the same `DecodeError`s as `DRAW.decode`.
+    """
+
+    def __init__(self) -> None:
+        self._names_block = b""
+        self._names: tuple[str, ...] = ()
+
+    def decode(self, data: Buffer) -> LinkPoses:
+        end = len(data)
+        if end < 20 or data[:8] != DRAW.packed_fingerprint:
+            return self._generic(data)
+        timestamp, count = _HEADER.unpack_from(data, 8)
+        names_end: int | None = 20 + len(self._names_block)
+        if count != len(self._names) or data[20:names_end] != self._names_block:
+            names_end = self._parse_names(data, count)
+        # After the names: int32 robot_num, 3 float32 position, 4 float32 quaternion per link.
+        if names_end is None or end != names_end + 36 * count:
+            return self._generic(data)
+        robot_nums = np.frombuffer(data, dtype=">i4", count=count, offset=names_end)
+        floats = np.frombuffer(data, dtype=">f4", count=7 * count, offset=names_end + 4 * count)
+        if not np.isfinite(floats).all():
+            return self._generic(data)
+        return LinkPoses(
+            timestamp_ms=timestamp,
+            names=self._names,
+            robot_nums=robot_nums,
+            positions=floats[: 3 * count].reshape(count, 3),
+            quaternions_wxyz=floats[3 * count :].reshape(count, 4),
+        )
+
+    @staticmethod
+    def _generic(data: Buffer) -> LinkPoses:
+        return poses_from_draw(DRAW.decode(data))
+
+    def _parse_names(self, data: Buffer, count: int) -> int | None:
+        """Parse and keep the name block; None when it is not well formed."""
+        end = len(data)
+        if count < 0 or 41 * count > end - 20:  # at least 5 bytes of name + 36 of arrays per link
+            return None
+        names = []
+        offset = 20
+        for _ in range(count):
+            if offset + 4 > end:
+                return None
+            (length,) = _U32.unpack_from(data, offset)
+            start = offset + 4
+            offset = start + length
+            if length == 0 or offset > end or data[offset - 1] != 0:
+                return None
+            try:
+                names.append(str(data[start : offset - 1], "utf-8"))
+            except UnicodeDecodeError:
+                return None
+        self._names = tuple(names)
+        self._names_block = bytes(data[20:offset])
+        return offset
+
+
+class DrawEncoder:
+    """Fast `lcmt_viewer_draw` encoding from arrays, byte-identical to `DRAW.encode`.
+
+    Like the decoder it keeps the encoded name block while the names repeat.
+    """
+
+    def __init__(self) -> None:
+        self._names: tuple[str, ...] = ()
+        self._names_block = b""
+
+    def encode(self, poses: LinkPoses) -> bytes:
+        count = len(poses)
+        if poses.names != self._names:
+            self._names_block = b"".join(_encode_string(name) for name in poses.names)
+            self._names = tuple(poses.names)
+        positions = np.asarray(poses.positions)
+        quaternions = np.asarray(poses.quaternions_wxyz)
+        if positions.shape != (count, 3) or quaternions.shape != (count, 4) or len(poses.robot_nums) != count:
+            raise EncodeError(DRAW.type_name, "position", f"arrays do not match {count} links")
+        return b"".join(
+            (
+                DRAW.packed_fingerprint,
+                _HEADER.pack(poses.timestamp_ms, count),
+                self._names_block,
+                np.asarray(poses.robot_nums, dtype=">i4").tobytes(),
+                _to_float32(positions, "position"),
+                _to_float32(quaternions, "quaternion"),
+            )
+        )
+
+
+def _to_float32(values: np.ndarray[Any, Any], field: str) -> bytes:
+    narrowed = values.astype(">f4")
+    # struct.pack('>f'), and so lcm-gen, refuses a value that only rounds to inf; numpy does not.
+    if np.isinf(narrowed).any() and (np.isinf(narrowed) & ~np.isinf(values)).any():
+        raise EncodeError(DRAW.type_name, field, "value out of range for float32")
+    return narrowed.tobytes()
+
+
+def _encode_string(text: str) -> bytes:
+    data = text.encode("utf-8")
+    return _U32.pack(len(data) + 1) + data + b"\0"
+
+
+__all__ = [
+    "HALF_SPACE_BOX", "DrawDecoder", "DrawEncoder", "decode_load", "draw_from_poses",
+    "geometry_from_lcm", "geometry_to_lcm", "link_from_lcm", "link_to_lcm", "load_from_scene",
+    "poses_from_draw", "scene_from_load",
+]

@@ -1,0 +1,246 @@
+"""The neutral scene model every format converts to and from.
+
+A scene is a list of links, each with geometries posed in the link frame, plus the links' poses
+in the world at one instant. Shapes are plain frozen dataclasses with SI units and the natural
+parameters (radius, not diameter; full box lengths; ellipsoid semi-axes). Quaternions are stored
+w-first, as Drake and the tree viewer write them; formats that name x, y, z, w convert at their
+edge. Poses of many links are kept as arrays so that a frame of 10,000 links stays cheap.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+Rgba = tuple[float, float, float, float]
+Vector3 = tuple[float, float, float]
+
+WHITE: Rgba = (1.0, 1.0, 1.0, 1.0)
+
+
+def frame_name(link_name: str) -> str:
+    """A ROS/gz frame name for a Drake link name (`plant::iiwa::link_0` -> `plant/iiwa/link_0`)."""
+    return link_name.replace("::", "/")
+
+
+@dataclass(frozen=True, slots=True)
+class Pose:
+    """A rigid transform: translation (x, y, z) and unit quaternion (w, x, y, z)."""
+
+    position: Vector3 = (0.0, 0.0, 0.0)
+    quaternion_wxyz: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+
+    @property
+    def quaternion_xyzw(self) -> tuple[float, float, float, float]:
+        """The same rotation in the x, y, z, w order of ROS and gz messages."""
+        w, x, y, z = self.quaternion_wxyz
+        return (x, y, z, w)
+
+    def matrix(self) -> FloatArray:
+        """The 4x4 homogeneous matrix of this pose."""
+        result = np.eye(4)
+        result[:3, :3] = rotation_matrix(np.asarray(self.quaternion_wxyz, dtype=np.float64))
+        result[:3, 3] = self.position
+        return result
+
+    def compose(self, other: Pose) -> Pose:
+        """`self * other`: `other` expressed in the frame that `self` is expressed in."""
+        rotation = rotation_matrix(np.asarray(self.quaternion_wxyz, dtype=np.float64))
+        position = np.asarray(self.position) + rotation @ np.asarray(other.position)
+        quaternion = _quaternion_product(self.quaternion_wxyz, other.quaternion_wxyz)
+        return Pose(_vector3(position), quaternion)
+
+
+def rotation_matrix(quaternion_wxyz: FloatArray) -> FloatArray:
+    """The 3x3 rotation of a (normalised here) w-first quaternion."""
+    w, x, y, z = quaternion_wxyz / np.linalg.norm(quaternion_wxyz)
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _quaternion_product(
+    a: tuple[float, float, float, float], b: tuple[float, float, float, float]
+) -> tuple[float, float, float, float]:
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return (
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    )
+
+
+def _vector3(values: Sequence[float] | FloatArray) -> Vector3:
+    return (float(values[0]), float(values[1]), float(values[2]))
+
+
+# --- shapes ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class Box:
+    size: Vector3  # full lengths along x, y, z
+
+
+@dataclass(frozen=True, slots=True)
+class Sphere:
+    radius: float
+
+
+@dataclass(frozen=True, slots=True)
+class Cylinder:
+    radius: float
+    length: float  # along the shape's z axis
+
+
+@dataclass(frozen=True, slots=True)
+class Capsule:
+    radius: float
+    length: float  # of the cylindrical part, caps excluded
+
+
+@dataclass(frozen=True, slots=True)
+class Ellipsoid:
+    radii: Vector3  # semi-axes a, b, c along x, y, z
+
+
+@dataclass(frozen=True, slots=True)
+class HalfSpace:
+    """Everything below the z = 0 plane of the geometry frame (outward normal +z)."""
+
+
+@dataclass(frozen=True, slots=True)
+class MeshFile:
+    """A mesh stored in a file the receiver must be able to read (.obj, .gltf, .vtk, ...)."""
+
+    path: str
+    scale: Vector3 = (1.0, 1.0, 1.0)
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class TriangleMesh:
+    """Vertices (V x 3) and triangles (T x 3 vertex indices) carried in the message itself."""
+
+    vertices: FloatArray
+    triangles: IntArray
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, TriangleMesh):
+            return NotImplemented
+        return bool(
+            np.array_equal(self.vertices, other.vertices)
+            and np.array_equal(self.triangles, other.triangles)
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class FileContents:
+    """A file's bytes in memory, with the extension that says how to read them."""
+
+    contents: bytes
+    extension: str
+    filename_hint: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class InMemoryMesh:
+    """A mesh file carried in memory, with the files it refers to (textures, .mtl, .bin)."""
+
+    mesh_file: FileContents
+    supporting_files: Mapping[str, FileContents | str] = field(default_factory=dict)
+    scale: Vector3 = (1.0, 1.0, 1.0)  # a `str` supporting file is a path on the sender's disk
+
+
+Shape = Box | Sphere | Cylinder | Capsule | Ellipsoid | HalfSpace | MeshFile | TriangleMesh | InMemoryMesh
+
+
+@dataclass(frozen=True, slots=True)
+class Geometry:
+    """A shape placed in its link's frame, with an RGBA colour in [0, 1]."""
+
+    shape: Shape
+    pose: Pose = Pose()
+    color: Rgba = WHITE
+
+
+@dataclass(frozen=True, slots=True)
+class Link:
+    """A rigid body: its Drake name, model instance number and geometries."""
+
+    name: str
+    robot_num: int = 0
+    geometries: tuple[Geometry, ...] = ()
+
+    @property
+    def frame(self) -> str:
+        return frame_name(self.name)
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class LinkPoses:
+    """Every link's pose at one instant, as arrays (one row per link).
+
+    `positions` is N x 3, `quaternions_wxyz` N x 4; `robot_nums` N. The arrays may be read-only
+    views into a received buffer: copy before changing them.
+    """
+
+    timestamp_ms: int
+    names: tuple[str, ...]
+    robot_nums: npt.NDArray[np.int32]
+    positions: FloatArray
+    quaternions_wxyz: FloatArray
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, LinkPoses):
+            return NotImplemented
+        return bool(
+            self.timestamp_ms == other.timestamp_ms
+            and self.names == other.names
+            and np.array_equal(self.robot_nums, other.robot_nums)
+            and np.array_equal(self.positions, other.positions)
+            and np.array_equal(self.quaternions_wxyz, other.quaternions_wxyz)
+        )
+
+    def pose(self, index: int) -> Pose:
+        q = self.quaternions_wxyz[index]
+        return Pose(_vector3(self.positions[index]), (float(q[0]), float(q[1]), float(q[2]), float(q[3])))
+
+    def pose_of(self, name: str) -> Pose | None:
+        try:
+            return self.pose(self.names.index(name))
+        except ValueError:
+            return None
+
+
+@dataclass(frozen=True, slots=True)
+class Scene:
+    """The geometry of every link, and (once a frame has arrived) where each link is."""
+
+    links: tuple[Link, ...] = ()
+    poses: LinkPoses | None = None
+
+    def with_poses(self, poses: LinkPoses) -> Scene:
+        return Scene(self.links, poses)
+
+    def link_pose(self, link: Link) -> Pose:
+        """The link's world pose; links absent from the frame (e.g. `world`) sit at identity."""
+        if self.poses is None:
+            return Pose()
+        return self.poses.pose_of(link.name) or Pose()
+
+    def geometry_count(self) -> int:
+        return sum(len(link.geometries) for link in self.links)

@@ -1,0 +1,84 @@
+"""Run a pydrake scene with every shape through DrakeVisualizer on a given LCM URL.
+
+Usage: python drake_scene.py LCM_URL FOLDER. Illustration and proximity roles both publish
+(role-suffixed channels), so every way Drake lowers a shape is on the wire: a Mesh by file,
+Convex and proximity meshes as mesh arrays, an in-memory mesh as JSON, a HalfSpace as a box.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from pydrake.geometry import (
+    Box,
+    Capsule,
+    Convex,
+    Cylinder,
+    DrakeVisualizer,
+    DrakeVisualizerParams,
+    Ellipsoid,
+    HalfSpace,
+    InMemoryMesh,
+    Mesh,
+    Role,
+    Sphere,
+)
+from pydrake.common import MemoryFile
+from pydrake.lcm import DrakeLcm
+from pydrake.math import RigidTransform, RollPitchYaw
+from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, CoulombFriction
+from pydrake.multibody.tree import SpatialInertia
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+
+TETRAHEDRON_OBJ = """\
+v 0 0 0
+v 0.1 0 0
+v 0 0.1 0
+v 0 0 0.1
+vn -0.577 -0.577 -0.577
+f 1//1 3//1 2//1
+f 1//1 2//1 4//1
+f 1//1 4//1 3//1
+f 2//1 3//1 4//1
+"""
+
+
+def main(url: str, folder: Path) -> None:
+    obj = folder / "tetrahedron.obj"
+    obj.write_text(TETRAHEDRON_OBJ)
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlantSceneGraph(builder, 0.001)
+    shapes = [
+        Box(0.1, 0.2, 0.3),
+        Sphere(0.05),
+        Cylinder(0.04, 0.3),
+        Capsule(0.03, 0.2),
+        Ellipsoid(0.1, 0.2, 0.3),
+        Mesh(str(obj), 2.0),
+        Convex(str(obj), 1.5),
+        Mesh(InMemoryMesh(mesh_file=MemoryFile(TETRAHEDRON_OBJ, ".obj", "tetrahedron.obj")), 0.5),
+    ]
+    for model in range(2):  # two model instances, so robot_num differs between links
+        instance = plant.AddModelInstance(f"robot{model}")
+        for index, shape in enumerate(shapes):
+            body = plant.AddRigidBody(f"body{index}", instance, SpatialInertia.SolidSphereWithMass(1.0, 0.1))
+            pose = RigidTransform(RollPitchYaw(0.1 * index, 0.2, 0.3 + model), [index * 0.3, model, 0.5])
+            color = [0.1 * index, 0.5, 0.2 * model, 1.0]
+            plant.RegisterVisualGeometry(body, pose, shape, f"visual{index}", color)
+            plant.RegisterCollisionGeometry(body, pose, shape, f"collision{index}", CoulombFriction(0.9, 0.5))
+    ground = RigidTransform([0.0, 0.0, -0.1])
+    plant.RegisterVisualGeometry(plant.world_body(), ground, HalfSpace(), "ground", [0.5, 0.5, 0.5, 1.0])
+    plant.RegisterCollisionGeometry(plant.world_body(), ground, HalfSpace(), "ground", CoulombFriction(0.9, 0.5))
+    plant.Finalize()
+    lcm = DrakeLcm(url)
+    for role in (Role.kIllustration, Role.kProximity):
+        params = DrakeVisualizerParams(role=role, use_role_channel_suffix=True)
+        DrakeVisualizer.AddToBuilder(builder, scene_graph, lcm, params)
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(0.1)  # free fall: poses change from frame to frame
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], Path(sys.argv[2]))

@@ -1,0 +1,122 @@
+"""Fuzzing every decoder: only `DecodeError` may escape, memory stays bounded, nothing hangs."""
+
+from __future__ import annotations
+
+import resource
+import struct
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from bridge.demo import demo_poses, demo_scene
+from bridge.errors import DecodeError
+from bridge.formats.drake import DrawDecoder, DrawEncoder, decode_load, load_from_scene
+from bridge.lcmcodec import DRAW, GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, VIEWER2_COMMS
+
+BUFFERS_PER_DECODER = 100_000
+EXTREME_WORDS = [b"\x7f\xff\xff\xff", b"\x80\x00\x00\x00", b"\xff\xff\xff\xff", b"\x00\x00\x00\x00",
+                 b"\x00\x00\x00\x01", b"\x00\x00\x10\x00", b"\x7f\xc0\x00\x00"]  # the last is NaN
+
+
+def seeds(tmp_path: Path) -> dict[str, bytes]:
+    scene = demo_scene(tmp_path)
+    load = load_from_scene(scene)
+    comms = VIEWER2_COMMS.message_class(utime=1, format="treeviewer_json", format_version_major=1,
+                                        num_bytes=9, data=b'{"a": 1}\n')
+    return {
+        "load": load.encode(),
+        "link": load.link[1].encode(),
+        "geometry": load.link[7].geom[0].encode(),  # a mesh array
+        "draw": DrawEncoder().encode(demo_poses(scene, 1.0)),
+        "comms": comms.encode(),
+    }
+
+
+def mutate(rng: np.random.Generator, seed: bytes) -> bytes:
+    data = bytearray(seed)
+    choice = rng.integers(0, 6)
+    if choice == 0:  # flip a few bytes
+        for position in rng.integers(0, len(data), rng.integers(1, 5)):
+            data[position] = int(rng.integers(0, 256))
+    elif choice == 1:  # truncate
+        del data[int(rng.integers(0, len(data))):]
+    elif choice == 2:  # claim an extreme count or length somewhere
+        position = int(rng.integers(8, max(len(data) - 4, 9)))
+        data[position : position + 4] = EXTREME_WORDS[int(rng.integers(0, len(EXTREME_WORDS)))]
+    elif choice == 3:  # append noise
+        data += rng.bytes(int(rng.integers(1, 16)))
+    elif choice == 4:  # random body behind the right fingerprint
+        data = data[:8] + bytearray(rng.bytes(int(rng.integers(0, 200))))
+    else:  # pure noise
+        data = bytearray(rng.bytes(int(rng.integers(0, 64))))
+    return bytes(data)
+
+
+def fast_draw(data: bytes) -> Any:
+    return DrawDecoder().decode(data)
+
+
+DECODERS: list[tuple[str, str, Callable[[bytes], Any]]] = [
+    ("load_robot", "load", LOAD_ROBOT.decode),
+    ("load_robot -> scene", "load", decode_load),
+    ("link_data", "link", LINK_DATA.decode),
+    ("geometry_data", "geometry", GEOMETRY_DATA.decode),
+    ("draw", "draw", DRAW.decode),
+    ("draw (fast path)", "draw", fast_draw),
+    ("viewer2_comms_t", "comms", VIEWER2_COMMS.decode),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("name", "seed_name", "decode"), DECODERS, ids=[d[0] for d in DECODERS])
+def test_only_decode_errors_escape(name: str, seed_name: str, decode: Callable[[bytes], Any], tmp_path: Path) -> None:
+    rng = np.random.default_rng(abs(hash(name)) % 2**32)
+    seed = seeds(tmp_path)[seed_name]
+    decode(seed)  # the seed itself is valid
+    before_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    outcomes = {"decoded": 0, "rejected": 0}
+    for _ in range(BUFFERS_PER_DECODER):
+        data = mutate(rng, seed)
+        try:
+            decode(data)
+            outcomes["decoded"] += 1
+        except DecodeError:
+            outcomes["rejected"] += 1
+    grown_mib = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before_kib) / 1024
+    assert outcomes["rejected"] > BUFFERS_PER_DECODER // 2  # the mutations really were bad...
+    assert outcomes["decoded"] > 0  # ...but not all of them: the fuzzer reaches valid inputs too
+    assert grown_mib < 64, f"peak memory grew by {grown_mib:.0f} MiB"
+
+
+def test_fast_draw_decoder_agrees_with_the_generic_one(tmp_path: Path) -> None:
+    """On valid and mutated frames alike, the fast path and `DRAW.decode` agree exactly."""
+    rng = np.random.default_rng(7)
+    seed = seeds(tmp_path)["draw"]
+    decoder = DrawDecoder()
+    for _ in range(5_000):
+        data = mutate(rng, seed) if rng.random() < 0.7 else seed
+        try:
+            expected = DRAW.decode(data)
+        except DecodeError as error:
+            with pytest.raises(DecodeError) as caught:
+                decoder.decode(data)
+            assert str(caught.value) == str(error)
+            continue
+        poses = decoder.decode(data)
+        assert poses.names == tuple(expected.link_name)
+        assert poses.positions.tolist() == expected.position
+        assert poses.quaternions_wxyz.tolist() == expected.quaternion
+        assert poses.robot_nums.tolist() == expected.robot_num
+        assert poses.timestamp_ms == expected.timestamp
+
+
+def test_huge_claimed_count_costs_no_memory() -> None:
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    claim = DRAW.packed_fingerprint + struct.pack(">qi", 0, 2**31 - 1) + b"\0" * 64
+    for decode in (DRAW.decode, fast_draw):
+        with pytest.raises(DecodeError, match="count 2147483647"):
+            decode(claim)
+    assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 16 * 1024

@@ -1,0 +1,67 @@
+"""Parsing `.lcm` files and computing fingerprints."""
+
+from __future__ import annotations
+
+import struct
+
+import pytest
+
+from bridge.errors import SchemaError
+from bridge.lcmcodec import CODECS, STRUCTS
+from bridge.lcmcodec.schema import fingerprint, parse_lcm
+
+# Values printed by lcm-gen 1.5.3 (PROTOCOLS.md section 1 and 2).
+KNOWN_FINGERPRINTS = {
+    "drake.lcmt_viewer_load_robot": 0x8987209B10AA2D39,
+    "drake.lcmt_viewer_link_data": 0x51252725AF982A63,
+    "drake.lcmt_viewer_geometry_data": 0x5D2E34CB3257DB07,
+    "drake.lcmt_viewer_draw": 0x414F0BFE5B2F4244,
+    "robotlocomotion.viewer2_comms_t": 0xD368E03F33C568BE,
+}
+
+
+def test_all_five_types_are_defined() -> None:
+    assert set(STRUCTS) == set(KNOWN_FINGERPRINTS)
+
+
+@pytest.mark.parametrize("name", sorted(KNOWN_FINGERPRINTS))
+def test_fingerprint_equals_lcm_gen(name: str, lcmgen: dict[str, type]) -> None:
+    generated = lcmgen[name]._get_packed_fingerprint()  # type: ignore[attr-defined]
+    assert CODECS[name].packed_fingerprint == generated
+    assert CODECS[name].fingerprint == struct.unpack(">Q", generated)[0] == KNOWN_FINGERPRINTS[name]
+
+
+def test_constants_come_from_the_schema() -> None:
+    codec = CODECS["drake.lcmt_viewer_geometry_data"]
+    assert [(c.name, c.value) for c in codec.definition.constants] == [
+        ("BOX", 1), ("SPHERE", 2), ("CYLINDER", 3), ("MESH", 4), ("CAPSULE", 5), ("ELLIPSOID", 6)
+    ]
+    assert codec.message_class.ELLIPSOID == 6
+
+
+def test_parses_multiple_declarators_and_comments() -> None:
+    (parsed,) = parse_lcm("package p; /* c */ struct s { int32_t n, m; // x\n double v[n][3], w; }")
+    assert parsed.full_name == "p.s"
+    assert [(m.name, m.type_name, [d.size for d in m.dims]) for m in parsed.members] == [
+        ("n", "int32_t", []), ("m", "int32_t", []), ("v", "double", ["n", "3"]), ("w", "double", [])
+    ]
+    assert fingerprint(parsed, {"p.s": parsed}) != 0
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("struct s { int32_t a[n]; }", "array size 'n' is not an earlier member"),
+        ("struct s { double n; int32_t a[n]; }", "must be an integer scalar member"),
+        ("struct s { int32_t a }", "expected ','"),
+        ("struct s { int32_t a[0]; }", "array size must be positive"),
+        ("struct s { const string x = 1; }", "numeric type"),
+        ("struct s { int32_t a; $ }", "unexpected character"),
+        ("enum e { A }", "expected 'package' or 'struct'"),
+        ("struct s { int32_t a;", "unexpected end of file"),
+    ],
+)
+def test_schema_errors_name_file_and_line(text: str, message: str) -> None:
+    with pytest.raises(SchemaError, match=message) as caught:
+        parse_lcm(text, "bad.lcm")
+    assert caught.value.path == "bad.lcm" and caught.value.line == 1

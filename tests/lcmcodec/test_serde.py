@@ -1,0 +1,125 @@
+"""Generated codecs: byte-identical to lcm-gen, and strict on bad input."""
+
+from __future__ import annotations
+
+import struct
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from bridge.errors import DecodeError, EncodeError
+from bridge.lcmcodec import CODECS, DRAW, GEOMETRY_DATA, LOAD_ROBOT, VIEWER2_COMMS, LcmMessage
+from tests.strategies import message_pairs, use_lcmgen
+
+NAMES = sorted(CODECS)
+
+
+@pytest.fixture(autouse=True)
+def _twins(lcmgen: dict[str, type]) -> None:
+    use_lcmgen(lcmgen)
+
+
+@pytest.mark.parametrize("name", NAMES)
+@settings(max_examples=150, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@given(data=st.data())
+def test_encode_is_byte_identical_to_lcm_gen(name: str, data: st.DataObject) -> None:
+    ours, theirs = data.draw(message_pairs(CODECS[name].definition))
+    expected = theirs.encode()
+    assert ours.encode() == expected
+    decoded = CODECS[name].decode(expected)
+    assert decoded == ours
+    assert decoded.encode() == expected
+
+
+def draw_message(names: list[str]) -> LcmMessage:
+    count = len(names)
+    return DRAW.message_class(
+        timestamp=12, num_links=count, link_name=names, robot_num=list(range(count)),
+        position=[[1.0, 2.0, 3.0]] * count, quaternion=[[1.0, 0.0, 0.0, 0.0]] * count,
+    )
+
+
+GOOD_DRAW = draw_message(["plant::a", "plant::b"]).encode()
+
+
+def test_default_constructed_messages_encode() -> None:
+    for codec in CODECS.values():
+        message = codec.message_class()
+        assert codec.decode(message.encode()) == message
+
+
+@pytest.mark.parametrize(
+    ("data", "field", "offset", "reason"),
+    [
+        (b"", "<fingerprint>", 0, "truncated"),
+        (b"\0" * 8 + GOOD_DRAW[8:], "<fingerprint>", 0, "fingerprint 0000000000000000 is not"),
+        (GOOD_DRAW[:15], "timestamp", 8, "truncated: needs 8 bytes, 7 remain"),
+        (GOOD_DRAW[:18], "num_links", 16, "truncated"),
+        (GOOD_DRAW[:16] + struct.pack(">i", -1) + GOOD_DRAW[20:], "link_name", 20, "negative count -1"),
+        (GOOD_DRAW[:16] + struct.pack(">i", 2**31 - 1) + GOOD_DRAW[20:], "link_name", 20, "count 2147483647"),
+        (GOOD_DRAW[:20] + struct.pack(">I", 0) + GOOD_DRAW[24:], "link_name[0]", 20, "string length 0"),
+        (GOOD_DRAW[:20] + struct.pack(">I", 2**32 - 1) + GOOD_DRAW[24:], "link_name[0]", 24, "truncated"),
+        (GOOD_DRAW[:24] + b"\xff" + GOOD_DRAW[25:], "link_name[0]", 24, "invalid UTF-8"),
+        (GOOD_DRAW[:32] + b"X" + GOOD_DRAW[33:], "link_name[0]", 32, "not NUL-terminated"),
+        (GOOD_DRAW + b"\0", "<end>", len(GOOD_DRAW), "1 trailing bytes"),
+        (GOOD_DRAW[:-4] + struct.pack(">f", float("nan")), "quaternion[7]", len(GOOD_DRAW) - 4, "non-finite"),
+        (GOOD_DRAW[:-4] + struct.pack(">f", float("inf")), "quaternion[7]", len(GOOD_DRAW) - 4, "non-finite"),
+        (GOOD_DRAW[:-1], "quaternion", len(GOOD_DRAW) - 32, "count 8 needs at least 32 bytes, 31 remain"),
+    ],
+)
+def test_bad_draw_names_type_field_and_offset(data: bytes, field: str, offset: int, reason: str) -> None:
+    with pytest.raises(DecodeError) as caught:
+        DRAW.decode(data)
+    error = caught.value
+    assert (error.type_name, error.field, error.offset) == ("drake.lcmt_viewer_draw", field, offset)
+    assert reason in error.reason
+    assert str(error).startswith(f"drake.lcmt_viewer_draw.{field} at byte {offset}: ")
+
+
+def test_nested_errors_carry_the_whole_field_path() -> None:
+    geometry = GEOMETRY_DATA.message_class(type=2, num_float_data=1, float_data=[float("nan")])
+    link = CODECS["drake.lcmt_viewer_link_data"].message_class(name="a", num_geom=1, geom=[geometry])
+    data = LOAD_ROBOT.message_class(num_links=1, link=[link]).encode()
+    with pytest.raises(DecodeError) as caught:
+        LOAD_ROBOT.decode(data)
+    assert caught.value.field == "link[0].geom[0].float_data[0]"
+    assert caught.value.type_name == "drake.lcmt_viewer_load_robot"
+    assert data[caught.value.offset : caught.value.offset + 4] == struct.pack(">f", float("nan"))
+
+
+def test_a_huge_count_is_refused_before_anything_is_allocated() -> None:
+    claim = LOAD_ROBOT.packed_fingerprint + struct.pack(">i", 2**31 - 1)
+    with pytest.raises(DecodeError, match="count 2147483647 needs at least") as caught:
+        LOAD_ROBOT.decode(claim)
+    assert caught.value.field == "link"
+
+
+def test_byte_arrays_decode_to_bytes() -> None:
+    message = VIEWER2_COMMS.message_class(utime=5, format="treeviewer_json", format_version_major=1,
+                                          num_bytes=2, data=b"{}")
+    decoded = VIEWER2_COMMS.decode(message.encode())
+    assert decoded.data == b"{}" and isinstance(decoded.data, bytes)
+
+
+@pytest.mark.parametrize(
+    ("message", "field", "reason"),
+    [
+        (draw_message(["a"]), None, None),
+        (DRAW.message_class(num_links=2, link_name=["a"]), "link_name", "has 1 elements, expected 2"),
+        (DRAW.message_class(timestamp=2**63), "timestamp, num_links", "too large"),
+        (DRAW.message_class(num_links=1, link_name=["a"], robot_num=[0], position=[[1e39, 0, 0]],
+                            quaternion=[[1, 0, 0, 0]]), "position", "float"),
+        (DRAW.message_class(num_links=1, link_name=[3], robot_num=[0], position=[[0, 0, 0]],
+                            quaternion=[[1, 0, 0, 0]]), "link_name", "encode"),
+        (LOAD_ROBOT.message_class(num_links=1, link=["x"]), "link[0]", "expected drake.lcmt_viewer_link_data"),
+    ],
+)
+def test_encode_errors_name_the_field(message: LcmMessage, field: str | None, reason: str | None) -> None:
+    if field is None:
+        assert DRAW.decode(message.encode()) == message
+        return
+    with pytest.raises(EncodeError) as caught:
+        message.encode()
+    assert caught.value.field == field
+    assert reason is not None and reason in caught.value.reason
