@@ -9,20 +9,30 @@ from collections.abc import Iterator, Sequence
 
 from bridge.demo import run_demo
 from bridge.dump import as_json, as_text
-from bridge.transports.lcm import DEFAULT_URL, LcmEvent, read_log, subscribe
+from bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="viewer-bridge", description="Translate Drake's viewer scene between ecosystems.")
+    parser = argparse.ArgumentParser(
+        prog="viewer-bridge", description="Translate Drake's viewer scene between ecosystems."
+    )
     commands = parser.add_subparsers(dest="command", required=True)
 
     dump = commands.add_parser("dump", help="decode an LCM log (or a live LCM bus) to text or JSON")
     dump.add_argument("log", nargs="?", help="an .lcmlog file (omit with --live)")
-    dump.add_argument("--live", nargs="?", const=DEFAULT_URL, metavar="URL", help=f"listen on an LCM URL (default {DEFAULT_URL})")
+    dump.add_argument(
+        "--live",
+        nargs="?",
+        const=DEFAULT_URL,
+        metavar="URL",
+        help=f"listen on an LCM URL (default {DEFAULT_URL})",
+    )
     dump.add_argument("--channel", default=".*", metavar="REGEX", help="only channels that fully match REGEX")
     dump.add_argument("--json", action="store_true", help="one JSON object per message")
     dump.add_argument("--duration", type=float, help="with --live: stop after this many seconds")
-    dump.add_argument("--demo", action="store_true", help="with --live: also publish the demo scene on the same URL")
+    dump.add_argument(
+        "--demo", action="store_true", help="with --live: also publish the demo scene on the same URL"
+    )
 
     demo = commands.add_parser("demo", help="publish a moving Drake-like scene with every shape over LCM")
     demo.add_argument("--url", default=DEFAULT_URL, help="LCM URL to publish on")
@@ -39,10 +49,13 @@ def _dump(args: argparse.Namespace) -> int:
     demo: threading.Thread | None = None
     events: Iterator[LcmEvent]
     if args.live is not None:
+        subscription = Subscription(args.live, args.channel)  # before the demo's first message
         if args.demo:
-            demo = threading.Thread(target=run_demo, args=(args.live, args.duration), kwargs={"stop": stop}, daemon=True)
+            demo = threading.Thread(
+                target=run_demo, args=(args.live, args.duration), kwargs={"stop": stop}, daemon=True
+            )
             demo.start()
-        events = subscribe(args.live, args.channel, args.duration)
+        events = subscription.events(args.duration)
     else:
         events = read_log(args.log, args.channel)
     render = as_json if args.json else as_text

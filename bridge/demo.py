@@ -63,7 +63,12 @@ def demo_scene(mesh_dir: Path) -> Scene:
     links = [Link("world", 0, (Geometry(HalfSpace(), Pose(), (0.6, 0.6, 0.6, 1.0)),))]
     for index, shape in enumerate(shapes):
         hue = index / len(shapes)
-        color = (0.5 + 0.5 * math.cos(6.28 * hue), 0.5 + 0.5 * math.cos(6.28 * (hue - 0.33)), 0.5 + 0.5 * math.cos(6.28 * (hue - 0.66)), 1.0)
+        color = (
+            0.5 + 0.5 * math.cos(6.28 * hue),
+            0.5 + 0.5 * math.cos(6.28 * (hue - 0.33)),
+            0.5 + 0.5 * math.cos(6.28 * (hue - 0.66)),
+            1.0,
+        )
         name = f"demo::shapes::{type(shape).__name__.lower()}_{index}"
         links.append(Link(name, 1, (Geometry(shape, Pose(), color),)))
     return Scene(tuple(links))
@@ -86,8 +91,13 @@ def demo_poses(scene: Scene, seconds: float) -> LinkPoses:
     )
 
 
-def run_demo(url: str, duration: float | None, rate_hz: float = 60.0, stop: threading.Event | None = None,
-             load_every: float = 2.0) -> int:
+def run_demo(
+    url: str,
+    duration: float | None,
+    rate_hz: float = 60.0,
+    stop: threading.Event | None = None,
+    load_every: float = 2.0,
+) -> int:
     """Publish the demo's load (again every `load_every` s, for late listeners) and draws."""
     stop = stop or threading.Event()
     publisher = Publisher(url)

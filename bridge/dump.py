@@ -53,7 +53,9 @@ def as_json(event: LcmEvent) -> str:
 def as_text(event: LcmEvent) -> str:
     record = describe(event)
     seconds = record["timestamp_us"] / 1e6
-    header = f"[{seconds:.6f}] {record['channel']} {record['type'] or '(unknown type)'} ({record['size']} bytes)"
+    header = (
+        f"[{seconds:.6f}] {record['channel']} {record['type'] or '(unknown type)'} ({record['size']} bytes)"
+    )
     lines = [header]
     if "error" in record:
         lines.append(f"  error: {record['error']}")

@@ -139,8 +139,7 @@ class TriangleMesh:
         if not isinstance(other, TriangleMesh):
             return NotImplemented
         return bool(
-            np.array_equal(self.vertices, other.vertices)
-            and np.array_equal(self.triangles, other.triangles)
+            np.array_equal(self.vertices, other.vertices) and np.array_equal(self.triangles, other.triangles)
         )
 
 

@@ -59,8 +59,11 @@ def drake_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     folder = tmp_path_factory.mktemp("drake")
     log = folder / "drake.lcmlog"
     url = lcm_url()
-    logger = subprocess.Popen([str(SCRIPTS / "lcm-logger"), "--lcm-url", url, "-f", str(log)],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    logger = subprocess.Popen(
+        [str(SCRIPTS / "lcm-logger"), "--lcm-url", url, "-f", str(log)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         deadline = time.monotonic() + 10
         while not log.exists() and time.monotonic() < deadline:
@@ -76,7 +79,8 @@ def drake_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="session")
 def drake_events(drake_log: Path) -> list[LcmEvent]:
-    return list(read_log(drake_log))
+    """Drake's viewer traffic from the log (DrakeLcm's own LCM_SELF_TEST left out)."""
+    return list(read_log(drake_log, "DRAKE_.*"))
 
 
 @pytest.fixture(scope="session")

@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from pydrake.common import MemoryFile
 from pydrake.geometry import (
     Box,
     Capsule,
@@ -24,7 +25,6 @@ from pydrake.geometry import (
     Role,
     Sphere,
 )
-from pydrake.common import MemoryFile
 from pydrake.lcm import DrakeLcm
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.plant import AddMultibodyPlantSceneGraph, CoulombFriction
@@ -70,7 +70,9 @@ def main(url: str, folder: Path) -> None:
             plant.RegisterCollisionGeometry(body, pose, shape, f"collision{index}", CoulombFriction(0.9, 0.5))
     ground = RigidTransform([0.0, 0.0, -0.1])
     plant.RegisterVisualGeometry(plant.world_body(), ground, HalfSpace(), "ground", [0.5, 0.5, 0.5, 1.0])
-    plant.RegisterCollisionGeometry(plant.world_body(), ground, HalfSpace(), "ground", CoulombFriction(0.9, 0.5))
+    plant.RegisterCollisionGeometry(
+        plant.world_body(), ground, HalfSpace(), "ground", CoulombFriction(0.9, 0.5)
+    )
     plant.Finalize()
     lcm = DrakeLcm(url)
     for role in (Role.kIllustration, Role.kProximity):

@@ -47,11 +47,17 @@ def _array(member: Member, shape: list[int]) -> st.SearchStrategy[Any]:
 
 
 def _pair(value: Any) -> tuple[Any, Any]:
-    return value if isinstance(value, tuple) and len(value) == 2 and isinstance(value[0], LcmMessage) else (value, value)
+    return (
+        value
+        if isinstance(value, tuple) and len(value) == 2 and isinstance(value[0], LcmMessage)
+        else (value, value)
+    )
 
 
 @st.composite
-def message_pairs(draw: st.DrawFn, struct: StructDef, lcmgen: dict[str, type] | None = None) -> tuple[Any, Any]:
+def message_pairs(
+    draw: st.DrawFn, struct: StructDef, lcmgen: dict[str, type] | None = None
+) -> tuple[Any, Any]:
     """One random message of `struct` and, when `lcmgen` is given, lcm-gen's equal object."""
     lcmgen = lcmgen if lcmgen is not None else _LCMGEN
     counts = _count_members(struct)

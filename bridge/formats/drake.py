@@ -61,7 +61,9 @@ _HALF_SPACE_OFFSET = Pose((0.0, 0.0, -0.5))
 class _ShapeDataError(Exception):
     """Raised inside shape parsing; turned into a DecodeError with the field path outside."""
 
-    def __init__(self, reason: str, offset: int = 0, unit: str = "element", field: str = "float_data") -> None:
+    def __init__(
+        self, reason: str, offset: int = 0, unit: str = "element", field: str = "float_data"
+    ) -> None:
         super().__init__(reason)
         self.reason = reason
         self.offset = offset
@@ -136,9 +138,15 @@ def _triangle_mesh(data: Sequence[float]) -> TriangleMesh:
     vertices = values[2 : 2 + 3 * v].reshape(v, 3)
     index_floats = values[2 + 3 * v :]
     if index_floats.size and (
-        (index_floats < 0).any() or (index_floats >= v).any() or (index_floats != np.floor(index_floats)).any()
+        (index_floats < 0).any()
+        or (index_floats >= v).any()
+        or (index_floats != np.floor(index_floats)).any()
     ):
-        bad = int(np.flatnonzero((index_floats < 0) | (index_floats >= v) | (index_floats != np.floor(index_floats)))[0])
+        bad = int(
+            np.flatnonzero(
+                (index_floats < 0) | (index_floats >= v) | (index_floats != np.floor(index_floats))
+            )[0]
+        )
         raise _ShapeDataError(
             f"mesh array index {index_floats[bad]} is not a vertex index below V={v}", 2 + 3 * v + bad
         )
@@ -149,20 +157,26 @@ def _in_memory_mesh(text: str, scale: Vector3) -> InMemoryMesh:
     try:
         document = json.loads(text)
     except json.JSONDecodeError as error:
-        raise _ShapeDataError(f"in-memory mesh JSON: {error.msg}", error.pos, "character", "string_data") from None
+        raise _ShapeDataError(
+            f"in-memory mesh JSON: {error.msg}", error.pos, "character", "string_data"
+        ) from None
     root = _json_object(document, "in_memory_mesh", "the document")
     mesh_file = _file_contents(_json_object(root, "mesh_file", "in_memory_mesh"), "mesh_file")
     supporting: dict[str, FileContents | str] = {}
     files = root.get("supporting_files", {})
     if not isinstance(files, dict):
-        raise _ShapeDataError("in-memory mesh: supporting_files is not an object", 0, "character", "string_data")
+        raise _ShapeDataError(
+            "in-memory mesh: supporting_files is not an object", 0, "character", "string_data"
+        )
     for name, entry in files.items():
         if isinstance(entry, dict) and isinstance(entry.get("path"), str) and "contents" not in entry:
             supporting[name] = entry["path"]
         elif isinstance(entry, dict):
             supporting[name] = _file_contents(entry, f"supporting_files.{name}")
         else:
-            raise _ShapeDataError(f"in-memory mesh: supporting file {name!r} is not an object", 0, "character", "string_data")
+            raise _ShapeDataError(
+                f"in-memory mesh: supporting file {name!r} is not an object", 0, "character", "string_data"
+            )
     return InMemoryMesh(mesh_file, supporting, scale)
 
 
@@ -183,7 +197,9 @@ def _file_contents(entry: dict[str, Any], where: str) -> FileContents:
     try:
         data = base64.b64decode(contents, validate=True)
     except ValueError as error:  # binascii.Error, or non-ASCII text
-        raise _ShapeDataError(f"in-memory mesh: {where}.contents is not base64 ({error})", 0, "character", "string_data") from None
+        raise _ShapeDataError(
+            f"in-memory mesh: {where}.contents is not base64 ({error})", 0, "character", "string_data"
+        ) from None
     return FileContents(data, extension, hint)
 
 
@@ -368,7 +384,7 @@ class DrawDecoder:
         if count != len(self._names) or data[20:names_end] != self._names_block:
             names_end = self._parse_names(data, count)
         # After the names: int32 robot_num, 3 float32 position, 4 float32 quaternion per link.
-        if names_end is None or end != names_end + 36 * count:
+        if names_end is None or end != names_end + 32 * count:
             return self._generic(data)
         robot_nums = np.frombuffer(data, dtype=">i4", count=count, offset=names_end)
         floats = np.frombuffer(data, dtype=">f4", count=7 * count, offset=names_end + 4 * count)
@@ -389,7 +405,7 @@ class DrawDecoder:
     def _parse_names(self, data: Buffer, count: int) -> int | None:
         """Parse and keep the name block; None when it is not well formed."""
         end = len(data)
-        if count < 0 or 41 * count > end - 20:  # at least 5 bytes of name + 36 of arrays per link
+        if count < 0 or 37 * count > end - 20:  # at least 5 bytes of name + 32 of arrays per link
             return None
         names = []
         offset = 20
@@ -455,7 +471,16 @@ def _encode_string(text: str) -> bytes:
 
 
 __all__ = [
-    "HALF_SPACE_BOX", "DrawDecoder", "DrawEncoder", "decode_load", "draw_from_poses",
-    "geometry_from_lcm", "geometry_to_lcm", "link_from_lcm", "link_to_lcm", "load_from_scene",
-    "poses_from_draw", "scene_from_load",
+    "HALF_SPACE_BOX",
+    "DrawDecoder",
+    "DrawEncoder",
+    "decode_load",
+    "draw_from_poses",
+    "geometry_from_lcm",
+    "geometry_to_lcm",
+    "link_from_lcm",
+    "link_to_lcm",
+    "load_from_scene",
+    "poses_from_draw",
+    "scene_from_load",
 ]

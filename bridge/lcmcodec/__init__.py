@@ -1,8 +1,8 @@
 """LCM codecs for the types in `lcmtypes/`, generated from the schemas when first imported.
 
-    from bridge.lcmcodec import DRAW
-    message = DRAW.decode(data)          # -> drake.lcmt_viewer_draw message
-    assert DRAW.encode(message) == data  # byte-identical to lcm-gen's output
+from bridge.lcmcodec import DRAW
+message = DRAW.decode(data)          # -> drake.lcmt_viewer_draw message
+assert DRAW.encode(message) == data  # byte-identical to lcm-gen's output
 """
 
 from __future__ import annotations
@@ -30,6 +30,16 @@ def codec_for(data: Buffer) -> StructCodec | None:
 
 
 __all__ = [
-    "CODECS", "DRAW", "GEOMETRY_DATA", "LINK_DATA", "LOAD_ROBOT", "SCHEMA_DIR", "STRUCTS",
-    "VIEWER2_COMMS", "Buffer", "LcmMessage", "StructCodec", "codec_for",
+    "CODECS",
+    "DRAW",
+    "GEOMETRY_DATA",
+    "LINK_DATA",
+    "LOAD_ROBOT",
+    "SCHEMA_DIR",
+    "STRUCTS",
+    "VIEWER2_COMMS",
+    "Buffer",
+    "LcmMessage",
+    "StructCodec",
+    "codec_for",
 ]

@@ -119,9 +119,7 @@ def fingerprint(struct: StructDef, structs: Mapping[str, StructDef]) -> int:
     return _recursive_hash(struct, structs, ())
 
 
-def _recursive_hash(
-    struct: StructDef, structs: Mapping[str, StructDef], parents: tuple[str, ...]
-) -> int:
+def _recursive_hash(struct: StructDef, structs: Mapping[str, StructDef], parents: tuple[str, ...]) -> int:
     if struct.full_name in parents:
         return 0
     inner = parents + (struct.full_name,)
@@ -309,7 +307,6 @@ def load_schema_dir(folder: Path) -> dict[str, StructDef]:
         for member in struct.members:
             if not member.is_primitive and member.type_name not in structs:
                 raise SchemaError(
-                    struct.source, 1, f"{struct.full_name}.{member.name}: unknown type "
-                    f"{member.type_name!r}"
+                    struct.source, 1, f"{struct.full_name}.{member.name}: unknown type {member.type_name!r}"
                 )
     return structs

@@ -13,6 +13,7 @@ import math
 import struct
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from bridge.errors import DecodeError, EncodeError
@@ -97,7 +98,7 @@ class StructCodec:
                 return constant.value
         raise KeyError(f"{self.type_name} declares no constant {name!r}")
 
-    @property
+    @cached_property
     def packed_fingerprint(self) -> bytes:
         return struct.pack(">Q", self.fingerprint)
 
@@ -116,7 +117,9 @@ class StructCodec:
             raise DecodeError(self.type_name, _FINGERPRINT_FIELD, 0, f"truncated: {end} bytes")
         if data[:8] != expected:
             raise DecodeError(
-                self.type_name, _FINGERPRINT_FIELD, 0,
+                self.type_name,
+                _FINGERPRINT_FIELD,
+                0,
                 f"fingerprint {bytes(data[:8]).hex()} is not {expected.hex()}",
             )
         message, offset = self._decode_body(data, 8, end)
@@ -133,6 +136,8 @@ def _nest(flat: Sequence[Any], shape: Sequence[int], leaf: Callable[[Any], Any])
     if len(shape) == 1:
         return leaf(flat)
     step = math.prod(shape[1:])
+    if len(shape) == 2:  # the common case (e.g. position[num_links][3]), kept flat for speed
+        return [leaf(flat[start : start + step]) for start in range(0, shape[0] * step, step)]
     return [_nest(flat[i * step : (i + 1) * step], shape[1:], leaf) for i in range(shape[0])]
 
 
@@ -157,7 +162,9 @@ def _bad_count(type_name: str, field: str, offset: int, count: int, size: int, e
     if count < 0:
         return DecodeError(type_name, field, offset, f"negative count {count}")
     return DecodeError(
-        type_name, field, offset,
+        type_name,
+        field,
+        offset,
         f"count {count} needs at least {count * size} bytes, {end - offset} remain",
     )
 
@@ -169,7 +176,9 @@ def _check_finite(type_name: str, field: str, offset: int, size: int, values: Se
         return
     for index, value in enumerate(values):
         if not math.isfinite(value):
-            raise DecodeError(type_name, f"{field}[{index}]", offset + index * size, f"non-finite value {value}")
+            raise DecodeError(
+                type_name, f"{field}[{index}]", offset + index * size, f"non-finite value {value}"
+            )
 
 
 def _read_string(type_name: str, field: str, buf: Buffer, offset: int, end: int) -> tuple[str, int]:
@@ -249,8 +258,8 @@ def _min_sizes(structs: Mapping[str, StructDef]) -> dict[str, int]:
         sizes[struct.full_name] = total
         return total
 
-    for struct in structs.values():
-        size_of(struct, ())
+    for definition in structs.values():
+        size_of(definition, ())
     return sizes
 
 
@@ -370,7 +379,7 @@ class _StructGenerator:
         with out.indent():
             # Name the first member that does not fit.
             position = 0
-            for member, size in zip(members, sizes):
+            for member, size in zip(members, sizes, strict=True):
                 out.line(f"if off + {position + size} > end:")
                 with out.indent():
                     out.line(f"raise _truncated({t}, {member.name!r}, off + {position}, {size}, end)")
@@ -378,7 +387,7 @@ class _StructGenerator:
         targets = ", ".join(f"msg.{m.name}" for m in members)
         out.line(f"{targets}{',' if len(members) == 1 else ''} = {packer}.unpack_from(buf, off)")
         position = 0
-        for member, size in zip(members, sizes):
+        for member, size in zip(members, sizes, strict=True):
             if member.type_name in ("float", "double"):
                 out.line(f"if not _isfinite(msg.{member.name}):")
                 with out.indent():
@@ -405,7 +414,9 @@ class _StructGenerator:
         out.line("count = _prod(shape)")
         out.line(f"if min(shape) < 0 or count * {element_size} > end - off:")
         with out.indent():
-            out.line(f"raise _bad_count({t}, {name!r}, off, min(shape) if min(shape) < 0 else count, {element_size}, end)")
+            out.line(
+                f"raise _bad_count({t}, {name!r}, off, min(shape) if min(shape) < 0 else count, {element_size}, end)"
+            )
         if member.type_name in PRIMITIVE_FORMATS:
             code, size = PRIMITIVE_FORMATS[member.type_name]
             if member.type_name == "byte":
@@ -443,7 +454,23 @@ class _StructGenerator:
     def decode_element(self, member: Member, target: str, field: str) -> None:
         out, t = self.out, self.type_literal
         if member.type_name == "string":
-            out.line(f"{target}, off = _read_string({t}, {field}, buf, off, end)")
+            # Inlined for speed (link names are read every frame); any irregularity goes to
+            # `_read_string`, which raises the precise error.
+            out.line("if off + 4 > end:")
+            with out.indent():
+                out.line(f"_read_string({t}, {field}, buf, off, end)")
+            out.line("(length,) = _U32_unpack_from(buf, off)")
+            out.line("stop = off + 4 + length")
+            out.line("if length == 0 or stop > end or buf[stop - 1] != 0:")
+            with out.indent():
+                out.line(f"_read_string({t}, {field}, buf, off, end)")
+            out.line("try:")
+            with out.indent():
+                out.line(f"{target} = _str(buf[off + 4 : stop - 1], 'utf-8')")
+            out.line("except UnicodeDecodeError:")
+            with out.indent():
+                out.line(f"_read_string({t}, {field}, buf, off, end)")
+            out.line("off = stop")
             return
         out.line("try:")
         with out.indent():
@@ -481,9 +508,11 @@ class _StructGenerator:
         if not member.dims:
             self.encode_element(member, f"msg.{name}", repr(name))
             return
-        out.line(f"flat = list(_flatten(msg.{name}, {self.shape_expression(member)}, {t}, {name!r}))"
-                 if member.type_name != "byte" else
-                 f"flat = _flatten_bytes(msg.{name}, {self.shape_expression(member)}, {t}, {name!r})")
+        out.line(
+            f"flat = list(_flatten(msg.{name}, {self.shape_expression(member)}, {t}, {name!r}))"
+            if member.type_name != "byte"
+            else f"flat = _flatten_bytes(msg.{name}, {self.shape_expression(member)}, {t}, {name!r})"
+        )
         if member.type_name == "byte":
             out.line("out.append(flat)")
         elif member.type_name in PRIMITIVE_FORMATS:
@@ -505,7 +534,9 @@ class _StructGenerator:
         child = _ident(member.type_name)
         out.line(f"if type({source}) is not {child}_class:")
         with out.indent():
-            out.line(f"raise EncodeError({t}, {field}, 'expected {member.type_name}, got %s' % type({source}).__name__)")
+            out.line(
+                f"raise EncodeError({t}, {field}, 'expected {member.type_name}, got %s' % type({source}).__name__)"
+            )
         out.line("try:")
         with out.indent():
             out.line(f"{child}_encode({source}, out)")
@@ -532,8 +563,8 @@ def generate_source(structs: Mapping[str, StructDef]) -> str:
     """The Python source of every class, decoder and encoder for `structs`."""
     out = _Writer()
     min_sizes = _min_sizes(structs)
-    for struct in structs.values():
-        generator = _StructGenerator(struct, min_sizes, out)
+    for definition in structs.values():
+        generator = _StructGenerator(definition, min_sizes, out)
         generator.write_class()
         generator.write_decoder()
         generator.write_encoder()
@@ -550,6 +581,8 @@ def compile_codecs(structs: Mapping[str, StructDef]) -> dict[str, StructCodec]:
         "EncodeError": EncodeError,
         "_Struct": struct.Struct,
         "_U32": _U32,
+        "_U32_unpack_from": _U32.unpack_from,
+        "_str": str,
         "_unpack_from": struct.unpack_from,
         "_pack": struct.pack,
         "_prod": math.prod,

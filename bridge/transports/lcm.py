@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import re
 import time
+from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,24 +49,31 @@ def write_log(path: str | Path, events: Iterator[LcmEvent] | list[LcmEvent]) -> 
     return count
 
 
-def subscribe(url: str, channel: str = ".*", duration: float | None = None) -> Iterator[LcmEvent]:
-    """Events received live on `url` (channel regex), until `duration` seconds have passed."""
-    bus = lcm.LCM(url)
-    received: list[LcmEvent] = []
+class Subscription:
+    """Events received live on `url` whose channel matches the regex `channel`.
 
-    def on_message(name: str, data: bytes) -> None:
-        received.append(LcmEvent(name, bytes(data), time.time_ns() // 1000))
+    Subscribed as soon as it is made (so nothing published after that is missed); iterate it to
+    receive, until `duration` seconds after the iteration starts, or forever when it is None.
+    """
 
-    subscription = bus.subscribe(channel, on_message)
-    deadline = None if duration is None else time.monotonic() + duration
-    try:
-        while deadline is None or time.monotonic() < deadline:
-            remaining_ms = 100 if deadline is None else max(0, min(100, int((deadline - time.monotonic()) * 1000)))
-            bus.handle_timeout(remaining_ms)
-            while received:
-                yield received.pop(0)
-    finally:
-        bus.unsubscribe(subscription)
+    def __init__(self, url: str, channel: str = ".*") -> None:
+        self._bus = lcm.LCM(url)
+        self._received: deque[LcmEvent] = deque()
+        self._subscription = self._bus.subscribe(channel, self._on_message)
+
+    def _on_message(self, channel: str, data: bytes) -> None:
+        self._received.append(LcmEvent(channel, bytes(data), time.time_ns() // 1000))
+
+    def events(self, duration: float | None = None) -> Iterator[LcmEvent]:
+        deadline = None if duration is None else time.monotonic() + duration
+        try:
+            while deadline is None or time.monotonic() < deadline:
+                wait_s = 0.1 if deadline is None else min(0.1, deadline - time.monotonic())
+                self._bus.handle_timeout(max(0, int(wait_s * 1000)))
+                while self._received:
+                    yield self._received.popleft()
+        finally:
+            self._bus.unsubscribe(self._subscription)
 
 
 class Publisher:

@@ -17,15 +17,23 @@ from bridge.formats.drake import DrawDecoder, DrawEncoder, decode_load, load_fro
 from bridge.lcmcodec import DRAW, GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, VIEWER2_COMMS
 
 BUFFERS_PER_DECODER = 100_000
-EXTREME_WORDS = [b"\x7f\xff\xff\xff", b"\x80\x00\x00\x00", b"\xff\xff\xff\xff", b"\x00\x00\x00\x00",
-                 b"\x00\x00\x00\x01", b"\x00\x00\x10\x00", b"\x7f\xc0\x00\x00"]  # the last is NaN
+EXTREME_WORDS = [
+    b"\x7f\xff\xff\xff",
+    b"\x80\x00\x00\x00",
+    b"\xff\xff\xff\xff",
+    b"\x00\x00\x00\x00",
+    b"\x00\x00\x00\x01",
+    b"\x00\x00\x10\x00",
+    b"\x7f\xc0\x00\x00",
+]  # the last is NaN
 
 
 def seeds(tmp_path: Path) -> dict[str, bytes]:
     scene = demo_scene(tmp_path)
     load = load_from_scene(scene)
-    comms = VIEWER2_COMMS.message_class(utime=1, format="treeviewer_json", format_version_major=1,
-                                        num_bytes=9, data=b'{"a": 1}\n')
+    comms = VIEWER2_COMMS.message_class(
+        utime=1, format="treeviewer_json", format_version_major=1, num_bytes=9, data=b'{"a": 1}\n'
+    )
     return {
         "load": load.encode(),
         "link": load.link[1].encode(),
@@ -42,7 +50,7 @@ def mutate(rng: np.random.Generator, seed: bytes) -> bytes:
         for position in rng.integers(0, len(data), rng.integers(1, 5)):
             data[position] = int(rng.integers(0, 256))
     elif choice == 1:  # truncate
-        del data[int(rng.integers(0, len(data))):]
+        del data[int(rng.integers(0, len(data))) :]
     elif choice == 2:  # claim an extreme count or length somewhere
         position = int(rng.integers(8, max(len(data) - 4, 9)))
         data[position : position + 4] = EXTREME_WORDS[int(rng.integers(0, len(EXTREME_WORDS)))]
@@ -72,7 +80,9 @@ DECODERS: list[tuple[str, str, Callable[[bytes], Any]]] = [
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("name", "seed_name", "decode"), DECODERS, ids=[d[0] for d in DECODERS])
-def test_only_decode_errors_escape(name: str, seed_name: str, decode: Callable[[bytes], Any], tmp_path: Path) -> None:
+def test_only_decode_errors_escape(
+    name: str, seed_name: str, decode: Callable[[bytes], Any], tmp_path: Path
+) -> None:
     rng = np.random.default_rng(abs(hash(name)) % 2**32)
     seed = seeds(tmp_path)[seed_name]
     decode(seed)  # the seed itself is valid

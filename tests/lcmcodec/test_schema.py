@@ -34,7 +34,12 @@ def test_fingerprint_equals_lcm_gen(name: str, lcmgen: dict[str, type]) -> None:
 def test_constants_come_from_the_schema() -> None:
     codec = CODECS["drake.lcmt_viewer_geometry_data"]
     assert [(c.name, c.value) for c in codec.definition.constants] == [
-        ("BOX", 1), ("SPHERE", 2), ("CYLINDER", 3), ("MESH", 4), ("CAPSULE", 5), ("ELLIPSOID", 6)
+        ("BOX", 1),
+        ("SPHERE", 2),
+        ("CYLINDER", 3),
+        ("MESH", 4),
+        ("CAPSULE", 5),
+        ("ELLIPSOID", 6),
     ]
     assert codec.message_class.ELLIPSOID == 6
 
@@ -43,7 +48,10 @@ def test_parses_multiple_declarators_and_comments() -> None:
     (parsed,) = parse_lcm("package p; /* c */ struct s { int32_t n, m; // x\n double v[n][3], w; }")
     assert parsed.full_name == "p.s"
     assert [(m.name, m.type_name, [d.size for d in m.dims]) for m in parsed.members] == [
-        ("n", "int32_t", []), ("m", "int32_t", []), ("v", "double", ["n", "3"]), ("w", "double", [])
+        ("n", "int32_t", []),
+        ("m", "int32_t", []),
+        ("v", "double", ["n", "3"]),
+        ("w", "double", []),
     ]
     assert fingerprint(parsed, {"p.s": parsed}) != 0
 

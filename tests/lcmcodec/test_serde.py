@@ -35,8 +35,12 @@ def test_encode_is_byte_identical_to_lcm_gen(name: str, data: st.DataObject) -> 
 def draw_message(names: list[str]) -> LcmMessage:
     count = len(names)
     return DRAW.message_class(
-        timestamp=12, num_links=count, link_name=names, robot_num=list(range(count)),
-        position=[[1.0, 2.0, 3.0]] * count, quaternion=[[1.0, 0.0, 0.0, 0.0]] * count,
+        timestamp=12,
+        num_links=count,
+        link_name=names,
+        robot_num=list(range(count)),
+        position=[[1.0, 2.0, 3.0]] * count,
+        quaternion=[[1.0, 0.0, 0.0, 0.0]] * count,
     )
 
 
@@ -96,8 +100,9 @@ def test_a_huge_count_is_refused_before_anything_is_allocated() -> None:
 
 
 def test_byte_arrays_decode_to_bytes() -> None:
-    message = VIEWER2_COMMS.message_class(utime=5, format="treeviewer_json", format_version_major=1,
-                                          num_bytes=2, data=b"{}")
+    message = VIEWER2_COMMS.message_class(
+        utime=5, format="treeviewer_json", format_version_major=1, num_bytes=2, data=b"{}"
+    )
     decoded = VIEWER2_COMMS.decode(message.encode())
     assert decoded.data == b"{}" and isinstance(decoded.data, bytes)
 
@@ -108,11 +113,29 @@ def test_byte_arrays_decode_to_bytes() -> None:
         (draw_message(["a"]), None, None),
         (DRAW.message_class(num_links=2, link_name=["a"]), "link_name", "has 1 elements, expected 2"),
         (DRAW.message_class(timestamp=2**63), "timestamp, num_links", "too large"),
-        (DRAW.message_class(num_links=1, link_name=["a"], robot_num=[0], position=[[1e39, 0, 0]],
-                            quaternion=[[1, 0, 0, 0]]), "position", "float"),
-        (DRAW.message_class(num_links=1, link_name=[3], robot_num=[0], position=[[0, 0, 0]],
-                            quaternion=[[1, 0, 0, 0]]), "link_name", "encode"),
-        (LOAD_ROBOT.message_class(num_links=1, link=["x"]), "link[0]", "expected drake.lcmt_viewer_link_data"),
+        (
+            DRAW.message_class(
+                num_links=1,
+                link_name=["a"],
+                robot_num=[0],
+                position=[[1e39, 0, 0]],
+                quaternion=[[1, 0, 0, 0]],
+            ),
+            "position",
+            "float",
+        ),
+        (
+            DRAW.message_class(
+                num_links=1, link_name=[3], robot_num=[0], position=[[0, 0, 0]], quaternion=[[1, 0, 0, 0]]
+            ),
+            "link_name",
+            "encode",
+        ),
+        (
+            LOAD_ROBOT.message_class(num_links=1, link=["x"]),
+            "link[0]",
+            "expected drake.lcmt_viewer_link_data",
+        ),
     ],
 )
 def test_encode_errors_name_the_field(message: LcmMessage, field: str | None, reason: str | None) -> None:
