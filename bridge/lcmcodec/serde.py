@@ -16,6 +16,8 @@ from dataclasses import dataclass
 from functools import cached_property
 from typing import TYPE_CHECKING, Any, ClassVar
 
+import numpy as np
+
 from bridge.errors import DecodeError, EncodeError
 from bridge.lcmcodec.schema import (
     PRIMITIVE_FORMATS,
@@ -169,16 +171,26 @@ def _bad_count(type_name: str, field: str, offset: int, count: int, size: int, e
     )
 
 
-def _check_finite(type_name: str, field: str, offset: int, size: int, values: Sequence[float]) -> None:
+def _check_finite(
+    type_name: str, field: str, offset: int, size: int, values: Sequence[float], shape: Sequence[int]
+) -> None:
     # The sum is a cheap screen (any NaN or inf makes it non-finite); the scan only runs then.
     total = math.fsum(values) if size == 8 else sum(values)
     if math.isfinite(total):
         return
     for index, value in enumerate(values):
         if not math.isfinite(value):
-            raise DecodeError(
-                type_name, f"{field}[{index}]", offset + index * size, f"non-finite value {value}"
-            )
+            where = f"{field}{_element_path(index, shape)}"
+            raise DecodeError(type_name, where, offset + index * size, f"non-finite value {value}")
+
+
+def _element_path(index: int, shape: Sequence[int]) -> str:
+    """`[i][j]` of the element at flat (row-major) `index` of an array of `shape`."""
+    indices = []
+    for size in reversed(shape):
+        index, remainder = divmod(index, size)
+        indices.append(remainder)
+    return "".join(f"[{i}]" for i in reversed(indices))
 
 
 def _read_string(type_name: str, field: str, buf: Buffer, offset: int, end: int) -> tuple[str, int]:
@@ -209,6 +221,7 @@ def _nested_encode(error: EncodeError, type_name: str, prefix: str) -> EncodeErr
 
 
 _U32 = struct.Struct(">I")
+_NUMPY_THRESHOLD = 48  # elements; below this, struct.unpack beats numpy's per-call overhead
 _ENCODE_ERRORS = (struct.error, OverflowError, TypeError, ValueError, AttributeError, UnicodeError)
 
 
@@ -417,32 +430,56 @@ class _StructGenerator:
             out.line(
                 f"raise _bad_count({t}, {name!r}, off, min(shape) if min(shape) < 0 else count, {element_size}, end)"
             )
-        if member.type_name in PRIMITIVE_FORMATS:
-            code, size = PRIMITIVE_FORMATS[member.type_name]
-            if member.type_name == "byte":
-                out.line("flat = bytes(buf[off:off + count])")
-                leaf = "bytes"
-            else:
-                out.line(f"flat = _unpack_from('>%d{code}' % count, buf, off)")
-                leaf = "list"
-                if member.type_name in ("float", "double"):
-                    out.line(f"_check_finite({t}, {name!r}, off, {size}, flat)")
-                elif member.type_name == "boolean":
-                    out.line("flat = [bool(v) for v in flat]")
-            out.line(f"off += count * {size}")
+        if member.type_name in ("byte", "boolean"):
+            self.decode_small_array(member, leaf="bytes" if member.type_name == "byte" else "list")
+        elif member.type_name in PRIMITIVE_FORMATS:
+            # numpy pays off for long arrays (e.g. a draw's positions); struct for short ones.
+            out.line(f"if count > {_NUMPY_THRESHOLD}:")
+            with out.indent():
+                self.decode_long_array(member)
+            out.line("else:")
+            with out.indent():
+                self.decode_small_array(member, leaf="list")
         else:
             out.line("flat = []")
             out.line("for index in range(count):")
             with out.indent():
                 self.decode_element(member, "item", f"'{name}[%d]' % index")
                 out.line("flat.append(item)")
-            leaf = "list"
-        if len(member.dims) > 1:
-            out.line(f"msg.{name} = _nest(flat, shape, {leaf})")
-        elif leaf == "list" and member.type_name in PRIMITIVE_FORMATS:
-            out.line(f"msg.{name} = list(flat)")
+            self.assign_nested(member, "flat", "list")
+
+    def decode_long_array(self, member: Member) -> None:
+        out, t, name = self.out, self.type_literal, member.name
+        code, size = PRIMITIVE_FORMATS[member.type_name]
+        out.line(f"array = _frombuffer(buf, '>{code}', count, off)")
+        if member.type_name in ("float", "double"):
+            out.line("if not _isfinite_array(array).all():")
+            with out.indent():
+                out.line(f"_check_finite({t}, {name!r}, off, {size}, array.tolist(), shape)")
+        out.line(f"msg.{name} = array.reshape(shape).tolist()")
+        out.line(f"off += count * {size}")
+
+    def decode_small_array(self, member: Member, leaf: str) -> None:
+        out, t, name = self.out, self.type_literal, member.name
+        code, size = PRIMITIVE_FORMATS[member.type_name]
+        if member.type_name == "byte":
+            out.line("flat = bytes(buf[off:off + count])")
         else:
-            out.line(f"msg.{name} = flat")
+            out.line(f"flat = _unpack_from('>%d{code}' % count, buf, off)")
+        if member.type_name in ("float", "double"):
+            out.line(f"_check_finite({t}, {name!r}, off, {size}, flat, shape)")
+        elif member.type_name == "boolean":
+            out.line("flat = [bool(v) for v in flat]")
+        out.line(f"off += count * {size}")
+        self.assign_nested(member, "flat", leaf)
+
+    def assign_nested(self, member: Member, flat: str, leaf: str) -> None:
+        if len(member.dims) > 1:
+            self.out.line(f"msg.{member.name} = _nest({flat}, shape, {leaf})")
+        elif leaf == "list":
+            self.out.line(f"msg.{member.name} = list({flat})")
+        else:
+            self.out.line(f"msg.{member.name} = {flat}")
 
     def element_min_size(self, member: Member) -> int:
         if member.type_name == "string":
@@ -583,6 +620,8 @@ def compile_codecs(structs: Mapping[str, StructDef]) -> dict[str, StructCodec]:
         "_U32": _U32,
         "_U32_unpack_from": _U32.unpack_from,
         "_str": str,
+        "_frombuffer": np.frombuffer,
+        "_isfinite_array": np.isfinite,
         "_unpack_from": struct.unpack_from,
         "_pack": struct.pack,
         "_prod": math.prod,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import struct
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -67,8 +68,18 @@ def test_default_constructed_messages_encode() -> None:
         (GOOD_DRAW[:24] + b"\xff" + GOOD_DRAW[25:], "link_name[0]", 24, "invalid UTF-8"),
         (GOOD_DRAW[:32] + b"X" + GOOD_DRAW[33:], "link_name[0]", 32, "not NUL-terminated"),
         (GOOD_DRAW + b"\0", "<end>", len(GOOD_DRAW), "1 trailing bytes"),
-        (GOOD_DRAW[:-4] + struct.pack(">f", float("nan")), "quaternion[7]", len(GOOD_DRAW) - 4, "non-finite"),
-        (GOOD_DRAW[:-4] + struct.pack(">f", float("inf")), "quaternion[7]", len(GOOD_DRAW) - 4, "non-finite"),
+        (
+            GOOD_DRAW[:-4] + struct.pack(">f", float("nan")),
+            "quaternion[1][3]",
+            len(GOOD_DRAW) - 4,
+            "non-finite",
+        ),
+        (
+            GOOD_DRAW[:-4] + struct.pack(">f", float("inf")),
+            "quaternion[1][3]",
+            len(GOOD_DRAW) - 4,
+            "non-finite",
+        ),
         (GOOD_DRAW[:-1], "quaternion", len(GOOD_DRAW) - 32, "count 8 needs at least 32 bytes, 31 remain"),
     ],
 )
@@ -146,3 +157,27 @@ def test_encode_errors_name_the_field(message: LcmMessage, field: str | None, re
         message.encode()
     assert caught.value.field == field
     assert reason is not None and reason in caught.value.reason
+
+
+@pytest.mark.parametrize("links", [12, 16, 100, 2000])  # both sides of the numpy threshold
+def test_long_arrays_match_lcm_gen(links: int, lcmgen: dict[str, type]) -> None:
+    rng = np.random.default_rng(links)
+    theirs = lcmgen["drake.lcmt_viewer_draw"]()
+    theirs.timestamp, theirs.num_links = -5, links
+    theirs.link_name = [f"plant::m::l{i}" for i in range(links)]
+    theirs.robot_num = rng.integers(-(2**31), 2**31, links).tolist()
+    theirs.position = rng.normal(size=(links, 3)).astype(np.float32).tolist()
+    theirs.quaternion = rng.normal(size=(links, 4)).astype(np.float32).tolist()
+    data = theirs.encode()
+    ours = DRAW.decode(data)
+    assert (ours.position, ours.quaternion, ours.robot_num) == (
+        theirs.position,
+        theirs.quaternion,
+        theirs.robot_num,
+    )
+    assert ours.encode() == data
+    nan_at = len(data) - 16 * links + 4 * 9  # quaternion[2][1]
+    broken = data[:nan_at] + struct.pack(">f", float("nan")) + data[nan_at + 4 :]
+    with pytest.raises(DecodeError) as caught:
+        DRAW.decode(broken)
+    assert (caught.value.field, caught.value.offset) == ("quaternion[2][1]", nan_at)
