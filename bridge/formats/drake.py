@@ -381,7 +381,7 @@ class DrawDecoder:
             return self._generic(data)
         timestamp, count = _HEADER.unpack_from(data, 8)
         names_end: int | None = 20 + len(self._names_block)
-        if count != len(self._names) or data[20:names_end] != self._names_block:
+        if count != len(self._names) or not _same_bytes_at(data, 20, self._names_block):
             names_end = self._parse_names(data, count)
         # After the names: int32 robot_num, 3 float32 position, 4 float32 quaternion per link.
         if names_end is None or end != names_end + 32 * count:
@@ -424,6 +424,12 @@ class DrawDecoder:
         self._names = tuple(names)
         self._names_block = bytes(data[20:offset])
         return offset
+
+
+def _same_bytes_at(data: Buffer, offset: int, expected: bytes) -> bool:
+    if isinstance(data, bytes | bytearray):
+        return data.startswith(expected, offset)  # compares in place, no copy
+    return data[offset : offset + len(expected)] == expected
 
 
 class DrawEncoder:
