@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 from typing import Any
+
+import numpy as np
 
 from bridge.errors import DecodeError
 from bridge.lcmcodec import codec_for
@@ -78,4 +81,13 @@ def _text_lines(value: dict[str, Any], depth: int, lines: list[str]) -> None:
             lines.append(f"{pad}{key}:")
             _text_lines(item, depth + 1, lines)
         else:
-            lines.append(f"{pad}{key}: {item!r}")
+            lines.append(f"{pad}{key}: {_short(item)}")
+
+
+def _short(value: Any) -> str:
+    """repr, but a float that is exactly a float32 (most of LCM's) is shown as float32 prints it."""
+    if isinstance(value, list):
+        return "[" + ", ".join(_short(item) for item in value) + "]"
+    if isinstance(value, float) and math.isfinite(value) and float(np.float32(value)) == value:
+        return str(np.float32(value))
+    return repr(value)
