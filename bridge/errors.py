@@ -37,6 +37,10 @@ class DecodeError(BridgeError):
         self.unit = unit
         super().__init__(f"{type_name}.{field} at {unit} {offset}: {reason}")
 
+    def within(self, type_name: str, prefix: str) -> DecodeError:
+        """This error, raised in a nested struct, as seen from the outer type at field `prefix`."""
+        return DecodeError(type_name, f"{prefix}.{self.field}", self.offset, self.reason, self.unit)
+
 
 class EncodeError(BridgeError):
     """A message whose content cannot be encoded (wrong length, out-of-range value, ...)."""
@@ -46,6 +50,10 @@ class EncodeError(BridgeError):
         self.field = field
         self.reason = reason
         super().__init__(f"{type_name}.{field}: {reason}")
+
+    def within(self, type_name: str, prefix: str) -> EncodeError:
+        """This error, raised in a nested struct, as seen from the outer type at field `prefix`."""
+        return EncodeError(type_name, f"{prefix}.{self.field}", self.reason)
 
 
 class SceneError(BridgeError):

@@ -32,17 +32,7 @@ from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-TETRAHEDRON_OBJ = """\
-v 0 0 0
-v 0.1 0 0
-v 0 0.1 0
-v 0 0 0.1
-vn -0.577 -0.577 -0.577
-f 1//1 3//1 2//1
-f 1//1 2//1 4//1
-f 1//1 4//1 3//1
-f 2//1 3//1 4//1
-"""
+from bridge.demo import TETRAHEDRON_OBJ
 
 
 def main(url: str, folder: Path) -> None:

@@ -211,15 +211,6 @@ def _read_string(type_name: str, field: str, buf: Buffer, offset: int, end: int)
     return text, start + length
 
 
-def _nested(error: DecodeError, type_name: str, prefix: str) -> DecodeError:
-    """Re-home an error raised in a child struct under the outer type and field path."""
-    return DecodeError(type_name, f"{prefix}.{error.field}", error.offset, error.reason)
-
-
-def _nested_encode(error: EncodeError, type_name: str, prefix: str) -> EncodeError:
-    return EncodeError(type_name, f"{prefix}.{error.field}", error.reason)
-
-
 _U32 = struct.Struct(">I")
 _NUMPY_THRESHOLD = 48  # elements; below this, struct.unpack beats numpy's per-call overhead
 _ENCODE_ERRORS = (struct.error, OverflowError, TypeError, ValueError, AttributeError, UnicodeError)
@@ -509,12 +500,19 @@ class _StructGenerator:
                 out.line(f"_read_string({t}, {field}, buf, off, end)")
             out.line("off = stop")
             return
+        self.call_child(
+            f"{target}, off = {_ident(member.type_name)}_decode(buf, off, end)", "DecodeError", field
+        )
+
+    def call_child(self, statement: str, error_class: str, field: str) -> None:
+        """Run `statement` (a child struct's codec), re-homing its error under this type and field."""
+        out = self.out
         out.line("try:")
         with out.indent():
-            out.line(f"{target}, off = {_ident(member.type_name)}_decode(buf, off, end)")
-        out.line("except DecodeError as error:")
+            out.line(statement)
+        out.line(f"except {error_class} as error:")
         with out.indent():
-            out.line(f"raise _nested(error, {t}, {field}) from None")
+            out.line(f"raise error.within({self.type_literal}, {field}) from None")
 
     # Encoding ---------------------------------------------------------------------------------
 
@@ -574,12 +572,7 @@ class _StructGenerator:
             out.line(
                 f"raise EncodeError({t}, {field}, 'expected {member.type_name}, got %s' % type({source}).__name__)"
             )
-        out.line("try:")
-        with out.indent():
-            out.line(f"{child}_encode({source}, out)")
-        out.line("except EncodeError as error:")
-        with out.indent():
-            out.line(f"raise _nested_encode(error, {t}, {field}) from None")
+        self.call_child(f"{child}_encode({source}, out)", "EncodeError", field)
 
     def write_formats(self) -> None:
         for name, fmt in self.struct_formats.items():
@@ -633,8 +626,6 @@ def compile_codecs(structs: Mapping[str, StructDef]) -> dict[str, StructCodec]:
         "_bad_count": _bad_count,
         "_check_finite": _check_finite,
         "_read_string": _read_string,
-        "_nested": _nested,
-        "_nested_encode": _nested_encode,
         "_ENCODE_ERRORS": _ENCODE_ERRORS,
     }
     source = generate_source(structs)
