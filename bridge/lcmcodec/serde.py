@@ -589,10 +589,9 @@ def _flatten_bytes(value: Any, shape: Sequence[int], type_name: str, field: str)
     return b"".join(_flatten_bytes(row, shape[1:], type_name, f"{field}[{i}]") for i, row in enumerate(value))
 
 
-def generate_source(structs: Mapping[str, StructDef]) -> str:
+def generate_source(structs: Mapping[str, StructDef], min_sizes: Mapping[str, int]) -> str:
     """The Python source of every class, decoder and encoder for `structs`."""
     out = _Writer()
-    min_sizes = _min_sizes(structs)
     for definition in structs.values():
         generator = _StructGenerator(definition, min_sizes, out)
         generator.write_class()
@@ -628,9 +627,9 @@ def compile_codecs(structs: Mapping[str, StructDef]) -> dict[str, StructCodec]:
         "_read_string": _read_string,
         "_ENCODE_ERRORS": _ENCODE_ERRORS,
     }
-    source = generate_source(structs)
-    exec(compile(source, "<lcm codecs generated from lcmtypes/>", "exec"), namespace)  # noqa: S102
     min_sizes = _min_sizes(structs)
+    source = generate_source(structs, min_sizes)
+    exec(compile(source, "<lcm codecs generated from lcmtypes/>", "exec"), namespace)  # noqa: S102
     codecs: dict[str, StructCodec] = {}
     for name, definition in structs.items():
         ident = _ident(name)
