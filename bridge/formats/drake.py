@@ -137,53 +137,45 @@ def _triangle_mesh(data: Sequence[float]) -> TriangleMesh:
     values = np.asarray(data, dtype=np.float64)
     vertices = values[2 : 2 + 3 * v].reshape(v, 3)
     index_floats = values[2 + 3 * v :]
-    if index_floats.size and (
-        (index_floats < 0).any()
-        or (index_floats >= v).any()
-        or (index_floats != np.floor(index_floats)).any()
-    ):
-        bad = int(
-            np.flatnonzero(
-                (index_floats < 0) | (index_floats >= v) | (index_floats != np.floor(index_floats))
-            )[0]
-        )
+    invalid = (index_floats < 0) | (index_floats >= v) | (index_floats != np.floor(index_floats))
+    if invalid.any():
+        bad = int(np.flatnonzero(invalid)[0])
         raise _ShapeDataError(
             f"mesh array index {index_floats[bad]} is not a vertex index below V={v}", 2 + 3 * v + bad
         )
     return TriangleMesh(vertices, index_floats.astype(np.int64).reshape(t, 3))
 
 
+def _json_error(reason: str, position: int = 0) -> _ShapeDataError:
+    """An error in the in-memory-mesh JSON of `string_data`, at a character position."""
+    return _ShapeDataError(reason, position, "character", "string_data")
+
+
 def _in_memory_mesh(text: str, scale: Vector3) -> InMemoryMesh:
     try:
         document = json.loads(text)
     except json.JSONDecodeError as error:
-        raise _ShapeDataError(
-            f"in-memory mesh JSON: {error.msg}", error.pos, "character", "string_data"
-        ) from None
+        raise _json_error(f"in-memory mesh JSON: {error.msg}", error.pos) from None
     root = _json_object(document, "in_memory_mesh", "the document")
     mesh_file = _file_contents(_json_object(root, "mesh_file", "in_memory_mesh"), "mesh_file")
     supporting: dict[str, FileContents | str] = {}
     files = root.get("supporting_files", {})
     if not isinstance(files, dict):
-        raise _ShapeDataError(
-            "in-memory mesh: supporting_files is not an object", 0, "character", "string_data"
-        )
+        raise _json_error("in-memory mesh: supporting_files is not an object")
     for name, entry in files.items():
         if isinstance(entry, dict) and isinstance(entry.get("path"), str) and "contents" not in entry:
             supporting[name] = entry["path"]
         elif isinstance(entry, dict):
             supporting[name] = _file_contents(entry, f"supporting_files.{name}")
         else:
-            raise _ShapeDataError(
-                f"in-memory mesh: supporting file {name!r} is not an object", 0, "character", "string_data"
-            )
+            raise _json_error(f"in-memory mesh: supporting file {name!r} is not an object")
     return InMemoryMesh(mesh_file, supporting, scale)
 
 
 def _json_object(parent: Any, key: str, where: str) -> dict[str, Any]:
     value = parent.get(key) if isinstance(parent, dict) else None
     if not isinstance(value, dict):
-        raise _ShapeDataError(f"in-memory mesh: {where} has no object {key!r}", 0, "character", "string_data")
+        raise _json_error(f"in-memory mesh: {where} has no object {key!r}")
     return value
 
 
@@ -191,15 +183,11 @@ def _file_contents(entry: dict[str, Any], where: str) -> FileContents:
     contents, extension = entry.get("contents"), entry.get("extension")
     hint = entry.get("filename_hint", "")
     if not isinstance(contents, str) or not isinstance(extension, str) or not isinstance(hint, str):
-        raise _ShapeDataError(
-            f"in-memory mesh: {where} needs string 'contents' and 'extension'", 0, "character", "string_data"
-        )
+        raise _json_error(f"in-memory mesh: {where} needs string 'contents' and 'extension'")
     try:
         data = base64.b64decode(contents, validate=True)
     except ValueError as error:  # binascii.Error, or non-ASCII text
-        raise _ShapeDataError(
-            f"in-memory mesh: {where}.contents is not base64 ({error})", 0, "character", "string_data"
-        ) from None
+        raise _json_error(f"in-memory mesh: {where}.contents is not base64 ({error})") from None
     return FileContents(data, extension, hint)
 
 

@@ -1,8 +1,9 @@
 """LCM codecs for the types in `lcmtypes/`, generated from the schemas when first imported.
 
-from bridge.lcmcodec import DRAW
-message = DRAW.decode(data)          # -> drake.lcmt_viewer_draw message
-assert DRAW.encode(message) == data  # byte-identical to lcm-gen's output
+Usage::
+
+    message = DRAW.decode(data)          # a drake.lcmt_viewer_draw message
+    assert DRAW.encode(message) == data  # byte-identical to lcm-gen's output
 """
 
 from __future__ import annotations

@@ -193,22 +193,23 @@ def _element_path(index: int, shape: Sequence[int]) -> str:
     return "".join(f"[{i}]" for i in reversed(indices))
 
 
-def _read_string(type_name: str, field: str, buf: Buffer, offset: int, end: int) -> tuple[str, int]:
+def _string_error(type_name: str, field: str, buf: Buffer, offset: int, end: int) -> DecodeError:
+    """The precise error for the malformed string at `offset` (the generated code's slow path)."""
     if offset + 4 > end:
-        raise _truncated(type_name, field, offset, 4, end)
+        return _truncated(type_name, field, offset, 4, end)
     (length,) = _U32.unpack_from(buf, offset)
     start = offset + 4
     if length == 0:
-        raise DecodeError(type_name, field, offset, "string length 0 leaves no room for its NUL")
+        return DecodeError(type_name, field, offset, "string length 0 leaves no room for its NUL")
     if start + length > end:
-        raise _truncated(type_name, field, start, length, end)
+        return _truncated(type_name, field, start, length, end)
     if buf[start + length - 1] != 0:
-        raise DecodeError(type_name, field, start + length - 1, "string is not NUL-terminated")
+        return DecodeError(type_name, field, start + length - 1, "string is not NUL-terminated")
     try:
-        text = str(buf[start : start + length - 1], "utf-8")
+        str(buf[start : start + length - 1], "utf-8")
     except UnicodeDecodeError as error:
-        raise DecodeError(type_name, field, start + error.start, "invalid UTF-8") from None
-    return text, start + length
+        return DecodeError(type_name, field, start + error.start, "invalid UTF-8")
+    return DecodeError(type_name, field, offset, "malformed string")
 
 
 _U32 = struct.Struct(">I")
@@ -482,22 +483,23 @@ class _StructGenerator:
     def decode_element(self, member: Member, target: str, field: str) -> None:
         out, t = self.out, self.type_literal
         if member.type_name == "string":
-            # Inlined for speed (link names are read every frame); any irregularity goes to
-            # `_read_string`, which raises the precise error.
+            # Inlined for speed (link names are read every frame); `_string_error` works out the
+            # precise error only when something is wrong.
+            error = f"_string_error({t}, {field}, buf, off, end)"
             out.line("if off + 4 > end:")
             with out.indent():
-                out.line(f"_read_string({t}, {field}, buf, off, end)")
+                out.line(f"raise {error}")
             out.line("(length,) = _U32_unpack_from(buf, off)")
             out.line("stop = off + 4 + length")
             out.line("if length == 0 or stop > end or buf[stop - 1] != 0:")
             with out.indent():
-                out.line(f"_read_string({t}, {field}, buf, off, end)")
+                out.line(f"raise {error}")
             out.line("try:")
             with out.indent():
                 out.line(f"{target} = _str(buf[off + 4 : stop - 1], 'utf-8')")
             out.line("except UnicodeDecodeError:")
             with out.indent():
-                out.line(f"_read_string({t}, {field}, buf, off, end)")
+                out.line(f"raise {error} from None")
             out.line("off = stop")
             return
         self.call_child(
@@ -624,7 +626,7 @@ def compile_codecs(structs: Mapping[str, StructDef]) -> dict[str, StructCodec]:
         "_truncated": _truncated,
         "_bad_count": _bad_count,
         "_check_finite": _check_finite,
-        "_read_string": _read_string,
+        "_string_error": _string_error,
         "_ENCODE_ERRORS": _ENCODE_ERRORS,
     }
     min_sizes = _min_sizes(structs)
