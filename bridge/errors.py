@@ -58,3 +58,15 @@ class EncodeError(BridgeError):
 
 class SceneError(BridgeError):
     """A scene that a target format cannot express, or a message that makes no valid scene."""
+
+
+class ConfigError(BridgeError):
+    """A configuration or mapping-table file that is not valid: names the file, line and key."""
+
+    def __init__(self, path: str, line: int | None, key: str, reason: str) -> None:
+        self.path = path
+        self.line = line
+        self.key = key
+        self.reason = reason
+        where = f"{path}:{line}" if line is not None else path
+        super().__init__(f"{where}: {key}: {reason}" if key else f"{where}: {reason}")

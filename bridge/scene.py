@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from bridge.errors import SceneError
+
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 Rgba = tuple[float, float, float, float]
@@ -83,6 +85,61 @@ def _quaternion_product(
 
 def _vector3(values: Sequence[float] | FloatArray) -> Vector3:
     return (float(values[0]), float(values[1]), float(values[2]))
+
+
+# --- poses of many links at once ------------------------------------------------------------------
+# The quaternion order is converted here and in `Pose.quaternion_xyzw`, nowhere else.
+
+
+def xyzw_from_wxyz(quaternions: npt.ArrayLike) -> FloatArray:
+    """N x 4 quaternions from Drake's w, x, y, z order to ROS/gz's x, y, z, w."""
+    return np.roll(np.asarray(quaternions, dtype=np.float64), -1, axis=-1)
+
+
+def wxyz_from_xyzw(quaternions: npt.ArrayLike) -> FloatArray:
+    """N x 4 quaternions from ROS/gz's x, y, z, w order to Drake's w, x, y, z."""
+    return np.roll(np.asarray(quaternions, dtype=np.float64), 1, axis=-1)
+
+
+# How far from 1 a quaternion's length may be before it is refused rather than normalised.
+QUATERNION_TOLERANCE = 1e-2
+
+
+def unit_quaternions(quaternions: npt.ArrayLike, what: str) -> FloatArray:
+    """Normalised copies of N x 4 quaternions (either order).
+
+    A quaternion a little off unit length (float32 rounding, a sender that does not normalise)
+    is normalised: that is the documented fallback. NaN, infinity or a length far from one
+    cannot be a rotation and raise `SceneError` naming the first bad row of `what`.
+    """
+    values = np.asarray(quaternions, dtype=np.float64)
+    norms = np.linalg.norm(values, axis=-1)
+    bad = ~np.isfinite(norms) | (np.abs(norms - 1.0) > QUATERNION_TOLERANCE)
+    if bad.any():
+        row = int(np.flatnonzero(np.atleast_1d(bad))[0])
+        raise SceneError(
+            f"{what}[{row}]: quaternion of length {np.atleast_1d(norms)[row]:.6g} is not a rotation"
+        )
+    normalised: FloatArray = values / norms[..., None]
+    return normalised
+
+
+def compose_arrays(
+    parent_positions: FloatArray,
+    parent_wxyz: FloatArray,
+    child_positions: FloatArray,
+    child_wxyz: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """Row-wise `parent * child` for N poses at once (positions N x 3, quaternions N x 4 w-first)."""
+    pw, pv = parent_wxyz[:, :1], parent_wxyz[:, 1:]
+    cw, cv = child_wxyz[:, :1], child_wxyz[:, 1:]
+    # Rotate the child's position by the parent's quaternion: v + 2 w (u x v) + 2 u x (u x v).
+    twice_cross = 2.0 * np.cross(pv, child_positions)
+    positions = parent_positions + child_positions + pw * twice_cross + np.cross(pv, twice_cross)
+    quaternions = np.empty_like(parent_wxyz)
+    quaternions[:, :1] = pw * cw - np.sum(pv * cv, axis=1, keepdims=True)
+    quaternions[:, 1:] = pw * cv + cw * pv + np.cross(pv, cv)
+    return positions, quaternions
 
 
 # --- shapes ------------------------------------------------------------------------------------
@@ -162,6 +219,25 @@ class InMemoryMesh:
 
 
 Shape = Box | Sphere | Cylinder | Capsule | Ellipsoid | HalfSpace | MeshFile | TriangleMesh | InMemoryMesh
+
+# The names the translation tables in mappings/ use for the shapes.
+SHAPE_KINDS: dict[str, type[Shape]] = {
+    "box": Box,
+    "sphere": Sphere,
+    "cylinder": Cylinder,
+    "capsule": Capsule,
+    "ellipsoid": Ellipsoid,
+    "half_space": HalfSpace,
+    "mesh_file": MeshFile,
+    "triangle_mesh": TriangleMesh,
+    "in_memory_mesh": InMemoryMesh,
+}
+_KIND_OF: dict[type[Shape], str] = {shape_type: kind for kind, shape_type in SHAPE_KINDS.items()}
+
+
+def shape_kind(shape: Shape) -> str:
+    """The table name of a shape's kind, e.g. "cylinder"."""
+    return _KIND_OF[type(shape)]
 
 
 @dataclass(frozen=True, slots=True)

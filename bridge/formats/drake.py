@@ -22,14 +22,10 @@ import numpy as np
 
 from bridge.errors import DecodeError, EncodeError
 from bridge.lcmcodec import DRAW, GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, Buffer, LcmMessage
+from bridge.mappings import tables
 from bridge.scene import (
-    Box,
-    Capsule,
-    Cylinder,
-    Ellipsoid,
     FileContents,
     Geometry,
-    HalfSpace,
     InMemoryMesh,
     Link,
     LinkPoses,
@@ -37,7 +33,6 @@ from bridge.scene import (
     Pose,
     Scene,
     Shape,
-    Sphere,
     TriangleMesh,
     Vector3,
 )
@@ -52,10 +47,6 @@ BOX, SPHERE, CYLINDER, MESH, CAPSULE, ELLIPSOID = map(
     _geometry_code, ("BOX", "SPHERE", "CYLINDER", "MESH", "CAPSULE", "ELLIPSOID")
 )
 _LOAD_TYPE = LOAD_ROBOT.type_name
-
-# Drake's stand-in for an infinite half-space (geometry/drake_visualizer.cc).
-HALF_SPACE_BOX: Vector3 = (50.0, 50.0, 1.0)
-_HALF_SPACE_OFFSET = Pose((0.0, 0.0, -0.5))
 
 
 class _ShapeDataError(Exception):
@@ -72,36 +63,6 @@ class _ShapeDataError(Exception):
 
 
 # --- load_robot -> scene -------------------------------------------------------------------------
-
-
-def _floats(data: Sequence[float], count: int, shape_name: str) -> list[float]:
-    if len(data) < count:
-        raise _ShapeDataError(f"{shape_name} needs {count} floats, got {len(data)}", len(data))
-    return [float(value) for value in data[:count]]
-
-
-def _box(data: Sequence[float], text: str) -> Shape:
-    x, y, z = _floats(data, 3, "box")
-    return Box((x, y, z))
-
-
-def _sphere(data: Sequence[float], text: str) -> Shape:
-    return Sphere(_floats(data, 1, "sphere")[0])
-
-
-def _cylinder(data: Sequence[float], text: str) -> Shape:
-    radius, length = _floats(data, 2, "cylinder")  # radius FIRST in Drake's message
-    return Cylinder(radius, length)
-
-
-def _capsule(data: Sequence[float], text: str) -> Shape:
-    radius, length = _floats(data, 2, "capsule")
-    return Capsule(radius, length)
-
-
-def _ellipsoid(data: Sequence[float], text: str) -> Shape:
-    a, b, c = _floats(data, 3, "ellipsoid")
-    return Ellipsoid((a, b, c))
 
 
 def _mesh(data: Sequence[float], text: str) -> Shape:
@@ -191,22 +152,18 @@ def _file_contents(entry: dict[str, Any], where: str) -> FileContents:
     return FileContents(data, extension, hint)
 
 
-_SHAPE_READERS: dict[int, Callable[[Sequence[float], str], Shape]] = {
-    BOX: _box,
-    SPHERE: _sphere,
-    CYLINDER: _cylinder,
-    MESH: _mesh,
-    CAPSULE: _capsule,
-    ELLIPSOID: _ellipsoid,
-}
-
-
 def geometry_from_lcm(message: LcmMessage) -> Geometry:
     """One `lcmt_viewer_geometry_data` as a scene geometry (raises `_ShapeDataError`)."""
-    reader = _SHAPE_READERS.get(message.type)
-    if reader is None:
+    if message.type == MESH:  # three kinds of mesh, told apart by string_data: code, not table
+        shape = _mesh(message.float_data, message.string_data)
+    elif message.type in GEOMETRY_TABLE.types.values():
+        values = {"float_data": message.float_data, "string_data": message.string_data}
+        try:
+            shape = GEOMETRY_TABLE.decode(message.type, values)
+        except ValueError as error:
+            raise _ShapeDataError(str(error), len(message.float_data)) from None
+    else:
         raise _ShapeDataError(f"unknown geometry type {message.type}", 0, "element", "type")
-    shape = reader(message.float_data, message.string_data)
     x, y, z = message.position
     qw, qx, qy, qz = message.quaternion
     r, g, b, a = message.color
@@ -248,29 +205,26 @@ def decode_load(data: Buffer) -> Scene:
 # --- scene -> load_robot -------------------------------------------------------------------------
 
 
-def _shape_fields(shape: Shape) -> tuple[int, list[float], str]:
-    """Type code, float_data and string_data for one shape, as Drake writes them."""
-    match shape:
-        case Box(size):
-            return BOX, list(size), ""
-        case Sphere(radius):
-            return SPHERE, [radius], ""
-        case Cylinder(radius, length):
-            return CYLINDER, [radius, length], ""
-        case Capsule(radius, length):
-            return CAPSULE, [radius, length], ""
-        case Ellipsoid(radii):
-            return ELLIPSOID, list(radii), ""
-        case HalfSpace():
-            return BOX, list(HALF_SPACE_BOX), ""
-        case MeshFile(path, scale):
-            return MESH, list(scale), path
-        case TriangleMesh(vertices, triangles):
-            counts = [float(len(vertices)), float(len(triangles))]
-            return MESH, counts + vertices.ravel().tolist() + triangles.ravel().astype(float).tolist(), ""
-        case InMemoryMesh(mesh_file, supporting_files, scale):
-            return MESH, list(scale), _in_memory_json(mesh_file, supporting_files)
-    raise EncodeError(_LOAD_TYPE, "geom", f"no Drake geometry for {shape!r}")
+def _mesh_array(shape: TriangleMesh) -> dict[str, Any]:
+    counts = [float(len(shape.vertices)), float(len(shape.triangles))]
+    return {
+        "float_data": counts
+        + shape.vertices.ravel().tolist()
+        + shape.triangles.ravel().astype(float).tolist(),
+        "string_data": "",
+    }
+
+
+def _in_memory(shape: InMemoryMesh) -> dict[str, Any]:
+    return {"string_data": _in_memory_json(shape.mesh_file, shape.supporting_files)}
+
+
+# The encoders the table (mappings/drake.yaml) names for what it cannot express itself.
+_ENCODERS: dict[str, Callable[[Any], dict[str, Any]]] = {
+    "mesh_array": _mesh_array,
+    "in_memory_json": _in_memory,
+}
+GEOMETRY_TABLE = tables("drake", tuple(_ENCODERS))["geometry_data"]
 
 
 def _in_memory_json(mesh_file: FileContents, supporting: Any) -> str:
@@ -292,12 +246,14 @@ def _in_memory_json(mesh_file: FileContents, supporting: Any) -> str:
 
 
 def geometry_to_lcm(geometry: Geometry) -> LcmMessage:
-    type_code, float_data, string_data = _shape_fields(geometry.shape)
-    pose = geometry.pose
-    if isinstance(geometry.shape, HalfSpace):
-        pose = pose.compose(_HALF_SPACE_OFFSET)
+    """One scene geometry as Drake writes it (a half-space becomes Drake's box)."""
+    ((rule, shape, pose),) = GEOMETRY_TABLE.expand(geometry.shape, geometry.pose)
+    fields = {"float_data": [], "string_data": ""} | rule.values(shape)
+    if rule.encoder is not None:
+        fields |= _ENCODERS[rule.encoder](shape)
+    float_data, string_data = fields["float_data"], fields["string_data"]
     return GEOMETRY_DATA.message_class(
-        type=type_code,
+        type=rule.type_code,
         position=list(pose.position),
         quaternion=list(pose.quaternion_wxyz),
         color=list(geometry.color),
@@ -465,7 +421,7 @@ def _encode_string(text: str) -> bytes:
 
 
 __all__ = [
-    "HALF_SPACE_BOX",
+    "GEOMETRY_TABLE",
     "DrawDecoder",
     "DrawEncoder",
     "decode_load",

@@ -209,8 +209,8 @@ def mesh_json(document: Any) -> str:
     ("type_code", "float_data", "string_data", "field", "reason"),
     [
         (9, [], "", "link[0].geom[0].type", "unknown geometry type 9"),
-        (1, [1.0, 2.0], "", "link[0].geom[0].float_data", "box needs 3 floats, got 2"),
-        (3, [1.0], "", "link[0].geom[0].float_data", "cylinder needs 2 floats"),
+        (1, [1.0, 2.0], "", "link[0].geom[0].float_data", "box needs 3 values in float_data, got 2"),
+        (3, [1.0], "", "link[0].geom[0].float_data", "cylinder needs 2 values in float_data"),
         (
             4,
             [3.0, 1.0, 0, 0, 0, 1, 0, 0, 0, 1, 0],

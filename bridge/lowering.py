@@ -1,0 +1,127 @@
+"""Lowerings: a shape rewritten as other shapes, for targets that lack it.
+
+A table rule `{as: <name>}` names one of `LOWERINGS`. Each returns the parts that replace the
+shape, each posed in the shape's own frame. Meshes are read and tessellated with trimesh, so a
+mesh file a target cannot reference (shape_msgs/Mesh carries vertices) is read from disk here;
+that is the only I/O in the translators, and a missing or unreadable file is a `SceneError`.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import trimesh
+
+from bridge.errors import SceneError
+from bridge.scene import (
+    Box,
+    Capsule,
+    Cylinder,
+    Ellipsoid,
+    HalfSpace,
+    InMemoryMesh,
+    MeshFile,
+    Pose,
+    Shape,
+    Sphere,
+    TriangleMesh,
+    Vector3,
+)
+
+Parts = list[tuple[Shape, Pose]]
+
+# Drake's stand-in for an infinite half-space (geometry/drake_visualizer.cc): a 50 x 50 x 1 box
+# whose top face is the plane.
+HALF_SPACE_BOX: Vector3 = (50.0, 50.0, 1.0)
+HALF_SPACE_OFFSET = Pose((0.0, 0.0, -0.5))
+
+# Tessellation density: enough to look round in a viewer, small enough for a 1000-link scene.
+_SECTIONS = 24
+_SPHERE_SUBDIVISIONS = 2
+
+
+@dataclass(frozen=True, slots=True)
+class Lowering:
+    function: Callable[[Any], Parts]
+    produces: tuple[str, ...]  # the shape kinds the parts can be
+
+
+def half_space_box(shape: HalfSpace) -> Parts:
+    """A half-space as the 50 x 50 x 1 box Drake draws for it."""
+    return [(Box(HALF_SPACE_BOX), HALF_SPACE_OFFSET)]
+
+
+def capsule_parts(shape: Capsule) -> Parts:
+    """A capsule as a cylinder and two spheres at its ends (how drake-ros draws one in RViz)."""
+    half = shape.length / 2.0
+    return [
+        (Cylinder(shape.radius, shape.length), Pose()),
+        (Sphere(shape.radius), Pose((0.0, 0.0, half))),
+        (Sphere(shape.radius), Pose((0.0, 0.0, -half))),
+    ]
+
+
+def triangle_mesh_parts(shape: Shape) -> Parts:
+    return [(triangle_mesh(shape), Pose())]
+
+
+def triangle_mesh(shape: Shape) -> TriangleMesh:
+    """Any shape as vertices and triangles; mesh files are read with trimesh."""
+    match shape:
+        case TriangleMesh():
+            return shape
+        case Box(size):
+            return _from_trimesh(trimesh.creation.box(extents=size))
+        case Sphere(radius):
+            return _from_trimesh(trimesh.creation.icosphere(_SPHERE_SUBDIVISIONS, radius))
+        case Ellipsoid(radii):
+            unit = trimesh.creation.icosphere(_SPHERE_SUBDIVISIONS, 1.0)
+            return TriangleMesh(np.asarray(unit.vertices) * radii, np.asarray(unit.faces, dtype=np.int64))
+        case Cylinder(radius, length):
+            return _from_trimesh(trimesh.creation.cylinder(radius, length, sections=_SECTIONS))
+        case Capsule(radius, length):
+            return _from_trimesh(trimesh.creation.capsule(length, radius, count=[_SECTIONS, _SECTIONS]))
+        case HalfSpace():
+            box = triangle_mesh(Box(HALF_SPACE_BOX))
+            return TriangleMesh(box.vertices + HALF_SPACE_OFFSET.position, box.triangles)
+        case MeshFile(path, scale):
+            if not os.path.isfile(path):
+                raise SceneError(f"mesh file {path} does not exist")
+            return _scaled(_load(path, None, path), scale)
+        case InMemoryMesh(mesh_file, _, scale):
+            data = io.BytesIO(mesh_file.contents)
+            return _scaled(
+                _load(data, mesh_file.extension, mesh_file.filename_hint or "in-memory mesh"), scale
+            )
+    raise SceneError(f"no triangle mesh for {shape!r}")
+
+
+def _load(source: Any, extension: str | None, name: str) -> TriangleMesh:
+    file_type = extension.lstrip(".").lower() if extension else None
+    try:
+        loaded = trimesh.load(source, file_type=file_type, force="mesh", process=False)
+    except Exception as error:  # trimesh raises many kinds for unreadable files
+        raise SceneError(f"mesh {name} could not be read: {error}") from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise SceneError(f"mesh {name} has no triangles")
+    return _from_trimesh(loaded)
+
+
+def _from_trimesh(mesh: trimesh.Trimesh) -> TriangleMesh:
+    return TriangleMesh(np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int64))
+
+
+def _scaled(mesh: TriangleMesh, scale: Vector3) -> TriangleMesh:
+    return TriangleMesh(mesh.vertices * np.asarray(scale), mesh.triangles)
+
+
+LOWERINGS: dict[str, Lowering] = {
+    "half_space_box": Lowering(half_space_box, ("box",)),
+    "capsule_parts": Lowering(capsule_parts, ("cylinder", "sphere")),
+    "triangle_mesh": Lowering(triangle_mesh_parts, ("triangle_mesh",)),
+}

@@ -1,0 +1,395 @@
+"""The translation tables in `mappings/`: how each scene shape is written in each target format.
+
+A table file (`mappings/<format>.yaml`) holds one or more tables. A table names the target
+message, its shape type codes, and for every shape kind of the scene model (`scene.SHAPE_KINDS`)
+one rule, either
+
+* direct: `{type: CYLINDER, fields: {dimensions: [length, radius]}}`: the target type and, per
+  target field, terms read from the shape (`radius`, `2 * radius`, `size.x`, a literal `0`), or
+* lowered: `{as: capsule_parts}`: the shape is first rewritten by a named function in
+  `bridge.lowering` into shapes the table has direct rules for.
+
+A rule may also name an `encoder`: a small function of the format module that fills the fields a
+table cannot express (a mesh's vertices). Direct rules whose terms cover every parameter of the
+shape are invertible, which is how the reverse directions (Model -> scene, tree JSON -> scene,
+Drake load -> scene) read shapes back. Tables are validated when loaded: a mistake is a
+`ConfigError` with file, line and key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass
+from functools import cache
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from bridge.errors import ConfigError
+from bridge.lowering import LOWERINGS
+from bridge.resources import data_dir
+from bridge.scene import SHAPE_KINDS, Pose, Shape, shape_kind
+from bridge.yamldoc import KeyPath, YamlDocument
+
+_TERM = re.compile(r"^(?:(?P<factor>[0-9]+(?:\.[0-9]*)?)\s*\*\s*)?(?P<field>[a-z_]+)(?:\.(?P<axis>[xyz]))?$")
+_AXES = "xyz"
+
+
+@dataclass(frozen=True, slots=True)
+class Term:
+    """One value of a target field: a literal, or `factor * <shape field>[.axis]`."""
+
+    field: str | None = None
+    axis: int | None = None
+    factor: float = 1.0
+    literal: float | None = None
+
+    def read(self, shape: Shape) -> Any:
+        if self.field is None:
+            return self.literal
+        value = getattr(shape, self.field)
+        if self.axis is not None:
+            value = value[self.axis]
+        return value if isinstance(value, str) else self.factor * float(value)
+
+    def __str__(self) -> str:
+        if self.field is None:
+            return f"{self.literal:g}"
+        text = self.field + (f".{_AXES[self.axis]}" if self.axis is not None else "")
+        return text if self.factor == 1.0 else f"{self.factor:g} * {text}"
+
+
+@dataclass(frozen=True, slots=True)
+class ShapeRule:
+    """How one shape kind is written in one target (see the module docstring)."""
+
+    kind: str
+    type: str | None = None
+    type_code: int | None = None
+    lower: str | None = None
+    fields: Mapping[str, tuple[Term, ...]] = dataclasses.field(default_factory=dict)
+    list_fields: frozenset[str] = frozenset()
+    encoder: str | None = None
+    message: str | None = None
+    note: str = ""
+
+    def values(self, shape: Shape) -> dict[str, Any]:
+        """The target fields this rule sets, read from `shape`: a value or a list per field."""
+        result: dict[str, Any] = {}
+        for name, terms in self.fields.items():
+            read = [term.read(shape) for term in terms]
+            result[name] = read if name in self.list_fields else read[0]
+        return result
+
+    @property
+    def invertible(self) -> bool:
+        """Whether the shape can be rebuilt from the fields (every parameter is read by a term)."""
+        if self.lower is not None or self.encoder is not None:
+            return False
+        needed = {(item.name, axis) for item in _parameters(self.kind) for axis in _axes_of(self.kind, item)}
+        read = {(term.field, term.axis) for terms in self.fields.values() for term in terms if term.field}
+        return needed <= read
+
+    def shape_from(self, values: Mapping[str, Any]) -> Shape:
+        """The shape whose fields are `values` (the inverse of `values`).
+
+        Raises `ValueError` naming the field when a value is missing, not a number, or a list
+        is too short.
+        """
+        parameters: dict[str, Any] = {
+            item.name: [0.0, 0.0, 0.0] if _is_vector(self.kind, item.name) else None
+            for item in _parameters(self.kind)
+        }
+        for name, terms in self.fields.items():
+            given = _given_values(values, name, len(terms) if name in self.list_fields else None, self.kind)
+            for term, value in zip(terms, given, strict=True):
+                if term.field is None:
+                    continue
+                parameter = _term_value(term, value, name)
+                if term.axis is None:
+                    parameters[term.field] = parameter
+                else:
+                    parameters[term.field][term.axis] = parameter
+        arguments: dict[str, Any] = {
+            key: tuple(value) if isinstance(value, list) else value for key, value in parameters.items()
+        }
+        return SHAPE_KINDS[self.kind](**arguments)
+
+
+def _given_values(values: Mapping[str, Any], name: str, count: int | None, kind: str) -> Sequence[Any]:
+    if name not in values:
+        raise ValueError(f"{kind} needs {name}, which is missing")
+    value = values[name]
+    if count is None:
+        return [value]
+    if not isinstance(value, Sequence) or isinstance(value, str) or len(value) < count:
+        length = len(value) if isinstance(value, Sequence) and not isinstance(value, str) else "no"
+        raise ValueError(f"{kind} needs {count} values in {name}, got {length}")
+    return value
+
+
+def _term_value(term: Term, value: Any, name: str) -> Any:
+    if isinstance(value, str):
+        if _is_text(term):
+            return value
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    return float(value) / term.factor
+
+
+@dataclass(frozen=True, slots=True)
+class Table:
+    """One target message's rules, keyed by shape kind."""
+
+    name: str
+    target: str
+    types: Mapping[str, int]
+    rules: Mapping[str, ShapeRule]
+    options: Mapping[str, Any]
+    note: str = ""
+
+    def rule_for(self, shape: Shape) -> ShapeRule:
+        return self.rules[shape_kind(shape)]
+
+    def expand(self, shape: Shape, pose: Pose | None = None) -> list[tuple[ShapeRule, Shape, Pose]]:
+        """The direct rules that write `shape`, after its lowering if the table lowers it.
+
+        A capsule that a table lowers to a cylinder and two spheres expands to three entries,
+        each posed in the frame `pose` is expressed in.
+        """
+        rule = self.rule_for(shape)
+        pose = pose or Pose()
+        if rule.lower is None:
+            return [(rule, shape, pose)]
+        parts = LOWERINGS[rule.lower].function(shape)
+        return [entry for part, offset in parts for entry in self.expand(part, pose.compose(offset))]
+
+    def decode(self, type_code: int, values: Mapping[str, Any]) -> Shape:
+        """The shape written as `type_code` with `values`, by the first invertible rule of that type.
+
+        Raises `ValueError` for a type no invertible rule has, or values that do not fit it.
+        """
+        for rule in self.rules.values():
+            if rule.type_code == type_code and rule.invertible:
+                return rule.shape_from(values)
+        raise ValueError(f"no shape of {self.target} has type {type_code}")
+
+    def type_name(self, code: int) -> str:
+        names = [name for name, value in self.types.items() if value == code]
+        return names[0] if names else str(code)
+
+
+# --- loading -------------------------------------------------------------------------------------
+
+
+class _RuleSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+    type: str | None = None
+    lower: str | None = Field(None, alias="as")
+    fields: dict[str, float | str | list[float | str]] = {}
+    encoder: str | None = None
+    message: str | None = None
+    note: str = ""
+
+
+class _TableSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    target: str
+    note: str = ""
+    types: dict[str, int]
+    shapes: dict[str, _RuleSpec]
+    options: dict[str, Any] = {}
+
+
+class _FileSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    format: str
+    note: str = ""
+    tables: dict[str, _TableSpec]
+
+
+def load_tables(document: YamlDocument, encoders: Collection[str] | None = None) -> dict[str, Table]:
+    """Validate a table file; `encoders` are the hook names its format module provides.
+
+    With `encoders` None the encoder names are not checked (enough to print the reference).
+    """
+    spec = document.validate(_FileSpec)
+    return {
+        name: _table(document, ("tables", name), name, table, encoders) for name, table in spec.tables.items()
+    }
+
+
+@cache
+def tables(format_name: str, encoders: tuple[str, ...] | None = None) -> dict[str, Table]:
+    """The tables of `mappings/<format_name>.yaml`, loaded once."""
+    return load_tables(YamlDocument.read(data_dir("mappings") / f"{format_name}.yaml"), encoders)
+
+
+def _table(
+    document: YamlDocument, where: KeyPath, name: str, spec: _TableSpec, encoders: Collection[str] | None
+) -> Table:
+    rules: dict[str, ShapeRule] = {}
+    for kind, rule_spec in spec.shapes.items():
+        if kind not in SHAPE_KINDS:
+            known = ", ".join(SHAPE_KINDS)
+            raise document.error((*where, "shapes", kind), f"unknown shape kind (known: {known})")
+        rules[kind] = _rule(document, (*where, "shapes", kind), kind, rule_spec, spec.types, encoders)
+    missing = [kind for kind in SHAPE_KINDS if kind not in rules]
+    if missing:
+        # Every shape must have a way out: a shape a table forgets would be dropped silently.
+        raise document.error((*where, "shapes"), f"no rule for {', '.join(missing)}")
+    for kind, rule in rules.items():
+        if rule.lower is not None:
+            for produced in LOWERINGS[rule.lower].produces:
+                if rules[produced].lower is not None:
+                    raise document.error(
+                        (*where, "shapes", kind, "as"),
+                        f"{rule.lower} makes {produced}, which has no direct rule",
+                    )
+    return Table(name, spec.target, dict(spec.types), rules, dict(spec.options), spec.note)
+
+
+def _rule(
+    document: YamlDocument,
+    where: KeyPath,
+    kind: str,
+    spec: _RuleSpec,
+    types: Mapping[str, int],
+    encoders: Collection[str] | None,
+) -> ShapeRule:
+    if (spec.type is None) == (spec.lower is None):
+        raise document.error(where, "give exactly one of 'type' (a direct rule) or 'as' (a lowering)")
+    if spec.type is not None and spec.type not in types:
+        raise document.error((*where, "type"), f"unknown type {spec.type!r} (known: {', '.join(types)})")
+    if spec.lower is not None and spec.lower not in LOWERINGS:
+        raise document.error(
+            (*where, "as"), f"unknown lowering {spec.lower!r} (known: {', '.join(LOWERINGS)})"
+        )
+    if spec.encoder is not None and encoders is not None and spec.encoder not in encoders:
+        known = ", ".join(encoders) or "none"
+        raise document.error((*where, "encoder"), f"unknown encoder {spec.encoder!r} (known: {known})")
+    fields: dict[str, tuple[Term, ...]] = {}
+    list_fields = set()
+    for name, value in spec.fields.items():
+        items = value if isinstance(value, list) else [value]
+        if isinstance(value, list):
+            list_fields.add(name)
+        fields[name] = tuple(
+            _term(document, (*where, "fields", name, index), kind, item) for index, item in enumerate(items)
+        )
+    return ShapeRule(
+        kind=kind,
+        type=spec.type,
+        type_code=types[spec.type] if spec.type is not None else None,
+        lower=spec.lower,
+        fields=fields,
+        list_fields=frozenset(list_fields),
+        encoder=spec.encoder,
+        message=spec.message,
+        note=spec.note,
+    )
+
+
+def _term(document: YamlDocument, where: KeyPath, kind: str, item: float | str) -> Term:
+    if not isinstance(item, str):
+        return Term(literal=float(item))
+    match = _TERM.match(item.strip())
+    if match is None:
+        raise document.error(where, f"{item!r} is not a number, 'field', 'field.x' or 'factor * field'")
+    field, axis, factor = match["field"], match["axis"], match["factor"]
+    parameters = {parameter.name: parameter for parameter in _parameters(kind)}
+    if field not in parameters:
+        raise document.error(
+            where, f"{kind} has no field {field!r} (it has: {', '.join(parameters) or 'none'})"
+        )
+    if _is_vector(kind, field) != (axis is not None):
+        raise document.error(
+            where, f"{kind}.{field} " + ("needs .x/.y/.z" if axis is None else "is not a vector")
+        )
+    term = Term(field, _AXES.index(axis) if axis else None, float(factor) if factor else 1.0)
+    if factor and _is_text(term, kind):
+        raise document.error(where, f"{kind}.{field} is text and cannot be scaled")
+    return term
+
+
+# --- shape parameters, from the scene's dataclasses ------------------------------------------------
+
+
+def _parameters(kind: str) -> tuple[dataclasses.Field[Any], ...]:
+    """The parameters of a shape kind a term may read (numbers, vectors and text)."""
+    return tuple(
+        item for item in dataclasses.fields(SHAPE_KINDS[kind]) if item.type in ("float", "Vector3", "str")
+    )
+
+
+def _is_vector(kind: str, field: str) -> bool:
+    return any(
+        item.name == field and item.type == "Vector3" for item in dataclasses.fields(SHAPE_KINDS[kind])
+    )
+
+
+def _axes_of(kind: str, item: dataclasses.Field[Any]) -> tuple[int | None, ...]:
+    return (0, 1, 2) if _is_vector(kind, item.name) else (None,)
+
+
+def _is_text(term: Term, kind: str | None = None) -> bool:
+    kinds = [kind] if kind else list(SHAPE_KINDS)
+    return any(
+        item.name == term.field and item.type == "str"
+        for name in kinds
+        for item in dataclasses.fields(SHAPE_KINDS[name])
+    )
+
+
+# --- the reference page ------------------------------------------------------------------------------
+
+
+def reference_markdown(format_names: Sequence[str]) -> str:
+    """`mappings/REFERENCE.md`: every table as a Markdown table, generated so it never drifts."""
+    lines = [
+        "# Mapping reference",
+        "",
+        "Generated from the tables in `mappings/` by `viewer-bridge mappings`; do not edit by hand.",
+        "Terms read the scene's shape parameters (SI units, radius not diameter, full box lengths,",
+        "ellipsoid semi-axes); `as` names a lowering in `bridge/lowering.py`; an encoder is a small",
+        "function of the format module that fills what a table cannot (vertices, file bytes).",
+    ]
+    for format_name in format_names:
+        for name, table in tables(format_name).items():
+            lines += ["", f"## {format_name}: {name} (`{table.target}`)", ""]
+            if table.note:
+                lines += [table.note, ""]
+            lines += ["| shape | type | fields | note |", "|---|---|---|---|"]
+            for kind, rule in table.rules.items():
+                lines.append(f"| {kind} | {_type_cell(rule)} | {_fields_cell(rule)} | {rule.note} |")
+            if table.options:
+                options = ", ".join(f"`{key}: {value}`" for key, value in table.options.items())
+                lines += ["", f"Options: {options}"]
+    return "\n".join(lines) + "\n"
+
+
+def _type_cell(rule: ShapeRule) -> str:
+    if rule.lower is not None:
+        produced = ", ".join(LOWERINGS[rule.lower].produces)
+        return f"as `{rule.lower}` ({produced})"
+    message = f" in `{rule.message}`" if rule.message else ""
+    return f"{rule.type} = {rule.type_code}{message}"
+
+
+def _fields_cell(rule: ShapeRule) -> str:
+    cells = []
+    for name, terms in rule.fields.items():
+        text = ", ".join(str(term) for term in terms)
+        cells.append(f"`{name}` = [{text}]" if name in rule.list_fields else f"`{name}` = {text}")
+    if rule.encoder:
+        cells.append(f"encoder `{rule.encoder}`")
+    return "; ".join(cells)
+
+
+__all__ = ["ConfigError", "ShapeRule", "Table", "Term", "load_tables", "reference_markdown", "tables"]

@@ -1,0 +1,81 @@
+"""YAML files validated with pydantic, whose errors name the file, line and key.
+
+Both the mapping tables and the router's config are YAML; a mistake in either should read like
+a compiler error (`mappings/ros.yaml:12: shapes.box.type: unknown type 'CUBE'`), not a stack trace.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, TypeVar
+
+import yaml
+from pydantic import BaseModel, ValidationError
+
+from bridge.errors import ConfigError
+
+KeyPath = tuple[str | int, ...]
+Model = TypeVar("Model", bound=BaseModel)
+
+
+class YamlDocument:
+    """A parsed YAML file that remembers the line of every key and list item."""
+
+    def __init__(self, path: str, text: str) -> None:
+        self.path = path
+        try:
+            root = yaml.compose(text, Loader=yaml.SafeLoader)
+            self.data: Any = yaml.safe_load(text)
+        except yaml.YAMLError as error:
+            mark = getattr(error, "problem_mark", None)
+            line = mark.line + 1 if mark is not None else None
+            raise ConfigError(path, line, "", f"not valid YAML: {getattr(error, 'problem', error)}") from None
+        self.lines: dict[KeyPath, int] = {}
+        if root is not None:
+            self._index(root, ())
+
+    @classmethod
+    def read(cls, path: Path | str) -> YamlDocument:
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+        except OSError as error:
+            raise ConfigError(str(path), None, "", f"cannot read: {error.strerror}") from None
+        return cls(str(path), text)
+
+    def _index(self, node: yaml.Node, key_path: KeyPath) -> None:
+        self.lines[key_path] = node.start_mark.line + 1
+        if isinstance(node, yaml.MappingNode):
+            for key_node, value_node in node.value:
+                key = key_node.value
+                self.lines[(*key_path, key)] = key_node.start_mark.line + 1
+                self._index(value_node, (*key_path, key))
+                self.lines[(*key_path, key)] = key_node.start_mark.line + 1
+        elif isinstance(node, yaml.SequenceNode):
+            for index, item in enumerate(node.value):
+                self._index(item, (*key_path, index))
+
+    def line_of(self, key_path: KeyPath) -> int | None:
+        """The line of the deepest part of `key_path` the file has."""
+        for end in range(len(key_path), -1, -1):
+            line = self.lines.get(tuple(key_path[:end]))
+            if line is not None:
+                return line
+        return None
+
+    def error(self, key_path: KeyPath, reason: str) -> ConfigError:
+        key = ".".join(str(part) for part in key_path)
+        return ConfigError(self.path, self.line_of(key_path), key, reason)
+
+    def validate(self, model: type[Model], context: dict[str, Any] | None = None) -> Model:
+        """The document as `model`; the first validation error becomes a `ConfigError`."""
+        try:
+            return model.model_validate(self.data, context=context)
+        except ValidationError as error:
+            first = error.errors()[0]
+            key_path = tuple(part for part in first["loc"] if isinstance(part, str | int))
+            raise self.error(key_path, _reason(first)) from None
+
+
+def _reason(detail: Any) -> str:
+    message = str(detail["msg"])
+    return message.removeprefix("Value error, ")
