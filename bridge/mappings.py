@@ -4,8 +4,9 @@ A table file (`mappings/<format>.yaml`) holds one or more tables. A table names 
 message, its shape type codes, and for every shape kind of the scene model (`scene.SHAPE_KINDS`)
 one rule, either
 
-* direct: `{type: CYLINDER, fields: {dimensions: [length, radius]}}`: the target type and, per
-  target field, terms read from the shape (`radius`, `2 * radius`, `size.x`, a literal `0`), or
+* direct: `{type: CYLINDER, fields: {dimensions: [length, radius]}}`: the target type (or, with
+  `message`, another message type to write instead) and, per target field, terms read from the
+  shape (`radius`, `2 * radius`, `size.x`, a literal `0`), or
 * lowered: `{as: capsule_parts}`: the shape is first rewritten by a named function in
   `bridge.lowering` into shapes the table has direct rules for.
 
@@ -104,8 +105,13 @@ class ShapeRule:
         }
         for name, terms in self.fields.items():
             given = _given_values(values, name, len(terms) if name in self.list_fields else None, self.kind)
-            for term, value in zip(terms, given, strict=True):
+            for index, (term, value) in enumerate(zip(terms, given, strict=False)):
                 if term.field is None:
+                    # A fixed value the target may only hold as written: anything else would
+                    # be a different shape, read back silently wrong.
+                    if value != term.literal:
+                        where = f"{name}[{index}]" if name in self.list_fields else name
+                        raise ValueError(f"{self.kind} needs {where} = {term}, got {value!r}")
                     continue
                 parameter = _term_value(term, value, name)
                 if term.axis is None:
@@ -176,6 +182,13 @@ class Table:
             if rule.type_code == type_code and rule.invertible:
                 return rule.shape_from(values)
         raise ValueError(f"no shape of {self.target} has type {type_code}")
+
+    def decode_message(self, message: str, values: Mapping[str, Any]) -> Shape:
+        """Like `decode`, for the rules that write another message type instead (`message:`)."""
+        for rule in self.rules.values():
+            if rule.message == message and rule.type_code is None and rule.invertible:
+                return rule.shape_from(values)
+        raise ValueError(f"no shape of {self.target} is written as {message}")
 
     def type_name(self, code: int) -> str:
         names = [name for name, value in self.types.items() if value == code]
@@ -263,8 +276,9 @@ def _rule(
     types: Mapping[str, int],
     encoders: Collection[str] | None,
 ) -> ShapeRule:
-    if (spec.type is None) == (spec.lower is None):
-        raise document.error(where, "give exactly one of 'type' (a direct rule) or 'as' (a lowering)")
+    direct = spec.type is not None or spec.message is not None
+    if direct == (spec.lower is not None):
+        raise document.error(where, "give 'type' or 'message' (a direct rule), or 'as' (a lowering)")
     if spec.type is not None and spec.type not in types:
         raise document.error((*where, "type"), f"unknown type {spec.type!r} (known: {', '.join(types)})")
     if spec.lower is not None and spec.lower not in LOWERINGS:
@@ -378,6 +392,8 @@ def _type_cell(rule: ShapeRule) -> str:
     if rule.lower is not None:
         produced = ", ".join(LOWERINGS[rule.lower].produces)
         return f"as `{rule.lower}` ({produced})"
+    if rule.type is None:
+        return f"`{rule.message}`"
     message = f" in `{rule.message}`" if rule.message else ""
     return f"{rule.type} = {rule.type_code}{message}"
 

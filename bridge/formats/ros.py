@@ -1,0 +1,747 @@
+"""ROS 2 (Jazzy) messages to and from the scene model.
+
+Messages are built as rosbags dataclasses (pure Python, every Jazzy type, CDR included), so the
+converters work without a ROS installation; `to_rclpy` turns any of them into rclpy message
+objects and `to_cdr` into the raw CDR bytes an rclpy publisher accepts. The per-frame outputs
+also have fast paths that write CDR straight from the pose arrays:
+
+* `PoseArrayEncoder`: draw -> `geometry_msgs/PoseArray` bytes, `pose_array_arrays` back;
+* `MarkerStream`: one load -> a CDR template of the `MarkerArray`, then each draw only writes
+  the markers' world poses into it.
+
+Which shape becomes which message is in `mappings/ros.yaml`; quaternion order is converted by
+`bridge.scene` (`Pose.quaternion_xyzw`, `xyzw_from_wxyz`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import struct
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, fields, is_dataclass
+from functools import cache
+from typing import Any
+
+import numpy as np
+from rosbags.interfaces import Nodetype
+from rosbags.typesys import Stores, get_typestore
+
+from bridge.errors import DecodeError, SceneError
+from bridge.mappings import ShapeRule, tables
+from bridge.scene import (
+    FloatArray,
+    InMemoryMesh,
+    LinkPoses,
+    MeshFile,
+    Pose,
+    Scene,
+    Shape,
+    TriangleMesh,
+    compose_arrays,
+    unit_quaternions,
+    wxyz_from_xyzw,
+    xyzw_from_wxyz,
+)
+
+STORE = get_typestore(Stores.ROS2_JAZZY)
+
+POSE_ARRAY = "geometry_msgs/msg/PoseArray"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+MARKER = "visualization_msgs/msg/Marker"
+MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
+SOLID_PRIMITIVE = "shape_msgs/msg/SolidPrimitive"
+MESH = "shape_msgs/msg/Mesh"
+PLANE = "shape_msgs/msg/Plane"
+
+# --- building messages ---------------------------------------------------------------------------
+
+
+def make(typename: str, **values: Any) -> Any:
+    """A rosbags message of `typename`; fields not given take ROS's defaults (0, "", empty)."""
+    defaults = _defaults(typename)
+    for name, default in defaults.items():
+        if name not in values:
+            values[name] = default()
+    return STORE.types[typename](**values)
+
+
+@cache
+def _defaults(typename: str) -> dict[str, Callable[[], Any]]:
+    _, field_defs = STORE.fielddefs[typename]
+    return {name: _default_of(definition) for name, definition in field_defs}
+
+
+def _default_of(definition: tuple[Any, Any]) -> Callable[[], Any]:
+    node, detail = definition
+    if node == Nodetype.BASE:
+        base = detail[0]
+        value: Any = "" if base == "string" else False if base == "bool" else 0.0 if "float" in base else 0
+        return lambda: value
+    if node == Nodetype.NAME:
+        return lambda: make(detail)
+    (item_node, item_detail), length = detail
+    if item_node == Nodetype.BASE and item_detail[0] != "string":
+        dtype = np.dtype(_NUMPY_TYPES.get(item_detail[0], item_detail[0]))
+        size = length if node == Nodetype.ARRAY else 0
+        return lambda: np.zeros(size, dtype=dtype)
+    if node == Nodetype.ARRAY:
+        item = _default_of((item_node, item_detail))
+        return lambda: [item() for _ in range(length)]
+    return list
+
+
+_NUMPY_TYPES = {"byte": "uint8", "octet": "uint8", "char": "uint8", "bool": "bool"}
+
+
+def to_cdr(message: Any) -> bytes:
+    """Little-endian CDR with its 4-byte encapsulation header, as rclpy publishes and reads it."""
+    return bytes(STORE.serialize_cdr(message, message.__msgtype__))
+
+
+def from_cdr(data: bytes | memoryview, typename: str) -> Any:
+    """Raw CDR as a rosbags message; raises `DecodeError` for bytes that are not one."""
+    try:
+        return STORE.deserialize_cdr(bytes(data), typename)
+    except Exception as error:  # rosbags raises struct.error, IndexError, ... on bad bytes
+        raise DecodeError(typename, "", 0, f"not a valid CDR message: {error}") from None
+
+
+def to_rclpy(message: Any) -> Any:
+    """The same message as an rclpy message object (needs the ROS 2 message packages)."""
+    package, _, name = message.__msgtype__.split("/")
+    cls = getattr(importlib.import_module(f"{package}.msg"), name)
+    values = {item.name: _rclpy_value(getattr(message, item.name)) for item in fields(message)}
+    return cls(**values)
+
+
+def _rclpy_value(value: Any) -> Any:
+    if is_dataclass(value):
+        return to_rclpy(value)
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, list):
+        return [_rclpy_value(item) for item in value]
+    return value
+
+
+def from_rclpy(message: Any) -> Any:
+    """An rclpy message object as the rosbags message of the same type."""
+    module, name = type(message).__module__, type(message).__name__
+    typename = f"{module.split('.')[0]}/msg/{name}"
+    _, field_defs = STORE.fielddefs[typename]
+    values = {}
+    for field_name, _ in field_defs:
+        value = getattr(message, field_name)
+        default = _defaults(typename)[field_name]()
+        if isinstance(default, np.ndarray):
+            value = np.asarray(value, dtype=default.dtype)
+        elif isinstance(value, list):
+            value = [
+                from_rclpy(item) if hasattr(item, "get_fields_and_field_types") else item for item in value
+            ]
+        elif hasattr(value, "get_fields_and_field_types"):
+            value = from_rclpy(value)
+        values[field_name] = value
+    return STORE.types[typename](**values)
+
+
+# --- poses ---------------------------------------------------------------------------------------
+
+
+def stamp(timestamp_ms: int) -> Any:
+    """A `builtin_interfaces/Time` for Drake's millisecond sim time."""
+    seconds, milliseconds = divmod(int(timestamp_ms), 1000)
+    return make("builtin_interfaces/msg/Time", sec=seconds, nanosec=milliseconds * 1_000_000)
+
+
+def header(frame_id: str, timestamp_ms: int = 0) -> Any:
+    return make("std_msgs/msg/Header", stamp=stamp(timestamp_ms), frame_id=frame_id)
+
+
+def pose_message(pose: Pose) -> Any:
+    x, y, z = pose.position
+    qx, qy, qz, qw = pose.quaternion_xyzw
+    return make(
+        "geometry_msgs/msg/Pose",
+        position=make("geometry_msgs/msg/Point", x=x, y=y, z=z),
+        orientation=make("geometry_msgs/msg/Quaternion", x=qx, y=qy, z=qz, w=qw),
+    )
+
+
+def pose_from_message(message: Any, what: str = "pose") -> Pose:
+    """A `geometry_msgs/Pose` as a scene pose (quaternion checked: see `unit_quaternions`)."""
+    orientation = message.orientation
+    xyzw = [orientation.x, orientation.y, orientation.z, orientation.w]
+    position = message.position
+    if not np.isfinite([position.x, position.y, position.z]).all():
+        raise SceneError(f"{what}.position is not finite")
+    w, x, y, z = wxyz_from_xyzw(unit_quaternions([xyzw], what))[0]
+    return Pose((position.x, position.y, position.z), (float(w), float(x), float(y), float(z)))
+
+
+def pose_array(poses: LinkPoses, frame_id: str = "world") -> Any:
+    """Every link's pose as one `geometry_msgs/PoseArray`, in the draw's link order."""
+    return make(
+        POSE_ARRAY,
+        header=header(frame_id, poses.timestamp_ms),
+        poses=[pose_message(poses.pose(index)) for index in range(len(poses))],
+    )
+
+
+def pose_stamped(poses: LinkPoses, index: int, frame_id: str = "world") -> Any:
+    """One link's world pose as a `geometry_msgs/PoseStamped`."""
+    return make(
+        POSE_STAMPED, header=header(frame_id, poses.timestamp_ms), pose=pose_message(poses.pose(index))
+    )
+
+
+def poses_from_pose_array(
+    message: Any, names: Sequence[str], robot_nums: Sequence[int] | None = None
+) -> LinkPoses:
+    """A `PoseArray` back as link poses; PoseArray carries no names, so the caller gives them.
+
+    Raises `SceneError` when the counts differ or a pose is not finite or not a rotation.
+    """
+    count = len(message.poses)
+    positions = np.array([[p.position.x, p.position.y, p.position.z] for p in message.poses]).reshape(
+        count, 3
+    )
+    xyzw = np.array(
+        [[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in message.poses]
+    )
+    return _link_poses(message.header.stamp, positions, xyzw.reshape(count, 4), names, robot_nums)
+
+
+def _link_poses(
+    time: Any, positions: FloatArray, xyzw: FloatArray, names: Sequence[str], robot_nums: Sequence[int] | None
+) -> LinkPoses:
+    count = len(positions)
+    if len(names) != count:
+        raise SceneError(f"PoseArray has {count} poses but {len(names)} link names were given")
+    if not np.isfinite(positions).all():
+        raise SceneError(
+            f"poses[{int(np.flatnonzero(~np.isfinite(positions).all(axis=1))[0])}].position is not finite"
+        )
+    quaternions = wxyz_from_xyzw(unit_quaternions(xyzw, "poses"))
+    numbers = (
+        np.zeros(count, dtype=np.int32) if robot_nums is None else np.asarray(robot_nums, dtype=np.int32)
+    )
+    timestamp_ms = int(time.sec) * 1000 + int(time.nanosec) // 1_000_000
+    return LinkPoses(timestamp_ms, tuple(names), numbers, positions, quaternions)
+
+
+# --- the PoseArray fast path -------------------------------------------------------------------------
+
+_CDR_LE = b"\x00\x01\x00\x00"
+
+
+def _cdr_string(text: str) -> bytes:
+    """A CDR string: uint32 length counting the NUL, the UTF-8 bytes, the NUL."""
+    data = text.encode("utf-8") + b"\0"
+    return struct.pack("<I", len(data)) + data
+
+
+class PoseArrayEncoder:
+    """draw arrays -> `geometry_msgs/PoseArray` CDR, without building a message per link.
+
+    Layout (payload offsets after the 4-byte encapsulation header): stamp (int32 sec, uint32
+    nanosec), frame_id string, pad to 4, uint32 count, pad to 8, then per pose 7 float64
+    (position x y z, orientation x y z w). The bytes up to the count depend only on the frame id.
+    """
+
+    def __init__(self, frame_id: str = "world") -> None:
+        self.frame_id = frame_id
+        frame = _cdr_string(frame_id)
+        self._frame = frame + b"\0" * (-len(frame) % 4)
+        self._poses_at = 8 + len(self._frame) + 4
+        self._padding = b"\0" * (-self._poses_at % 8)
+
+    def encode(self, poses: LinkPoses) -> bytes:
+        count = len(poses)
+        seconds, milliseconds = divmod(int(poses.timestamp_ms), 1000)
+        values = np.empty((count, 7), dtype="<f8")
+        values[:, :3] = poses.positions
+        values[:, 3:] = xyzw_from_wxyz(poses.quaternions_wxyz)
+        return b"".join(
+            (
+                _CDR_LE,
+                struct.pack("<iI", seconds, milliseconds * 1_000_000),
+                self._frame,
+                struct.pack("<I", count),
+                self._padding,
+                values.tobytes(),
+            )
+        )
+
+
+def pose_array_arrays(data: bytes | memoryview) -> tuple[int, str, FloatArray, FloatArray]:
+    """`PoseArray` CDR -> (timestamp_ms, frame_id, positions N x 3, quaternions N x 4 x-y-z-w).
+
+    Raises `DecodeError` for bytes that are not a little-endian PoseArray.
+    """
+    buffer = memoryview(data)
+    end = len(buffer)
+
+    def fail(field: str, offset: int, reason: str) -> DecodeError:
+        return DecodeError(POSE_ARRAY, field, offset, reason)
+
+    if end < 16 or bytes(buffer[:4]) != _CDR_LE:
+        raise fail("", 0, "not little-endian CDR (encapsulation 00 01 00 00)")
+    seconds, nanoseconds, length = struct.unpack_from("<iII", buffer, 4)
+    frame_end = 16 + length
+    if length == 0 or frame_end > end or buffer[frame_end - 1] != 0:
+        raise fail("header.frame_id", 12, f"string of length {length} does not fit")
+    frame_id = str(buffer[16 : frame_end - 1], "utf-8", errors="replace")
+    count_at = 4 + ((frame_end - 4 + 3) & ~3)
+    if count_at + 4 > end:
+        raise fail("poses", count_at, "truncated before the count")
+    (count,) = struct.unpack_from("<I", buffer, count_at)
+    poses_at = 4 + ((count_at + 4 - 4 + 7) & ~7)
+    if end - poses_at != 56 * count:
+        raise fail("poses", count_at, f"count {count} needs {56 * count} bytes, {end - poses_at} follow")
+    values = np.frombuffer(buffer, dtype="<f8", count=7 * count, offset=poses_at).reshape(count, 7)
+    timestamp_ms = seconds * 1000 + nanoseconds // 1_000_000
+    return timestamp_ms, frame_id, values[:, :3], values[:, 3:]
+
+
+def poses_from_pose_array_cdr(
+    data: bytes | memoryview, names: Sequence[str], robot_nums: Sequence[int] | None = None
+) -> LinkPoses:
+    """The fast path of `poses_from_pose_array`: PoseArray CDR straight to link poses."""
+    timestamp_ms, _, positions, xyzw = pose_array_arrays(data)
+    time = make(
+        "builtin_interfaces/msg/Time", sec=timestamp_ms // 1000, nanosec=(timestamp_ms % 1000) * 1_000_000
+    )
+    return _link_poses(time, positions, xyzw, names, robot_nums)
+
+
+# --- shapes: SolidPrimitive, Mesh, Plane -----------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class PosedShape:
+    """One geometry as a shape_msgs message (`SolidPrimitive`, `Mesh` or `Plane`), posed in a frame."""
+
+    frame_id: str
+    pose: Any  # geometry_msgs/Pose
+    shape: Any
+
+    @property
+    def typename(self) -> str:
+        return str(self.shape.__msgtype__)
+
+
+def shapes(scene: Scene) -> list[PosedShape]:
+    """Every geometry of the scene as a shape_msgs message in its link's frame (none dropped).
+
+    Raises `SceneError` for a mesh file that cannot be read.
+    """
+    table = _tables()["shape"]
+    result = []
+    for link in scene.links:
+        for geometry in link.geometries:
+            for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
+                result.append(
+                    PosedShape(link.frame, pose_message(pose), _shape_message(rule, shape, table.target))
+                )
+    return result
+
+
+def _shape_message(rule: ShapeRule, shape: Shape, target: str) -> Any:
+    values = rule.values(shape)
+    if rule.encoder is not None:
+        values |= _ENCODERS[rule.encoder](shape, {})
+    typename = rule.message or target
+    if rule.type_code is not None:
+        values["type"] = rule.type_code
+    return make(typename, **{name: _field_value(typename, name, value) for name, value in values.items()})
+
+
+def _field_value(typename: str, name: str, value: Any) -> Any:
+    default = _defaults(typename)[name]()
+    return np.asarray(value, dtype=default.dtype) if isinstance(default, np.ndarray) else value
+
+
+def _mesh_message(shape: TriangleMesh, options: dict[str, Any]) -> dict[str, Any]:
+    vertices = [make("geometry_msgs/msg/Point", x=x, y=y, z=z) for x, y, z in shape.vertices.tolist()]
+    triangles = [
+        make("shape_msgs/msg/MeshTriangle", vertex_indices=np.asarray(row, dtype=np.uint32))
+        for row in shape.triangles
+    ]
+    return {"vertices": vertices, "triangles": triangles}
+
+
+def shape_from_message(message: Any) -> Shape:
+    """A `SolidPrimitive`, `Mesh` or `Plane` back as a scene shape (the reverse of `shapes`)."""
+    if message.__msgtype__ == MESH:
+        vertices = np.array([[p.x, p.y, p.z] for p in message.vertices], dtype=np.float64).reshape(-1, 3)
+        triangles = np.array([t.vertex_indices for t in message.triangles], dtype=np.int64).reshape(-1, 3)
+        return TriangleMesh(vertices, triangles)
+    table = _tables()["shape"]
+    if message.__msgtype__ == PLANE:
+        return _decoded(lambda: table.decode_message(PLANE, {"coef": list(message.coef)}), PLANE)
+    return _decoded(
+        lambda: table.decode(int(message.type), {"dimensions": list(message.dimensions)}), SOLID_PRIMITIVE
+    )
+
+
+def _decoded(decode: Callable[[], Shape], typename: str) -> Shape:
+    try:
+        return decode()
+    except ValueError as error:
+        raise SceneError(f"{typename}: {error}") from None
+
+
+# --- markers -------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class MarkerSpec:
+    """One marker of a load, before it is a message: what both the object and CDR paths write.
+
+    `pose` is in the frame of link `link_name`; the marker's pose is that link's world pose
+    times `pose`. `points` (K x 3) is for TRIANGLE_LIST; `mesh_file` = (filename, bytes) for an
+    embedded mesh.
+    """
+
+    link_name: str
+    ns: str
+    id: int
+    type: int
+    pose: Pose
+    scale: tuple[float, float, float]
+    color: tuple[float, float, float, float]
+    points: FloatArray | None = None
+    mesh_resource: str = ""
+    mesh_file: tuple[str, bytes] = ("", b"")
+    action: int = 0  # ADD; DELETEALL = 3
+
+
+# The marker that starts a new load's array: RViz drops every marker it has.
+_IDENTITY_XYZW = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
+_DELETE_ALL = MarkerSpec("", "", 0, 0, Pose(), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), action=3)
+
+
+def marker_specs(scene: Scene, options: dict[str, Any] | None = None) -> list[MarkerSpec]:
+    """The markers of a scene, by `mappings/ros.yaml` (`options` override the table's options).
+
+    The namespace is the link's frame name and ids count the link's marker parts, so a marker
+    keeps its ns/id from one load of the same scene to the next.
+    """
+    table = _tables()["marker"]
+    settings = {**table.options, **(options or {})}
+    specs = []
+    for link in scene.links:
+        marker_id = 0
+        for geometry in link.geometries:
+            # ColorRGBA is float32 on the wire: round here so objects equal their CDR.
+            r, g, b, a = np.asarray(geometry.color, dtype=np.float32).tolist()
+            for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
+                values = rule.values(shape)
+                if rule.encoder is not None:
+                    values |= _ENCODERS[rule.encoder](shape, settings)
+                x, y, z = values.pop("scale")
+                code = rule.type_code if rule.type_code is not None else 0
+                specs.append(
+                    MarkerSpec(
+                        link.name, link.frame, marker_id, code, pose, (x, y, z), (r, g, b, a), **values
+                    )
+                )
+                marker_id += 1
+    return specs
+
+
+def world_poses(scene: Scene, specs: Sequence[MarkerSpec]) -> tuple[FloatArray, FloatArray]:
+    """Every marker's world pose (positions M x 3, quaternions M x 4 w-first), all at once."""
+    positions = np.array([spec.pose.position for spec in specs], dtype=np.float64).reshape(-1, 3)
+    wxyz = np.array([spec.pose.quaternion_wxyz for spec in specs], dtype=np.float64).reshape(-1, 4)
+    if scene.poses is None:
+        return positions, wxyz
+    rows = _link_rows(scene.poses.names, [spec.link_name for spec in specs])
+    link_positions, link_wxyz = _with_identity_row(scene.poses)
+    return compose_arrays(link_positions[rows], link_wxyz[rows], positions, wxyz)
+
+
+def _link_rows(names: Sequence[str], wanted: Sequence[str]) -> np.ndarray[Any, Any]:
+    """The row of each wanted link in a draw; links the draw lacks get the extra identity row."""
+    index = {name: row for row, name in enumerate(names)}
+    return np.array([index.get(name, len(names)) for name in wanted], dtype=np.int64)
+
+
+def _with_identity_row(poses: LinkPoses) -> tuple[FloatArray, FloatArray]:
+    count = len(poses)
+    positions = np.zeros((count + 1, 3))
+    positions[:count] = poses.positions
+    wxyz = np.zeros((count + 1, 4))
+    wxyz[:count] = poses.quaternions_wxyz
+    wxyz[count, 0] = 1.0
+    return positions, wxyz
+
+
+def _marker_settings(options: dict[str, Any] | None) -> dict[str, Any]:
+    return {**_tables()["marker"].options, **(options or {})}
+
+
+def marker_array(scene: Scene, options: dict[str, Any] | None = None, delete_all: bool = True) -> Any:
+    """The scene as a `visualization_msgs/MarkerArray` (rosbags message) in the world frame.
+
+    Each marker's pose is its link's pose in `scene.poses` times the geometry's pose (a link
+    missing from the poses, like `world`, sits at the origin). `options` override the table's
+    (`frame_id`, `embed_mesh_files`). With `delete_all` the array starts with a DELETEALL marker,
+    as a new load should, so that RViz forgets the previous scene. `marker_array_cdr` is the
+    fast path to the same message's bytes.
+    """
+    frame_id = str(_marker_settings(options)["frame_id"])
+    specs = marker_specs(scene, options)
+    positions, wxyz = world_poses(scene, specs)
+    markers = [_marker_message(_DELETE_ALL, frame_id, Pose())] if delete_all else []
+    for spec, position, quaternion in zip(specs, positions.tolist(), wxyz.tolist(), strict=True):
+        markers.append(_marker_message(spec, frame_id, Pose(tuple(position), tuple(quaternion))))
+    return make(MARKER_ARRAY, markers=markers)
+
+
+def _marker_message(spec: MarkerSpec, frame_id: str, pose: Pose) -> Any:
+    x, y, z = spec.scale
+    r, g, b, a = spec.color
+    extra: dict[str, Any] = {"mesh_resource": spec.mesh_resource}
+    if spec.points is not None:
+        extra["points"] = [
+            make("geometry_msgs/msg/Point", x=px, y=py, z=pz) for px, py, pz in spec.points.tolist()
+        ]
+    if spec.mesh_file[0]:
+        name, data = spec.mesh_file
+        extra["mesh_file"] = make(
+            "visualization_msgs/msg/MeshFile", filename=name, data=np.frombuffer(data, np.uint8)
+        )
+    return make(
+        MARKER,
+        header=header(frame_id),
+        ns=spec.ns,
+        id=spec.id,
+        type=spec.type,
+        action=spec.action,
+        pose=pose_message(pose),
+        scale=make("geometry_msgs/msg/Vector3", x=x, y=y, z=z),
+        color=make("std_msgs/msg/ColorRGBA", r=r, g=g, b=b, a=a),
+        **extra,
+    )
+
+
+def _mesh_resource(shape: MeshFile, options: dict[str, Any]) -> dict[str, Any]:
+    if not options.get("embed_mesh_files"):
+        return {"mesh_resource": f"file://{shape.path}"}
+    try:
+        with open(shape.path, "rb") as file:
+            data = file.read()
+    except OSError as error:
+        raise SceneError(f"mesh file {shape.path} cannot be embedded: {error.strerror}") from None
+    return _embedded(os.path.basename(shape.path), data)
+
+
+def _embedded_mesh(shape: InMemoryMesh, options: dict[str, Any]) -> dict[str, Any]:
+    name = shape.mesh_file.filename_hint or f"mesh{shape.mesh_file.extension}"
+    return _embedded(os.path.basename(name), shape.mesh_file.contents)
+
+
+def _embedded(name: str, data: bytes) -> dict[str, Any]:
+    # RViz reads mesh_file.data when mesh_resource is embedded://<mesh_file.filename>.
+    return {"mesh_resource": f"embedded://{name}", "mesh_file": (name, data)}
+
+
+def _triangle_list(shape: TriangleMesh, options: dict[str, Any]) -> dict[str, Any]:
+    return {"points": shape.vertices[shape.triangles.reshape(-1)]}
+
+
+_ENCODERS: dict[str, Callable[[Any, dict[str, Any]], dict[str, Any]]] = {
+    "mesh": _mesh_message,
+    "mesh_resource": _mesh_resource,
+    "embedded_mesh": _embedded_mesh,
+    "triangle_list": _triangle_list,
+}
+
+
+@cache
+def _tables() -> dict[str, Any]:
+    return tables("ros", tuple(_ENCODERS))
+
+
+# --- the MarkerArray fast path ---------------------------------------------------------------------
+
+
+class _CdrWriter:
+    """Little-endian CDR into a list of chunks; `size` is the payload offset alignment counts from."""
+
+    def __init__(self) -> None:
+        self.chunks: list[bytes] = [_CDR_LE]
+        self.size = 0
+
+    def add(self, data: bytes) -> None:
+        self.chunks.append(data)
+        self.size += len(data)
+
+    def align(self, boundary: int) -> None:
+        padding = -self.size % boundary
+        if padding:
+            self.add(b"\0" * padding)
+
+    def pack(self, layout: struct.Struct, *values: Any) -> None:
+        self.align(4)  # every layout used here starts with a 4-byte value
+        self.add(layout.pack(*values))
+
+    def string(self, text: str) -> None:
+        self.pack(_U32, len(text.encode("utf-8")) + 1)
+        self.add(text.encode("utf-8") + b"\0")
+
+    def octets(self, data: bytes) -> None:
+        self.pack(_U32, len(data))
+        self.add(data)
+
+    def getvalue(self) -> bytes:
+        return b"".join(self.chunks)
+
+
+_U32 = struct.Struct("<I")
+_STAMP = struct.Struct("<iI")
+_ID_TYPE_ACTION = struct.Struct("<iii")
+# pose (7), scale (3), color (4 float32), lifetime (sec, nanosec): one block, 8-aligned.
+_POSE_TO_LIFETIME = struct.Struct("<10d4fiI")
+
+
+def _string_4(text: str) -> bytes:
+    """A CDR string padded to a multiple of 4, for a string that starts 4-aligned."""
+    data = _cdr_string(text)
+    return data + b"\0" * (-len(data) % 4)
+
+
+def _marker_tail(spec: MarkerSpec) -> bytes:
+    """Everything after a marker's lifetime. It starts 8-aligned, so its bytes never change."""
+    writer = _CdrWriter()
+    writer.add(b"\0")  # frame_locked: the pose is already in the world frame
+    points = spec.points if spec.points is not None else np.zeros((0, 3))
+    writer.pack(_U32, len(points))
+    if len(points):
+        writer.align(8)
+        writer.add(np.ascontiguousarray(points, dtype="<f8").tobytes())
+    writer.pack(_U32, 0)  # colors
+    writer.string("")  # texture_resource
+    writer.pack(_STAMP, 0, 0)  # texture.header.stamp
+    writer.string("")  # texture.header.frame_id
+    writer.string("")  # texture.format
+    writer.octets(b"")  # texture.data
+    writer.pack(_U32, 0)  # uv_coordinates
+    writer.string("")  # text
+    writer.string(spec.mesh_resource)
+    writer.string(spec.mesh_file[0])
+    writer.octets(spec.mesh_file[1])
+    writer.add(b"\0")  # mesh_use_embedded_materials
+    return writer.getvalue()[len(_CDR_LE) :]
+
+
+def _write_markers(
+    specs: Sequence[MarkerSpec], poses: FloatArray, frame_id: str, delete_all: bool
+) -> tuple[bytes, list[int]]:
+    """A MarkerArray's CDR (Jazzy field order) and the payload offset of each spec's pose.
+
+    Written a marker at a time from a few pre-packed blocks: the header (constant per frame),
+    the namespace, one struct for pose to lifetime, and the tail (cached per kind of marker).
+    """
+    if delete_all:
+        specs = [_DELETE_ALL, *specs]
+        poses = np.concatenate((_IDENTITY_XYZW[None, :], poses))
+    stamp_and_frame = _STAMP.pack(0, 0) + _string_4(frame_id)
+    tails: dict[tuple[str, str, int, bool], bytes] = {}
+    chunks = [_CDR_LE, _U32.pack(len(specs))]
+    size = 4  # payload bytes so far
+    offsets = []
+    for spec, pose in zip(specs, poses.tolist(), strict=True):
+        if size % 4:  # the previous marker ended on a bool
+            chunks.append(b"\0" * (-size % 4))
+            size += -size % 4
+        head = stamp_and_frame + _string_4(spec.ns) + _ID_TYPE_ACTION.pack(spec.id, spec.type, spec.action)
+        padding = -(size + len(head)) % 8
+        key = (spec.mesh_resource, spec.mesh_file[0], id(spec.mesh_file[1]), spec.points is None)
+        tail = tails.get(key) if spec.points is None else None
+        if tail is None:
+            tail = tails[key] = _marker_tail(spec)
+        offsets.append(size + len(head) + padding)
+        block = _POSE_TO_LIFETIME.pack(*pose, *spec.scale, *spec.color, 0, 0)
+        chunks += (head, b"\0" * padding, block, tail)
+        size += len(head) + padding + len(block) + len(tail)
+    return b"".join(chunks), offsets[1:] if delete_all else offsets
+
+
+def marker_array_cdr(scene: Scene, options: dict[str, Any] | None = None, delete_all: bool = True) -> bytes:
+    """`marker_array` straight to CDR bytes, without building message objects (the fast path)."""
+    frame_id = str(_marker_settings(options)["frame_id"])
+    specs = marker_specs(scene, options)
+    positions, wxyz = world_poses(scene, specs)
+    return _write_markers(
+        specs, np.concatenate((positions, xyzw_from_wxyz(wxyz)), axis=1), frame_id, delete_all
+    )[0]
+
+
+class MarkerStream:
+    """A scene's `MarkerArray`, re-posed every draw without rebuilding it.
+
+    Made from a load: the markers are written once as a CDR template, remembering where each
+    pose's 7 float64 sit. `update(poses)` composes every marker's world pose with numpy and
+    writes them into a copy of the template. `load_cdr` is the load's own MarkerArray
+    (DELETEALL first), to be published once and latched.
+    """
+
+    def __init__(self, scene: Scene, options: dict[str, Any] | None = None) -> None:
+        frame_id = str(_marker_settings(options)["frame_id"])
+        self._specs = marker_specs(scene, options)
+        positions, wxyz = world_poses(scene, self._specs)
+        poses = np.concatenate((positions, xyzw_from_wxyz(wxyz)), axis=1)
+        self.load_cdr = _write_markers(self._specs, poses, frame_id, delete_all=True)[0]
+        self._template, offsets = _write_markers(self._specs, poses, frame_id, delete_all=False)
+        # Poses are 8-aligned in the payload, which starts after the 4-byte encapsulation.
+        self._slots = (np.asarray(offsets, dtype=np.int64) // 8)[:, None] + np.arange(7)
+        self._link_names = [spec.link_name for spec in self._specs]
+        self._part_positions = np.array([spec.pose.position for spec in self._specs]).reshape(-1, 3)
+        self._part_wxyz = np.array([spec.pose.quaternion_wxyz for spec in self._specs]).reshape(-1, 4)
+        self._rows_for: tuple[tuple[str, ...], np.ndarray[Any, Any]] = ((), np.zeros(0, dtype=np.int64))
+
+    def __len__(self) -> int:
+        return len(self._specs)
+
+    def update(self, poses: LinkPoses) -> bytes:
+        """The MarkerArray CDR with every marker at its link's pose in `poses`."""
+        if poses.names != self._rows_for[0]:
+            self._rows_for = (poses.names, _link_rows(poses.names, self._link_names))
+        rows = self._rows_for[1]
+        link_positions, link_wxyz = _with_identity_row(poses)
+        positions, quaternions = compose_arrays(
+            link_positions[rows], link_wxyz[rows], self._part_positions, self._part_wxyz
+        )
+        buffer = bytearray(self._template)
+        words = np.frombuffer(buffer, dtype="<f8", offset=4, count=(len(buffer) - 4) // 8)
+        words[self._slots] = np.concatenate((positions, xyzw_from_wxyz(quaternions)), axis=1)
+        return bytes(buffer)
+
+
+__all__ = [
+    "MARKER_ARRAY",
+    "POSE_ARRAY",
+    "POSE_STAMPED",
+    "MarkerStream",
+    "PoseArrayEncoder",
+    "PosedShape",
+    "from_cdr",
+    "from_rclpy",
+    "make",
+    "marker_array",
+    "pose_array",
+    "pose_array_arrays",
+    "pose_from_message",
+    "pose_message",
+    "pose_stamped",
+    "poses_from_pose_array",
+    "poses_from_pose_array_cdr",
+    "shape_from_message",
+    "shapes",
+    "to_cdr",
+    "to_rclpy",
+]
