@@ -68,7 +68,7 @@ class ShapeRule:
 
     kind: str
     type: str | None = None
-    type_code: int | None = None
+    type_code: Any = None  # an int, or the name itself for formats whose types are names
     lower: str | None = None
     fields: Mapping[str, tuple[Term, ...]] = dataclasses.field(default_factory=dict)
     list_fields: frozenset[str] = frozenset()
@@ -152,7 +152,7 @@ class Table:
 
     name: str
     target: str
-    types: Mapping[str, int]
+    types: Mapping[str, Any]
     rules: Mapping[str, ShapeRule]
     options: Mapping[str, Any]
     note: str = ""
@@ -173,7 +173,7 @@ class Table:
         parts = LOWERINGS[rule.lower].function(shape)
         return [entry for part, offset in parts for entry in self.expand(part, pose.compose(offset))]
 
-    def decode(self, type_code: int, values: Mapping[str, Any]) -> Shape:
+    def decode(self, type_code: Any, values: Mapping[str, Any]) -> Shape:
         """The shape written as `type_code` with `values`, by the first invertible rule of that type.
 
         Raises `ValueError` for a type no invertible rule has, or values that do not fit it.
@@ -190,7 +190,7 @@ class Table:
                 return rule.shape_from(values)
         raise ValueError(f"no shape of {self.target} is written as {message}")
 
-    def type_name(self, code: int) -> str:
+    def type_name(self, code: Any) -> str:
         names = [name for name, value in self.types.items() if value == code]
         return names[0] if names else str(code)
 
@@ -214,7 +214,7 @@ class _TableSpec(BaseModel):
 
     target: str
     note: str = ""
-    types: dict[str, int]
+    types: dict[str, int] | list[str]  # a list: the type names are the codes (JSON formats)
     shapes: dict[str, _RuleSpec]
     options: dict[str, Any] = {}
 
@@ -247,12 +247,15 @@ def tables(format_name: str, encoders: tuple[str, ...] | None = None) -> dict[st
 def _table(
     document: YamlDocument, where: KeyPath, name: str, spec: _TableSpec, encoders: Collection[str] | None
 ) -> Table:
+    types: dict[str, Any] = (
+        {name: name for name in spec.types} if isinstance(spec.types, list) else spec.types
+    )
     rules: dict[str, ShapeRule] = {}
     for kind, rule_spec in spec.shapes.items():
         if kind not in SHAPE_KINDS:
             known = ", ".join(SHAPE_KINDS)
             raise document.error((*where, "shapes", kind), f"unknown shape kind (known: {known})")
-        rules[kind] = _rule(document, (*where, "shapes", kind), kind, rule_spec, spec.types, encoders)
+        rules[kind] = _rule(document, (*where, "shapes", kind), kind, rule_spec, types, encoders)
     missing = [kind for kind in SHAPE_KINDS if kind not in rules]
     if missing:
         # Every shape must have a way out: a shape a table forgets would be dropped silently.
@@ -265,7 +268,7 @@ def _table(
                         (*where, "shapes", kind, "as"),
                         f"{rule.lower} makes {produced}, which has no direct rule",
                     )
-    return Table(name, spec.target, dict(spec.types), rules, dict(spec.options), spec.note)
+    return Table(name, spec.target, types, rules, dict(spec.options), spec.note)
 
 
 def _rule(
@@ -273,7 +276,7 @@ def _rule(
     where: KeyPath,
     kind: str,
     spec: _RuleSpec,
-    types: Mapping[str, int],
+    types: Mapping[str, Any],
     encoders: Collection[str] | None,
 ) -> ShapeRule:
     direct = spec.type is not None or spec.message is not None
@@ -395,7 +398,8 @@ def _type_cell(rule: ShapeRule) -> str:
     if rule.type is None:
         return f"`{rule.message}`"
     message = f" in `{rule.message}`" if rule.message else ""
-    return f"{rule.type} = {rule.type_code}{message}"
+    code = "" if rule.type_code == rule.type else f" = {rule.type_code}"
+    return f"{rule.type}{code}{message}"
 
 
 def _fields_cell(rule: ShapeRule) -> str:

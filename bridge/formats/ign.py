@@ -1,0 +1,443 @@
+"""ignition / gz protobuf messages (`Model`, `Model_V`, `Pose_V`, `PosesStamped`) to and from the scene.
+
+The message types are built at import from `_SCHEMA` below (field numbers from ign-msgs 8, see
+PROTOCOLS.md section 4) into a protobuf descriptor pool, once per package: `IGNITION`
+(`ignition.msgs`, as Debian's ign-transport 11 speaks) and `GZ` (`gz.msgs`, newer Gazebo). The
+wire format is the `protobuf` package's; only the fields the bridge uses are declared, and a
+receiver with the full `.proto` files reads them (unknown fields are skipped both ways).
+
+Which shape becomes which `Geometry` is in `mappings/ign.yaml`.
+"""
+
+from __future__ import annotations
+
+import base64
+import re
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from functools import cache
+from typing import Any
+
+import numpy as np
+from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+from google.protobuf.message import DecodeError as ProtobufDecodeError
+from google.protobuf.message import Message
+
+from bridge.errors import DecodeError, SceneError
+from bridge.mappings import ShapeRule, Table, tables
+from bridge.scene import (
+    FileContents,
+    Geometry,
+    InMemoryMesh,
+    Link,
+    LinkPoses,
+    Pose,
+    Scene,
+    Shape,
+    TriangleMesh,
+    unit_quaternions,
+    wxyz_from_xyzw,
+    xyzw_from_wxyz,
+)
+
+# name -> fields (name, number, type, repeated). Types are scalar protobuf types or message names.
+_SCHEMA: dict[str, list[tuple[str, int, str, bool]]] = {
+    "Time": [("sec", 1, "int64", False), ("nsec", 2, "int32", False)],
+    "Header": [("stamp", 1, "Time", False), ("data", 2, "Header.Map", True)],
+    "Header.Map": [("key", 1, "string", False), ("value", 2, "string", True)],  # nested in Header
+    "Vector3d": [("header", 1, "Header", False), ("x", 2, "double", False), ("y", 3, "double", False),
+                 ("z", 4, "double", False)],
+    "Vector2d": [("header", 1, "Header", False), ("x", 2, "double", False), ("y", 3, "double", False)],
+    "Quaternion": [("header", 1, "Header", False), ("x", 2, "double", False), ("y", 3, "double", False),
+                   ("z", 4, "double", False), ("w", 5, "double", False)],
+    "Pose": [("header", 1, "Header", False), ("name", 2, "string", False), ("id", 3, "uint32", False),
+             ("position", 4, "Vector3d", False), ("orientation", 5, "Quaternion", False)],
+    "Pose_V": [("header", 1, "Header", False), ("pose", 2, "Pose", True)],
+    # Removed from gz-msgs in 2017 but still read by older tools: header, sim time, poses.
+    "PosesStamped": [("header", 1, "Header", False), ("time", 2, "Time", False), ("pose", 3, "Pose", True)],
+    "Color": [("header", 1, "Header", False), ("r", 2, "float", False), ("g", 3, "float", False),
+              ("b", 4, "float", False), ("a", 5, "float", False)],
+    "Material": [("header", 1, "Header", False), ("ambient", 5, "Color", False), ("diffuse", 6, "Color", False)],
+    "BoxGeom": [("header", 1, "Header", False), ("size", 2, "Vector3d", False)],
+    "SphereGeom": [("header", 1, "Header", False), ("radius", 2, "double", False)],
+    "CylinderGeom": [("header", 1, "Header", False), ("radius", 2, "double", False), ("length", 3, "double", False)],
+    "CapsuleGeom": [("header", 1, "Header", False), ("radius", 2, "double", False), ("length", 3, "double", False)],
+    "EllipsoidGeom": [("header", 1, "Header", False), ("radii", 2, "Vector3d", False)],
+    "PlaneGeom": [("header", 1, "Header", False), ("normal", 2, "Vector3d", False), ("size", 3, "Vector2d", False),
+                  ("d", 4, "double", False)],
+    "MeshGeom": [("header", 1, "Header", False), ("filename", 2, "string", False), ("scale", 3, "Vector3d", False)],
+    "Geometry": [("header", 1, "Header", False), ("type", 2, "Geometry.Type", False), ("box", 3, "BoxGeom", False),
+                 ("cylinder", 4, "CylinderGeom", False), ("plane", 5, "PlaneGeom", False),
+                 ("sphere", 6, "SphereGeom", False), ("mesh", 9, "MeshGeom", False),
+                 ("capsule", 13, "CapsuleGeom", False), ("ellipsoid", 14, "EllipsoidGeom", False)],
+    "Visual": [("header", 1, "Header", False), ("name", 2, "string", False), ("id", 3, "uint32", False),
+               ("parent_name", 4, "string", False), ("pose", 9, "Pose", False), ("geometry", 10, "Geometry", False),
+               ("material", 11, "Material", False)],
+    "Link": [("header", 1, "Header", False), ("id", 2, "uint32", False), ("name", 3, "string", False),
+             ("pose", 10, "Pose", False), ("visual", 11, "Visual", True)],
+    "Model": [("header", 1, "Header", False), ("name", 2, "string", False), ("id", 3, "uint32", False),
+              ("pose", 5, "Pose", False), ("link", 7, "Link", True), ("visual", 9, "Visual", True)],
+    "Model_V": [("header", 1, "Header", False), ("models", 2, "Model", True)],
+}  # fmt: skip
+
+_SCALARS = {
+    "double": descriptor_pb2.FieldDescriptorProto.TYPE_DOUBLE,
+    "float": descriptor_pb2.FieldDescriptorProto.TYPE_FLOAT,
+    "int64": descriptor_pb2.FieldDescriptorProto.TYPE_INT64,
+    "int32": descriptor_pb2.FieldDescriptorProto.TYPE_INT32,
+    "uint32": descriptor_pb2.FieldDescriptorProto.TYPE_UINT32,
+    "string": descriptor_pb2.FieldDescriptorProto.TYPE_STRING,
+}
+
+
+@dataclass(frozen=True)
+class MessageSet:
+    """The message classes of one package (`ignition.msgs` or `gz.msgs`), by short name."""
+
+    package: str
+    classes: Mapping[str, Any]  # generated at run time, so typed loosely
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return self.classes[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def full_name(self, name: str) -> str:
+        return f"{self.package}.{name}"
+
+    def parse(self, name: str, data: bytes) -> Any:
+        """Bytes as message `name`; raises `DecodeError` for bytes that are not one."""
+        message: Message = self.classes[name]()
+        try:
+            message.ParseFromString(data)
+        except ProtobufDecodeError as error:
+            raise DecodeError(self.full_name(name), "", 0, f"not a valid protobuf message: {error}") from None
+        return message
+
+
+def _file_descriptor(package: str, geometry_types: Mapping[str, int]) -> descriptor_pb2.FileDescriptorProto:
+    file = descriptor_pb2.FileDescriptorProto(
+        name=f"viewer_bridge/{package}.proto", package=package, syntax="proto3"
+    )
+    nested: dict[str, descriptor_pb2.DescriptorProto] = {}
+    for name, fields in _SCHEMA.items():
+        outer, _, inner = name.partition(".")
+        message = nested[outer].nested_type.add(name=inner) if inner else file.message_type.add(name=name)
+        nested.setdefault(name, message)
+        for field_name, number, type_name, repeated in fields:
+            field = message.field.add(name=field_name, number=number, json_name=field_name)
+            field.label = field.LABEL_REPEATED if repeated else field.LABEL_OPTIONAL
+            if type_name in _SCALARS:
+                field.type = _SCALARS[type_name]
+            elif type_name == "Geometry.Type":
+                field.type, field.type_name = field.TYPE_ENUM, f".{package}.Geometry.Type"
+            else:
+                field.type, field.type_name = field.TYPE_MESSAGE, f".{package}.{type_name}"
+    enum = nested["Geometry"].enum_type.add(name="Type")
+    for value_name, number in sorted(geometry_types.items(), key=lambda item: item[1]):
+        enum.value.add(name=value_name, number=number)
+    return file
+
+
+def message_set(package: str) -> MessageSet:
+    """Build the message classes for `package` in a pool of their own."""
+    pool = descriptor_pool.DescriptorPool()
+    pool.Add(_file_descriptor(package, _geometry_table().types))
+    names = [name for name in _SCHEMA if "." not in name]
+    classes = {
+        name: message_factory.GetMessageClass(pool.FindMessageTypeByName(f"{package}.{name}"))
+        for name in names
+    }
+    return MessageSet(package, classes)
+
+
+def _data_uri_obj(shape: TriangleMesh) -> dict[str, Any]:
+    lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in shape.vertices.tolist()]
+    lines += [f"f {i + 1} {j + 1} {k + 1}" for i, j, k in shape.triangles.tolist()]
+    text = "\n".join(lines) + "\n"
+    return {"mesh.filename": "data:model/obj;base64," + base64.b64encode(text.encode()).decode("ascii")}
+
+
+def _data_uri_file(shape: InMemoryMesh) -> dict[str, Any]:
+    file = shape.mesh_file
+    media = f"model/{file.extension.lstrip('.')};name={file.filename_hint}"
+    return {"mesh.filename": f"data:{media};base64," + base64.b64encode(file.contents).decode("ascii")}
+
+
+_ENCODERS: dict[str, Callable[[Any], dict[str, Any]]] = {
+    "obj_data_uri": _data_uri_obj,
+    "file_data_uri": _data_uri_file,
+}
+
+
+@cache
+def _geometry_table() -> Table:
+    return tables("ign", tuple(_ENCODERS))["geometry"]
+
+
+IGNITION = message_set("ignition.msgs")
+GZ = message_set("gz.msgs")
+
+# --- poses -------------------------------------------------------------------------------------------
+
+
+def _set_pose(target: Any, pose: Pose) -> None:
+    target.position.x, target.position.y, target.position.z = pose.position
+    orientation = target.orientation
+    orientation.x, orientation.y, orientation.z, orientation.w = pose.quaternion_xyzw
+
+
+def _set_stamp(time: Any, timestamp_ms: int) -> None:
+    seconds, milliseconds = divmod(int(timestamp_ms), 1000)
+    time.sec, time.nsec = seconds, milliseconds * 1_000_000
+
+
+def pose_v(poses: LinkPoses, msgs: MessageSet = IGNITION) -> Any:
+    """A draw as `Pose_V`: one `Pose` per link, named with the link's Drake name, header stamped."""
+    message = msgs.Pose_V()
+    _set_stamp(message.header.stamp, poses.timestamp_ms)
+    _fill_poses(message.pose, poses)
+    return message
+
+
+def poses_stamped(poses: LinkPoses, msgs: MessageSet = IGNITION) -> Any:
+    """The legacy `PosesStamped`: like `Pose_V`, with the sim time in `time` as well."""
+    message = msgs.PosesStamped()
+    _set_stamp(message.header.stamp, poses.timestamp_ms)
+    _set_stamp(message.time, poses.timestamp_ms)
+    _fill_poses(message.pose, poses)
+    return message
+
+
+def _fill_poses(repeated: Any, poses: LinkPoses) -> None:
+    values = np.concatenate((poses.positions, xyzw_from_wxyz(poses.quaternions_wxyz)), axis=1).tolist()
+    for index, (name, (x, y, z, qx, qy, qz, qw)) in enumerate(zip(poses.names, values, strict=True)):
+        pose = repeated.add(name=name, id=index)
+        position, orientation = pose.position, pose.orientation
+        position.x, position.y, position.z = x, y, z
+        orientation.x, orientation.y, orientation.z, orientation.w = qx, qy, qz, qw
+
+
+def poses_from_pose_v(message: Any, robot_nums: Mapping[str, int] | None = None) -> LinkPoses:
+    """A `Pose_V` or `PosesStamped` back as link poses (names from `Pose.name`).
+
+    `robot_nums` (link name -> model instance, e.g. from the scene's load) fills what the
+    message does not carry; links it lacks get 0. Raises `SceneError` for a non-finite position
+    or a quaternion that is not a rotation.
+    """
+    count = len(message.pose)
+    positions = np.array([[p.position.x, p.position.y, p.position.z] for p in message.pose]).reshape(count, 3)
+    xyzw = np.array(
+        [[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in message.pose]
+    )
+    if not np.isfinite(positions).all():
+        raise SceneError(
+            f"pose[{int(np.flatnonzero(~np.isfinite(positions).all(axis=1))[0])}].position is not finite"
+        )
+    quaternions = wxyz_from_xyzw(unit_quaternions(xyzw.reshape(count, 4), "pose"))
+    names = tuple(p.name for p in message.pose)
+    numbers = np.array([(robot_nums or {}).get(name, 0) for name in names], dtype=np.int32)
+    stamp = message.header.stamp
+    return LinkPoses(
+        int(stamp.sec) * 1000 + int(stamp.nsec) // 1_000_000, names, numbers, positions, quaternions
+    )
+
+
+def _pose_from(message: Any, what: str) -> Pose:
+    p, q = message.position, message.orientation
+    if not np.isfinite([p.x, p.y, p.z]).all():
+        raise SceneError(f"{what}.position is not finite")
+    w, x, y, z = wxyz_from_xyzw(unit_quaternions([[q.x, q.y, q.z, q.w]], what))[0].tolist()
+    return Pose((p.x, p.y, p.z), (w, x, y, z))
+
+
+# --- geometry ---------------------------------------------------------------------------------------
+
+
+def _set_field(message: Any, path: str, value: Any) -> None:
+    *parents, last = path.split(".")
+    for name in parents:
+        message = getattr(message, name)
+    if isinstance(value, list):  # a vector: Vector3d or Vector2d
+        target = getattr(message, last)
+        for axis, component in zip("xyz", value, strict=False):
+            setattr(target, axis, component)
+    else:
+        setattr(message, last, value)
+
+
+def _get_field(message: Any, path: str, rule: ShapeRule) -> Any:
+    *parents, last = path.split(".")
+    for name in parents:
+        message = getattr(message, name)
+    value = getattr(message, last)
+    if path in rule.list_fields:
+        return [getattr(value, axis) for axis in "xyz"[: len(rule.fields[path])]]
+    return value
+
+
+def geometry_message(shape: Shape, msgs: MessageSet = IGNITION) -> Any:
+    """One shape as a `Geometry` (a half-space becomes a PLANE; see mappings/ign.yaml)."""
+    rule = _geometry_table().rule_for(shape)
+    message = msgs.Geometry(type=rule.type_code)
+    values = rule.values(shape)
+    if rule.encoder is not None:
+        values |= _ENCODERS[rule.encoder](shape)
+    for path, value in values.items():
+        _set_field(message, path, value)
+    return message
+
+
+def shape_from_geometry(message: Any) -> Shape:
+    """A `Geometry` back as a scene shape; raises `SceneError` for one the bridge cannot read."""
+    table = _geometry_table()
+    filename = message.mesh.filename if message.type == table.types["MESH"] else ""
+    if filename.startswith("data:"):
+        return _shape_from_data_uri(filename, message)
+    candidates = [rule for rule in table.rules.values() if rule.type_code == message.type and rule.invertible]
+    if not candidates:
+        raise SceneError(f"Geometry type {table.type_name(message.type)} has no scene shape")
+    rule = candidates[0]
+    try:
+        return rule.shape_from({path: _get_field(message, path, rule) for path in rule.fields})
+    except ValueError as error:
+        raise SceneError(f"Geometry: {error}") from None
+
+
+_DATA_URI = re.compile(
+    r"^data:model/(?P<extension>[^;,]+)(?:;name=(?P<name>[^;,]*))?;base64,(?P<data>.*)$", re.S
+)
+
+
+def _shape_from_data_uri(uri: str, message: Any) -> Shape:
+    match = _DATA_URI.match(uri)
+    if match is None:
+        raise SceneError("Geometry: mesh.filename is a data: URI the bridge does not write")
+    try:
+        data = base64.b64decode(match["data"], validate=True)
+    except ValueError as error:
+        raise SceneError(f"Geometry: mesh.filename data is not base64 ({error})") from None
+    if match["name"] is None:
+        return _parse_obj(data.decode("utf-8", errors="replace"))
+    scale = message.mesh.scale
+    file = FileContents(data, "." + match["extension"], match["name"])
+    return InMemoryMesh(file, {}, (scale.x, scale.y, scale.z))
+
+
+def _parse_obj(text: str) -> TriangleMesh:
+    """The `v` and `f` lines of an OBJ as written by `_data_uri_obj`."""
+    vertices, faces = [], []
+    try:
+        for line in text.splitlines():
+            kind, *values = line.split()
+            if kind == "v":
+                vertices.append([float(value) for value in values[:3]])
+            elif kind == "f":
+                faces.append([int(value.split("/")[0]) - 1 for value in values[:3]])
+    except ValueError as error:
+        raise SceneError(f"Geometry: mesh array OBJ: {error}") from None
+    vertex_array = np.array(vertices, dtype=np.float64).reshape(-1, 3)
+    face_array = np.array(faces, dtype=np.int64).reshape(-1, 3)
+    if face_array.size and (face_array.min() < 0 or face_array.max() >= len(vertex_array)):
+        raise SceneError("Geometry: mesh array OBJ refers to a vertex it does not have")
+    return TriangleMesh(vertex_array, face_array)
+
+
+# --- models -------------------------------------------------------------------------------------------
+
+_ROBOT_NUM = "robot_num"  # kept in each Link's header data so that robot_num survives the trip
+
+
+def _link_message(link: Link, pose: Pose, msgs: MessageSet) -> Any:
+    message = msgs.Link(name=link.name)
+    message.header.data.add(key=_ROBOT_NUM, value=[str(link.robot_num)])
+    _set_pose(message.pose, pose)
+    for index, geometry in enumerate(link.geometries):
+        visual = message.visual.add(name=f"{link.name}::visual_{index}", id=index, parent_name=link.name)
+        _set_pose(visual.pose, geometry.pose)
+        visual.geometry.CopyFrom(geometry_message(geometry.shape, msgs))
+        # Color is float32 on the wire, as Drake's colour is.
+        diffuse = visual.material.diffuse
+        diffuse.r, diffuse.g, diffuse.b, diffuse.a = geometry.color
+    return message
+
+
+def model(scene: Scene, name: str = "drake", msgs: MessageSet = IGNITION) -> Any:
+    """A load as one `Model` with a `Link` per Drake link and a `Visual` per geometry.
+
+    Link poses are the scene's world poses (identity before the first draw); visual poses are
+    in the link frame, as Drake's are.
+    """
+    message = msgs.Model(name=name)
+    _set_pose(message.pose, Pose())
+    for link in scene.links:
+        message.link.append(_link_message(link, scene.link_pose(link), msgs))
+    return message
+
+
+def model_v(scene: Scene, msgs: MessageSet = IGNITION) -> Any:
+    """A load as `Model_V`: one `Model` per robot_num (model instance), id = robot_num."""
+    message = msgs.Model_V()
+    by_robot: dict[int, Any] = {}
+    for link in scene.links:
+        if link.robot_num not in by_robot:
+            by_robot[link.robot_num] = message.models.add(name=_model_name(link), id=link.robot_num)
+            _set_pose(by_robot[link.robot_num].pose, Pose())
+        by_robot[link.robot_num].link.append(_link_message(link, scene.link_pose(link), msgs))
+    return message
+
+
+def _model_name(link: Link) -> str:
+    """`plant::iiwa::iiwa_link_0` -> `plant::iiwa`: the source and model instance part."""
+    parts = link.name.split("::")
+    return "::".join(parts[:-1]) if len(parts) > 1 else link.name
+
+
+def scene_from_model(message: Any) -> Scene:
+    """A `Model` or `Model_V` back as a scene (the reverse of `model` / `model_v`).
+
+    Raises `SceneError` naming the link and visual whose geometry or pose makes no shape.
+    """
+    models: Sequence[Any] = message.models if hasattr(message, "models") else [message]
+    links = []
+    for model_message in models:
+        for link in model_message.link:
+            geometries = []
+            for index, visual in enumerate(link.visual):
+                where = f"link {link.name!r} visual {index}"
+                try:
+                    shape = shape_from_geometry(visual.geometry)
+                except SceneError as error:
+                    raise SceneError(f"{where}: {error}") from None
+                color = visual.material.diffuse
+                pose = _pose_from(visual.pose, where)
+                geometries.append(Geometry(shape, pose, (color.r, color.g, color.b, color.a)))
+            links.append(Link(link.name, _robot_num(link, model_message), tuple(geometries)))
+    return Scene(tuple(links))
+
+
+def _robot_num(link: Any, model_message: Any) -> int:
+    for entry in link.header.data:
+        if entry.key == _ROBOT_NUM and entry.value:
+            try:
+                return int(entry.value[0])
+            except ValueError:
+                break
+    return int(model_message.id)
+
+
+__all__ = [
+    "GZ",
+    "IGNITION",
+    "MessageSet",
+    "geometry_message",
+    "message_set",
+    "model",
+    "model_v",
+    "pose_v",
+    "poses_from_pose_v",
+    "poses_stamped",
+    "scene_from_model",
+    "shape_from_geometry",
+]

@@ -1,0 +1,414 @@
+"""Director's remote tree viewer protocol (`treeviewer_json` 1.0) to and from the scene.
+
+Requests are JSON objects with `setgeometry`, `settransform` and `delete` command lists, carried
+in a `robotlocomotion.viewer2_comms_t` on `DIRECTOR_TREE_VIEWER_REQUEST_<client_id>`.
+
+How a scene is laid out in the tree: each link is the node
+`[*prefix, str(robot_num), link.name]`, whose transform is the link's world pose; each geometry
+is a child `[..., str(index)]` whose setgeometry `transform` is its pose in the link frame.
+Quaternions are `[w, x, y, z]`, as in Drake. A new load deletes `prefix` first.
+
+`TreeState` is the other direction: it applies requests to a tree, answers them as Director
+does (MISSING_PATHS included), and reads the tree back as a scene.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from functools import cache
+from typing import Any
+
+import numpy as np
+
+from bridge.errors import DecodeError, SceneError
+from bridge.lcmcodec import VIEWER2_COMMS, Buffer
+from bridge.mappings import Table, tables
+from bridge.scene import Geometry, Link, LinkPoses, Pose, Scene, Shape, TriangleMesh
+
+FORMAT = "treeviewer_json"
+VERSION = (1, 0)
+DEFAULT_PREFIX: tuple[str, ...] = ("drake",)
+
+# Response status codes (PROTOCOLS.md section 2).
+OK = 0
+MISSING_PATHS = 1
+ERROR_UNKNOWN_FORMAT = -1
+ERROR_UNKNOWN_FORMAT_VERSION = -2
+ERROR_HANDLING_REQUEST = -3
+ERROR_UNKNOWN_REQUEST_TYPE = -4
+
+Path = tuple[str, ...]
+Request = dict[str, Any]
+
+
+def request_channel(client_id: str) -> str:
+    return f"DIRECTOR_TREE_VIEWER_REQUEST_<{client_id}>"
+
+
+def response_channel(client_id: str) -> str:
+    return f"DIRECTOR_TREE_VIEWER_RESPONSE_<{client_id}>"
+
+
+# --- scene -> requests ----------------------------------------------------------------------------
+
+
+def _mesh_data(shape: TriangleMesh) -> dict[str, Any]:
+    return {"vertices": shape.vertices.tolist(), "faces": shape.triangles.tolist()}
+
+
+_ENCODERS: dict[str, Callable[[Any], dict[str, Any]]] = {"mesh_data": _mesh_data}
+
+
+@cache
+def _table() -> Table:
+    return tables("tree_viewer", tuple(_ENCODERS))["geometry"]
+
+
+def transform(pose: Pose) -> dict[str, list[float]]:
+    return {"translation": list(pose.position), "quaternion": list(pose.quaternion_wxyz)}
+
+
+def link_path(link: Link, prefix: Sequence[str] = DEFAULT_PREFIX) -> list[str]:
+    return [*prefix, str(link.robot_num), link.name]
+
+
+def geometry_command(shape: Shape, pose: Pose, color: Sequence[float]) -> dict[str, Any]:
+    """The `geometry` object of a setgeometry for one shape (see mappings/tree_viewer.yaml)."""
+    ((rule, lowered, lowered_pose),) = _table().expand(shape, pose)
+    values = rule.values(lowered)
+    if rule.encoder is not None:
+        values |= _ENCODERS[rule.encoder](lowered)
+    return {"type": rule.type_code, **values, "color": list(color), "transform": transform(lowered_pose)}
+
+
+def load_requests(scene: Scene, prefix: Sequence[str] = DEFAULT_PREFIX, utime: int = 0) -> list[Request]:
+    """A load as two requests: delete the old tree under `prefix`, then set every geometry.
+
+    Two requests rather than one, because a viewer may apply `delete` after `setgeometry`
+    within a request. If the scene has poses, the second request also sets the links' transforms.
+    Raises `SceneError` for an in-memory mesh trimesh cannot read.
+    """
+    commands = []
+    for link in scene.links:
+        path = link_path(link, prefix)
+        for index, geometry in enumerate(link.geometries):
+            command = geometry_command(geometry.shape, geometry.pose, geometry.color)
+            commands.append({"path": [*path, str(index)], "geometry": command})
+    settransform = draw_request(scene.poses, prefix, utime)["settransform"] if scene.poses else []
+    return [
+        _request(utime, delete=[{"path": list(prefix)}]),
+        _request(utime, setgeometry=commands, settransform=settransform),
+    ]
+
+
+def draw_request(poses: LinkPoses, prefix: Sequence[str] = DEFAULT_PREFIX, utime: int = 0) -> Request:
+    """A draw as one request of `settransform`s, one per link (robot_num from the draw itself)."""
+    values = np.concatenate((poses.positions, poses.quaternions_wxyz), axis=1).tolist()
+    commands = [
+        {
+            "path": [*prefix, str(int(robot_num)), name],
+            "transform": {"translation": row[:3], "quaternion": row[3:]},
+        }
+        for name, robot_num, row in zip(poses.names, poses.robot_nums.tolist(), values, strict=True)
+    ]
+    return _request(utime or poses.timestamp_ms * 1000, settransform=commands)
+
+
+def _request(utime: int, **commands: list[dict[str, Any]]) -> Request:
+    return {
+        "timestamp": int(utime),
+        "setgeometry": commands.get("setgeometry", []),
+        "settransform": commands.get("settransform", []),
+        "delete": commands.get("delete", []),
+    }
+
+
+def encode(payload: Request, utime: int = 0) -> bytes:
+    """A request or response in its `viewer2_comms_t` envelope."""
+    data = json.dumps(payload, separators=(",", ":")).encode("utf-8")
+    major, minor = VERSION
+    return VIEWER2_COMMS.encode(
+        VIEWER2_COMMS.message_class(
+            utime=int(utime or payload.get("timestamp", 0)),
+            format=FORMAT,
+            format_version_major=major,
+            format_version_minor=minor,
+            num_bytes=len(data),
+            data=data,
+        )
+    )
+
+
+class RequestError(DecodeError):
+    """An envelope the tree viewer cannot handle; `status` is the response code that says why."""
+
+    def __init__(self, field: str, offset: int, reason: str, status: int, unit: str = "byte") -> None:
+        super().__init__(VIEWER2_COMMS.type_name, field, offset, reason, unit)
+        self.status = status
+
+
+def decode(data: Buffer) -> Request:
+    """A `viewer2_comms_t` envelope's JSON object.
+
+    Raises `DecodeError` for bytes that are no envelope, and its subclass `RequestError` (with
+    the response status) for a wrong format or version, bad JSON, or JSON that is no object.
+    """
+    message = VIEWER2_COMMS.decode(data)
+    if message.format != FORMAT:
+        raise RequestError("format", 0, f"unknown format {message.format!r}", ERROR_UNKNOWN_FORMAT)
+    major, minor = message.format_version_major, message.format_version_minor
+    if major != VERSION[0]:
+        raise RequestError(
+            "format_version_major", 0, f"unknown version {major}.{minor}", ERROR_UNKNOWN_FORMAT_VERSION
+        )
+    try:
+        payload = json.loads(bytes(message.data))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        position = getattr(error, "pos", getattr(error, "start", 0))
+        raise RequestError(
+            "data", position, f"not JSON: {error}", ERROR_HANDLING_REQUEST, "character"
+        ) from None
+    if not isinstance(payload, dict):
+        raise RequestError("data", 0, "the JSON is not an object", ERROR_HANDLING_REQUEST)
+    return payload
+
+
+# --- requests -> scene ----------------------------------------------------------------------------------
+
+
+@dataclass
+class _Node:
+    children: dict[str, _Node] = field(default_factory=dict)
+    transform: Pose = Pose()
+    geometries: list[Geometry] = field(default_factory=list)
+
+    def has_geometry(self) -> bool:
+        return bool(self.geometries) or any(child.has_geometry() for child in self.children.values())
+
+
+class TreeState:
+    """A tree viewer's tree: apply requests to it, read it back as a scene.
+
+    Within a request, `delete` is applied first, then `setgeometry`, then `settransform`.
+    A settransform for a path with no geometry at or below it is reported as MISSING_PATHS,
+    as Director does. Bad commands raise `SceneError` naming the command; the tree keeps the
+    commands applied before it.
+    """
+
+    def __init__(self) -> None:
+        self.root = _Node()
+        self.timestamp_us = 0
+
+    def apply(self, request: Request) -> dict[str, Any]:
+        """Apply one request; returns the response payload (status, missing_paths)."""
+        unknown = sorted(set(request) - {"timestamp", "utime", "setgeometry", "settransform", "delete"})
+        if unknown:
+            raise SceneError(f"unknown request key {unknown[0]!r}")
+        timestamp = request.get("timestamp", request.get("utime", 0))
+        for index, command in enumerate(_commands(request, "delete")):
+            self._delete(_path(command, f"delete[{index}]"))
+        for index, command in enumerate(_commands(request, "setgeometry")):
+            self._set_geometry(command, f"setgeometry[{index}]")
+        missing = []
+        for index, command in enumerate(_commands(request, "settransform")):
+            where = f"settransform[{index}]"
+            path = _path(command, where)
+            node = self._node(path, create=True)
+            node.transform = pose_from_transform(command.get("transform", {}), f"{where}.transform")
+            if not node.has_geometry():
+                missing.append(list(path))
+        if isinstance(timestamp, int):
+            self.timestamp_us = timestamp
+        response: dict[str, Any] = {"timestamp": timestamp, "status": MISSING_PATHS if missing else OK}
+        if missing:
+            response["missing_paths"] = missing
+        return response
+
+    def _node(self, path: Path, create: bool) -> _Node:
+        node = self.root
+        for name in path:
+            if name not in node.children:
+                if not create:
+                    raise KeyError(name)
+                node.children[name] = _Node()
+            node = node.children[name]
+        return node
+
+    def _delete(self, path: Path) -> None:
+        if not path:
+            self.root = _Node()
+            return
+        try:
+            parent = self._node(path[:-1], create=False)
+        except KeyError:
+            return
+        parent.children.pop(path[-1], None)
+
+    def _set_geometry(self, command: Any, where: str) -> None:
+        path = _path(command, where)
+        geometries = command.get("geometries", [command["geometry"]] if "geometry" in command else None)
+        if not isinstance(geometries, list):
+            raise SceneError(f"{where}: needs 'geometry' or 'geometries'")
+        node = self._node(path, create=True)
+        node.geometries = [geometry_from_command(item, f"{where}.geometry") for item in geometries]
+
+    def scene(self) -> Scene:
+        """The tree as a scene: each node holding geometry becomes (part of) a link.
+
+        A geometry at path P belongs to the link P[:-1] (its parent node), whose pose is the
+        composition of the transforms from the root; the transform at P itself is folded into
+        the geometry's pose. Links laid out as `load_requests` does ([..., robot_num, name])
+        get their name and robot_num back; any other path is joined with `::`.
+        """
+        links: dict[Path, list[Geometry]] = {}
+        link_poses: dict[Path, Pose] = {}
+        self._collect(self.root, (), Pose(), Pose(), links, link_poses)
+        scene_links, names, robot_nums, positions, quaternions = [], [], [], [], []
+        for path, geometries in links.items():
+            name, robot_num = _link_identity(path)
+            scene_links.append(Link(name, robot_num, tuple(geometries)))
+            names.append(name)
+            robot_nums.append(robot_num)
+            positions.append(link_poses[path].position)
+            quaternions.append(link_poses[path].quaternion_wxyz)
+        poses = LinkPoses(
+            self.timestamp_us // 1000,
+            tuple(names),
+            np.asarray(robot_nums, dtype=np.int32),
+            np.asarray(positions, dtype=np.float64).reshape(-1, 3),
+            np.asarray(quaternions, dtype=np.float64).reshape(-1, 4),
+        )
+        return Scene(tuple(scene_links), poses)
+
+    def _collect(
+        self,
+        node: _Node,
+        path: Path,
+        parent_pose: Pose,
+        pose: Pose,
+        links: dict[Path, list[Geometry]],
+        link_poses: dict[Path, Pose],
+    ) -> None:
+        if node.geometries:
+            link = path[:-1]
+            links.setdefault(link, [])
+            link_poses[link] = parent_pose
+            for geometry in node.geometries:
+                local = node.transform.compose(geometry.pose)
+                links[link].append(Geometry(geometry.shape, local, geometry.color))
+        for name, child in node.children.items():
+            self._collect(child, (*path, name), pose, pose.compose(child.transform), links, link_poses)
+
+
+def _link_identity(path: Path) -> tuple[str, int]:
+    if len(path) >= 2 and path[-2].lstrip("-").isdigit():
+        return path[-1], int(path[-2])
+    return "::".join(path), 0
+
+
+def _commands(request: Request, key: str) -> list[Any]:
+    commands = request.get(key, [])
+    if not isinstance(commands, list):
+        raise SceneError(f"{key} is not a list")
+    return commands
+
+
+def _path(command: Any, where: str) -> Path:
+    path = command.get("path") if isinstance(command, dict) else None
+    if not isinstance(path, list) or not all(isinstance(part, str) for part in path):
+        raise SceneError(f"{where}.path must be a list of strings")
+    return tuple(path)
+
+
+def pose_from_transform(value: Any, where: str) -> Pose:
+    """A tree viewer transform (translation, w-first quaternion; both optional) as a pose."""
+    if not isinstance(value, dict):
+        raise SceneError(f"{where} is not an object")
+    translation = _numbers(value.get("translation", [0.0, 0.0, 0.0]), 3, f"{where}.translation")
+    quaternion = _numbers(value.get("quaternion", [1.0, 0.0, 0.0, 0.0]), 4, f"{where}.quaternion")
+    norm = float(np.linalg.norm(quaternion))
+    if abs(norm - 1.0) > 1e-2:
+        raise SceneError(f"{where}.quaternion of length {norm:.6g} is not a rotation")
+    w, x, y, z = (value / norm for value in quaternion)
+    return Pose((translation[0], translation[1], translation[2]), (w, x, y, z))
+
+
+def _numbers(value: Any, count: int, where: str) -> list[float]:
+    if (
+        not isinstance(value, list)
+        or len(value) != count
+        or not all(isinstance(item, int | float) and not isinstance(item, bool) for item in value)
+        or not np.isfinite(value).all()
+    ):
+        raise SceneError(f"{where} must be {count} finite numbers")
+    return [float(item) for item in value]
+
+
+def geometry_from_command(value: Any, where: str) -> Geometry:
+    """A setgeometry `geometry` object as a scene geometry (pose = its `transform`)."""
+    if not isinstance(value, dict):
+        raise SceneError(f"{where} is not an object")
+    kind = value.get("type")
+    shape = _shape(value, kind, where)
+    color = _numbers(value.get("color", [1.0, 1.0, 1.0, 1.0]), 4, f"{where}.color")
+    pose = pose_from_transform(value.get("transform", {}), f"{where}.transform")
+    return Geometry(shape, pose, (color[0], color[1], color[2], color[3]))
+
+
+def _shape(value: dict[str, Any], kind: Any, where: str) -> Shape:
+    table = _table()
+    if kind == "mesh_data":
+        return _mesh_shape(value, where)
+    if kind == "mesh_file" and isinstance(value.get("scale"), int | float):
+        value = {**value, "scale": [value["scale"]] * 3}  # a number: a uniform scale
+    if kind == "mesh_file" and "scale" not in value:
+        value = {**value, "scale": [1.0, 1.0, 1.0]}
+    if kind not in table.types:
+        raise SceneError(f"{where}.type: unknown geometry type {kind!r}")
+    try:
+        return table.decode(kind, value)
+    except ValueError as error:
+        raise SceneError(f"{where}: {error}") from None
+
+
+def _mesh_shape(value: dict[str, Any], where: str) -> TriangleMesh:
+    try:
+        vertices = np.asarray(value["vertices"], dtype=np.float64).reshape(-1, 3)
+        faces = np.asarray(value["faces"], dtype=np.int64).reshape(-1, 3)
+    except (KeyError, TypeError, ValueError) as error:
+        raise SceneError(
+            f"{where}: mesh_data needs vertices and faces as lists of triplets ({error})"
+        ) from None
+    if not np.isfinite(vertices).all():
+        raise SceneError(f"{where}.vertices are not all finite")
+    if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
+        raise SceneError(f"{where}.faces refer to a vertex that does not exist")
+    return TriangleMesh(vertices, faces)
+
+
+def scene_from_requests(requests: Iterable[Request]) -> Scene:
+    """Apply requests to an empty tree and read the scene back."""
+    state = TreeState()
+    for request in requests:
+        state.apply(request)
+    return state.scene()
+
+
+__all__ = [
+    "DEFAULT_PREFIX",
+    "FORMAT",
+    "MISSING_PATHS",
+    "OK",
+    "TreeState",
+    "decode",
+    "draw_request",
+    "encode",
+    "geometry_command",
+    "geometry_from_command",
+    "load_requests",
+    "request_channel",
+    "response_channel",
+    "scene_from_requests",
+]
