@@ -8,10 +8,26 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 from hypothesis import strategies as st
 
 from bridge.lcmcodec import CODECS, LcmMessage
 from bridge.lcmcodec.schema import Member, StructDef
+from bridge.scene import (
+    Box,
+    Capsule,
+    Cylinder,
+    Ellipsoid,
+    Geometry,
+    Link,
+    LinkPoses,
+    MeshFile,
+    Pose,
+    Scene,
+    Shape,
+    Sphere,
+    TriangleMesh,
+)
 
 INT_RANGES = {"int8_t": 8, "int16_t": 16, "int32_t": 32, "int64_t": 64}
 
@@ -86,3 +102,85 @@ _LCMGEN: dict[str, type] = {}
 def use_lcmgen(classes: dict[str, type]) -> None:
     """Tell the strategies which lcm-gen classes to build the twin objects from."""
     _LCMGEN.update(classes)
+
+
+# --- scenes and poses for the translators' round trips ------------------------------------------
+
+finite = st.floats(-100, 100, allow_nan=False, allow_infinity=False)
+positive = st.floats(0.001, 10, allow_nan=False, allow_infinity=False)
+unit_interval = st.floats(0, 1, width=32)
+
+
+@st.composite
+def unit_quaternions(draw: st.DrawFn) -> tuple[float, float, float, float]:
+    """A w-first unit quaternion."""
+    values = np.array(
+        draw(st.tuples(finite, finite, finite, finite).filter(lambda q: sum(v * v for v in q) > 1e-3))
+    )
+    w, x, y, z = (values / np.linalg.norm(values)).tolist()
+    return (w, x, y, z)
+
+
+def vectors(elements: st.SearchStrategy[float] = finite) -> st.SearchStrategy[tuple[float, float, float]]:
+    return st.tuples(elements, elements, elements)
+
+
+poses = st.builds(Pose, vectors(), unit_quaternions())
+
+link_names = st.text(st.characters(min_codepoint=33, max_codepoint=0x2FF), min_size=1, max_size=10).map(
+    lambda text: f"plant::{text}"
+)
+
+
+@st.composite
+def triangle_meshes(draw: st.DrawFn) -> TriangleMesh:
+    vertex_count = draw(st.integers(3, 6))
+    vertices = draw(st.lists(vectors(), min_size=vertex_count, max_size=vertex_count))
+    triangles = draw(st.lists(st.tuples(*[st.integers(0, vertex_count - 1)] * 3), min_size=1, max_size=4))
+    return TriangleMesh(np.array(vertices, dtype=np.float64), np.array(triangles, dtype=np.int64))
+
+
+# The shapes every reverse direction can read back exactly (no lowering on the way out).
+invertible_shapes = st.one_of(
+    st.builds(Box, vectors(positive)),
+    st.builds(Sphere, positive),
+    st.builds(Cylinder, positive, positive),
+    st.builds(Capsule, positive, positive),
+    st.builds(Ellipsoid, vectors(positive)),
+    st.builds(
+        MeshFile, st.text(min_size=1, max_size=12).map(lambda name: f"/meshes/{name}.obj"), vectors(positive)
+    ),
+    triangle_meshes(),
+)
+
+colors = st.tuples(unit_interval, unit_interval, unit_interval, unit_interval)
+
+
+@st.composite
+def scenes(draw: st.DrawFn, shapes: st.SearchStrategy[Shape] = invertible_shapes) -> Scene:
+    """A scene of uniquely named links, each with a few posed, coloured geometries."""
+    names = draw(st.lists(link_names, min_size=1, max_size=4, unique=True))
+    links = []
+    for name in names:
+        geometries = draw(st.lists(st.builds(Geometry, shapes, poses, colors), max_size=3))
+        links.append(Link(name, draw(st.integers(0, 5)), tuple(geometries)))
+    return Scene(tuple(links))
+
+
+@st.composite
+def link_poses(draw: st.DrawFn, max_links: int = 6) -> LinkPoses:
+    names = tuple(draw(st.lists(link_names, max_size=max_links, unique=True)))
+    count = len(names)
+    return LinkPoses(
+        timestamp_ms=draw(st.integers(0, 2**40)),
+        names=names,
+        robot_nums=np.array(
+            draw(st.lists(st.integers(0, 2**20), min_size=count, max_size=count)), dtype=np.int32
+        ),
+        positions=np.array(
+            draw(st.lists(vectors(), min_size=count, max_size=count)), dtype=np.float64
+        ).reshape(-1, 3),
+        quaternions_wxyz=np.array(
+            draw(st.lists(unit_quaternions(), min_size=count, max_size=count)), dtype=np.float64
+        ).reshape(-1, 4),
+    )
