@@ -108,8 +108,8 @@ QUATERNION_TOLERANCE = 1e-2
 def unit_quaternions(quaternions: npt.ArrayLike, what: str) -> FloatArray:
     """Normalised copies of N x 4 quaternions (either order).
 
-    A quaternion a little off unit length (float32 rounding, a sender that does not normalise)
-    is normalised: that is the documented fallback. NaN, infinity or a length far from one
+    A quaternion a little off unit length (a sender that does not normalise) is normalised:
+    that is the documented fallback; one within float32 round-off of 1 is kept as it is. NaN, infinity or a length far from one
     cannot be a rotation and raise `SceneError` naming the first bad row of `what`.
     """
     values = np.asarray(quaternions, dtype=np.float64)
@@ -120,7 +120,9 @@ def unit_quaternions(quaternions: npt.ArrayLike, what: str) -> FloatArray:
         raise SceneError(
             f"{what}[{row}]: quaternion of length {np.atleast_1d(norms)[row]:.6g} is not a rotation"
         )
-    normalised: FloatArray = values / norms[..., None]
+    # Within float32 round-off of unit length: left as sent, so values survive a round trip.
+    scale = np.where(np.abs(norms - 1.0) <= 1e-6, 1.0, norms)
+    normalised: FloatArray = values / scale[..., None]
     return normalised
 
 

@@ -128,8 +128,8 @@ def debian_ign_msgs(tmp_path_factory: pytest.TempPathFactory) -> ModuleType:
     sys.path.insert(0, str(out))
     try:
         modules = {
-            name: importlib.import_module(f"ignition.msgs.{name}_pb2")
-            for name in ("model", "model_v", "pose_v", "geometry", "visual", "link")
+            path.stem: importlib.import_module(f"ignition.msgs.{path.stem}")
+            for path in sorted((out / "ignition" / "msgs").glob("*_pb2.py"))
         }
     finally:
         sys.path.remove(str(out))

@@ -25,7 +25,7 @@ import numpy as np
 from bridge.errors import DecodeError, SceneError
 from bridge.lcmcodec import VIEWER2_COMMS, Buffer
 from bridge.mappings import Table, tables
-from bridge.scene import Geometry, Link, LinkPoses, Pose, Scene, Shape, TriangleMesh
+from bridge.scene import Geometry, Link, LinkPoses, Pose, Scene, Shape, TriangleMesh, unit_quaternions
 
 FORMAT = "treeviewer_json"
 VERSION = (1, 0)
@@ -328,10 +328,7 @@ def pose_from_transform(value: Any, where: str) -> Pose:
         raise SceneError(f"{where} is not an object")
     translation = _numbers(value.get("translation", [0.0, 0.0, 0.0]), 3, f"{where}.translation")
     quaternion = _numbers(value.get("quaternion", [1.0, 0.0, 0.0, 0.0]), 4, f"{where}.quaternion")
-    norm = float(np.linalg.norm(quaternion))
-    if abs(norm - 1.0) > 1e-2:
-        raise SceneError(f"{where}.quaternion of length {norm:.6g} is not a rotation")
-    w, x, y, z = (value / norm for value in quaternion)
+    w, x, y, z = unit_quaternions([quaternion], f"{where}.quaternion")[0].tolist()
     return Pose((translation[0], translation[1], translation[2]), (w, x, y, z))
 
 
