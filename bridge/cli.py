@@ -9,6 +9,8 @@ from collections.abc import Iterator, Sequence
 
 from bridge.demo import run_demo
 from bridge.dump import as_json, as_text
+from bridge.errors import ConfigError
+from bridge.mappings import format_names, reference_markdown
 from bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 
 
@@ -38,6 +40,10 @@ def _parser() -> argparse.ArgumentParser:
     demo.add_argument("--url", default=DEFAULT_URL, help="LCM URL to publish on")
     demo.add_argument("--duration", type=float, help="stop after this many seconds (default: until Ctrl-C)")
     demo.add_argument("--rate", type=float, default=60.0, help="draw messages per second")
+
+    commands.add_parser(
+        "mappings", help="print the mapping reference (mappings/REFERENCE.md) from the tables"
+    )
     return parser
 
 
@@ -82,11 +88,19 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _mappings(args: argparse.Namespace) -> int:
+    try:
+        print(reference_markdown(format_names()), end="")
+    except ConfigError as error:
+        print(f"viewer-bridge: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    if args.command == "dump":
-        return _dump(args)
-    return _demo(args)
+    handlers = {"dump": _dump, "demo": _demo, "mappings": _mappings}
+    return handlers[args.command](args)
 
 
 if __name__ == "__main__":

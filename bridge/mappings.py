@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
-from collections.abc import Collection, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache
 from typing import Any
@@ -47,13 +47,14 @@ class Term:
     factor: float = 1.0
     literal: float | None = None
 
-    def read(self, shape: Shape) -> Any:
+    def expression(self, numeric: bool) -> str:
+        """This term as Python source reading a shape bound to `shape`."""
         if self.field is None:
-            return self.literal
-        value = getattr(shape, self.field)
-        if self.axis is not None:
-            value = value[self.axis]
-        return value if isinstance(value, str) else self.factor * float(value)
+            return repr(self.literal)
+        value = f"shape.{self.field}" + (f"[{self.axis}]" if self.axis is not None else "")
+        if not numeric:
+            return value
+        return f"float({value})" if self.factor == 1.0 else f"{self.factor!r} * {value}"
 
     def __str__(self) -> str:
         if self.field is None:
@@ -76,13 +77,14 @@ class ShapeRule:
     message: str | None = None
     note: str = ""
 
+    reader: Callable[[Shape], dict[str, Any]] = dataclasses.field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "reader", _compile_reader(self.fields, self.list_fields))
+
     def values(self, shape: Shape) -> dict[str, Any]:
         """The target fields this rule sets, read from `shape`: a value or a list per field."""
-        result: dict[str, Any] = {}
-        for name, terms in self.fields.items():
-            read = [term.read(shape) for term in terms]
-            result[name] = read if name in self.list_fields else read[0]
-        return result
+        return self.reader(shape)
 
     @property
     def invertible(self) -> bool:
@@ -122,6 +124,24 @@ class ShapeRule:
             key: tuple(value) if isinstance(value, list) else value for key, value in parameters.items()
         }
         return SHAPE_KINDS[self.kind](**arguments)
+
+
+def _compile_reader(
+    fields: Mapping[str, tuple[Term, ...]], list_fields: frozenset[str]
+) -> Callable[[Shape], dict[str, Any]]:
+    """A function reading a rule's fields from a shape, compiled once per rule.
+
+    Markers and models are built for every geometry of a load, so the terms become one
+    Python expression each (`{"scale": [2.0 * shape.radius, ...]}`) instead of being
+    interpreted per shape.
+    """
+    items = []
+    for name, terms in fields.items():
+        parts = [term.expression(not _is_text(term)) for term in terms]
+        items.append(f"{name!r}: [{', '.join(parts)}]" if name in list_fields else f"{name!r}: {parts[0]}")
+    namespace: dict[str, Any] = {}
+    exec(f"def read(shape):\n    return {{{', '.join(items)}}}\n", namespace)  # noqa: S102 - our own table terms
+    return namespace["read"]  # type: ignore[no-any-return]
 
 
 def _given_values(values: Mapping[str, Any], name: str, count: int | None, kind: str) -> Sequence[Any]:
@@ -223,7 +243,6 @@ class _FileSpec(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
     format: str
-    note: str = ""
     tables: dict[str, _TableSpec]
 
 
@@ -367,6 +386,11 @@ def _is_text(term: Term, kind: str | None = None) -> bool:
 # --- the reference page ------------------------------------------------------------------------------
 
 
+def format_names() -> list[str]:
+    """The formats that have a table file in mappings/."""
+    return sorted(path.stem for path in data_dir("mappings").glob("*.yaml"))
+
+
 def reference_markdown(format_names: Sequence[str]) -> str:
     """`mappings/REFERENCE.md`: every table as a Markdown table, generated so it never drifts."""
     lines = [
@@ -412,4 +436,13 @@ def _fields_cell(rule: ShapeRule) -> str:
     return "; ".join(cells)
 
 
-__all__ = ["ConfigError", "ShapeRule", "Table", "Term", "load_tables", "reference_markdown", "tables"]
+__all__ = [
+    "ConfigError",
+    "ShapeRule",
+    "Table",
+    "Term",
+    "format_names",
+    "load_tables",
+    "reference_markdown",
+    "tables",
+]

@@ -9,6 +9,7 @@ edge. Poses of many links are kept as arrays so that a frame of 10,000 links sta
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -52,10 +53,21 @@ class Pose:
 
     def compose(self, other: Pose) -> Pose:
         """`self * other`: `other` expressed in the frame that `self` is expressed in."""
-        rotation = rotation_matrix(np.asarray(self.quaternion_wxyz, dtype=np.float64))
-        position = np.asarray(self.position) + rotation @ np.asarray(other.position)
-        quaternion = _quaternion_product(self.quaternion_wxyz, other.quaternion_wxyz)
-        return Pose(_vector3(position), quaternion)
+        # Plain floats: for one pose this is many times faster than numpy on 3-vectors.
+        w, x, y, z = self.quaternion_wxyz
+        norm = math.sqrt(w * w + x * x + y * y + z * z)
+        w, x, y, z = w / norm, x / norm, y / norm, z / norm
+        px, py, pz = other.position
+        # v + 2w (u x v) + 2 u x (u x v), with u = (x, y, z): the rotated child position.
+        cx, cy, cz = 2 * (y * pz - z * py), 2 * (z * px - x * pz), 2 * (x * py - y * px)
+        rotated = (
+            px + w * cx + (y * cz - z * cy),
+            py + w * cy + (z * cx - x * cz),
+            pz + w * cz + (x * cy - y * cx),
+        )
+        sx, sy, sz = self.position
+        position = (sx + rotated[0], sy + rotated[1], sz + rotated[2])
+        return Pose(position, _quaternion_product(self.quaternion_wxyz, other.quaternion_wxyz))
 
 
 def rotation_matrix(quaternion_wxyz: FloatArray) -> FloatArray:
@@ -109,8 +121,9 @@ def unit_quaternions(quaternions: npt.ArrayLike, what: str) -> FloatArray:
     """Normalised copies of N x 4 quaternions (either order).
 
     A quaternion a little off unit length (a sender that does not normalise) is normalised:
-    that is the documented fallback; one within float32 round-off of 1 is kept as it is. NaN, infinity or a length far from one
-    cannot be a rotation and raise `SceneError` naming the first bad row of `what`.
+    that is the documented fallback; one within float32 round-off of 1 is kept as it is. NaN,
+    infinity or a length far from one cannot be a rotation and raise `SceneError` naming the
+    first bad row of `what`.
     """
     values = np.asarray(quaternions, dtype=np.float64)
     norms = np.linalg.norm(values, axis=-1)
@@ -277,6 +290,7 @@ class LinkPoses:
     robot_nums: npt.NDArray[np.int32]
     positions: FloatArray
     quaternions_wxyz: FloatArray
+    _rows: dict[str, int] | None = field(default=None, init=False, repr=False, compare=False)
 
     def __len__(self) -> int:
         return len(self.names)
@@ -297,10 +311,15 @@ class LinkPoses:
         return Pose(_vector3(self.positions[index]), (float(q[0]), float(q[1]), float(q[2]), float(q[3])))
 
     def pose_of(self, name: str) -> Pose | None:
-        try:
-            return self.pose(self.names.index(name))
-        except ValueError:
-            return None
+        row = self.row_of(name)
+        return None if row is None else self.pose(row)
+
+    def row_of(self, name: str) -> int | None:
+        """The row of link `name`, or None; the name index is built on first use."""
+        if self._rows is None:
+            object.__setattr__(self, "_rows", {link: row for row, link in enumerate(self.names)})
+        assert self._rows is not None
+        return self._rows.get(name)
 
 
 @dataclass(frozen=True, slots=True)

@@ -279,14 +279,19 @@ def _get_field(message: Any, path: str, rule: ShapeRule) -> Any:
 
 def geometry_message(shape: Shape, msgs: MessageSet = IGNITION) -> Any:
     """One shape as a `Geometry` (a half-space becomes a PLANE; see mappings/ign.yaml)."""
+    message = msgs.Geometry()
+    _fill_geometry(message, shape)
+    return message
+
+
+def _fill_geometry(message: Any, shape: Shape) -> None:
     rule = _geometry_table().rule_for(shape)
-    message = msgs.Geometry(type=rule.type_code)
+    message.type = rule.type_code
     values = rule.values(shape)
     if rule.encoder is not None:
         values |= _ENCODERS[rule.encoder](shape)
     for path, value in values.items():
         _set_field(message, path, value)
-    return message
 
 
 def shape_from_geometry(message: Any) -> Shape:
@@ -349,18 +354,16 @@ def _parse_obj(text: str) -> TriangleMesh:
 _ROBOT_NUM = "robot_num"  # kept in each Link's header data so that robot_num survives the trip
 
 
-def _link_message(link: Link, pose: Pose, msgs: MessageSet) -> Any:
-    message = msgs.Link(name=link.name)
+def _fill_link(message: Any, link: Link, pose: Pose) -> None:
+    message.name = link.name
     message.header.data.add(key=_ROBOT_NUM, value=[str(link.robot_num)])
     _set_pose(message.pose, pose)
     for index, geometry in enumerate(link.geometries):
         visual = message.visual.add(name=f"{link.name}::visual_{index}", id=index, parent_name=link.name)
         _set_pose(visual.pose, geometry.pose)
-        visual.geometry.CopyFrom(geometry_message(geometry.shape, msgs))
-        # Color is float32 on the wire, as Drake's colour is.
-        diffuse = visual.material.diffuse
+        _fill_geometry(visual.geometry, geometry.shape)
+        diffuse = visual.material.diffuse  # float32 on the wire, as Drake's colour is
         diffuse.r, diffuse.g, diffuse.b, diffuse.a = geometry.color
-    return message
 
 
 def model(scene: Scene, name: str = "drake", msgs: MessageSet = IGNITION) -> Any:
@@ -372,7 +375,7 @@ def model(scene: Scene, name: str = "drake", msgs: MessageSet = IGNITION) -> Any
     message = msgs.Model(name=name)
     _set_pose(message.pose, Pose())
     for link in scene.links:
-        message.link.append(_link_message(link, scene.link_pose(link), msgs))
+        _fill_link(message.link.add(), link, scene.link_pose(link))
     return message
 
 
@@ -384,7 +387,7 @@ def model_v(scene: Scene, msgs: MessageSet = IGNITION) -> Any:
         if link.robot_num not in by_robot:
             by_robot[link.robot_num] = message.models.add(name=_model_name(link), id=link.robot_num)
             _set_pose(by_robot[link.robot_num].pose, Pose())
-        by_robot[link.robot_num].link.append(_link_message(link, scene.link_pose(link), msgs))
+        _fill_link(by_robot[link.robot_num].link.add(), link, scene.link_pose(link))
     return message
 
 

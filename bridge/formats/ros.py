@@ -423,6 +423,9 @@ _IDENTITY_XYZW = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
 _DELETE_ALL = MarkerSpec("", "", 0, 0, Pose(), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), action=3)
 
 
+_FLOAT32X4 = struct.Struct("<4f")
+
+
 def marker_specs(scene: Scene, options: dict[str, Any] | None = None) -> list[MarkerSpec]:
     """The markers of a scene, by `mappings/ros.yaml` (`options` override the table's options).
 
@@ -436,7 +439,7 @@ def marker_specs(scene: Scene, options: dict[str, Any] | None = None) -> list[Ma
         marker_id = 0
         for geometry in link.geometries:
             # ColorRGBA is float32 on the wire: round here so objects equal their CDR.
-            r, g, b, a = np.asarray(geometry.color, dtype=np.float32).tolist()
+            r, g, b, a = _FLOAT32X4.unpack(_FLOAT32X4.pack(*geometry.color))
             for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
                 values = rule.values(shape)
                 if rule.encoder is not None:

@@ -14,13 +14,13 @@ does (MISSING_PATHS included), and reads the tree back as a scene.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from functools import cache
 from typing import Any
 
 import numpy as np
+import orjson
 
 from bridge.errors import DecodeError, SceneError
 from bridge.lcmcodec import VIEWER2_COMMS, Buffer
@@ -127,7 +127,7 @@ def _request(utime: int, **commands: list[dict[str, Any]]) -> Request:
 
 def encode(payload: Request, utime: int = 0) -> bytes:
     """A request or response in its `viewer2_comms_t` envelope."""
-    data = json.dumps(payload, separators=(",", ":")).encode("utf-8")
+    data = orjson.dumps(payload)  # compact; several times faster than json for float-heavy loads
     major, minor = VERSION
     return VIEWER2_COMMS.encode(
         VIEWER2_COMMS.message_class(
@@ -164,8 +164,8 @@ def decode(data: Buffer) -> Request:
             "format_version_major", 0, f"unknown version {major}.{minor}", ERROR_UNKNOWN_FORMAT_VERSION
         )
     try:
-        payload = json.loads(bytes(message.data))
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        payload = orjson.loads(bytes(message.data))
+    except orjson.JSONDecodeError as error:  # also raised for invalid UTF-8
         position = getattr(error, "pos", getattr(error, "start", 0))
         raise RequestError(
             "data", position, f"not JSON: {error}", ERROR_HANDLING_REQUEST, "character"

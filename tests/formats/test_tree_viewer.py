@@ -89,6 +89,7 @@ def test_scene_to_tree_json_to_scene_round_trips(scene: Scene) -> None:
     requests = [json.loads(json.dumps(request)) for request in tv.load_requests(scene)]
     back = tv.scene_from_requests(requests)
     with_geometry = tuple(link for link in scene.links if link.geometries)
+
     def order(links: tuple[Link, ...]) -> list[Link]:
         return sorted(links, key=lambda link: (link.robot_num, link.name))
 
