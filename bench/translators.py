@@ -14,10 +14,9 @@ Run: .venv/bin/python bench/translators.py [--links 1000] [--budget 0.3]
 from __future__ import annotations
 
 import argparse
-import timeit
 from collections.abc import Callable
 
-import numpy as np
+from draw_codec import frame, seconds_per_call  # bench/ is on sys.path when run as a script
 from geometry_msgs.msg import Point, Pose, PoseArray, Quaternion
 from rclpy.serialization import serialize_message
 
@@ -26,19 +25,6 @@ from bridge.formats import tree_viewer as tv
 from bridge.formats.drake import DrawDecoder, DrawEncoder
 from bridge.scene import Box, Capsule, Cylinder, Ellipsoid, Geometry, Link, LinkPoses, Scene, Sphere
 from bridge.scene import Pose as ScenePose
-
-
-def frame(links: int, seed: int = 0) -> LinkPoses:
-    rng = np.random.default_rng(seed)
-    quaternions = rng.normal(size=(links, 4))
-    quaternions /= np.linalg.norm(quaternions, axis=1, keepdims=True)
-    return LinkPoses(
-        timestamp_ms=1234,
-        names=tuple(f"plant::robot{i % 7}::link_{i}" for i in range(links)),
-        robot_nums=(np.arange(links) % 7).astype(np.int32),
-        positions=rng.normal(size=(links, 3)),
-        quaternions_wxyz=quaternions,
-    )
 
 
 def scene(links: int) -> Scene:
@@ -56,18 +42,11 @@ def scene(links: int) -> Scene:
             Link(
                 name,
                 index % 7,
-                (Geometry(shapes[index % 4], ScenePose((0.1, 0.0, 0.0)), (0.5, 0.5, 0.5, 1.0)),),
+                (Geometry(shapes[index % len(shapes)], ScenePose((0.1, 0.0, 0.0)), (0.5, 0.5, 0.5, 1.0)),),
             )
             for index, name in enumerate(names)
         )
     )
-
-
-def seconds_per_call(function: Callable[[], object], budget: float) -> float:
-    timer = timeit.Timer(function)
-    number, _ = timer.autorange()
-    repeats = max(3, int(budget / max(timer.timeit(number), 1e-9)))
-    return min(timer.repeat(repeat=min(repeats, 7), number=number)) / number
 
 
 def rclpy_pose_array(poses: LinkPoses) -> bytes:

@@ -1,9 +1,10 @@
 """ROS 2 (Jazzy) messages to and from the scene model.
 
-Messages are built as rosbags dataclasses (pure Python, every Jazzy type, CDR included), so the
-converters work without a ROS installation; `to_rclpy` turns any of them into rclpy message
-objects and `to_cdr` into the raw CDR bytes an rclpy publisher accepts. The per-frame outputs
-also have fast paths that write CDR straight from the pose arrays:
+Messages are built as rosbags dataclasses (see `bridge.formats.ros_messages`, re-exported here:
+`make`, `to_cdr`, `from_cdr`, `to_rclpy`, `from_rclpy`), so the converters work without a ROS
+installation; `to_rclpy` turns any of them into rclpy message objects and `to_cdr` into the raw
+CDR bytes an rclpy publisher accepts. The per-frame outputs also have fast paths that write CDR
+straight from the pose arrays:
 
 * `PoseArrayEncoder`: draw -> `geometry_msgs/PoseArray` bytes, `pose_array_arrays` back;
 * `MarkerStream`: one load -> a CDR template of the `MarkerArray`, then each draw only writes
@@ -15,19 +16,28 @@ Which shape becomes which message is in `mappings/ros.yaml`; quaternion order is
 
 from __future__ import annotations
 
-import importlib
 import os
 import struct
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, fields, is_dataclass
+from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
 import numpy as np
-from rosbags.interfaces import Nodetype
-from rosbags.typesys import Stores, get_typestore
 
 from bridge.errors import DecodeError, SceneError
+from bridge.formats.ros_messages import (
+    CDR_LE,
+    U32,
+    CdrWriter,
+    cdr_string,
+    from_cdr,
+    from_rclpy,
+    make,
+    stamp,
+    to_cdr,
+    to_rclpy,
+)
 from bridge.mappings import ShapeRule, tables
 from bridge.scene import (
     FloatArray,
@@ -44,8 +54,6 @@ from bridge.scene import (
     xyzw_from_wxyz,
 )
 
-STORE = get_typestore(Stores.ROS2_JAZZY)
-
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 MARKER = "visualization_msgs/msg/Marker"
@@ -54,105 +62,7 @@ SOLID_PRIMITIVE = "shape_msgs/msg/SolidPrimitive"
 MESH = "shape_msgs/msg/Mesh"
 PLANE = "shape_msgs/msg/Plane"
 
-# --- building messages ---------------------------------------------------------------------------
-
-
-def make(typename: str, **values: Any) -> Any:
-    """A rosbags message of `typename`; fields not given take ROS's defaults (0, "", empty)."""
-    defaults = _defaults(typename)
-    for name, default in defaults.items():
-        if name not in values:
-            values[name] = default()
-    return STORE.types[typename](**values)
-
-
-@cache
-def _defaults(typename: str) -> dict[str, Callable[[], Any]]:
-    _, field_defs = STORE.fielddefs[typename]
-    return {name: _default_of(definition) for name, definition in field_defs}
-
-
-def _default_of(definition: tuple[Any, Any]) -> Callable[[], Any]:
-    node, detail = definition
-    if node == Nodetype.BASE:
-        base = detail[0]
-        value: Any = "" if base == "string" else False if base == "bool" else 0.0 if "float" in base else 0
-        return lambda: value
-    if node == Nodetype.NAME:
-        return lambda: make(detail)
-    (item_node, item_detail), length = detail
-    if item_node == Nodetype.BASE and item_detail[0] != "string":
-        dtype = np.dtype(_NUMPY_TYPES.get(item_detail[0], item_detail[0]))
-        size = length if node == Nodetype.ARRAY else 0
-        return lambda: np.zeros(size, dtype=dtype)
-    if node == Nodetype.ARRAY:
-        item = _default_of((item_node, item_detail))
-        return lambda: [item() for _ in range(length)]
-    return list
-
-
-_NUMPY_TYPES = {"byte": "uint8", "octet": "uint8", "char": "uint8", "bool": "bool"}
-
-
-def to_cdr(message: Any) -> bytes:
-    """Little-endian CDR with its 4-byte encapsulation header, as rclpy publishes and reads it."""
-    return bytes(STORE.serialize_cdr(message, message.__msgtype__))
-
-
-def from_cdr(data: bytes | memoryview, typename: str) -> Any:
-    """Raw CDR as a rosbags message; raises `DecodeError` for bytes that are not one."""
-    try:
-        return STORE.deserialize_cdr(bytes(data), typename)
-    except Exception as error:  # rosbags raises struct.error, IndexError, ... on bad bytes
-        raise DecodeError(typename, "", 0, f"not a valid CDR message: {error}") from None
-
-
-def to_rclpy(message: Any) -> Any:
-    """The same message as an rclpy message object (needs the ROS 2 message packages)."""
-    package, _, name = message.__msgtype__.split("/")
-    cls = getattr(importlib.import_module(f"{package}.msg"), name)
-    values = {item.name: _rclpy_value(getattr(message, item.name)) for item in fields(message)}
-    return cls(**values)
-
-
-def _rclpy_value(value: Any) -> Any:
-    if is_dataclass(value):
-        return to_rclpy(value)
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, list):
-        return [_rclpy_value(item) for item in value]
-    return value
-
-
-def from_rclpy(message: Any) -> Any:
-    """An rclpy message object as the rosbags message of the same type."""
-    module, name = type(message).__module__, type(message).__name__
-    typename = f"{module.split('.')[0]}/msg/{name}"
-    _, field_defs = STORE.fielddefs[typename]
-    values = {}
-    for field_name, _ in field_defs:
-        value = getattr(message, field_name)
-        default = _defaults(typename)[field_name]()
-        if isinstance(default, np.ndarray):
-            value = np.asarray(value, dtype=default.dtype)
-        elif isinstance(value, list):
-            value = [
-                from_rclpy(item) if hasattr(item, "get_fields_and_field_types") else item for item in value
-            ]
-        elif hasattr(value, "get_fields_and_field_types"):
-            value = from_rclpy(value)
-        values[field_name] = value
-    return STORE.types[typename](**values)
-
-
 # --- poses ---------------------------------------------------------------------------------------
-
-
-def stamp(timestamp_ms: int) -> Any:
-    """A `builtin_interfaces/Time` for Drake's millisecond sim time."""
-    seconds, milliseconds = divmod(int(timestamp_ms), 1000)
-    return make("builtin_interfaces/msg/Time", sec=seconds, nanosec=milliseconds * 1_000_000)
 
 
 def header(frame_id: str, timestamp_ms: int = 0) -> Any:
@@ -210,11 +120,17 @@ def poses_from_pose_array(
     xyzw = np.array(
         [[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in message.poses]
     )
-    return _link_poses(message.header.stamp, positions, xyzw.reshape(count, 4), names, robot_nums)
+    time = message.header.stamp
+    timestamp_ms = int(time.sec) * 1000 + int(time.nanosec) // 1_000_000
+    return _link_poses(timestamp_ms, positions, xyzw.reshape(count, 4), names, robot_nums)
 
 
 def _link_poses(
-    time: Any, positions: FloatArray, xyzw: FloatArray, names: Sequence[str], robot_nums: Sequence[int] | None
+    timestamp_ms: int,
+    positions: FloatArray,
+    xyzw: FloatArray,
+    names: Sequence[str],
+    robot_nums: Sequence[int] | None,
 ) -> LinkPoses:
     count = len(positions)
     if len(names) != count:
@@ -227,19 +143,10 @@ def _link_poses(
     numbers = (
         np.zeros(count, dtype=np.int32) if robot_nums is None else np.asarray(robot_nums, dtype=np.int32)
     )
-    timestamp_ms = int(time.sec) * 1000 + int(time.nanosec) // 1_000_000
     return LinkPoses(timestamp_ms, tuple(names), numbers, positions, quaternions)
 
 
 # --- the PoseArray fast path -------------------------------------------------------------------------
-
-_CDR_LE = b"\x00\x01\x00\x00"
-
-
-def _cdr_string(text: str) -> bytes:
-    """A CDR string: uint32 length counting the NUL, the UTF-8 bytes, the NUL."""
-    data = text.encode("utf-8") + b"\0"
-    return struct.pack("<I", len(data)) + data
 
 
 class PoseArrayEncoder:
@@ -252,7 +159,7 @@ class PoseArrayEncoder:
 
     def __init__(self, frame_id: str = "world") -> None:
         self.frame_id = frame_id
-        frame = _cdr_string(frame_id)
+        frame = cdr_string(frame_id)
         self._frame = frame + b"\0" * (-len(frame) % 4)
         self._poses_at = 8 + len(self._frame) + 4
         self._padding = b"\0" * (-self._poses_at % 8)
@@ -265,7 +172,7 @@ class PoseArrayEncoder:
         values[:, 3:] = xyzw_from_wxyz(poses.quaternions_wxyz)
         return b"".join(
             (
-                _CDR_LE,
+                CDR_LE,
                 struct.pack("<iI", seconds, milliseconds * 1_000_000),
                 self._frame,
                 struct.pack("<I", count),
@@ -286,18 +193,18 @@ def pose_array_arrays(data: bytes | memoryview) -> tuple[int, str, FloatArray, F
     def fail(field: str, offset: int, reason: str) -> DecodeError:
         return DecodeError(POSE_ARRAY, field, offset, reason)
 
-    if end < 16 or bytes(buffer[:4]) != _CDR_LE:
+    if end < 16 or bytes(buffer[:4]) != CDR_LE:
         raise fail("", 0, "not little-endian CDR (encapsulation 00 01 00 00)")
     seconds, nanoseconds, length = struct.unpack_from("<iII", buffer, 4)
     frame_end = 16 + length
     if length == 0 or frame_end > end or buffer[frame_end - 1] != 0:
         raise fail("header.frame_id", 12, f"string of length {length} does not fit")
     frame_id = str(buffer[16 : frame_end - 1], "utf-8", errors="replace")
-    count_at = 4 + ((frame_end - 4 + 3) & ~3)
+    count_at = _aligned(frame_end, 4)
     if count_at + 4 > end:
         raise fail("poses", count_at, "truncated before the count")
     (count,) = struct.unpack_from("<I", buffer, count_at)
-    poses_at = 4 + ((count_at + 4 - 4 + 7) & ~7)
+    poses_at = _aligned(count_at + 4, 8)
     if end - poses_at != 56 * count:
         raise fail("poses", count_at, f"count {count} needs {56 * count} bytes, {end - poses_at} follow")
     values = np.frombuffer(buffer, dtype="<f8", count=7 * count, offset=poses_at).reshape(count, 7)
@@ -305,15 +212,17 @@ def pose_array_arrays(data: bytes | memoryview) -> tuple[int, str, FloatArray, F
     return timestamp_ms, frame_id, values[:, :3], values[:, 3:]
 
 
+def _aligned(offset: int, boundary: int) -> int:
+    """`offset` (in the buffer) moved up to CDR alignment, which counts from after the header."""
+    return len(CDR_LE) + -(-(offset - len(CDR_LE)) // boundary) * boundary
+
+
 def poses_from_pose_array_cdr(
     data: bytes | memoryview, names: Sequence[str], robot_nums: Sequence[int] | None = None
 ) -> LinkPoses:
     """The fast path of `poses_from_pose_array`: PoseArray CDR straight to link poses."""
     timestamp_ms, _, positions, xyzw = pose_array_arrays(data)
-    time = make(
-        "builtin_interfaces/msg/Time", sec=timestamp_ms // 1000, nanosec=(timestamp_ms % 1000) * 1_000_000
-    )
-    return _link_poses(time, positions, xyzw, names, robot_nums)
+    return _link_poses(timestamp_ms, positions, xyzw, names, robot_nums)
 
 
 # --- shapes: SolidPrimitive, Mesh, Plane -----------------------------------------------------------
@@ -355,12 +264,7 @@ def _shape_message(rule: ShapeRule, shape: Shape, target: str) -> Any:
     typename = rule.message or target
     if rule.type_code is not None:
         values["type"] = rule.type_code
-    return make(typename, **{name: _field_value(typename, name, value) for name, value in values.items()})
-
-
-def _field_value(typename: str, name: str, value: Any) -> Any:
-    default = _defaults(typename)[name]()
-    return np.asarray(value, dtype=default.dtype) if isinstance(default, np.ndarray) else value
+    return make(typename, **values)
 
 
 def _mesh_message(shape: TriangleMesh, options: dict[str, Any]) -> dict[str, Any]:
@@ -572,39 +476,6 @@ def _tables() -> dict[str, Any]:
 # --- the MarkerArray fast path ---------------------------------------------------------------------
 
 
-class _CdrWriter:
-    """Little-endian CDR into a list of chunks; `size` is the payload offset alignment counts from."""
-
-    def __init__(self) -> None:
-        self.chunks: list[bytes] = [_CDR_LE]
-        self.size = 0
-
-    def add(self, data: bytes) -> None:
-        self.chunks.append(data)
-        self.size += len(data)
-
-    def align(self, boundary: int) -> None:
-        padding = -self.size % boundary
-        if padding:
-            self.add(b"\0" * padding)
-
-    def pack(self, layout: struct.Struct, *values: Any) -> None:
-        self.align(4)  # every layout used here starts with a 4-byte value
-        self.add(layout.pack(*values))
-
-    def string(self, text: str) -> None:
-        self.pack(_U32, len(text.encode("utf-8")) + 1)
-        self.add(text.encode("utf-8") + b"\0")
-
-    def octets(self, data: bytes) -> None:
-        self.pack(_U32, len(data))
-        self.add(data)
-
-    def getvalue(self) -> bytes:
-        return b"".join(self.chunks)
-
-
-_U32 = struct.Struct("<I")
 _STAMP = struct.Struct("<iI")
 _ID_TYPE_ACTION = struct.Struct("<iii")
 # pose (7), scale (3), color (4 float32), lifetime (sec, nanosec): one block, 8-aligned.
@@ -613,32 +484,32 @@ _POSE_TO_LIFETIME = struct.Struct("<10d4fiI")
 
 def _string_4(text: str) -> bytes:
     """A CDR string padded to a multiple of 4, for a string that starts 4-aligned."""
-    data = _cdr_string(text)
+    data = cdr_string(text)
     return data + b"\0" * (-len(data) % 4)
 
 
 def _marker_tail(spec: MarkerSpec) -> bytes:
     """Everything after a marker's lifetime. It starts 8-aligned, so its bytes never change."""
-    writer = _CdrWriter()
+    writer = CdrWriter()
     writer.add(b"\0")  # frame_locked: the pose is already in the world frame
     points = spec.points if spec.points is not None else np.zeros((0, 3))
-    writer.pack(_U32, len(points))
+    writer.pack(U32, len(points))
     if len(points):
         writer.align(8)
         writer.add(np.ascontiguousarray(points, dtype="<f8").tobytes())
-    writer.pack(_U32, 0)  # colors
+    writer.pack(U32, 0)  # colors
     writer.string("")  # texture_resource
     writer.pack(_STAMP, 0, 0)  # texture.header.stamp
     writer.string("")  # texture.header.frame_id
     writer.string("")  # texture.format
     writer.octets(b"")  # texture.data
-    writer.pack(_U32, 0)  # uv_coordinates
+    writer.pack(U32, 0)  # uv_coordinates
     writer.string("")  # text
     writer.string(spec.mesh_resource)
     writer.string(spec.mesh_file[0])
     writer.octets(spec.mesh_file[1])
     writer.add(b"\0")  # mesh_use_embedded_materials
-    return writer.getvalue()[len(_CDR_LE) :]
+    return writer.getvalue()[len(CDR_LE) :]
 
 
 def _write_markers(
@@ -654,7 +525,7 @@ def _write_markers(
         poses = np.concatenate((_IDENTITY_XYZW[None, :], poses))
     stamp_and_frame = _STAMP.pack(0, 0) + _string_4(frame_id)
     tails: dict[tuple[str, str, int, bool], bytes] = {}
-    chunks = [_CDR_LE, _U32.pack(len(specs))]
+    chunks = [CDR_LE, U32.pack(len(specs))]
     size = 4  # payload bytes so far
     offsets = []
     for spec, pose in zip(specs, poses.tolist(), strict=True):
@@ -727,6 +598,7 @@ class MarkerStream:
 
 __all__ = [
     "MARKER_ARRAY",
+    "MarkerSpec",
     "POSE_ARRAY",
     "POSE_STAMPED",
     "MarkerStream",
@@ -736,6 +608,8 @@ __all__ = [
     "from_rclpy",
     "make",
     "marker_array",
+    "marker_array_cdr",
+    "marker_specs",
     "pose_array",
     "pose_array_arrays",
     "pose_from_message",
@@ -747,4 +621,5 @@ __all__ = [
     "shapes",
     "to_cdr",
     "to_rclpy",
+    "world_poses",
 ]

@@ -18,6 +18,12 @@ BOX, SPHERE, CYLINDER, MESH, CAPSULE, ELLIPSOID = 1, 2, 3, 4, 5, 6
 F32 = 1e-6  # float32 round-off, relative
 
 
+def close(actual: Any, expected: Any) -> bool:
+    """Equal within float32 round-off (Drake sends float32; the targets carry float64)."""
+    actual, expected = np.asarray(actual, dtype=np.float64), np.asarray(expected, dtype=np.float64)
+    return actual.shape == expected.shape and bool(np.allclose(actual, expected, rtol=F32, atol=1e-7))
+
+
 def transform(position: Any, quaternion_wxyz: Any) -> RigidTransform:
     w, x, y, z = (float(value) for value in quaternion_wxyz)
     return RigidTransform(Quaternion(w, x, y, z), np.asarray(position, dtype=np.float64))

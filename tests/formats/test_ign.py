@@ -15,14 +15,10 @@ from bridge.mappings import tables
 from bridge.scene import Box, Geometry, HalfSpace, Link, LinkPoses, Pose, Scene
 from tests.conftest import Capture
 from tests.formats import oracle
+from tests.formats.oracle import close
 from tests.strategies import link_poses, scenes
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
-
-
-def close(actual: Any, expected: Any) -> bool:
-    actual, expected = np.asarray(actual, dtype=np.float64), np.asarray(expected, dtype=np.float64)
-    return actual.shape == expected.shape and bool(np.allclose(actual, expected, rtol=oracle.F32, atol=1e-7))
 
 
 def xyz(vector: Any) -> list[float]:

@@ -18,18 +18,13 @@ from bridge.formats import ros
 from bridge.scene import Geometry, Link, LinkPoses, MeshFile, Pose, Scene, frame_name
 from tests.conftest import Capture
 from tests.formats import oracle
+from tests.formats.oracle import close
 from tests.strategies import link_poses
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
 TETRAHEDRON = np.array(
     [[float(v) for v in line.split()[1:]] for line in TETRAHEDRON_OBJ.splitlines() if line[:2] == "v "]
 )
-
-
-def close(actual: Any, expected: Any) -> bool:
-    """Equal within float32 round-off (Drake sends float32; ROS carries float64)."""
-    actual, expected = np.asarray(actual, dtype=np.float64), np.asarray(expected, dtype=np.float64)
-    return actual.shape == expected.shape and bool(np.allclose(actual, expected, rtol=oracle.F32, atol=1e-7))
 
 
 # --- load -> SolidPrimitive / Mesh / Plane ---------------------------------------------------------
@@ -320,3 +315,18 @@ def test_pose_array_errors_name_what_is_wrong() -> None:
         ros.pose_array_arrays(bytes(huge))
     with pytest.raises(DecodeError, match="not a valid CDR message"):
         ros.from_cdr(b"\x00\x01\x00\x00\xff", ros.POSE_ARRAY)
+
+
+def test_pose_stamped_reads_back_as_a_pose() -> None:
+    poses = LinkPoses(
+        2500, ("a",), np.zeros(1, np.int32), np.array([[1.0, 2.0, 3.0]]), np.array([[0.0, 0.0, 1.0, 0.0]])
+    )
+    stamped = ros.from_cdr(ros.to_cdr(ros.pose_stamped(poses, 0, "map")), ros.POSE_STAMPED)
+    assert stamped.header.frame_id == "map" and (stamped.header.stamp.sec, stamped.header.stamp.nanosec) == (
+        2,
+        5 * 10**8,
+    )
+    assert ros.pose_from_message(stamped.pose) == Pose((1.0, 2.0, 3.0), (0.0, 0.0, 1.0, 0.0))
+    stamped.pose.position.y = float("nan")
+    with pytest.raises(SceneError, match="pose.position is not finite"):
+        ros.pose_from_message(stamped.pose)

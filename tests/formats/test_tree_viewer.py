@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 from typing import Any
 
-import numpy as np
 import pytest
 from hypothesis import given, settings
 
@@ -15,14 +14,10 @@ from bridge.lcmcodec import VIEWER2_COMMS
 from bridge.scene import Box, Geometry, Link, Pose, Scene
 from tests.conftest import Capture
 from tests.formats import oracle
+from tests.formats.oracle import close
 from tests.strategies import scenes
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
-
-
-def close(actual: Any, expected: Any) -> bool:
-    actual, expected = np.asarray(actual, dtype=np.float64), np.asarray(expected, dtype=np.float64)
-    return actual.shape == expected.shape and bool(np.allclose(actual, expected, rtol=oracle.F32, atol=1e-7))
 
 
 @pytest.mark.parametrize("role", ROLES)
