@@ -6,6 +6,7 @@ Run: .venv/bin/python bench/translators.py [--links 1000] [--budget 0.3]
   `PoseArrayEncoder` (numpy, no message objects). Baseline: the usual rclpy way, one
   `geometry_msgs.msg.Pose` built per link from the same decoded arrays, then
   `rclpy.serialization.serialize_message`.
+* draw -> one `PoseStamped` per link, the same way.
 * draw -> re-posed MarkerArray (`MarkerStream.update`) against building the MarkerArray anew.
 * load (one geometry per link) -> MarkerArray CDR, ign Model bytes, tree viewer JSON envelopes:
   milliseconds, beside the object paths (rosbags messages; protobuf objects).
@@ -17,7 +18,7 @@ import argparse
 from collections.abc import Callable
 
 from draw_codec import frame, seconds_per_call  # bench/ is on sys.path when run as a script
-from geometry_msgs.msg import Point, Pose, PoseArray, Quaternion
+from geometry_msgs.msg import Point, Pose, PoseArray, PoseStamped, Quaternion
 from rclpy.serialization import serialize_message
 
 from bridge.formats import ign, ros
@@ -95,6 +96,28 @@ def main() -> None:
     print(f"  rclpy objects one by one     {slow * 1e6:10.1f} us")
     print(f"  ratio                        {slow / fast:10.0f}x")
 
+    stamped = ros.PoseStampedEncoder("world")
+
+    def rclpy_pose_stamped() -> list[bytes]:
+        poses = decoder.decode(draw)
+        out = []
+        for position, (w, x, y, z) in zip(
+            poses.positions.tolist(), poses.quaternions_wxyz.tolist(), strict=True
+        ):
+            message = PoseStamped()
+            message.header.frame_id = "world"
+            message.pose.position = Point(x=position[0], y=position[1], z=position[2])
+            message.pose.orientation = Quaternion(x=x, y=y, z=z, w=w)
+            out.append(bytes(serialize_message(message)))
+        return out
+
+    fast = seconds_per_call(lambda: stamped.encode(decoder.decode(draw)), args.budget)
+    slow = seconds_per_call(rclpy_pose_stamped, args.budget)
+    print(f"\ndraw -> one PoseStamped CDR per link, {links} links")
+    print(f"  viewer-bridge fast path      {fast * 1e6:10.1f} us")
+    print(f"  rclpy objects one by one     {slow * 1e6:10.1f} us")
+    print(f"  ratio                        {slow / fast:10.0f}x")
+
     load = scene(links).with_poses(frame(links))
     stream = ros.MarkerStream(load)
     moved = frame(links, seed=1)
@@ -102,7 +125,9 @@ def main() -> None:
     rebuild = seconds_per_call(
         lambda: ros.marker_array_cdr(load.with_poses(moved), delete_all=False), args.budget
     )
-    print(f"\ndraw -> MarkerArray CDR, {links} markers")
+    print(
+        f"\ndraw -> MarkerArray CDR, {len(stream)} markers ({links} links, a fifth of them capsules: 3 markers each)"
+    )
     print(f"  MarkerStream.update (template)   {update * 1e3:8.2f} ms")
     print(f"  marker_array_cdr (rebuilt)       {rebuild * 1e3:8.2f} ms   ratio {rebuild / update:.0f}x")
 

@@ -149,6 +149,19 @@ def _link_poses(
 # --- the PoseArray fast path -------------------------------------------------------------------------
 
 
+def _pose_rows(poses: LinkPoses) -> np.ndarray[Any, Any]:
+    """N x 7 little-endian float64: position x y z, orientation x y z w (ROS's order)."""
+    values = np.empty((len(poses), 7), dtype="<f8")
+    values[:, :3] = poses.positions
+    values[:, 3:] = xyzw_from_wxyz(poses.quaternions_wxyz)
+    return values
+
+
+def _stamp_bytes(timestamp_ms: int) -> bytes:
+    seconds, milliseconds = divmod(int(timestamp_ms), 1000)
+    return _STAMP.pack(seconds, milliseconds * 1_000_000)
+
+
 class PoseArrayEncoder:
     """draw arrays -> `geometry_msgs/PoseArray` CDR, without building a message per link.
 
@@ -159,27 +172,30 @@ class PoseArrayEncoder:
 
     def __init__(self, frame_id: str = "world") -> None:
         self.frame_id = frame_id
-        frame = cdr_string(frame_id)
-        self._frame = frame + b"\0" * (-len(frame) % 4)
-        self._poses_at = 8 + len(self._frame) + 4
-        self._padding = b"\0" * (-self._poses_at % 8)
+        self._frame = _string_4(frame_id, "header.frame_id")
+        self._padding = b"\0" * (-(8 + len(self._frame) + 4) % 8)
 
     def encode(self, poses: LinkPoses) -> bytes:
-        count = len(poses)
-        seconds, milliseconds = divmod(int(poses.timestamp_ms), 1000)
-        values = np.empty((count, 7), dtype="<f8")
-        values[:, :3] = poses.positions
-        values[:, 3:] = xyzw_from_wxyz(poses.quaternions_wxyz)
-        return b"".join(
-            (
-                CDR_LE,
-                struct.pack("<iI", seconds, milliseconds * 1_000_000),
-                self._frame,
-                struct.pack("<I", count),
-                self._padding,
-                values.tobytes(),
-            )
-        )
+        count = U32.pack(len(poses))
+        rows = _pose_rows(poses).tobytes()
+        return b"".join((CDR_LE, _stamp_bytes(poses.timestamp_ms), self._frame, count, self._padding, rows))
+
+
+class PoseStampedEncoder:
+    """draw arrays -> one `geometry_msgs/PoseStamped` CDR per link, in the draw's order.
+
+    Layout: stamp, frame_id string, pad to 8, 7 float64. Everything before the pose is the same
+    for every link of a frame, so each message is that prefix plus 56 bytes of one row.
+    """
+
+    def __init__(self, frame_id: str = "world") -> None:
+        self.frame_id = frame_id
+        frame = cdr_string(frame_id, "header.frame_id")
+        self._frame = frame + b"\0" * (-(8 + len(frame)) % 8)
+
+    def encode(self, poses: LinkPoses) -> list[bytes]:
+        prefix = CDR_LE + _stamp_bytes(poses.timestamp_ms) + self._frame
+        return [prefix + row for row in map(bytes, _pose_rows(poses))]
 
 
 def pose_array_arrays(data: bytes | memoryview) -> tuple[int, str, FloatArray, FloatArray]:
@@ -482,9 +498,9 @@ _ID_TYPE_ACTION = struct.Struct("<iii")
 _POSE_TO_LIFETIME = struct.Struct("<10d4fiI")
 
 
-def _string_4(text: str) -> bytes:
+def _string_4(text: str, field: str = "string") -> bytes:
     """A CDR string padded to a multiple of 4, for a string that starts 4-aligned."""
-    data = cdr_string(text)
+    data = cdr_string(text, field)
     return data + b"\0" * (-len(data) % 4)
 
 
@@ -603,6 +619,7 @@ __all__ = [
     "POSE_STAMPED",
     "MarkerStream",
     "PoseArrayEncoder",
+    "PoseStampedEncoder",
     "PosedShape",
     "from_cdr",
     "from_rclpy",

@@ -18,7 +18,7 @@ import numpy as np
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_typestore
 
-from bridge.errors import DecodeError
+from bridge.errors import DecodeError, EncodeError
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -135,10 +135,15 @@ U32 = struct.Struct("<I")
 CDR_LE = b"\x00\x01\x00\x00"
 
 
-def cdr_string(text: str) -> bytes:
-    """A CDR string: uint32 length counting the NUL, the UTF-8 bytes, the NUL."""
+def cdr_string(text: str, field: str = "string") -> bytes:
+    """A CDR string: uint32 length counting the NUL, the UTF-8 bytes, the NUL.
+
+    Raises `EncodeError` for text with a NUL in it: a reader would stop there.
+    """
+    if "\0" in text:
+        raise EncodeError("CDR", field, f"{text!r} contains a NUL character, which a CDR string cannot carry")
     data = text.encode("utf-8") + b"\0"
-    return struct.pack("<I", len(data)) + data
+    return U32.pack(len(data)) + data
 
 
 class CdrWriter:

@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import PoseArray, PoseStamped
 from hypothesis import given, settings
+from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message
 from visualization_msgs.msg import Marker, MarkerArray
 
 from bridge.demo import TETRAHEDRON_OBJ
-from bridge.errors import DecodeError, SceneError
+from bridge.errors import DecodeError, EncodeError, SceneError
 from bridge.formats import ros
 from bridge.scene import Geometry, Link, LinkPoses, MeshFile, Pose, Scene, frame_name
 from tests.conftest import Capture
@@ -247,16 +248,22 @@ def test_pose_array_fast_path_matches_the_objects(drake_capture: dict[str, Captu
             w,
         ]
         assert [pose.position.x, pose.position.y, pose.position.z] == raw.positions[index].tolist()
-    for index in range(len(poses)):
-        stamped = ros.pose_stamped(poses, index)
-        assert deserialize_message(ros.to_cdr(stamped), PoseStamped) == ros.to_rclpy(stamped)
-        assert stamped.pose.position.x == poses.positions[index][0]
+    for index, data in enumerate(ros.PoseStampedEncoder("world").encode(poses)):  # the fast path
+        objects = ros.to_rclpy(ros.pose_stamped(poses, index))
+        assert deserialize_message(data, PoseStamped) == objects
+        assert ros.to_rclpy(ros.from_cdr(data, ros.POSE_STAMPED)) == objects
+        assert objects.pose.position.x == poses.positions[index][0]
 
 
 @settings(max_examples=60, deadline=None)
-@given(link_poses())
-def test_draw_to_pose_array_to_draw_round_trips(poses: LinkPoses) -> None:
-    data = ros.PoseArrayEncoder("world").encode(poses)
+@given(link_poses(), st.text(st.characters(exclude_characters="\0"), max_size=9))
+def test_draw_to_pose_array_to_draw_round_trips(poses: LinkPoses, frame_id: str) -> None:
+    data = ros.PoseArrayEncoder(frame_id).encode(poses)
+    assert deserialize_message(data, PoseArray) == ros.to_rclpy(ros.pose_array(poses, frame_id))
+    for index, stamped in enumerate(ros.PoseStampedEncoder(frame_id).encode(poses)):
+        assert deserialize_message(stamped, PoseStamped) == ros.to_rclpy(
+            ros.pose_stamped(poses, index, frame_id)
+        )
     names, numbers = poses.names, poses.robot_nums.tolist()
     for back in (
         ros.poses_from_pose_array_cdr(data, names, numbers),
@@ -298,6 +305,11 @@ def test_bad_quaternions_are_refused(orientation: list[float], reason: str) -> N
 def test_a_nearly_unit_quaternion_is_normalised() -> None:
     back = ros.poses_from_pose_array(pose_array_with([0.0, 0.0, 0.0, 1.004]), ["a", "b"])
     assert back.quaternions_wxyz[1].tolist() == [1.0, 0.0, 0.0, 0.0]
+
+
+def test_a_frame_id_with_a_nul_is_refused() -> None:
+    with pytest.raises(EncodeError, match=r"header.frame_id: .* contains a NUL"):
+        ros.PoseArrayEncoder("a\0b")
 
 
 def test_pose_array_errors_name_what_is_wrong() -> None:
