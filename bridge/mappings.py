@@ -20,6 +20,7 @@ Drake load -> scene) read shapes back. Tables are validated when loaded: a mista
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
@@ -163,6 +164,8 @@ def _term_value(term: Term, value: Any, name: str) -> Any:
         raise ValueError(f"{name} must be a number, got {value!r}")
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ValueError(f"{name} must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value!r}")
     return float(value) / term.factor
 
 

@@ -139,6 +139,45 @@ def unit_quaternions(quaternions: npt.ArrayLike, what: str) -> FloatArray:
     return normalised
 
 
+def pose_from_xyzw(position: Sequence[float], xyzw: Sequence[float], what: str) -> Pose:
+    """A pose from a ROS/gz message's position and x, y, z, w quaternion, checked.
+
+    Raises `SceneError` naming `what` for a non-finite position or a quaternion that is not a
+    rotation (see `unit_quaternions`).
+    """
+    if not np.isfinite(position).all():
+        raise SceneError(f"{what}.position is not finite")
+    w, x, y, z = wxyz_from_xyzw(unit_quaternions([xyzw], what))[0].tolist()
+    return Pose(_vector3(position), (w, x, y, z))
+
+
+def link_poses_from_xyzw(
+    timestamp_ms: int,
+    names: Sequence[str],
+    robot_nums: Sequence[int] | None,
+    positions: npt.ArrayLike,
+    xyzw: npt.ArrayLike,
+    what: str,
+) -> LinkPoses:
+    """Link poses from N positions and N x, y, z, w quaternions (a PoseArray, a Pose_V), checked.
+
+    Raises `SceneError` when the counts differ, or naming the first row of `what` whose position
+    is not finite or whose quaternion is not a rotation.
+    """
+    position_array = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    count = len(position_array)
+    if len(names) != count:
+        raise SceneError(f"{what} has {count} poses but {len(names)} link names were given")
+    finite = np.isfinite(position_array).all(axis=1)
+    if not finite.all():
+        raise SceneError(f"{what}[{int(np.flatnonzero(~finite)[0])}].position is not finite")
+    quaternions = wxyz_from_xyzw(unit_quaternions(np.asarray(xyzw).reshape(count, 4), what))
+    numbers = (
+        np.zeros(count, dtype=np.int32) if robot_nums is None else np.asarray(robot_nums, dtype=np.int32)
+    )
+    return LinkPoses(int(timestamp_ms), tuple(names), numbers, position_array, quaternions)
+
+
 def compose_arrays(
     parent_positions: FloatArray,
     parent_wxyz: FloatArray,

@@ -35,8 +35,8 @@ from bridge.scene import (
     Scene,
     Shape,
     TriangleMesh,
-    unit_quaternions,
-    wxyz_from_xyzw,
+    link_poses_from_xyzw,
+    pose_from_xyzw,
     xyzw_from_wxyz,
 )
 
@@ -226,30 +226,18 @@ def poses_from_pose_v(message: Any, robot_nums: Mapping[str, int] | None = None)
     message does not carry; links it lacks get 0. Raises `SceneError` for a non-finite position
     or a quaternion that is not a rotation.
     """
-    count = len(message.pose)
-    positions = np.array([[p.position.x, p.position.y, p.position.z] for p in message.pose]).reshape(count, 3)
-    xyzw = np.array(
-        [[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in message.pose]
-    )
-    if not np.isfinite(positions).all():
-        raise SceneError(
-            f"pose[{int(np.flatnonzero(~np.isfinite(positions).all(axis=1))[0])}].position is not finite"
-        )
-    quaternions = wxyz_from_xyzw(unit_quaternions(xyzw.reshape(count, 4), "pose"))
-    names = tuple(p.name for p in message.pose)
-    numbers = np.array([(robot_nums or {}).get(name, 0) for name in names], dtype=np.int32)
+    names = [p.name for p in message.pose]
+    positions = [[p.position.x, p.position.y, p.position.z] for p in message.pose]
+    xyzw = [[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in message.pose]
+    numbers = [(robot_nums or {}).get(name, 0) for name in names]
     stamp = message.header.stamp
-    return LinkPoses(
-        int(stamp.sec) * 1000 + int(stamp.nsec) // 1_000_000, names, numbers, positions, quaternions
-    )
+    timestamp_ms = int(stamp.sec) * 1000 + int(stamp.nsec) // 1_000_000
+    return link_poses_from_xyzw(timestamp_ms, names, numbers, positions, xyzw, "pose")
 
 
 def _pose_from(message: Any, what: str) -> Pose:
     p, q = message.position, message.orientation
-    if not np.isfinite([p.x, p.y, p.z]).all():
-        raise SceneError(f"{what}.position is not finite")
-    w, x, y, z = wxyz_from_xyzw(unit_quaternions([[q.x, q.y, q.z, q.w]], what))[0].tolist()
-    return Pose((p.x, p.y, p.z), (w, x, y, z))
+    return pose_from_xyzw([p.x, p.y, p.z], [q.x, q.y, q.z, q.w], what)
 
 
 # --- geometry ---------------------------------------------------------------------------------------

@@ -49,8 +49,8 @@ from bridge.scene import (
     Shape,
     TriangleMesh,
     compose_arrays,
-    unit_quaternions,
-    wxyz_from_xyzw,
+    link_poses_from_xyzw,
+    pose_from_xyzw,
     xyzw_from_wxyz,
 )
 
@@ -80,14 +80,9 @@ def pose_message(pose: Pose) -> Any:
 
 
 def pose_from_message(message: Any, what: str = "pose") -> Pose:
-    """A `geometry_msgs/Pose` as a scene pose (quaternion checked: see `unit_quaternions`)."""
-    orientation = message.orientation
-    xyzw = [orientation.x, orientation.y, orientation.z, orientation.w]
-    position = message.position
-    if not np.isfinite([position.x, position.y, position.z]).all():
-        raise SceneError(f"{what}.position is not finite")
-    w, x, y, z = wxyz_from_xyzw(unit_quaternions([xyzw], what))[0]
-    return Pose((position.x, position.y, position.z), (float(w), float(x), float(y), float(z)))
+    """A `geometry_msgs/Pose` as a scene pose (checked: see `scene.pose_from_xyzw`)."""
+    p, q = message.position, message.orientation
+    return pose_from_xyzw([p.x, p.y, p.z], [q.x, q.y, q.z, q.w], what)
 
 
 def pose_array(poses: LinkPoses, frame_id: str = "world") -> Any:
@@ -113,40 +108,11 @@ def poses_from_pose_array(
 
     Raises `SceneError` when the counts differ or a pose is not finite or not a rotation.
     """
-    count = len(message.poses)
-    positions = np.array([[p.position.x, p.position.y, p.position.z] for p in message.poses]).reshape(
-        count, 3
-    )
-    xyzw = np.array(
-        [[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in message.poses]
-    )
+    positions = [[p.position.x, p.position.y, p.position.z] for p in message.poses]
+    xyzw = [[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in message.poses]
     time = message.header.stamp
     timestamp_ms = int(time.sec) * 1000 + int(time.nanosec) // 1_000_000
-    return _link_poses(timestamp_ms, positions, xyzw.reshape(count, 4), names, robot_nums)
-
-
-def _link_poses(
-    timestamp_ms: int,
-    positions: FloatArray,
-    xyzw: FloatArray,
-    names: Sequence[str],
-    robot_nums: Sequence[int] | None,
-) -> LinkPoses:
-    count = len(positions)
-    if len(names) != count:
-        raise SceneError(f"PoseArray has {count} poses but {len(names)} link names were given")
-    if not np.isfinite(positions).all():
-        raise SceneError(
-            f"poses[{int(np.flatnonzero(~np.isfinite(positions).all(axis=1))[0])}].position is not finite"
-        )
-    quaternions = wxyz_from_xyzw(unit_quaternions(xyzw, "poses"))
-    numbers = (
-        np.zeros(count, dtype=np.int32) if robot_nums is None else np.asarray(robot_nums, dtype=np.int32)
-    )
-    return LinkPoses(timestamp_ms, tuple(names), numbers, positions, quaternions)
-
-
-# --- the PoseArray fast path -------------------------------------------------------------------------
+    return link_poses_from_xyzw(timestamp_ms, names, robot_nums, positions, xyzw, "poses")
 
 
 def _pose_rows(poses: LinkPoses) -> np.ndarray[Any, Any]:
@@ -238,7 +204,7 @@ def poses_from_pose_array_cdr(
 ) -> LinkPoses:
     """The fast path of `poses_from_pose_array`: PoseArray CDR straight to link poses."""
     timestamp_ms, _, positions, xyzw = pose_array_arrays(data)
-    return _link_poses(timestamp_ms, positions, xyzw, names, robot_nums)
+    return link_poses_from_xyzw(timestamp_ms, names, robot_nums, positions, xyzw, "poses")
 
 
 # --- shapes: SolidPrimitive, Mesh, Plane -----------------------------------------------------------

@@ -138,11 +138,15 @@ CDR_LE = b"\x00\x01\x00\x00"
 def cdr_string(text: str, field: str = "string") -> bytes:
     """A CDR string: uint32 length counting the NUL, the UTF-8 bytes, the NUL.
 
-    Raises `EncodeError` for text with a NUL in it: a reader would stop there.
+    Raises `EncodeError` for text with a NUL in it (a reader would stop there) or that is not
+    valid Unicode.
     """
     if "\0" in text:
         raise EncodeError("CDR", field, f"{text!r} contains a NUL character, which a CDR string cannot carry")
-    data = text.encode("utf-8") + b"\0"
+    try:
+        data = text.encode("utf-8") + b"\0"
+    except UnicodeEncodeError as error:  # a lone surrogate
+        raise EncodeError("CDR", field, f"{text!r} is not valid Unicode ({error.reason})") from None
     return U32.pack(len(data)) + data
 
 

@@ -199,6 +199,10 @@ def test_bad_models_raise_scene_errors() -> None:
     with pytest.raises(SceneError, match="link 'l' visual 0: Geometry type HEIGHTMAP has no scene shape"):
         ign.scene_from_model(message)
     visual.geometry.type = 0
+    visual.geometry.box.size.y = float("inf")
+    with pytest.raises(SceneError, match="box.size must be finite, got inf"):
+        ign.scene_from_model(message)
+    visual.geometry.box.size.y = 1.0
     visual.pose.orientation.w = float("nan")
     with pytest.raises(SceneError, match="quaternion of length nan"):
         ign.scene_from_model(message)
