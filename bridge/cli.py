@@ -3,14 +3,19 @@
 from __future__ import annotations
 
 import argparse
+import logging
+import signal
 import sys
 import threading
 from collections.abc import Iterator, Sequence
 
+from bridge.config import DEFAULT_CONFIG, load_config
+from bridge.convert import convert
 from bridge.demo import run_demo
 from bridge.dump import as_json, as_text
 from bridge.errors import ConfigError
 from bridge.mappings import format_names, reference_markdown
+from bridge.router import Router
 from bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 
 
@@ -43,6 +48,32 @@ def _parser() -> argparse.ArgumentParser:
 
     commands.add_parser(
         "mappings", help="print the mapping reference (mappings/REFERENCE.md) from the tables"
+    )
+
+    run = commands.add_parser("run", help="run the router: bridge Drake's LCM scene to ROS 2 (and back)")
+    run.add_argument(
+        "-c", "--config", help="a YAML config (default: the built-in one, see --print-default-config)"
+    )
+    run.add_argument("--print-default-config", action="store_true", help="print the built-in config and exit")
+    run.add_argument(
+        "--lcm-url", help="override the config's LCM URL (a log file or file://LOG?speed=S replays it)"
+    )
+    run.add_argument(
+        "--stats-json", metavar="PATH", help="write per-route stats as JSON every period and at exit"
+    )
+    run.add_argument(
+        "--stats-period", type=float, default=5.0, metavar="S", help="seconds between stats lines"
+    )
+    run.add_argument(
+        "--duration", type=float, metavar="S", help="stop after S seconds (default: until Ctrl-C)"
+    )
+    run.add_argument("--demo", action="store_true", help="also publish the demo scene on the LCM URL")
+
+    convert = commands.add_parser("convert", help="translate an LCM log into a ROS 2 MCAP file")
+    convert.add_argument("log", help="an .lcmlog file")
+    convert.add_argument("mcap", help="the .mcap file to write")
+    convert.add_argument(
+        "-c", "--config", help="a YAML config whose LCM -> ROS routes are used (default: built-in)"
     )
     return parser
 
@@ -97,9 +128,53 @@ def _mappings(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run(args: argparse.Namespace) -> int:
+    if args.print_default_config:
+        print(DEFAULT_CONFIG, end="")
+        return 0
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
+    try:
+        config = load_config(args.config)
+        if args.lcm_url:
+            config.lcm.url = args.lcm_url
+        router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period)
+    except (ConfigError, OSError, ValueError) as error:
+        print(f"viewer-bridge: {error}", file=sys.stderr)
+        return 2
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, lambda *_: router.stop())
+    stop_demo = threading.Event()
+    demo = None
+    if args.demo:
+        demo = threading.Thread(
+            target=run_demo, args=(config.lcm.url, None), kwargs={"stop": stop_demo}, daemon=True
+        )
+        demo.start()
+    try:
+        router.run(args.duration)
+    finally:
+        stop_demo.set()
+        if demo is not None:
+            demo.join(timeout=2)
+    return 0
+
+
+def _convert(args: argparse.Namespace) -> int:
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    try:
+        config = load_config(args.config)
+        written = convert(args.log, args.mcap, config, progress=sys.stderr.isatty())
+    except (ConfigError, OSError) as error:
+        print(f"viewer-bridge: {error}", file=sys.stderr)
+        return 2
+    for topic, count in sorted(written.items()):
+        print(f"{count:8d}  {topic}")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    handlers = {"dump": _dump, "demo": _demo, "mappings": _mappings}
+    handlers = {"dump": _dump, "demo": _demo, "mappings": _mappings, "run": _run, "convert": _convert}
     return handlers[args.command](args)
 
 

@@ -23,10 +23,14 @@ from bridge.transports.lcm import LcmEvent, read_log
 
 SCRIPTS = Path(sysconfig.get_paths()["purelib"]) / "bin"  # the lcm wheel's real binaries
 
+# ROS 2 traffic stays on this host, in a domain of this test process's own (before rclpy loads).
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 100)
 
-def lcm_url() -> str:
+
+def lcm_url(offset: int = 0) -> str:
     """A multicast URL of this test process's own (ttl=0 keeps it on this host)."""
-    return f"udpm://239.255.76.67:{7700 + os.getpid() % 200}?ttl=0"
+    return f"udpm://239.255.76.67:{7700 + (os.getpid() + 211 * offset) % 1000}?ttl=0"
 
 
 @pytest.fixture(scope="session")

@@ -1,8 +1,10 @@
 """Run a pydrake scene with every shape through DrakeVisualizer on a given LCM URL.
 
-Usage: python drake_scene.py LCM_URL FOLDER. Illustration and proximity roles both publish
-(role-suffixed channels), so every way Drake lowers a shape is on the wire: a Mesh by file,
-Convex and proximity meshes as mesh arrays, an in-memory mesh as JSON, a HalfSpace as a box.
+Usage: python drake_scene.py LCM_URL FOLDER [SECONDS]. With SECONDS the simulation runs that
+long in real time (a live source for the router's tests); without, 0.1 s as fast as it can.
+Illustration and proximity roles both publish (role-suffixed channels), so every way Drake
+lowers a shape is on the wire: a Mesh by file, Convex and proximity meshes as mesh arrays, an
+in-memory mesh as JSON, a HalfSpace as a box.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ from pydrake.systems.framework import DiagramBuilder
 from bridge.demo import TETRAHEDRON_OBJ
 
 
-def main(url: str, folder: Path) -> None:
+def main(url: str, folder: Path, seconds: float | None = None) -> None:
     obj = folder / "tetrahedron.obj"
     obj.write_text(TETRAHEDRON_OBJ)
     builder = DiagramBuilder()
@@ -69,8 +71,12 @@ def main(url: str, folder: Path) -> None:
         params = DrakeVisualizerParams(role=role, use_role_channel_suffix=True)
         DrakeVisualizer.AddToBuilder(builder, scene_graph, lcm, params)
     simulator = Simulator(builder.Build())
-    simulator.AdvanceTo(0.1)  # free fall: poses change from frame to frame
+    if seconds is None:
+        simulator.AdvanceTo(0.1)  # free fall: poses change from frame to frame
+    else:
+        simulator.set_target_realtime_rate(1.0)
+        simulator.AdvanceTo(seconds)
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], Path(sys.argv[2]))
+    main(sys.argv[1], Path(sys.argv[2]), float(sys.argv[3]) if len(sys.argv) > 3 else None)

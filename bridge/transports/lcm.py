@@ -6,9 +6,10 @@ Nothing here knows a message format; callers get `(channel, data, timestamp)` ev
 from __future__ import annotations
 
 import re
+import threading
 import time
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -84,3 +85,103 @@ class Publisher:
 
     def publish(self, channel: str, data: bytes) -> None:
         self._bus.publish(channel, data)
+
+
+Callback = Callable[[str, bytes, int], None]  # channel, data, receive time (time.time_ns() // 1000)
+
+
+class LcmBus:
+    """A live LCM bus (any URL: udpm, memq, ...) driven by a thread of its own.
+
+    `subscribe(regex, callback)` calls back on that thread, with the receive time in
+    microseconds; callbacks must be quick (hand the bytes over and return).
+    """
+
+    def __init__(self, url: str = DEFAULT_URL) -> None:
+        self.url = url
+        self._lcm = lcm.LCM(url)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"lcm {url}", daemon=True)
+
+    def subscribe(self, channel: str, callback: Callback) -> None:
+        self._lcm.subscribe(channel, lambda name, data: callback(name, data, time.time_ns() // 1000))
+
+    def publish(self, channel: str, data: bytes) -> None:
+        self._lcm.publish(channel, data)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            self._lcm.handle_timeout(100)
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2)
+
+
+class LogReplay:
+    """An LCM log played back as if live: same interface as `LcmBus` for subscribers.
+
+    `speed` 1.0 keeps the recorded timing, 2.0 plays twice as fast, 0 as fast as possible.
+    Publishing goes nowhere (a log is read-only). `finished` is set at the end of the log.
+    """
+
+    def __init__(self, path: str | Path, speed: float = 1.0) -> None:
+        self.url = f"file://{path}"
+        self.path = Path(path)
+        self.speed = speed
+        self.finished = threading.Event()
+        self._subscribers: list[tuple[re.Pattern[str], Callback]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"replay {path}", daemon=True)
+
+    def subscribe(self, channel: str, callback: Callback) -> None:
+        self._subscribers.append((re.compile(channel), callback))
+
+    def publish(self, channel: str, data: bytes) -> None:
+        raise OSError(f"cannot publish on {channel}: {self.url} is a log being replayed")
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def _run(self) -> None:
+        started = time.monotonic()
+        first: int | None = None
+        try:
+            for event in read_log(self.path):
+                if self._stop.is_set():
+                    return
+                first = event.timestamp_us if first is None else first
+                if self.speed > 0:
+                    due = started + (event.timestamp_us - first) / 1e6 / self.speed
+                    if self._stop.wait(max(0.0, due - time.monotonic())):
+                        return
+                for pattern, callback in self._subscribers:
+                    if pattern.fullmatch(event.channel):
+                        callback(event.channel, event.data, time.time_ns() // 1000)
+        finally:
+            self.finished.set()
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2)
+
+
+def open_bus(url: str) -> LcmBus | LogReplay:
+    """A live bus for an LCM URL; a replay for `file://PATH[?speed=S]` or a path to a log file."""
+    if url.startswith("file://") or (("://" not in url) and Path(url.split("?")[0]).is_file()):
+        path, _, query = url.removeprefix("file://").partition("?")
+        speed = 1.0
+        for part in filter(None, query.split("&")):
+            key, _, value = part.partition("=")
+            if key != "speed":
+                raise ValueError(f"{url}: unknown log option {key!r} (known: speed)")
+            speed = float(value)
+        if not Path(path).is_file():
+            raise FileNotFoundError(f"{url}: no such log file")
+        return LogReplay(path, speed)
+    return LcmBus(url)

@@ -1,0 +1,246 @@
+"""The router's translators: one class per (source message, target message) pair.
+
+A translator takes the bytes of one source message and returns the bytes of what to publish,
+per output. It keeps what it must between messages (the decoded scene of the last load, the
+marker template), so the formats stay pure functions. Which translator a route uses is named in
+its config; `TRANSLATORS` is the registry.
+
+Drake's scene arrives as two streams (a load now and then, a draw every frame), told apart by
+the message's fingerprint, not its channel. `LoadCache` keeps the last load per load channel for
+every route (and, with a folder, across runs): a translator that gets a draw for a scene it has
+not seen takes the load from there.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import struct
+import tempfile
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+from bridge.errors import DecodeError
+from bridge.formats import ros
+from bridge.formats.drake import DrawDecoder, DrawEncoder, decode_load, link_from_lcm
+from bridge.lcmcodec import DRAW, LINK_DATA, LOAD_ROBOT
+from bridge.scene import LinkPoses, Scene
+
+
+@dataclass(frozen=True, slots=True)
+class Output:
+    """One thing a translator publishes: the name suffix, the message type, and if it is latched."""
+
+    suffix: str
+    typename: str
+    latched: bool = False
+
+
+Outputs = list[tuple[int, bytes]]  # (index into `outputs`, payload)
+
+
+class LoadCache:
+    """The last `lcmt_viewer_load_robot` bytes seen per load channel, shared by every route.
+
+    With a folder, loads are also written there (one file per channel) and read back at start,
+    so a bridge restarted while the simulation runs still has the model: Drake sends a load
+    only when the geometry changes.
+    """
+
+    def __init__(self, folder: str | Path | None = None) -> None:
+        self._loads: dict[str, bytes] = {}
+        self._lock = threading.Lock()
+        self._folder = Path(folder).expanduser() if folder else None
+        if self._folder is not None and self._folder.is_dir():
+            for path in self._folder.glob("*.lcm"):
+                self._loads[path.stem] = path.read_bytes()
+
+    def put(self, channel: str, data: bytes) -> None:
+        with self._lock:
+            if self._loads.get(channel) == data:
+                return
+            self._loads[channel] = data
+        if self._folder is not None and re.fullmatch(r"[A-Za-z0-9_.<>-]+", channel):
+            self._folder.mkdir(parents=True, exist_ok=True)
+            with tempfile.NamedTemporaryFile(dir=self._folder, delete=False) as file:
+                file.write(data)
+            os.replace(file.name, self._folder / f"{channel}.lcm")
+
+    def get(self, channel: str) -> bytes | None:
+        with self._lock:
+            return self._loads.get(channel)
+
+
+def load_channel_for(draw_channel: str) -> str:
+    """`DRAKE_VIEWER_DRAW_PROXIMITY` -> `DRAKE_VIEWER_LOAD_ROBOT_PROXIMITY` (same prefix and suffix)."""
+    return draw_channel.replace("DRAKE_VIEWER_DRAW", "DRAKE_VIEWER_LOAD_ROBOT", 1)
+
+
+class Translator:
+    """Base of every translator: what it reads and writes, and one call per message."""
+
+    source: ClassVar[str]  # "lcm" or "ros"
+    destination: ClassVar[str]
+    source_type: ClassVar[str] = ""  # the ROS type a ros source subscribes to
+    outputs: ClassVar[tuple[Output, ...]]
+
+    def __init__(self, options: dict[str, Any], loads: LoadCache) -> None:
+        self.options = options
+        self.loads = loads
+
+    def translate(self, channel: str, data: bytes) -> Outputs:
+        raise NotImplementedError
+
+
+class DrakeSceneTranslator(Translator):
+    """Reads Drake's load and draw messages into a scene; subclasses say what to publish."""
+
+    source = "lcm"
+    destination = "ros"
+
+    def __init__(self, options: dict[str, Any], loads: LoadCache) -> None:
+        super().__init__(options, loads)
+        self.decoder = DrawDecoder()
+        self.scene: Scene | None = None
+        self._load_bytes = b""
+        self._link_names: frozenset[str] = frozenset()
+
+    def translate(self, channel: str, data: bytes) -> Outputs:
+        fingerprint = data[:8]
+        if fingerprint == LOAD_ROBOT.packed_fingerprint:
+            self.loads.put(channel, data)
+            return self._load(data)
+        if fingerprint == DRAW.packed_fingerprint:
+            poses = self.decoder.decode(data)
+            out: Outputs = []
+            if not self._link_names.issuperset(poses.names):  # a scene this route has not seen
+                cached = self.loads.get(load_channel_for(channel))
+                if cached is not None:
+                    out += self._load(cached)
+            return out + self.on_draw(poses)
+        raise DecodeError(
+            "drake viewer message", "", 0, f"fingerprint {fingerprint.hex()} is not a load or a draw"
+        )
+
+    def _load(self, data: bytes) -> Outputs:
+        if data == self._load_bytes:  # re-sent unchanged (e.g. for late listeners): nothing new
+            return []
+        self.scene = decode_load(data)
+        self._load_bytes = data
+        self._link_names = frozenset(link.name for link in self.scene.links)
+        return self.on_load(self.scene)
+
+    def on_load(self, scene: Scene) -> Outputs:
+        return []
+
+    def on_draw(self, poses: LinkPoses) -> Outputs:
+        return []
+
+
+class DrakeToMarkerArray(DrakeSceneTranslator):
+    """load + draw -> `visualization_msgs/MarkerArray`: the load's array (DELETEALL first), then
+    each draw re-poses the markers (a CDR template, see `ros.MarkerStream`). Latched, so a late
+    RViz gets the last full array."""
+
+    outputs = (Output("", ros.MARKER_ARRAY, latched=True),)
+
+    def __init__(self, options: dict[str, Any], loads: LoadCache) -> None:
+        super().__init__(options, loads)
+        self.stream: ros.MarkerStream | None = None
+
+    def on_load(self, scene: Scene) -> Outputs:
+        self.stream = ros.MarkerStream(scene, self.options)
+        return [(0, self.stream.load_cdr)]
+
+    def on_draw(self, poses: LinkPoses) -> Outputs:
+        return [] if self.stream is None else [(0, self.stream.update(poses))]
+
+
+class DrakeToPoseArray(DrakeSceneTranslator):
+    """draw -> `geometry_msgs/PoseArray` (in the draw's link order), from the arrays."""
+
+    outputs = (Output("", ros.POSE_ARRAY),)
+
+    def __init__(self, options: dict[str, Any], loads: LoadCache) -> None:
+        super().__init__(options, loads)
+        self.encoder = ros.PoseArrayEncoder(str(options.get("frame_id", "world")))
+
+    def translate(self, channel: str, data: bytes) -> Outputs:
+        return [(0, self.encoder.encode(self.decoder.decode(data)))]  # needs no load
+
+
+class DrakeToShapes(DrakeSceneTranslator):
+    """load -> one shape_msgs message per geometry: SolidPrimitive, Mesh or Plane on
+    `<name>/primitives`, `<name>/meshes`, `<name>/planes`. Latched (give the route a depth as
+    large as the scene's geometry count)."""
+
+    outputs = (
+        Output("/primitives", ros.SOLID_PRIMITIVE, latched=True),
+        Output("/meshes", ros.MESH, latched=True),
+        Output("/planes", ros.PLANE, latched=True),
+    )
+    _INDEX: ClassVar[dict[str, int]] = {ros.SOLID_PRIMITIVE: 0, ros.MESH: 1, ros.PLANE: 2}
+
+    def on_load(self, scene: Scene) -> Outputs:
+        return [(self._INDEX[posed.typename], ros.to_cdr(posed.shape)) for posed in ros.shapes(scene)]
+
+
+class DrakeLinkToMarkerArray(Translator):
+    """`lcmt_viewer_link_data` (DRAKE_VIEWER_DEFORMABLE: world-frame meshes, every frame) ->
+    MarkerArray, ids stable from frame to frame."""
+
+    source = "lcm"
+    destination = "ros"
+    outputs = (Output("", ros.MARKER_ARRAY),)
+
+    def translate(self, channel: str, data: bytes) -> Outputs:
+        link = link_from_lcm(LINK_DATA.decode(data))
+        return [(0, ros.marker_array_cdr(Scene((link,)), self.options, delete_all=False))]
+
+
+class RosPoseArrayToDrakeDraw(Translator):
+    """`geometry_msgs/PoseArray` -> `lcmt_viewer_draw`. PoseArray has no names: they come from
+    the option `link_names` (and `robot_nums`), or are `pose_0`, `pose_1`, ..."""
+
+    source = "ros"
+    destination = "lcm"
+    source_type = ros.POSE_ARRAY
+    outputs = (Output("", DRAW.type_name),)
+
+    def __init__(self, options: dict[str, Any], loads: LoadCache) -> None:
+        super().__init__(options, loads)
+        self.encoder = DrawEncoder()
+
+    def translate(self, channel: str, data: bytes) -> Outputs:
+        count = ros.pose_array_arrays(data)[2].shape[0]
+        names: Sequence[str] = self.options.get("link_names") or [f"pose_{index}" for index in range(count)]
+        robot_nums = self.options.get("robot_nums")
+        return [(0, self.encoder.encode(ros.poses_from_pose_array_cdr(data, names, robot_nums)))]
+
+
+_BYTES_PREFIX = struct.Struct("<4sII")  # encapsulation, layout.dim (empty), layout.data_offset
+
+
+class LcmBytesToRos(Translator):
+    """Any LCM message -> its bytes in a `std_msgs/UInt8MultiArray`: no translation at all,
+    the baseline the benchmarks measure the translators against."""
+
+    source = "lcm"
+    destination = "ros"
+    outputs = (Output("", "std_msgs/msg/UInt8MultiArray"),)
+
+    def translate(self, channel: str, data: bytes) -> Outputs:
+        return [(0, _BYTES_PREFIX.pack(b"\x00\x01\x00\x00", 0, 0) + struct.pack("<I", len(data)) + data)]
+
+
+TRANSLATORS: dict[str, type[Translator]] = {
+    "drake_to_marker_array": DrakeToMarkerArray,
+    "drake_to_pose_array": DrakeToPoseArray,
+    "drake_to_shapes": DrakeToShapes,
+    "drake_link_to_marker_array": DrakeLinkToMarkerArray,
+    "ros_pose_array_to_drake_draw": RosPoseArrayToDrakeDraw,
+    "lcm_bytes_to_ros": LcmBytesToRos,
+}

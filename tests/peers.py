@@ -1,0 +1,116 @@
+"""Real peers for the router's tests: an rclpy node in this process, and the bridge as a process.
+
+Traffic stays on this machine: ROS 2 discovery is limited to localhost with a domain of this test
+process's own (set in conftest before rclpy loads), LCM uses a private multicast port.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from bridge.transports.ros2 import message_class
+
+
+def qos(depth: int = 100, latched: bool = False) -> QoSProfile:
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST,
+        depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
+    )
+
+
+class RosProbe:
+    """An rclpy node of the test's own that records what arrives on topics and can publish."""
+
+    def __init__(self, name: str = "probe") -> None:
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.received: dict[str, list[Any]] = {}
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self._thread.start()
+
+    def subscribe(self, topic: str, typename: str, depth: int = 100, latched: bool = False) -> list[Any]:
+        messages: list[Any] = []
+        self.received[topic] = messages
+
+        def keep(message: Any) -> None:
+            with self._lock:
+                messages.append(message)
+
+        self.node.create_subscription(message_class(typename), topic, keep, qos(depth, latched))
+        return messages
+
+    def publisher(self, topic: str, typename: str) -> Any:
+        return self.node.create_publisher(message_class(typename), topic, qos())
+
+    def wait_for(self, condition: Callable[[], bool], timeout: float = 20.0) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if condition():
+                return True
+            time.sleep(0.05)
+        return condition()
+
+    def close(self) -> None:
+        self.executor.shutdown(timeout_sec=1)
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+class BridgeProcess:
+    """`viewer-bridge run` in a process of its own; its log lines are collected."""
+
+    def __init__(self, *args: str) -> None:
+        command = [sys.executable, "-m", "bridge.cli", "run", *args]
+        self.process = subprocess.Popen(command, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self.lines: list[str] = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.process.stderr is not None
+        for line in self.process.stderr:
+            self.lines.append(line.rstrip())
+
+    def wait_for_line(self, text: str, timeout: float = 30.0) -> str:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for line in list(self.lines):
+                if text in line:
+                    return line
+            if self.process.poll() is not None and not self._reader.is_alive():
+                break
+            time.sleep(0.05)
+        raise AssertionError(f"bridge never logged {text!r}; its log:\n" + "\n".join(self.lines))
+
+    def stop(self) -> int:
+        """SIGINT, as Ctrl-C would; returns the exit code."""
+        if self.process.poll() is None:
+            self.process.send_signal(2)
+        try:
+            return self.process.wait(timeout=15)
+        finally:
+            self._reader.join(timeout=2)
+
+
+def write_config(folder: Path, text: str) -> Path:
+    path = folder / "bridge.yaml"
+    path.write_text(text)
+    return path

@@ -1,0 +1,419 @@
+"""The router end to end, with real peers: pydrake over LCM, the bridge as a process, rclpy."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import drake as drake_lcmtypes
+import numpy as np
+import pytest
+
+from bridge.config import DEFAULT_CONFIG, destination_name, load_config
+from bridge.errors import ConfigError
+from bridge.formats.drake import DrawEncoder
+from bridge.router import Mailbox, Message
+from bridge.scene import LinkPoses
+from bridge.transports.lcm import LcmBus
+from tests.conftest import DRAKE_SCENE_SCRIPT, lcm_url
+from tests.formats import oracle
+from tests.peers import BridgeProcess, RosProbe, write_config
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture
+def probe() -> Any:
+    node = RosProbe()
+    yield node
+    node.close()
+
+
+class LcmRecorder:
+    """Every message on an LCM URL, recorded by channel (a bus of the test's own)."""
+
+    def __init__(self, url: str) -> None:
+        self.bus = LcmBus(url)
+        self.messages: dict[str, list[bytes]] = {}
+        self.bus.subscribe(
+            ".*", lambda channel, data, _: self.messages.setdefault(channel, []).append(bytes(data))
+        )
+        self.bus.start()
+
+    def close(self) -> None:
+        self.bus.close()
+
+
+def start_drake(url: str, folder: Path, seconds: float) -> subprocess.Popen[bytes]:
+    return subprocess.Popen([sys.executable, str(DRAKE_SCENE_SCRIPT), url, str(folder), str(seconds)])
+
+
+# --- 1. Drake -> bridge -> rclpy, values checked ---------------------------------------------------
+
+
+def test_drake_simulation_reaches_ros_through_the_bridge(probe: RosProbe, tmp_path: Path) -> None:
+    url = lcm_url(1)
+    poses = probe.subscribe("/drake/illustration/poses", "geometry_msgs/msg/PoseArray")
+    markers = probe.subscribe(
+        "/drake/illustration/markers", "visualization_msgs/msg/MarkerArray", 10, latched=True
+    )
+    primitives = probe.subscribe(
+        "/drake/illustration/shapes/primitives", "shape_msgs/msg/SolidPrimitive", 1000, latched=True
+    )
+    recorder = LcmRecorder(url)
+    bridge = BridgeProcess(
+        "--lcm-url", url, "--stats-json", str(tmp_path / "stats.json"), "--stats-period", "1"
+    )
+    try:
+        bridge.wait_for_line("routes running")
+        drake = start_drake(url, tmp_path, 3.0)
+        assert drake.wait(timeout=120) == 0
+        draws = recorder.messages["DRAKE_VIEWER_DRAW_ILLUSTRATION"]
+        last_draw = drake_lcmtypes.lcmt_viewer_draw.decode(draws[-1])
+        stamp = last_draw.timestamp
+        assert probe.wait_for(lambda: any(_stamp_ms(p.header.stamp) == stamp for p in poses))
+        time.sleep(0.5)  # the last MarkerArray follows the last PoseArray
+    finally:
+        assert bridge.stop() == 0
+        recorder.close()
+    # PoseArray: every link of the draw, in order, x-y-z-w.
+    pose_array = next(p for p in poses if _stamp_ms(p.header.stamp) == stamp)
+    assert len(pose_array.poses) == last_draw.num_links
+    for pose, position, (w, x, y, z) in zip(
+        pose_array.poses, last_draw.position, last_draw.quaternion, strict=True
+    ):
+        assert [pose.position.x, pose.position.y, pose.position.z] == list(position)
+        assert [pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w] == [
+            x,
+            y,
+            z,
+            w,
+        ]
+    # MarkerArray: the load's array first (DELETEALL), then re-posed arrays; the last one at the last draw.
+    assert markers[0].markers[0].action == 3
+    load = drake_lcmtypes.lcmt_viewer_load_robot.decode(
+        recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0]
+    )
+    box_link = next(link for link in load.link if link.name.endswith("robot1::body0"))
+    row = list(last_draw.link_name).index(box_link.name)
+    position, xyzw = oracle.world_pose(last_draw.position[row], last_draw.quaternion[row], box_link.geom[0])
+    (box,) = [m for m in markers[-1].markers if m.ns == box_link.name.replace("::", "/")]
+    assert oracle.close([box.pose.position.x, box.pose.position.y, box.pose.position.z], position)
+    assert oracle.same_rotation([box.pose.orientation.x, box.pose.orientation.y, box.pose.orientation.z,
+                                 box.pose.orientation.w], xyzw)  # fmt: skip
+    assert oracle.close([box.scale.x, box.scale.y, box.scale.z], [0.1, 0.2, 0.3])
+    # shape_msgs: SolidPrimitive per primitive geometry, cylinder HEIGHT first.
+    dimensions = {(p.type, tuple(np.float32(p.dimensions).tolist())) for p in primitives}
+    assert (1, tuple(np.float32([0.1, 0.2, 0.3]).tolist())) in dimensions
+    assert (3, tuple(np.float32([0.3, 0.04]).tolist())) in dimensions
+    stats = json.loads((tmp_path / "stats.json").read_text())
+    assert stats["poses"]["messages_out"] >= 1 and stats["markers"]["errors"] == {}
+
+
+def _stamp_ms(stamp: Any) -> int:
+    return int(stamp.sec) * 1000 + int(stamp.nanosec) // 1_000_000
+
+
+# --- 2. ROS 2 -> LCM ---------------------------------------------------------------------------------
+
+ROS_TO_LCM = """\
+routes:
+  - name: from_ros
+    source: {transport: ros, name: /drake_in/poses}
+    translator: ros_pose_array_to_drake_draw
+    destination: {transport: lcm, name: DRAKE_VIEWER_DRAW_FROM_ROS}
+    rate: {policy: all}
+    options: {link_names: ["plant::a", "plant::b"], robot_nums: [2, 3]}
+"""
+
+
+def test_ros_pose_array_arrives_as_a_drake_draw(probe: RosProbe, tmp_path: Path) -> None:
+    from geometry_msgs.msg import Pose, PoseArray
+
+    url = lcm_url(2)
+    recorder = LcmRecorder(url)
+    bridge = BridgeProcess("-c", str(write_config(tmp_path, ROS_TO_LCM)), "--lcm-url", url)
+    publisher = probe.publisher("/drake_in/poses", "geometry_msgs/msg/PoseArray")
+    message = PoseArray()
+    message.header.stamp.sec, message.header.stamp.nanosec = 12, 345_000_000
+    for x in (1.0, 2.0):
+        pose = Pose()
+        pose.position.x, pose.position.y, pose.position.z = x, 0.5, -0.25
+        pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = 0.0, 0.0, 0.6, 0.8
+        message.poses.append(pose)
+    try:
+        bridge.wait_for_line("routes running")
+        received = lambda: recorder.messages.get("DRAKE_VIEWER_DRAW_FROM_ROS")  # noqa: E731
+        deadline = time.monotonic() + 20
+        while not received() and time.monotonic() < deadline:  # until discovery has matched the two
+            publisher.publish(message)
+            time.sleep(0.2)
+    finally:
+        assert bridge.stop() == 0
+        recorder.close()
+    draws = received()
+    assert draws, "no lcmt_viewer_draw arrived"
+    draw = drake_lcmtypes.lcmt_viewer_draw.decode(draws[0])  # Drake's own class reads it
+    assert draw.timestamp == 12_345 and list(draw.link_name) == ["plant::a", "plant::b"]
+    assert list(draw.robot_num) == [2, 3]
+    assert [list(p) for p in draw.position] == [[1.0, 0.5, -0.25], [2.0, 0.5, -0.25]]
+    assert oracle.close(draw.quaternion, [[0.8, 0.0, 0.0, 0.6]] * 2)  # w first in Drake's message
+
+
+# --- 3. Late subscribers, and a bridge started after the simulation -----------------------------------
+
+
+def test_late_subscriber_and_late_bridge_get_the_model(probe: RosProbe, tmp_path: Path) -> None:
+    url = lcm_url(3)
+    cache = tmp_path / "loads"
+    config = write_config(tmp_path, DEFAULT_CONFIG + f"load_cache: {cache}\n")
+    first = BridgeProcess("-c", str(config), "--lcm-url", url)
+    try:
+        first.wait_for_line("routes running")
+        assert start_drake(url, tmp_path, 1.5).wait(timeout=120) == 0
+        time.sleep(0.5)
+        # A subscriber that starts now, after the model was published, still gets it.
+        late = probe.subscribe(
+            "/drake/illustration/markers", "visualization_msgs/msg/MarkerArray", 1, latched=True
+        )
+        assert probe.wait_for(lambda: len(late) >= 1)
+        assert len(late[-1].markers) >= 16
+    finally:
+        assert first.stop() == 0
+    assert (cache / "DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION.lcm").is_file()
+    # The simulation starts (and sends its one load) before this bridge does.
+    drake = start_drake(url, tmp_path, 12.0)
+    recorder = LcmRecorder(url)
+    try:
+        deadline = time.monotonic() + 60
+        while "DRAKE_VIEWER_DRAW_PROXIMITY" not in recorder.messages and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert "DRAKE_VIEWER_LOAD_ROBOT_PROXIMITY" in recorder.messages  # sent: Drake will not send it again
+        second = BridgeProcess("-c", str(config), "--lcm-url", url)
+        try:
+            second.wait_for_line("routes running")
+            fresh = probe.subscribe(
+                "/drake/proximity/markers", "visualization_msgs/msg/MarkerArray", 1, latched=True
+            )
+            assert probe.wait_for(lambda: any(len(m.markers) >= 16 for m in fresh), timeout=30)
+        finally:
+            assert second.stop() == 0
+        assert (
+            len(recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_PROXIMITY"]) == 1
+        )  # the model came from the cache
+    finally:
+        drake.kill()
+        drake.wait()
+        recorder.close()
+
+
+# --- 4. Bad input: a malformed message mid-stream, a broken config -------------------------------------
+
+EVERY_DRAW = """\
+routes:
+  - name: poses
+    source: {transport: lcm, name: DRAKE_VIEWER_DRAW}
+    translator: drake_to_pose_array
+    destination: {transport: ros, name: /stream/poses}
+    qos: {depth: 1000}
+    rate: {policy: all}
+"""
+
+
+def test_a_malformed_message_is_counted_and_nothing_valid_is_lost(probe: RosProbe, tmp_path: Path) -> None:
+    url = lcm_url(4)
+    received = probe.subscribe("/stream/poses", "geometry_msgs/msg/PoseArray", 1000)
+    stats = tmp_path / "stats.json"
+    bridge = BridgeProcess(
+        "-c", str(write_config(tmp_path, EVERY_DRAW)), "--lcm-url", url, "--stats-json", str(stats)
+    )
+    bus = LcmBus(url)
+    encoder = DrawEncoder()
+    names = ("plant::a", "plant::b")
+
+    def draw(timestamp_ms: int) -> bytes:
+        positions = np.array([[timestamp_ms, 0.0, 0.0], [0.0, timestamp_ms, 0.0]])
+        quaternions = np.array([[1.0, 0.0, 0.0, 0.0]] * 2)
+        return encoder.encode(
+            LinkPoses(timestamp_ms, names, np.array([1, 1], np.int32), positions, quaternions)
+        )
+
+    try:
+        bridge.wait_for_line("routes running")
+        deadline = time.monotonic() + 20
+        while not received and time.monotonic() < deadline:  # until discovery has matched the two
+            bus.publish("DRAKE_VIEWER_DRAW", draw(0))
+            time.sleep(0.2)
+        time.sleep(0.5)
+        for timestamp in range(1, 101):
+            bus.publish("DRAKE_VIEWER_DRAW", draw(timestamp))
+            if timestamp == 50:
+                bus.publish("DRAKE_VIEWER_DRAW", draw(999)[:-7])  # truncated mid-quaternion
+                bus.publish("DRAKE_VIEWER_DRAW", b"\x41\x42\x43")  # not even a header
+            time.sleep(0.002)
+        assert probe.wait_for(lambda: len(received) >= 100)
+    finally:
+        assert bridge.stop() == 0
+        bus.close()
+    assert [_stamp_ms(m.header.stamp) for m in received if _stamp_ms(m.header.stamp)] == list(range(1, 101))
+    route = json.loads(stats.read_text())["poses"]
+    assert route["errors"] == {"DecodeError": 2}
+    assert route["dropped"] == 0
+    warnings = [line for line in bridge.lines if "DecodeError" in line]
+    assert any("drake.lcmt_viewer_draw" in line and "truncated" in line for line in warnings), bridge.lines
+
+
+BROKEN_CONFIGS = [
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: teleport\n"
+     "    destination: {transport: ros, name: /x}\n", 2, "routes.0", "unknown translator 'teleport'"),
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: 'X('}\n    translator: drake_to_pose_array\n"
+     "    destination: {transport: ros, name: /x}\n", 3, "routes.0.source", "not a regular expression"),
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
+     "    destination: {transport: ros, name: /x}\n    qos: {depth: many}\n", 6, "routes.0.qos.depth",
+     "valid integer"),
+    ("routes:\n  - name: a\n    source: {transport: zmq, name: X}\n    translator: drake_to_pose_array\n"
+     "    destination: {transport: ros, name: /x}\n", 3, "routes.0.source.transport", "'lcm' or 'ros'"),
+    ("lcm: {url: udpm://x}\n", 1, "routes", "Field required"),
+    ("routes: [\n", 2, "", "not valid YAML"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("text", "line", "field", "reason"), BROKEN_CONFIGS)
+def test_a_broken_config_exits_2_naming_file_line_and_field(
+    tmp_path: Path, text: str, line: int, field: str, reason: str
+) -> None:
+    path = write_config(tmp_path, text)
+    result = subprocess.run(
+        [sys.executable, "-m", "bridge.cli", "run", "-c", str(path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 2, result.stderr
+    assert f"{path}:{line}: {field}" in result.stderr and reason in result.stderr, result.stderr
+    with pytest.raises(ConfigError):
+        load_config(path)
+
+
+# --- pieces ----------------------------------------------------------------------------------------------
+
+
+def test_default_config_is_printed_and_valid() -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "bridge.cli", "run", "--print-default-config"], capture_output=True, text=True
+    )
+    assert result.returncode == 0 and result.stdout == DEFAULT_CONFIG
+    config = load_config(None)
+    assert [route.name for route in config.routes] == ["markers", "poses", "shapes", "deformable"]
+
+
+@pytest.mark.parametrize(
+    ("channel", "template", "name"),
+    [
+        ("DRAKE_VIEWER_DRAW", "/drake{1:path}/poses", "/drake/poses"),
+        ("DRAKE_VIEWER_DRAW_PROXIMITY", "/drake{1:path}/poses", "/drake/proximity/poses"),
+        ("SIM2_DRAKE_VIEWER_DRAW_PROXIMITY", "/{1:lower}/{2}", "/sim2/_PROXIMITY"),
+    ],
+)
+def test_destination_templates(channel: str, template: str, name: str) -> None:
+    import re
+
+    pattern = re.compile(r"(?:(\w+?)_)?DRAKE_VIEWER_DRAW(_PROXIMITY)?" if "{2}" in template else
+                         r"DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?")  # fmt: skip
+    match = pattern.fullmatch(channel)
+    assert match is not None and destination_name(template, match) == name
+
+
+def test_mailbox_keeps_the_newest_per_channel_and_never_grows() -> None:
+    import re
+
+    match = re.fullmatch("x", "x")
+    assert match is not None
+    latest = Mailbox("latest", 10)
+    for index in range(1000):
+        latest.put(Message("DRAW", bytes([index % 256]), index, match))
+    latest.put(Message("LOAD", b"load", 0, match))
+    latest.put(Message("DRAW", b"newest", 0, match))
+    assert len(latest) == 2 and latest.dropped == 1000
+    assert [latest.get(0).data, latest.get(0).data] == [b"load", b"newest"]  # type: ignore[union-attr]
+    fifo = Mailbox("all", 3)
+    for index in range(5):
+        fifo.put(Message("DRAW", bytes([index]), index, match))
+    assert fifo.dropped == 2 and [fifo.get(0).data for _ in range(3)] == [b"\x02", b"\x03", b"\x04"]  # type: ignore[union-attr]
+    assert fifo.get(0.01) is None
+
+
+def test_a_translator_crash_skips_that_message_only() -> None:
+    import re
+
+    from bridge.config import Route
+    from bridge.router import RouteRunner
+    from bridge.translators import LoadCache, Translator
+
+    class Flaky(Translator):
+        source, destination = "lcm", "ros"
+        outputs = ()
+
+        def translate(self, channel: str, data: bytes) -> Any:
+            if data == b"boom":
+                raise ZeroDivisionError("a bug")
+            return []
+
+    route = Route.model_validate(
+        {"name": "r", "source": {"transport": "lcm", "name": "X"}, "translator": "drake_to_pose_array",
+         "destination": {"transport": "ros", "name": "/x"}}
+    )  # fmt: skip
+    runner = RouteRunner(route, Flaky({}, LoadCache()), lambda name, output: lambda data: None)
+    match = re.fullmatch("X", "X")
+    assert match is not None
+    for data in (b"ok", b"boom", b"ok"):
+        runner.handle(Message("X", data, 0, match))
+    assert runner.stats.errors == {"crash:ZeroDivisionError": 1} and len(runner.stats.translate_ms) == 2
+
+
+# --- 6. convert to MCAP ------------------------------------------------------------------------------------
+
+
+def test_convert_writes_an_mcap_that_reads_back(drake_log: Path, tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    from bridge.transports.lcm import read_log
+
+    out = tmp_path / "drake.mcap"
+    result = subprocess.run(
+        [sys.executable, "-m", "bridge.cli", "convert", str(drake_log), str(out)],
+        capture_output=True,
+        text=True,
+    )
+    assert result.returncode == 0, result.stderr
+    assert "/drake/illustration/markers" in result.stdout
+    events = [
+        drake_lcmtypes.lcmt_viewer_draw.decode(e.data)
+        for e in read_log(drake_log, "DRAKE_VIEWER_DRAW_ILLUSTRATION")
+    ]
+    draws = {draw.timestamp: draw for draw in events}
+    topics: dict[str, list[Any]] = {}
+    with out.open("rb") as file:
+        for _, channel, _, message in make_reader(
+            file, decoder_factories=[DecoderFactory()]
+        ).iter_decoded_messages():
+            topics.setdefault(channel.topic, []).append(message)
+    poses = topics["/drake/illustration/poses"]
+    assert len(poses) == len(events)
+    for message in poses:
+        draw = draws[message.header.stamp.sec * 1000 + message.header.stamp.nanosec // 1_000_000]
+        assert [[p.position.x, p.position.y, p.position.z] for p in message.poses] == [
+            list(p) for p in draw.position
+        ]
+        assert [
+            [p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z] for p in message.poses
+        ] == [list(q) for q in draw.quaternion]
+    markers = topics["/drake/illustration/markers"]
+    assert markers[0].markers[0].action == 3 and len(markers) == len(events) + 1
+    assert {p.type for p in topics["/drake/illustration/shapes/primitives"]} == {1, 2, 3}
+    assert len(topics["/drake/proximity/shapes/meshes"]) >= 6  # capsule, ellipsoid, meshes as shape_msgs/Mesh
