@@ -103,14 +103,18 @@ def _vector3(values: Sequence[float] | FloatArray) -> Vector3:
 # The quaternion order is converted here and in `Pose.quaternion_xyzw`, nowhere else.
 
 
+_XYZW_FROM_WXYZ = np.array([1, 2, 3, 0])  # one fancy index: cheaper than np.roll per frame
+_WXYZ_FROM_XYZW = np.array([3, 0, 1, 2])
+
+
 def xyzw_from_wxyz(quaternions: npt.ArrayLike) -> FloatArray:
     """N x 4 quaternions from Drake's w, x, y, z order to ROS/gz's x, y, z, w."""
-    return np.roll(np.asarray(quaternions, dtype=np.float64), -1, axis=-1)
+    return np.asarray(quaternions, dtype=np.float64)[..., _XYZW_FROM_WXYZ]
 
 
 def wxyz_from_xyzw(quaternions: npt.ArrayLike) -> FloatArray:
     """N x 4 quaternions from ROS/gz's x, y, z, w order to Drake's w, x, y, z."""
-    return np.roll(np.asarray(quaternions, dtype=np.float64), 1, axis=-1)
+    return np.asarray(quaternions, dtype=np.float64)[..., _WXYZ_FROM_XYZW]
 
 
 # How far from 1 a quaternion's length may be before it is refused rather than normalised.

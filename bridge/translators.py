@@ -172,6 +172,17 @@ class DrakeToPoseArray(DrakeSceneTranslator):
         return [(0, self.encoder.encode(self.decoder.decode(data)))]  # needs no load
 
 
+class DrakeToClock(DrakeSceneTranslator):
+    """draw -> `rosgraph_msgs/Clock` with Drake's sim time, for nodes with `use_sim_time`."""
+
+    outputs = (Output("", "rosgraph_msgs/msg/Clock"),)
+    _CLOCK = struct.Struct("<4siI")
+
+    def translate(self, channel: str, data: bytes) -> Outputs:
+        seconds, milliseconds = divmod(self.decoder.decode(data).timestamp_ms, 1000)
+        return [(0, self._CLOCK.pack(b"\x00\x01\x00\x00", seconds, milliseconds * 1_000_000))]
+
+
 class DrakeToShapes(DrakeSceneTranslator):
     """load -> one shape_msgs message per geometry: SolidPrimitive, Mesh or Plane on
     `<name>/primitives`, `<name>/meshes`, `<name>/planes`. Latched (give the route a depth as
@@ -240,6 +251,7 @@ TRANSLATORS: dict[str, type[Translator]] = {
     "drake_to_marker_array": DrakeToMarkerArray,
     "drake_to_pose_array": DrakeToPoseArray,
     "drake_to_shapes": DrakeToShapes,
+    "drake_to_clock": DrakeToClock,
     "drake_link_to_marker_array": DrakeLinkToMarkerArray,
     "ros_pose_array_to_drake_draw": RosPoseArrayToDrakeDraw,
     "lcm_bytes_to_ros": LcmBytesToRos,

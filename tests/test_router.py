@@ -417,3 +417,18 @@ def test_convert_writes_an_mcap_that_reads_back(drake_log: Path, tmp_path: Path)
     assert markers[0].markers[0].action == 3 and len(markers) == len(events) + 1
     assert {p.type for p in topics["/drake/illustration/shapes/primitives"]} == {1, 2, 3}
     assert len(topics["/drake/proximity/shapes/meshes"]) >= 6  # capsule, ellipsoid, meshes as shape_msgs/Mesh
+
+
+def test_clock_carries_drakes_sim_time() -> None:
+    from rclpy.serialization import deserialize_message
+    from rosgraph_msgs.msg import Clock
+
+    from bridge.translators import TRANSLATORS, LoadCache
+
+    names = ("plant::a",)
+    draw = DrawEncoder().encode(
+        LinkPoses(61_250, names, np.ones(1, np.int32), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]]))
+    )
+    ((_, data),) = TRANSLATORS["drake_to_clock"]({}, LoadCache()).translate("DRAKE_VIEWER_DRAW", draw)
+    clock = deserialize_message(data, Clock).clock
+    assert (clock.sec, clock.nanosec) == (61, 250_000_000)
