@@ -222,6 +222,7 @@ class Router:
         self.lcm: LcmBus | LogReplay | None = None
         self.ros: Any = None
         self.routes: list[RouteRunner] = []
+        self._lcm_routes: list[RouteRunner] = []
         self._stop = threading.Event()
         uses = {route.source.transport for route in config.routes} | {
             route.destination.transport for route in config.routes
@@ -237,13 +238,15 @@ class Router:
             translator = TRANSLATORS[route.translator](dict(route.options), self.loads)
             runner = RouteRunner(route, translator, self._publisher_factory(route))
             self.routes.append(runner)
-            self._subscribe(runner)
+            if route.source.transport == "lcm":
+                self._lcm_routes.append(runner)  # one LCM subscription serves them all: see start()
+            else:
+                self._subscribe_ros(runner)
 
-    def _subscribe(self, runner: RouteRunner) -> None:
-        route = runner.route
-        if route.source.transport == "lcm":
-            return  # one LCM subscription for every route: see start()
+    def _subscribe_ros(self, runner: RouteRunner) -> None:
         from bridge.transports.ros2 import qos_profile
+
+        route = runner.route
 
         qos = qos_profile(
             route.qos.depth, route.qos.reliability == "reliable", route.qos.durability == "transient_local"
@@ -271,7 +274,6 @@ class Router:
             runner.offer(channel, data, received_us)
 
     def start(self) -> None:
-        self._lcm_routes = [runner for runner in self.routes if runner.route.source.transport == "lcm"]
         for runner in self.routes:
             runner.start()
         if self.ros is not None:

@@ -432,3 +432,21 @@ def test_clock_carries_drakes_sim_time() -> None:
     ((_, data),) = TRANSLATORS["drake_to_clock"]({}, LoadCache()).translate("DRAKE_VIEWER_DRAW", draw)
     clock = deserialize_message(data, Clock).clock
     assert (clock.sec, clock.nanosec) == (61, 250_000_000)
+
+
+def test_a_log_replays_through_the_routes_and_the_bridge_stops_at_its_end(
+    drake_log: Path, tmp_path: Path
+) -> None:
+    from bridge.transports.lcm import read_log
+
+    stats = tmp_path / "stats.json"
+    config = write_config(tmp_path, EVERY_DRAW.replace("DRAKE_VIEWER_DRAW", "DRAKE_VIEWER_DRAW_ILLUSTRATION"))
+    result = subprocess.run(
+        [sys.executable, "-m", "bridge.cli", "run", "-c", str(config), "--lcm-url", f"file://{drake_log}?speed=0",
+         "--stats-json", str(stats)],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    route = json.loads(stats.read_text())["poses"]
+    draws = len(list(read_log(drake_log, "DRAKE_VIEWER_DRAW_ILLUSTRATION")))
+    assert route["messages_in"] == route["messages_out"] == draws and route["errors"] == {}
