@@ -145,6 +145,7 @@ def _run(args: argparse.Namespace) -> int:
         signal.signal(signal_number, lambda *_: router.stop())
     stop_demo = threading.Event()
     demo = None
+    router.start()  # subscribed before the demo's first message
     if args.demo:
         demo = threading.Thread(
             target=run_demo, args=(config.lcm.url, None), kwargs={"stop": stop_demo}, daemon=True

@@ -224,6 +224,7 @@ class Router:
         self.routes: list[RouteRunner] = []
         self._lcm_routes: list[RouteRunner] = []
         self._stop = threading.Event()
+        self._started = False
         uses = {route.source.transport for route in config.routes} | {
             route.destination.transport for route in config.routes
         }
@@ -274,6 +275,10 @@ class Router:
             runner.offer(channel, data, received_us)
 
     def start(self) -> None:
+        """Start the workers and the transports (`run` does it unless it was done already)."""
+        if self._started:
+            return
+        self._started = True
         for runner in self.routes:
             runner.start()
         if self.ros is not None:
