@@ -8,7 +8,9 @@ one rule, either
   `message`, another message type to write instead) and, per target field, terms read from the
   shape (`radius`, `2 * radius`, `size.x`, a literal `0`), or
 * lowered: `{as: capsule_parts}`: the shape is first rewritten by a named function in
-  `bridge.lowering` into shapes the table has direct rules for.
+  `bridge.lowering` into shapes the table has direct rules for, or
+* unsupported: `{unsupported: "reason"}`: the target cannot express it; writing one raises a
+  `SceneError` with the reason (counted by the router), never a silent drop.
 
 A rule may also name an `encoder`: a small function of the format module that fills the fields a
 table cannot express (a mesh's vertices). Direct rules whose terms cover every parameter of the
@@ -29,7 +31,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from bridge.errors import ConfigError
+from bridge.errors import ConfigError, SceneError
 from bridge.lowering import LOWERINGS
 from bridge.resources import data_dir
 from bridge.scene import SHAPE_KINDS, Pose, Shape, shape_kind
@@ -76,6 +78,7 @@ class ShapeRule:
     list_fields: frozenset[str] = frozenset()
     encoder: str | None = None
     message: str | None = None
+    unsupported: str | None = None  # why the target cannot express this kind: a SceneError
     note: str = ""
 
     reader: Callable[[Shape], dict[str, Any]] = dataclasses.field(init=False, repr=False, compare=False)
@@ -90,7 +93,7 @@ class ShapeRule:
     @property
     def invertible(self) -> bool:
         """Whether the shape can be rebuilt from the fields (every parameter is read by a term)."""
-        if self.lower is not None or self.encoder is not None:
+        if self.lower is not None or self.encoder is not None or self.unsupported is not None:
             return False
         needed = {(item.name, axis) for item in _parameters(self.kind) for axis in _axes_of(self.kind, item)}
         read = {(term.field, term.axis) for terms in self.fields.values() for term in terms if term.field}
@@ -99,14 +102,16 @@ class ShapeRule:
     def shape_from(self, values: Mapping[str, Any]) -> Shape:
         """The shape whose fields are `values` (the inverse of `values`).
 
-        Raises `ValueError` naming the field when a value is missing, not a number, or a list
-        is too short.
+        A field that is absent takes the shape's default when its parameters have one (a mesh's
+        scale, a triad's tube). Raises `ValueError` naming the field when a value is missing,
+        not a number, or a list is too short.
         """
-        parameters: dict[str, Any] = {
-            item.name: [0.0, 0.0, 0.0] if _is_vector(self.kind, item.name) else None
-            for item in _parameters(self.kind)
-        }
+        parameters = {item.name: _default(item) for item in _parameters(self.kind)}
         for name, terms in self.fields.items():
+            if name not in values and all(
+                term.field is None or parameters[term.field] is not None for term in terms
+            ):
+                continue
             given = _given_values(values, name, len(terms) if name in self.list_fields else None, self.kind)
             for index, (term, value) in enumerate(zip(terms, given, strict=False)):
                 if term.field is None:
@@ -116,15 +121,24 @@ class ShapeRule:
                         where = f"{name}[{index}]" if name in self.list_fields else name
                         raise ValueError(f"{self.kind} needs {where} = {term}, got {value!r}")
                     continue
-                parameter = _term_value(term, value, name)
+                parameter = _term_value(term, value, name, self.kind)
                 if term.axis is None:
                     parameters[term.field] = parameter
                 else:
+                    if parameters[term.field] is None:
+                        parameters[term.field] = [0.0, 0.0, 0.0]
                     parameters[term.field][term.axis] = parameter
         arguments: dict[str, Any] = {
             key: tuple(value) if isinstance(value, list) else value for key, value in parameters.items()
         }
         return SHAPE_KINDS[self.kind](**arguments)
+
+
+def _default(item: dataclasses.Field[Any]) -> Any:
+    """A parameter's default as `shape_from` fills it in (vectors as lists), or None."""
+    if item.default is dataclasses.MISSING:
+        return None
+    return list(item.default) if isinstance(item.default, tuple) else item.default
 
 
 def _compile_reader(
@@ -157,10 +171,17 @@ def _given_values(values: Mapping[str, Any], name: str, count: int | None, kind:
     return value
 
 
-def _term_value(term: Term, value: Any, name: str) -> Any:
-    if isinstance(value, str):
-        if _is_text(term):
+def _term_value(term: Term, value: Any, name: str, kind: str) -> Any:
+    wanted = next(item.type for item in _parameters(kind) if item.name == term.field)
+    if wanted == "bool":
+        if isinstance(value, bool):
             return value
+        raise ValueError(f"{name} must be true or false, got {value!r}")
+    if wanted == "str":
+        if isinstance(value, str):
+            return value
+        raise ValueError(f"{name} must be text, got {value!r}")
+    if isinstance(value, str):
         raise ValueError(f"{name} must be a number, got {value!r}")
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ValueError(f"{name} must be a number, got {value!r}")
@@ -191,6 +212,8 @@ class Table:
         """
         rule = self.rule_for(shape)
         pose = pose or Pose()
+        if rule.unsupported is not None:
+            raise SceneError(f"{self.target} has no {rule.kind}: {rule.unsupported}")
         if rule.lower is None:
             return [(rule, shape, pose)]
         parts = LOWERINGS[rule.lower].function(shape)
@@ -229,6 +252,7 @@ class _RuleSpec(BaseModel):
     fields: dict[str, float | str | list[float | str]] = {}
     encoder: str | None = None
     message: str | None = None
+    unsupported: str | None = None
     note: str = ""
 
 
@@ -285,7 +309,7 @@ def _table(
     for kind, rule in rules.items():
         if rule.lower is not None:
             for produced in LOWERINGS[rule.lower].produces:
-                if rules[produced].lower is not None:
+                if rules[produced].lower is not None or rules[produced].unsupported is not None:
                     raise document.error(
                         (*where, "shapes", kind, "as"),
                         f"{rule.lower} makes {produced}, which has no direct rule",
@@ -302,8 +326,11 @@ def _rule(
     encoders: Collection[str] | None,
 ) -> ShapeRule:
     direct = spec.type is not None or spec.message is not None
-    if direct == (spec.lower is not None):
-        raise document.error(where, "give 'type' or 'message' (a direct rule), or 'as' (a lowering)")
+    if [direct, spec.lower is not None, spec.unsupported is not None].count(True) != 1:
+        raise document.error(
+            where,
+            "give 'type' or 'message' (a direct rule), or 'as' (a lowering), or 'unsupported' (why not)",
+        )
     if spec.type is not None and spec.type not in types:
         raise document.error((*where, "type"), f"unknown type {spec.type!r} (known: {', '.join(types)})")
     if spec.lower is not None and spec.lower not in LOWERINGS:
@@ -331,6 +358,7 @@ def _rule(
         list_fields=frozenset(list_fields),
         encoder=spec.encoder,
         message=spec.message,
+        unsupported=spec.unsupported,
         note=spec.note,
     )
 
@@ -353,7 +381,7 @@ def _term(document: YamlDocument, where: KeyPath, kind: str, item: float | str) 
         )
     term = Term(field, _AXES.index(axis) if axis else None, float(factor) if factor else 1.0)
     if factor and _is_text(term, kind):
-        raise document.error(where, f"{kind}.{field} is text and cannot be scaled")
+        raise document.error(where, f"{kind}.{field} is not a number and cannot be scaled")
     return term
 
 
@@ -363,7 +391,9 @@ def _term(document: YamlDocument, where: KeyPath, kind: str, item: float | str) 
 def _parameters(kind: str) -> tuple[dataclasses.Field[Any], ...]:
     """The parameters of a shape kind a term may read (numbers, vectors and text)."""
     return tuple(
-        item for item in dataclasses.fields(SHAPE_KINDS[kind]) if item.type in ("float", "Vector3", "str")
+        item
+        for item in dataclasses.fields(SHAPE_KINDS[kind])
+        if item.type in ("float", "Vector3", "str", "bool")
     )
 
 
@@ -378,9 +408,10 @@ def _axes_of(kind: str, item: dataclasses.Field[Any]) -> tuple[int | None, ...]:
 
 
 def _is_text(term: Term, kind: str | None = None) -> bool:
+    """Whether the term reads a text or flag parameter (passed through, never scaled)."""
     kinds = [kind] if kind else list(SHAPE_KINDS)
     return any(
-        item.name == term.field and item.type == "str"
+        item.name == term.field and item.type in ("str", "bool")
         for name in kinds
         for item in dataclasses.fields(SHAPE_KINDS[name])
     )
@@ -419,6 +450,8 @@ def reference_markdown(format_names: Sequence[str]) -> str:
 
 
 def _type_cell(rule: ShapeRule) -> str:
+    if rule.unsupported is not None:
+        return f"unsupported: {rule.unsupported}"
     if rule.lower is not None:
         produced = ", ".join(LOWERINGS[rule.lower].produces)
         return f"as `{rule.lower}` ({produced})"

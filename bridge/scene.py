@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -276,7 +277,78 @@ class InMemoryMesh:
     scale: Vector3 = (1.0, 1.0, 1.0)  # a `str` supporting file is a path on the sender's disk
 
 
-Shape = Box | Sphere | Cylinder | Capsule | Ellipsoid | HalfSpace | MeshFile | TriangleMesh | InMemoryMesh
+@dataclass(frozen=True, eq=False, slots=True)
+class PointCloud:
+    """Points (N x 3), with optional per-point colours (N x 3 RGB in [0, 1]) and named channels.
+
+    Director's `pointcloud` and `planar_lidar` (ranges turned into points) both read as this.
+    """
+
+    points: FloatArray
+    colors: FloatArray | None = None
+    channels: Mapping[str, Sequence[Any]] = field(default_factory=dict)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, PointCloud):
+            return NotImplemented
+        if self.colors is None or other.colors is None:
+            same_colors = self.colors is None and other.colors is None
+        else:
+            same_colors = bool(np.array_equal(self.colors, other.colors))
+        return bool(
+            np.array_equal(self.points, other.points) and same_colors and self.channels == other.channels
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class Triad:
+    """X, Y and Z axes of length `scale`, drawn red, green and blue; `tube` for thick axes."""
+
+    scale: float = 1.0
+    tube: bool = False
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class Line:
+    """A polyline through N >= 2 points, optionally closed, a tube when `radius` > 0, with arrowheads."""
+
+    points: FloatArray
+    radius: float = 0.01
+    closed: bool = False
+    start_head: bool = False
+    end_head: bool = False
+    head_radius: float = 0.05
+    head_length: float = 0.05
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Line):
+            return NotImplemented
+        flags = (self.radius, self.closed, self.start_head, self.end_head, self.head_radius, self.head_length)
+        other_flags = (
+            other.radius,
+            other.closed,
+            other.start_head,
+            other.end_head,
+            other.head_radius,
+            other.head_length,
+        )
+        return bool(np.array_equal(self.points, other.points) and flags == other_flags)
+
+
+Shape = (
+    Box
+    | Sphere
+    | Cylinder
+    | Capsule
+    | Ellipsoid
+    | HalfSpace
+    | MeshFile
+    | TriangleMesh
+    | InMemoryMesh
+    | PointCloud
+    | Triad
+    | Line
+)
 
 # The names the translation tables in mappings/ use for the shapes.
 SHAPE_KINDS: dict[str, type[Shape]] = {
@@ -289,6 +361,9 @@ SHAPE_KINDS: dict[str, type[Shape]] = {
     "mesh_file": MeshFile,
     "triangle_mesh": TriangleMesh,
     "in_memory_mesh": InMemoryMesh,
+    "point_cloud": PointCloud,
+    "triad": Triad,
+    "line": Line,
 }
 _KIND_OF: dict[type[Shape], str] = {shape_type: kind for kind, shape_type in SHAPE_KINDS.items()}
 

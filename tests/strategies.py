@@ -148,7 +148,11 @@ invertible_shapes = st.one_of(
     st.builds(Capsule, positive, positive),
     st.builds(Ellipsoid, vectors(positive)),
     st.builds(
-        MeshFile, st.text(min_size=1, max_size=12).map(lambda name: f"/meshes/{name}.obj"), vectors(positive)
+        MeshFile,
+        st.text(
+            st.characters(exclude_characters="\0/", exclude_categories=("Cs",)), min_size=1, max_size=12
+        ).map(lambda name: f"/meshes/{name}.obj"),
+        vectors(positive),
     ),
     triangle_meshes(),
 )

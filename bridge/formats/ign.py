@@ -29,6 +29,7 @@ from bridge.scene import (
     FileContents,
     Geometry,
     InMemoryMesh,
+    Line,
     Link,
     LinkPoses,
     Pose,
@@ -69,7 +70,8 @@ _SCHEMA: dict[str, list[tuple[str, int, str, bool]]] = {
     "Geometry": [("header", 1, "Header", False), ("type", 2, "Geometry.Type", False), ("box", 3, "BoxGeom", False),
                  ("cylinder", 4, "CylinderGeom", False), ("plane", 5, "PlaneGeom", False),
                  ("sphere", 6, "SphereGeom", False), ("mesh", 9, "MeshGeom", False),
-                 ("capsule", 13, "CapsuleGeom", False), ("ellipsoid", 14, "EllipsoidGeom", False)],
+                 ("capsule", 13, "CapsuleGeom", False), ("ellipsoid", 14, "EllipsoidGeom", False),
+                 ("points", 11, "Vector3d", True)],
     "Visual": [("header", 1, "Header", False), ("name", 2, "string", False), ("id", 3, "uint32", False),
                ("parent_name", 4, "string", False), ("pose", 9, "Pose", False), ("geometry", 10, "Geometry", False),
                ("material", 11, "Material", False)],
@@ -165,9 +167,15 @@ def _data_uri_file(shape: InMemoryMesh) -> dict[str, Any]:
     return {"mesh.filename": f"data:{media};base64," + base64.b64encode(file.contents).decode("ascii")}
 
 
+def _polyline_points(shape: Line) -> dict[str, Any]:
+    points = np.concatenate((shape.points, shape.points[:1])) if shape.closed else shape.points
+    return {"points": points.tolist()}
+
+
 _ENCODERS: dict[str, Callable[[Any], dict[str, Any]]] = {
     "obj_data_uri": _data_uri_obj,
     "file_data_uri": _data_uri_file,
+    "polyline_points": _polyline_points,
 }
 
 
@@ -247,8 +255,12 @@ def _set_field(message: Any, path: str, value: Any) -> None:
     *parents, last = path.split(".")
     for name in parents:
         message = getattr(message, name)
-    if isinstance(value, list):  # a vector: Vector3d or Vector2d
-        target = getattr(message, last)
+    target: Any = getattr(message, last) if isinstance(value, list) else None
+    if hasattr(target, "add"):  # a repeated Vector3d: one per point
+        for point in value:
+            item = target.add()
+            item.x, item.y, item.z = point
+    elif isinstance(value, list):  # a vector: Vector3d or Vector2d
         for axis, component in zip("xyz", value, strict=False):
             setattr(target, axis, component)
     else:

@@ -42,11 +42,14 @@ from bridge.mappings import ShapeRule, tables
 from bridge.scene import (
     FloatArray,
     InMemoryMesh,
+    Line,
     LinkPoses,
     MeshFile,
+    PointCloud,
     Pose,
     Scene,
     Shape,
+    Triad,
     TriangleMesh,
     compose_arrays,
     link_poses_from_xyzw,
@@ -299,6 +302,7 @@ class MarkerSpec:
     scale: tuple[float, float, float]
     color: tuple[float, float, float, float]
     points: FloatArray | None = None
+    colors: FloatArray | None = None  # K x 4 RGBA per point (POINTS, LINE_LIST)
     mesh_resource: str = ""
     mesh_file: tuple[str, bytes] = ("", b"")
     action: int = 0  # ADD; DELETEALL = 3
@@ -438,6 +442,29 @@ def _embedded(name: str, data: bytes) -> dict[str, Any]:
     return {"mesh_resource": f"embedded://{name}", "mesh_file": (name, data)}
 
 
+def _points(shape: PointCloud, options: dict[str, Any]) -> dict[str, Any]:
+    size = float(options["point_size"])
+    values: dict[str, Any] = {"points": shape.points, "scale": (size, size, 0.0)}
+    if shape.colors is not None:
+        values["colors"] = np.concatenate((shape.colors, np.ones((len(shape.colors), 1))), axis=1)
+    return values
+
+
+_TRIAD_POINTS = np.array([[0, 0, 0], [1, 0, 0], [0, 0, 0], [0, 1, 0], [0, 0, 0], [0, 0, 1]], dtype=np.float64)
+_TRIAD_COLORS = np.repeat(np.array([[1, 0, 0, 1], [0, 1, 0, 1], [0, 0, 1, 1]], dtype=np.float64), 2, axis=0)
+
+
+def _triad(shape: Triad, options: dict[str, Any]) -> dict[str, Any]:
+    width = (0.05 if shape.tube else 0.01) * shape.scale
+    return {"points": _TRIAD_POINTS * shape.scale, "colors": _TRIAD_COLORS, "scale": (width, 0.0, 0.0)}
+
+
+def _line_strip(shape: Line, options: dict[str, Any]) -> dict[str, Any]:
+    points = np.concatenate((shape.points, shape.points[:1])) if shape.closed else shape.points
+    width = 2 * shape.radius if shape.radius > 0 else 0.002
+    return {"points": points, "scale": (width, 0.0, 0.0)}
+
+
 def _triangle_list(shape: TriangleMesh, options: dict[str, Any]) -> dict[str, Any]:
     return {"points": shape.vertices[shape.triangles.reshape(-1)]}
 
@@ -447,6 +474,9 @@ _ENCODERS: dict[str, Callable[[Any, dict[str, Any]], dict[str, Any]]] = {
     "mesh_resource": _mesh_resource,
     "embedded_mesh": _embedded_mesh,
     "triangle_list": _triangle_list,
+    "points": _points,
+    "triad": _triad,
+    "line_strip": _line_strip,
 }
 
 
@@ -479,7 +509,9 @@ def _marker_tail(spec: MarkerSpec) -> bytes:
     if len(points):
         writer.align(8)
         writer.add(np.ascontiguousarray(points, dtype="<f8").tobytes())
-    writer.pack(U32, 0)  # colors
+    colors = spec.colors if spec.colors is not None else np.zeros((0, 4))
+    writer.pack(U32, len(colors))
+    writer.add(np.ascontiguousarray(colors, dtype="<f4").tobytes())
     writer.string("")  # texture_resource
     writer.pack(_STAMP, 0, 0)  # texture.header.stamp
     writer.string("")  # texture.header.frame_id
@@ -516,8 +548,9 @@ def _write_markers(
             size += -size % 4
         head = stamp_and_frame + _string_4(spec.ns) + _ID_TYPE_ACTION.pack(spec.id, spec.type, spec.action)
         padding = -(size + len(head)) % 8
-        key = (spec.mesh_resource, spec.mesh_file[0], id(spec.mesh_file[1]), spec.points is None)
-        tail = tails.get(key) if spec.points is None else None
+        plain = spec.points is None and spec.colors is None
+        key = (spec.mesh_resource, spec.mesh_file[0], id(spec.mesh_file[1]), plain)
+        tail = tails.get(key) if plain else None
         if tail is None:
             tail = tails[key] = _marker_tail(spec)
         offsets.append(size + len(head) + padding)

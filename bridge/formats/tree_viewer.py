@@ -14,6 +14,7 @@ does (MISSING_PATHS included), and reads the tree back as a scene.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from functools import cache
@@ -25,7 +26,20 @@ import orjson
 from bridge.errors import DecodeError, SceneError
 from bridge.lcmcodec import VIEWER2_COMMS, Buffer
 from bridge.mappings import Table, tables
-from bridge.scene import Geometry, Link, LinkPoses, Pose, Scene, Shape, TriangleMesh, unit_quaternions
+from bridge.scene import (
+    FloatArray,
+    Geometry,
+    Line,
+    Link,
+    LinkPoses,
+    MeshFile,
+    PointCloud,
+    Pose,
+    Scene,
+    Shape,
+    TriangleMesh,
+    unit_quaternions,
+)
 
 FORMAT = "treeviewer_json"
 VERSION = (1, 0)
@@ -58,7 +72,30 @@ def _mesh_data(shape: TriangleMesh) -> dict[str, Any]:
     return {"vertices": shape.vertices.tolist(), "faces": shape.triangles.tolist()}
 
 
-_ENCODERS: dict[str, Callable[[Any], dict[str, Any]]] = {"mesh_data": _mesh_data}
+def _pointcloud(shape: PointCloud) -> dict[str, Any]:
+    channels = {name: list(values) for name, values in shape.channels.items()}
+    if shape.colors is not None:
+        channels["rgb"] = shape.colors.tolist()
+    return {"points": shape.points.tolist(), "channels": channels}
+
+
+def _line(shape: Line) -> dict[str, Any]:
+    return {
+        "points": shape.points.tolist(),
+        "radius": shape.radius,
+        "closed": shape.closed,
+        "start_head": shape.start_head,
+        "end_head": shape.end_head,
+        "head_radius": shape.head_radius,
+        "head_length": shape.head_length,
+    }
+
+
+_ENCODERS: dict[str, Callable[[Any], dict[str, Any]]] = {
+    "mesh_data": _mesh_data,
+    "pointcloud": _pointcloud,
+    "line": _line,
+}
 
 
 @cache
@@ -188,43 +225,99 @@ class _Node:
         return bool(self.geometries) or any(child.has_geometry() for child in self.children.values())
 
 
+class RequestRejected(SceneError):
+    """A request the viewer cannot handle; `status` is the response code (-3 or -4)."""
+
+    def __init__(self, status: int, reason: str) -> None:
+        super().__init__(reason)
+        self.status = status
+
+
+_REQUEST_KEYS = {"timestamp", "utime", "setgeometry", "settransform", "delete"}
+
+
 class TreeState:
     """A tree viewer's tree: apply requests to it, read it back as a scene.
 
-    Within a request, `delete` is applied first, then `setgeometry`, then `settransform`.
-    A settransform for a path with no geometry at or below it is reported as MISSING_PATHS,
-    as Director does. Bad commands raise `SceneError` naming the command; the tree keeps the
-    commands applied before it.
+    A request is checked as a whole before anything is applied; then `delete` goes first, then
+    `setgeometry`, then `settransform`. A settransform for a path with no geometry at or below
+    it is reported as MISSING_PATHS, as Director does. `mesh_file` paths must lie below one of
+    `mesh_roots` (no roots: no mesh files), since a viewer should not be told to read any file.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, mesh_roots: Sequence[str | os.PathLike[str]] = ()) -> None:
         self.root = _Node()
         self.timestamp_us = 0
+        self.mesh_roots = [os.path.realpath(root) for root in mesh_roots]
+
+    def respond(self, request: Request) -> dict[str, Any]:
+        """Apply one request and answer it: status 0 or 1, or -3 / -4 with an `error` text."""
+        try:
+            return self.apply(request)
+        except RequestRejected as error:
+            return {"timestamp": _timestamp(request), "status": error.status, "error": str(error)}
+        except SceneError as error:
+            return {"timestamp": _timestamp(request), "status": ERROR_HANDLING_REQUEST, "error": str(error)}
 
     def apply(self, request: Request) -> dict[str, Any]:
-        """Apply one request; returns the response payload (status, missing_paths)."""
-        unknown = sorted(set(request) - {"timestamp", "utime", "setgeometry", "settransform", "delete"})
+        """Apply one request; returns the response payload (status, missing_paths).
+
+        Raises `RequestRejected` (-4) for an unknown command and `SceneError` (-3) for a bad one;
+        the tree is then unchanged.
+        """
+        unknown = sorted(set(request) - _REQUEST_KEYS)
         if unknown:
-            raise SceneError(f"unknown request key {unknown[0]!r}")
-        timestamp = request.get("timestamp", request.get("utime", 0))
-        for index, command in enumerate(_commands(request, "delete")):
-            self._delete(_path(command, f"delete[{index}]"))
-        for index, command in enumerate(_commands(request, "setgeometry")):
-            self._set_geometry(command, f"setgeometry[{index}]")
-        missing = []
+            raise RequestRejected(ERROR_UNKNOWN_REQUEST_TYPE, f"unknown command {unknown[0]!r}")
+        timestamp = _timestamp(request)
+        if not isinstance(timestamp, int) or isinstance(timestamp, bool):
+            raise SceneError(f"timestamp must be an integer, got {timestamp!r}")
+        deletes = [
+            _path(command, f"delete[{index}]") for index, command in enumerate(_commands(request, "delete"))
+        ]
+        geometries = [
+            self._geometry_command(command, f"setgeometry[{index}]")
+            for index, command in enumerate(_commands(request, "setgeometry"))
+        ]
+        transforms = []
         for index, command in enumerate(_commands(request, "settransform")):
             where = f"settransform[{index}]"
-            path = _path(command, where)
+            transform = command.get("transform", {}) if isinstance(command, dict) else None
+            transforms.append((_path(command, where), pose_from_transform(transform, f"{where}.transform")))
+        for path in deletes:
+            self._delete(path)
+        for path, parsed in geometries:
+            self._node(path, create=True).geometries = parsed
+        missing = []
+        for path, pose in transforms:
             node = self._node(path, create=True)
-            node.transform = pose_from_transform(command.get("transform", {}), f"{where}.transform")
+            node.transform = pose
             if not node.has_geometry():
                 missing.append(list(path))
-        if isinstance(timestamp, int):
-            self.timestamp_us = timestamp
+        self.timestamp_us = timestamp
         response: dict[str, Any] = {"timestamp": timestamp, "status": MISSING_PATHS if missing else OK}
         if missing:
             response["missing_paths"] = missing
         return response
+
+    def _geometry_command(self, command: Any, where: str) -> tuple[Path, list[Geometry]]:
+        path = _path(command, where)
+        items = command.get("geometries", [command["geometry"]] if "geometry" in command else None)
+        if not isinstance(items, list):
+            raise SceneError(f"{where}: needs 'geometry' or 'geometries' (a list)")
+        parsed = [geometry_from_command(item, f"{where}.geometry") for item in items]
+        for geometry in parsed:
+            if isinstance(geometry.shape, MeshFile):
+                self._check_mesh_path(geometry.shape.path, where)
+        return path, parsed
+
+    def _check_mesh_path(self, path: str, where: str) -> None:
+        try:
+            real = os.path.realpath(path)
+        except ValueError as error:  # e.g. an embedded NUL
+            raise SceneError(f"{where}: mesh_file {path!r} is not a valid path ({error})") from None
+        if not any(os.path.commonpath([real, root]) == root for root in self.mesh_roots):
+            allowed = ", ".join(self.mesh_roots) or "none configured"
+            raise SceneError(f"{where}: mesh_file {path} is outside the allowed folders ({allowed})")
 
     def _node(self, path: Path, create: bool) -> _Node:
         node = self.root
@@ -245,14 +338,6 @@ class TreeState:
         except KeyError:
             return
         parent.children.pop(path[-1], None)
-
-    def _set_geometry(self, command: Any, where: str) -> None:
-        path = _path(command, where)
-        geometries = command.get("geometries", [command["geometry"]] if "geometry" in command else None)
-        if not isinstance(geometries, list):
-            raise SceneError(f"{where}: needs 'geometry' or 'geometries'")
-        node = self._node(path, create=True)
-        node.geometries = [geometry_from_command(item, f"{where}.geometry") for item in geometries]
 
     def scene(self) -> Scene:
         """The tree as a scene: each node holding geometry becomes (part of) a link.
@@ -302,6 +387,10 @@ class TreeState:
             self._collect(child, (*path, name), pose, pose.compose(child.transform), links, link_poses)
 
 
+def _timestamp(request: Request) -> Any:
+    return request.get("timestamp", request.get("utime", 0))
+
+
 def _link_identity(path: Path) -> tuple[str, int]:
     if len(path) >= 2 and path[-2].lstrip("-").isdigit():
         return path[-1], int(path[-2])
@@ -312,11 +401,14 @@ def _commands(request: Request, key: str) -> list[Any]:
     commands = request.get(key, [])
     if not isinstance(commands, list):
         raise SceneError(f"{key} is not a list")
+    for index, command in enumerate(commands):
+        if not isinstance(command, dict):
+            raise SceneError(f"{key}[{index}] is not an object")
     return commands
 
 
 def _path(command: Any, where: str) -> Path:
-    path = command.get("path") if isinstance(command, dict) else None
+    path = command.get("path")
     if not isinstance(path, list) or not all(isinstance(part, str) for part in path):
         raise SceneError(f"{where}.path must be a list of strings")
     return tuple(path)
@@ -356,18 +448,96 @@ def geometry_from_command(value: Any, where: str) -> Geometry:
 
 def _shape(value: dict[str, Any], kind: Any, where: str) -> Shape:
     table = _table()
-    if kind == "mesh_data":
-        return _mesh_shape(value, where)
+    reader = _SHAPE_READERS.get(kind) if isinstance(kind, str) else None
+    if reader is not None:
+        return reader(value, where)
     if kind == "mesh_file" and isinstance(value.get("scale"), int | float):
         value = {**value, "scale": [value["scale"]] * 3}  # a number: a uniform scale
-    if kind == "mesh_file" and "scale" not in value:
-        value = {**value, "scale": [1.0, 1.0, 1.0]}
     if kind not in table.types:
         raise SceneError(f"{where}.type: unknown geometry type {kind!r}")
     try:
         return table.decode(kind, value)
     except ValueError as error:
         raise SceneError(f"{where}: {error}") from None
+
+
+def _points(value: Any, where: str) -> FloatArray:
+    """A list of [x, y, z] triplets as an N x 3 array of finite numbers."""
+    if not isinstance(value, list):
+        raise SceneError(f"{where} must be a list of [x, y, z] triplets")
+    try:
+        points = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SceneError(f"{where} must be a list of [x, y, z] triplets of numbers") from None
+    if points.size == 0:
+        return points.reshape(0, 3)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise SceneError(f"{where} must be a list of [x, y, z] triplets, got shape {points.shape}")
+    if not np.isfinite(points).all():
+        raise SceneError(f"{where} holds a value that is not finite")
+    return points
+
+
+def _flag(value: dict[str, Any], key: str, default: bool, where: str) -> bool:
+    flag = value.get(key, default)
+    if not isinstance(flag, bool):
+        raise SceneError(f"{where}.{key} must be true or false")
+    return flag
+
+
+def _number(value: dict[str, Any], key: str, default: float | None, where: str) -> float:
+    number = value.get(key, default)
+    if isinstance(number, bool) or not isinstance(number, int | float) or not np.isfinite(number):
+        raise SceneError(f"{where}.{key} must be a finite number")
+    return float(number)
+
+
+def _pointcloud_shape(value: dict[str, Any], where: str) -> PointCloud:
+    points = _points(value.get("points"), f"{where}.points")
+    channels = value.get("channels", {})
+    if not isinstance(channels, dict):
+        raise SceneError(f"{where}.channels must be an object")
+    colors = None
+    others: dict[str, list[Any]] = {}
+    for name, values in channels.items():
+        if not isinstance(values, list) or len(values) != len(points):
+            raise SceneError(f"{where}.channels.{name} must be a list of {len(points)} values, one per point")
+        if name == "rgb":
+            colors = _points(values, f"{where}.channels.rgb")
+        else:
+            others[name] = values
+    return PointCloud(points, colors, others)
+
+
+def _planar_lidar_shape(value: dict[str, Any], where: str) -> PointCloud:
+    """Ranges measured about the z axis from `angle_start` every `angle_step`, as points (z = 0)."""
+    ranges = value.get("ranges")
+    if not isinstance(ranges, list):
+        raise SceneError(f"{where}.ranges must be a list of distances")
+    distances = _points([[r, 0, 0] for r in ranges], f"{where}.ranges")[:, 0]
+    angles = _number(value, "angle_start", None, where) + _number(
+        value, "angle_step", None, where
+    ) * np.arange(len(distances))
+    points = np.stack(
+        (distances * np.cos(angles), distances * np.sin(angles), np.zeros(len(distances))), axis=1
+    )
+    return PointCloud(points)
+
+
+def _line_shape(value: dict[str, Any], where: str) -> Line:
+    points = _points(value.get("points"), f"{where}.points")
+    if len(points) < 2:
+        raise SceneError(f"{where}.points needs 2 or more points")
+    head_radius = _number(value, "head_radius", 0.05, where)
+    return Line(
+        points,
+        radius=_number(value, "radius", 0.01, where),
+        closed=_flag(value, "closed", False, where),
+        start_head=_flag(value, "start_head", False, where),
+        end_head=_flag(value, "end_head", False, where),
+        head_radius=head_radius,
+        head_length=_number(value, "head_length", head_radius, where),
+    )
 
 
 def _mesh_shape(value: dict[str, Any], where: str) -> TriangleMesh:
@@ -385,9 +555,19 @@ def _mesh_shape(value: dict[str, Any], where: str) -> TriangleMesh:
     return TriangleMesh(vertices, faces)
 
 
-def scene_from_requests(requests: Iterable[Request]) -> Scene:
+_SHAPE_READERS: dict[str, Callable[[dict[str, Any], str], Shape]] = {
+    "mesh_data": lambda value, where: _mesh_shape(value, where),
+    "pointcloud": _pointcloud_shape,
+    "planar_lidar": _planar_lidar_shape,
+    "line": _line_shape,
+}
+
+
+def scene_from_requests(
+    requests: Iterable[Request], mesh_roots: Sequence[str | os.PathLike[str]] = ()
+) -> Scene:
     """Apply requests to an empty tree and read the scene back."""
-    state = TreeState()
+    state = TreeState(mesh_roots)
     for request in requests:
         state.apply(request)
     return state.scene()
@@ -398,6 +578,7 @@ __all__ = [
     "FORMAT",
     "MISSING_PATHS",
     "OK",
+    "RequestRejected",
     "TreeState",
     "decode",
     "draw_request",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -61,9 +62,11 @@ def test_every_drake_shape_becomes_setgeometry(drake_capture: dict[str, Capture]
 
 
 @pytest.mark.parametrize("role", ROLES)
-def test_drake_scene_reads_back_from_the_tree(drake_capture: dict[str, Capture], role: str) -> None:
+def test_drake_scene_reads_back_from_the_tree(
+    drake_capture: dict[str, Capture], drake_mesh_dir: Path, role: str
+) -> None:
     capture = drake_capture[role]
-    back = tv.scene_from_requests(tv.load_requests(capture.scene))
+    back = tv.scene_from_requests(tv.load_requests(capture.scene), mesh_roots=[drake_mesh_dir])
     original = {link.name: link for link in capture.scene.links}
     assert [link.name for link in back.links] == list(original)
     for link in back.links:
@@ -82,7 +85,7 @@ def test_drake_scene_reads_back_from_the_tree(drake_capture: dict[str, Capture],
 @given(scenes())
 def test_scene_to_tree_json_to_scene_round_trips(scene: Scene) -> None:
     requests = [json.loads(json.dumps(request)) for request in tv.load_requests(scene)]
-    back = tv.scene_from_requests(requests)
+    back = tv.scene_from_requests(requests, mesh_roots=["/meshes"])
     with_geometry = tuple(link for link in scene.links if link.geometries)
 
     def order(links: tuple[Link, ...]) -> list[Link]:
@@ -116,7 +119,7 @@ def test_draw_moves_links_and_missing_paths_are_reported() -> None:
 
 
 def test_director_clients_geometries_list_and_utime_are_accepted() -> None:
-    state = tv.TreeState()
+    state = tv.TreeState(mesh_roots=["/"])
     request = {"utime": 5, "setgeometry": [{"path": ["robot1", "link1"], "geometries": [
         {"type": "box", "lengths": [1, 0.5, 2], "color": [1, 0, 0, 0.5]},
         {"type": "mesh_file", "filename": "/m.obj", "scale": 2},
@@ -134,17 +137,59 @@ def test_director_clients_geometries_list_and_utime_are_accepted() -> None:
         ({"setgeometry": [{"path": ["a"], "geometry": {"type": "box", "lengths": [1]}}]}, "box needs 3 values"),
         ({"setgeometry": [{"path": ["a"], "geometry": {"type": "sphere", "radius": "big"}}]}, "must be a number"),
         ({"setgeometry": [{"path": "a", "geometry": {"type": "sphere", "radius": 1}}]}, "path must be a list"),
-        ({"setgeometry": [{"path": ["a"], "geometry": {"type": "pointcloud"}}]}, "no shape of"),
+        ({"setgeometry": [{"path": ["a"], "geometry": {"type": "pointcloud"}}]}, "points must be a list"),
+        ({"setgeometry": [{"path": ["a"], "geometry": {"type": "pointcloud", "points": [[0, 0, 0]],
+                                                        "channels": {"rgb": []}}}]}, "one per point"),
+        ({"setgeometry": [{"path": ["a"], "geometry": {"type": "line", "points": [[0, 0, 0]]}}]}, "2 or more"),
+        ({"setgeometry": [{"path": ["a"], "geometry": {"type": "triad", "tube": "yes"}}]}, "true or false"),
+        ({"setgeometry": [{"path": ["a"], "geometry": {"type": "planar_lidar", "ranges": [1]}}]}, "angle_start"),
         ({"settransform": [{"path": ["a"], "transform": {"quaternion": [0, 0, 0, 0]}}]}, "length 0 is not a rotation"),
         ({"settransform": [{"path": ["a"], "transform": {"translation": [1, None, 2]}}]}, "3 finite numbers"),
         ({"setgeometry": [{"path": ["a"], "geometry": {"type": "mesh_data", "vertices": [[0, 0, 0]],
                                                         "faces": [[0, 1, 2]]}}]}, "faces refer to a vertex"),
-        ({"frobnicate": []}, "unknown request key 'frobnicate'"),
     ],
 )  # fmt: skip
 def test_bad_commands_raise_scene_errors(command: dict[str, Any], reason: str) -> None:
+    state = tv.TreeState()
     with pytest.raises(SceneError, match=reason):
-        tv.TreeState().apply(command)
+        state.apply(command)
+    assert state.respond(command) == {"timestamp": 0, "status": tv.ERROR_HANDLING_REQUEST, "error": ANY_TEXT}
+
+
+class _AnyText:
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, str) and len(other) > 10
+
+
+ANY_TEXT: Any = _AnyText()
+
+
+def test_unknown_command_is_4_and_leaves_the_tree_alone() -> None:
+    state = tv.TreeState()
+    request = {
+        "setgeometry": [{"path": ["a"], "geometry": {"type": "sphere", "radius": 1}}],
+        "frobnicate": [],
+    }
+    response = state.respond(request)
+    assert response["status"] == tv.ERROR_UNKNOWN_REQUEST_TYPE and "frobnicate" in response["error"]
+    bad_later = {"setgeometry": [{"path": ["a"], "geometry": {"type": "sphere", "radius": 1}},
+                                 {"path": ["b"], "geometry": {"type": "sphere", "radius": -1 * float("inf")}}]}  # fmt: skip
+    assert state.respond(bad_later)["status"] == tv.ERROR_HANDLING_REQUEST
+    assert state.scene().links == ()  # checked as a whole: nothing of either request was applied
+
+
+def test_mesh_files_only_below_the_configured_roots(tmp_path: Path) -> None:
+    inside = tmp_path / "meshes" / "a.obj"
+    state = tv.TreeState(mesh_roots=[tmp_path / "meshes"])
+    ok = {"setgeometry": [{"path": ["a"], "geometry": {"type": "mesh_file", "filename": str(inside)}}]}
+    assert state.respond(ok)["status"] == tv.OK
+    for path in ("/etc/passwd", str(tmp_path / "meshes" / ".." / "secret.obj")):
+        request = {"setgeometry": [{"path": ["b"], "geometry": {"type": "mesh_file", "filename": path}}]}
+        response = state.respond(request)
+        assert (
+            response["status"] == tv.ERROR_HANDLING_REQUEST
+            and "outside the allowed folders" in response["error"]
+        )
 
 
 def envelope(format_name: str = tv.FORMAT, major: int = 1, data: bytes = b"{}") -> bytes:
