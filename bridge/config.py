@@ -3,7 +3,8 @@
 A route names a source (a transport and a channel or topic, matched in full as a regular
 expression), a translator (`bridge.translators.TRANSLATORS`), a destination whose name is a
 template over the source's regex groups (`{1}`; `{1:lower}`; `{1:path}` turns `_PROXIMITY` into
-`/proximity` and `` into ``), QoS, and a rate policy. `DEFAULT_CONFIG` bridges Drake's default
+`/proximity` and `` into ``; `{1:topic}` makes any text a valid ROS name token), QoS, and a rate
+policy. `DEFAULT_CONFIG` bridges Drake's default
 channels to ROS 2 under `/drake`. Mistakes are `ConfigError`s with file, line and field.
 """
 
@@ -111,6 +112,9 @@ class _Template(string.Formatter):
             return text.lower()
         if format_spec == "path":  # "_PROXIMITY" -> "/proximity"; "" stays ""
             return "/" + text.lstrip("_").lower() if text else ""
+        if format_spec == "topic":  # any text as one valid ROS name token: "my client!" -> "my_client_"
+            token = re.sub(r"[^A-Za-z0-9_]", "_", text)
+            return token if token[:1].isalpha() else f"n{token}"
         return str(super().format_field(text, format_spec))
 
 
@@ -150,6 +154,14 @@ routes:
     translator: drake_link_to_marker_array
     destination: {transport: ros, name: "/drake{1:path}/deformable"}
     rate: {policy: latest}
+  # viewer-bridge as a Director tree viewer: every client's tree to /director/<client id>/markers.
+  - name: tree_viewer
+    source: {transport: lcm, name: "DIRECTOR_TREE_VIEWER_REQUEST_<([^<>]*)>"}
+    translator: tree_viewer_server
+    destination: {transport: ros, name: "/director/{1:topic}/markers"}
+    qos: {depth: 1000}
+    rate: {policy: all}
+    options: {mesh_roots: []}
 """
 
 

@@ -237,6 +237,8 @@ class Router:
             self.ros = RosNode(settings.node, settings.namespace, settings.use_sim_time)
         for route in config.routes:
             translator = TRANSLATORS[route.translator](dict(route.options), self.loads)
+            if route.source.transport == "lcm" and self.lcm is not None:
+                translator.reply = self.lcm.publish
             runner = RouteRunner(route, translator, self._publisher_factory(route))
             self.routes.append(runner)
             if route.source.transport == "lcm":

@@ -18,15 +18,15 @@ import re
 import struct
 import tempfile
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
-from bridge.errors import DecodeError
-from bridge.formats import ros
+from bridge.errors import DecodeError, SceneError
+from bridge.formats import ros, tree_viewer
 from bridge.formats.drake import DrawDecoder, DrawEncoder, decode_load, link_from_lcm
-from bridge.lcmcodec import DRAW, LINK_DATA, LOAD_ROBOT
+from bridge.lcmcodec import DRAW, LINK_DATA, LOAD_ROBOT, VIEWER2_COMMS
 from bridge.scene import LinkPoses, Scene
 
 
@@ -79,8 +79,19 @@ def load_channel_for(draw_channel: str) -> str:
     return draw_channel.replace("DRAKE_VIEWER_DRAW", "DRAKE_VIEWER_LOAD_ROBOT", 1)
 
 
+Reply = Callable[[str, bytes], None]  # publish on the source's transport: (channel, bytes)
+
+
+def _no_reply(channel: str, data: bytes) -> None:
+    raise OSError(f"this route cannot answer on {channel}")
+
+
 class Translator:
-    """Base of every translator: what it reads and writes, and one call per message."""
+    """Base of every translator: what it reads and writes, and one call per message.
+
+    `reply` publishes back on the source's transport (the router sets it): how a protocol
+    with requests and responses, like the tree viewer's, answers.
+    """
 
     source: ClassVar[str]  # "lcm" or "ros"
     destination: ClassVar[str]
@@ -90,6 +101,7 @@ class Translator:
     def __init__(self, options: dict[str, Any], loads: LoadCache) -> None:
         self.options = options
         self.loads = loads
+        self.reply: Reply = _no_reply
 
     def translate(self, channel: str, data: bytes) -> Outputs:
         raise NotImplementedError
@@ -232,6 +244,123 @@ class RosPoseArrayToDrakeDraw(Translator):
         return [(0, self.encoder.encode(ros.poses_from_pose_array_cdr(data, names, robot_nums)))]
 
 
+class TreeViewerServer(Translator):
+    """Director's tree viewer, served: requests on `DIRECTOR_TREE_VIEWER_REQUEST_<id>` -> a tree per
+    client, answered on `DIRECTOR_TREE_VIEWER_RESPONSE_<id>`, and the tree as a MarkerArray.
+
+    Every request gets exactly one reply: 0, 1 (MISSING_PATHS), -1 (format, listing the one we
+    speak), -2 (version), -3 (bad request, or not an envelope at all), -4 (unknown command).
+    Options: `mesh_roots` (folders mesh_file paths may be in), the marker table's options.
+    """
+
+    source = "lcm"
+    destination = "ros"
+    outputs = (Output("", ros.MARKER_ARRAY, latched=True),)
+    _CLIENT = re.compile(r"DIRECTOR_TREE_VIEWER_REQUEST_<([^<>]*)>")
+
+    def __init__(self, options: dict[str, Any], loads: LoadCache) -> None:
+        super().__init__(options, loads)
+        self.trees: dict[str, tree_viewer.TreeState] = {}
+
+    def translate(self, channel: str, data: bytes) -> Outputs:
+        match = self._CLIENT.fullmatch(channel)
+        if match is None:
+            raise DecodeError(
+                VIEWER2_COMMS.type_name, "", 0, f"{channel} is not a tree viewer request channel"
+            )
+        client = match.group(1)
+        state = self.trees.setdefault(client, tree_viewer.TreeState(self.options.get("mesh_roots", ())))
+        answer = tree_viewer.response_channel(client)
+        try:
+            response, changed = self._respond(state, data)
+        except Exception as error:  # a bug of ours: still answer, then let the router count it
+            self.reply(
+                answer,
+                tree_viewer.encode({"status": tree_viewer.ERROR_HANDLING_REQUEST, "error": repr(error)}),
+            )
+            raise
+        self.reply(answer, tree_viewer.encode(response))
+        if response["status"] not in (tree_viewer.OK, tree_viewer.MISSING_PATHS):
+            raise tree_viewer.RequestRejected(response["status"], f"client {client}: {response['error']}")
+        marker_options = {key: value for key, value in self.options.items() if key != "mesh_roots"}
+        return [(0, ros.marker_array_cdr(state.scene(), marker_options, delete_all=changed))]
+
+    @staticmethod
+    def _respond(state: tree_viewer.TreeState, data: bytes) -> tuple[dict[str, Any], bool]:
+        """The response to one envelope, and whether the tree's geometry changed."""
+        try:
+            request = tree_viewer.decode(data)
+        except tree_viewer.RequestError as error:
+            response: dict[str, Any] = {"status": error.status, "error": error.reason}
+            if error.status == tree_viewer.ERROR_UNKNOWN_FORMAT:
+                response["supported_formats"] = {tree_viewer.FORMAT: [list(tree_viewer.VERSION)]}
+            return response, False
+        except DecodeError as error:
+            return {"status": tree_viewer.ERROR_HANDLING_REQUEST, "error": str(error)}, False
+        changed = bool(request.get("setgeometry") or request.get("delete"))
+        return state.respond(request), changed
+
+
+class DrakeToTreeViewer(DrakeSceneTranslator):
+    """Drake load/draw -> tree viewer requests for a running Director (the client side).
+
+    Route the client's response channel to it as well: on MISSING_PATHS it re-sends the geometry
+    and transforms under the missing paths; on -1 or -2 (the viewer does not speak our format)
+    it says so and stops sending. Options: `prefix` (default ["drake"]).
+    """
+
+    destination = "lcm"
+    outputs = (Output("", VIEWER2_COMMS.type_name),)
+
+    def __init__(self, options: dict[str, Any], loads: LoadCache) -> None:
+        super().__init__(options, loads)
+        self.prefix = tuple(options.get("prefix", tree_viewer.DEFAULT_PREFIX))
+        self.refused: str | None = None
+        self.poses: LinkPoses | None = None
+
+    def translate(self, channel: str, data: bytes) -> Outputs:
+        if self.refused is not None:
+            raise SceneError(self.refused)
+        if data[:8] == VIEWER2_COMMS.packed_fingerprint:
+            return self._on_response(tree_viewer.decode(data))
+        return super().translate(channel, data)
+
+    def on_load(self, scene: Scene) -> Outputs:
+        return [(0, tree_viewer.encode(request)) for request in tree_viewer.load_requests(scene, self.prefix)]
+
+    def on_draw(self, poses: LinkPoses) -> Outputs:
+        self.poses = poses
+        return [(0, tree_viewer.encode(tree_viewer.draw_request(poses, self.prefix)))]
+
+    def _on_response(self, response: dict[str, Any]) -> Outputs:
+        status = response.get("status")
+        if status in (tree_viewer.ERROR_UNKNOWN_FORMAT, tree_viewer.ERROR_UNKNOWN_FORMAT_VERSION):
+            self.refused = (
+                f"the viewer refused {tree_viewer.FORMAT} {tree_viewer.VERSION[0]}.{tree_viewer.VERSION[1]} "
+                f"(status {status}: {response.get('error', 'no reason given')}); no longer sending to it"
+            )
+            raise SceneError(self.refused)
+        if status != tree_viewer.MISSING_PATHS or self.scene is None:
+            return []
+        missing = [tuple(path) for path in response.get("missing_paths", []) if isinstance(path, list)]
+        links = tuple(
+            link
+            for link in self.scene.links
+            if any(_related(tuple(tree_viewer.link_path(link, self.prefix)), path) for path in missing)
+        )
+        if not links:
+            return []
+        partial = Scene(links, self.poses)
+        request = tree_viewer.load_requests(partial, self.prefix)[1]  # setgeometry (+ transforms), no delete
+        return [(0, tree_viewer.encode(request))]
+
+
+def _related(link_path: tuple[str, ...], missing: tuple[Any, ...]) -> bool:
+    """Whether a link lies under a missing path, or the missing path under the link."""
+    shorter = min(len(link_path), len(missing))
+    return link_path[:shorter] == tuple(missing[:shorter])
+
+
 _BYTES_PREFIX = struct.Struct("<4sII")  # encapsulation, layout.dim (empty), layout.data_offset
 
 
@@ -255,4 +384,6 @@ TRANSLATORS: dict[str, type[Translator]] = {
     "drake_link_to_marker_array": DrakeLinkToMarkerArray,
     "ros_pose_array_to_drake_draw": RosPoseArrayToDrakeDraw,
     "lcm_bytes_to_ros": LcmBytesToRos,
+    "tree_viewer_server": TreeViewerServer,
+    "drake_to_tree_viewer": DrakeToTreeViewer,
 }

@@ -309,7 +309,13 @@ def test_default_config_is_printed_and_valid() -> None:
     )
     assert result.returncode == 0 and result.stdout == DEFAULT_CONFIG
     config = load_config(None)
-    assert [route.name for route in config.routes] == ["markers", "poses", "shapes", "deformable"]
+    assert [route.name for route in config.routes] == [
+        "markers",
+        "poses",
+        "shapes",
+        "deformable",
+        "tree_viewer",
+    ]
 
 
 @pytest.mark.parametrize(
@@ -318,12 +324,13 @@ def test_default_config_is_printed_and_valid() -> None:
         ("DRAKE_VIEWER_DRAW", "/drake{1:path}/poses", "/drake/poses"),
         ("DRAKE_VIEWER_DRAW_PROXIMITY", "/drake{1:path}/poses", "/drake/proximity/poses"),
         ("SIM2_DRAKE_VIEWER_DRAW_PROXIMITY", "/{1:lower}/{2}", "/sim2/_PROXIMITY"),
+        ("9 lives!_DRAKE_VIEWER_DRAW_PROXIMITY", "/{1:topic}{2:path}", "/n9_lives_/proximity"),
     ],
 )
 def test_destination_templates(channel: str, template: str, name: str) -> None:
     import re
 
-    pattern = re.compile(r"(?:(\w+?)_)?DRAKE_VIEWER_DRAW(_PROXIMITY)?" if "{2}" in template else
+    pattern = re.compile(r"(?:(.+?)_)?DRAKE_VIEWER_DRAW(_PROXIMITY)?" if "{2" in template else
                          r"DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?")  # fmt: skip
     match = pattern.fullmatch(channel)
     assert match is not None and destination_name(template, match) == name

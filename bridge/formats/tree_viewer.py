@@ -168,7 +168,7 @@ def encode(payload: Request, utime: int = 0) -> bytes:
     major, minor = VERSION
     return VIEWER2_COMMS.encode(
         VIEWER2_COMMS.message_class(
-            utime=int(utime or payload.get("timestamp", 0)),
+            utime=int(utime or _echo_time(payload)),
             format=FORMAT,
             format_version_major=major,
             format_version_minor=minor,
@@ -255,9 +255,9 @@ class TreeState:
         try:
             return self.apply(request)
         except RequestRejected as error:
-            return {"timestamp": _timestamp(request), "status": error.status, "error": str(error)}
+            return {"timestamp": _echo_time(request), "status": error.status, "error": str(error)}
         except SceneError as error:
-            return {"timestamp": _timestamp(request), "status": ERROR_HANDLING_REQUEST, "error": str(error)}
+            return {"timestamp": _echo_time(request), "status": ERROR_HANDLING_REQUEST, "error": str(error)}
 
     def apply(self, request: Request) -> dict[str, Any]:
         """Apply one request; returns the response payload (status, missing_paths).
@@ -269,8 +269,8 @@ class TreeState:
         if unknown:
             raise RequestRejected(ERROR_UNKNOWN_REQUEST_TYPE, f"unknown command {unknown[0]!r}")
         timestamp = _timestamp(request)
-        if not isinstance(timestamp, int) or isinstance(timestamp, bool):
-            raise SceneError(f"timestamp must be an integer, got {timestamp!r}")
+        if timestamp != _echo_time(request):
+            raise SceneError(f"timestamp must be an integer of microseconds, got {timestamp!r}")
         deletes = [
             _path(command, f"delete[{index}]") for index, command in enumerate(_commands(request, "delete"))
         ]
@@ -391,6 +391,13 @@ def _timestamp(request: Request) -> Any:
     return request.get("timestamp", request.get("utime", 0))
 
 
+def _echo_time(request: Request) -> int:
+    """The request's time, to echo in a reply, when it is one (an int64); else 0."""
+    value = _timestamp(request)
+    valid = isinstance(value, int) and not isinstance(value, bool) and -(2**63) <= value < 2**63
+    return value if valid else 0
+
+
 def _link_identity(path: Path) -> tuple[str, int]:
     if len(path) >= 2 and path[-2].lstrip("-").isdigit():
         return path[-1], int(path[-2])
@@ -453,7 +460,7 @@ def _shape(value: dict[str, Any], kind: Any, where: str) -> Shape:
         return reader(value, where)
     if kind == "mesh_file" and isinstance(value.get("scale"), int | float):
         value = {**value, "scale": [value["scale"]] * 3}  # a number: a uniform scale
-    if kind not in table.types:
+    if not isinstance(kind, str) or kind not in table.types:
         raise SceneError(f"{where}.type: unknown geometry type {kind!r}")
     try:
         return table.decode(kind, value)
@@ -467,7 +474,7 @@ def _points(value: Any, where: str) -> FloatArray:
         raise SceneError(f"{where} must be a list of [x, y, z] triplets")
     try:
         points = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise SceneError(f"{where} must be a list of [x, y, z] triplets of numbers") from None
     if points.size == 0:
         return points.reshape(0, 3)
@@ -515,12 +522,14 @@ def _planar_lidar_shape(value: dict[str, Any], where: str) -> PointCloud:
     if not isinstance(ranges, list):
         raise SceneError(f"{where}.ranges must be a list of distances")
     distances = _points([[r, 0, 0] for r in ranges], f"{where}.ranges")[:, 0]
-    angles = _number(value, "angle_start", None, where) + _number(
-        value, "angle_step", None, where
-    ) * np.arange(len(distances))
-    points = np.stack(
-        (distances * np.cos(angles), distances * np.sin(angles), np.zeros(len(distances))), axis=1
-    )
+    start, step = _number(value, "angle_start", None, where), _number(value, "angle_step", None, where)
+    with np.errstate(over="ignore", invalid="ignore"):
+        angles = start + step * np.arange(len(distances))
+        points = np.stack(
+            (distances * np.cos(angles), distances * np.sin(angles), np.zeros(len(distances))), axis=1
+        )
+    if not np.isfinite(points).all():
+        raise SceneError(f"{where}: ranges and angles give points that are not finite")
     return PointCloud(points)
 
 
@@ -541,22 +550,15 @@ def _line_shape(value: dict[str, Any], where: str) -> Line:
 
 
 def _mesh_shape(value: dict[str, Any], where: str) -> TriangleMesh:
-    try:
-        vertices = np.asarray(value["vertices"], dtype=np.float64).reshape(-1, 3)
-        faces = np.asarray(value["faces"], dtype=np.int64).reshape(-1, 3)
-    except (KeyError, TypeError, ValueError) as error:
-        raise SceneError(
-            f"{where}: mesh_data needs vertices and faces as lists of triplets ({error})"
-        ) from None
-    if not np.isfinite(vertices).all():
-        raise SceneError(f"{where}.vertices are not all finite")
-    if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
+    vertices = _points(value.get("vertices"), f"{where}.vertices")
+    faces = _points(value.get("faces"), f"{where}.faces")  # triplets of numbers, checked below
+    if faces.size and ((faces != np.floor(faces)).any() or faces.min() < 0 or faces.max() >= len(vertices)):
         raise SceneError(f"{where}.faces refer to a vertex that does not exist")
-    return TriangleMesh(vertices, faces)
+    return TriangleMesh(vertices, faces.astype(np.int64))
 
 
 _SHAPE_READERS: dict[str, Callable[[dict[str, Any], str], Shape]] = {
-    "mesh_data": lambda value, where: _mesh_shape(value, where),
+    "mesh_data": _mesh_shape,
     "pointcloud": _pointcloud_shape,
     "planar_lidar": _planar_lidar_shape,
     "line": _line_shape,
