@@ -365,3 +365,43 @@ def test_a_spec_client_drives_the_bridge_over_lcm(lcmgen: dict[str, type], tmp_p
     types = sorted({m.type for m in last.markers if m.ns.startswith("r/")})
     assert types == sorted({Marker.CUBE, Marker.SPHERE, Marker.CYLINDER, Marker.MESH_RESOURCE, Marker.TRIANGLE_LIST,
                             Marker.POINTS, Marker.LINE_LIST, Marker.LINE_STRIP})  # fmt: skip
+
+
+BOTH_SIDES = """\
+routes:
+  - name: to_director
+    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)|DIRECTOR_TREE_VIEWER_RESPONSE_<drake>"}
+    translator: drake_to_tree_viewer
+    destination: {transport: lcm, name: "DIRECTOR_TREE_VIEWER_REQUEST_<drake>"}
+    rate: {policy: all}
+  - name: as_director
+    source: {transport: lcm, name: "DIRECTOR_TREE_VIEWER_REQUEST_<([^<>]*)>"}
+    translator: tree_viewer_server
+    destination: {transport: ros, name: "/director/{1:topic}/markers"}
+    rate: {policy: all}
+    qos: {depth: 100}
+    options: {mesh_roots: ["/tmp"]}
+"""
+
+
+@pytest.mark.slow
+def test_client_and_server_routes_carry_the_demo_scene_through_the_tree_viewer(tmp_path: Path) -> None:
+    """Demo scene -> client route -> tree viewer requests on LCM -> server route -> MarkerArray."""
+    url = lcm_url(6)
+    probe = RosProbe()
+    received = probe.subscribe("/director/drake/markers", "visualization_msgs/msg/MarkerArray", 100)
+    stats = tmp_path / "stats.json"
+    bridge = BridgeProcess("-c", str(write_config(tmp_path, BOTH_SIDES)), "--lcm-url", url, "--demo",
+                           "--stats-json", str(stats))  # fmt: skip
+    try:
+        bridge.wait_for_line("routes running")
+        assert probe.wait_for(lambda: any(len({m.ns for m in a.markers}) >= 8 for a in received), timeout=30)
+    finally:
+        assert bridge.stop() == 0
+        probe.close()
+    namespaces = {m.ns for a in received for m in a.markers}
+    assert {"demo::shapes::box_0", "demo::shapes::trianglemesh_6"} <= {
+        ns.replace("/", "::") for ns in namespaces
+    }
+    routes = json.loads(stats.read_text())
+    assert routes["to_director"]["messages_out"] > 0 and routes["as_director"]["messages_out"] > 0

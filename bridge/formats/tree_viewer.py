@@ -521,7 +521,12 @@ def _planar_lidar_shape(value: dict[str, Any], where: str) -> PointCloud:
     ranges = value.get("ranges")
     if not isinstance(ranges, list):
         raise SceneError(f"{where}.ranges must be a list of distances")
-    distances = _points([[r, 0, 0] for r in ranges], f"{where}.ranges")[:, 0]
+    try:
+        distances = np.array(ranges, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise SceneError(f"{where}.ranges must be a list of numbers") from None
+    if distances.ndim != 1 or not np.isfinite(distances).all():
+        raise SceneError(f"{where}.ranges must be a list of finite numbers")
     start, step = _number(value, "angle_start", None, where), _number(value, "angle_step", None, where)
     with np.errstate(over="ignore", invalid="ignore"):
         angles = start + step * np.arange(len(distances))
