@@ -402,6 +402,9 @@ def _marker_message(spec: MarkerSpec, frame_id: str, pose: Pose) -> Any:
         extra["points"] = [
             make("geometry_msgs/msg/Point", x=px, y=py, z=pz) for px, py, pz in spec.points.tolist()
         ]
+    if spec.colors is not None:  # float32 on the wire, rounded here as the CDR path does
+        rgba = np.asarray(spec.colors, dtype=np.float32).tolist()
+        extra["colors"] = [make("std_msgs/msg/ColorRGBA", r=r, g=g, b=b, a=a) for r, g, b, a in rgba]
     if spec.mesh_file[0]:
         name, data = spec.mesh_file
         extra["mesh_file"] = make(

@@ -344,3 +344,19 @@ def test_pose_stamped_reads_back_as_a_pose() -> None:
     stamped.pose.position.y = float("nan")
     with pytest.raises(SceneError, match="pose.position is not finite"):
         ros.pose_from_message(stamped.pose)
+
+
+def test_points_triads_and_lines_as_markers_both_paths_agree() -> None:
+    from bridge.scene import Line, PointCloud, Triad
+
+    cloud = PointCloud(np.array([[0.0, 0, 0], [1, 2, 3]]), np.array([[1.0, 0, 0], [0, 1, 0]]))
+    line = Line(np.array([[0.0, 0, 0], [1, 0, 0]]), radius=0.0, closed=True)
+    scene = Scene((Link("tree::a", 0, (Geometry(cloud), Geometry(Triad(2.0)), Geometry(line))),))
+    objects = ros.to_rclpy(ros.marker_array(scene))
+    assert deserialize_message(ros.marker_array_cdr(scene), MarkerArray) == objects
+    points, triad, strip = objects.markers[1:]
+    assert (points.type, points.scale.x, [c.g for c in points.colors]) == (Marker.POINTS, 0.01, [0.0, 1.0])
+    assert triad.type == Marker.LINE_LIST and [p.x for p in triad.points] == [0, 2, 0, 0, 0, 0]
+    assert strip.type == Marker.LINE_STRIP and len(strip.points) == 3 and strip.scale.x == 0.002
+    with pytest.raises(SceneError, match="shape_msgs has no point clouds"):
+        ros.shapes(scene)
