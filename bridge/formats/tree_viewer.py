@@ -470,19 +470,24 @@ def _shape(value: dict[str, Any], kind: Any, where: str) -> Shape:
 
 def _points(value: Any, where: str) -> FloatArray:
     """A list of [x, y, z] triplets as an N x 3 array of finite numbers."""
+    return _finite_array(value, where, 3, "a list of [x, y, z] triplets of numbers")
+
+
+def _finite_array(value: Any, where: str, width: int | None, what: str) -> FloatArray:
+    """A JSON list as a float array: N numbers (`width` None) or N rows of `width`; all finite."""
     if not isinstance(value, list):
-        raise SceneError(f"{where} must be a list of [x, y, z] triplets")
+        raise SceneError(f"{where} must be {what}")
     try:
-        points = np.array(value, dtype=np.float64)
+        array = np.array(value, dtype=np.float64)
     except (TypeError, ValueError, OverflowError):
-        raise SceneError(f"{where} must be a list of [x, y, z] triplets of numbers") from None
-    if points.size == 0:
-        return points.reshape(0, 3)
-    if points.ndim != 2 or points.shape[1] != 3:
-        raise SceneError(f"{where} must be a list of [x, y, z] triplets, got shape {points.shape}")
-    if not np.isfinite(points).all():
+        raise SceneError(f"{where} must be {what}") from None
+    if array.size == 0:
+        return array.reshape((0,) if width is None else (0, width))
+    if array.ndim != (1 if width is None else 2) or (width is not None and array.shape[1] != width):
+        raise SceneError(f"{where} must be {what}, got shape {array.shape}")
+    if not np.isfinite(array).all():
         raise SceneError(f"{where} holds a value that is not finite")
-    return points
+    return array
 
 
 def _flag(value: dict[str, Any], key: str, default: bool, where: str) -> bool:
@@ -518,15 +523,7 @@ def _pointcloud_shape(value: dict[str, Any], where: str) -> PointCloud:
 
 def _planar_lidar_shape(value: dict[str, Any], where: str) -> PointCloud:
     """Ranges measured about the z axis from `angle_start` every `angle_step`, as points (z = 0)."""
-    ranges = value.get("ranges")
-    if not isinstance(ranges, list):
-        raise SceneError(f"{where}.ranges must be a list of distances")
-    try:
-        distances = np.array(ranges, dtype=np.float64)
-    except (TypeError, ValueError, OverflowError):
-        raise SceneError(f"{where}.ranges must be a list of numbers") from None
-    if distances.ndim != 1 or not np.isfinite(distances).all():
-        raise SceneError(f"{where}.ranges must be a list of finite numbers")
+    distances = _finite_array(value.get("ranges"), f"{where}.ranges", None, "a list of distances")
     start, step = _number(value, "angle_start", None, where), _number(value, "angle_step", None, where)
     with np.errstate(over="ignore", invalid="ignore"):
         angles = start + step * np.arange(len(distances))
