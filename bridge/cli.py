@@ -9,7 +9,7 @@ import sys
 import threading
 from collections.abc import Iterator, Sequence
 
-from bridge.config import DEFAULT_CONFIG, load_config
+from bridge.config import BUILTIN_CONFIGS, load_config
 from bridge.convert import convert
 from bridge.demo import run_demo
 from bridge.dump import as_json, as_text
@@ -55,6 +55,11 @@ def _parser() -> argparse.ArgumentParser:
         "-c", "--config", help="a YAML config (default: the built-in one, see --print-default-config)"
     )
     run.add_argument("--print-default-config", action="store_true", help="print the built-in config and exit")
+    run.add_argument(
+        "--print-config",
+        metavar="NAME",
+        help="print a built-in config (default, ign) and exit; use it as -c builtin:NAME",
+    )
     run.add_argument(
         "--lcm-url", help="override the config's LCM URL (a log file or file://LOG?speed=S replays it)"
     )
@@ -129,8 +134,15 @@ def _mappings(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    if args.print_default_config:
-        print(DEFAULT_CONFIG, end="")
+    if args.print_default_config or args.print_config:
+        name = args.print_config or "default"
+        if name not in BUILTIN_CONFIGS:
+            print(
+                f"viewer-bridge: no built-in config {name!r} (known: {', '.join(BUILTIN_CONFIGS)})",
+                file=sys.stderr,
+            )
+            return 2
+        print(BUILTIN_CONFIGS[name], end="")
         return 0
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
     try:

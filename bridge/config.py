@@ -20,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from bridge.errors import ConfigError
 from bridge.yamldoc import YamlDocument
 
-Transport = Literal["lcm", "ros"]
+Transport = Literal["lcm", "ros", "ign"]
 
 
 class _Strict(BaseModel):
@@ -35,6 +35,11 @@ class RosSettings(_Strict):
     node: str = "viewer_bridge"
     namespace: str = ""
     use_sim_time: bool = False
+
+
+class IgnSettings(_Strict):
+    partition: str | None = None  # default: IGN_PARTITION, or hostname:username
+    ip: str | None = None  # default: IGN_IP, or 127.0.0.1
 
 
 class Endpoint(_Strict):
@@ -91,6 +96,7 @@ class Route(_Strict):
 class BridgeConfig(_Strict):
     lcm: LcmSettings = LcmSettings()
     ros: RosSettings = RosSettings()
+    ign: IgnSettings = IgnSettings()
     load_cache: str | None = None  # a folder where the last load per channel is kept across runs
     routes: list[Route]
 
@@ -165,14 +171,60 @@ routes:
 """
 
 
+IGN_CONFIG = """\
+# Drake's default viewer channels to ign-transport (ign-msgs 8 names, as Debian's ign tools use),
+# and Pose_V from ign back to LCM. For newer Gazebo, set `options: {package: gz}` on a route.
+lcm:
+  url: udpm://239.255.76.67:7667?ttl=0
+ign: {partition: null, ip: null}
+routes:
+  - name: model
+    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
+    translator: drake_to_ign_model_v
+    destination: {transport: ign, name: "/drake{1:path}/model_v"}
+  - name: pose_v
+    source: {transport: lcm, name: "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
+    translator: drake_to_ign_pose_v
+    destination: {transport: ign, name: "/drake{1:path}/pose_v"}
+  - name: poses_stamped
+    source: {transport: lcm, name: "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
+    translator: drake_to_ign_poses_stamped
+    destination: {transport: ign, name: "/drake{1:path}/poses_stamped"}
+  - name: from_ign
+    source: {transport: ign, name: /drake_in/pose_v}
+    translator: ign_pose_v_to_drake_draw
+    destination: {transport: lcm, name: DRAKE_VIEWER_DRAW_FROM_IGN}
+    rate: {policy: all}
+"""
+
+BUILTIN_CONFIGS = {"default": DEFAULT_CONFIG, "ign": IGN_CONFIG}
+
+
 def load_config(path: str | Path | None) -> BridgeConfig:
-    """The config in `path`, or the built-in default; raises `ConfigError` with file:line:field."""
-    document = (
-        YamlDocument.read(path) if path is not None else YamlDocument("<default config>", DEFAULT_CONFIG)
-    )
+    """The config in `path` (`builtin:NAME` for a built-in one), or the built-in default.
+
+    Raises `ConfigError` with file:line:field.
+    """
+    if path is None or str(path).startswith("builtin:"):
+        name = "default" if path is None else str(path).removeprefix("builtin:")
+        if name not in BUILTIN_CONFIGS:
+            known = ", ".join(BUILTIN_CONFIGS)
+            raise ConfigError(str(path), None, "", f"no built-in config {name!r} (known: {known})")
+        document = YamlDocument(f"<built-in config {name}>", BUILTIN_CONFIGS[name])
+    else:
+        document = YamlDocument.read(path)
     if not isinstance(document.data, dict):
         raise ConfigError(document.path, 1, "", "the config must be a mapping with a 'routes' list")
     return document.validate(BridgeConfig)
 
 
-__all__ = ["DEFAULT_CONFIG", "BridgeConfig", "ConfigError", "Route", "destination_name", "load_config"]
+__all__ = [
+    "BUILTIN_CONFIGS",
+    "DEFAULT_CONFIG",
+    "IGN_CONFIG",
+    "BridgeConfig",
+    "ConfigError",
+    "Route",
+    "destination_name",
+    "load_config",
+]

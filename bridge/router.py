@@ -235,6 +235,11 @@ class Router:
 
             settings = config.ros
             self.ros = RosNode(settings.node, settings.namespace, settings.use_sim_time)
+        self.ign: Any = None
+        if "ign" in uses:
+            from bridge.transports.ign import IgnNode
+
+            self.ign = IgnNode(config.ign.partition, config.ign.ip)
         for route in config.routes:
             translator = TRANSLATORS[route.translator](dict(route.options), self.loads)
             if route.source.transport == "lcm" and self.lcm is not None:
@@ -243,6 +248,8 @@ class Router:
             self.routes.append(runner)
             if route.source.transport == "lcm":
                 self._lcm_routes.append(runner)  # one LCM subscription serves them all: see start()
+            elif route.source.transport == "ign":
+                self.ign.subscribe(route.source.name, translator.source_type, runner.offer)
             else:
                 self._subscribe_ros(runner)
 
@@ -262,6 +269,10 @@ class Router:
                 assert self.lcm is not None
                 bus = self.lcm
                 return lambda data: bus.publish(name, data)
+            if route.destination.transport == "ign":
+                node = self.ign
+                node.advertise(name, output.typename)  # seen by `ign topic -l` from the first message on
+                return lambda data: node.publish(name, data, output.typename)
             from bridge.transports.ros2 import qos_profile
 
             durability = route.qos.durability
@@ -285,12 +296,16 @@ class Router:
             runner.start()
         if self.ros is not None:
             self.ros.start()
+        if self.ign is not None:
+            self.ign.start()
         if self.lcm is not None:
             self.lcm.subscribe(".*", self._dispatch)
             self.lcm.start()
         where = [f"LCM {self.lcm.url}"] if self.lcm is not None else []
         if self.ros is not None:
             where.append(f"ROS 2 node {self.ros.node.get_fully_qualified_name()}")
+        if self.ign is not None:
+            where.append(f"ign-transport partition {self.ign.partition} on {self.ign.address}")
         log.info("viewer-bridge: %d routes running (%s)", len(self.routes), ", ".join(where))
 
     def stop(self) -> None:
@@ -329,9 +344,14 @@ class Router:
             self.lcm.close()
         if self.ros is not None:
             self.ros.close()
+        if self.ign is not None:
+            self.ign.close()
 
     def snapshot(self) -> dict[str, Any]:
-        return {runner.route.name: runner.snapshot() for runner in self.routes}
+        routes = {runner.route.name: runner.snapshot() for runner in self.routes}
+        if self.ign is not None and self.ign.errors:
+            routes["ign-transport"] = {"errors": dict(self.ign.errors)}
+        return routes
 
     def report(self) -> None:
         """One log line per route, and the JSON file when asked for."""

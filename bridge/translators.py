@@ -18,13 +18,14 @@ import re
 import struct
 import tempfile
 import threading
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
 from bridge.errors import DecodeError, SceneError
-from bridge.formats import ros, tree_viewer
+from bridge.formats import ign, ros, tree_viewer
 from bridge.formats.drake import DrawDecoder, DrawEncoder, decode_load, link_from_lcm
 from bridge.lcmcodec import DRAW, LINK_DATA, LOAD_ROBOT, VIEWER2_COMMS
 from bridge.scene import LinkPoses, Scene
@@ -95,8 +96,8 @@ class Translator:
 
     source: ClassVar[str]  # "lcm" or "ros"
     destination: ClassVar[str]
-    source_type: ClassVar[str] = ""  # the ROS type a ros source subscribes to
-    outputs: ClassVar[tuple[Output, ...]]
+    source_type: str = ""  # the message type a ros or ign source subscribes to
+    outputs: tuple[Output, ...]  # a class attribute; an instance may set its own
 
     def __init__(self, options: dict[str, Any], loads: LoadCache) -> None:
         self.options = options
@@ -361,6 +362,95 @@ def _related(link_path: tuple[str, ...], missing: tuple[Any, ...]) -> bool:
     return link_path[:shorter] == tuple(missing[:shorter])
 
 
+class _DrakeToIgn(DrakeSceneTranslator):
+    """Base of Drake -> ign-transport: `options.package` `ignition` (default, ign-msgs 8 as
+    Debian's tools speak) or `gz` picks the message names."""
+
+    destination = "ign"
+    message_name: ClassVar[str]
+
+    def __init__(self, options: dict[str, Any], loads: LoadCache) -> None:
+        super().__init__(options, loads)
+        package = options.get("package", "ignition")
+        if package not in ("ignition", "gz"):
+            raise SceneError(f"options.package must be 'ignition' or 'gz', not {package!r}")
+        self.msgs = ign.IGNITION if package == "ignition" else ign.GZ
+        self.outputs = (Output("", self.msgs.full_name(self.message_name), latched=True),)
+
+
+class DrakeToIgnModel(_DrakeToIgn):
+    """load -> `Model` (every link of the scene). ign-transport has no latching, so the model is
+    published again every `options.republish_s` seconds (default 1) while draws flow, for
+    subscribers that start late; its link poses follow the latest draw."""
+
+    message_name = "Model"
+
+    def __init__(self, options: dict[str, Any], loads: LoadCache) -> None:
+        super().__init__(options, loads)
+        self.republish_s = float(options.get("republish_s", 1.0))
+        self._published_at = float("-inf")
+
+    def build(self, scene: Scene) -> bytes:
+        return bytes(ign.model(scene, msgs=self.msgs).SerializeToString())
+
+    def on_load(self, scene: Scene) -> Outputs:
+        self._published_at = time.monotonic()
+        return [(0, self.build(scene))]
+
+    def on_draw(self, poses: LinkPoses) -> Outputs:
+        if self.scene is None or time.monotonic() - self._published_at < self.republish_s:
+            return []
+        self._published_at = time.monotonic()
+        return [(0, self.build(self.scene.with_poses(poses)))]
+
+
+class DrakeToIgnModelV(DrakeToIgnModel):
+    """load -> `Model_V`: a Model per robot_num (model instance); republished like the Model."""
+
+    message_name = "Model_V"
+
+    def build(self, scene: Scene) -> bytes:
+        return bytes(ign.model_v(scene, msgs=self.msgs).SerializeToString())
+
+
+class DrakeToIgnPoseV(_DrakeToIgn):
+    """draw -> `Pose_V`: a Pose per link, named with the link's Drake name."""
+
+    message_name = "Pose_V"
+
+    def translate(self, channel: str, data: bytes) -> Outputs:
+        return [(0, bytes(ign.pose_v(self.decoder.decode(data), self.msgs).SerializeToString()))]
+
+
+class DrakeToIgnPosesStamped(_DrakeToIgn):
+    """draw -> the legacy `PosesStamped` (sim time in `time` too), for older tools."""
+
+    message_name = "PosesStamped"
+
+    def translate(self, channel: str, data: bytes) -> Outputs:
+        return [(0, bytes(ign.poses_stamped(self.decoder.decode(data), self.msgs).SerializeToString()))]
+
+
+class IgnPoseVToDrakeDraw(Translator):
+    """ign `Pose_V` -> `lcmt_viewer_draw` (names from `Pose.name`; robot_nums from
+    `options.robot_nums`, a name -> number mapping, else 0)."""
+
+    source = "ign"
+    destination = "lcm"
+    outputs = (Output("", DRAW.type_name),)
+
+    def __init__(self, options: dict[str, Any], loads: LoadCache) -> None:
+        super().__init__(options, loads)
+        self.msgs = ign.GZ if options.get("package") == "gz" else ign.IGNITION
+        self.source_type = self.msgs.full_name("Pose_V")
+        self.encoder = DrawEncoder()
+
+    def translate(self, channel: str, data: bytes) -> Outputs:
+        message = self.msgs.parse("Pose_V", data)
+        poses = ign.poses_from_pose_v(message, self.options.get("robot_nums"))
+        return [(0, self.encoder.encode(poses))]
+
+
 _BYTES_PREFIX = struct.Struct("<4sII")  # encapsulation, layout.dim (empty), layout.data_offset
 
 
@@ -386,4 +476,9 @@ TRANSLATORS: dict[str, type[Translator]] = {
     "lcm_bytes_to_ros": LcmBytesToRos,
     "tree_viewer_server": TreeViewerServer,
     "drake_to_tree_viewer": DrakeToTreeViewer,
+    "drake_to_ign_model": DrakeToIgnModel,
+    "drake_to_ign_model_v": DrakeToIgnModelV,
+    "drake_to_ign_pose_v": DrakeToIgnPoseV,
+    "drake_to_ign_poses_stamped": DrakeToIgnPosesStamped,
+    "ign_pose_v_to_drake_draw": IgnPoseVToDrakeDraw,
 }

@@ -80,6 +80,25 @@ _SCHEMA: dict[str, list[tuple[str, int, str, bool]]] = {
     "Model": [("header", 1, "Header", False), ("name", 2, "string", False), ("id", 3, "uint32", False),
               ("pose", 5, "Pose", False), ("link", 7, "Link", True), ("visual", 9, "Visual", True)],
     "Model_V": [("header", 1, "Header", False), ("models", 2, "Model", True)],
+    # ign-transport's own discovery datagrams (ignition/msgs/discovery.proto).
+    "Discovery": [("header", 1, "Header", False), ("version", 2, "uint32", False),
+                  ("process_uuid", 3, "string", False), ("type", 4, "Discovery.Type", False),
+                  ("flags", 5, "Discovery.Flags", False), ("sub", 6, "Discovery.Subscriber", False),
+                  ("pub", 7, "Discovery.Publisher", False)],
+    "Discovery.Flags": [("relay", 1, "bool", False), ("no_relay", 2, "bool", False)],
+    "Discovery.Subscriber": [("topic", 1, "string", False)],
+    "Discovery.Publisher": [("topic", 1, "string", False), ("address", 2, "string", False),
+                            ("process_uuid", 3, "string", False), ("node_uuid", 4, "string", False),
+                            ("scope", 5, "Discovery.Publisher.Scope", False),
+                            ("msg_pub", 6, "Discovery.Publisher.MessagePublisher", False)],
+    "Discovery.Publisher.MessagePublisher": [("ctrl", 1, "string", False), ("msg_type", 2, "string", False),
+                                             ("throttled", 3, "bool", False), ("msgs_per_sec", 4, "uint64", False)],
+}  # fmt: skip
+
+_ENUMS: dict[str, dict[str, int]] = {
+    "Discovery.Type": {"UNINITIALIZED": 0, "ADVERTISE": 1, "SUBSCRIBE": 2, "UNADVERTISE": 3, "HEARTBEAT": 4,
+                       "BYE": 5, "NEW_CONNECTION": 6, "END_CONNECTION": 7},
+    "Discovery.Publisher.Scope": {"PROCESS": 0, "HOST": 1, "ALL": 2},
 }  # fmt: skip
 
 _SCALARS = {
@@ -89,6 +108,8 @@ _SCALARS = {
     "int32": descriptor_pb2.FieldDescriptorProto.TYPE_INT32,
     "uint32": descriptor_pb2.FieldDescriptorProto.TYPE_UINT32,
     "string": descriptor_pb2.FieldDescriptorProto.TYPE_STRING,
+    "bool": descriptor_pb2.FieldDescriptorProto.TYPE_BOOL,
+    "uint64": descriptor_pb2.FieldDescriptorProto.TYPE_UINT64,
 }
 
 
@@ -122,23 +143,28 @@ def _file_descriptor(package: str, geometry_types: Mapping[str, int]) -> descrip
     file = descriptor_pb2.FileDescriptorProto(
         name=f"viewer_bridge/{package}.proto", package=package, syntax="proto3"
     )
-    nested: dict[str, descriptor_pb2.DescriptorProto] = {}
+    enums = {"Geometry.Type": dict(geometry_types), **_ENUMS}
+    messages: dict[str, descriptor_pb2.DescriptorProto] = {}
     for name, fields in _SCHEMA.items():
-        outer, _, inner = name.partition(".")
-        message = nested[outer].nested_type.add(name=inner) if inner else file.message_type.add(name=name)
-        nested.setdefault(name, message)
+        parent, _, short = name.rpartition(".")
+        message = (
+            messages[parent].nested_type.add(name=short) if parent else file.message_type.add(name=short)
+        )
+        messages[name] = message
         for field_name, number, type_name, repeated in fields:
             field = message.field.add(name=field_name, number=number, json_name=field_name)
             field.label = field.LABEL_REPEATED if repeated else field.LABEL_OPTIONAL
             if type_name in _SCALARS:
                 field.type = _SCALARS[type_name]
-            elif type_name == "Geometry.Type":
-                field.type, field.type_name = field.TYPE_ENUM, f".{package}.Geometry.Type"
+            elif type_name in enums:
+                field.type, field.type_name = field.TYPE_ENUM, f".{package}.{type_name}"
             else:
                 field.type, field.type_name = field.TYPE_MESSAGE, f".{package}.{type_name}"
-    enum = nested["Geometry"].enum_type.add(name="Type")
-    for value_name, number in sorted(geometry_types.items(), key=lambda item: item[1]):
-        enum.value.add(name=value_name, number=number)
+    for name, values in enums.items():
+        parent, _, short = name.rpartition(".")
+        enum = messages[parent].enum_type.add(name=short)
+        for value_name, number in sorted(values.items(), key=lambda item: item[1]):
+            enum.value.add(name=value_name, number=number)
     return file
 
 
