@@ -1,0 +1,226 @@
+"""The ign-transport node against the real peer, Debian's `ign-transport-topic` (transport 11)."""
+
+from __future__ import annotations
+
+import os
+import socket
+import struct
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+from typing import Any
+
+import drake as drake_lcmtypes
+import numpy as np
+import pytest
+import zmq
+
+from bridge.formats import ign
+from bridge.scene import LinkPoses
+from bridge.transports.ign import DISCOVERY_GROUP, MESSAGE_PORT, WIRE_VERSION, IgnNode
+from tests.conftest import DRAKE_SCENE_SCRIPT, lcm_url
+from tests.peers import BridgeProcess
+from tests.test_router import LcmRecorder
+
+pytestmark = pytest.mark.slow
+
+CLI = "/usr/libexec/ignition/transport11/ign-transport-topic"
+
+
+@pytest.fixture(autouse=True)
+def ign_environment(monkeypatch: pytest.MonkeyPatch) -> str:
+    """A partition of this test's own on the loopback interface, for us and the CLI alike."""
+    partition = f"vbtest{os.getpid()}_{uuid.uuid4().hex[:6]}"
+    monkeypatch.setenv("IGN_PARTITION", partition)
+    monkeypatch.setenv("IGN_IP", "127.0.0.1")
+    assert Path(CLI).is_file(), "install Debian's ignition-transport-cli (./dev test does)"
+    return partition
+
+
+def cli(*args: str, timeout: float = 15.0) -> str:
+    result = subprocess.run(
+        [CLI, *args], capture_output=True, text=True, timeout=timeout, env=dict(os.environ)
+    )
+    return result.stdout
+
+
+def poses(timestamp_ms: int = 1500) -> LinkPoses:
+    return LinkPoses(
+        timestamp_ms,
+        ("plant::a",),
+        np.zeros(1, np.int32),
+        np.array([[1.0, 2, 3]]),
+        np.array([[1.0, 0, 0, 0]]),
+    )
+
+
+# --- 1. Drake -> bridge -> ign topics, seen by the C++ CLI ----------------------------------------------
+
+
+def test_the_cli_lists_and_echoes_what_a_drake_simulation_becomes(tmp_path: Path) -> None:
+    url = lcm_url(7)
+    recorder = LcmRecorder(url)
+    bridge = BridgeProcess("-c", "builtin:ign", "--lcm-url", url)
+    drake = None
+    try:
+        bridge.wait_for_line("routes running")
+        drake = subprocess.Popen([sys.executable, str(DRAKE_SCENE_SCRIPT), url, str(tmp_path), "8"])
+        deadline = time.monotonic() + 60
+        while "DRAKE_VIEWER_DRAW_ILLUSTRATION" not in recorder.messages and time.monotonic() < deadline:
+            time.sleep(0.1)
+        topics = ""
+        while "/drake/illustration/pose_v" not in topics and time.monotonic() < deadline:
+            topics = cli("-l")
+        model = cli("-e", "-t", "/drake/illustration/model_v", "-n", "1")
+        pose_v = cli("-e", "-t", "/drake/illustration/pose_v", "-n", "1")
+    finally:
+        if drake is not None:
+            drake.kill()
+            drake.wait()
+        assert bridge.stop() == 0
+        recorder.close()
+    assert {"/drake/illustration/model_v", "/drake/illustration/pose_v", "/drake/proximity/model_v"} <= set(
+        topics.split()
+    )
+    for text in ("plant::robot0::body3", "type: CAPSULE", "type: ELLIPSOID", "type: CYLINDER", "type: MESH"):
+        assert text in model, text
+    assert "capsule {\n" in model and "radius: 0.03" in model  # Drake's Capsule(0.03, 0.2)
+    names = [line.split('"')[1] for line in pose_v.splitlines() if line.strip().startswith("name:")]
+    load = drake_lcmtypes.lcmt_viewer_draw.decode(recorder.messages["DRAKE_VIEWER_DRAW_ILLUSTRATION"][-1])
+    assert names == list(load.link_name)  # every link, in the draw's order
+
+
+# --- 2. the CLI publishes Pose_V -> LCM draw -------------------------------------------------------------
+
+
+def test_a_pose_v_from_the_cli_arrives_as_a_drake_draw() -> None:
+    url = lcm_url(8)
+    recorder = LcmRecorder(url)
+    bridge = BridgeProcess("-c", "builtin:ign", "--lcm-url", url)
+    text = 'header { stamp { sec: 3 nsec: 250000000 } } pose { name: "plant::arm" position { x: 1 y: 2 z: 3 } ' \
+           'orientation { x: 0 y: 0 z: 0.6 w: 0.8 } }'  # fmt: skip
+    try:
+        bridge.wait_for_line("routes running")
+        deadline = time.monotonic() + 30
+        while "DRAKE_VIEWER_DRAW_FROM_IGN" not in recorder.messages and time.monotonic() < deadline:
+            cli("-t", "/drake_in/pose_v", "-m", "ignition.msgs.Pose_V", "-p", text)
+            time.sleep(0.2)
+    finally:
+        assert bridge.stop() == 0
+        recorder.close()
+    draw = drake_lcmtypes.lcmt_viewer_draw.decode(recorder.messages["DRAKE_VIEWER_DRAW_FROM_IGN"][0])
+    assert (draw.timestamp, list(draw.link_name)) == (3250, ["plant::arm"])
+    assert [list(p) for p in draw.position] == [[1.0, 2.0, 3.0]]
+    assert np.allclose(draw.quaternion, [[0.8, 0.0, 0.0, 0.6]])  # w first
+
+
+# --- 3. peers come and go ------------------------------------------------------------------------------------
+
+
+def test_publishers_and_cli_peers_can_restart() -> None:
+    url = lcm_url(9)
+    received: list[float] = []
+    node = IgnNode()
+    node.subscribe(
+        "/drake/pose_v", "ignition.msgs.Pose_V", lambda topic, data, us: received.append(time.monotonic())
+    )
+    node.start()
+    try:
+        for _ in range(2):  # the second bridge is a new process: new uuid, new address
+            bridge = BridgeProcess("-c", "builtin:ign", "--lcm-url", url, "--demo")
+            bridge.wait_for_line("routes running")
+            started = time.monotonic()
+            deadline = started + 10
+            while not any(at > started for at in received) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert any(at > started for at in received), "no Pose_V after the bridge (re)started"
+            assert min(at for at in received if at > started) - started < 3.0
+            # The C++ CLI comes and goes too: each new one hears the bridge within 3 s.
+            for _ in range(2):
+                began = time.monotonic()
+                assert "demo::shapes::box_0" in cli("-e", "-t", "/drake/pose_v", "-n", "1", timeout=10)
+                assert time.monotonic() - began < 3.0
+            bridge.process.kill()  # no BYE: the node must notice the silence
+            bridge.process.wait()
+    finally:
+        node.close()
+
+
+# --- 4. bad datagrams and frames ----------------------------------------------------------------------------
+
+
+def datagram(message: Any) -> bytes:
+    body = message.SerializeToString()
+    return struct.pack("<H", len(body)) + body
+
+
+def test_malformed_datagrams_and_frames_are_counted_and_skipped(ign_environment: str) -> None:
+    node = IgnNode()
+    got: list[bytes] = []
+    node.subscribe("/fuzz", "ignition.msgs.Pose_V", lambda topic, data, us: got.append(data))
+    node.start()
+    udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    udp.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_IF, socket.inet_aton("127.0.0.1"))
+    context = zmq.Context()
+    publisher = context.socket(zmq.PUB)
+    publisher.bind("tcp://127.0.0.1:*")
+    address = publisher.getsockopt_string(zmq.LAST_ENDPOINT)
+    full = f"@/{ign_environment}@/fuzz"
+    try:
+        rng = np.random.default_rng(3)
+        good_header = ign.IGNITION.Discovery(version=WIRE_VERSION, process_uuid="fuzzer", type=4)
+        for _ in range(300):
+            kind = rng.integers(4)
+            if kind == 0:  # a length prefix that disagrees with the datagram
+                data = datagram(good_header)
+                data = struct.pack("<H", len(data) + int(rng.integers(1, 50))) + data[2:]
+            elif kind == 1:  # not a Discovery at all
+                data = struct.pack("<H", 40) + rng.bytes(40)
+            elif kind == 2:  # the wrong wire version
+                data = datagram(
+                    ign.IGNITION.Discovery(version=int(rng.integers(0, 9)), process_uuid="x", type=1)
+                )
+            else:  # random bytes of any length
+                data = rng.bytes(int(rng.integers(0, 300)))
+            udp.sendto(data, (DISCOVERY_GROUP, MESSAGE_PORT))
+        # A publisher that advertises properly, then sends good and bad ZMQ messages.
+        advertise = ign.IGNITION.Discovery(version=WIRE_VERSION, process_uuid=str(uuid.uuid4()), type=1)
+        advertise.pub.topic, advertise.pub.address = full, address
+        advertise.pub.process_uuid, advertise.pub.node_uuid = advertise.process_uuid, "node"
+        advertise.pub.msg_pub.msg_type = "ignition.msgs.Pose_V"
+        payload = ign.pose_v(poses()).SerializeToString()
+        deadline = time.monotonic() + 10
+        while not got and time.monotonic() < deadline:
+            udp.sendto(datagram(advertise), (DISCOVERY_GROUP, MESSAGE_PORT))
+            publisher.send_multipart([full.encode(), address.encode(), payload, b"ignition.msgs.Pose_V"])
+            time.sleep(0.2)
+        assert got, "the node never connected to the advertised publisher"
+        before = len(got)
+        bad = [
+            [full.encode(), address.encode(), payload],  # three frames
+            [full.encode(), address.encode(), payload, b"ignition.msgs.Pose_V", b"extra"],  # five
+            [full.encode(), address.encode(), payload, b"ignition.msgs.Teapot"],  # an unknown type
+            [full.encode() + b"x", address.encode(), payload, b"ignition.msgs.Pose_V"],  # prefix match only
+        ]
+        for frames in bad * 25:
+            publisher.send_multipart(frames)
+        for _ in range(10):
+            publisher.send_multipart([full.encode(), address.encode(), payload, b"ignition.msgs.Pose_V"])
+        deadline = time.monotonic() + 5
+        while len(got) < before + 10 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert len(got) == before + 10 and all(data == payload for data in got)
+        errors = dict(node.errors)
+        assert errors["data_frames"] == 50 and errors["data_type"] == 25 and errors["data_topic"] == 25, (
+            errors
+        )
+        assert (
+            errors["discovery_length"] > 0 and errors["discovery_parse"] + errors["discovery_version"] > 0
+        ), errors
+    finally:
+        node.close()
+        publisher.close()
+        context.term()
+        udp.close()
