@@ -277,7 +277,7 @@ BROKEN_CONFIGS = [
      "    destination: {transport: ros, name: /x}\n    qos: {depth: many}\n", 6, "routes.0.qos.depth",
      "valid integer"),
     ("routes:\n  - name: a\n    source: {transport: zmq, name: X}\n    translator: drake_to_pose_array\n"
-     "    destination: {transport: ros, name: /x}\n", 3, "routes.0.source.transport", "'lcm' or 'ros'"),
+     "    destination: {transport: ros, name: /x}\n", 3, "routes.0.source.transport", "'lcm', 'ros' or 'ign'"),
     ("lcm: {url: udpm://x}\n", 1, "routes", "Field required"),
     ("routes: [\n", 2, "", "not valid YAML"),
 ]  # fmt: skip
