@@ -74,6 +74,11 @@ def _parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--demo", action="store_true", help="also publish the demo scene on the LCM URL")
 
+    serve = commands.add_parser("serve-render", help="serve Drake's glTF render API (RenderEngineGltfClient)")
+    serve.add_argument("--host", default="127.0.0.1", help="address to listen on (default: this host only)")
+    serve.add_argument("--port", type=int, default=8000)
+    serve.add_argument("--max-upload", type=int, default=256 * 1024 * 1024, metavar="BYTES")
+
     convert = commands.add_parser("convert", help="translate an LCM log into a ROS 2 MCAP file")
     convert.add_argument("log", help="an .lcmlog file")
     convert.add_argument("mcap", help="the .mcap file to write")
@@ -185,9 +190,31 @@ def _convert(args: argparse.Namespace) -> int:
     return 0
 
 
+def _serve_render(args: argparse.Namespace) -> int:
+    from bridge.render_server import make_server  # OpenGL only for this command
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
+    server = make_server(args.host, args.port, args.max_upload)
+    logging.getLogger("viewer_bridge").info(
+        "render server on http://%s:%d/render", *server.server_address[:2]
+    )
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, lambda *_: threading.Thread(target=server.shutdown).start())
+    server.serve_forever()
+    server.server_close()
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    handlers = {"dump": _dump, "demo": _demo, "mappings": _mappings, "run": _run, "convert": _convert}
+    handlers = {
+        "dump": _dump,
+        "demo": _demo,
+        "mappings": _mappings,
+        "run": _run,
+        "convert": _convert,
+        "serve-render": _serve_render,
+    }
     return handlers[args.command](args)
 
 

@@ -1,0 +1,157 @@
+"""Rendering a glTF scene from a pinhole camera with OpenGL (moderngl): color, depth, label.
+
+Headless through EGL (Mesa llvmpipe here, a GPU where EGL finds one). The projection is built
+from the camera's intrinsics, not the glTF `yfov` (PROTOCOLS.md section 5): P00 = 2fx/W,
+P02 = (W - 2cx)/W, P11 = 2fy/H, P12 = -(H - 2cy)/H, rows flipped on readback.
+
+* color: the material colour lit from the camera (normals from screen-space derivatives, since
+  Drake's scenes carry none), on Drake's background (204, 229, 255);
+* depth: eye-space z in metres (not ray length), drawn into a float target;
+* label: the unlit baseColorFactor, no multisampling, white where nothing is.
+
+A `Renderer` owns its GL context: use it from one thread.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import moderngl
+import numpy as np
+
+from bridge.formats.gltf import GltfScene
+from bridge.scene import FloatArray
+
+BACKGROUND = (204 / 255, 229 / 255, 1.0)
+
+_VERTEX = """
+#version 330
+uniform mat4 projection;
+uniform mat4 view;
+in vec3 position;
+out vec3 eye;
+void main() {
+    vec4 at = view * vec4(position, 1.0);
+    eye = at.xyz;
+    gl_Position = projection * at;
+}
+"""
+
+_FRAGMENT = """
+#version 330
+uniform vec4 base_color;
+uniform int mode;  // 0 color, 1 depth, 2 label
+in vec3 eye;
+out vec4 result;
+void main() {
+    if (mode == 1) {
+        result = vec4(-eye.z, 0.0, 0.0, 1.0);
+    } else if (mode == 2) {
+        result = base_color;
+    } else {
+        vec3 normal = normalize(cross(dFdx(eye), dFdy(eye)));
+        float light = abs(dot(normal, normalize(-eye)));
+        result = vec4(base_color.rgb * (0.35 + 0.65 * light), 1.0);
+    }
+}
+"""
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Drake's CameraInfo and clipping range, and the camera's pose in the world (4 x 4)."""
+
+    width: int
+    height: int
+    focal_x: float
+    focal_y: float
+    center_x: float
+    center_y: float
+    near: float
+    far: float
+    pose: FloatArray
+
+    def projection(self) -> FloatArray:
+        w, h, n, f = self.width, self.height, self.near, self.far
+        matrix = np.zeros((4, 4))
+        matrix[0, 0] = 2 * self.focal_x / w
+        matrix[0, 2] = (w - 2 * self.center_x) / w
+        matrix[1, 1] = 2 * self.focal_y / h
+        matrix[1, 2] = -(h - 2 * self.center_y) / h
+        matrix[2, 2] = -(f + n) / (f - n)
+        matrix[2, 3] = -2 * f * n / (f - n)
+        matrix[3, 2] = -1.0
+        return matrix
+
+
+class Renderer:
+    """Renders `GltfScene`s; one GL context, one program, buffers made per scene."""
+
+    def __init__(self) -> None:
+        self.context = moderngl.create_standalone_context(backend="egl")  # type: ignore[arg-type]
+        self.program = self.context.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
+        self.uniforms: dict[str, Any] = {
+            name: self.program[name] for name in ("projection", "view", "mode", "base_color")
+        }
+
+    def render(self, scene: GltfScene, camera: Camera, kind: str) -> np.ndarray[Any, Any]:
+        """An H x W x 4 float32 image, top row first: colour in [0, 1], depth in metres (inf: no
+        hit), or label colours in [0, 1] (white: no hit)."""
+        ctx = self.context
+        target = ctx.texture((camera.width, camera.height), 4, dtype="f4")
+        depth = ctx.depth_renderbuffer((camera.width, camera.height))
+        framebuffer = ctx.framebuffer(color_attachments=[target], depth_attachment=depth)
+        try:
+            framebuffer.use()
+            ctx.viewport = (0, 0, camera.width, camera.height)
+            ctx.enable(moderngl.DEPTH_TEST)
+            ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+            background = {
+                "color": (*BACKGROUND, 1.0),
+                "depth": (-1.0, 0.0, 0.0, 1.0),
+                "label": (1.0, 1.0, 1.0, 1.0),
+            }[kind]
+            framebuffer.clear(*background, depth=1.0)
+            self.uniforms["projection"].write(camera.projection().T.astype("f4").tobytes())
+            self.uniforms["view"].write(np.linalg.inv(camera.pose).T.astype("f4").tobytes())
+            self.uniforms["mode"].value = {"color": 0, "depth": 1, "label": 2}[kind]
+            for mesh in scene.meshes:
+                if not len(mesh.triangles):
+                    continue
+                self.uniforms["base_color"].value = tuple(float(c) for c in mesh.color)
+                vertices = ctx.buffer(mesh.vertices.astype("f4").tobytes())
+                indices = ctx.buffer(mesh.triangles.astype("u4").tobytes())
+                array = ctx.vertex_array(self.program, [(vertices, "3f", "position")], index_buffer=indices)
+                array.render(moderngl.TRIANGLES)
+                array.release()
+                vertices.release()
+                indices.release()
+            pixels = np.frombuffer(framebuffer.read(components=4, dtype="f4"), dtype=np.float32)
+        finally:
+            framebuffer.release()
+            target.release()
+            depth.release()
+        image = pixels.reshape(camera.height, camera.width, 4)[::-1].copy()
+        if kind == "depth":
+            image[..., 0][image[..., 0] < 0] = np.inf  # the cleared background: nothing there
+        return image
+
+
+def color_png(image: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+    return np.clip(np.round(image[..., :3] * 255), 0, 255).astype(np.uint8)
+
+
+def label_png(image: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+    return np.clip(np.round(image[..., :3] * 255), 0, 255).astype(np.uint8)
+
+
+def depth_mm(image: np.ndarray[Any, Any], min_depth: float, max_depth: float) -> np.ndarray[Any, Any]:
+    """16-bit millimetres: 0 nearer than min_depth, 65535 beyond max_depth or where nothing is."""
+    z = image[..., 0].astype(np.float64)
+    out = np.full(z.shape, 65535, dtype=np.uint16)
+    near = z < min_depth
+    inside = ~near & (z <= max_depth) & np.isfinite(z)
+    out[near] = 0
+    out[inside] = np.clip(np.round(z[inside] * 1000.0), 0, 65534).astype(np.uint16)
+    return out
