@@ -8,6 +8,9 @@ import signal
 import sys
 import threading
 from collections.abc import Iterator, Sequence
+from pathlib import Path
+
+import numpy as np
 
 from bridge.config import BUILTIN_CONFIGS, load_config
 from bridge.convert import convert
@@ -78,6 +81,20 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument("--host", default="127.0.0.1", help="address to listen on (default: this host only)")
     serve.add_argument("--port", type=int, default=8000)
     serve.add_argument("--max-upload", type=int, default=256 * 1024 * 1024, metavar="BYTES")
+
+    shot = commands.add_parser(
+        "snapshot", help="render the current scene of a log or a live LCM bus to a PNG"
+    )
+    shot.add_argument("source", help="an .lcmlog file, or an LCM URL to listen on")
+    shot.add_argument("out", help="the .png to write")
+    shot.add_argument("--role", default="", help="channel suffix, e.g. ILLUSTRATION (default: unsuffixed)")
+    shot.add_argument("--image", choices=["color", "label", "depth"], default="color")
+    shot.add_argument("--size", default="640x480", help="WIDTHxHEIGHT")
+    shot.add_argument("--fov", type=float, default=45.0, help="vertical field of view, degrees")
+    shot.add_argument(
+        "--camera", metavar="EX,EY,EZ,TX,TY,TZ", help="eye and target (default: frame the scene)"
+    )
+    shot.add_argument("--duration", type=float, default=3.0, help="with an LCM URL: seconds to listen")
 
     convert = commands.add_parser("convert", help="translate an LCM log into a ROS 2 MCAP file")
     convert.add_argument("log", help="an .lcmlog file")
@@ -190,6 +207,26 @@ def _convert(args: argparse.Namespace) -> int:
     return 0
 
 
+def _snapshot(args: argparse.Namespace) -> int:
+    from bridge.snapshot import events_from, latest_scene, snapshot  # OpenGL only for this command
+
+    try:
+        width, height = (int(value) for value in args.size.lower().split("x"))
+        eye = target = None
+        if args.camera:
+            values = [float(value) for value in args.camera.split(",")]
+            if len(values) != 6:
+                raise ValueError("--camera needs six numbers: eye x,y,z and target x,y,z")
+            eye, target = np.array(values[:3]), np.array(values[3:])
+        scene = latest_scene(events_from(args.source, args.duration), args.role.upper())
+    except (ValueError, OSError) as error:
+        print(f"viewer-bridge: {error}", file=sys.stderr)
+        return 2
+    Path(args.out).write_bytes(snapshot(scene, width, height, args.fov, eye, target, args.image))
+    print(f"wrote {args.out}: {len(scene.links)} links, {scene.geometry_count()} geometries")
+    return 0
+
+
 def _serve_render(args: argparse.Namespace) -> int:
     from bridge.render_server import make_server  # OpenGL only for this command
 
@@ -214,6 +251,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "run": _run,
         "convert": _convert,
         "serve-render": _serve_render,
+        "snapshot": _snapshot,
     }
     return handlers[args.command](args)
 

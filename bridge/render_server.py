@@ -86,6 +86,9 @@ def render_request(
         raise BadRequest(f"scene: {error}") from None
     if scene.camera_matrix is None:
         raise BadRequest("scene: no camera node")
+    rotation = scene.camera_matrix[:3, :3]
+    if not np.isfinite(scene.camera_matrix).all() or abs(np.linalg.det(rotation)) < 1e-9:
+        raise BadRequest("scene: the camera node's matrix is not an invertible transform")
     camera = Camera(width, height, numbers["focal_x"], numbers["focal_y"], numbers["center_x"], numbers["center_y"],
                     numbers["near"], numbers["far"], scene.camera_matrix)  # fmt: skip
     image = render(scene, camera, kind)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import io
+import json
+import random
 import socket
 import subprocess
 import sys
@@ -123,3 +126,163 @@ def test_drake_renders_through_the_server_like_its_own_vtk(render_url: str, tmp_
     assert (np.isfinite(depth_ours) == np.isfinite(depth_vtk)).mean() > 0.999
     assert not mismatch.any()
     assert difference.max() <= 0.001
+
+
+# --- bad requests, fuzzing ------------------------------------------------------------------------------
+
+
+def form(scene: bytes, **overrides: Any) -> dict[str, bytes]:
+    import hashlib
+
+    fields = {"scene": scene, "scene_sha256": hashlib.sha256(scene).hexdigest().encode(), "image_type": b"label",
+              "width": b"16", "height": b"12", "near": b"0.01", "far": b"10", "focal_x": b"14", "focal_y": b"14",
+              "center_x": b"7.5", "center_y": b"5.5", "min_depth": b"0.1", "max_depth": b"5"}  # fmt: skip
+    fields.update({key: value for key, value in overrides.items() if value is not None})
+    for key in [key for key, value in overrides.items() if value is None]:
+        fields.pop(key)
+    return fields
+
+
+def sample_gltf() -> bytes:
+    from bridge.formats.gltf import write_gltf
+    from bridge.scene import Box, Geometry, Link, Pose, Scene
+
+    scene = Scene((Link("box", 0, (Geometry(Box((1.0, 1.0, 1.0)), Pose((0, 0, -3)), (1 / 255, 0, 0, 1)),)),))
+    document = json.loads(write_gltf(scene))
+    document["cameras"] = [{"type": "perspective", "perspective": {"yfov": 1.0, "znear": 0.01, "zfar": 10}}]
+    document["nodes"].append({"camera": 0, "matrix": np.eye(4).reshape(-1).tolist()})
+    document["scenes"][0]["nodes"].append(len(document["nodes"]) - 1)
+    return json.dumps(document).encode()
+
+
+@pytest.fixture(scope="module")
+def renderer() -> Any:
+    from bridge.render_server import RenderThread
+
+    return RenderThread()
+
+
+def test_a_good_request_renders_the_label(renderer: Any) -> None:
+    from PIL import Image
+
+    from bridge.render_server import render_request
+
+    png = render_request(form(sample_gltf()), renderer.render)
+    pixels = np.array(Image.open(io.BytesIO(png)))
+    assert pixels.shape == (12, 16, 3)
+    assert tuple(pixels[6, 8]) == (1, 0, 0) and tuple(pixels[0, 0]) == (255, 255, 255)  # the box; nothing
+
+
+@pytest.mark.parametrize(
+    ("overrides", "reason"),
+    [
+        ({"scene_sha256": b"0" * 64}, "scene_sha256 does not match"),
+        ({"width": None}, "missing form field 'width'"),
+        ({"height": b"twelve"}, "height is not a number"),
+        ({"image_type": b"normals"}, "unsupported image_type 'normals'"),
+        ({"image_type": b"depth", "max_depth": None}, "missing form field 'max_depth'"),
+        ({"width": b"1e9"}, "from 1 to 8192"),
+        ({"near": b"20"}, "0 < near < far"),
+    ],
+)
+def test_bad_forms_get_a_400_reason(renderer: Any, overrides: dict[str, Any], reason: str) -> None:
+    from bridge.render_server import BadRequest, render_request
+
+    with pytest.raises(BadRequest, match=reason):
+        render_request(form(sample_gltf(), **overrides), renderer.render)
+
+
+def mutate(document: dict[str, Any], rng: random.Random) -> dict[str, Any]:
+    """One random, mostly plausible damage to a glTF document."""
+    document = json.loads(json.dumps(document))
+    odd = rng.choice([-1, 2**31, 2**62, 1e300, None, "x", [], {}, 0, 3, True])
+    target = rng.choice(["accessor", "view", "buffer", "node", "mesh", "material", "drop"])
+    if target == "accessor":
+        rng.choice(document["accessors"])[
+            rng.choice(["count", "componentType", "type", "byteOffset", "bufferView"])
+        ] = odd
+    elif target == "view":
+        rng.choice(document["bufferViews"])[
+            rng.choice(["byteOffset", "byteLength", "byteStride", "buffer"])
+        ] = odd
+    elif target == "buffer":
+        document["buffers"][0]["uri"] = rng.choice(
+            ["file:///etc/passwd", "http://x/y.bin", "data:;base64,@@", odd]
+        )
+    elif target == "node":
+        node = rng.choice(document["nodes"])
+        node[rng.choice(["matrix", "children", "mesh", "translation", "rotation"])] = rng.choice(
+            [odd, [odd] * 16, [0]]
+        )
+    elif target == "mesh":
+        primitive = document["meshes"][0]["primitives"][0]
+        primitive[rng.choice(["indices", "mode", "material", "attributes"])] = odd
+    elif target == "material":
+        document["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"] = rng.choice([odd, [odd] * 4])
+    else:
+        document.pop(rng.choice(list(document)))
+    return document
+
+
+def test_10000_mutated_documents_and_forms_get_only_400s(renderer: Any) -> None:
+    import resource
+
+    from bridge.render_server import BadRequest, render_request
+
+    rng = random.Random(11)
+    base = json.loads(sample_gltf())
+    fields = list(form(b"").keys())
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    outcomes = {"png": 0, "400": 0}
+    for _ in range(10_000):
+        scene = json.dumps(mutate(base, rng)).encode()
+        overrides: dict[str, Any] = {}
+        if rng.random() < 0.3:
+            overrides[rng.choice(fields[2:])] = rng.choice(
+                [None, b"", b"nan", b"-1", b"1e400", b"\xff", b"99999"]
+            )
+        try:
+            render_request(form(scene, **overrides), renderer.render)
+            outcomes["png"] += 1
+        except BadRequest:
+            outcomes["400"] += 1
+    grown_mb = (resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before) / 1024
+    print(f"outcomes {outcomes}, peak memory grew {grown_mb:.0f} MB")
+    assert outcomes["400"] > 3000 and grown_mb < 500
+
+
+def test_snapshot_of_a_drake_log_shows_the_scene(drake_log: Path, tmp_path: Path) -> None:
+    from PIL import Image
+
+    from bridge.render import Camera
+    from bridge.snapshot import latest_scene, look_at
+    from bridge.transports.lcm import read_log
+
+    out = tmp_path / "snap.png"
+    eye, target = "0.9,0.5,4", "0.9,0.5,0"  # from above the bodies
+    result = subprocess.run(
+        [sys.executable, "-m", "bridge.cli", "snapshot", str(drake_log), str(out), "--role", "illustration",
+         "--image", "label", "--camera", f"{eye},{target}", "--size", "320x240"],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    pixels = np.array(Image.open(out))
+    scene = latest_scene(list(read_log(drake_log)), "ILLUSTRATION")
+    pose = look_at(np.array([0.9, 0.5, 4.0]), np.array([0.9, 0.5, 0.0]))
+    focal = 120 / np.tan(np.radians(45.0) / 2)
+    camera = Camera(320, 240, focal, focal, 160, 120, 0.01, 100.0, pose)
+    checked = 0
+    for link in scene.links:
+        if not link.name.endswith(
+            ("body0", "body1", "body4")
+        ):  # box, sphere, ellipsoid: their centres are theirs
+            continue
+        geometry = link.geometries[0]
+        center = scene.link_pose(link).compose(geometry.pose).position
+        eye_point = np.linalg.inv(camera.pose) @ np.array([*center, 1.0])
+        column = int(round(camera.center_x + camera.focal_x * eye_point[0] / -eye_point[2]))
+        row = int(round(camera.center_y - camera.focal_y * eye_point[1] / -eye_point[2]))
+        expected = np.round(np.array(geometry.color[:3]) * 255)
+        assert np.array_equal(pixels[row, column], expected), (link.name, pixels[row, column], expected)
+        checked += 1
+    assert checked == 6

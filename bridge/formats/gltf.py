@@ -57,7 +57,20 @@ class GltfScene:
 
 
 def read_gltf(data: bytes) -> GltfScene:
-    """A glTF 2.0 JSON document (with `data:` buffers) as meshes in the world and a camera."""
+    """A glTF 2.0 JSON document (with `data:` buffers) as meshes in the world and a camera.
+
+    Raises `GltfError` for anything that does not hold together; the specific checks name the
+    part, and a last net turns any other inconsistency into a `GltfError` too.
+    """
+    try:
+        return _read(data)
+    except GltfError:
+        raise
+    except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError) as error:
+        raise GltfError(f"malformed glTF: {type(error).__name__}: {error}") from None
+
+
+def _read(data: bytes) -> GltfScene:
     try:
         document = json.loads(data)
     except (ValueError, UnicodeDecodeError) as error:
@@ -142,11 +155,17 @@ class _Accessors:
             raise GltfError(f"{name}: componentType, type or count is not valid")
         view = self.views[_index(accessor.get("bufferView"), len(self.views), f"{name}.bufferView")]
         buffer = self.buffers[_index(view.get("buffer"), len(self.buffers), f"{name}.buffer")]
+        if not isinstance(view, dict):
+            raise GltfError(f"{name}.bufferView is not an object")
         item = np.dtype(dtype).itemsize * width
-        stride = int(view.get("byteStride", item) or item)
-        start = int(view.get("byteOffset", 0)) + int(accessor.get("byteOffset", 0))
+        stride = _int(view.get("byteStride", item), f"{name} byteStride") or item
+        start = _int(view.get("byteOffset", 0), f"{name} view byteOffset") + _int(
+            accessor.get("byteOffset", 0), f"{name}.byteOffset"
+        )
         end = start + (stride * (count - 1) + item if count else 0)
-        view_end = int(view.get("byteOffset", 0)) + int(view.get("byteLength", 0))
+        view_end = _int(view.get("byteOffset", 0), f"{name} view byteOffset") + _int(
+            view.get("byteLength", 0), f"{name} view byteLength"
+        )
         if start < 0 or stride < item or end > min(len(buffer), view_end):
             raise GltfError(f"{name}: {count} elements do not fit in bufferView {accessor.get('bufferView')}")
         rows = np.lib.stride_tricks.as_strided(
@@ -154,6 +173,12 @@ class _Accessors:
             shape=(count, item), strides=(stride, 1),
         ) if count else np.zeros((0, item), np.uint8)  # fmt: skip
         return np.ascontiguousarray(rows).view(dtype).reshape(count, width)
+
+
+def _int(value: Any, where: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < 2**40:
+        raise GltfError(f"{where}: {value!r} is not a byte count")
+    return value
 
 
 def _local_matrix(node: dict[str, Any], index: int) -> FloatArray:
