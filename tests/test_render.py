@@ -286,3 +286,33 @@ def test_snapshot_of_a_drake_log_shows_the_scene(drake_log: Path, tmp_path: Path
         assert np.array_equal(pixels[row, column], expected), (link.name, pixels[row, column], expected)
         checked += 1
     assert checked == 6
+
+
+def test_the_http_endpoint_answers_400_with_a_reason(render_url: str) -> None:
+    import urllib.error
+    import urllib.request
+
+    boundary = "xyzzy"
+    fields = form(sample_gltf(), image_type=b"normals")
+    body = (
+        b"".join(
+            f'--{boundary}\r\nContent-Disposition: form-data; name="{name}"\r\n\r\n'.encode()
+            + value
+            + b"\r\n"
+            for name, value in fields.items()
+        )
+        + f"--{boundary}--\r\n".encode()
+    )
+    request = urllib.request.Request(f"{render_url}/render", data=body, method="POST",
+                                     headers={"Content-Type": f"multipart/form-data; boundary={boundary}"})  # fmt: skip
+    with pytest.raises(urllib.error.HTTPError) as caught:
+        urllib.request.urlopen(request, timeout=20)
+    assert caught.value.code == 400 and b"unsupported image_type 'normals'" in caught.value.read()
+    document = json.loads(sample_gltf())
+    document["buffers"][0]["uri"] = "file:///etc/passwd"
+    from bridge.render_server import BadRequest, parse_form, render_request
+
+    with pytest.raises(BadRequest, match="only embedded data: URIs"):
+        render_request(form(json.dumps(document).encode()), lambda *args: np.zeros((1, 1, 4)))
+    with pytest.raises(BadRequest, match="multipart"):
+        parse_form("application/json", b"{}")

@@ -87,8 +87,9 @@ def _read(data: bytes) -> GltfScene:
     roots = (
         _list(scenes[scene_index], "nodes", f"scenes[{scene_index}]") if scenes else list(range(len(nodes)))
     )
+    # Depth first, in document order (children pushed in reverse), so meshes come out in order.
     stack: list[tuple[int, FloatArray, int]] = [
-        (_index(root, len(nodes), "scene node"), np.eye(4), 0) for root in roots
+        (_index(root, len(nodes), "scene node"), np.eye(4), 0) for root in reversed(roots)
     ]
     while stack:
         index, parent, depth = stack.pop()
@@ -103,7 +104,7 @@ def _read(data: bytes) -> GltfScene:
         if "mesh" in node:
             meshes += _mesh(document, reader, _index(node["mesh"], len(_list(document, "meshes")), f"nodes[{index}].mesh"),
                             world, str(node.get("name", "")))  # fmt: skip
-        for child in node.get("children", []):
+        for child in reversed(_list(node, "children", f"nodes[{index}]")):
             stack.append((_index(child, len(nodes), f"nodes[{index}].children"), world, depth + 1))
     return GltfScene(meshes, camera)
 
@@ -241,7 +242,10 @@ def _mesh(
             factor = material.get("pbrMetallicRoughness", {}).get("baseColorFactor", [1, 1, 1, 1])
             r, g, b, a = _finite(factor, f"{where} baseColorFactor", 4)
             color = (float(r), float(g), float(b), float(a))
-        vertices = positions @ world[:3, :3].T + world[:3, 3]
+        with np.errstate(over="ignore", invalid="ignore"):
+            vertices = positions @ world[:3, :3].T + world[:3, 3]
+        if vertices.size and not (np.isfinite(vertices).all() and np.abs(vertices).max() < 1e30):
+            raise GltfError(f"{where}: vertices leave the range a renderer can hold")
         out.append(GltfMesh(vertices, indices.reshape(-1, 3).astype(np.uint32), color, name))
     return out
 
