@@ -316,3 +316,28 @@ def test_the_http_endpoint_answers_400_with_a_reason(render_url: str) -> None:
         render_request(form(json.dumps(document).encode()), lambda *args: np.zeros((1, 1, 4)))
     with pytest.raises(BadRequest, match="multipart"):
         parse_form("application/json", b"{}")
+
+
+def test_uploads_above_the_cap_are_refused_unread() -> None:
+    import urllib.error
+    import urllib.request
+
+    port = free_port()
+    server = subprocess.Popen([sys.executable, "-m", "bridge.cli", "serve-render", "--port", str(port),
+                               "--max-upload", "1000"], stderr=subprocess.DEVNULL)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
+                break
+            except OSError:
+                time.sleep(0.1)
+        request = urllib.request.Request(f"http://127.0.0.1:{port}/render", data=b"x" * 2000, method="POST",
+                                         headers={"Content-Type": "multipart/form-data; boundary=b"})  # fmt: skip
+        with pytest.raises(urllib.error.HTTPError) as caught:
+            urllib.request.urlopen(request, timeout=20)
+        assert caught.value.code == 400 and b"above the limit of 1000" in caught.value.read()
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
