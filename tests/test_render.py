@@ -38,11 +38,11 @@ def free_port() -> int:
         return int(sock.getsockname()[1])
 
 
-@pytest.fixture(scope="module")
-def render_url() -> Iterator[str]:
+def start_server(*args: str) -> tuple[subprocess.Popen[str], str]:
+    """`viewer-bridge serve-render` on a free port, once it accepts connections."""
     port = free_port()
-    server = subprocess.Popen([sys.executable, "-m", "bridge.cli", "serve-render", "--port", str(port)],
-                              stderr=subprocess.PIPE, text=True)  # fmt: skip
+    server = subprocess.Popen([sys.executable, "-m", "bridge.cli", "serve-render", "--port", str(port), *args],
+                              stderr=subprocess.DEVNULL, text=True)  # fmt: skip
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline:
         try:
@@ -50,7 +50,13 @@ def render_url() -> Iterator[str]:
             break
         except OSError:
             time.sleep(0.1)
-    yield f"http://127.0.0.1:{port}"
+    return server, f"http://127.0.0.1:{port}"
+
+
+@pytest.fixture(scope="module")
+def render_url() -> Iterator[str]:
+    server, url = start_server()
+    yield url
     server.terminate()
     server.wait(timeout=10)
 
@@ -322,18 +328,9 @@ def test_uploads_above_the_cap_are_refused_unread() -> None:
     import urllib.error
     import urllib.request
 
-    port = free_port()
-    server = subprocess.Popen([sys.executable, "-m", "bridge.cli", "serve-render", "--port", str(port),
-                               "--max-upload", "1000"], stderr=subprocess.DEVNULL)  # fmt: skip
+    server, url = start_server("--max-upload", "1000")
     try:
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline:
-            try:
-                socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
-                break
-            except OSError:
-                time.sleep(0.1)
-        request = urllib.request.Request(f"http://127.0.0.1:{port}/render", data=b"x" * 2000, method="POST",
+        request = urllib.request.Request(f"{url}/render", data=b"x" * 2000, method="POST",
                                          headers={"Content-Type": "multipart/form-data; boundary=b"})  # fmt: skip
         with pytest.raises(urllib.error.HTTPError) as caught:
             urllib.request.urlopen(request, timeout=20)
