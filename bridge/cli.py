@@ -16,7 +16,7 @@ from bridge.config import BUILTIN_CONFIGS, load_config
 from bridge.convert import convert
 from bridge.demo import run_demo
 from bridge.dump import as_json, as_text
-from bridge.errors import ConfigError
+from bridge.errors import BridgeError, ConfigError
 from bridge.mappings import format_names, reference_markdown
 from bridge.router import Router
 from bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
@@ -172,7 +172,7 @@ def _run(args: argparse.Namespace) -> int:
         if args.lcm_url:
             config.lcm.url = args.lcm_url
         router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period)
-    except (ConfigError, OSError, ValueError) as error:
+    except (BridgeError, OSError, ValueError) as error:
         print(f"viewer-bridge: {error}", file=sys.stderr)
         return 2
     for signal_number in (signal.SIGINT, signal.SIGTERM):
@@ -219,10 +219,11 @@ def _snapshot(args: argparse.Namespace) -> int:
                 raise ValueError("--camera needs six numbers: eye x,y,z and target x,y,z")
             eye, target = np.array(values[:3]), np.array(values[3:])
         scene = latest_scene(events_from(args.source, args.duration), args.role.upper())
-    except (ValueError, OSError) as error:
+        picture = snapshot(scene, width, height, args.fov, eye, target, args.image)
+    except (BridgeError, ValueError, OSError) as error:  # e.g. a mesh file the log names is not here
         print(f"viewer-bridge: {error}", file=sys.stderr)
         return 2
-    Path(args.out).write_bytes(snapshot(scene, width, height, args.fov, eye, target, args.image))
+    Path(args.out).write_bytes(picture)
     print(f"wrote {args.out}: {len(scene.links)} links, {scene.geometry_count()} geometries")
     return 0
 

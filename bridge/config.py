@@ -85,6 +85,10 @@ class Route(_Strict):
             raise ValueError(
                 f"unknown translator {self.translator!r} (known: {', '.join(sorted(TRANSLATORS))})"
             )
+        _check_template(self.destination.name, re.compile(self.source.name).groups)
+        package = self.options.get("package", "ignition")
+        if package not in ("ignition", "gz"):
+            raise ValueError(f"options.package must be 'ignition' or 'gz', not {package!r}")
         if self.source.transport != translator.source or self.destination.transport != translator.destination:
             raise ValueError(
                 f"translator {self.translator} goes from {translator.source} to {translator.destination}, "
@@ -121,7 +125,20 @@ class _Template(string.Formatter):
         if format_spec == "topic":  # any text as one valid ROS name token: "my client!" -> "my_client_"
             token = re.sub(r"[^A-Za-z0-9_]", "_", text)
             return token if token[:1].isalpha() else f"n{token}"
-        return str(super().format_field(text, format_spec))
+        if format_spec:
+            raise ValueError(f"unknown format spec {format_spec!r}")
+        return text
+
+
+def _check_template(template: str, groups: int) -> None:
+    """Refuse a destination template that names a group the source does not have, or a bad spec."""
+    try:
+        _Template().format(template, "x", *(["x"] * groups))
+    except (IndexError, KeyError, ValueError) as error:
+        raise ValueError(
+            f"destination name {template!r} does not fit a source with {groups} groups "
+            f"(use {{0}}..{{{groups}}}, with :lower, :path or :topic): {error}"
+        ) from None
 
 
 def destination_name(template: str, match: re.Match[str]) -> str:

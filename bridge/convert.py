@@ -70,10 +70,11 @@ def convert(
         writer = Writer(file)
         writer.start(profile="ros2", library="viewer-bridge")
         topics = _McapTopics(writer)
-        runners = [
-            RouteRunner(r, TRANSLATORS[r.translator](dict(r.options), loads), topics.publisher)
-            for r in routes
-        ]
+        runners = []
+        for route in routes:
+            translator = TRANSLATORS[route.translator](dict(route.options), loads)
+            translator.reply = lambda channel, data: None  # offline: there is nobody to answer
+            runners.append(RouteRunner(route, translator, topics.publisher))
         columns = (
             TextColumn("converting"),
             BarColumn(),

@@ -138,11 +138,8 @@ class Renderer:
         return image
 
 
-def color_png(image: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
-    return np.clip(np.round(image[..., :3] * 255), 0, 255).astype(np.uint8)
-
-
-def label_png(image: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+def rgb8(image: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+    """A color or label render as 8-bit RGB (labels: each channel rounded once, so exact)."""
     return np.clip(np.round(image[..., :3] * 255), 0, 255).astype(np.uint8)
 
 

@@ -25,7 +25,7 @@ import numpy as np
 from PIL import Image
 
 from bridge.formats.gltf import GltfError, read_gltf
-from bridge.render import Camera, Renderer, color_png, depth_mm, label_png
+from bridge.render import Camera, Renderer, depth_mm, rgb8
 
 log = logging.getLogger("viewer_bridge")
 
@@ -96,7 +96,7 @@ def render_request(
         low, high = _number(fields, "min_depth"), _number(fields, "max_depth")
         pixels = Image.fromarray(depth_mm(image, low, high))
     else:
-        pixels = Image.fromarray(color_png(image) if kind == "color" else label_png(image), "RGB")
+        pixels = Image.fromarray(rgb8(image), "RGB")
     out = io.BytesIO()
     pixels.save(out, format="PNG")
     return out.getvalue()

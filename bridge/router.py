@@ -178,11 +178,11 @@ class RouteRunner:
         self.stats.translate_ms.append((time.perf_counter() - started) * 1e3)
         for index, payload in outputs:
             output = self.translator.outputs[index]
-            name = destination_name(self.route.destination.name, message.match) + output.suffix
             try:
+                name = destination_name(self.route.destination.name, message.match) + output.suffix
                 self._publisher(name, output)(payload)
             except Exception as error:  # the transport refused: count it, go on with the rest
-                self._error(f"publish:{type(error).__name__}", f"{name}: {error}")
+                self._error(f"publish:{type(error).__name__}", f"{self.route.destination.name}: {error}")
                 continue
             self.stats.messages_out += 1
             self.stats.bytes_out += len(payload)
@@ -242,8 +242,8 @@ class Router:
             self.ign = IgnNode(config.ign.partition, config.ign.ip)
         for route in config.routes:
             translator = TRANSLATORS[route.translator](dict(route.options), self.loads)
-            if route.source.transport == "lcm" and self.lcm is not None:
-                translator.reply = self.lcm.publish
+            if route.source.transport == "lcm" and isinstance(self.lcm, LcmBus):
+                translator.reply = self.lcm.publish  # a replayed log has nobody to answer
             runner = RouteRunner(route, translator, self._publisher_factory(route))
             self.routes.append(runner)
             if route.source.transport == "lcm":
@@ -348,15 +348,19 @@ class Router:
             self.ign.close()
 
     def snapshot(self) -> dict[str, Any]:
-        routes = {runner.route.name: runner.snapshot() for runner in self.routes}
+        """Per route stats; transports' own error counts under `transports`."""
+        snapshot: dict[str, Any] = {runner.route.name: runner.snapshot() for runner in self.routes}
         if self.ign is not None and self.ign.errors:
-            routes["ign-transport"] = {"errors": dict(self.ign.errors)}
-        return routes
+            snapshot["transports"] = {"ign": {"errors": dict(self.ign.errors)}}
+        return snapshot
 
     def report(self) -> None:
         """One log line per route, and the JSON file when asked for."""
         snapshot = self.snapshot()
         for name, stats in snapshot.items():
+            if name == "transports":
+                log.info("transports: %s", stats)
+                continue
             errors = sum(stats["errors"].values())
             latency = stats["latency_ms"]
             log.info(

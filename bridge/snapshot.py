@@ -17,7 +17,7 @@ from PIL import Image
 from bridge.formats.drake import DrawDecoder, decode_load
 from bridge.formats.gltf import read_gltf, write_gltf
 from bridge.lcmcodec import DRAW, LOAD_ROBOT
-from bridge.render import Camera, Renderer, color_png, depth_mm, label_png
+from bridge.render import Camera, Renderer, depth_mm, rgb8
 from bridge.scene import FloatArray, Scene
 from bridge.transports.lcm import LcmEvent, Subscription, read_log
 
@@ -53,9 +53,7 @@ def look_at(eye: FloatArray, target: FloatArray) -> FloatArray:
     return pose
 
 
-def default_camera(
-    points: FloatArray, width: int, height: int, fov_y: float
-) -> tuple[FloatArray, FloatArray]:
+def default_camera(points: FloatArray, fov_y: float) -> tuple[FloatArray, FloatArray]:
     """Eye and target framing `points` (vertices of the scene, big ground planes left out)."""
     low, high = np.percentile(points, 2, axis=0), np.percentile(points, 98, axis=0)
     target = (low + high) / 2
@@ -80,14 +78,14 @@ def snapshot(
     if eye is None or target is None:
         small = [mesh.vertices for mesh in gltf.meshes if np.ptp(mesh.vertices, axis=0).max() < 20]
         points = np.concatenate(small or [mesh.vertices for mesh in gltf.meshes] or [np.zeros((1, 3))])
-        eye, target = default_camera(points, width, height, fov_y)
+        eye, target = default_camera(points, fov_y)
     focal = height / 2 / math.tan(fov_y / 2)
     camera = Camera(width, height, focal, focal, width / 2, height / 2, 0.01, 100.0, look_at(eye, target))
     pixels = Renderer().render(gltf, camera, image)
-    if image == "depth":
-        picture = Image.fromarray(depth_mm(pixels, 0.01, 100.0))
-    else:
-        picture = Image.fromarray(label_png(pixels) if image == "label" else color_png(pixels), "RGB")
+    depth = image == "depth"
+    picture = (
+        Image.fromarray(depth_mm(pixels, 0.01, 100.0)) if depth else Image.fromarray(rgb8(pixels), "RGB")
+    )
     out = io.BytesIO()
     picture.save(out, format="PNG")
     return out.getvalue()

@@ -27,6 +27,7 @@ from typing import Any, ClassVar
 from bridge.errors import DecodeError, SceneError
 from bridge.formats import ign, ros, tree_viewer
 from bridge.formats.drake import DrawDecoder, DrawEncoder, decode_load, link_from_lcm
+from bridge.formats.ros_messages import time_parts
 from bridge.lcmcodec import DRAW, LINK_DATA, LOAD_ROBOT, VIEWER2_COMMS
 from bridge.scene import LinkPoses, Scene
 
@@ -192,8 +193,8 @@ class DrakeToClock(DrakeSceneTranslator):
     _CLOCK = struct.Struct("<4siI")
 
     def translate(self, channel: str, data: bytes) -> Outputs:
-        seconds, milliseconds = divmod(self.decoder.decode(data).timestamp_ms, 1000)
-        return [(0, self._CLOCK.pack(b"\x00\x01\x00\x00", seconds, milliseconds * 1_000_000))]
+        seconds, nanoseconds = time_parts(self.decoder.decode(data).timestamp_ms)
+        return [(0, self._CLOCK.pack(b"\x00\x01\x00\x00", seconds, nanoseconds))]
 
 
 class DrakeToShapes(DrakeSceneTranslator):

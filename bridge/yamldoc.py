@@ -47,12 +47,20 @@ class YamlDocument:
         if isinstance(node, yaml.MappingNode):
             for key_node, value_node in node.value:
                 key = key_node.value
-                self.lines[(*key_path, key)] = key_node.start_mark.line + 1
                 self._index(value_node, (*key_path, key))
-                self.lines[(*key_path, key)] = key_node.start_mark.line + 1
+                self.lines[(*key_path, key)] = key_node.start_mark.line + 1  # the key's line, not the value's
         elif isinstance(node, yaml.SequenceNode):
             for index, item in enumerate(node.value):
                 self._index(item, (*key_path, index))
+
+    def _file_path(self, loc: tuple[Any, ...]) -> KeyPath:
+        """pydantic's error location without its type tags (`float`, `list[...]`): the file's keys."""
+        path: KeyPath = ()
+        for part in loc:
+            tag = isinstance(part, str) and (part in _TYPE_TAGS or "[" in part)
+            if isinstance(part, str | int) and ((*path, part) in self.lines or not tag):
+                path = (*path, part)
+        return path
 
     def line_of(self, key_path: KeyPath) -> int | None:
         """The line of the deepest part of `key_path` the file has."""
@@ -72,8 +80,11 @@ class YamlDocument:
             return model.model_validate(self.data, context=context)
         except ValidationError as error:
             first = error.errors()[0]
-            key_path = tuple(part for part in first["loc"] if isinstance(part, str | int))
+            key_path = self._file_path(first["loc"])
             raise self.error(key_path, _reason(first)) from None
+
+
+_TYPE_TAGS = {"float", "int", "str", "bool", "none", "dict", "list"}  # pydantic's union branch names
 
 
 def _reason(detail: Any) -> str:

@@ -278,6 +278,11 @@ BROKEN_CONFIGS = [
      "valid integer"),
     ("routes:\n  - name: a\n    source: {transport: zmq, name: X}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n", 3, "routes.0.source.transport", "'lcm', 'ros' or 'ign'"),
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
+     "    destination: {transport: ros, name: '/x/{2}'}\n", 2, "routes.0", "does not fit a source with 0 groups"),
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_ign_pose_v\n"
+     "    destination: {transport: ign, name: /x}\n    options: {package: gazebo}\n", 2, "routes.0",
+     "options.package must be"),
     ("lcm: {url: udpm://x}\n", 1, "routes", "Field required"),
     ("routes: [\n", 2, "", "not valid YAML"),
 ]  # fmt: skip

@@ -6,8 +6,9 @@ baseColorFactor, and the camera node's world matrix is kept. This is what Drake'
 RenderEngineGltfClient sends (PROTOCOLS.md section 5). Everything is checked against the
 buffers before use; a document that does not hold together raises `GltfError` naming where.
 
-Writing (`write_gltf`) turns any scene into a self-contained glTF: one node per geometry with
-its world matrix, shapes tessellated with `bridge.lowering.triangle_mesh`.
+Writing (`write_gltf`) turns a scene into a self-contained glTF: one node per geometry with its
+world matrix, shapes tessellated with `bridge.lowering.triangle_mesh` (point clouds, triads and
+lines have no triangles: `SceneError`).
 """
 
 from __future__ import annotations
@@ -83,7 +84,7 @@ def _read(data: bytes) -> GltfScene:
     camera: FloatArray | None = None
     nodes = _list(document, "nodes")
     scenes = _list(document, "scenes")
-    scene_index = document.get("scene", 0)
+    scene_index = _index(document.get("scene", 0), max(len(scenes), 1), "scene")
     roots = (
         _list(scenes[scene_index], "nodes", f"scenes[{scene_index}]") if scenes else list(range(len(nodes)))
     )
@@ -91,10 +92,14 @@ def _read(data: bytes) -> GltfScene:
     stack: list[tuple[int, FloatArray, int]] = [
         (_index(root, len(nodes), "scene node"), np.eye(4), 0) for root in reversed(roots)
     ]
+    seen: set[int] = set()
     while stack:
         index, parent, depth = stack.pop()
         if depth > 64:
             raise GltfError("the node hierarchy is deeper than 64 (or has a cycle)")
+        if index in seen:  # glTF nodes have one parent: a node reached twice is a cycle or a trap
+            raise GltfError(f"nodes[{index}] is reached twice: a node may have only one parent")
+        seen.add(index)
         node = nodes[index]
         if not isinstance(node, dict):
             raise GltfError(f"nodes[{index}] is not an object")
@@ -155,9 +160,9 @@ class _Accessors:
         if dtype is None or width is None or not isinstance(count, int) or not 0 <= count <= _MAX_ELEMENTS:
             raise GltfError(f"{name}: componentType, type or count is not valid")
         view = self.views[_index(accessor.get("bufferView"), len(self.views), f"{name}.bufferView")]
-        buffer = self.buffers[_index(view.get("buffer"), len(self.buffers), f"{name}.buffer")]
         if not isinstance(view, dict):
             raise GltfError(f"{name}.bufferView is not an object")
+        buffer = self.buffers[_index(view.get("buffer"), len(self.buffers), f"{name}.buffer")]
         item = np.dtype(dtype).itemsize * width
         stride = _int(view.get("byteStride", item), f"{name} byteStride") or item
         start = _int(view.get("byteOffset", 0), f"{name} view byteOffset") + _int(
@@ -254,7 +259,7 @@ def _mesh(
 
 
 def write_gltf(scene: Scene, binary: bool = False) -> bytes:
-    """Any scene as a self-contained glTF 2.0 document (`.gltf` JSON, or `.glb` when `binary`)."""
+    """A scene as a self-contained glTF 2.0 document (`.gltf` JSON, or `.glb` when `binary`)."""
     document: dict[str, Any] = {
         "asset": {"version": "2.0", "generator": "viewer-bridge"},
         "scene": 0, "scenes": [{"nodes": []}], "nodes": [], "meshes": [], "materials": [],

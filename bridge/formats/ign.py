@@ -357,19 +357,25 @@ def _shape_from_data_uri(uri: str, message: Any) -> Shape:
 
 
 def _parse_obj(text: str) -> TriangleMesh:
-    """The `v` and `f` lines of an OBJ as written by `_data_uri_obj`."""
+    """The `v` and `f` lines of an OBJ as written by `_data_uri_obj` (three values each)."""
     vertices, faces = [], []
-    try:
-        for line in text.splitlines():
-            kind, *values = line.split()
+    for number, line in enumerate(text.splitlines(), 1):
+        kind, *values = line.split() or [""]
+        if kind not in ("v", "f"):
+            continue
+        try:
+            if len(values) < 3:
+                raise ValueError(f"needs 3 values, has {len(values)}")
             if kind == "v":
                 vertices.append([float(value) for value in values[:3]])
-            elif kind == "f":
+            else:
                 faces.append([int(value.split("/")[0]) - 1 for value in values[:3]])
-    except ValueError as error:
-        raise SceneError(f"Geometry: mesh array OBJ: {error}") from None
+        except ValueError as error:
+            raise SceneError(f"Geometry: mesh array OBJ line {number}: {error}") from None
     vertex_array = np.array(vertices, dtype=np.float64).reshape(-1, 3)
     face_array = np.array(faces, dtype=np.int64).reshape(-1, 3)
+    if not np.isfinite(vertex_array).all():
+        raise SceneError("Geometry: mesh array OBJ has a vertex that is not finite")
     if face_array.size and (face_array.min() < 0 or face_array.max() >= len(vertex_array)):
         raise SceneError("Geometry: mesh array OBJ refers to a vertex it does not have")
     return TriangleMesh(vertex_array, face_array)

@@ -35,6 +35,7 @@ from bridge.formats.ros_messages import (
     from_rclpy,
     make,
     stamp,
+    time_parts,
     to_cdr,
     to_rclpy,
 )
@@ -127,8 +128,7 @@ def _pose_rows(poses: LinkPoses) -> np.ndarray[Any, Any]:
 
 
 def _stamp_bytes(timestamp_ms: int) -> bytes:
-    seconds, milliseconds = divmod(int(timestamp_ms), 1000)
-    return _STAMP.pack(seconds, milliseconds * 1_000_000)
+    return _STAMP.pack(*time_parts(timestamp_ms))
 
 
 class PoseArrayEncoder:
@@ -266,6 +266,8 @@ def shape_from_message(message: Any) -> Shape:
     if message.__msgtype__ == MESH:
         vertices = np.array([[p.x, p.y, p.z] for p in message.vertices], dtype=np.float64).reshape(-1, 3)
         triangles = np.array([t.vertex_indices for t in message.triangles], dtype=np.int64).reshape(-1, 3)
+        if triangles.size and triangles.max() >= len(vertices):
+            raise SceneError(f"{MESH}: a triangle refers to vertex {int(triangles.max())} of {len(vertices)}")
         return TriangleMesh(vertices, triangles)
     table = _tables()["shape"]
     if message.__msgtype__ == PLANE:
@@ -323,7 +325,7 @@ def marker_specs(scene: Scene, options: dict[str, Any] | None = None) -> list[Ma
     keeps its ns/id from one load of the same scene to the next.
     """
     table = _tables()["marker"]
-    settings = {**table.options, **(options or {})}
+    settings = _marker_settings(options)
     specs = []
     for link in scene.links:
         marker_id = 0

@@ -74,10 +74,23 @@ def _default_of(definition: tuple[Any, Any]) -> Callable[[], Any]:
 _NUMPY_TYPES = {"byte": "uint8", "octet": "uint8", "char": "uint8", "bool": "bool"}
 
 
+def time_parts(timestamp_ms: int) -> tuple[int, int]:
+    """Drake's millisecond sim time as `builtin_interfaces/Time` (int32 sec, uint32 nanosec).
+
+    Raises `EncodeError` for a time whose seconds do not fit an int32.
+    """
+    seconds, milliseconds = divmod(int(timestamp_ms), 1000)
+    if not -(2**31) <= seconds < 2**31:
+        raise EncodeError(
+            "builtin_interfaces/msg/Time", "sec", f"{timestamp_ms} ms does not fit int32 seconds"
+        )
+    return seconds, milliseconds * 1_000_000
+
+
 def stamp(timestamp_ms: int) -> Any:
     """A `builtin_interfaces/Time` for Drake's millisecond sim time."""
-    seconds, milliseconds = divmod(int(timestamp_ms), 1000)
-    return make("builtin_interfaces/msg/Time", sec=seconds, nanosec=milliseconds * 1_000_000)
+    seconds, nanoseconds = time_parts(timestamp_ms)
+    return make("builtin_interfaces/msg/Time", sec=seconds, nanosec=nanoseconds)
 
 
 def to_cdr(message: Any) -> bytes:
@@ -170,9 +183,9 @@ class CdrWriter:
         self.align(4)  # every layout used here starts with a 4-byte value
         self.add(layout.pack(*values))
 
-    def string(self, text: str) -> None:
-        self.pack(U32, len(text.encode("utf-8")) + 1)
-        self.add(text.encode("utf-8") + b"\0")
+    def string(self, text: str, field: str = "string") -> None:
+        self.align(4)
+        self.add(cdr_string(text, field))  # checked: no NUL, valid Unicode
 
     def octets(self, data: bytes) -> None:
         self.pack(U32, len(data))

@@ -70,7 +70,9 @@ def test_hierarchy_trs_and_the_camera() -> None:
         (lambda d: d["buffers"][0].update(uri="file:///etc/passwd"), "only embedded data: URIs"),
         (lambda d: d["accessors"][0].update(count=2**31), "not valid"),
         (lambda d: d["accessors"][0].update(count=10_000), "do not fit"),
-        (lambda d: d["nodes"][0].update(children=[0]), "deeper than 64"),
+        (lambda d: d["nodes"][0].update(children=[0]), "reached twice"),
+        (lambda d: d["nodes"][0].update(children=[1, 1]), "reached twice"),  # shared children: exponential
+        (lambda d: d.update(scene=-1), "scene: -1 is not an index"),
         (lambda d: d["meshes"][0]["primitives"][0].update(mode=1), "only triangles"),
         (lambda d: d["nodes"][1].update(matrix=[1] * 15), "16 numbers"),
     ],

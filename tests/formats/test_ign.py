@@ -219,3 +219,15 @@ def test_bad_models_raise_scene_errors() -> None:
     poses.pose[0].position.x = float("inf")
     with pytest.raises(SceneError, match=r"pose\[0\].position is not finite"):
         ign.poses_from_pose_v(poses)
+
+
+@pytest.mark.parametrize("obj", ["v 1 2\n", "v 0 0 0\n\nf 1 2\n", "v 0 0 0\nf 1 1 9\n", "v nan 0 0\n"])
+def test_mesh_array_objs_that_do_not_hold_together(obj: str) -> None:
+    import base64
+
+    message = ign.model(Scene((Link("l", 0, (Geometry(Box((1.0, 1.0, 1.0))),)),)))
+    geometry = message.link[0].visual[0].geometry
+    geometry.type = 6
+    geometry.mesh.filename = "data:model/obj;base64," + base64.b64encode(obj.encode()).decode()
+    with pytest.raises(SceneError, match="mesh array OBJ"):
+        ign.scene_from_model(message)

@@ -360,3 +360,18 @@ def test_points_triads_and_lines_as_markers_both_paths_agree() -> None:
     assert strip.type == Marker.LINE_STRIP and len(strip.points) == 3 and strip.scale.x == 0.002
     with pytest.raises(SceneError, match="shape_msgs has no point clouds"):
         ros.shapes(scene)
+
+
+def test_review_fixes_times_and_mesh_indices() -> None:
+    from bridge.scene import TriangleMesh
+
+    late = LinkPoses(
+        2**31 * 1000, ("a",), np.zeros(1, np.int32), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]])
+    )
+    with pytest.raises(EncodeError, match="does not fit int32 seconds"):
+        ros.PoseArrayEncoder().encode(late)
+    mesh = ros.make(ros.MESH, vertices=[ros.make("geometry_msgs/msg/Point")],
+                    triangles=[ros.make("shape_msgs/msg/MeshTriangle", vertex_indices=[0, 0, 5])])  # fmt: skip
+    with pytest.raises(SceneError, match="refers to vertex 5 of 1"):
+        ros.shape_from_message(mesh)
+    assert isinstance(ros.shape_from_message(ros.make(ros.MESH)), TriangleMesh)
