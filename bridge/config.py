@@ -86,6 +86,9 @@ class Route(_Strict):
                 f"unknown translator {self.translator!r} (known: {', '.join(sorted(TRANSLATORS))})"
             )
         _check_template(self.destination.name, re.compile(self.source.name).groups)
+        if self.source.transport == "ign" and not re.fullmatch(r"[A-Za-z0-9_/~-]+", self.source.name):
+            # ign-transport subscribes by exact topic: a pattern would wait for a topic that never exists
+            raise ValueError(f"an ign source is one topic name, not a pattern: {self.source.name!r}")
         package = self.options.get("package", "ignition")
         if package not in ("ignition", "gz"):
             raise ValueError(f"options.package must be 'ignition' or 'gz', not {package!r}")

@@ -320,6 +320,10 @@ class Line:
     head_radius: float = 0.05
     head_length: float = 0.05
 
+    def path(self) -> FloatArray:
+        """The points to draw through: the first again at the end when the line is closed."""
+        return np.concatenate((self.points, self.points[:1])) if self.closed else self.points
+
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Line):
             return NotImplemented

@@ -61,15 +61,17 @@ class LoadCache:
                 self._loads[path.stem] = path.read_bytes()
 
     def put(self, channel: str, data: bytes) -> None:
+        # Under the lock, file and memory change together: routes putting the same channel's
+        # loads cannot leave an older one on disk than in memory.
         with self._lock:
             if self._loads.get(channel) == data:
                 return
             self._loads[channel] = data
-        if self._folder is not None and re.fullmatch(r"[A-Za-z0-9_.<>-]+", channel):
-            self._folder.mkdir(parents=True, exist_ok=True)
-            with tempfile.NamedTemporaryFile(dir=self._folder, delete=False) as file:
-                file.write(data)
-            os.replace(file.name, self._folder / f"{channel}.lcm")
+            if self._folder is not None and re.fullmatch(r"[A-Za-z0-9_.<>-]+", channel):
+                self._folder.mkdir(parents=True, exist_ok=True)
+                with tempfile.NamedTemporaryFile(dir=self._folder, delete=False) as file:
+                    file.write(data)
+                os.replace(file.name, self._folder / f"{channel}.lcm")
 
     def get(self, channel: str) -> bytes | None:
         with self._lock:

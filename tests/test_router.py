@@ -283,6 +283,9 @@ BROKEN_CONFIGS = [
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_ign_pose_v\n"
      "    destination: {transport: ign, name: /x}\n    options: {package: gazebo}\n", 2, "routes.0",
      "options.package must be"),
+    ("routes:\n  - name: a\n    source: {transport: ign, name: '/robot.+/pose_v'}\n"
+     "    translator: ign_pose_v_to_drake_draw\n    destination: {transport: lcm, name: X}\n", 2, "routes.0",
+     "an ign source is one topic name"),
     ("lcm: {url: udpm://x}\n", 1, "routes", "Field required"),
     ("routes: [\n", 2, "", "not valid YAML"),
 ]  # fmt: skip

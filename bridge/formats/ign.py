@@ -194,8 +194,7 @@ def _data_uri_file(shape: InMemoryMesh) -> dict[str, Any]:
 
 
 def _polyline_points(shape: Line) -> dict[str, Any]:
-    points = np.concatenate((shape.points, shape.points[:1])) if shape.closed else shape.points
-    return {"points": points.tolist()}
+    return {"points": shape.path().tolist()}
 
 
 _ENCODERS: dict[str, Callable[[Any], dict[str, Any]]] = {

@@ -465,9 +465,8 @@ def _triad(shape: Triad, options: dict[str, Any]) -> dict[str, Any]:
 
 
 def _line_strip(shape: Line, options: dict[str, Any]) -> dict[str, Any]:
-    points = np.concatenate((shape.points, shape.points[:1])) if shape.closed else shape.points
     width = 2 * shape.radius if shape.radius > 0 else 0.002
-    return {"points": points, "scale": (width, 0.0, 0.0)}
+    return {"points": shape.path(), "scale": (width, 0.0, 0.0)}
 
 
 def _triangle_list(shape: TriangleMesh, options: dict[str, Any]) -> dict[str, Any]:
