@@ -119,11 +119,11 @@ def poses_from_pose_array(
     return link_poses_from_xyzw(timestamp_ms, names, robot_nums, positions, xyzw, "poses")
 
 
-def _pose_rows(poses: LinkPoses) -> np.ndarray[Any, Any]:
-    """N x 7 little-endian float64: position x y z, orientation x y z w (ROS's order)."""
-    values = np.empty((len(poses), 7), dtype="<f8")
-    values[:, :3] = poses.positions
-    values[:, 3:] = xyzw_from_wxyz(poses.quaternions_wxyz)
+def _pose_rows(positions: FloatArray, wxyz: FloatArray) -> np.ndarray[Any, Any]:
+    """N x 7 little-endian float64, as geometry_msgs/Pose lays them out: x y z, qx qy qz qw."""
+    values = np.empty((len(positions), 7), dtype="<f8")
+    values[:, :3] = positions
+    values[:, 3:] = xyzw_from_wxyz(wxyz)
     return values
 
 
@@ -146,7 +146,7 @@ class PoseArrayEncoder:
 
     def encode(self, poses: LinkPoses) -> bytes:
         count = U32.pack(len(poses))
-        rows = _pose_rows(poses).tobytes()
+        rows = _pose_rows(poses.positions, poses.quaternions_wxyz).tobytes()
         return b"".join((CDR_LE, _stamp_bytes(poses.timestamp_ms), self._frame, count, self._padding, rows))
 
 
@@ -164,7 +164,7 @@ class PoseStampedEncoder:
 
     def encode(self, poses: LinkPoses) -> list[bytes]:
         prefix = CDR_LE + _stamp_bytes(poses.timestamp_ms) + self._frame
-        return [prefix + row for row in map(bytes, _pose_rows(poses))]
+        return [prefix + row for row in map(bytes, _pose_rows(poses.positions, poses.quaternions_wxyz))]
 
 
 def pose_array_arrays(data: bytes | memoryview) -> tuple[int, str, FloatArray, FloatArray]:
@@ -349,12 +349,25 @@ def marker_specs(scene: Scene, options: dict[str, Any] | None = None) -> list[Ma
 
 def world_poses(scene: Scene, specs: Sequence[MarkerSpec]) -> tuple[FloatArray, FloatArray]:
     """Every marker's world pose (positions M x 3, quaternions M x 4 w-first), all at once."""
-    positions = np.array([spec.pose.position for spec in specs], dtype=np.float64).reshape(-1, 3)
-    wxyz = np.array([spec.pose.quaternion_wxyz for spec in specs], dtype=np.float64).reshape(-1, 4)
+    positions, wxyz = _part_poses(specs)
     if scene.poses is None:
         return positions, wxyz
     rows = _link_rows(scene.poses.names, [spec.link_name for spec in specs])
-    link_positions, link_wxyz = _with_identity_row(scene.poses)
+    return _compose_on_links(scene.poses, rows, positions, wxyz)
+
+
+def _part_poses(specs: Sequence[MarkerSpec]) -> tuple[FloatArray, FloatArray]:
+    """The markers' poses in their links' frames, as arrays."""
+    positions = np.array([spec.pose.position for spec in specs], dtype=np.float64).reshape(-1, 3)
+    wxyz = np.array([spec.pose.quaternion_wxyz for spec in specs], dtype=np.float64).reshape(-1, 4)
+    return positions, wxyz
+
+
+def _compose_on_links(
+    poses: LinkPoses, rows: np.ndarray[Any, Any], positions: FloatArray, wxyz: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Link pose (row `rows[i]` of `poses`; the extra row is the identity) times part pose i."""
+    link_positions, link_wxyz = _with_identity_row(poses)
     return compose_arrays(link_positions[rows], link_wxyz[rows], positions, wxyz)
 
 
@@ -569,9 +582,7 @@ def marker_array_cdr(scene: Scene, options: dict[str, Any] | None = None, delete
     frame_id = str(_marker_settings(options)["frame_id"])
     specs = marker_specs(scene, options)
     positions, wxyz = world_poses(scene, specs)
-    return _write_markers(
-        specs, np.concatenate((positions, xyzw_from_wxyz(wxyz)), axis=1), frame_id, delete_all
-    )[0]
+    return _write_markers(specs, _pose_rows(positions, wxyz), frame_id, delete_all)[0]
 
 
 class MarkerStream:
@@ -587,14 +598,13 @@ class MarkerStream:
         frame_id = str(_marker_settings(options)["frame_id"])
         self._specs = marker_specs(scene, options)
         positions, wxyz = world_poses(scene, self._specs)
-        poses = np.concatenate((positions, xyzw_from_wxyz(wxyz)), axis=1)
+        poses = _pose_rows(positions, wxyz)
         self.load_cdr = _write_markers(self._specs, poses, frame_id, delete_all=True)[0]
         self._template, offsets = _write_markers(self._specs, poses, frame_id, delete_all=False)
         # Poses are 8-aligned in the payload, which starts after the 4-byte encapsulation.
         self._slots = (np.asarray(offsets, dtype=np.int64) // 8)[:, None] + np.arange(7)
         self._link_names = [spec.link_name for spec in self._specs]
-        self._part_positions = np.array([spec.pose.position for spec in self._specs]).reshape(-1, 3)
-        self._part_wxyz = np.array([spec.pose.quaternion_wxyz for spec in self._specs]).reshape(-1, 4)
+        self._part_positions, self._part_wxyz = _part_poses(self._specs)
         self._rows_for: tuple[tuple[str, ...], np.ndarray[Any, Any]] = ((), np.zeros(0, dtype=np.int64))
 
     def __len__(self) -> int:
@@ -604,14 +614,10 @@ class MarkerStream:
         """The MarkerArray CDR with every marker at its link's pose in `poses`."""
         if poses.names != self._rows_for[0]:
             self._rows_for = (poses.names, _link_rows(poses.names, self._link_names))
-        rows = self._rows_for[1]
-        link_positions, link_wxyz = _with_identity_row(poses)
-        positions, quaternions = compose_arrays(
-            link_positions[rows], link_wxyz[rows], self._part_positions, self._part_wxyz
-        )
+        positions, wxyz = _compose_on_links(poses, self._rows_for[1], self._part_positions, self._part_wxyz)
         buffer = bytearray(self._template)
         words = np.frombuffer(buffer, dtype="<f8", offset=4, count=(len(buffer) - 4) // 8)
-        words[self._slots] = np.concatenate((positions, xyzw_from_wxyz(quaternions)), axis=1)
+        words[self._slots] = _pose_rows(positions, wxyz)
         return bytes(buffer)
 
 
