@@ -206,6 +206,15 @@ class RouteRunner:
         return self.stats.snapshot(self.mailbox.dropped, len(self.mailbox))
 
 
+def _ros_qos(route: Route, latched_by_default: bool) -> Any:
+    """The route's QoS for rclpy; durability is the config's, else the translator's choice."""
+    from bridge.transports.ros2 import qos_profile  # rclpy only when a route needs it
+
+    durability = route.qos.durability
+    latched = latched_by_default if durability is None else durability == "transient_local"
+    return qos_profile(route.qos.depth, route.qos.reliability == "reliable", latched)
+
+
 class Router:
     """Every route of a config, the transports they need, and the stats."""
 
@@ -254,14 +263,8 @@ class Router:
                 self._subscribe_ros(runner)
 
     def _subscribe_ros(self, runner: RouteRunner) -> None:
-        from bridge.transports.ros2 import qos_profile
-
-        route = runner.route
-
-        qos = qos_profile(
-            route.qos.depth, route.qos.reliability == "reliable", route.qos.durability == "transient_local"
-        )
-        self.ros.subscribe(route.source.name, runner.translator.source_type, qos, runner.offer)
+        qos = _ros_qos(runner.route, latched_by_default=False)
+        self.ros.subscribe(runner.route.source.name, runner.translator.source_type, qos, runner.offer)
 
     def _publisher_factory(self, route: Route) -> Callable[[str, Output], Publish]:
         def make(name: str, output: Output) -> Publish:
@@ -273,11 +276,7 @@ class Router:
                 node = self.ign
                 node.advertise(name, output.typename)  # seen by `ign topic -l` from the first message on
                 return lambda data: node.publish(name, data, output.typename)
-            from bridge.transports.ros2 import qos_profile
-
-            durability = route.qos.durability
-            latched = output.latched if durability is None else durability == "transient_local"
-            qos = qos_profile(route.qos.depth, route.qos.reliability == "reliable", latched)
+            qos = _ros_qos(route, latched_by_default=output.latched)
             publish: Publish = self.ros.publisher(name, output.typename, qos)
             return publish
 
