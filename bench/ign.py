@@ -24,6 +24,7 @@ from router import Bridge, publish_at  # noqa: E402
 
 from bridge.formats.drake import DrawEncoder  # noqa: E402
 from bridge.translators import TRANSLATORS, LoadCache  # noqa: E402
+from bridge.transports.base import Received  # noqa: E402
 from bridge.transports.ign import IgnNode  # noqa: E402
 from bridge.transports.lcm import LcmBus  # noqa: E402
 
@@ -54,8 +55,8 @@ def main() -> None:
     names = frame(links).names
     translator = TRANSLATORS["drake_to_ign_pose_v"]({}, LoadCache())
     draw = DrawEncoder().encode(frame(links))
-    translator.translate("DRAKE_VIEWER_DRAW", draw)
-    own = seconds_per_call(lambda: translator.translate("DRAKE_VIEWER_DRAW", draw), 0.5)
+    translator.translate(Received("DRAKE_VIEWER_DRAW", draw))
+    own = seconds_per_call(lambda: translator.translate(Received("DRAKE_VIEWER_DRAW", draw)), 0.5)
 
     import router as bench_router
 

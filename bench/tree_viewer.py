@@ -20,7 +20,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 from draw_codec import seconds_per_call  # noqa: E402
 
 from bridge.formats import tree_viewer as tv  # noqa: E402
-from bridge.translators import LoadCache, TreeViewerServer  # noqa: E402
+from bridge.translators import LoadCache  # noqa: E402
+from bridge.translators.tree_viewer import TreeViewerServer  # noqa: E402
+from bridge.transports.base import Received  # noqa: E402
 
 
 def payloads() -> dict[str, bytes]:
@@ -55,10 +57,10 @@ def main() -> None:
             data=data,
         )
         raw = tv.VIEWER2_COMMS.encode(message)
-        ((_, markers),) = server.translate(channel, raw)
+        ((_, markers),) = server.translate(Received(channel, raw))
         baseline = seconds_per_call(lambda data=data: json.loads(data), 1.0)
         ours = seconds_per_call(
-            lambda raw=raw: server.translate("DIRECTOR_TREE_VIEWER_REQUEST_<bench>", raw), 1.0
+            lambda raw=raw: server.translate(Received("DIRECTOR_TREE_VIEWER_REQUEST_<bench>", raw)), 1.0
         )
         print(
             f"{label:<36} {len(data):>10} | {baseline * 1e3:>7.1f} ms | {ours * 1e3:>14.1f} ms | {ours / baseline:>4.1f}x"

@@ -12,13 +12,14 @@ from pathlib import Path
 
 import numpy as np
 
-from bridge.config import BUILTIN_CONFIGS, load_config
+from bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
 from bridge.convert import convert
 from bridge.demo import run_demo
 from bridge.dump import as_json, as_text
 from bridge.errors import BridgeError, ConfigError
 from bridge.mappings import format_names, reference_markdown
 from bridge.router import Router
+from bridge.transports.base import TransportUnavailable
 from bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 
 
@@ -170,9 +171,9 @@ def _run(args: argparse.Namespace) -> int:
     try:
         config = load_config(args.config)
         if args.lcm_url:
-            config.lcm.url = args.lcm_url
+            config = config.with_settings("lcm", url=args.lcm_url)
         router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period)
-    except (BridgeError, OSError, ValueError) as error:
+    except (BridgeError, TransportUnavailable, OSError, ValueError) as error:
         print(f"viewer-bridge: {error}", file=sys.stderr)
         return 2
     for signal_number in (signal.SIGINT, signal.SIGTERM):
@@ -182,7 +183,7 @@ def _run(args: argparse.Namespace) -> int:
     router.start()  # subscribed before the demo's first message
     if args.demo:
         demo = threading.Thread(
-            target=run_demo, args=(config.lcm.url, None), kwargs={"stop": stop_demo}, daemon=True
+            target=run_demo, args=(_lcm_url(config), None), kwargs={"stop": stop_demo}, daemon=True
         )
         demo.start()
     try:
@@ -192,6 +193,11 @@ def _run(args: argparse.Namespace) -> int:
         if demo is not None:
             demo.join(timeout=2)
     return 0
+
+
+def _lcm_url(config: BridgeConfig) -> str:
+    """Where the demo publishes: the config's LCM bus."""
+    return str(getattr(config.settings("lcm"), "url", DEFAULT_URL))
 
 
 def _convert(args: argparse.Namespace) -> int:

@@ -1,11 +1,16 @@
-"""The router's configuration: transports, and a flat list of routes.
+"""The router's configuration: transport settings, and a flat list of routes.
 
 A route names a source (a transport and a channel or topic, matched in full as a regular
 expression), a translator (`bridge.translators.TRANSLATORS`), a destination whose name is a
 template over the source's regex groups (`{1}`; `{1:lower}`; `{1:path}` turns `_PROXIMITY` into
-`/proximity` and `` into ``; `{1:topic}` makes any text a valid ROS name token), QoS, and a rate
-policy. `DEFAULT_CONFIG` bridges Drake's default
-channels to ROS 2 under `/drake`. Mistakes are `ConfigError`s with file, line and field.
+`/proximity` and `` into ``; `{1:topic}` makes any text a valid ROS name token), QoS, a rate
+policy, `lazy`, and the translator's options. Each transport's settings are the top-level
+section named after it (`lcm:`, `ros:`, `ign:`, or a plugin's name), checked by its own model.
+`DEFAULT_CONFIG` bridges Drake's default channels to ROS 2 under `/drake`.
+
+Everything is checked when the config loads: the names of transports and translators, each
+translator's options, and whether each route's transports carry the message types its
+translator reads and writes. Mistakes are `ConfigError`s with file, line and key.
 """
 
 from __future__ import annotations
@@ -15,35 +20,30 @@ import string
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from bridge.errors import ConfigError
-from bridge.yamldoc import YamlDocument
-
-Transport = Literal["lcm", "ros", "ign"]
+from bridge.translators import TRANSLATORS, Translator, TranslatorOptions
+from bridge.transports import TRANSPORTS
+from bridge.transports.base import MessageType, Transport, TransportSettings
+from bridge.yamldoc import KeyPath, YamlDocument
 
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
-class LcmSettings(_Strict):
-    url: str = "udpm://239.255.76.67:7667?ttl=0"
-
-
-class RosSettings(_Strict):
-    node: str = "viewer_bridge"
-    namespace: str = ""
-    use_sim_time: bool = False
-
-
-class IgnSettings(_Strict):
-    partition: str | None = None  # default: IGN_PARTITION, or hostname:username
-    ip: str | None = None  # default: IGN_IP, or 127.0.0.1
-
-
 class Endpoint(_Strict):
-    transport: Transport
+    transport: str  # a name in TRANSPORTS
     name: str  # a channel or topic; a regex for sources, a template for destinations
 
 
@@ -65,7 +65,9 @@ class Route(_Strict):
     destination: Endpoint
     qos: Qos = Qos()
     rate: Rate = Rate()
+    lazy: bool = False  # translate only while the destination has a subscriber (where the transport can tell)
     options: dict[str, Any] = {}
+    _options: TranslatorOptions | None = PrivateAttr(None)
 
     @field_validator("source")
     @classmethod
@@ -77,43 +79,135 @@ class Route(_Strict):
         return source
 
     @model_validator(mode="after")
-    def _known_translator(self) -> Route:
-        from bridge.translators import TRANSLATORS  # the registry imports the formats: keep config light
-
-        translator = TRANSLATORS.get(self.translator)
-        if translator is None:
-            raise ValueError(
-                f"unknown translator {self.translator!r} (known: {', '.join(sorted(TRANSLATORS))})"
-            )
+    def _destination_fits_source(self) -> Route:
         _check_template(self.destination.name, re.compile(self.source.name).groups)
-        if self.source.transport == "ign" and not re.fullmatch(r"[A-Za-z0-9_/~-]+", self.source.name):
-            # ign-transport subscribes by exact topic: a pattern would wait for a topic that never exists
-            raise ValueError(f"an ign source is one topic name, not a pattern: {self.source.name!r}")
-        package = self.options.get("package", "ignition")
-        if package not in ("ignition", "gz"):
-            raise ValueError(f"options.package must be 'ignition' or 'gz', not {package!r}")
-        if self.source.transport != translator.source or self.destination.transport != translator.destination:
-            raise ValueError(
-                f"translator {self.translator} goes from {translator.source} to {translator.destination}, "
-                f"not {self.source.transport} to {self.destination.transport}"
-            )
         return self
 
+    def translator_class(self) -> type[Translator]:
+        return TRANSLATORS.get(self.translator)
 
-class BridgeConfig(_Strict):
-    lcm: LcmSettings = LcmSettings()
-    ros: RosSettings = RosSettings()
-    ign: IgnSettings = IgnSettings()
+    def translator_options(self) -> TranslatorOptions:
+        """The options as the translator's model (checked when the config loaded)."""
+        if self._options is None:
+            self._options = self.translator_class().Options.model_validate(self.options)
+        return self._options
+
+
+class BridgeConfig(BaseModel):
+    """The whole config; every top-level key besides these is a transport's settings section."""
+
+    model_config = ConfigDict(extra="allow")
     load_cache: str | None = None  # a folder where the last load per channel is kept across runs
     routes: list[Route]
+    _settings: dict[str, TransportSettings] = PrivateAttr(default_factory=dict)
 
     @model_validator(mode="after")
-    def _unique_route_names(self) -> BridgeConfig:
+    def _check(self, info: ValidationInfo) -> BridgeConfig:
+        document = (info.context or {}).get("document")
+        check = _Checker(document if isinstance(document, YamlDocument) else None)
+        for name, section in (self.model_extra or {}).items():
+            transport = check.transport(name, (name,), "a config key (load_cache, routes) nor a transport")
+            self._settings[name] = check.model(transport.Settings, section or {}, (name,))
         names = [route.name for route in self.routes]
-        duplicates = sorted({name for name in names if names.count(name) > 1})
-        if duplicates:
-            raise ValueError(f"route names must be unique: {', '.join(duplicates)}")
+        for index, route in enumerate(self.routes):
+            check.route(route, ("routes", index))
+            if route.name in names[:index]:
+                raise check.error(
+                    ("routes", index, "name"), f"route names must be unique: {route.name!r} again"
+                )
         return self
+
+    def transports(self) -> list[str]:
+        """The transports the routes use, in order of first use."""
+        used = [
+            name for route in self.routes for name in (route.source.transport, route.destination.transport)
+        ]
+        return list(dict.fromkeys(used))
+
+    def settings(self, transport: str) -> TransportSettings:
+        """A transport's settings: its section, else its defaults."""
+        if transport not in self._settings:
+            self._settings[transport] = TRANSPORTS.get(transport).Settings()
+        return self._settings[transport]
+
+    def with_settings(self, transport: str, **values: Any) -> BridgeConfig:
+        """The same config with some of a transport's settings replaced (e.g. a command line's --lcm-url)."""
+        data = self.model_dump()
+        data[transport] = {**self.settings(transport).model_dump(), **values}
+        return BridgeConfig.model_validate(data)
+
+
+class _Checker:
+    """The config's semantic checks; errors name the file, line and key when there is a file."""
+
+    def __init__(self, document: YamlDocument | None) -> None:
+        self.document = document or YamlDocument("<config>", "{}")
+
+    def error(self, key_path: KeyPath, reason: str) -> ConfigError:
+        return self.document.error(key_path, reason)
+
+    def model(self, model: type[Any], data: Any, at: KeyPath) -> Any:
+        try:
+            return model.model_validate(data)
+        except ValidationError as error:
+            raise self.document.validation_error(error, at) from None
+
+    def transport(self, name: str, at: KeyPath, what: str = "a transport") -> type[Transport]:
+        try:
+            return TRANSPORTS.get(name)
+        except KeyError:
+            known = ", ".join(TRANSPORTS.names())
+            raise self.error(at, f"{name!r} is not {what} (transports: {known})") from None
+
+    def route(self, route: Route, at: KeyPath) -> None:
+        try:
+            translator = TRANSLATORS.get(route.translator)
+        except KeyError as error:
+            raise self.error((*at, "translator"), str(error).strip("\"'")) from None
+        route._options = self.model(translator.Options, route.options, (*at, "options"))
+        source = self.transport(route.source.transport, (*at, "source", "transport"))
+        destination = self.transport(route.destination.transport, (*at, "destination", "transport"))
+        try:
+            source.check_source(route.source.name)
+        except ValueError as error:
+            raise self.error((*at, "source", "name"), str(error)) from None
+        self._carried(
+            source, route.source.transport, translator.reads, (*at, "source", "transport"), route, "reads"
+        )
+        outputs = tuple(output.type for output in translator.outputs)
+        self._carried(
+            destination,
+            route.destination.transport,
+            outputs,
+            (*at, "destination", "transport"),
+            route,
+            "writes",
+        )
+        if translator.replies is not None:
+            self._carried(
+                source,
+                route.source.transport,
+                (translator.replies,),
+                (*at, "source", "transport"),
+                route,
+                "answers with",
+            )
+
+    def _carried(
+        self,
+        transport: type[Transport],
+        name: str,
+        types: tuple[MessageType, ...],
+        at: KeyPath,
+        route: Route,
+        verb: str,
+    ) -> None:
+        refused = [str(message_type) for message_type in types if not transport.carries(message_type)]
+        if refused:
+            raise self.error(
+                at,
+                f"translator {route.translator} {verb} {', '.join(refused)}, which the {name} transport does not carry",
+            )
 
 
 class _Template(string.Formatter):
@@ -235,7 +329,7 @@ def load_config(path: str | Path | None) -> BridgeConfig:
         document = YamlDocument.read(path)
     if not isinstance(document.data, dict):
         raise ConfigError(document.path, 1, "", "the config must be a mapping with a 'routes' list")
-    return document.validate(BridgeConfig)
+    return document.validate(BridgeConfig, context={"document": document})
 
 
 __all__ = [
@@ -244,6 +338,7 @@ __all__ = [
     "IGN_CONFIG",
     "BridgeConfig",
     "ConfigError",
+    "Endpoint",
     "Route",
     "destination_name",
     "load_config",

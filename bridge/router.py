@@ -1,12 +1,27 @@
 """The router: runs each configured route's translator between transports.
 
-Threads: each transport delivers on a thread of its own and only hands the bytes to the routes
-whose source matches (a dictionary insert); each route has a worker thread that translates and
-publishes. Between the two sits a `Mailbox`, bounded: with the `latest` policy it keeps the
-newest message per channel (a slow consumer gets the newest draw, never a backlog; a draw
-never displaces a load, which is on another channel), with `all` a FIFO of `qos.depth` that
-drops its oldest. Every drop, error and crash is counted per route and kind; a translator that
-raises skips that message only.
+The data path of one message:
+
+    transport thread                     route worker thread
+    ----------------                     -------------------
+    Received --offer--> Mailbox ------>  lane (per destination) -> observe -> [lazy?] -> translate
+    (one per message,   (per route,                                 -> publisher per output
+     shared by routes)   bounded)
+
+The router knows transports and translators only through their interfaces
+(`bridge.transports.base.Transport`, `bridge.translators.base.Translator`) and their
+registries: no transport or format is named here.
+
+Threads: each transport delivers on a thread of its own and only hands the message to the
+routes whose source matches (a dictionary insert); each route has a worker thread that
+translates and publishes. Between the two sits a `Mailbox`, bounded: with the `latest` policy
+it keeps the newest message per channel (a slow consumer gets the newest draw, never a
+backlog; a draw never displaces a load, which is on another channel), with `all` a FIFO of
+`qos.depth` that drops its oldest. Every drop, error and crash is counted per route and kind;
+a translator that raises skips that message only.
+
+A route has one translator per destination name (a "lane"): the illustration and proximity
+streams a route's regex matches never share a translator's state.
 """
 
 from __future__ import annotations
@@ -28,17 +43,22 @@ import numpy as np
 from bridge.config import BridgeConfig, Route, destination_name
 from bridge.errors import BridgeError
 from bridge.translators import TRANSLATORS, LoadCache, Output, Translator
-from bridge.transports.lcm import LcmBus, LogReplay, open_bus
+from bridge.transports import TRANSPORTS
+from bridge.transports.base import Publisher, Qos, Received, Transport
 
 log = logging.getLogger("viewer_bridge")
 
 
 @dataclass(slots=True)
 class Message:
-    channel: str
-    data: bytes
-    received_us: int
+    """A received message as one route saw it: with the match of the route's source pattern."""
+
+    received: Received
     match: re.Match[str]
+
+    @property
+    def channel(self) -> str:
+        return self.received.channel
 
 
 class Mailbox:
@@ -86,16 +106,19 @@ class RouteStats:
     messages_out: int = 0
     bytes_in: int = 0
     bytes_out: int = 0
+    idle_skipped: int = 0  # messages a lazy route did not translate: nobody was listening
     errors: Counter[str] = field(default_factory=Counter)
     translate_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
     latency_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
 
-    def snapshot(self, dropped: int, queued: int) -> dict[str, Any]:
+    def snapshot(self, dropped: int, queued: int, state: str) -> dict[str, Any]:
         return {
+            "state": state,
             "messages_in": self.messages_in,
             "messages_out": self.messages_out,
             "bytes_in": self.bytes_in,
             "bytes_out": self.bytes_out,
+            "idle_skipped": self.idle_skipped,
             "errors": dict(self.errors),
             "dropped": dropped,
             "queued": queued,
@@ -112,33 +135,64 @@ def _percentiles(samples: deque[float]) -> dict[str, float | None]:
     return {"p50": round(float(p50), 4), "p99": round(float(p99), 4), "max": round(float(values.max()), 4)}
 
 
-Publish = Callable[[bytes], None]
+PublisherFor = Callable[[str, Output], Publisher]  # (full name, output) -> a publisher
+_LISTENERS_CHECK_S = 0.25  # how often a lazy route asks its publishers whether anyone listens
+
+
+class _Lane:
+    """One destination of a route: its translator and a publisher per output, made on first use."""
+
+    def __init__(self, name: str, translator: Translator, publisher_for: PublisherFor) -> None:
+        self.name = name
+        self.translator = translator
+        self._publisher_for = publisher_for
+        self._publishers: list[Publisher | None] = [None] * len(translator.outputs)
+        self._listened = True
+        self._checked_at = float("-inf")
+
+    def publisher(self, index: int) -> Publisher:
+        publisher = self._publishers[index]
+        if publisher is None:
+            output = self.translator.outputs[index]
+            publisher = self._publishers[index] = self._publisher_for(self.name + output.suffix, output)
+        return publisher
+
+    def listened(self) -> bool:
+        """Whether any output has a subscriber, or its transport cannot tell (then: translate)."""
+        now = time.monotonic()
+        if now - self._checked_at >= _LISTENERS_CHECK_S:
+            self._checked_at = now
+            counts = [self.publisher(index).subscriber_count() for index in range(len(self._publishers))]
+            self._listened = any(count is None or count > 0 for count in counts)
+        return self._listened
 
 
 class RouteRunner:
-    """One route: its mailbox, its translator, its publishers and its worker thread."""
+    """One route: its mailbox, its lanes (translator + publishers per destination), its worker."""
 
     def __init__(
-        self, route: Route, translator: Translator, publisher_for: Callable[[str, Output], Publish]
+        self, route: Route, make_translator: Callable[[], Translator], publisher_for: PublisherFor
     ) -> None:
         self.route = route
-        self.translator = translator
         self.pattern = re.compile(route.source.name)
         self.mailbox = Mailbox(route.rate.policy, route.qos.depth)
         self.stats = RouteStats()
+        self._make_translator = make_translator
         self._publisher_for = publisher_for
-        self._publishers: dict[str, Publish] = {}
+        self.prototype: Translator | None = make_translator()  # made now: errors show at start
+        self._lanes: dict[str, _Lane] = {}  # by destination name
+        self._lane_of_channel: dict[str, _Lane] = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"route {route.name}", daemon=True)
         self._logged: Counter[str] = Counter()
 
-    def offer(self, channel: str, data: bytes, received_us: int) -> None:
+    def offer(self, received: Received) -> None:
         """Called on the transport's thread: keep the message if this route's source matches."""
-        match = self.pattern.fullmatch(channel)
+        match = self.pattern.fullmatch(received.channel)
         if match is not None:
             self.stats.messages_in += 1
-            self.stats.bytes_in += len(data)
-            self.mailbox.put(Message(channel, data, received_us, match))
+            self.stats.bytes_in += len(received.data)
+            self.mailbox.put(Message(received, match))
 
     def start(self) -> None:
         self._thread.start()
@@ -164,11 +218,29 @@ class RouteRunner:
             next_due = time.monotonic() + period
             self.handle(message)
 
+    def _lane(self, message: Message) -> _Lane:
+        lane = self._lane_of_channel.get(message.channel)
+        if lane is None:
+            name = destination_name(self.route.destination.name, message.match)
+            lane = self._lanes.get(name)
+            if lane is None:
+                translator, self.prototype = self.prototype or self._make_translator(), None
+                lane = self._lanes[name] = _Lane(name, translator, self._publisher_for)
+            self._lane_of_channel[message.channel] = lane
+        return lane
+
     def handle(self, message: Message) -> None:
         """Translate and publish one message; errors are counted and reported, never raised."""
         started = time.perf_counter()
+        received = message.received
         try:
-            outputs = self.translator.translate(message.channel, message.data)
+            lane = self._lane(message)
+            translator = lane.translator
+            translator.observe(received)
+            if self.route.lazy and not lane.listened():
+                self.stats.idle_skipped += 1
+                return
+            outputs = translator.translate(received)
         except BridgeError as error:
             self._error(type(error).__name__, f"{message.channel}: {error}")
             return
@@ -177,23 +249,15 @@ class RouteRunner:
             return
         self.stats.translate_ms.append((time.perf_counter() - started) * 1e3)
         for index, payload in outputs:
-            output = self.translator.outputs[index]
             try:
-                name = destination_name(self.route.destination.name, message.match) + output.suffix
-                self._publisher(name, output)(payload)
+                lane.publisher(index).publish(payload)
             except Exception as error:  # the transport refused: count it, go on with the rest
-                self._error(f"publish:{type(error).__name__}", f"{self.route.destination.name}: {error}")
+                self._error(f"publish:{type(error).__name__}", f"{lane.name}: {error}")
                 continue
             self.stats.messages_out += 1
             self.stats.bytes_out += len(payload)
         if outputs:
-            self.stats.latency_ms.append((time.time_ns() // 1000 - message.received_us) / 1e3)
-
-    def _publisher(self, name: str, output: Output) -> Publish:
-        publisher = self._publishers.get(name)
-        if publisher is None:
-            publisher = self._publishers[name] = self._publisher_for(name, output)
-        return publisher
+            self.stats.latency_ms.append((time.time_ns() // 1000 - received.received_us) / 1e3)
 
     def _error(self, kind: str, text: str) -> None:
         self.stats.errors[kind] += 1
@@ -202,17 +266,20 @@ class RouteRunner:
         if count <= 5 or count % 1000 == 0:  # the first few, then a reminder: never a flood
             log.warning("route %s: %s (%s #%d)", self.route.name, text.rstrip(), kind, count)
 
+    def state(self) -> str:
+        if self.route.lazy and self._lanes and not any(lane._listened for lane in self._lanes.values()):
+            return "idle: no subscriber"
+        return "active"
+
     def snapshot(self) -> dict[str, Any]:
-        return self.stats.snapshot(self.mailbox.dropped, len(self.mailbox))
+        return self.stats.snapshot(self.mailbox.dropped, len(self.mailbox), self.state())
 
 
-def _ros_qos(route: Route, latched_by_default: bool) -> Any:
-    """The route's QoS for rclpy; durability is the config's, else the translator's choice."""
-    from bridge.transports.ros2 import qos_profile  # rclpy only when a route needs it
-
+def output_qos(route: Route, latched_by_default: bool) -> Qos:
+    """A route's QoS for one output or its subscription: durability is the config's, else the translator's."""
     durability = route.qos.durability
     latched = latched_by_default if durability is None else durability == "transient_local"
-    return qos_profile(route.qos.depth, route.qos.reliability == "reliable", latched)
+    return Qos(route.qos.depth, route.qos.reliability == "reliable", latched)
 
 
 class Router:
@@ -228,63 +295,58 @@ class Router:
         self.loads = LoadCache(config.load_cache)
         self.stats_json = Path(stats_json) if stats_json else None
         self.stats_period = stats_period
-        self.lcm: LcmBus | LogReplay | None = None
-        self.ros: Any = None
+        self.transports: dict[str, Transport] = {}
         self.routes: list[RouteRunner] = []
-        self._lcm_routes: list[RouteRunner] = []
         self._stop = threading.Event()
         self._started = False
-        uses = {route.source.transport for route in config.routes} | {
-            route.destination.transport for route in config.routes
-        }
-        if "lcm" in uses:
-            self.lcm = open_bus(config.lcm.url)
-        if "ros" in uses:
-            from bridge.transports.ros2 import RosNode  # rclpy only when a route needs it
+        try:
+            for name in config.transports():
+                self.transports[name] = TRANSPORTS.get(name)(config.settings(name))
+            for route in config.routes:
+                self.routes.append(self._runner(route))
+        except BaseException:
+            self._close_transports()
+            raise
 
-            settings = config.ros
-            self.ros = RosNode(settings.node, settings.namespace, settings.use_sim_time)
-        self.ign: Any = None
-        if "ign" in uses:
-            from bridge.transports.ign import IgnNode
+    def _runner(self, route: Route) -> RouteRunner:
+        source = self.transports[route.source.transport]
+        translator_class = TRANSLATORS.get(route.translator)
+        options = route.translator_options()
+        reply = self._replier(route) if translator_class.replies is not None else None
 
-            self.ign = IgnNode(config.ign.partition, config.ign.ip)
-        for route in config.routes:
-            translator = TRANSLATORS[route.translator](dict(route.options), self.loads)
-            if route.source.transport == "lcm" and isinstance(self.lcm, LcmBus):
-                translator.reply = self.lcm.publish  # a replayed log has nobody to answer
-            runner = RouteRunner(route, translator, self._publisher_factory(route))
-            self.routes.append(runner)
-            if route.source.transport == "lcm":
-                self._lcm_routes.append(runner)  # one LCM subscription serves them all: see start()
-            elif route.source.transport == "ign":
-                self.ign.subscribe(route.source.name, translator.source_type, runner.offer)
-            else:
-                self._subscribe_ros(runner)
+        def make_translator() -> Translator:
+            translator = translator_class(options, self.loads)
+            if reply is not None:
+                translator.reply = reply
+            return translator
 
-    def _subscribe_ros(self, runner: RouteRunner) -> None:
-        qos = _ros_qos(runner.route, latched_by_default=False)
-        self.ros.subscribe(runner.route.source.name, runner.translator.source_type, qos, runner.offer)
+        runner = RouteRunner(route, make_translator, self._publisher_factory(route))
+        assert runner.prototype is not None
+        source.subscribe(route.source.name, runner.prototype.reads[0], output_qos(route, False), runner.offer)
+        return runner
 
-    def _publisher_factory(self, route: Route) -> Callable[[str, Output], Publish]:
-        def make(name: str, output: Output) -> Publish:
-            if route.destination.transport == "lcm":
-                assert self.lcm is not None
-                bus = self.lcm
-                return lambda data: bus.publish(name, data)
-            if route.destination.transport == "ign":
-                node = self.ign
-                node.advertise(name, output.typename)  # seen by `ign topic -l` from the first message on
-                return lambda data: node.publish(name, data, output.typename)
-            qos = _ros_qos(route, latched_by_default=output.latched)
-            publish: Publish = self.ros.publisher(name, output.typename, qos)
-            return publish
+    def _publisher_factory(self, route: Route) -> PublisherFor:
+        transport = self.transports[route.destination.transport]
+
+        def make(name: str, output: Output) -> Publisher:
+            return transport.publisher(name, output.type, output_qos(route, output.latched))
 
         return make
 
-    def _dispatch(self, channel: str, data: bytes, received_us: int) -> None:
-        for runner in self._lcm_routes:
-            runner.offer(channel, data, received_us)
+    def _replier(self, route: Route) -> Callable[[str, bytes], None]:
+        """Publishing back on the route's source transport, a publisher per channel."""
+        transport = self.transports[route.source.transport]
+        message_type = TRANSLATORS.get(route.translator).replies
+        assert message_type is not None
+        publishers: dict[str, Publisher] = {}
+
+        def reply(channel: str, data: bytes) -> None:
+            publisher = publishers.get(channel)
+            if publisher is None:
+                publisher = publishers[channel] = transport.publisher(channel, message_type, Qos())
+            publisher.publish(data)
+
+        return reply
 
     def start(self) -> None:
         """Start the workers and the transports (`run` does it unless it was done already)."""
@@ -293,25 +355,16 @@ class Router:
         self._started = True
         for runner in self.routes:
             runner.start()
-        if self.ros is not None:
-            self.ros.start()
-        if self.ign is not None:
-            self.ign.start()
-        if self.lcm is not None:
-            self.lcm.subscribe(".*", self._dispatch)
-            self.lcm.start()
-        where = [f"LCM {self.lcm.url}"] if self.lcm is not None else []
-        if self.ros is not None:
-            where.append(f"ROS 2 node {self.ros.node.get_fully_qualified_name()}")
-        if self.ign is not None:
-            where.append(f"ign-transport partition {self.ign.partition} on {self.ign.address}")
-        log.info("viewer-bridge: %d routes running (%s)", len(self.routes), ", ".join(where))
+        for transport in self.transports.values():
+            transport.start()
+        where = ", ".join(transport.describe() for transport in self.transports.values())
+        log.info("viewer-bridge: %d routes running (%s)", len(self.routes), where)
 
     def stop(self) -> None:
         self._stop.set()
 
     def run(self, duration: float | None = None) -> None:
-        """Serve until `stop()` (a signal handler calls it), `duration` ends, or a replayed log ends."""
+        """Serve until `stop()` (a signal handler calls it), `duration` ends, or a finite source ends."""
         self.start()
         deadline = None if duration is None else time.monotonic() + duration
         next_report = time.monotonic() + self.stats_period
@@ -320,7 +373,7 @@ class Router:
                 remaining = None if deadline is None else deadline - time.monotonic()
                 if remaining is not None and remaining <= 0:
                     break
-                if isinstance(self.lcm, LogReplay) and self.lcm.finished.is_set() and self._idle():
+                if self._source_ended() and self._idle():
                     break
                 self._stop.wait(min(0.1, remaining) if remaining is not None else 0.1)
                 if time.monotonic() >= next_report:
@@ -328,6 +381,9 @@ class Router:
                     self.report()
         finally:
             self.close()
+
+    def _source_ended(self) -> bool:
+        return any(transport.finished() for transport in self.transports.values())
 
     def _idle(self) -> bool:
         return all(len(runner.mailbox) == 0 for runner in self.routes)
@@ -339,18 +395,18 @@ class Router:
         for runner in self.routes:
             runner.join(timeout=2)
         self.report()
-        if self.lcm is not None:
-            self.lcm.close()
-        if self.ros is not None:
-            self.ros.close()
-        if self.ign is not None:
-            self.ign.close()
+        self._close_transports()
+
+    def _close_transports(self) -> None:
+        for transport in self.transports.values():
+            transport.close()
 
     def snapshot(self) -> dict[str, Any]:
         """Per route stats; transports' own error counts under `transports`."""
         snapshot: dict[str, Any] = {runner.route.name: runner.snapshot() for runner in self.routes}
-        if self.ign is not None and self.ign.errors:
-            snapshot["transports"] = {"ign": {"errors": dict(self.ign.errors)}}
+        errors = {name: dict(t.errors()) for name, t in self.transports.items() if t.errors()}
+        if errors:
+            snapshot["transports"] = {name: {"errors": counts} for name, counts in errors.items()}
         return snapshot
 
     def report(self) -> None:
@@ -360,19 +416,25 @@ class Router:
             if name == "transports":
                 log.info("transports: %s", stats)
                 continue
-            errors = sum(stats["errors"].values())
             latency = stats["latency_ms"]
             log.info(
-                "route %s: in %d out %d errors %d dropped %d latency p50 %s p99 %s ms",
+                "route %s: in %d out %d errors %d dropped %d latency p50 %s p99 %s ms%s",
                 name,
                 stats["messages_in"],
                 stats["messages_out"],
-                errors,
+                sum(stats["errors"].values()),
                 stats["dropped"],
-                latency["p50"],
-                latency["p99"],
+                _ms(latency["p50"]),
+                _ms(latency["p99"]),
+                f" ({stats['state']}, {stats['idle_skipped']} not translated)"
+                if stats["state"] != "active"
+                else "",
             )
         if self.stats_json is not None:
             temporary = self.stats_json.with_suffix(".tmp")
             temporary.write_text(json.dumps(snapshot, indent=2))
             temporary.replace(self.stats_json)
+
+
+def _ms(value: float | None) -> str:
+    return "-" if value is None else f"{value:.2f}"

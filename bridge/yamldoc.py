@@ -79,9 +79,12 @@ class YamlDocument:
         try:
             return model.model_validate(self.data, context=context)
         except ValidationError as error:
-            first = error.errors()[0]
-            key_path = self._file_path(first["loc"])
-            raise self.error(key_path, _reason(first)) from None
+            raise self.validation_error(error) from None
+
+    def validation_error(self, error: ValidationError, at: KeyPath = ()) -> ConfigError:
+        """The first error of validating the part of the document at `at`, as a `ConfigError`."""
+        first = error.errors()[0]
+        return self.error(self._file_path((*at, *first["loc"])), _reason(first))
 
 
 _TYPE_TAGS = {"float", "int", "str", "bool", "none", "dict", "list"}  # pydantic's union branch names

@@ -18,6 +18,7 @@ from bridge.errors import ConfigError
 from bridge.formats.drake import DrawEncoder
 from bridge.router import Mailbox, Message
 from bridge.scene import LinkPoses
+from bridge.transports.base import CallPublisher, Received
 from bridge.transports.lcm import LcmBus
 from tests.conftest import DRAKE_SCENE_SCRIPT, lcm_url
 from tests.formats import oracle
@@ -270,22 +271,47 @@ def test_a_malformed_message_is_counted_and_nothing_valid_is_lost(probe: RosProb
 
 BROKEN_CONFIGS = [
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: teleport\n"
-     "    destination: {transport: ros, name: /x}\n", 2, "routes.0", "unknown translator 'teleport'"),
+     "    destination: {transport: ros, name: /x}\n", 4, "routes.0.translator", "unknown translator 'teleport'"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: 'X('}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n", 3, "routes.0.source", "not a regular expression"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n    qos: {depth: many}\n", 6, "routes.0.qos.depth",
      "valid integer"),
     ("routes:\n  - name: a\n    source: {transport: zmq, name: X}\n    translator: drake_to_pose_array\n"
-     "    destination: {transport: ros, name: /x}\n", 3, "routes.0.source.transport", "'lcm', 'ros' or 'ign'"),
+     "    destination: {transport: ros, name: /x}\n", 3, "routes.0.source.transport",
+     "'zmq' is not a transport (transports: lcm, ros, ign"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: '/x/{2}'}\n", 2, "routes.0", "does not fit a source with 0 groups"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_ign_pose_v\n"
-     "    destination: {transport: ign, name: /x}\n    options: {package: gazebo}\n", 2, "routes.0",
-     "options.package must be"),
+     "    destination: {transport: ign, name: /x}\n    options: {package: gazebo}\n", 6,
+     "routes.0.options.package", "Input should be 'ignition' or 'gz'"),
     ("routes:\n  - name: a\n    source: {transport: ign, name: '/robot.+/pose_v'}\n"
-     "    translator: ign_pose_v_to_drake_draw\n    destination: {transport: lcm, name: X}\n", 2, "routes.0",
-     "an ign source is one topic name"),
+     "    translator: ign_pose_v_to_drake_draw\n    destination: {transport: lcm, name: X}\n", 3,
+     "routes.0.source.name", "an ign source is one topic name"),
+    # Options are the translator's model: a misspelt key and a wrong type are refused at load.
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
+     "    destination: {transport: ros, name: /x}\n    options:\n      frmae_id: map\n", 7,
+     "routes.0.options.frmae_id", "Extra inputs are not permitted"),
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_ign_model\n"
+     "    destination: {transport: ign, name: /x}\n    options: {republish_s: soon}\n", 6,
+     "routes.0.options.republish_s", "valid number"),
+    # The translator's declared types must travel over the route's transports.
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
+     "    destination: {transport: lcm, name: Y}\n", 5, "routes.0.destination.transport",
+     "translator drake_to_pose_array writes geometry_msgs/msg/PoseArray (cdr), which the lcm transport does not carry"),
+    ("routes:\n  - name: a\n    source: {transport: ros, name: /x}\n    translator: drake_to_pose_array\n"
+     "    destination: {transport: ros, name: /y}\n", 3, "routes.0.source.transport",
+     "translator drake_to_pose_array reads drake.lcmt_viewer_draw (lcm), which the ros transport does not carry"),
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_ign_pose_v\n"
+     "    destination: {transport: ros, name: /y}\n", 5, "routes.0.destination.transport",
+     "writes ignition.msgs.Pose_V (protobuf), which the ros transport does not carry"),
+    # Transport sections are checked by the transport's own settings model.
+    ("lcm: {uri: 'udpm://x'}\nroutes: []\n", 1, "lcm.uri", "Extra inputs are not permitted"),
+    ("routes: []\nzmq: {port: 1}\n", 2, "zmq", "'zmq' is not a config key (load_cache, routes) nor a transport"),
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
+     "    destination: {transport: ros, name: /x}\n  - name: a\n    source: {transport: lcm, name: X}\n"
+     "    translator: drake_to_clock\n    destination: {transport: ros, name: /c}\n", 6, "routes.1.name",
+     "route names must be unique"),
     ("lcm: {url: udpm://x}\n", 1, "routes", "Field required"),
     ("routes: [\n", 2, "", "not valid YAML"),
 ]  # fmt: skip
@@ -351,15 +377,15 @@ def test_mailbox_keeps_the_newest_per_channel_and_never_grows() -> None:
     assert match is not None
     latest = Mailbox("latest", 10)
     for index in range(1000):
-        latest.put(Message("DRAW", bytes([index % 256]), index, match))
-    latest.put(Message("LOAD", b"load", 0, match))
-    latest.put(Message("DRAW", b"newest", 0, match))
+        latest.put(Message(Received("DRAW", bytes([index % 256]), index), match))
+    latest.put(Message(Received("LOAD", b"load", 0), match))
+    latest.put(Message(Received("DRAW", b"newest", 0), match))
     assert len(latest) == 2 and latest.dropped == 1000
-    assert [latest.get(0).data, latest.get(0).data] == [b"load", b"newest"]  # type: ignore[union-attr]
+    assert [latest.get(0).received.data, latest.get(0).received.data] == [b"load", b"newest"]  # type: ignore[union-attr]
     fifo = Mailbox("all", 3)
     for index in range(5):
-        fifo.put(Message("DRAW", bytes([index]), index, match))
-    assert fifo.dropped == 2 and [fifo.get(0).data for _ in range(3)] == [b"\x02", b"\x03", b"\x04"]  # type: ignore[union-attr]
+        fifo.put(Message(Received("DRAW", bytes([index]), index), match))
+    assert fifo.dropped == 2 and [fifo.get(0).received.data for _ in range(3)] == [b"\x02", b"\x03", b"\x04"]  # type: ignore[union-attr]
     assert fifo.get(0.01) is None
 
 
@@ -371,11 +397,11 @@ def test_a_translator_crash_skips_that_message_only() -> None:
     from bridge.translators import LoadCache, Translator
 
     class Flaky(Translator):
-        source, destination = "lcm", "ros"
+        reads = ()
         outputs = ()
 
-        def translate(self, channel: str, data: bytes) -> Any:
-            if data == b"boom":
+        def translate(self, message: Received) -> Any:
+            if message.data == b"boom":
                 raise ZeroDivisionError("a bug")
             return []
 
@@ -383,11 +409,11 @@ def test_a_translator_crash_skips_that_message_only() -> None:
         {"name": "r", "source": {"transport": "lcm", "name": "X"}, "translator": "drake_to_pose_array",
          "destination": {"transport": "ros", "name": "/x"}}
     )  # fmt: skip
-    runner = RouteRunner(route, Flaky({}, LoadCache()), lambda name, output: lambda data: None)
+    runner = RouteRunner(route, lambda: Flaky({}, LoadCache()), lambda name, output: CallPublisher(print))
     match = re.fullmatch("X", "X")
     assert match is not None
     for data in (b"ok", b"boom", b"ok"):
-        runner.handle(Message("X", data, 0, match))
+        runner.handle(Message(Received("X", data, 0), match))
     assert runner.stats.errors == {"crash:ZeroDivisionError": 1} and len(runner.stats.translate_ms) == 2
 
 
@@ -445,7 +471,7 @@ def test_clock_carries_drakes_sim_time() -> None:
     draw = DrawEncoder().encode(
         LinkPoses(61_250, names, np.ones(1, np.int32), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]]))
     )
-    ((_, data),) = TRANSLATORS["drake_to_clock"]({}, LoadCache()).translate("DRAKE_VIEWER_DRAW", draw)
+    ((_, data),) = TRANSLATORS["drake_to_clock"]({}, LoadCache()).translate(Received("DRAKE_VIEWER_DRAW", draw))
     clock = deserialize_message(data, Clock).clock
     assert (clock.sec, clock.nanosec) == (61, 250_000_000)
 

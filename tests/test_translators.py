@@ -23,7 +23,9 @@ from bridge.errors import BridgeError
 from bridge.formats import tree_viewer as tv
 from bridge.formats.drake import DrawEncoder, decode_load, load_from_scene
 from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere
-from bridge.translators import DrakeToTreeViewer, LoadCache, TreeViewerServer
+from bridge.translators import LoadCache
+from bridge.translators.tree_viewer import DrakeToTreeViewer, TreeViewerServer
+from bridge.transports.base import Received
 from bridge.transports.lcm import LcmBus
 from tests.conftest import lcm_url
 from tests.peers import BridgeProcess, RosProbe, write_config
@@ -101,7 +103,7 @@ class Collected:
 def serve(server: TreeViewerServer, data: bytes, channel: str = REQUEST) -> tuple[list[Any], Any]:
     """One request through the server: (the markers it publishes, or None) and the raised error."""
     try:
-        outputs = server.translate(channel, data)
+        outputs = server.translate(Received(channel, data))
     except BridgeError as error:
         return [], error
     return [deserialize_message(payload, MarkerArray) for _, payload in outputs], None
@@ -248,7 +250,7 @@ def test_100000_fuzzed_requests_get_a_reply_each_and_never_crash(tmp_path: Path)
     for data in fuzzed_requests(100_000):
         before = len(replies.sent)
         with contextlib.suppress(BridgeError):  # a bad request: answered, and counted by the router
-            server.translate(REQUEST, data)
+            server.translate(Received(REQUEST, data))
         assert len(replies.sent) == before + 1
         status = tv.decode(replies.sent[-1][1])["status"]
         statuses[status] = statuses.get(status, 0) + 1
@@ -285,17 +287,17 @@ def test_client_resends_on_missing_paths_and_the_viewer_tree_is_complete() -> No
 
     def deliver(outputs: list[tuple[int, bytes]]) -> None:
         for _, data in outputs:
-            viewer.translate("DIRECTOR_TREE_VIEWER_REQUEST_<drake>", data)
+            viewer.translate(Received("DIRECTOR_TREE_VIEWER_REQUEST_<drake>", data))
 
-    deliver(client.translate("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(scene).encode()))
-    deliver(client.translate("DRAKE_VIEWER_DRAW", draw_of(scene, 1.0)))
+    deliver(client.translate(Received("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(scene).encode())))
+    deliver(client.translate(Received("DRAKE_VIEWER_DRAW", draw_of(scene, 1.0))))
     assert len(viewer.trees["drake"].scene().links) == 2
     # The viewer restarts and forgets its tree; the next draw's settransforms miss their paths.
     viewer.trees.clear()
-    deliver(client.translate("DRAKE_VIEWER_DRAW", draw_of(scene, 2.0)))
+    deliver(client.translate(Received("DRAKE_VIEWER_DRAW", draw_of(scene, 2.0))))
     answer = tv.decode(to_client.sent[-1][1])
     assert answer["status"] == tv.MISSING_PATHS and len(answer["missing_paths"]) == 2
-    deliver(client.translate("DIRECTOR_TREE_VIEWER_RESPONSE_<drake>", to_client.sent[-1][1]))
+    deliver(client.translate(Received("DIRECTOR_TREE_VIEWER_RESPONSE_<drake>", to_client.sent[-1][1])))
     assert tv.decode(to_client.sent[-1][1])["status"] == tv.OK
     rebuilt = viewer.trees["drake"].scene()
     sent = decode_load(load_from_scene(scene).encode())  # as the client saw it: float32 on LCM
@@ -307,9 +309,9 @@ def test_client_stops_when_the_viewer_does_not_speak_its_format() -> None:
     client = DrakeToTreeViewer({}, LoadCache())
     refusal = tv.encode({"status": tv.ERROR_UNKNOWN_FORMAT_VERSION, "error": "unknown version 1.0"})
     with pytest.raises(BridgeError, match="the viewer refused treeviewer_json 1.0 .status -2"):
-        client.translate("DIRECTOR_TREE_VIEWER_RESPONSE_<drake>", refusal)
+        client.translate(Received("DIRECTOR_TREE_VIEWER_RESPONSE_<drake>", refusal))
     with pytest.raises(BridgeError, match="no longer sending"):
-        client.translate("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(small_scene()).encode())
+        client.translate(Received("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(small_scene()).encode()))
 
 
 # --- end to end: the bridge as a process, a client over LCM, markers in rclpy -------------------------

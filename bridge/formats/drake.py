@@ -316,17 +316,19 @@ class DrawDecoder:
     """
 
     def __init__(self) -> None:
-        self._names_block = b""
-        self._names: tuple[str, ...] = ()
+        # The name block and its names, as one tuple: replaced in one store, so routes sharing
+        # a decoder on several threads never see the names of one block with another block.
+        self._known: tuple[bytes, tuple[str, ...]] = (b"", ())
 
     def decode(self, data: Buffer) -> LinkPoses:
         end = len(data)
         if end < 20 or data[:8] != DRAW.packed_fingerprint:
             return self._generic(data)
         timestamp, count = _HEADER.unpack_from(data, 8)
-        names_end: int | None = 20 + len(self._names_block)
-        if count != len(self._names) or not _same_bytes_at(data, 20, self._names_block):
-            names_end = self._parse_names(data, count)
+        block, names = self._known
+        names_end: int | None = 20 + len(block)
+        if count != len(names) or not _same_bytes_at(data, 20, block):
+            names_end, names = self._parse_names(data, count)
         # After the names: int32 robot_num, 3 float32 position, 4 float32 quaternion per link.
         if names_end is None or end != names_end + 32 * count:
             return self._generic(data)
@@ -336,7 +338,7 @@ class DrawDecoder:
             return self._generic(data)
         return LinkPoses(
             timestamp_ms=timestamp,
-            names=self._names,
+            names=names,
             robot_nums=robot_nums,
             positions=floats[: 3 * count].reshape(count, 3),
             quaternions_wxyz=floats[3 * count :].reshape(count, 4),
@@ -346,28 +348,27 @@ class DrawDecoder:
     def _generic(data: Buffer) -> LinkPoses:
         return poses_from_draw(DRAW.decode(data))
 
-    def _parse_names(self, data: Buffer, count: int) -> int | None:
-        """Parse and keep the name block; None when it is not well formed."""
+    def _parse_names(self, data: Buffer, count: int) -> tuple[int | None, tuple[str, ...]]:
+        """Parse and keep the name block: (where it ends, the names); None when it is not well formed."""
         end = len(data)
         if count < 0 or 37 * count > end - 20:  # at least 5 bytes of name + 32 of arrays per link
-            return None
+            return None, ()
         names = []
         offset = 20
         for _ in range(count):
             if offset + 4 > end:
-                return None
+                return None, ()
             (length,) = _U32.unpack_from(data, offset)
             start = offset + 4
             offset = start + length
             if length == 0 or offset > end or data[offset - 1] != 0:
-                return None
+                return None, ()
             try:
                 names.append(str(data[start : offset - 1], "utf-8"))
             except UnicodeDecodeError:
-                return None
-        self._names = tuple(names)
-        self._names_block = bytes(data[20:offset])
-        return offset
+                return None, ()
+        known = self._known = (bytes(data[20:offset]), tuple(names))
+        return offset, known[1]
 
 
 def _same_bytes_at(data: Buffer, offset: int, expected: bytes) -> bool:

@@ -40,6 +40,7 @@ from bridge.scene import (
     pose_from_xyzw,
     xyzw_from_wxyz,
 )
+from bridge.sim_time import ms_from_sec_nsec, sec_nsec_from_ms
 
 # name -> fields (name, number, type, repeated). Types are scalar protobuf types or message names.
 _SCHEMA: dict[str, list[tuple[str, int, str, bool]]] = {
@@ -222,8 +223,7 @@ def _set_pose(target: Any, pose: Pose) -> None:
 
 
 def _set_stamp(time: Any, timestamp_ms: int) -> None:
-    seconds, milliseconds = divmod(int(timestamp_ms), 1000)
-    time.sec, time.nsec = seconds, milliseconds * 1_000_000
+    time.sec, time.nsec = sec_nsec_from_ms(timestamp_ms)
 
 
 def pose_v(poses: LinkPoses, msgs: MessageSet = IGNITION) -> Any:
@@ -264,7 +264,7 @@ def poses_from_pose_v(message: Any, robot_nums: Mapping[str, int] | None = None)
     xyzw = [[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in message.pose]
     numbers = [(robot_nums or {}).get(name, 0) for name in names]
     stamp = message.header.stamp
-    timestamp_ms = int(stamp.sec) * 1000 + int(stamp.nsec) // 1_000_000
+    timestamp_ms = ms_from_sec_nsec(stamp.sec, stamp.nsec)
     return link_poses_from_xyzw(timestamp_ms, names, numbers, positions, xyzw, "pose")
 
 

@@ -57,6 +57,7 @@ from bridge.scene import (
     pose_from_xyzw,
     xyzw_from_wxyz,
 )
+from bridge.sim_time import ms_from_sec_nsec
 
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
@@ -115,7 +116,7 @@ def poses_from_pose_array(
     positions = [[p.position.x, p.position.y, p.position.z] for p in message.poses]
     xyzw = [[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in message.poses]
     time = message.header.stamp
-    timestamp_ms = int(time.sec) * 1000 + int(time.nanosec) // 1_000_000
+    timestamp_ms = ms_from_sec_nsec(time.sec, time.nanosec)
     return link_poses_from_xyzw(timestamp_ms, names, robot_nums, positions, xyzw, "poses")
 
 
@@ -193,7 +194,7 @@ def pose_array_arrays(data: bytes | memoryview) -> tuple[int, str, FloatArray, F
     if end - poses_at != 56 * count:
         raise fail("poses", count_at, f"count {count} needs {56 * count} bytes, {end - poses_at} follow")
     values = np.frombuffer(buffer, dtype="<f8", count=7 * count, offset=poses_at).reshape(count, 7)
-    timestamp_ms = seconds * 1000 + nanoseconds // 1_000_000
+    timestamp_ms = ms_from_sec_nsec(seconds, nanoseconds)
     return timestamp_ms, frame_id, values[:, :3], values[:, 3:]
 
 

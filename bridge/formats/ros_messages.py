@@ -19,6 +19,7 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_typestore
 
 from bridge.errors import DecodeError, EncodeError
+from bridge.sim_time import sec_nsec_from_ms
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -79,12 +80,12 @@ def time_parts(timestamp_ms: int) -> tuple[int, int]:
 
     Raises `EncodeError` for a time whose seconds do not fit an int32.
     """
-    seconds, milliseconds = divmod(int(timestamp_ms), 1000)
+    seconds, nanoseconds = sec_nsec_from_ms(timestamp_ms)
     if not -(2**31) <= seconds < 2**31:
         raise EncodeError(
             "builtin_interfaces/msg/Time", "sec", f"{timestamp_ms} ms does not fit int32 seconds"
         )
-    return seconds, milliseconds * 1_000_000
+    return seconds, nanoseconds
 
 
 def stamp(timestamp_ms: int) -> Any:

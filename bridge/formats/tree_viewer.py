@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 import orjson
 
-from bridge.errors import DecodeError, SceneError
+from bridge.errors import BridgeError, SceneError
 from bridge.lcmcodec import VIEWER2_COMMS, Buffer
 from bridge.mappings import Table, tables
 from bridge.scene import (
@@ -178,37 +178,41 @@ def encode(payload: Request, utime: int = 0) -> bytes:
     )
 
 
-class RequestError(DecodeError):
-    """An envelope the tree viewer cannot handle; `status` is the response code that says why."""
+class RequestRejected(BridgeError):
+    """A request the tree viewer cannot handle; `status` is the response code that says why:
+    -1 unknown format, -2 unknown version, -3 a request it cannot handle, -4 an unknown command."""
 
-    def __init__(self, field: str, offset: int, reason: str, status: int, unit: str = "byte") -> None:
-        super().__init__(VIEWER2_COMMS.type_name, field, offset, reason, unit)
+    def __init__(self, status: int, reason: str) -> None:
+        super().__init__(reason)
         self.status = status
+
+
+_ENVELOPE = VIEWER2_COMMS.type_name
 
 
 def decode(data: Buffer) -> Request:
     """A `viewer2_comms_t` envelope's JSON object.
 
-    Raises `DecodeError` for bytes that are no envelope, and its subclass `RequestError` (with
-    the response status) for a wrong format or version, bad JSON, or JSON that is no object.
+    Raises `DecodeError` for bytes that are no envelope, and `RequestRejected` (with the response
+    status) for a wrong format or version, bad JSON, or JSON that is no object.
     """
     message = VIEWER2_COMMS.decode(data)
     if message.format != FORMAT:
-        raise RequestError("format", 0, f"unknown format {message.format!r}", ERROR_UNKNOWN_FORMAT)
+        raise RequestRejected(ERROR_UNKNOWN_FORMAT, f"{_ENVELOPE}.format: unknown format {message.format!r}")
     major, minor = message.format_version_major, message.format_version_minor
     if major != VERSION[0]:
-        raise RequestError(
-            "format_version_major", 0, f"unknown version {major}.{minor}", ERROR_UNKNOWN_FORMAT_VERSION
+        raise RequestRejected(
+            ERROR_UNKNOWN_FORMAT_VERSION, f"{_ENVELOPE}.format_version_major: unknown version {major}.{minor}"
         )
     try:
         payload = orjson.loads(bytes(message.data))
     except orjson.JSONDecodeError as error:  # also raised for invalid UTF-8
         position = getattr(error, "pos", getattr(error, "start", 0))
-        raise RequestError(
-            "data", position, f"not JSON: {error}", ERROR_HANDLING_REQUEST, "character"
+        raise RequestRejected(
+            ERROR_HANDLING_REQUEST, f"{_ENVELOPE}.data at character {position}: not JSON: {error}"
         ) from None
     if not isinstance(payload, dict):
-        raise RequestError("data", 0, "the JSON is not an object", ERROR_HANDLING_REQUEST)
+        raise RequestRejected(ERROR_HANDLING_REQUEST, f"{_ENVELOPE}.data: the JSON is not an object")
     return payload
 
 
@@ -223,14 +227,6 @@ class _Node:
 
     def has_geometry(self) -> bool:
         return bool(self.geometries) or any(child.has_geometry() for child in self.children.values())
-
-
-class RequestRejected(SceneError):
-    """A request the viewer cannot handle; `status` is the response code (-3 or -4)."""
-
-    def __init__(self, status: int, reason: str) -> None:
-        super().__init__(reason)
-        self.status = status
 
 
 _REQUEST_KEYS = {"timestamp", "utime", "setgeometry", "settransform", "delete"}

@@ -13,6 +13,7 @@ section 4, checked against Debian's `ign-transport-topic`):
 
 Bytes in, bytes out, like the other transports: what the payload means is the formats' business.
 Bad datagrams and frames are counted in `errors` and skipped, with a log line at a bounded rate.
+`IgnTransport` is the router's view of a node.
 """
 
 from __future__ import annotations
@@ -21,19 +22,31 @@ import getpass
 import logging
 import os
 import queue
+import re
 import socket
 import struct
 import threading
 import time
 import uuid
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import zmq
 from google.protobuf.message import DecodeError as ProtobufDecodeError
 
 from bridge.formats.ign import IGNITION
+from bridge.transports.base import (
+    PROTOBUF,
+    CallPublisher,
+    Deliver,
+    MessageType,
+    Publisher,
+    Qos,
+    Received,
+    Transport,
+    TransportSettings,
+)
 
 log = logging.getLogger("viewer_bridge")
 
@@ -332,3 +345,64 @@ class IgnNode:
         self._logged[kind] += 1
         if self._logged[kind] <= 5 or self._logged[kind] % 1000 == 0:
             log.warning("ign-transport: %s (%s #%d)", text, kind, self._logged[kind])
+
+
+class IgnSettings(TransportSettings):
+    partition: str | None = None  # default: IGN_PARTITION, or hostname:username
+    ip: str | None = None  # default: IGN_IP, or 127.0.0.1
+
+
+_TOPIC = re.compile(r"[A-Za-z0-9_/~-]+")
+
+
+class IgnTransport(Transport):
+    """An `IgnNode` for the router: ign-msgs (`ignition.msgs.*`) or gz-msgs (`gz.msgs.*`) types."""
+
+    Settings = IgnSettings
+    encodings = frozenset({PROTOBUF})
+    settings: IgnSettings
+
+    def __init__(self, settings: IgnSettings) -> None:
+        super().__init__(settings)
+        self.node = IgnNode(settings.partition, settings.ip)
+        self._delivers: dict[str, list[Deliver]] = {}
+
+    @classmethod
+    def carries(cls, message_type: MessageType) -> bool:
+        return super().carries(message_type) and message_type.name.startswith(("ignition.msgs.", "gz.msgs."))
+
+    @classmethod
+    def check_source(cls, name: str) -> None:
+        if not _TOPIC.fullmatch(name):  # ign-transport subscribes by exact topic: a pattern never appears
+            raise ValueError(f"an ign source is one topic name, not a pattern: {name!r}")
+
+    def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
+        delivers = self._delivers.get(pattern)
+        if delivers is not None:  # another route reads this topic already
+            delivers.append(deliver)
+            return
+        delivers = self._delivers[pattern] = [deliver]
+
+        def on_message(topic: str, data: bytes, received_us: int) -> None:
+            message = Received(topic, data, received_us)
+            for each in delivers:
+                each(message)
+
+        self.node.subscribe(pattern, message_type.name, on_message)
+
+    def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
+        node, typename = self.node, message_type.name
+        node.advertise(name, typename)  # seen by `ign topic -l` from the first message on
+        return CallPublisher(lambda data: node.publish(name, data, typename))
+
+    def start(self) -> None:
+        self.node.start()
+
+    def describe(self) -> str:
+        return f"ign-transport partition {self.node.partition} on {self.node.address}"
+
+    def errors(self) -> Mapping[str, int]:
+        return self.node.errors
+
+    def close(self) -> None:
+        self.node.close()

@@ -1,6 +1,8 @@
 """LCM as a transport: live buses (any LCM URL) and log files. Bytes in, bytes out.
 
 Nothing here knows a message format; callers get `(channel, data, timestamp)` events.
+`LcmTransport` is the router's view of it: a bus or a replayed log behind the `Transport`
+interface, with one LCM subscription for every route (LCM channels carry any type).
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import lcm
+
+from bridge.transports import base
 
 DEFAULT_URL = "udpm://239.255.76.67:7667?ttl=0"  # LCM's default; ttl=0 never leaves the host
 
@@ -185,3 +189,50 @@ def open_bus(url: str) -> LcmBus | LogReplay:
             raise FileNotFoundError(f"{url}: no such log file")
         return LogReplay(path, speed)
     return LcmBus(url)
+
+
+class LcmSettings(base.TransportSettings):
+    url: str = DEFAULT_URL  # a live bus, or a log to replay: file://LOG?speed=S
+
+
+class LcmTransport(base.Transport):
+    """LCM for the router: every route's pattern is served by one subscription to everything,
+    so a message several routes read is received (and decoded) once."""
+
+    Settings = LcmSettings
+    encodings = frozenset({base.LCM})
+    settings: LcmSettings
+
+    def __init__(self, settings: LcmSettings) -> None:
+        super().__init__(settings)
+        self.bus = open_bus(settings.url)
+        self._routes: list[tuple[re.Pattern[str], base.Deliver]] = []
+
+    def subscribe(
+        self, pattern: str, message_type: base.MessageType, qos: base.Qos, deliver: base.Deliver
+    ) -> None:
+        self._routes.append((re.compile(pattern), deliver))
+
+    def publisher(self, name: str, message_type: base.MessageType, qos: base.Qos) -> base.Publisher:
+        bus = self.bus
+        return base.CallPublisher(lambda data: bus.publish(name, data))
+
+    def start(self) -> None:
+        self.bus.subscribe(".*", self._dispatch)
+        self.bus.start()
+
+    def _dispatch(self, channel: str, data: bytes, received_us: int) -> None:
+        message = None
+        for pattern, deliver in self._routes:
+            if pattern.fullmatch(channel):
+                message = message or base.Received(channel, data, received_us)
+                deliver(message)
+
+    def describe(self) -> str:
+        return f"LCM {self.bus.url}"
+
+    def finished(self) -> bool:
+        return isinstance(self.bus, LogReplay) and self.bus.finished.is_set()
+
+    def close(self) -> None:
+        self.bus.close()

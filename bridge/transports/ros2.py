@@ -3,7 +3,8 @@
 Publishers take CDR bytes (rclpy publishes them as they are) and subscriptions deliver raw
 bytes, so nothing here builds or reads a message: the formats do that. A source name that is
 a regular expression is matched against the graph once a second and subscribed as topics of
-the wanted type appear.
+the wanted type appear. rclpy is imported when the transport starts, not when a config that
+names it is checked, so the ROS 2 wheels are needed only by bridges that use them.
 """
 
 # rclpy's own annotations are incomplete; its untyped calls are accepted in this module only.
@@ -14,20 +15,26 @@ import contextlib
 import importlib
 import re
 import threading
-import time
-from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from bridge.transports.base import (
+    CDR,
+    CallPublisher,
+    Deliver,
+    MessageType,
+    Publisher,
+    Qos,
+    Received,
+    Transport,
+    TransportSettings,
+    TransportUnavailable,
+)
 
-Callback = Callable[[str, bytes, int], None]  # topic, CDR bytes, receive time in microseconds
+if TYPE_CHECKING:
+    from rclpy.qos import QoSProfile
 
 _PLAIN_TOPIC = re.compile(r"^[A-Za-z0-9_/~{}]+$")
+INSTALL_HINT = "pip install 'viewer-bridge[ros]' (ROS 2 Jazzy's rclpy wheels)"
 
 
 def message_class(typename: str) -> Any:
@@ -37,6 +44,8 @@ def message_class(typename: str) -> Any:
 
 
 def qos_profile(depth: int, reliable: bool = True, latched: bool = False) -> QoSProfile:
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
         depth=depth,
@@ -45,18 +54,39 @@ def qos_profile(depth: int, reliable: bool = True, latched: bool = False) -> QoS
     )
 
 
-class RosNode:
-    """One rclpy node spun by a thread of its own."""
+class RosSettings(TransportSettings):
+    node: str = "viewer_bridge"
+    namespace: str = ""
+    use_sim_time: bool = False
 
-    def __init__(self, name: str = "viewer_bridge", namespace: str = "", use_sim_time: bool = False) -> None:
+
+class RosTransport(Transport):
+    """One rclpy node in a context of its own, spun by a thread of its own."""
+
+    Settings = RosSettings
+    encodings = frozenset({CDR})
+    settings: RosSettings
+
+    def __init__(self, settings: RosSettings) -> None:
+        super().__init__(settings)
+        try:
+            import rclpy
+            from rclpy.context import Context
+            from rclpy.executors import SingleThreadedExecutor
+            from rclpy.node import Node
+            from rclpy.parameter import Parameter
+        except ImportError as error:
+            raise TransportUnavailable(f"the ros transport needs rclpy ({error}): {INSTALL_HINT}") from None
         self._context = Context()
         rclpy.init(context=self._context)
-        overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, use_sim_time)]
-        self.node = Node(name, namespace=namespace, context=self._context, parameter_overrides=overrides)
+        overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, settings.use_sim_time)]
+        self.node = Node(
+            settings.node, namespace=settings.namespace, context=self._context, parameter_overrides=overrides
+        )
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self.node)
-        self._pattern_subscriptions: list[tuple[re.Pattern[str], str, QoSProfile, Callback]] = []
-        self._subscribed: set[str] = set()
+        self._patterns: list[tuple[re.Pattern[str], str, Qos, Deliver]] = []
+        self._delivers: dict[str, list[Deliver]] = {}  # topic -> every route reading it
         self._lock = threading.Lock()
         self._thread = threading.Thread(target=self._spin, name="rclpy", daemon=True)
         self._discovery = self.node.create_timer(1.0, self._discover)
@@ -65,43 +95,54 @@ class RosNode:
         self._thread.start()
 
     def _spin(self) -> None:
+        from rclpy.executors import ExternalShutdownException
+
         with contextlib.suppress(ExternalShutdownException):
             self._executor.spin()
 
-    def publisher(self, topic: str, typename: str, qos: QoSProfile) -> Callable[[bytes], None]:
-        """A function publishing CDR bytes on `topic` as `typename`."""
-        publisher = self.node.create_publisher(message_class(typename), topic, qos)
-        return publisher.publish
+    def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
+        profile = qos_profile(qos.depth, qos.reliable, qos.latched)
+        publisher = self.node.create_publisher(message_class(message_type.name), name, profile)
+        return CallPublisher(publisher.publish, publisher.get_subscription_count)
 
-    def subscribe(self, name: str, typename: str, qos: QoSProfile, callback: Callback) -> None:
-        """Raw bytes of `typename` from `name`: a topic, or a regex matched against the graph."""
-        if _PLAIN_TOPIC.match(name):
-            self._subscribe(name, typename, qos, callback)
+    def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
+        """Raw bytes of the type from `pattern`: a topic, or a regex matched against the graph."""
+        if _PLAIN_TOPIC.match(pattern):
+            self._subscribe(pattern, message_type.name, qos, deliver)
         else:
-            self._pattern_subscriptions.append((re.compile(name), typename, qos, callback))
+            self._patterns.append((re.compile(pattern), message_type.name, qos, deliver))
 
-    def _subscribe(self, topic: str, typename: str, qos: QoSProfile, callback: Callback) -> None:
+    def _subscribe(self, topic: str, typename: str, qos: Qos, deliver: Deliver) -> None:
         with self._lock:
-            if topic in self._subscribed:
+            delivers = self._delivers.get(topic)
+            if delivers is not None:  # another route reads it already: share the subscription
+                if deliver not in delivers:
+                    delivers.append(deliver)
                 return
-            self._subscribed.add(topic)
-        self.node.create_subscription(
-            message_class(typename),
-            topic,
-            lambda data: callback(topic, bytes(data), time.time_ns() // 1000),  # type: ignore[call-overload]
-            qos,
-            raw=True,
-        )
+            delivers = self._delivers[topic] = [deliver]
+
+        def on_message(data: bytes) -> None:
+            message = Received(topic, bytes(data))
+            for each in delivers:
+                each(message)
+
+        profile = qos_profile(qos.depth, qos.reliable, qos.latched)
+        self.node.create_subscription(message_class(typename), topic, on_message, profile, raw=True)
 
     def _discover(self) -> None:
-        if not self._pattern_subscriptions:
+        if not self._patterns:
             return
         for topic, types in self.node.get_topic_names_and_types():
-            for pattern, typename, qos, callback in self._pattern_subscriptions:
+            for pattern, typename, qos, deliver in self._patterns:
                 if pattern.fullmatch(topic) and typename in types:
-                    self._subscribe(topic, typename, qos, callback)
+                    self._subscribe(topic, typename, qos, deliver)
+
+    def describe(self) -> str:
+        return f"ROS 2 node {self.node.get_fully_qualified_name()}"
 
     def close(self) -> None:
+        import rclpy
+
         self._executor.shutdown(timeout_sec=1)
         self.node.destroy_node()
         if self._context.ok():

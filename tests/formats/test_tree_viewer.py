@@ -211,7 +211,7 @@ def envelope(format_name: str = tv.FORMAT, major: int = 1, data: bytes = b"{}") 
     ],
 )
 def test_bad_envelopes_carry_the_response_status(data: bytes, status: int, reason: str) -> None:
-    with pytest.raises(tv.RequestError, match=reason) as caught:
+    with pytest.raises(tv.RequestRejected, match=reason) as caught:
         tv.decode(data)
     assert caught.value.status == status
 

@@ -1,0 +1,66 @@
+"""Named extension points: transports and translators, built in or installed as plugins.
+
+A `Registry` maps a name (the word a config uses) to a class. Built-in entries are given as
+`"module:attribute"` strings and imported only when first asked for, so a config that never
+names the ROS 2 transport never imports rclpy. Plugins are Python entry points in the
+registry's group, e.g. in a plugin package's `pyproject.toml`:
+
+    [project.entry-points."viewer_bridge.transports"]
+    memory = "my_plugin:MemoryTransport"
+
+A plugin cannot replace a built-in name: that would change what an existing config means.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+from collections.abc import Mapping
+from importlib.metadata import entry_points
+from typing import Generic, TypeVar, cast
+
+log = logging.getLogger("viewer_bridge")
+
+Entry = TypeVar("Entry")
+
+
+class Registry(Generic[Entry]):
+    """Classes by name: built-ins (imported lazily) and the entry points of one group."""
+
+    def __init__(self, kind: str, group: str, builtins: Mapping[str, str], base: type) -> None:
+        self.kind = kind  # "transport", "translator": for messages
+        self.group = group
+        self._base = base
+        self._builtins = dict(builtins)
+        self._loaded: dict[str, type[Entry]] = {}
+
+    def names(self) -> list[str]:
+        """Every name a config may use: the built-ins, then the plugins'."""
+        plugins = [point.name for point in entry_points(group=self.group) if point.name not in self._builtins]
+        return [*self._builtins, *sorted(set(plugins))]
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and name in self.names()
+
+    def get(self, name: str) -> type[Entry]:
+        """The class registered as `name`; `KeyError` names the known ones."""
+        entry = self._loaded.get(name)
+        if entry is None:
+            entry = self._loaded[name] = self._load(name)
+        return entry
+
+    def __getitem__(self, name: str) -> type[Entry]:
+        return self.get(name)
+
+    def _load(self, name: str) -> type[Entry]:
+        if name in self._builtins:
+            module, _, attribute = self._builtins[name].partition(":")
+            loaded = getattr(importlib.import_module(module), attribute)
+        else:
+            points = [point for point in entry_points(group=self.group) if point.name == name]
+            if not points:
+                raise KeyError(f"unknown {self.kind} {name!r} (known: {', '.join(self.names())})")
+            loaded = points[0].load()
+        if not (isinstance(loaded, type) and issubclass(loaded, self._base)):
+            raise KeyError(f"{self.kind} {name!r} ({self.group}) is not a subclass of {self._base.__name__}")
+        return cast("type[Entry]", loaded)

@@ -1,0 +1,40 @@
+"""The router's translators: one class per (source message, target message) pair.
+
+Grouped by family: `drake_ros` (Drake's LCM scene <-> ROS 2), `drake_ign` (<-> ign/gz
+protobuf), `tree_viewer` (Director's remote tree viewer, both sides); `drake_stream` holds the
+load cache and the decode-once draw every Drake translator shares; `base` what a translator is.
+`TRANSLATORS` is the registry a route's `translator:` word is looked up in; a plugin adds one
+with an entry point in the group `viewer_bridge.translators` naming a `Translator` subclass.
+"""
+
+from __future__ import annotations
+
+from bridge.registry import Registry
+from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
+from bridge.translators.drake_stream import LoadCache
+
+_BUILTINS = {
+    "drake_to_marker_array": "drake_ros:DrakeToMarkerArray",
+    "drake_to_pose_array": "drake_ros:DrakeToPoseArray",
+    "drake_to_shapes": "drake_ros:DrakeToShapes",
+    "drake_to_clock": "drake_ros:DrakeToClock",
+    "drake_link_to_marker_array": "drake_ros:DrakeLinkToMarkerArray",
+    "ros_pose_array_to_drake_draw": "drake_ros:RosPoseArrayToDrakeDraw",
+    "lcm_bytes_to_ros": "drake_ros:LcmBytesToRos",
+    "tree_viewer_server": "tree_viewer:TreeViewerServer",
+    "drake_to_tree_viewer": "tree_viewer:DrakeToTreeViewer",
+    "drake_to_ign_model": "drake_ign:DrakeToIgnModel",
+    "drake_to_ign_model_v": "drake_ign:DrakeToIgnModelV",
+    "drake_to_ign_pose_v": "drake_ign:DrakeToIgnPoseV",
+    "drake_to_ign_poses_stamped": "drake_ign:DrakeToIgnPosesStamped",
+    "ign_pose_v_to_drake_draw": "drake_ign:IgnPoseVToDrakeDraw",
+}
+
+TRANSLATORS: Registry[Translator] = Registry(
+    "translator",
+    "viewer_bridge.translators",
+    {name: f"bridge.translators.{target}" for name, target in _BUILTINS.items()},
+    Translator,
+)
+
+__all__ = ["TRANSLATORS", "LoadCache", "Output", "Outputs", "Translator", "TranslatorOptions"]

@@ -1,0 +1,136 @@
+"""Drake's LCM scene to ign-transport (ign-msgs 8 / gz-msgs protobuf), and Pose_V back."""
+
+from __future__ import annotations
+
+import time
+from typing import Any, ClassVar, Literal
+
+from pydantic import Field
+
+from bridge.formats import ign
+from bridge.formats.drake import DrawEncoder
+from bridge.scene import Scene
+from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
+from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream, draw_poses
+from bridge.transports.base import PROTOBUF, MessageType, Received
+
+
+class IgnOptions(TranslatorOptions):
+    """`ignition` (ign-msgs 8, as Debian's tools speak) or `gz` (newer Gazebo) message names."""
+
+    package: Literal["ignition", "gz"] = "ignition"
+
+    def messages(self) -> ign.MessageSet:
+        return ign.IGNITION if self.package == "ignition" else ign.GZ
+
+
+def ign_type(msgs: ign.MessageSet, name: str) -> MessageType:
+    return MessageType(msgs.full_name(name), PROTOBUF)
+
+
+class _DrakeToIgn(Translator):
+    """Base of Drake -> ign-transport: the package option picks the message names."""
+
+    Options: ClassVar[type[TranslatorOptions]] = IgnOptions
+    options: IgnOptions
+    message_name: ClassVar[str]
+    reads: tuple[MessageType, ...] = (DRAW_TYPE,)
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        # What the class declares (checked against the route's transports when the config loads);
+        # an instance names the package its options pick.
+        super().__init_subclass__(**kwargs)
+        cls.outputs = (Output("", ign_type(ign.IGNITION, cls.message_name), latched=True),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.msgs = self.options.messages()
+        self.outputs = (Output("", ign_type(self.msgs, self.message_name), latched=True),)
+
+
+class ModelOptions(IgnOptions):
+    republish_s: float = Field(1.0, ge=0)  # ign-transport has no latching: re-send for late subscribers
+
+
+class DrakeToIgnModel(_DrakeToIgn):
+    """load -> `Model` (every link of the scene). ign-transport has no latching, so the model is
+    published again every `republish_s` seconds while draws flow, for subscribers that start
+    late; its link poses follow the latest draw."""
+
+    Options = ModelOptions
+    options: ModelOptions
+    message_name = "Model"
+    reads = (LOAD_TYPE, DRAW_TYPE)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.drake = DrakeStream(self.loads)
+        self._published_at = float("-inf")
+
+    def build(self, scene: Scene) -> bytes:
+        return bytes(ign.model(scene, msgs=self.msgs).SerializeToString())
+
+    def observe(self, message: Received) -> None:
+        self.drake.observe(message)
+
+    def translate(self, message: Received) -> Outputs:
+        scene, poses = self.drake.read(message)
+        now = time.monotonic()
+        if scene is not None:
+            self._published_at = now
+            return [(0, self.build(scene))]
+        if poses is None or self.drake.scene is None or now - self._published_at < self.options.republish_s:
+            return []
+        self._published_at = now
+        return [(0, self.build(self.drake.scene.with_poses(poses)))]
+
+
+class DrakeToIgnModelV(DrakeToIgnModel):
+    """load -> `Model_V`: a Model per robot_num (model instance); republished like the Model."""
+
+    message_name = "Model_V"
+
+    def build(self, scene: Scene) -> bytes:
+        return bytes(ign.model_v(scene, msgs=self.msgs).SerializeToString())
+
+
+class DrakeToIgnPoseV(_DrakeToIgn):
+    """draw -> `Pose_V`: a Pose per link, named with the link's Drake name."""
+
+    message_name = "Pose_V"
+
+    def translate(self, message: Received) -> Outputs:
+        return [(0, bytes(ign.pose_v(draw_poses(message), self.msgs).SerializeToString()))]
+
+
+class DrakeToIgnPosesStamped(_DrakeToIgn):
+    """draw -> the legacy `PosesStamped` (sim time in `time` too), for older tools."""
+
+    message_name = "PosesStamped"
+
+    def translate(self, message: Received) -> Outputs:
+        return [(0, bytes(ign.poses_stamped(draw_poses(message), self.msgs).SerializeToString()))]
+
+
+class PoseVToDrawOptions(IgnOptions):
+    robot_nums: dict[str, int] | None = None  # link name -> model instance; others get 0
+
+
+class IgnPoseVToDrakeDraw(Translator):
+    """ign `Pose_V` -> `lcmt_viewer_draw` (names from `Pose.name`, robot_nums from the options)."""
+
+    Options = PoseVToDrawOptions
+    options: PoseVToDrawOptions
+    reads = (ign_type(ign.IGNITION, "Pose_V"),)
+    outputs = (Output("", DRAW_TYPE),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.msgs = self.options.messages()
+        self.reads = (ign_type(self.msgs, "Pose_V"),)
+        self.encoder = DrawEncoder()
+
+    def translate(self, message: Received) -> Outputs:
+        parsed = self.msgs.parse("Pose_V", message.data)
+        poses = ign.poses_from_pose_v(parsed, self.options.robot_nums)
+        return [(0, self.encoder.encode(poses))]

@@ -1,0 +1,136 @@
+"""Drake's scene as a stream: a load now and then, a draw every frame, shared by every route.
+
+Told apart by the message's fingerprint, not its channel. `LoadCache` keeps the last load per
+load channel for every route (and, with a folder, across runs). `draw_poses` decodes a draw
+once however many routes read it. `DrakeStream` is one translator's view: it says when there is
+a scene to (re)publish, taking the load from the cache when the route has not seen it (a late
+start, a lazy route that was idle when the load came).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+import threading
+from collections.abc import Callable
+from pathlib import Path
+
+from bridge.errors import DecodeError
+from bridge.formats.drake import DrawDecoder, decode_load
+from bridge.lcmcodec import DRAW, LOAD_ROBOT
+from bridge.scene import LinkPoses, Scene
+from bridge.transports.base import LCM, MessageType, Received
+
+LOAD_TYPE = MessageType(LOAD_ROBOT.type_name, LCM)
+DRAW_TYPE = MessageType(DRAW.type_name, LCM)
+
+
+class LoadCache:
+    """The last `lcmt_viewer_load_robot` bytes seen per load channel, shared by every route.
+
+    With a folder, loads are also written there (one file per channel) and read back at start,
+    so a bridge restarted while the simulation runs still has the model: Drake sends a load
+    only when the geometry changes.
+    """
+
+    def __init__(self, folder: str | Path | None = None) -> None:
+        self._loads: dict[str, bytes] = {}
+        self._lock = threading.Lock()
+        self._folder = Path(folder).expanduser() if folder else None
+        if self._folder is not None and self._folder.is_dir():
+            for path in self._folder.glob("*.lcm"):
+                self._loads[path.stem] = path.read_bytes()
+
+    def put(self, channel: str, data: bytes) -> None:
+        # Under the lock, file and memory change together: routes putting the same channel's
+        # loads cannot leave an older one on disk than in memory.
+        with self._lock:
+            if self._loads.get(channel) == data:
+                return
+            self._loads[channel] = data
+            if self._folder is not None and re.fullmatch(r"[A-Za-z0-9_.<>-]+", channel):
+                self._folder.mkdir(parents=True, exist_ok=True)
+                with tempfile.NamedTemporaryFile(dir=self._folder, delete=False) as file:
+                    file.write(data)
+                os.replace(file.name, self._folder / f"{channel}.lcm")
+
+    def get(self, channel: str) -> bytes | None:
+        with self._lock:
+            return self._loads.get(channel)
+
+
+def load_channel_for(draw_channel: str) -> str:
+    """`DRAKE_VIEWER_DRAW_PROXIMITY` -> `DRAKE_VIEWER_LOAD_ROBOT_PROXIMITY` (same prefix and suffix)."""
+    return draw_channel.replace("DRAKE_VIEWER_DRAW", "DRAKE_VIEWER_LOAD_ROBOT", 1)
+
+
+class _DrawPoses:
+    """Decodes a received draw; one `DrawDecoder` per channel, so each keeps its name block."""
+
+    def __init__(self) -> None:
+        self._decoders: dict[str, DrawDecoder] = {}
+
+    def __call__(self, message: Received) -> LinkPoses:
+        decoder = self._decoders.get(message.channel)
+        if decoder is None:
+            decoder = self._decoders.setdefault(message.channel, DrawDecoder())
+        return decoder.decode(message.data)
+
+
+_DRAW_POSES = _DrawPoses()
+
+
+def draw_poses(message: Received) -> LinkPoses:
+    """A received `lcmt_viewer_draw` as link poses, decoded once for every route that reads it."""
+    return message.decoded(_DRAW_POSES)
+
+
+def _load_scene(message: Received) -> Scene:
+    return decode_load(message.data)
+
+
+def is_load(message: Received) -> bool:
+    return message.data[:8] == LOAD_ROBOT.packed_fingerprint
+
+
+class DrakeStream:
+    """One translator's view of one Drake stream (a load channel and its draw channel)."""
+
+    def __init__(self, loads: LoadCache) -> None:
+        self.loads = loads
+        self.scene: Scene | None = None
+        self._load_bytes = b""
+
+    def observe(self, message: Received) -> None:
+        """Keep every load in the shared cache, whether this route translates it or not."""
+        if is_load(message):
+            self.loads.put(message.channel, message.data)
+
+    def read(self, message: Received) -> tuple[Scene | None, LinkPoses | None]:
+        """(a scene to publish, or None), (the draw's poses, or None), for one load or draw.
+
+        A load identical to the last one is no new scene. A draw for a scene this translator
+        has not published yet (the cache holds a newer load of its channel) brings that scene.
+        """
+        fingerprint = message.data[:8]
+        if fingerprint == LOAD_ROBOT.packed_fingerprint:
+            return self._take(message.data, lambda: message.decoded(_load_scene)), None
+        if fingerprint == DRAW.packed_fingerprint:
+            poses = draw_poses(message)
+            cached = self.loads.get(load_channel_for(message.channel))
+            scene = None
+            if cached is not None and cached is not self._load_bytes:
+                scene = self._take(cached, lambda: decode_load(cached))
+            return scene, poses
+        raise DecodeError(
+            "drake viewer message", "", 0, f"fingerprint {fingerprint.hex()} is not a load or a draw"
+        )
+
+    def _take(self, data: bytes, decode: Callable[[], Scene]) -> Scene | None:
+        if data == self._load_bytes:  # re-sent unchanged (e.g. for late listeners): nothing new
+            self._load_bytes = data  # the same bytes: compare by identity next time
+            return None
+        scene = decode()
+        self.scene, self._load_bytes = scene, data
+        return scene

@@ -1,0 +1,152 @@
+"""Director's remote tree viewer, both sides: served (requests -> markers) and driven (Drake -> requests)."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from bridge.errors import DecodeError, SceneError
+from bridge.formats import ros, tree_viewer
+from bridge.lcmcodec import VIEWER2_COMMS
+from bridge.scene import LinkPoses, Scene
+from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
+from bridge.translators.drake_ros import MarkerOptions, ros_type
+from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream
+from bridge.transports.base import LCM, MessageType, Received
+
+ENVELOPE_TYPE = MessageType(VIEWER2_COMMS.type_name, LCM)
+
+
+class TreeViewerServerOptions(MarkerOptions):
+    mesh_roots: list[str] = []  # folders a mesh_file may be in (none: no mesh files)
+
+
+class TreeViewerServer(Translator):
+    """Director's tree viewer, served: requests on `DIRECTOR_TREE_VIEWER_REQUEST_<id>` -> a tree per
+    client, answered on `DIRECTOR_TREE_VIEWER_RESPONSE_<id>`, and the tree as a MarkerArray.
+
+    Every request gets exactly one reply: 0, 1 (MISSING_PATHS), -1 (format, listing the one we
+    speak), -2 (version), -3 (bad request, or not an envelope at all), -4 (unknown command).
+    """
+
+    Options = TreeViewerServerOptions
+    options: TreeViewerServerOptions
+    reads = (ENVELOPE_TYPE,)
+    outputs = (Output("", ros_type(ros.MARKER_ARRAY), latched=True),)
+    replies = ENVELOPE_TYPE
+    _CLIENT = re.compile(r"DIRECTOR_TREE_VIEWER_REQUEST_<([^<>]*)>")
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.trees: dict[str, tree_viewer.TreeState] = {}
+        self._marker_options = self.options.model_dump(exclude_none=True, exclude={"mesh_roots"})
+
+    def translate(self, message: Received) -> Outputs:
+        match = self._CLIENT.fullmatch(message.channel)
+        if match is None:
+            raise DecodeError(
+                VIEWER2_COMMS.type_name, "", 0, f"{message.channel} is not a tree viewer request channel"
+            )
+        client = match.group(1)
+        state = self.trees.setdefault(client, tree_viewer.TreeState(self.options.mesh_roots))
+        answer = tree_viewer.response_channel(client)
+        try:
+            response, changed = self._respond(state, message.data)
+        except Exception as error:  # a bug of ours: still answer, then let the router count it
+            self.reply(
+                answer,
+                tree_viewer.encode({"status": tree_viewer.ERROR_HANDLING_REQUEST, "error": repr(error)}),
+            )
+            raise
+        self.reply(answer, tree_viewer.encode(response))
+        if response["status"] not in (tree_viewer.OK, tree_viewer.MISSING_PATHS):
+            raise tree_viewer.RequestRejected(response["status"], f"client {client}: {response['error']}")
+        return [(0, ros.marker_array_cdr(state.scene(), self._marker_options, delete_all=changed))]
+
+    @staticmethod
+    def _respond(state: tree_viewer.TreeState, data: bytes) -> tuple[dict[str, Any], bool]:
+        """The response to one envelope, and whether the tree's geometry changed."""
+        try:
+            request = tree_viewer.decode(data)
+        except tree_viewer.RequestRejected as error:
+            response: dict[str, Any] = {"status": error.status, "error": str(error)}
+            if error.status == tree_viewer.ERROR_UNKNOWN_FORMAT:
+                response["supported_formats"] = {tree_viewer.FORMAT: [list(tree_viewer.VERSION)]}
+            return response, False
+        except DecodeError as error:
+            return {"status": tree_viewer.ERROR_HANDLING_REQUEST, "error": str(error)}, False
+        changed = bool(request.get("setgeometry") or request.get("delete"))
+        return state.respond(request), changed
+
+
+class TreeViewerClientOptions(TranslatorOptions):
+    prefix: list[str] = list(tree_viewer.DEFAULT_PREFIX)  # where the scene hangs in the viewer's tree
+
+
+class DrakeToTreeViewer(Translator):
+    """Drake load/draw -> tree viewer requests for a running Director (the client side).
+
+    Route the client's response channel to it as well: on MISSING_PATHS it re-sends the geometry
+    and transforms under the missing paths; on -1 or -2 (the viewer does not speak our format)
+    it says so and stops sending.
+    """
+
+    Options = TreeViewerClientOptions
+    options: TreeViewerClientOptions
+    reads = (LOAD_TYPE, DRAW_TYPE, ENVELOPE_TYPE)
+    outputs = (Output("", ENVELOPE_TYPE),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.drake = DrakeStream(self.loads)
+        self.prefix = tuple(self.options.prefix)
+        self.refused: str | None = None
+        self.poses: LinkPoses | None = None
+
+    def observe(self, message: Received) -> None:
+        self.drake.observe(message)
+
+    def translate(self, message: Received) -> Outputs:
+        if self.refused is not None:
+            raise SceneError(self.refused)
+        if message.data[:8] == VIEWER2_COMMS.packed_fingerprint:
+            return self._on_response(tree_viewer.decode(message.data))
+        scene, poses = self.drake.read(message)
+        out: Outputs = []
+        if scene is not None:
+            out += [
+                (0, tree_viewer.encode(request)) for request in tree_viewer.load_requests(scene, self.prefix)
+            ]
+        if poses is not None:
+            self.poses = poses
+            out.append((0, tree_viewer.encode(tree_viewer.draw_request(poses, self.prefix))))
+        return out
+
+    def _on_response(self, response: dict[str, Any]) -> Outputs:
+        status = response.get("status")
+        if status in (tree_viewer.ERROR_UNKNOWN_FORMAT, tree_viewer.ERROR_UNKNOWN_FORMAT_VERSION):
+            self.refused = (
+                f"the viewer refused {tree_viewer.FORMAT} {tree_viewer.VERSION[0]}.{tree_viewer.VERSION[1]} "
+                f"(status {status}: {response.get('error', 'no reason given')}); no longer sending to it"
+            )
+            raise SceneError(self.refused)
+        scene = self.drake.scene
+        if status != tree_viewer.MISSING_PATHS or scene is None:
+            return []
+        missing = [tuple(path) for path in response.get("missing_paths", []) if isinstance(path, list)]
+        links = tuple(
+            link
+            for link in scene.links
+            if any(_related(tuple(tree_viewer.link_path(link, self.prefix)), path) for path in missing)
+        )
+        if not links:
+            return []
+        partial = Scene(links, self.poses)
+        request = tree_viewer.load_requests(partial, self.prefix)[1]  # setgeometry (+ transforms), no delete
+        return [(0, tree_viewer.encode(request))]
+
+
+def _related(link_path: tuple[str, ...], missing: tuple[Any, ...]) -> bool:
+    """Whether a link lies under a missing path, or the missing path under the link."""
+    shorter = min(len(link_path), len(missing))
+    return link_path[:shorter] == tuple(missing[:shorter])
