@@ -1,11 +1,15 @@
 """Benchmark: the router as a process, between a real LCM publisher and a real rclpy subscriber.
 
-Run: .venv/bin/python bench/router.py [--seconds 10]
+Run: .venv/bin/python bench/router.py [--seconds 10] [--baseline REV]
 
 1. Throughput. The bridge is pinned to one core (CPU 0); this process (publisher and subscriber)
    runs on the other. A 1000-link scene (a load, then 1000-link draws at 1 kHz) goes through the
    `markers` and `poses` routes. Reported each second from the bridge's `--stats-json`: messages
-   in and out per route, drops, and the mailbox depth (a backlog would show there).
+   in and out per route, drops, and the mailbox depth (a backlog would show there); at the end,
+   the bridge's CPU time per draw (user + system, from /proc/PID/stat) over the publishing
+   window. The same load runs, in the same invocation, through a bare byte passthrough route
+   and, with `--baseline REV`, through the bridge as it was at git revision REV (checked out
+   into a temporary worktree): same machine, same minute, so the figures compare.
 2. Latency, LCM in -> ROS 2 out, 100 links at 100 Hz: the time from `lcm.publish` here to the
    rclpy callback here, per message (the first link's x carries a sequence number). Measured for
    the `poses` route (draw -> PoseArray) and, in the same run, for a bare byte passthrough
@@ -16,6 +20,7 @@ Run: .venv/bin/python bench/router.py [--seconds 10]
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import struct
@@ -24,6 +29,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +41,14 @@ from bridge.transports.lcm import LcmBus
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 os.environ.setdefault("ROS_DOMAIN_ID", str(101 - os.getpid() % 20))
 URL = f"udpm://239.255.76.67:{7950 + os.getpid() % 40}?ttl=0"
+
+PASSTHROUGH = """\
+routes:
+  - name: passthrough
+    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)"}
+    translator: lcm_bytes_to_ros
+    destination: {transport: ros, name: /bench/bytes}
+"""
 
 THROUGHPUT = """\
 routes:
@@ -89,7 +103,9 @@ def frame(names: tuple[str, ...], sequence: int) -> LinkPoses:
 
 
 class Bridge:
-    def __init__(self, config: str, folder: Path, core: int | None) -> None:
+    """`viewer-bridge run` as a process; `source` is the checkout whose `bridge` package runs."""
+
+    def __init__(self, config: str, folder: Path, core: int | None, source: Path | None = None) -> None:
         path = folder / "bench.yaml"
         path.write_text(config)
         self.stats = folder / "stats.json"
@@ -97,7 +113,12 @@ class Bridge:
         command = [sys.executable, "-m", "bridge.cli", "run", "-c", str(path), "--lcm-url", URL,
                    "--stats-json", str(self.stats), "--stats-period", "1"]  # fmt: skip
         preexec = (lambda: os.sched_setaffinity(0, {core})) if core is not None else None
-        self.process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, preexec_fn=preexec)
+        environment = dict(os.environ)
+        if source is not None:  # that checkout's package first on the path (python -m puts cwd first)
+            environment["PYTHONPATH"] = str(source)
+        self.process = subprocess.Popen(
+            command, stderr=subprocess.PIPE, text=True, preexec_fn=preexec, cwd=source, env=environment
+        )
         assert self.process.stderr is not None
         for line in self.process.stderr:
             if "routes running" in line:
@@ -109,6 +130,11 @@ class Bridge:
             return json.loads(self.stats.read_text())  # type: ignore[no-any-return]
         except (OSError, ValueError):
             return {}
+
+    def cpu_seconds(self) -> float:
+        """User + system CPU time of the bridge process so far (/proc/PID/stat fields 14 and 15)."""
+        fields = Path(f"/proc/{self.process.pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
     def stop(self) -> None:
         self.process.send_signal(2)
@@ -182,41 +208,109 @@ def publish_at(
         sequence += 1
 
 
-def throughput(folder: Path, seconds: float) -> None:
+def throughput_run(
+    label: str, config: str, folder: Path, seconds: float, source: Path | None = None
+) -> dict[str, float]:
+    """One bridge at 1 kHz of 1000-link draws; per-second stats, then its totals."""
     links = 1000
     the_scene = scene(links)
     names = tuple(link.name for link in the_scene.links)
-    bridge = Bridge(THROUGHPUT, folder, core=0)
+    bridge = Bridge(config, folder, core=0, source=source)
     bus = LcmBus(URL)
-    subscriber = Subscriber("/bench/poses", "geometry_msgs/msg/PoseArray")
+    topic, typename = ("/bench/bytes", "std_msgs/msg/UInt8MultiArray") if "passthrough" in config else (
+        "/bench/poses", "geometry_msgs/msg/PoseArray")  # fmt: skip
+    subscriber = Subscriber(topic, typename)
     time.sleep(2.0)  # discovery
     bus.publish("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(the_scene).encode())
+    time.sleep(0.5)
     sent: dict[int, int] = {}
     publisher = threading.Thread(target=publish_at, args=(bus, 1000.0, seconds, names, sent))
-    print(f"1. throughput: 1000-link draws at 1 kHz for {seconds:.0f} s, bridge pinned to CPU 0")
-    print(f"{'t (s)':>6} | {'draws sent':>10} | {'poses in':>8} {'out':>8} {'dropped':>8} {'queued':>6} | "
-          f"{'markers in':>10} {'out':>8} {'dropped':>8} {'queued':>6}")  # fmt: skip
+    print(f"\n{label}")
+    print(f"{'t (s)':>6} | {'draws sent':>10} | " + " | ".join(
+        f"{'route':>11} {'in':>6} {'out':>6} {'dropped':>7} {'queued':>6}" for _ in range(2)))  # fmt: skip
+    cpu_before, in_before = bridge.cpu_seconds(), _draws_in(bridge.snapshot())
     started = time.monotonic()
     publisher.start()
-    while publisher.is_alive() or time.monotonic() - started < seconds + 2:
+    while publisher.is_alive():
         time.sleep(1.0)
         stats = bridge.snapshot()
-        if not stats:
-            continue
-        p, m = stats["poses"], stats["markers"]
-        print(f"{time.monotonic() - started:6.1f} | {len(sent):>10} | {p['messages_in']:>8} {p['messages_out']:>8} "
-              f"{p['dropped']:>8} {p['queued']:>6} | {m['messages_in']:>10} {m['messages_out']:>8} "
-              f"{m['dropped']:>8} {m['queued']:>6}")  # fmt: skip
-    bridge.stop()
+        routes = [(name, stats[name]) for name in stats if name != "transports"]
+        print(f"{time.monotonic() - started:6.1f} | {len(sent):>10} | " + " | ".join(
+            f"{name:>11} {r['messages_in']:>6} {r['messages_out']:>6} {r['dropped']:>7} {r['queued']:>6}"
+            for name, r in routes))  # fmt: skip
+    time.sleep(1.0)  # what was queued drains
+    cpu = bridge.cpu_seconds() - cpu_before
     stats = bridge.snapshot()
+    bridge.stop()
     subscriber.close()
     bus.close()
-    p, m = stats["poses"], stats["markers"]
-    print(f"   rclpy subscriber received {len(subscriber.received)} PoseArrays of {len(sent)} draws sent")
-    print(f"   translate ms p50/p99: poses {p['translate_ms']['p50']}/{p['translate_ms']['p99']}, "
-          f"markers {m['translate_ms']['p50']}/{m['translate_ms']['p99']}")  # fmt: skip
-    print(f"   in-bridge latency ms p50/p99: poses {p['latency_ms']['p50']}/{p['latency_ms']['p99']}, "
-          f"markers {m['latency_ms']['p50']}/{m['latency_ms']['p99']}")  # fmt: skip
+    received = _draws_in(stats) - in_before
+    routes = {name: stats[name] for name in stats if name != "transports"}
+    result = {
+        "sent": len(sent),
+        "received": received,
+        "cpu_us_per_draw": cpu / max(received, 1) * 1e6,
+        "core_share": cpu / seconds,
+        "delivered": len(subscriber.received),
+    }
+    for name, r in routes.items():
+        result[f"{name}_out"] = r["messages_out"]
+        result[f"{name}_dropped"] = r["dropped"]
+        result[f"{name}_errors"] = sum(r["errors"].values())
+    print(f"   bridge CPU {result['cpu_us_per_draw']:.0f} us per draw received ({received} of {len(sent)} "
+          f"sent), {result['core_share']:.2f} of its core; the rclpy subscriber got {len(subscriber.received)}")  # fmt: skip
+    return result
+
+
+def _draws_in(stats: dict) -> int:  # type: ignore[type-arg]
+    """Draws the bridge received: the most any route saw (every route here reads every draw)."""
+    return max((r["messages_in"] for name, r in stats.items() if name != "transports"), default=0)
+
+
+def throughput(folder: Path, seconds: float, baseline: str | None) -> None:
+    print(f"1. throughput: 1000-link draws at 1 kHz for {seconds:.0f} s, bridge pinned to CPU 0, "
+          "publisher and subscriber on CPU 1")  # fmt: skip
+    results = {}
+    with contextlib.ExitStack() as stack:
+        if baseline is not None:
+            source = stack.enter_context(worktree(baseline))
+            results[f"markers + poses at {baseline}"] = throughput_run(
+                f"markers + poses, the bridge at {baseline}", THROUGHPUT, folder, seconds, source
+            )
+        results["markers + poses (this checkout)"] = throughput_run(
+            "markers + poses, this checkout", THROUGHPUT, folder, seconds
+        )
+        results["passthrough (this checkout)"] = throughput_run(
+            "bare byte passthrough, this checkout", PASSTHROUGH, folder, seconds
+        )
+    print(f"\n   {'set-up':<40} {'CPU us/draw':>11} {'core':>5} {'received':>9} {'poses out':>9} "
+          f"{'dropped':>7} {'markers out':>11} {'dropped':>7}")  # fmt: skip
+    for label, r in results.items():
+        print(f"   {label:<40} {r['cpu_us_per_draw']:>11.0f} {r['core_share']:>5.2f} {r['received']:>9.0f} "
+              f"{r.get('poses_out', r.get('passthrough_out', 0)):>9.0f} "
+              f"{r.get('poses_dropped', r.get('passthrough_dropped', 0)):>7.0f} "
+              f"{r.get('markers_out', 0):>11.0f} {r.get('markers_dropped', 0):>7.0f}")  # fmt: skip
+    if baseline is not None:
+        before = results[f"markers + poses at {baseline}"]["cpu_us_per_draw"]
+        after = results["markers + poses (this checkout)"]["cpu_us_per_draw"]
+        print(f"   CPU per draw, this checkout / {baseline}: {after / before:.2f}")
+    passthrough = results["passthrough (this checkout)"]["cpu_us_per_draw"]
+    after = results["markers + poses (this checkout)"]["cpu_us_per_draw"]
+    print(f"   CPU per draw, markers + poses / passthrough: {after / passthrough:.2f}")
+
+
+@contextlib.contextmanager
+def worktree(revision: str) -> Iterator[Path]:
+    """The repository at `revision`, checked out in a temporary folder (removed afterwards)."""
+    top = Path(__file__).resolve().parent.parent
+    folder = Path(tempfile.mkdtemp(prefix="viewer-bridge-baseline-"))
+    subprocess.run(
+        ["git", "-C", str(top), "worktree", "add", "--detach", "-q", str(folder), revision], check=True
+    )
+    try:
+        yield folder
+    finally:
+        subprocess.run(["git", "-C", str(top), "worktree", "remove", "--force", str(folder)], check=False)
 
 
 def latency(folder: Path, seconds: float) -> None:
@@ -261,10 +355,16 @@ def main() -> None:
     )
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--only", choices=["throughput", "latency"], help="run one of the two parts")
+    parser.add_argument("--baseline", metavar="REV", help="also run the bridge at this git revision")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
         if args.only != "latency":
-            throughput(Path(folder), args.seconds)
+            everywhere = os.sched_getaffinity(0)
+            os.sched_setaffinity(0, {1})  # the publisher and subscriber; the bridge gets CPU 0
+            try:
+                throughput(Path(folder), args.seconds, args.baseline)
+            finally:
+                os.sched_setaffinity(0, everywhere)
         if args.only != "throughput":
             latency(Path(folder), args.seconds)
 

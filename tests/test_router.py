@@ -334,6 +334,68 @@ def test_a_broken_config_exits_2_naming_file_line_and_field(
         load_config(path)
 
 
+# --- lazy routes ------------------------------------------------------------------------------------------
+
+LAZY = """\
+routes:
+  - name: markers
+    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)"}
+    translator: drake_to_marker_array
+    destination: {transport: ros, name: /lazy/markers}
+    lazy: true
+  - name: poses
+    source: {transport: lcm, name: DRAKE_VIEWER_DRAW}
+    translator: drake_to_pose_array
+    destination: {transport: ros, name: /lazy/poses}
+    lazy: true
+"""
+
+
+def test_a_lazy_route_translates_only_while_someone_listens(probe: RosProbe, tmp_path: Path) -> None:
+    from bridge.formats.drake import load_from_scene
+    from tests.test_translators import draw_of, small_scene
+
+    url = lcm_url(10)
+    stats_path = tmp_path / "stats.json"
+    bridge = BridgeProcess("-c", str(write_config(tmp_path, LAZY)), "--lcm-url", url,
+                           "--stats-json", str(stats_path), "--stats-period", "0.2")  # fmt: skip
+    bus = LcmBus(url)
+    scene = small_scene()
+
+    def draws(seconds: float, start: float) -> None:
+        for index in range(int(seconds * 50)):
+            bus.publish("DRAKE_VIEWER_DRAW", draw_of(scene, start + index / 50))
+            time.sleep(0.02)
+
+    def stats() -> dict[str, Any]:
+        return json.loads(stats_path.read_text()) if stats_path.exists() else {}  # type: ignore[no-any-return]
+
+    try:
+        bridge.wait_for_line("routes running")
+        bus.publish("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(scene).encode())  # the only load
+        draws(1.0, 0.0)
+        time.sleep(0.5)
+        idle = stats()
+        assert {idle[name]["state"] for name in ("markers", "poses")} == {"idle: no subscriber"}, idle
+        assert idle["markers"]["messages_out"] == 0 and idle["poses"]["messages_out"] == 0, idle
+        assert idle["markers"]["idle_skipped"] >= 40 and idle["poses"]["idle_skipped"] >= 40, idle
+        # A subscriber joins: the model (from the load the route skipped) and the next poses arrive.
+        markers = probe.subscribe("/lazy/markers", "visualization_msgs/msg/MarkerArray", 10, latched=True)
+        poses = probe.subscribe("/lazy/poses", "geometry_msgs/msg/PoseArray")
+        draws(2.0, 10.0)
+        assert probe.wait_for(lambda: bool(markers) and bool(poses), timeout=10), bridge.lines
+        time.sleep(0.5)
+        active = stats()
+    finally:
+        assert bridge.stop() == 0
+        bus.close()
+    assert markers[0].markers[0].action == 3  # DELETEALL: the load's full array came first
+    assert len([m for m in markers[0].markers if m.action == 0]) >= 2
+    assert all(_stamp_ms(p.header.stamp) >= 10_000 for p in poses)  # only draws sent after it joined
+    assert active["markers"]["state"] == active["poses"]["state"] == "active", active
+    assert active["markers"]["errors"] == {} and active["poses"]["messages_out"] >= 1, active
+
+
 # --- pieces ----------------------------------------------------------------------------------------------
 
 

@@ -407,3 +407,37 @@ def test_client_and_server_routes_carry_the_demo_scene_through_the_tree_viewer(t
     }
     routes = json.loads(stats.read_text())
     assert routes["to_director"]["messages_out"] > 0 and routes["as_director"]["messages_out"] > 0
+
+
+# --- decode once, fan out ---------------------------------------------------------------------------------
+
+
+def test_a_draw_read_by_several_translators_is_decoded_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    from bridge.formats.drake import DrawDecoder, load_from_scene
+    from bridge.translators import TRANSLATORS
+    from bridge.translators.drake_stream import LOAD_TYPE
+
+    calls: list[int] = []
+    decode = DrawDecoder.decode
+
+    def counting(self: DrawDecoder, data: Any) -> Any:
+        calls.append(len(data))
+        return decode(self, data)
+
+    monkeypatch.setattr(DrawDecoder, "decode", counting)
+    scene = small_scene()
+    loads = LoadCache()
+    names = ["drake_to_marker_array", "drake_to_pose_array", "drake_to_clock", "drake_to_ign_pose_v"]
+    translators = [TRANSLATORS.get(name)({}, loads) for name in names]
+    load = Received("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(scene).encode())
+    for translator in translators:
+        translator.observe(load)
+        if LOAD_TYPE in translator.reads:
+            translator.translate(load)
+    draw = Received("DRAKE_VIEWER_DRAW", draw_of(scene, 1.0))
+    outputs = [translator.translate(draw) for translator in translators]
+    assert calls == [len(draw.data)]  # four translators, one decode
+    assert all(len(out) == 1 for out in outputs)
+    again = Received("DRAKE_VIEWER_DRAW", draw_of(scene, 2.0))  # the next message is decoded anew
+    translators[1].translate(again)
+    assert len(calls) == 2
