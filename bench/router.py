@@ -50,6 +50,27 @@ routes:
     destination: {transport: ros, name: /bench/bytes}
 """
 
+WORLD_MARKERS = """\
+routes:
+  - name: markers
+    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)"}
+    translator: drake_to_marker_array
+    destination: {transport: ros, name: /bench/markers}
+"""
+
+TF_SETUP = """\
+routes:
+  - name: tf
+    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)"}
+    translator: drake_to_tf
+    destination: {transport: ros, name: /tf}
+    qos: {depth: 100}
+  - name: link_markers
+    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)"}
+    translator: drake_to_link_markers
+    destination: {transport: ros, name: /bench/link_markers}
+"""
+
 THROUGHPUT = """\
 routes:
   - name: markers
@@ -208,6 +229,14 @@ def publish_at(
         sequence += 1
 
 
+SUBSCRIBED = {  # what this process subscribes to, raw, for each set-up: the per-draw output
+    PASSTHROUGH: ("/bench/bytes", "std_msgs/msg/UInt8MultiArray"),
+    THROUGHPUT: ("/bench/poses", "geometry_msgs/msg/PoseArray"),
+    WORLD_MARKERS: ("/bench/markers", "visualization_msgs/msg/MarkerArray"),
+    TF_SETUP: ("/tf", "tf2_msgs/msg/TFMessage"),
+}
+
+
 def throughput_run(
     label: str, config: str, folder: Path, seconds: float, source: Path | None = None
 ) -> dict[str, float]:
@@ -217,9 +246,7 @@ def throughput_run(
     names = tuple(link.name for link in the_scene.links)
     bridge = Bridge(config, folder, core=0, source=source)
     bus = LcmBus(URL)
-    topic, typename = ("/bench/bytes", "std_msgs/msg/UInt8MultiArray") if "passthrough" in config else (
-        "/bench/poses", "geometry_msgs/msg/PoseArray")  # fmt: skip
-    subscriber = Subscriber(topic, typename)
+    subscriber = Subscriber(*SUBSCRIBED[config])
     time.sleep(2.0)  # discovery
     bus.publish("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(the_scene).encode())
     time.sleep(0.5)
@@ -283,13 +310,22 @@ def throughput(folder: Path, seconds: float, baseline: str | None) -> None:
         results["passthrough (this checkout)"] = throughput_run(
             "bare byte passthrough, this checkout", PASSTHROUGH, folder, seconds
         )
-    print(f"\n   {'set-up':<40} {'CPU us/draw':>11} {'core':>5} {'received':>9} {'poses out':>9} "
-          f"{'dropped':>7} {'markers out':>11} {'dropped':>7}")  # fmt: skip
+        results["world-frame markers (this checkout)"] = throughput_run(
+            "world-frame MarkerArray route alone, this checkout", WORLD_MARKERS, folder, seconds
+        )
+        results["tf + link_markers (this checkout)"] = throughput_run(
+            "TF + link-frame markers, this checkout", TF_SETUP, folder, seconds
+        )
+    print(f"\n   {'set-up':<40} {'CPU us/draw':>11} {'core':>5} {'received':>9} {'delivered':>9}  "
+          "per route: out / dropped / errors")  # fmt: skip
     for label, r in results.items():
+        routes = sorted({key.rsplit("_", 1)[0] for key in r if key.endswith("_out")})
+        per_route = ", ".join(
+            f"{name} {r[name + '_out']:.0f}/{r[name + '_dropped']:.0f}/{r[name + '_errors']:.0f}"
+            for name in routes
+        )
         print(f"   {label:<40} {r['cpu_us_per_draw']:>11.0f} {r['core_share']:>5.2f} {r['received']:>9.0f} "
-              f"{r.get('poses_out', r.get('passthrough_out', 0)):>9.0f} "
-              f"{r.get('poses_dropped', r.get('passthrough_dropped', 0)):>7.0f} "
-              f"{r.get('markers_out', 0):>11.0f} {r.get('markers_dropped', 0):>7.0f}")  # fmt: skip
+              f"{r['delivered']:>9.0f}  {per_route}")  # fmt: skip
     if baseline is not None:
         before = results[f"markers + poses at {baseline}"]["cpu_us_per_draw"]
         after = results["markers + poses (this checkout)"]["cpu_us_per_draw"]
@@ -297,6 +333,9 @@ def throughput(folder: Path, seconds: float, baseline: str | None) -> None:
     passthrough = results["passthrough (this checkout)"]["cpu_us_per_draw"]
     after = results["markers + poses (this checkout)"]["cpu_us_per_draw"]
     print(f"   CPU per draw, markers + poses / passthrough: {after / passthrough:.2f}")
+    world = results["world-frame markers (this checkout)"]["cpu_us_per_draw"]
+    tf = results["tf + link_markers (this checkout)"]["cpu_us_per_draw"]
+    print(f"   CPU per draw, TF + link-frame markers / world-frame markers: {tf / world:.2f}")
 
 
 @contextlib.contextmanager

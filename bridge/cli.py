@@ -103,6 +103,12 @@ def _parser() -> argparse.ArgumentParser:
     convert.add_argument(
         "-c", "--config", help="a YAML config whose LCM -> ROS routes are used (default: built-in)"
     )
+
+    interfaces = commands.add_parser(
+        "ros-interfaces", help="build ROS 2 interface packages PyPI has no wheel for (tf2_msgs) into the venv"
+    )
+    interfaces.add_argument("action", choices=["install", "status"])
+    interfaces.add_argument("names", nargs="*", metavar="NAME", help="packages to install (default: all)")
     return parser
 
 
@@ -249,6 +255,22 @@ def _serve_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _ros_interfaces(args: argparse.Namespace) -> int:
+    from bridge import ros_interfaces
+
+    if args.action == "status":
+        absent = ros_interfaces.missing()
+        for name in ros_interfaces.INTERFACES:
+            print(f"{name}: {'missing' if name in absent else 'installed'} in {sys.prefix}")
+        return 0
+    try:
+        ros_interfaces.install(args.names or None, log=lambda line: print(line, file=sys.stderr))
+    except BridgeError as error:
+        print(f"viewer-bridge: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     handlers = {
@@ -259,6 +281,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "convert": _convert,
         "serve-render": _serve_render,
         "snapshot": _snapshot,
+        "ros-interfaces": _ros_interfaces,
     }
     return handlers[args.command](args)
 

@@ -245,7 +245,8 @@ def destination_name(template: str, match: re.Match[str]) -> str:
 DEFAULT_CONFIG = """\
 # viewer-bridge's built-in configuration: Drake's default viewer channels to ROS 2 under /drake.
 # An unsuffixed channel (Drake's illustration default) goes to /drake/..., a role-suffixed one
-# (_ILLUSTRATION, _PROXIMITY, _PERCEPTION) to /drake/<role>/...
+# (_ILLUSTRATION, _PROXIMITY, _PERCEPTION) to /drake/<role>/... Lazy routes translate nothing
+# while their topics have no subscriber.
 lcm:
   url: udpm://239.255.76.67:7667?ttl=0
 ros:
@@ -253,11 +254,29 @@ ros:
   namespace: ""
   use_sim_time: false
 routes:
+  # Each draw as a TF tree on /tf (world -> plant/iiwa/iiwa_link_0 ...; proximity and perception
+  # frames prefixed proximity/ and perception/), what never moves on /tf_static.
+  - name: tf
+    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
+    translator: drake_to_tf
+    destination: {transport: ros, name: /tf}
+    qos: {depth: 100}
+    rate: {policy: latest}
+    lazy: true
+  # The scene's markers in their link frames, once per load (latched); TF moves them.
+  - name: link_markers
+    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
+    translator: drake_to_link_markers
+    destination: {transport: ros, name: "/drake{1:path}/link_markers"}
+    rate: {policy: latest}
+    lazy: true
+  # The same markers in the world frame, re-posed every draw: for tools without TF.
   - name: markers
     source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
     translator: drake_to_marker_array
     destination: {transport: ros, name: "/drake{1:path}/markers"}
     rate: {policy: latest}
+    lazy: true
   - name: poses
     source: {transport: lcm, name: "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
     translator: drake_to_pose_array

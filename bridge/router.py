@@ -4,7 +4,7 @@ The data path of one message:
 
     transport thread                     route worker thread
     ----------------                     -------------------
-    Received --offer--> Mailbox ------>  lane (per destination) -> observe -> [lazy?] -> translate
+    Received --offer--> Mailbox ------>  lane (per stream) -> observe -> [lazy?] -> translate
     (one per message,   (per route,                                 -> publisher per output
      shared by routes)   bounded)
 
@@ -20,8 +20,11 @@ backlog; a draw never displaces a load, which is on another channel), with `all`
 `qos.depth` that drops its oldest. Every drop, error and crash is counted per route and kind;
 a translator that raises skips that message only.
 
-A route has one translator per destination name (a "lane"): the illustration and proximity
-streams a route's regex matches never share a translator's state.
+A route has one translator per stream (a "lane"): per set of groups its source regex captures,
+so the illustration and proximity streams a route matches never share a translator's state,
+even when they publish on one topic (`/tf`). A lazy route that skipped messages while nobody
+listened keeps the newest per channel and translates them the moment a subscriber appears, so
+the subscriber gets the model and the latest poses at once, not at the next draw.
 """
 
 from __future__ import annotations
@@ -140,35 +143,40 @@ _LISTENERS_CHECK_S = 0.25  # how often a lazy route asks its publishers whether 
 
 
 class _Lane:
-    """One destination of a route: its translator and a publisher per output, made on first use."""
+    """One stream of a route: its translator, the names it publishes on, what it skipped."""
 
-    def __init__(self, name: str, translator: Translator, publisher_for: PublisherFor) -> None:
+    def __init__(
+        self, name: str, translator: Translator, publisher: Callable[[str, Output], Publisher]
+    ) -> None:
         self.name = name
         self.translator = translator
-        self._publisher_for = publisher_for
-        self._publishers: list[Publisher | None] = [None] * len(translator.outputs)
-        self._listened = True
+        self._publisher = publisher
+        self.skipped: dict[str, Message] = {}  # newest per channel, while nobody listened (lazy)
+        self.listened_now = True
         self._checked_at = float("-inf")
 
     def publisher(self, index: int) -> Publisher:
-        publisher = self._publishers[index]
-        if publisher is None:
-            output = self.translator.outputs[index]
-            publisher = self._publishers[index] = self._publisher_for(self.name + output.suffix, output)
-        return publisher
+        output = self.translator.outputs[index]
+        return self._publisher(self.name + output.suffix, output)
 
     def listened(self) -> bool:
         """Whether any output has a subscriber, or its transport cannot tell (then: translate)."""
         now = time.monotonic()
         if now - self._checked_at >= _LISTENERS_CHECK_S:
             self._checked_at = now
-            counts = [self.publisher(index).subscriber_count() for index in range(len(self._publishers))]
-            self._listened = any(count is None or count > 0 for count in counts)
-        return self._listened
+            counts = [
+                self.publisher(index).subscriber_count() for index in range(len(self.translator.outputs))
+            ]
+            self.listened_now = any(count is None or count > 0 for count in counts)
+        return self.listened_now
+
+    def skip(self, message: Message) -> None:
+        self.skipped.pop(message.channel, None)  # re-inserted: the dict keeps arrival order
+        self.skipped[message.channel] = message
 
 
 class RouteRunner:
-    """One route: its mailbox, its lanes (translator + publishers per destination), its worker."""
+    """One route: its mailbox, its lanes (a translator per stream), its publishers, its worker."""
 
     def __init__(
         self, route: Route, make_translator: Callable[[], Translator], publisher_for: PublisherFor
@@ -180,8 +188,8 @@ class RouteRunner:
         self._make_translator = make_translator
         self._publisher_for = publisher_for
         self.prototype: Translator | None = make_translator()  # made now: errors show at start
-        self._lanes: dict[str, _Lane] = {}  # by destination name
-        self._lane_of_channel: dict[str, _Lane] = {}
+        self._lanes: dict[tuple[str | None, ...], _Lane] = {}  # by the source's captured groups
+        self._publishers: dict[str, Publisher] = {}  # by full name: lanes may share a topic
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"route {route.name}", daemon=True)
         self._logged: Counter[str] = Counter()
@@ -214,33 +222,59 @@ class RouteRunner:
                     break
             message = self.mailbox.get(timeout=0.1)
             if message is None:
+                self.catch_up()
                 continue
             next_due = time.monotonic() + period
             self.handle(message)
 
+    def catch_up(self) -> None:
+        """A lazy route's lanes that skipped messages and now have a subscriber translate them."""
+        for lane in list(self._lanes.values()):
+            if lane.skipped and lane.listened():
+                self._replay(lane)
+
+    def _replay(self, lane: _Lane) -> None:
+        skipped, lane.skipped = lane.skipped, {}
+        for message in skipped.values():
+            self._translate(lane, message)
+
+    def _publisher(self, name: str, output: Output) -> Publisher:
+        publisher = self._publishers.get(name)
+        if publisher is None:
+            publisher = self._publishers[name] = self._publisher_for(name, output)
+        return publisher
+
     def _lane(self, message: Message) -> _Lane:
-        lane = self._lane_of_channel.get(message.channel)
+        key = message.match.groups()
+        lane = self._lanes.get(key)
         if lane is None:
+            translator, self.prototype = self.prototype or self._make_translator(), None
             name = destination_name(self.route.destination.name, message.match)
-            lane = self._lanes.get(name)
-            if lane is None:
-                translator, self.prototype = self.prototype or self._make_translator(), None
-                lane = self._lanes[name] = _Lane(name, translator, self._publisher_for)
-            self._lane_of_channel[message.channel] = lane
+            lane = self._lanes[key] = _Lane(name, translator, self._publisher)
         return lane
 
     def handle(self, message: Message) -> None:
         """Translate and publish one message; errors are counted and reported, never raised."""
-        started = time.perf_counter()
-        received = message.received
         try:
             lane = self._lane(message)
-            translator = lane.translator
-            translator.observe(received)
-            if self.route.lazy and not lane.listened():
-                self.stats.idle_skipped += 1
-                return
-            outputs = translator.translate(received)
+            lane.translator.observe(message.received)
+            if self.route.lazy:
+                if not lane.listened():
+                    lane.skip(message)
+                    self.stats.idle_skipped += 1
+                    return
+                if lane.skipped:  # a subscriber just appeared: what came before goes first
+                    lane.skipped.pop(message.channel, None)
+                    self._replay(lane)
+        except Exception as error:  # a bug in a translator's bookkeeping or a transport
+            self._error(f"crash:{type(error).__name__}", f"{message.channel}: {traceback.format_exc()}")
+            return
+        self._translate(lane, message)
+
+    def _translate(self, lane: _Lane, message: Message) -> None:
+        started = time.perf_counter()
+        try:
+            outputs = lane.translator.translate(message.received)
         except BridgeError as error:
             self._error(type(error).__name__, f"{message.channel}: {error}")
             return
@@ -257,7 +291,7 @@ class RouteRunner:
             self.stats.messages_out += 1
             self.stats.bytes_out += len(payload)
         if outputs:
-            self.stats.latency_ms.append((time.time_ns() // 1000 - received.received_us) / 1e3)
+            self.stats.latency_ms.append((time.time_ns() // 1000 - message.received.received_us) / 1e3)
 
     def _error(self, kind: str, text: str) -> None:
         self.stats.errors[kind] += 1
@@ -267,7 +301,7 @@ class RouteRunner:
             log.warning("route %s: %s (%s #%d)", self.route.name, text.rstrip(), kind, count)
 
     def state(self) -> str:
-        if self.route.lazy and self._lanes and not any(lane._listened for lane in self._lanes.values()):
+        if self.route.lazy and self._lanes and not any(lane.listened_now for lane in self._lanes.values()):
             return "idle: no subscriber"
         return "active"
 
@@ -304,6 +338,7 @@ class Router:
                 self.transports[name] = TRANSPORTS.get(name)(config.settings(name))
             for route in config.routes:
                 self.routes.append(self._runner(route))
+            self._require()
         except BaseException:
             self._close_transports()
             raise
@@ -324,6 +359,18 @@ class Router:
         assert runner.prototype is not None
         source.subscribe(route.source.name, runner.prototype.reads[0], output_qos(route, False), runner.offer)
         return runner
+
+    def _require(self) -> None:
+        """Every transport checks, before anything runs, that it has every type its routes use."""
+        for runner, route in zip(self.routes, self.config.routes, strict=True):
+            translator = runner.prototype
+            assert translator is not None
+            source, destination = (
+                self.transports[route.source.transport],
+                self.transports[route.destination.transport],
+            )
+            source.require(translator.reads[:1] + ((translator.replies,) if translator.replies else ()))
+            destination.require(output.type for output in translator.outputs)
 
     def _publisher_factory(self, route: Route) -> PublisherFor:
         transport = self.transports[route.destination.transport]

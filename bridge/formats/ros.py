@@ -518,10 +518,10 @@ def _string_4(text: str, field: str = "string") -> bytes:
     return data + b"\0" * (-len(data) % 4)
 
 
-def _marker_tail(spec: MarkerSpec) -> bytes:
+def _marker_tail(spec: MarkerSpec, frame_locked: bool) -> bytes:
     """Everything after a marker's lifetime. It starts 8-aligned, so its bytes never change."""
     writer = CdrWriter()
-    writer.add(b"\0")  # frame_locked: the pose is already in the world frame
+    writer.add(b"\1" if frame_locked else b"\0")  # frame_locked: follow the frame as TF moves it
     points = spec.points if spec.points is not None else np.zeros((0, 3))
     writer.pack(U32, len(points))
     if len(points):
@@ -545,32 +545,43 @@ def _marker_tail(spec: MarkerSpec) -> bytes:
 
 
 def _write_markers(
-    specs: Sequence[MarkerSpec], poses: FloatArray, frame_id: str, delete_all: bool
+    specs: Sequence[MarkerSpec],
+    poses: FloatArray,
+    frame_id: str | Sequence[str],
+    delete_all: bool,
+    frame_locked: bool = False,
 ) -> tuple[bytes, list[int]]:
     """A MarkerArray's CDR (Jazzy field order) and the payload offset of each spec's pose.
 
-    Written a marker at a time from a few pre-packed blocks: the header (constant per frame),
-    the namespace, one struct for pose to lifetime, and the tail (cached per kind of marker).
+    `frame_id` is every marker's frame, or one frame per spec (markers in their links' frames,
+    then `frame_locked`). Written a marker at a time from a few pre-packed blocks: the header
+    (cached per frame), the namespace, one struct for pose to lifetime, and the tail (cached per
+    kind of marker).
     """
+    frames = [frame_id] * len(specs) if isinstance(frame_id, str) else list(frame_id)
     if delete_all:
         specs = [_DELETE_ALL, *specs]
+        frames = [frames[0] if frames else "", *frames]
         poses = np.concatenate((_IDENTITY_XYZW[None, :], poses))
-    stamp_and_frame = _STAMP.pack(0, 0) + _string_4(frame_id)
+    headers: dict[str, bytes] = {}
     tails: dict[tuple[str, str, int, bool], bytes] = {}
     chunks = [CDR_LE, U32.pack(len(specs))]
     size = 4  # payload bytes so far
     offsets = []
-    for spec, pose in zip(specs, poses.tolist(), strict=True):
+    for spec, pose, frame in zip(specs, poses.tolist(), frames, strict=True):
         if size % 4:  # the previous marker ended on a bool
             chunks.append(b"\0" * (-size % 4))
             size += -size % 4
-        head = stamp_and_frame + _string_4(spec.ns) + _ID_TYPE_ACTION.pack(spec.id, spec.type, spec.action)
+        header = headers.get(frame)
+        if header is None:
+            header = headers[frame] = _STAMP.pack(0, 0) + _string_4(frame, "header.frame_id")
+        head = header + _string_4(spec.ns) + _ID_TYPE_ACTION.pack(spec.id, spec.type, spec.action)
         padding = -(size + len(head)) % 8
         plain = spec.points is None and spec.colors is None
         key = (spec.mesh_resource, spec.mesh_file[0], id(spec.mesh_file[1]), plain)
         tail = tails.get(key) if plain else None
         if tail is None:
-            tail = tails[key] = _marker_tail(spec)
+            tail = tails[key] = _marker_tail(spec, frame_locked)
         offsets.append(size + len(head) + padding)
         block = _POSE_TO_LIFETIME.pack(*pose, *spec.scale, *spec.color, 0, 0)
         chunks += (head, b"\0" * padding, block, tail)
@@ -584,6 +595,20 @@ def marker_array_cdr(scene: Scene, options: dict[str, Any] | None = None, delete
     specs = marker_specs(scene, options)
     positions, wxyz = world_poses(scene, specs)
     return _write_markers(specs, _pose_rows(positions, wxyz), frame_id, delete_all)[0]
+
+
+def marker_array_in_link_frames_cdr(
+    scene: Scene, frame_of: Callable[[str], str], options: dict[str, Any] | None = None
+) -> bytes:
+    """The scene's markers, each in its link's frame (`frame_of(link name)`), `frame_locked`.
+
+    Published once per load: the markers never change while TF moves their frames, so a draw
+    costs one TFMessage instead of a re-posed MarkerArray. DELETEALL first, like a load's array.
+    """
+    specs = marker_specs(scene, options)
+    positions, wxyz = _part_poses(specs)
+    frames = [frame_of(spec.link_name) for spec in specs]
+    return _write_markers(specs, _pose_rows(positions, wxyz), frames, True, frame_locked=True)[0]
 
 
 class MarkerStream:
@@ -636,6 +661,7 @@ __all__ = [
     "make",
     "marker_array",
     "marker_array_cdr",
+    "marker_array_in_link_frames_cdr",
     "marker_specs",
     "pose_array",
     "pose_array_arrays",

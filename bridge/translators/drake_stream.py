@@ -60,6 +60,15 @@ class LoadCache:
             return self._loads.get(channel)
 
 
+_ROLE = re.compile(r"_(ILLUSTRATION|PROXIMITY|PERCEPTION)$")
+
+
+def role_of(channel: str) -> str:
+    """The role suffix of a Drake viewer channel, lower case: `proximity`; "" when it has none."""
+    match = _ROLE.search(channel)
+    return match.group(1).lower() if match else ""
+
+
 def load_channel_for(draw_channel: str) -> str:
     """`DRAKE_VIEWER_DRAW_PROXIMITY` -> `DRAKE_VIEWER_LOAD_ROBOT_PROXIMITY` (same prefix and suffix)."""
     return draw_channel.replace("DRAKE_VIEWER_DRAW", "DRAKE_VIEWER_LOAD_ROBOT", 1)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol, TypeVar
 
@@ -120,6 +120,11 @@ class Transport(ABC):
     @classmethod
     def check_source(cls, name: str) -> None:
         """Raise `ValueError` when `name` cannot be subscribed to (checked at config load)."""
+        return None
+
+    def require(self, message_types: Iterable[MessageType]) -> None:
+        """Raise `TransportUnavailable`, saying what to install, for a type this process cannot
+        send or receive here (called once at start for every type the routes use)."""
         return None
 
     @abstractmethod

@@ -15,6 +15,7 @@ import contextlib
 import importlib
 import re
 import threading
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
 from bridge.transports.base import (
@@ -34,6 +35,7 @@ if TYPE_CHECKING:
     from rclpy.qos import QoSProfile
 
 _PLAIN_TOPIC = re.compile(r"^[A-Za-z0-9_/~{}]+$")
+BUILDABLE_INTERFACES = ("tf2_msgs",)  # no wheel on PyPI: `viewer-bridge ros-interfaces install` builds them
 INSTALL_HINT = "pip install 'viewer-bridge[ros]' (ROS 2 Jazzy's rclpy wheels)"
 
 
@@ -90,6 +92,21 @@ class RosTransport(Transport):
         self._lock = threading.Lock()
         self._thread = threading.Thread(target=self._spin, name="rclpy", daemon=True)
         self._discovery = self.node.create_timer(1.0, self._discover)
+
+    def require(self, message_types: Iterable[MessageType]) -> None:
+        for message_type in message_types:
+            try:
+                message_class(message_type.name)
+            except (ImportError, AttributeError, ValueError):
+                package = message_type.name.split("/")[0]
+                hint = (
+                    f"viewer-bridge ros-interfaces install {package}"
+                    if package in BUILDABLE_INTERFACES
+                    else f"pip install the ROS 2 Jazzy wheel of {package} (ros-jazzy-{package.replace('_', '-')})"
+                )
+                raise TransportUnavailable(
+                    f"the ROS 2 interface {message_type.name} is not installed in this environment: {hint}"
+                ) from None
 
     def start(self) -> None:
         self._thread.start()

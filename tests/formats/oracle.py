@@ -42,6 +42,12 @@ def same_rotation(xyzw_a: Any, xyzw_b: Any, tolerance: float = 1e-5) -> bool:
     return bool(min(np.abs(a - b).max(), np.abs(a + b).max()) < tolerance)
 
 
+def xyzw_of(wxyz: Any) -> list[float]:
+    """A w-first quaternion (Drake's order) in ROS/gz order."""
+    w, x, y, z = wxyz
+    return [x, y, z, w]
+
+
 def xyzw(geometry: LcmMessage) -> list[float]:
     """The geometry quaternion in ROS/gz order, straight from Drake's w-first array."""
     w, x, y, z = geometry.quaternion

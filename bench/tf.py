@@ -1,0 +1,85 @@
+"""Benchmark: draw -> tf2_msgs/TFMessage CDR, beside the rclpy way, in this process.
+
+Run: .venv/bin/python bench/tf.py [--links 1000] [--budget 0.5]
+
+Ours: `lcmt_viewer_draw` bytes -> `DrawDecoder` -> `TransformsEncoder` (a per-name-set CDR
+template, numpy writes the stamps and the doubles). Baseline: one `TransformStamped` built per
+link from the same decoded arrays, then `rclpy.serialization.serialize_message`. Both decode to
+the same message (checked). Also: the once-per-load MarkerArray in link frames, beside the
+world-frame array a draw re-poses every frame (`MarkerStream.update`), which the link frames
+replace.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from draw_codec import frame, seconds_per_call  # bench/ is on sys.path when run as a script
+from geometry_msgs.msg import Quaternion, TransformStamped, Vector3
+from rclpy.serialization import deserialize_message, serialize_message
+from tf2_msgs.msg import TFMessage
+from translators import scene
+
+from bridge.formats import ros
+from bridge.formats.drake import DrawDecoder, DrawEncoder
+from bridge.formats.ros_tf import FrameNames, TransformsEncoder
+from bridge.scene import LinkPoses
+
+
+def rclpy_tf(poses: LinkPoses, stamp: tuple[int, int], frames: FrameNames) -> bytes:
+    """The baseline: a TransformStamped per link, built as rclpy users do, then serialised."""
+    message = TFMessage()
+    transforms = []
+    for name, position, (w, x, y, z) in zip(
+        poses.names, poses.positions.tolist(), poses.quaternions_wxyz.tolist(), strict=True
+    ):
+        transform = TransformStamped()
+        transform.header.stamp.sec, transform.header.stamp.nanosec = stamp
+        transform.header.frame_id = frames.world_frame
+        transform.child_frame_id = frames(name)
+        transform.transform.translation = Vector3(x=position[0], y=position[1], z=position[2])
+        transform.transform.rotation = Quaternion(x=x, y=y, z=z, w=w)
+        transforms.append(transform)
+    message.transforms = transforms
+    return bytes(serialize_message(message))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--links", type=int, default=1000)
+    parser.add_argument("--budget", type=float, default=0.5, help="seconds per measurement")
+    args = parser.parse_args()
+
+    draw = DrawEncoder().encode(frame(args.links))
+    decoder, frames = DrawDecoder(), FrameNames()
+    encoder = TransformsEncoder(frames)
+    stamp = (1_700_000_000, 250_000_000)
+
+    def ours() -> bytes:
+        return encoder.encode(decoder.decode(draw), stamp)
+
+    def baseline() -> bytes:
+        return rclpy_tf(decoder.decode(draw), stamp, frames)
+
+    assert deserialize_message(ours(), TFMessage) == deserialize_message(baseline(), TFMessage)
+    fast, slow = seconds_per_call(ours, args.budget), seconds_per_call(baseline, args.budget)
+    print(f"draw -> TFMessage CDR, {args.links} links (from lcmt_viewer_draw bytes)")
+    print(f"  viewer-bridge fast path               {fast * 1e6:10.1f} us")
+    print(f"  rclpy TransformStamped one by one     {slow * 1e6:10.1f} us")
+    print(f"  ratio                                 {slow / fast:10.0f}x   (goal >= 100x)")
+
+    load = scene(args.links).with_poses(frame(args.links))
+    stream = ros.MarkerStream(load)
+    moved = frame(args.links, seed=1)
+    per_draw = seconds_per_call(lambda: stream.update(moved), args.budget)
+    once = seconds_per_call(lambda: ros.marker_array_in_link_frames_cdr(load, frames), args.budget)
+    print(f"\nper draw, {len(stream)} markers: what the world-frame route does, what the TF set-up does")
+    print(f"  world frame: MarkerStream.update every draw    {per_draw * 1e6:10.1f} us")
+    print(f"  link frames: one TFMessage every draw          {fast * 1e6:10.1f} us")
+    print(f"  link frames: the MarkerArray, once per load    {once * 1e3:10.2f} ms")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,113 @@
+"""Drake's link poses as a ROS 2 TF tree: `tf2_msgs/msg/TFMessage` from the draw arrays.
+
+Every link is a child of the world frame (Drake's draw gives world poses), named as every tool
+in the field names Drake's frames: `plant::iiwa::iiwa_link_0` -> `plant/iiwa/iiwa_link_0`, after
+an optional prefix that keeps the trees of several scenes (Drake's illustration, proximity and
+perception roles) apart on one `/tf`. Drake's `world` link is the world frame itself.
+
+`TransformsEncoder` writes the CDR straight from the arrays: the per-link layout (stamps,
+frame names, where each transform's seven doubles sit) is a template made once per set of link
+names; a draw writes the stamps and the doubles into a copy of it. `transforms_message` builds
+the same message as rosbags objects, the reference the fast path is tested against.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from bridge.formats.ros_messages import U32, CdrWriter, make
+from bridge.scene import LinkPoses, frame_name, xyzw_from_wxyz
+
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+WORLD = "world"  # Drake's name for the world link, and ROS's usual fixed frame
+_STAMP = struct.Struct("<iI")
+_TRANSFORM = struct.Struct("<7d")
+
+
+class FrameNames:
+    """TF frame names for Drake link names: `prefix` + `::` -> `/`; Drake's world is `world_frame`."""
+
+    def __init__(self, world_frame: str = WORLD, prefix: str = "") -> None:
+        self.world_frame = world_frame
+        self.prefix = prefix
+
+    def __call__(self, link_name: str) -> str:
+        return self.world_frame if link_name == WORLD else self.prefix + frame_name(link_name)
+
+
+class TransformsEncoder:
+    """Link poses -> `TFMessage` CDR: `world_frame` -> every link, all with one stamp."""
+
+    def __init__(self, frames: FrameNames) -> None:
+        self.frames = frames
+        self._names: tuple[str, ...] | None = None
+        self._template = b""
+        self._stamp_words = np.zeros(0, dtype=np.int64)
+        self._slots = np.zeros((0, 7), dtype=np.int64)
+
+    def encode(self, poses: LinkPoses, stamp: tuple[int, int]) -> bytes:
+        if poses.names is not self._names and poses.names != self._names:  # one tuple while they repeat
+            self._layout(poses.names)
+        buffer = bytearray(self._template)
+        # The payload starts after the 4-byte encapsulation; stamps are 4-aligned in it and
+        # nanoseconds (< 1e9) fit an int32 word as they are.
+        words = np.frombuffer(buffer, dtype="<i4", offset=4)
+        words[self._stamp_words] = stamp[0]
+        words[self._stamp_words + 1] = stamp[1]
+        doubles = np.frombuffer(buffer, dtype="<f8", offset=4, count=(len(buffer) - 4) // 8)
+        doubles[self._slots] = _transform_rows(poses)
+        return bytes(buffer)
+
+    def _layout(self, names: tuple[str, ...]) -> None:
+        writer = CdrWriter()
+        writer.pack(U32, len(names))
+        parent = self.frames.world_frame
+        stamp_words, slots = [], []
+        for name in names:
+            writer.align(4)
+            stamp_words.append(writer.size // 4)
+            writer.pack(_STAMP, 0, 0)
+            writer.string(parent, "header.frame_id")
+            writer.string(self.frames(name), "child_frame_id")
+            writer.align(8)
+            slots.append(writer.size // 8)
+            writer.add(_TRANSFORM.pack(*([0.0] * 7)))
+        self._template = writer.getvalue()
+        self._stamp_words = np.asarray(stamp_words, dtype=np.int64)
+        self._slots = np.asarray(slots, dtype=np.int64)[:, None] + np.arange(7)
+        self._names = names
+
+
+def _transform_rows(poses: LinkPoses) -> np.ndarray[Any, Any]:
+    """N x 7: translation x y z, rotation x y z w (TF's order; the draw has w first)."""
+    rows = np.empty((len(poses), 7), dtype="<f8")
+    rows[:, :3] = poses.positions
+    rows[:, 3:] = xyzw_from_wxyz(poses.quaternions_wxyz)
+    return rows
+
+
+def transforms_message(poses: LinkPoses, stamp: tuple[int, int], frames: FrameNames) -> Any:
+    """The same `TFMessage` as rosbags objects, built one transform at a time (the slow reference)."""
+    rows = _transform_rows(poses).tolist()
+    transforms: Sequence[Any] = [
+        make(
+            "geometry_msgs/msg/TransformStamped",
+            header=make(
+                "std_msgs/msg/Header",
+                stamp=make("builtin_interfaces/msg/Time", sec=stamp[0], nanosec=stamp[1]),
+                frame_id=frames.world_frame,
+            ),
+            child_frame_id=frames(name),
+            transform=make(
+                "geometry_msgs/msg/Transform",
+                translation=make("geometry_msgs/msg/Vector3", x=x, y=y, z=z),
+                rotation=make("geometry_msgs/msg/Quaternion", x=qx, y=qy, z=qz, w=qw),
+            ),
+        )
+        for name, (x, y, z, qx, qy, qz, qw) in zip(poses.names, rows, strict=True)
+    ]
+    return make(TF_MESSAGE, transforms=list(transforms))

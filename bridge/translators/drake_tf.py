@@ -1,0 +1,132 @@
+"""Drake's scene the way ROS consumes motion: a TF tree per draw, markers fixed in link frames.
+
+`drake_to_tf` publishes each draw as one `tf2_msgs/TFMessage` on `/tf` (world -> every link)
+and, once per load, the links the load has but draws never move on `/tf_static` (latched, as
+tf2 expects). `drake_to_link_markers` publishes the scene's markers once per load, each in its
+link's frame and `frame_locked`, so a draw costs RViz one TFMessage, not a re-posed MarkerArray.
+
+Roles: Drake's illustration scene (unsuffixed or `_ILLUSTRATION` channels) names its frames
+`plant/iiwa/iiwa_link_0`; the proximity and perception scenes prefix theirs (`proximity/...`,
+`perception/...`), so the three trees never collide on one `/tf`. `frame_prefix` overrides.
+
+Stamps: the bridge's receive time by default, which RViz and tf2 accept out of the box; `stamp:
+sim` uses Drake's sim time instead, for nodes with `use_sim_time` (route `drake_to_clock` to
+`/clock` as well).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import numpy as np
+
+from bridge.formats import ros
+from bridge.formats.ros_tf import TF_MESSAGE, WORLD, FrameNames, TransformsEncoder
+from bridge.scene import LinkPoses, Scene
+from bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us
+from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
+from bridge.translators.drake_ros import MarkerOptions, ros_type
+from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream, role_of
+from bridge.transports.base import Received
+
+
+class FrameOptions(TranslatorOptions):
+    world_frame: str = WORLD  # the parent of every link frame (Drake's world link is this frame)
+    frame_prefix: str | None = None  # None: by role ("" illustration, "proximity/", "perception/")
+
+    def frames(self, channel: str) -> FrameNames:
+        if self.frame_prefix is not None:
+            return FrameNames(self.world_frame, self.frame_prefix)
+        role = role_of(channel)
+        return FrameNames(self.world_frame, "" if role in ("", "illustration") else f"{role}/")
+
+
+class TfOptions(FrameOptions):
+    stamp: Literal["receive", "sim"] = "receive"
+
+
+class DrakeToTf(Translator):
+    """draw -> `TFMessage` on the destination (`/tf`); per load, the links draws never move -> `<it>_static`."""
+
+    Options = TfOptions
+    options: TfOptions
+    reads = (LOAD_TYPE, DRAW_TYPE)
+    outputs = (
+        Output("", ros_type(TF_MESSAGE)),
+        Output("_static", ros_type(TF_MESSAGE), latched=True),
+    )
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.drake = DrakeStream(self.loads)
+        self.encoder: TransformsEncoder | None = None
+        self._static_due = False
+
+    def observe(self, message: Received) -> None:
+        self.drake.observe(message)
+
+    def translate(self, message: Received) -> Outputs:
+        scene, poses = self.drake.read(message)
+        if scene is not None:
+            self._static_due = True
+        if poses is None:
+            return []
+        if self.encoder is None:  # one stream per translator: its role is its first channel's
+            self.encoder = TransformsEncoder(self.options.frames(message.channel))
+        stamp = self._stamp(message, poses)
+        out: Outputs = []
+        if self._static_due and self.drake.scene is not None:
+            self._static_due = False
+            fixed = _never_drawn(self.drake.scene, poses)
+            if len(fixed):
+                out.append((1, TransformsEncoder(self.encoder.frames).encode(fixed, stamp)))
+        out.append((0, self.encoder.encode(poses, stamp)))
+        return out
+
+    def _stamp(self, message: Received, poses: LinkPoses) -> tuple[int, int]:
+        if self.options.stamp == "sim":
+            return sec_nsec_from_ms(poses.timestamp_ms)
+        return sec_nsec_from_us(message.received_us)
+
+
+def _never_drawn(scene: Scene, poses: LinkPoses) -> LinkPoses:
+    """The links a load names that the draw does not pose (the world link aside), at the identity:
+    Drake poses their geometry in the world frame already."""
+    drawn = set(poses.names)
+    names = tuple(link.name for link in scene.links if link.name != WORLD and link.name not in drawn)
+    count = len(names)
+    wxyz = np.zeros((count, 4))
+    wxyz[:, 0] = 1.0
+    return LinkPoses(poses.timestamp_ms, names, np.zeros(count, np.int32), np.zeros((count, 3)), wxyz)
+
+
+class LinkMarkerOptions(MarkerOptions, FrameOptions):
+    """The marker table's options, and how link frames are named (as `drake_to_tf` names them)."""
+
+
+class DrakeToLinkMarkers(Translator):
+    """load -> `MarkerArray`, every marker in its link's TF frame, `frame_locked`; once per load,
+    latched. Draws publish nothing (TF moves the frames); a draw for a scene this route has not
+    published brings that scene's array."""
+
+    Options = LinkMarkerOptions
+    options: LinkMarkerOptions
+    reads = (LOAD_TYPE, DRAW_TYPE)
+    outputs = (Output("", ros_type(ros.MARKER_ARRAY), latched=True),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.drake = DrakeStream(self.loads)
+        self._marker_options = self.options.model_dump(
+            exclude_none=True, exclude={"world_frame", "frame_prefix"}
+        )
+
+    def observe(self, message: Received) -> None:
+        self.drake.observe(message)
+
+    def translate(self, message: Received) -> Outputs:
+        scene, _ = self.drake.read(message)
+        if scene is None:
+            return []
+        frames = self.options.frames(message.channel)
+        return [(0, ros.marker_array_in_link_frames_cdr(scene, frames, self._marker_options))]
