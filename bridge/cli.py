@@ -11,6 +11,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
 from bridge.convert import convert
@@ -66,6 +67,13 @@ def _parser() -> argparse.ArgumentParser:
     )
     run.add_argument(
         "--lcm-url", help="override the config's LCM URL (a log file or file://LOG?speed=S replays it)"
+    )
+    run.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="TRANSPORT.KEY=VALUE",
+        help="override a transport setting, e.g. foxglove.port=9000 or ros.namespace=/sim1 (repeatable)",
     )
     run.add_argument(
         "--stats-json", metavar="PATH", help="write per-route stats as JSON every period and at exit"
@@ -178,6 +186,8 @@ def _run(args: argparse.Namespace) -> int:
         config = load_config(args.config)
         if args.lcm_url:
             config = config.with_settings("lcm", url=args.lcm_url)
+        for setting in args.set:
+            config = _with_setting(config, setting)
         router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period)
     except (BridgeError, TransportUnavailable, OSError, ValueError) as error:
         print(f"viewer-bridge: {error}", file=sys.stderr)
@@ -199,6 +209,15 @@ def _run(args: argparse.Namespace) -> int:
         if demo is not None:
             demo.join(timeout=2)
     return 0
+
+
+def _with_setting(config: BridgeConfig, setting: str) -> BridgeConfig:
+    """`TRANSPORT.KEY=VALUE` (the value read as YAML: 9000 is a number, true a bool) applied."""
+    name, _, value = setting.partition("=")
+    transport, _, key = name.partition(".")
+    if not (transport and key and _):
+        raise ValueError(f"--set {setting!r}: expected TRANSPORT.KEY=VALUE, e.g. foxglove.port=9000")
+    return config.with_settings(transport, **{key: yaml.safe_load(value)})
 
 
 def _lcm_url(config: BridgeConfig) -> str:

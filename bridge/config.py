@@ -133,15 +133,15 @@ class BridgeConfig(BaseModel):
     def with_settings(self, transport: str, **values: Any) -> BridgeConfig:
         """The same config with some of a transport's settings replaced (e.g. a command line's --lcm-url)."""
         data = self.model_dump()
-        data[transport] = {**self.settings(transport).model_dump(), **values}
-        return BridgeConfig.model_validate(data)
+        data[transport] = {**(data.get(transport) or {}), **values}
+        return BridgeConfig.model_validate(data)  # checked again: a bad value is a ConfigError
 
 
 class _Checker:
     """The config's semantic checks; errors name the file, line and key when there is a file."""
 
     def __init__(self, document: YamlDocument | None) -> None:
-        self.document = document or YamlDocument("<config>", "{}")
+        self.document = document or YamlDocument("<config>", "")  # no file: no lines to name
 
     def error(self, key_path: KeyPath, reason: str) -> ConfigError:
         return self.document.error(key_path, reason)
@@ -253,6 +253,10 @@ ros:
   node: viewer_bridge
   namespace: ""
   use_sim_time: false
+# Foxglove's live view, on this machine only: open the URL the start-up line prints.
+foxglove:
+  host: 127.0.0.1
+  port: 8765
 routes:
   # Each draw as a TF tree on /tf (world -> plant/iiwa/iiwa_link_0 ...; proximity and perception
   # frames prefixed proximity/ and perception/), what never moves on /tf_static.
@@ -301,6 +305,17 @@ routes:
     qos: {depth: 1000}
     rate: {policy: all}
     options: {mesh_roots: []}
+  # Foxglove: the scene once per load, the frames every draw (both lazy: nothing without a client).
+  - name: foxglove_scene
+    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
+    translator: drake_to_scene_update
+    destination: {transport: foxglove, name: "/drake{1:path}/scene"}
+    lazy: true
+  - name: foxglove_transforms
+    source: {transport: lcm, name: "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
+    translator: drake_to_frame_transforms
+    destination: {transport: foxglove, name: "/drake{1:path}/transforms"}
+    lazy: true
 """
 
 
@@ -330,7 +345,29 @@ routes:
     rate: {policy: all}
 """
 
-BUILTIN_CONFIGS = {"default": DEFAULT_CONFIG, "ign": IGN_CONFIG}
+FOXGLOVE_CONFIG = """\
+# Drake's default viewer channels to Foxglove, live in a browser with no ROS install: open the
+# URL the start-up line prints. The scene goes once per load (a client that connects later still
+# gets it), the frames every draw, stamped with Drake's sim time.
+lcm:
+  url: udpm://239.255.76.67:7667?ttl=0
+foxglove:
+  host: 127.0.0.1
+  port: 8765
+routes:
+  - name: scene
+    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
+    translator: drake_to_scene_update
+    destination: {transport: foxglove, name: "/drake{1:path}/scene"}
+    lazy: true
+  - name: transforms
+    source: {transport: lcm, name: "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
+    translator: drake_to_frame_transforms
+    destination: {transport: foxglove, name: "/drake{1:path}/transforms"}
+    lazy: true
+"""
+
+BUILTIN_CONFIGS = {"default": DEFAULT_CONFIG, "ign": IGN_CONFIG, "foxglove": FOXGLOVE_CONFIG}
 
 
 def load_config(path: str | Path | None) -> BridgeConfig:
@@ -354,6 +391,7 @@ def load_config(path: str | Path | None) -> BridgeConfig:
 __all__ = [
     "BUILTIN_CONFIGS",
     "DEFAULT_CONFIG",
+    "FOXGLOVE_CONFIG",
     "IGN_CONFIG",
     "BridgeConfig",
     "ConfigError",

@@ -78,7 +78,8 @@ class BridgeProcess:
     """`viewer-bridge run` in a process of its own; its log lines are collected."""
 
     def __init__(self, *args: str) -> None:
-        command = [sys.executable, "-m", "bridge.cli", "run", *args]
+        # Never a fixed port: bridges may run side by side, and beside a user's own.
+        command = [sys.executable, "-m", "bridge.cli", "run", "--set", "foxglove.port=0", *args]
         self.process = subprocess.Popen(command, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         self.lines: list[str] = []
         self._reader = threading.Thread(target=self._read, daemon=True)

@@ -1,7 +1,8 @@
 """The router's translators: one class per (source message, target message) pair.
 
 Grouped by family: `drake_ros` (Drake's LCM scene <-> ROS 2), `drake_tf` (a TF tree and
-markers in link frames, the way ROS consumes motion), `drake_ign` (<-> ign/gz
+markers in link frames, the way ROS consumes motion), `drake_foxglove` (Foxglove's SceneUpdate
+and FrameTransforms), `drake_ign` (<-> ign/gz
 protobuf), `tree_viewer` (Director's remote tree viewer, both sides); `drake_stream` holds the
 load cache and the decode-once draw every Drake translator shares; `base` what a translator is.
 `TRANSLATORS` is the registry a route's `translator:` word is looked up in; a plugin adds one
@@ -24,6 +25,8 @@ _BUILTINS = {
     "lcm_bytes_to_ros": "drake_ros:LcmBytesToRos",
     "drake_to_tf": "drake_tf:DrakeToTf",
     "drake_to_link_markers": "drake_tf:DrakeToLinkMarkers",
+    "drake_to_scene_update": "drake_foxglove:DrakeToSceneUpdate",
+    "drake_to_frame_transforms": "drake_foxglove:DrakeToFrameTransforms",
     "tree_viewer_server": "tree_viewer:TreeViewerServer",
     "drake_to_tree_viewer": "tree_viewer:DrakeToTreeViewer",
     "drake_to_ign_model": "drake_ign:DrakeToIgnModel",

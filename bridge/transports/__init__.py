@@ -17,6 +17,7 @@ TRANSPORTS: Registry[Transport] = Registry(
         "lcm": "bridge.transports.lcm:LcmTransport",
         "ros": "bridge.transports.ros2:RosTransport",
         "ign": "bridge.transports.ign:IgnTransport",
+        "foxglove": "bridge.transports.foxglove:FoxgloveTransport",
     },
     Transport,
 )

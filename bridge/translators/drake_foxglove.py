@@ -1,0 +1,72 @@
+"""Drake's scene to Foxglove: the scene once per load, the frames every draw.
+
+`drake_to_scene_update`: load -> `foxglove.SceneUpdate`, an entity per link in its link's frame
+(latched: a client that connects later still gets the scene). `drake_to_frame_transforms`: draw
+-> `foxglove.FrameTransforms`, world -> every link, stamped with Drake's sim time; a draw costs
+one transform list, never a re-sent scene. Frames are named as on ROS's /tf, role prefixes
+included (see `drake_tf`), so one naming serves RViz and Foxglove alike.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from bridge.formats import foxglove
+from bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us
+from bridge.translators.base import Output, Outputs, Translator
+from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream, draw_poses
+from bridge.translators.drake_tf import FrameOptions
+from bridge.transports.base import PROTOBUF, MessageType, Received
+
+SCENE_UPDATE = MessageType(foxglove.SCENE_UPDATE, PROTOBUF)
+FRAME_TRANSFORMS = MessageType(foxglove.FRAME_TRANSFORMS, PROTOBUF)
+
+
+class DrakeToSceneUpdate(Translator):
+    """load -> `foxglove.SceneUpdate` (latched); a draw for a scene not yet sent brings it."""
+
+    Options = FrameOptions
+    options: FrameOptions
+    reads = (LOAD_TYPE, DRAW_TYPE)
+    outputs = (Output("", SCENE_UPDATE, latched=True),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.drake = DrakeStream(self.loads)
+
+    def observe(self, message: Received) -> None:
+        self.drake.observe(message)
+
+    def translate(self, message: Received) -> Outputs:
+        scene, _ = self.drake.read(message)
+        if scene is None:
+            return []
+        update = foxglove.scene_update(scene, self.options.frames(message.channel))
+        return [(0, update.SerializeToString())]
+
+
+class FrameTransformsOptions(FrameOptions):
+    stamp: Literal["sim", "receive"] = "sim"
+
+
+class DrakeToFrameTransforms(Translator):
+    """draw -> `foxglove.FrameTransforms`: world -> every link, from the draw arrays."""
+
+    Options = FrameTransformsOptions
+    options: FrameTransformsOptions
+    reads = (DRAW_TYPE,)
+    outputs = (Output("", FRAME_TRANSFORMS),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.encoder: foxglove.FrameTransformsEncoder | None = None
+
+    def translate(self, message: Received) -> Outputs:
+        poses = draw_poses(message)
+        if self.encoder is None:  # one stream per translator: its role is its first channel's
+            self.encoder = foxglove.FrameTransformsEncoder(self.options.frames(message.channel))
+        if self.options.stamp == "sim":
+            stamp = sec_nsec_from_ms(poses.timestamp_ms)
+        else:
+            stamp = sec_nsec_from_us(message.received_us)
+        return [(0, self.encoder.encode(poses, stamp))]
