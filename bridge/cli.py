@@ -105,11 +105,17 @@ def _parser() -> argparse.ArgumentParser:
     )
     shot.add_argument("--duration", type=float, default=3.0, help="with an LCM URL: seconds to listen")
 
-    convert = commands.add_parser("convert", help="translate an LCM log into a ROS 2 MCAP file")
+    convert = commands.add_parser(
+        "convert", help="translate an LCM log into an MCAP file (ROS 2 or Foxglove)"
+    )
     convert.add_argument("log", help="an .lcmlog file")
     convert.add_argument("mcap", help="the .mcap file to write")
+    convert.add_argument("-c", "--config", help="a YAML config whose LCM routes are used (default: built-in)")
     convert.add_argument(
-        "-c", "--config", help="a YAML config whose LCM -> ROS routes are used (default: built-in)"
+        "--schema",
+        choices=["ros2", "foxglove"],
+        default="ros2",
+        help="ros2: CDR with ros2msg schemas (default); foxglove: Foxglove's protobuf SceneUpdate and FrameTransforms",
     )
 
     interfaces = commands.add_parser(
@@ -229,7 +235,7 @@ def _convert(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     try:
         config = load_config(args.config)
-        written = convert(args.log, args.mcap, config, progress=sys.stderr.isatty())
+        written = convert(args.log, args.mcap, config, progress=sys.stderr.isatty(), schema=args.schema)
     except (ConfigError, OSError) as error:
         print(f"viewer-bridge: {error}", file=sys.stderr)
         return 2

@@ -416,6 +416,8 @@ def test_default_config_is_printed_and_valid() -> None:
         "shapes",
         "deformable",
         "tree_viewer",
+        "foxglove_scene",
+        "foxglove_transforms",
     ]
 
 

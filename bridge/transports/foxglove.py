@@ -29,6 +29,16 @@ from bridge.transports.base import (
 )
 
 
+def foxglove_channel(topic: str, message_type: MessageType, context: foxglove.Context) -> foxglove.Channel:
+    """A Foxglove channel of a `foxglove.*` protobuf type in `context` (a server's, or an MCAP file's)."""
+    return foxglove.Channel(
+        topic,
+        schema=foxglove.Schema(name=message_type.name, encoding="protobuf", data=schema(message_type.name)),
+        message_encoding="protobuf",
+        context=context,
+    )
+
+
 class FoxgloveSettings(TransportSettings):
     host: str = "127.0.0.1"  # this machine only, unless you mean to serve other hosts
     port: int = Field(8765, ge=0, le=65535)  # 0: any free port (the start-up line says which)
@@ -127,14 +137,7 @@ class FoxgloveTransport(Transport):
         raise TransportUnavailable("the foxglove transport only publishes")
 
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
-        channel = foxglove.Channel(
-            name,
-            schema=foxglove.Schema(
-                name=message_type.name, encoding="protobuf", data=schema(message_type.name)
-            ),
-            message_encoding="protobuf",
-            context=self.context,
-        )
+        channel = foxglove_channel(name, message_type, self.context)
         publisher = self._channels[channel.id()] = _Channel(channel, qos.latched)
         return publisher
 
