@@ -242,6 +242,20 @@ def destination_name(template: str, match: re.Match[str]) -> str:
     return _Template().format(template, match.group(0), *match.groups())
 
 
+_FOXGLOVE_ROUTES = """\
+  # Foxglove: the scene once per load, the frames every draw (both lazy: nothing without a client).
+  - name: foxglove_scene
+    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
+    translator: drake_to_scene_update
+    destination: {transport: foxglove, name: "/drake{1:path}/scene"}
+    lazy: true
+  - name: foxglove_transforms
+    source: {transport: lcm, name: "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
+    translator: drake_to_frame_transforms
+    destination: {transport: foxglove, name: "/drake{1:path}/transforms"}
+    lazy: true
+"""
+
 DEFAULT_CONFIG = """\
 # viewer-bridge's built-in configuration: Drake's default viewer channels to ROS 2 under /drake.
 # An unsuffixed channel (Drake's illustration default) goes to /drake/..., a role-suffixed one
@@ -305,18 +319,7 @@ routes:
     qos: {depth: 1000}
     rate: {policy: all}
     options: {mesh_roots: []}
-  # Foxglove: the scene once per load, the frames every draw (both lazy: nothing without a client).
-  - name: foxglove_scene
-    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_scene_update
-    destination: {transport: foxglove, name: "/drake{1:path}/scene"}
-    lazy: true
-  - name: foxglove_transforms
-    source: {transport: lcm, name: "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_frame_transforms
-    destination: {transport: foxglove, name: "/drake{1:path}/transforms"}
-    lazy: true
-"""
+""" + _FOXGLOVE_ROUTES
 
 
 IGN_CONFIG = """\
@@ -355,17 +358,7 @@ foxglove:
   host: 127.0.0.1
   port: 8765
 routes:
-  - name: scene
-    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_scene_update
-    destination: {transport: foxglove, name: "/drake{1:path}/scene"}
-    lazy: true
-  - name: transforms
-    source: {transport: lcm, name: "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_frame_transforms
-    destination: {transport: foxglove, name: "/drake{1:path}/transforms"}
-    lazy: true
-"""
+""" + _FOXGLOVE_ROUTES
 
 BUILTIN_CONFIGS = {"default": DEFAULT_CONFIG, "ign": IGN_CONFIG, "foxglove": FOXGLOVE_CONFIG}
 

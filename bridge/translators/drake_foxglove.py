@@ -12,9 +12,10 @@ from __future__ import annotations
 from typing import Any, Literal
 
 from bridge.formats import foxglove
+from bridge.scene import Scene
 from bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us
 from bridge.translators.base import Output, Outputs, Translator
-from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream, draw_poses
+from bridge.translators.drake_stream import DRAW_TYPE, PerLoadTranslator, draw_poses
 from bridge.translators.drake_tf import FrameOptions
 from bridge.transports.base import PROTOBUF, MessageType, Received
 
@@ -22,27 +23,15 @@ SCENE_UPDATE = MessageType(foxglove.SCENE_UPDATE, PROTOBUF)
 FRAME_TRANSFORMS = MessageType(foxglove.FRAME_TRANSFORMS, PROTOBUF)
 
 
-class DrakeToSceneUpdate(Translator):
+class DrakeToSceneUpdate(PerLoadTranslator):
     """load -> `foxglove.SceneUpdate` (latched); a draw for a scene not yet sent brings it."""
 
     Options = FrameOptions
     options: FrameOptions
-    reads = (LOAD_TYPE, DRAW_TYPE)
     outputs = (Output("", SCENE_UPDATE, latched=True),)
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self.drake = DrakeStream(self.loads)
-
-    def observe(self, message: Received) -> None:
-        self.drake.observe(message)
-
-    def translate(self, message: Received) -> Outputs:
-        scene, _ = self.drake.read(message)
-        if scene is None:
-            return []
-        update = foxglove.scene_update(scene, self.options.frames(message.channel))
-        return [(0, update.SerializeToString())]
+    def on_scene(self, scene: Scene, channel: str) -> Outputs:
+        return [(0, foxglove.scene_update(scene, self.options.frames(channel)).SerializeToString())]
 
 
 class FrameTransformsOptions(FrameOptions):

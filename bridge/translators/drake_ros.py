@@ -13,7 +13,7 @@ from bridge.formats.ros_messages import CDR_LE, time_parts
 from bridge.lcmcodec import LINK_DATA
 from bridge.scene import Scene
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream, draw_poses
+from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream, PerLoadTranslator, draw_poses
 from bridge.transports.base import CDR, LCM, MessageType, Received
 
 
@@ -93,7 +93,7 @@ class DrakeToClock(Translator):
         return [(0, self._CLOCK.pack(CDR_LE, seconds, nanoseconds))]
 
 
-class DrakeToShapes(Translator):
+class DrakeToShapes(PerLoadTranslator):
     """load -> one shape_msgs message per geometry: SolidPrimitive, Mesh or Plane on
     `<name>/primitives`, `<name>/meshes`, `<name>/planes`. Latched (give the route a depth as
     large as the scene's geometry count)."""
@@ -106,17 +106,7 @@ class DrakeToShapes(Translator):
     )
     _INDEX = {ros.SOLID_PRIMITIVE: 0, ros.MESH: 1, ros.PLANE: 2}
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self.drake = DrakeStream(self.loads)
-
-    def observe(self, message: Received) -> None:
-        self.drake.observe(message)
-
-    def translate(self, message: Received) -> Outputs:
-        scene, _ = self.drake.read(message)
-        if scene is None:
-            return []
+    def on_scene(self, scene: Scene, channel: str) -> Outputs:
         return [(self._INDEX[posed.typename], ros.to_cdr(posed.shape)) for posed in ros.shapes(scene)]
 
 

@@ -15,11 +15,13 @@ import tempfile
 import threading
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from bridge.errors import DecodeError
 from bridge.formats.drake import DrawDecoder, decode_load
 from bridge.lcmcodec import DRAW, LOAD_ROBOT
 from bridge.scene import LinkPoses, Scene
+from bridge.translators.base import Outputs, Translator
 from bridge.transports.base import LCM, MessageType, Received
 
 LOAD_TYPE = MessageType(LOAD_ROBOT.type_name, LCM)
@@ -143,3 +145,24 @@ class DrakeStream:
         scene = decode()
         self.scene, self._load_bytes = scene, data
         return scene
+
+
+class PerLoadTranslator(Translator):
+    """A translator that publishes once per scene: each new load, and the cached load when a draw
+    comes for a scene it has not published (a late start, a lazy route that was idle)."""
+
+    reads: tuple[MessageType, ...] = (LOAD_TYPE, DRAW_TYPE)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.drake = DrakeStream(self.loads)
+
+    def observe(self, message: Received) -> None:
+        self.drake.observe(message)
+
+    def translate(self, message: Received) -> Outputs:
+        scene, _ = self.drake.read(message)
+        return [] if scene is None else self.on_scene(scene, message.channel)
+
+    def on_scene(self, scene: Scene, channel: str) -> Outputs:
+        raise NotImplementedError

@@ -26,7 +26,7 @@ from bridge.scene import LinkPoses, Scene
 from bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from bridge.translators.drake_ros import MarkerOptions, ros_type
-from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream, role_of
+from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream, PerLoadTranslator, role_of
 from bridge.transports.base import Received
 
 
@@ -104,29 +104,21 @@ class LinkMarkerOptions(MarkerOptions, FrameOptions):
     """The marker table's options, and how link frames are named (as `drake_to_tf` names them)."""
 
 
-class DrakeToLinkMarkers(Translator):
+class DrakeToLinkMarkers(PerLoadTranslator):
     """load -> `MarkerArray`, every marker in its link's TF frame, `frame_locked`; once per load,
     latched. Draws publish nothing (TF moves the frames); a draw for a scene this route has not
     published brings that scene's array."""
 
     Options = LinkMarkerOptions
     options: LinkMarkerOptions
-    reads = (LOAD_TYPE, DRAW_TYPE)
     outputs = (Output("", ros_type(ros.MARKER_ARRAY), latched=True),)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.drake = DrakeStream(self.loads)
         self._marker_options = self.options.model_dump(
             exclude_none=True, exclude={"world_frame", "frame_prefix"}
         )
 
-    def observe(self, message: Received) -> None:
-        self.drake.observe(message)
-
-    def translate(self, message: Received) -> Outputs:
-        scene, _ = self.drake.read(message)
-        if scene is None:
-            return []
-        frames = self.options.frames(message.channel)
+    def on_scene(self, scene: Scene, channel: str) -> Outputs:
+        frames = self.options.frames(channel)
         return [(0, ros.marker_array_in_link_frames_cdr(scene, frames, self._marker_options))]
