@@ -55,7 +55,10 @@ def _parser() -> argparse.ArgumentParser:
         "mappings", help="print the mapping reference (mappings/REFERENCE.md) from the tables"
     )
 
-    run = commands.add_parser("run", help="run the router: bridge Drake's LCM scene to ROS 2 (and back)")
+    run = commands.add_parser(
+        "run",
+        help="run the router: bridge Drake's LCM scene to ROS 2 (and back); --ros-args ... as any ROS 2 node",
+    )
     run.add_argument(
         "-c", "--config", help="a YAML config (default: the built-in one, see --print-default-config)"
     )
@@ -147,6 +150,9 @@ def _dump(args: argparse.Namespace) -> int:
     try:
         for event in events:
             print(render(event), flush=True)
+    except BridgeError as error:  # e.g. a file that is not an LCM log
+        print(f"viewer-bridge: {error}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         pass
     except BrokenPipeError:
@@ -194,6 +200,8 @@ def _run(args: argparse.Namespace) -> int:
             config = config.with_settings("lcm", url=args.lcm_url)
         for setting in args.set:
             config = _with_setting(config, setting)
+        if args.ros_args:
+            config = config.with_settings("ros", ros_args=args.ros_args)
         router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period)
     except (BridgeError, TransportUnavailable, OSError, ValueError) as error:
         print(f"viewer-bridge: {error}", file=sys.stderr)
@@ -236,7 +244,7 @@ def _convert(args: argparse.Namespace) -> int:
     try:
         config = load_config(args.config)
         written = convert(args.log, args.mcap, config, progress=sys.stderr.isatty(), schema=args.schema)
-    except (ConfigError, OSError) as error:
+    except (BridgeError, OSError) as error:
         print(f"viewer-bridge: {error}", file=sys.stderr)
         return 2
     for topic, count in sorted(written.items()):
@@ -297,7 +305,13 @@ def _ros_interfaces(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    words = list(sys.argv[1:] if argv is None else argv)
+    ros_args: list[str] = []
+    if "--ros-args" in words:  # everything after it is rclpy's, as for any ROS 2 node
+        at = words.index("--ros-args")
+        words, ros_args = words[:at], words[at + 1 :]
+    args = _parser().parse_args(words)
+    args.ros_args = ros_args
     handlers = {
         "dump": _dump,
         "demo": _demo,

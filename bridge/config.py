@@ -257,7 +257,8 @@ _FOXGLOVE_ROUTES = """\
 """
 
 DEFAULT_CONFIG = """\
-# viewer-bridge's built-in configuration: Drake's default viewer channels to ROS 2 under /drake.
+# viewer-bridge's built-in configuration: Drake's default viewer channels to ROS 2 under /drake
+# (under the node's namespace: `--ros-args -r __ns:=/sim1` gives /sim1/drake/...; /tf stays /tf).
 # An unsuffixed channel (Drake's illustration default) goes to /drake/..., a role-suffixed one
 # (_ILLUSTRATION, _PROXIMITY, _PERCEPTION) to /drake/<role>/... Lazy routes translate nothing
 # while their topics have no subscriber.
@@ -285,37 +286,37 @@ routes:
   - name: link_markers
     source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
     translator: drake_to_link_markers
-    destination: {transport: ros, name: "/drake{1:path}/link_markers"}
+    destination: {transport: ros, name: "drake{1:path}/link_markers"}
     rate: {policy: latest}
     lazy: true
   # The same markers in the world frame, re-posed every draw: for tools without TF.
   - name: markers
     source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
     translator: drake_to_marker_array
-    destination: {transport: ros, name: "/drake{1:path}/markers"}
+    destination: {transport: ros, name: "drake{1:path}/markers"}
     rate: {policy: latest}
     lazy: true
   - name: poses
     source: {transport: lcm, name: "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
     translator: drake_to_pose_array
-    destination: {transport: ros, name: "/drake{1:path}/poses"}
+    destination: {transport: ros, name: "drake{1:path}/poses"}
     rate: {policy: latest}
   - name: shapes
     source: {transport: lcm, name: "DRAKE_VIEWER_LOAD_ROBOT(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
     translator: drake_to_shapes
-    destination: {transport: ros, name: "/drake{1:path}/shapes"}
+    destination: {transport: ros, name: "drake{1:path}/shapes"}
     qos: {depth: 10000}
     rate: {policy: all}
   - name: deformable
     source: {transport: lcm, name: "DRAKE_VIEWER_DEFORMABLE(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
     translator: drake_link_to_marker_array
-    destination: {transport: ros, name: "/drake{1:path}/deformable"}
+    destination: {transport: ros, name: "drake{1:path}/deformable"}
     rate: {policy: latest}
   # viewer-bridge as a Director tree viewer: every client's tree to /director/<client id>/markers.
   - name: tree_viewer
     source: {transport: lcm, name: "DIRECTOR_TREE_VIEWER_REQUEST_<([^<>]*)>"}
     translator: tree_viewer_server
-    destination: {transport: ros, name: "/director/{1:topic}/markers"}
+    destination: {transport: ros, name: "director/{1:topic}/markers"}
     qos: {depth: 1000}
     rate: {policy: all}
     options: {mesh_roots: []}

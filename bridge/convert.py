@@ -13,6 +13,7 @@ Messages carry the log's receive time.
 
 from __future__ import annotations
 
+import itertools
 import logging
 from collections import Counter
 from collections.abc import Callable
@@ -121,6 +122,8 @@ def convert(
     Returns messages written per topic. Bad messages are counted per route and reported, as
     the live router does; they do not stop the conversion.
     """
+    events = read_log(log_path)
+    first = next(events, None)  # a file that is not an LCM log fails here, before anything is written
     sink: _Sink = _Ros2Mcap(Path(mcap_path)) if schema == "ros2" else _FoxgloveMcap(Path(mcap_path))
     routes = [route for route in config.routes if _lcm_to(sink, route)]
     loads = LoadCache()
@@ -136,7 +139,7 @@ def convert(
         with Progress(*columns, disable=not progress, transient=True) as bar:
             task = bar.add_task("convert", total=total)
             done = 0
-            for event in read_log(log_path):
+            for event in itertools.chain([first] if first is not None else [], events):
                 sink.time_ns = event.timestamp_us * 1000
                 received = Received(event.channel, event.data, event.timestamp_us)
                 for runner in runners:

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import json
 import os
+import random
 import subprocess
 import sys
 from pathlib import Path
 
 from bridge.lcmcodec import DRAW
-from bridge.transports.lcm import LcmEvent, write_log
+from bridge.transports.lcm import LcmEvent, read_log, write_log
 from tests.conftest import lcm_url
 
 CLI = [sys.executable, "-m", "bridge.cli"]
@@ -94,3 +95,28 @@ def test_dump_live_with_the_demo_source() -> None:
 
 def test_dump_needs_exactly_one_source() -> None:
     assert run("dump").returncode == 2
+
+
+def test_a_file_that_is_not_an_lcm_log_is_refused(tmp_path: Path) -> None:
+    junk = tmp_path / "random.bin"
+    junk.write_bytes(random.Random(5).randbytes(10_000))
+    for command in (("dump", str(junk)), ("convert", str(junk), str(tmp_path / "out.mcap"))):
+        result = run(*command)
+        assert result.returncode == 2, result
+        assert f"{junk} is not an LCM log" in result.stderr and "eda1da01" in result.stderr
+    assert not (tmp_path / "out.mcap").exists()  # nothing written for a file that is no log
+
+
+def test_a_log_cut_short_is_read_to_its_last_whole_event_with_a_warning(drake_log: Path, tmp_path: Path) -> None:
+    events = list(read_log(drake_log))
+    all_but_last = tmp_path / "all_but_last.lcmlog"
+    write_log(all_but_last, events[:-1])
+    torn = tmp_path / "torn.lcmlog"
+    write_log(torn, events)
+    torn.write_bytes(torn.read_bytes()[:-37])  # the last event loses its end, as when a logger is killed
+    result = run("dump", str(torn), "--json")
+    assert result.returncode == 0, result.stderr
+    assert len(result.stdout.splitlines()) == len(events) - 1  # every whole event
+    whole = all_but_last.stat().st_size
+    tail = torn.stat().st_size - whole
+    assert f"{torn} ends in a partial event: the {tail} bytes after byte {whole} are not a whole event" in result.stderr

@@ -399,6 +399,35 @@ def _tip_z(message: Any) -> float:
     return round(float(tip.transform.translation.z), 6)
 
 
+def test_ros_args_are_passed_to_rclpy_like_any_node(probe: RosProbe, tmp_path: Path) -> None:
+    from rclpy.parameter_client import AsyncParameterClient
+
+    from tests.test_translators import draw_of, small_scene
+
+    url = lcm_url(14)
+    bridge = BridgeProcess("--lcm-url", url, "--ros-args", "-r", "__ns:=/sim1", "-p", "use_sim_time:=true")
+    bus = LcmBus(url)
+    poses = probe.subscribe("/sim1/drake/poses", "geometry_msgs/msg/PoseArray")
+    try:
+        bridge.wait_for_line("routes running")
+        assert "ROS 2 node /sim1/viewer_bridge" in bridge.wait_for_line("routes running")
+
+        def sent() -> bool:
+            bus.publish("DRAKE_VIEWER_DRAW", draw_of(small_scene(), 1.5))
+            return bool(poses)
+
+        assert probe.wait_for(sent, timeout=20), bridge.lines
+        client = AsyncParameterClient(probe.node, "/sim1/viewer_bridge")
+        assert client.wait_for_services(timeout_sec=10)
+        future = client.get_parameters(["use_sim_time"])
+        assert probe.wait_for(future.done, timeout=10)
+        assert future.result().values[0].bool_value is True
+    finally:
+        assert bridge.stop() == 0
+        bus.close()
+    assert _stamp_ms(poses[0].header.stamp) == 1500
+
+
 # --- pieces ----------------------------------------------------------------------------------------------
 
 

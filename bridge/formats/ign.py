@@ -252,16 +252,24 @@ def _fill_poses(repeated: Any, poses: LinkPoses) -> None:
         orientation.x, orientation.y, orientation.z, orientation.w = qx, qy, qz, qw
 
 
+def _xyzw(pose: Any) -> list[float]:
+    if not pose.HasField("orientation"):
+        return [0.0, 0.0, 0.0, 1.0]
+    orientation = pose.orientation
+    return [orientation.x, orientation.y, orientation.z, orientation.w]
+
+
 def poses_from_pose_v(message: Any, robot_nums: Mapping[str, int] | None = None) -> LinkPoses:
     """A `Pose_V` or `PosesStamped` back as link poses (names from `Pose.name`).
 
     `robot_nums` (link name -> model instance, e.g. from the scene's load) fills what the
-    message does not carry; links it lacks get 0. Raises `SceneError` for a non-finite position
-    or a quaternion that is not a rotation.
+    message does not carry; links it lacks get 0. A Pose without an orientation is not rotated
+    (the identity, as every gz tool reads it). Raises `SceneError` for a non-finite position or
+    an orientation given that is not a rotation.
     """
     names = [p.name for p in message.pose]
     positions = [[p.position.x, p.position.y, p.position.z] for p in message.pose]
-    xyzw = [[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in message.pose]
+    xyzw = [_xyzw(p) for p in message.pose]
     numbers = [(robot_nums or {}).get(name, 0) for name in names]
     stamp = message.header.stamp
     timestamp_ms = ms_from_sec_nsec(stamp.sec, stamp.nsec)

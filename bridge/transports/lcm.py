@@ -7,6 +7,7 @@ interface, with one LCM subscription for every route (LCM channels carry any typ
 
 from __future__ import annotations
 
+import logging
 import re
 import threading
 import time
@@ -17,8 +18,10 @@ from pathlib import Path
 
 import lcm
 
+from bridge.errors import BridgeError
 from bridge.transports import base
 
+_log = logging.getLogger("viewer_bridge")
 DEFAULT_URL = "udpm://239.255.76.67:7667?ttl=0"  # LCM's default; ttl=0 never leaves the host
 
 
@@ -29,14 +32,40 @@ class LcmEvent:
     timestamp_us: int  # the log's receive time, or the local receive time when live
 
 
+class LogError(BridgeError):
+    """A file that is not an LCM log."""
+
+
+_SYNC = bytes.fromhex("eda1da01")  # every LCM log event starts with this word
+
+
 def read_log(path: str | Path, channel: str = ".*") -> Iterator[LcmEvent]:
-    """Every event of an LCM log file whose channel fully matches the regex `channel`."""
+    """Every event of an LCM log file whose channel fully matches the regex `channel`.
+
+    Raises `LogError` for a file that does not start like an LCM log. A log that ends in a partial
+    event (a logger killed mid-write) yields every whole event and warns with the byte offset.
+    """
     pattern = re.compile(channel)
+    with open(path, "rb") as file:
+        start = file.read(len(_SYNC))
+    if start and start != _SYNC:
+        raise LogError(
+            f"{path} is not an LCM log: it starts with {start.hex()}, not the event sync word {_SYNC.hex()}"
+        )
     log = lcm.EventLog(str(path), "r")
+    whole = 0  # where the last whole event ends
     try:
-        for event in log:
+        while (event := log.read_next_event()) is not None:
+            whole = log.tell()
             if pattern.fullmatch(event.channel):
                 yield LcmEvent(event.channel, bytes(event.data), event.timestamp)
+        if whole < log.size():
+            _log.warning(
+                "%s ends in a partial event: the %d bytes after byte %d are not a whole event and were skipped",
+                path,
+                log.size() - whole,
+                whole,
+            )
     finally:
         log.close()
 

@@ -58,8 +58,9 @@ def qos_profile(depth: int, reliable: bool = True, latched: bool = False) -> QoS
 
 class RosSettings(TransportSettings):
     node: str = "viewer_bridge"
-    namespace: str = ""
+    namespace: str = ""  # relative topic names resolve under it; absolute ones (/tf) do not
     use_sim_time: bool = False
+    ros_args: list[str] = []  # what follows `--ros-args` on the command line: remaps, -p, ...
 
 
 class RosTransport(Transport):
@@ -80,8 +81,10 @@ class RosTransport(Transport):
         except ImportError as error:
             raise TransportUnavailable(f"the ros transport needs rclpy ({error}): {INSTALL_HINT}") from None
         self._context = Context()
-        rclpy.init(context=self._context)
-        overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, settings.use_sim_time)]
+        # Global arguments, as any ROS 2 node takes them: `-r __ns:=/sim1`, `-p use_sim_time:=true`.
+        rclpy.init(context=self._context, args=["viewer-bridge", "--ros-args", *settings.ros_args])
+        # An override beats the command line: set use_sim_time only when the config asks for it.
+        overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, True)] if settings.use_sim_time else []
         self.node = Node(
             settings.node, namespace=settings.namespace, context=self._context, parameter_overrides=overrides
         )

@@ -99,8 +99,9 @@ def test_a_pose_v_from_the_cli_arrives_as_a_drake_draw() -> None:
     url = lcm_url(8)
     recorder = LcmRecorder(url)
     bridge = BridgeProcess("-c", "builtin:ign", "--lcm-url", url)
+    # The second pose has no orientation, as in the README's example: it means the identity.
     text = 'header { stamp { sec: 3 nsec: 250000000 } } pose { name: "plant::arm" position { x: 1 y: 2 z: 3 } ' \
-           'orientation { x: 0 y: 0 z: 0.6 w: 0.8 } }'  # fmt: skip
+           'orientation { x: 0 y: 0 z: 0.6 w: 0.8 } } pose { name: "plant::hand" position { x: 1 } }'  # fmt: skip
     try:
         bridge.wait_for_line("routes running")
         deadline = time.monotonic() + 30
@@ -111,9 +112,9 @@ def test_a_pose_v_from_the_cli_arrives_as_a_drake_draw() -> None:
         assert bridge.stop() == 0
         recorder.close()
     draw = drake_lcmtypes.lcmt_viewer_draw.decode(recorder.messages["DRAKE_VIEWER_DRAW_FROM_IGN"][0])
-    assert (draw.timestamp, list(draw.link_name)) == (3250, ["plant::arm"])
-    assert [list(p) for p in draw.position] == [[1.0, 2.0, 3.0]]
-    assert np.allclose(draw.quaternion, [[0.8, 0.0, 0.0, 0.6]])  # w first
+    assert (draw.timestamp, list(draw.link_name)) == (3250, ["plant::arm", "plant::hand"])
+    assert [list(p) for p in draw.position] == [[1.0, 2.0, 3.0], [1.0, 0.0, 0.0]]
+    assert np.allclose(draw.quaternion, [[0.8, 0.0, 0.0, 0.6], [1.0, 0.0, 0.0, 0.0]])  # w first
 
 
 # --- 3. peers come and go ------------------------------------------------------------------------------------
