@@ -67,6 +67,7 @@ class _Ros2Mcap:
 
     def publisher(self, topic: str, output: Output) -> Publisher:
         typename = output.type.name
+        topic = topic if topic.startswith("/") else f"/{topic}"  # as a node in the root namespace names it
         if topic not in self._channels:
             if typename not in self._schemas:
                 text, _ = self._store.generate_msgdef(typename, ros_version=2)

@@ -120,3 +120,17 @@ def test_a_log_cut_short_is_read_to_its_last_whole_event_with_a_warning(drake_lo
     whole = all_but_last.stat().st_size
     tail = torn.stat().st_size - whole
     assert f"{torn} ends in a partial event: the {tail} bytes after byte {whole} are not a whole event" in result.stderr
+
+
+def test_run_without_the_ros_extra_names_the_install_that_fixes_it() -> None:
+    # As `pip install viewer-bridge` without `[ros]`: rclpy cannot be imported.
+    code = "import sys; sys.modules['rclpy'] = None; from bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+    result = subprocess.run(
+        [sys.executable, "-c", code, "run", "--duration", "1", "--set", "foxglove.port=0"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 2, result.stderr
+    assert "the ros transport needs rclpy" in result.stderr and "pip install 'viewer-bridge[ros]'" in result.stderr
+    assert "Traceback" not in result.stderr
