@@ -338,7 +338,6 @@ class Router:
                 self.transports[name] = TRANSPORTS.get(name)(config.settings(name))
             for route in config.routes:
                 self.routes.append(self._runner(route))
-            self._require()
         except BaseException:
             self._close_transports()
             raise
@@ -356,21 +355,14 @@ class Router:
             return translator
 
         runner = RouteRunner(route, make_translator, self._publisher_factory(route))
-        assert runner.prototype is not None
-        source.subscribe(route.source.name, runner.prototype.reads[0], output_qos(route, False), runner.offer)
+        translator = runner.prototype
+        assert translator is not None
+        # Before anything runs, each transport checks it has every type the route uses: a missing
+        # interface is one clear line at start, not an error per message.
+        source.require(translator.reads[:1] + ((translator.replies,) if translator.replies else ()))
+        self.transports[route.destination.transport].require(output.type for output in translator.outputs)
+        source.subscribe(route.source.name, translator.reads[0], output_qos(route, False), runner.offer)
         return runner
-
-    def _require(self) -> None:
-        """Every transport checks, before anything runs, that it has every type its routes use."""
-        for runner, route in zip(self.routes, self.config.routes, strict=True):
-            translator = runner.prototype
-            assert translator is not None
-            source, destination = (
-                self.transports[route.source.transport],
-                self.transports[route.destination.transport],
-            )
-            source.require(translator.reads[:1] + ((translator.replies,) if translator.replies else ()))
-            destination.require(output.type for output in translator.outputs)
 
     def _publisher_factory(self, route: Route) -> PublisherFor:
         transport = self.transports[route.destination.transport]
