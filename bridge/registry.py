@@ -39,9 +39,6 @@ class Registry(Generic[Entry]):
         plugins = [point.name for point in entry_points(group=self.group) if point.name not in self._builtins]
         return [*self._builtins, *sorted(set(plugins))]
 
-    def __contains__(self, name: object) -> bool:
-        return isinstance(name, str) and name in self.names()
-
     def get(self, name: str) -> type[Entry]:
         """The class registered as `name`; `KeyError` names the known ones."""
         entry = self._loaded.get(name)
