@@ -12,9 +12,10 @@ The router knows transports and translators only through their interfaces
 (`bridge.transports.base.Transport`, `bridge.translators.base.Translator`) and their
 registries: no transport or format is named here.
 
-Threads: each transport delivers on a thread of its own and only hands the message to the
-routes whose source matches (a dictionary insert); each route has a worker thread that
-translates and publishes. Between the two sits a `Mailbox`, bounded: with the `latest` policy
+Threads: each transport delivers on a thread of its own. A route that is idle translates the
+message right there, on the transport's thread (`InlineBudget`: no wake-up of another thread,
+no GIL hand-off), as long as that thread is not too busy; otherwise the message goes to the
+route's worker thread, which translates and publishes. Between the two sits a `Mailbox`, bounded: with the `latest` policy
 it keeps the newest message per channel (a slow consumer gets the newest draw, never a
 backlog; a draw never displaces a load, which is on another channel), with `all` a FIFO of
 `qos.depth` that drops its oldest. Every drop, error and crash is counted per route and kind;
@@ -31,6 +32,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import re
 import threading
 import time
@@ -88,16 +90,51 @@ class Mailbox:
                 self._fifo.append(message)
             self._ready.notify()
 
-    def get(self, timeout: float) -> Message | None:
+    def wait(self, timeout: float) -> bool:
+        """Whether a message is waiting, within `timeout` seconds (without taking it)."""
         with self._ready:
-            if not self._latest and not self._fifo:
-                self._ready.wait(timeout)
+            return bool(self._latest or self._fifo or self._ready.wait_for(self.__len__, timeout))
+
+    def take(self) -> Message | None:
+        """The next message, or None when there is none (never waits)."""
+        with self._ready:
             if self._latest:
                 return self._latest.popitem(last=False)[1]
             return self._fifo.popleft() if self._fifo else None
 
     def __len__(self) -> int:
         return len(self._latest) + len(self._fifo)
+
+
+class InlineBudget:
+    """Whether a transport's thread may translate a message itself instead of waking a worker.
+
+    Handing a message to a route's worker costs a wake-up and a GIL hand-off between two threads
+    per message, which on a loaded core costs more than a quick translation. So the thread that
+    received a message translates it at once when the route is idle, as long as that thread has
+    spent less than `share` of its recent time (decayed over `window_s`) translating inline.
+    Past that, the workers take over: the mailbox's policy (the newest wins) applies again instead
+    of a backlog building up in the transport's receive buffers.
+    """
+
+    def __init__(self, share: float = 0.5, window_s: float = 0.2) -> None:
+        self._share_s = share * window_s
+        self._window_s = window_s
+        self._threads = threading.local()  # each receiving thread's own decayed busy time
+
+    def _busy(self, now: float) -> float:
+        state = self._threads
+        busy: float = getattr(state, "busy", 0.0)
+        if busy:
+            busy *= math.exp((getattr(state, "at", now) - now) / self._window_s)
+        return busy
+
+    def allows(self) -> bool:
+        return self._busy(time.perf_counter()) < self._share_s
+
+    def spent(self, started: float, ended: float) -> None:
+        self._threads.busy = self._busy(ended) + (ended - started)
+        self._threads.at = ended
 
 
 _SAMPLES = 4096  # latency and translate-time samples kept per route (a ring)
@@ -179,12 +216,19 @@ class RouteRunner:
     """One route: its mailbox, its lanes (a translator per stream), its publishers, its worker."""
 
     def __init__(
-        self, route: Route, make_translator: Callable[[], Translator], publisher_for: PublisherFor
+        self,
+        route: Route,
+        make_translator: Callable[[], Translator],
+        publisher_for: PublisherFor,
+        inline: InlineBudget | None = None,
     ) -> None:
         self.route = route
         self.pattern = re.compile(route.source.name)
         self.mailbox = Mailbox(route.rate.policy, route.qos.depth)
         self.stats = RouteStats()
+        # A rate-limited route waits between messages: only its worker can do that.
+        self._inline = None if route.rate.max_hz else inline
+        self._turn = threading.Lock()  # held by whichever thread translates for this route
         self._make_translator = make_translator
         self._publisher_for = publisher_for
         self.prototype: Translator | None = make_translator()  # made now: errors show at start
@@ -200,7 +244,22 @@ class RouteRunner:
         if match is not None:
             self.stats.messages_in += 1
             self.stats.bytes_in += len(received.data)
-            self.mailbox.put(Message(received, match))
+            message = Message(received, match)
+            if not self._translated_inline(message):
+                self.mailbox.put(message)
+
+    def _translated_inline(self, message: Message) -> bool:
+        """Translate on the caller's thread when the route is idle and the budget allows."""
+        inline = self._inline
+        if inline is None or len(self.mailbox) or not inline.allows() or not self._turn.acquire(False):
+            return False
+        started = time.perf_counter()
+        try:
+            self.handle(message)
+        finally:
+            self._turn.release()
+            inline.spent(started, time.perf_counter())
+        return True
 
     def start(self) -> None:
         self._thread.start()
@@ -220,12 +279,16 @@ class RouteRunner:
                 delay = next_due - time.monotonic()
                 if delay > 0 and self._stop.wait(delay):
                     break
-            message = self.mailbox.get(timeout=0.1)
-            if message is None:
-                self.catch_up()
+            if not self.mailbox.wait(timeout=0.1):
+                with self._turn:
+                    self.catch_up()
                 continue
-            next_due = time.monotonic() + period
-            self.handle(message)
+            # Taken under the turn: a message translated inline meanwhile is never overtaken.
+            with self._turn:
+                message = self.mailbox.take()
+                if message is not None:
+                    next_due = time.monotonic() + period
+                    self.handle(message)
 
     def catch_up(self) -> None:
         """A lazy route's lanes that skipped messages and now have a subscriber translate them."""
@@ -331,6 +394,7 @@ class Router:
         self.stats_period = stats_period
         self.transports: dict[str, Transport] = {}
         self.routes: list[RouteRunner] = []
+        self._inline = InlineBudget()
         self._stop = threading.Event()
         self._started = False
         try:
@@ -354,7 +418,7 @@ class Router:
                 translator.reply = reply
             return translator
 
-        runner = RouteRunner(route, make_translator, self._publisher_factory(route))
+        runner = RouteRunner(route, make_translator, self._publisher_factory(route), self._inline)
         translator = runner.prototype
         assert translator is not None
         # Before anything runs, each transport checks it has every type the route uses: a missing

@@ -484,12 +484,12 @@ def test_mailbox_keeps_the_newest_per_channel_and_never_grows() -> None:
     latest.put(Message(Received("LOAD", b"load", 0), match))
     latest.put(Message(Received("DRAW", b"newest", 0), match))
     assert len(latest) == 2 and latest.dropped == 1000
-    assert [latest.get(0).received.data, latest.get(0).received.data] == [b"load", b"newest"]  # type: ignore[union-attr]
+    assert [latest.take().received.data, latest.take().received.data] == [b"load", b"newest"]  # type: ignore[union-attr]
     fifo = Mailbox("all", 3)
     for index in range(5):
         fifo.put(Message(Received("DRAW", bytes([index]), index), match))
-    assert fifo.dropped == 2 and [fifo.get(0).received.data for _ in range(3)] == [b"\x02", b"\x03", b"\x04"]  # type: ignore[union-attr]
-    assert fifo.get(0.01) is None
+    assert fifo.dropped == 2 and [fifo.take().received.data for _ in range(3)] == [b"\x02", b"\x03", b"\x04"]  # type: ignore[union-attr]
+    assert fifo.take() is None and not fifo.wait(0.01)
 
 
 def test_a_translator_crash_skips_that_message_only() -> None:

@@ -1,0 +1,62 @@
+"""The LCM transport's receive buffer, and the drops the kernel counts when it overflows anyway."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from bridge.transports import lcm as lcm_transport
+from bridge.transports.lcm import LcmSettings, LcmTransport, with_receive_buffer
+from tests.conftest import lcm_url
+
+
+def rmem_max() -> int:
+    return int(Path("/proc/sys/net/core/rmem_max").read_text())
+
+
+def test_a_udpm_url_asks_for_a_large_buffer_capped_by_the_kernel_limit() -> None:
+    url = "udpm://239.255.76.67:7667?ttl=0"
+    assert with_receive_buffer(url) == f"{url}&recv_buf_size={min(rmem_max(), lcm_transport.RECEIVE_BUFFER)}"
+    granted = min(rmem_max(), lcm_transport.RECEIVE_BUFFER)
+    assert (
+        with_receive_buffer("udpm://239.255.76.67:7667")
+        == f"udpm://239.255.76.67:7667?recv_buf_size={granted}"
+    )
+    assert with_receive_buffer(f"{url}&recv_buf_size=1000") == f"{url}&recv_buf_size=1000"  # the user's own
+    assert with_receive_buffer("memq://") == "memq://"
+
+
+def test_the_limit_is_explained_once_with_the_sysctl_to_raise_it(caplog: pytest.LogCaptureFixture) -> None:
+    lcm_transport._granted.cache_clear()
+    wanted = rmem_max() * 2
+    with caplog.at_level("INFO", logger="viewer_bridge"):
+        with_receive_buffer("udpm://239.255.76.67:7667?ttl=0", wanted)
+        with_receive_buffer("udpm://239.255.76.67:7668?ttl=0", wanted)
+    advice = [record.getMessage() for record in caplog.records if "rmem_max" in record.getMessage()]
+    assert advice == [
+        f"LCM receive buffer: {wanted // 1024} kB asked, the kernel allows {rmem_max() // 1024} kB "
+        f"(net.core.rmem_max); for fewer drops under load: sudo sysctl -w net.core.rmem_max={wanted}"
+    ]
+
+
+def test_what_the_kernel_drops_is_counted_as_the_transports_error() -> None:
+    url = lcm_url(21)
+    # A small buffer the user asked for and a reader that cannot keep up: the kernel must drop.
+    transport = LcmTransport(LcmSettings(url=f"{url}&recv_buf_size=100000"))
+    blocked = threading.Event()
+    transport.bus.subscribe(".*", lambda channel, data, received_us: blocked.wait(5))
+    transport.start()
+    sender = lcm_transport.Publisher(url)
+    try:
+        assert transport.errors() == {}
+        for _ in range(200):
+            sender.publish("FLOOD", bytes(60_000))
+        time.sleep(0.5)
+        dropped = transport.errors().get("dropped_by_kernel", 0)
+        assert 100 < dropped < 200
+    finally:
+        blocked.set()
+        transport.close()
