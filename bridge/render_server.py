@@ -149,6 +149,8 @@ def make_server(
     renderer = RenderThread()
 
     class Handler(http.server.BaseHTTPRequestHandler):
+        timeout = 30  # seconds a stalled upload may hold its connection's thread
+
         def do_POST(self) -> None:  # noqa: N802 - the http.server name
             if self.path.split("?")[0] != "/render":
                 return self._reply(404, b"only POST /render is served", "text/plain")
@@ -160,7 +162,13 @@ def make_server(
                 return self._reply(
                     400, f"upload of {length} bytes is above the limit of {max_upload}".encode(), "text/plain"
                 )
-            body = self.rfile.read(length)
+            try:
+                body = self.rfile.read(length)
+            except OSError:  # stalled past `timeout`, or reset by the client
+                body = b""
+            if len(body) < length:  # the client left mid-upload: nobody to answer, nothing to render
+                log.info("render server: a client left after %d of %d bytes", len(body), length)
+                return
             started = time.perf_counter()
             try:
                 fields = parse_form(self.headers.get("Content-Type", ""), body)

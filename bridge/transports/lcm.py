@@ -205,7 +205,11 @@ class LcmBus:
         return 0 if self._port is None else kernel_drops(self._port)
 
     def subscribe(self, channel: str, callback: Callback) -> None:
-        self._lcm.subscribe(channel, lambda name, data: callback(name, data, time.time_ns() // 1000))
+        subscription = self._lcm.subscribe(channel, lambda name, data: callback(name, data, time.time_ns() // 1000))
+        # LCM queues at most 30 messages per subscription while a callback runs, and discards the
+        # rest without a word. Unbounded here: loss happens only where it is counted (the kernel's
+        # socket buffer, a route's mailbox); the router keeps the callback quick (`InlineBudget`).
+        subscription.set_queue_capacity(0)
 
     def publish(self, channel: str, data: bytes) -> None:
         self._lcm.publish(channel, data)
