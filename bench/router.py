@@ -33,6 +33,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
+from common import Measure
 
 from bridge.formats.drake import DrawEncoder, load_from_scene
 from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
@@ -163,9 +164,12 @@ class Bridge:
 
 
 class Subscriber:
-    """rclpy, raw bytes: counts messages and reads the sequence number back out of them."""
+    """rclpy, raw bytes: counts messages and reads the sequence number back out of them.
 
-    def __init__(self, topic: str, typename: str) -> None:
+    Every topic is subscribed to; what arrives on the first is kept in `received`.
+    """
+
+    def __init__(self, topics: tuple[tuple[str, str], ...]) -> None:
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
@@ -177,10 +181,10 @@ class Subscriber:
         rclpy.init(context=self.context)
         self.node = Node("bench_subscriber", context=self.context)
         self.received: list[tuple[bytes, int]] = []
-        self.node.create_subscription(
-            message_class(typename), topic, lambda data: self.received.append((bytes(data), time.perf_counter_ns())),
-            qos_profile(1000), raw=True,
-        )  # fmt: skip
+        for index, (topic, typename) in enumerate(topics):
+            keep = (lambda data: self.received.append((bytes(data), time.perf_counter_ns()))) if index == 0 else (
+                lambda data: None)  # fmt: skip
+            self.node.create_subscription(message_class(typename), topic, keep, qos_profile(1000), raw=True)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         threading.Thread(target=self.executor.spin, daemon=True).start()
@@ -229,29 +233,58 @@ def publish_at(
         sequence += 1
 
 
-SUBSCRIBED = {  # what this process subscribes to, raw, for each set-up: the per-draw output
-    PASSTHROUGH: ("/bench/bytes", "std_msgs/msg/UInt8MultiArray"),
-    THROUGHPUT: ("/bench/poses", "geometry_msgs/msg/PoseArray"),
-    WORLD_MARKERS: ("/bench/markers", "visualization_msgs/msg/MarkerArray"),
-    TF_SETUP: ("/tf", "tf2_msgs/msg/TFMessage"),
+POSES = LATENCY["poses"].replace("/bench/out", "/bench/poses").replace("    rate: {policy: all}\n", "")
+TF_ONLY = TF_SETUP.split("  - name: link_markers")[0]
+_PER_DRAW_ROUTES = ("tf", "markers", "poses")
+
+
+def default_per_draw(policy: str) -> str:
+    """The built-in default config's per-draw routes (TF, world-frame markers, poses), one policy."""
+    from bridge.config import load_config
+
+    routes = [route for route in load_config("builtin:default").routes if route.name in _PER_DRAW_ROUTES]
+    lines = ["routes:"]
+    for route in routes:
+        lines += [f"  - name: {route.name}",
+                  f"    source: {{transport: lcm, name: {json.dumps(route.source.name)}}}",
+                  f"    translator: {route.translator}",
+                  f"    destination: {{transport: ros, name: {json.dumps(route.destination.name)}}}",
+                  f"    qos: {{depth: {1000 if policy == 'all' else route.qos.depth}}}",  # all: room for bursts
+                  f"    rate: {{policy: {policy}}}"]  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+DEFAULT_ALL, DEFAULT_LATEST = default_per_draw("all"), default_per_draw("latest")
+_DEFAULT_TOPICS = (("/drake/poses", "geometry_msgs/msg/PoseArray"), ("/tf", "tf2_msgs/msg/TFMessage"),
+                   ("/drake/markers", "visualization_msgs/msg/MarkerArray"))  # fmt: skip
+
+SUBSCRIBED = {  # what this process subscribes to, raw, for each set-up: the per-draw outputs
+    PASSTHROUGH: (("/bench/bytes", "std_msgs/msg/UInt8MultiArray"),),
+    THROUGHPUT: (("/bench/poses", "geometry_msgs/msg/PoseArray"), ("/bench/markers", "visualization_msgs/msg/MarkerArray")),
+    POSES: (("/bench/poses", "geometry_msgs/msg/PoseArray"),),
+    WORLD_MARKERS: (("/bench/markers", "visualization_msgs/msg/MarkerArray"),),
+    TF_SETUP: (("/tf", "tf2_msgs/msg/TFMessage"), ("/bench/link_markers", "visualization_msgs/msg/MarkerArray")),
+    TF_ONLY: (("/tf", "tf2_msgs/msg/TFMessage"),),
+    DEFAULT_ALL: _DEFAULT_TOPICS,
+    DEFAULT_LATEST: _DEFAULT_TOPICS,
 }
 
 
 def throughput_run(
-    label: str, config: str, folder: Path, seconds: float, source: Path | None = None
+    label: str, config: str, folder: Path, seconds: float, source: Path | None = None, rate_hz: float = 1000.0
 ) -> dict[str, float]:
-    """One bridge at 1 kHz of 1000-link draws; per-second stats, then its totals."""
+    """One bridge at `rate_hz` of 1000-link draws; per-second stats, then its totals."""
     links = 1000
     the_scene = scene(links)
     names = tuple(link.name for link in the_scene.links)
     bridge = Bridge(config, folder, core=0, source=source)
     bus = LcmBus(URL)
-    subscriber = Subscriber(*SUBSCRIBED[config])
+    subscriber = Subscriber(SUBSCRIBED[config])
     time.sleep(2.0)  # discovery
     bus.publish("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(the_scene).encode())
     time.sleep(0.5)
     sent: dict[int, int] = {}
-    publisher = threading.Thread(target=publish_at, args=(bus, 1000.0, seconds, names, sent))
+    publisher = threading.Thread(target=publish_at, args=(bus, rate_hz, seconds, names, sent))
     print(f"\n{label}")
     print(f"{'t (s)':>6} | {'draws sent':>10} | " + " | ".join(
         f"{'route':>11} {'in':>6} {'out':>6} {'dropped':>7} {'queued':>6}" for _ in range(2)))  # fmt: skip
@@ -361,7 +394,7 @@ def latency(folder: Path, seconds: float) -> None:
     ):
         bridge = Bridge(LATENCY[mode], folder, core=None)
         bus = LcmBus(URL)
-        subscriber = Subscriber("/bench/out", typename)
+        subscriber = Subscriber((("/bench/out", typename),))
         time.sleep(2.0)
         sent: dict[int, int] = {}
         publish_at(bus, 100.0, seconds, names, sent)
@@ -386,6 +419,38 @@ def latency(folder: Path, seconds: float) -> None:
         )
     ratio = results["poses"][0][1] / results["passthrough"][0][1]
     print(f"   p99 ratio, translated / passthrough: {ratio:.2f} (goal: within 1.5)")
+
+
+def measures(quick: bool = False) -> list[Measure]:
+    """Issue 15's goals 4 and 5: CPU per draw against the passthrough, and the 2 kHz run."""
+    seconds = 4.0 if quick else 10.0
+    everywhere = os.sched_getaffinity(0)
+    os.sched_setaffinity(0, {1})  # the publisher and subscribers; the bridge gets CPU 0
+    try:
+        with tempfile.TemporaryDirectory() as name:
+            folder = Path(name)
+            runs = {label: throughput_run(label, config, folder, seconds) for label, config in
+                    (("passthrough", PASSTHROUGH), ("poses", POSES), ("tf", TF_ONLY))}  # fmt: skip
+            at_2k = {policy: throughput_run(f"default per-draw routes, {policy}, 2 kHz", config, folder,
+                                            seconds, rate_hz=2000.0)
+                     for policy, config in (("all", DEFAULT_ALL), ("latest", DEFAULT_LATEST))}  # fmt: skip
+    finally:
+        os.sched_setaffinity(0, everywhere)
+    passthrough = runs["passthrough"]["cpu_us_per_draw"]
+    rows = [
+        Measure(f"router: bridge CPU per 1000-link draw at 1 kHz, pinned, {label} route", runs[label]["cpu_us_per_draw"],
+                passthrough, "us", "ratio >= 0.67 (<= 1.5x passthrough)", runs[label]["cpu_us_per_draw"] <= 1.5 * passthrough)
+        for label in ("poses", "tf")
+    ]  # fmt: skip
+    everything = at_2k["all"]
+    dropped = sum(everything[f"{name}_dropped"] for name in _PER_DRAW_ROUTES)
+    rows.append(Measure("router: default per-draw routes, 2 kHz x 1000 links, policy all: dropped in the bridge",
+                        dropped, None, "draws", "0", dropped == 0))  # fmt: skip
+    latest = at_2k["latest"]
+    delivered = 100.0 * latest["poses_out"] / max(latest["received"], 1)
+    rows.append(Measure("router: same, policy latest: poses delivered of draws received", delivered, None, "%",
+                        ">= 99 (when the core has room)", delivered >= 99.0))  # fmt: skip
+    return rows
 
 
 def main() -> None:
