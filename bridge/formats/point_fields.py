@@ -175,8 +175,9 @@ def _structured_dtype(fields: Sequence[PointField], rgb: PointField | None, layo
 
 def _columns(table: npt.NDArray[Any], names: Sequence[str]) -> FloatArray:
     result = np.empty((len(table), len(names)), dtype=np.float64)
-    for column, name in enumerate(names):
-        result[:, column] = table[name]
+    with np.errstate(invalid="ignore"):  # NaN and infinity are sorted out by the caller
+        for column, name in enumerate(names):
+            result[:, column] = table[name]
     return result
 
 
