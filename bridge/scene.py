@@ -296,8 +296,8 @@ class PointCloud:
         count = _check_rows(self.points, "points", None)
         if self.colors is not None:
             _check_rows(self.colors, "colors", count)
-            outside = (self.colors < 0.0) | (self.colors > 1.0)
-            if outside.any():
+            if count and (self.colors.min() < 0.0 or self.colors.max() > 1.0):
+                outside = (self.colors < 0.0) | (self.colors > 1.0)
                 row = int(np.flatnonzero(outside.any(axis=1))[0])
                 raise SceneError(f"point cloud colors[{row}] is outside [0, 1]")
         if self.normals is not None:
@@ -322,9 +322,9 @@ def _check_rows(values: npt.NDArray[Any], what: str, count: int | None) -> int:
     if values.ndim != 2 or values.shape[1] != 3 or (count is not None and len(values) != count):
         wanted = "N x 3" if count is None else f"{count} x 3 (one row per point)"
         raise SceneError(f"point cloud {what} must be {wanted}, got shape {values.shape}")
-    finite = np.isfinite(values).all(axis=1)
-    if not finite.all():
-        raise SceneError(f"point cloud {what}[{int(np.flatnonzero(~finite)[0])}] is not finite")
+    if not np.isfinite(values).all():  # flat first: many times faster than per row on N x 3
+        row = int(np.flatnonzero(~np.isfinite(values).all(axis=1))[0])
+        raise SceneError(f"point cloud {what}[{row}] is not finite")
     return len(values)
 
 
