@@ -128,7 +128,7 @@ def read_points(
     """
     reader = _Reader(layout, type_name, data_field)
     count = reader.check_shape(len(data))
-    if count == 0:  # a default-constructed message has no fields at all: nothing to look up
+    if count == 0 and not layout.fields:  # a default-constructed message: nothing to look up
         return PointCloud(np.empty((0, 3)))
     xyz = [reader.field(name, required=True) for name in XYZ]
     rgb = reader.field("rgb", False) or reader.field("rgba", False)

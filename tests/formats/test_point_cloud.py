@@ -294,3 +294,15 @@ def test_point_cloud_checks_its_arrays(kwargs: dict[str, Any], message: str) -> 
     values = {"points": np.zeros((2, 3)), **kwargs}
     with pytest.raises(SceneError, match=message):
         PointCloud(**values)
+
+
+@pytest.mark.parametrize("count", [0, 1, 2, 257])
+@pytest.mark.parametrize(("colors", "normals"), [(False, False), (True, False), (False, True), (True, True)])
+def test_clouds_survive_drake_to_ros_to_drake(count: int, colors: bool, normals: bool) -> None:
+    cloud = sample_cloud(count, colors=colors, normals=normals, seed=count)
+    stamped = StampedPointCloud(cloud, "plant/camera", 123_456_000)
+    via_ros = cloud_from_cdr(cloud_to_cdr(cloud_from_lcm(cloud_to_lcm(stamped))))
+    assert via_ros.cloud == cloud  # colours and normals kept, even for an empty cloud
+    assert (via_ros.frame, via_ros.time_us) == ("plant/camera", 123_456_000)
+    theirs = drake_lcmtypes.lcmt_point_cloud.decode(cloud_to_lcm(via_ros))
+    assert theirs.width == count and theirs.point_step == 12 + 4 * colors + 12 * normals
