@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message
 from visualization_msgs.msg import MarkerArray
 
+from bridge.config import load_config
+from bridge.convert import convert
 from bridge.errors import DecodeError
 from bridge.formats import tree_viewer
 from bridge.formats.drake import DrawEncoder
@@ -14,6 +18,7 @@ from bridge.formats.drake_point_cloud import cloud_from_lcm
 from bridge.scene import LinkPoses, PointCloud
 from bridge.translators import TRANSLATORS
 from bridge.transports.base import Received
+from bridge.transports.lcm import LcmEvent, write_log
 from tests.formats.test_point_cloud import pydrake_message
 
 
@@ -61,3 +66,29 @@ def test_a_cloud_that_is_not_one_is_a_decode_error() -> None:
         TRANSLATORS.get("ros_point_cloud_to_drake")().translate(Received("/in", b"\x00\x01\x00\x00junk"))
     with pytest.raises(DecodeError):
         TRANSLATORS.get("drake_point_cloud_to_ros")().translate(Received("DRAKE_POINT_CLOUD", b"junk"))
+
+
+def test_convert_carries_clouds_and_frames_of_a_log_into_an_mcap(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    log, out = tmp_path / "clouds.lcmlog", tmp_path / "clouds.mcap"
+    cloud = pydrake_message(("kXYZs", "kRGBs"), count=12)
+    write_log(
+        log,
+        [LcmEvent("DRAKE_POINT_CLOUD_WRIST", cloud, 1), LcmEvent("DRAKE_DRAW_FRAMES", poses_of(("a",)), 2)],
+    )
+    counts = convert(log, out, load_config(None), progress=False)
+    assert counts == {"/drake/point_cloud/wrist": 1, "/drake/draw_frames": 1}
+    with out.open("rb") as file:
+        messages = {
+            channel.topic: message
+            for _, channel, _, message in make_reader(
+                file, decoder_factories=[DecoderFactory()]
+            ).iter_decoded_messages()
+        }
+    written = messages["/drake/point_cloud/wrist"]
+    assert (written.width, written.point_step, written.fields[3].name) == (12, 16, "rgb")
+    points = np.frombuffer(bytes(written.data), dtype=np.float32).reshape(12, 4)[:, :3]
+    np.testing.assert_array_equal(points, cloud_from_lcm(cloud).cloud.points)
+    assert [marker.ns for marker in messages["/drake/draw_frames"].markers] == ["", "a"]  # DELETEALL, triad
