@@ -279,7 +279,7 @@ class InMemoryMesh:
 
 @dataclass(frozen=True, eq=False, slots=True)
 class PointCloud:
-    """Points (N x 3), with optional per-point colours (N x 3 RGB in [0, 1]), unit normals (N x 3)
+    """Points (N x 3), with optional per-point colours (N x 3 RGB in [0, 1]), normals (N x 3)
     and named channels.
 
     Director's `pointcloud` and `planar_lidar` (ranges turned into points), Drake's
