@@ -312,6 +312,27 @@ routes:
     translator: drake_link_to_marker_array
     destination: {transport: ros, name: "drake{1:path}/deformable"}
     rate: {policy: latest}
+  # What meldis shows besides the scene: Drake's point clouds (DRAKE_POINT_CLOUD -> /drake/point_cloud,
+  # DRAKE_POINT_CLOUD_FOO -> /drake/point_cloud/foo) and DRAKE_DRAW_FRAMES as triads.
+  - name: point_cloud
+    source: {transport: lcm, name: "DRAKE_POINT_CLOUD(.*)"}
+    translator: drake_point_cloud_to_ros
+    destination: {transport: ros, name: "drake/point_cloud{1:path}"}
+    qos: {depth: 1}
+    rate: {policy: latest}
+    lazy: true
+  - name: draw_frames
+    source: {transport: lcm, name: "DRAKE_DRAW_FRAMES(.*)"}
+    translator: drake_draw_frames_to_markers
+    destination: {transport: ros, name: "drake/draw_frames{1:path}"}
+    rate: {policy: latest}
+    lazy: true
+  # And back: a ROS camera's cloud published on /drake_in/point_cloud shows in meldis.
+  - name: point_cloud_from_ros
+    source: {transport: ros, name: drake_in/point_cloud}
+    translator: ros_point_cloud_to_drake
+    destination: {transport: lcm, name: DRAKE_POINT_CLOUD_FROM_ROS}
+    rate: {policy: latest}
   # viewer-bridge as a Director tree viewer: every client's tree to /director/<client id>/markers.
   - name: tree_viewer
     source: {transport: lcm, name: "DIRECTOR_TREE_VIEWER_REQUEST_<([^<>]*)>"}

@@ -279,25 +279,71 @@ class InMemoryMesh:
 
 @dataclass(frozen=True, eq=False, slots=True)
 class PointCloud:
-    """Points (N x 3), with optional per-point colours (N x 3 RGB in [0, 1]) and named channels.
+    """Points (N x 3), with optional per-point colours (N x 3 RGB in [0, 1]), normals (N x 3)
+    and named channels.
 
-    Director's `pointcloud` and `planar_lidar` (ranges turned into points) both read as this.
+    Director's `pointcloud` and `planar_lidar` (ranges turned into points), Drake's
+    `lcmt_point_cloud` and ROS's `PointCloud2` all read as this. Checked when made: every array
+    N x 3 and finite, colours in [0, 1], else `SceneError` naming the array and its first bad row.
     """
 
     points: FloatArray
     colors: FloatArray | None = None
     channels: Mapping[str, Sequence[Any]] = field(default_factory=dict)
+    normals: FloatArray | None = None
+
+    def __post_init__(self) -> None:
+        count = _check_rows(self.points, "points", None)
+        if self.colors is not None:
+            _check_rows(self.colors, "colors", count)
+            if count and (self.colors.min() < 0.0 or self.colors.max() > 1.0):
+                outside = (self.colors < 0.0) | (self.colors > 1.0)
+                row = int(np.flatnonzero(outside.any(axis=1))[0])
+                raise SceneError(f"point cloud colors[{row}] is outside [0, 1]")
+        if self.normals is not None:
+            _check_rows(self.normals, "normals", count)
+
+    def __len__(self) -> int:
+        return len(self.points)
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, PointCloud):
             return NotImplemented
-        if self.colors is None or other.colors is None:
-            same_colors = self.colors is None and other.colors is None
-        else:
-            same_colors = bool(np.array_equal(self.colors, other.colors))
         return bool(
-            np.array_equal(self.points, other.points) and same_colors and self.channels == other.channels
+            np.array_equal(self.points, other.points)
+            and _same_optional(self.colors, other.colors)
+            and _same_optional(self.normals, other.normals)
+            and self.channels == other.channels
         )
+
+
+def _check_rows(values: npt.NDArray[Any], what: str, count: int | None) -> int:
+    """The row count of an N x 3 finite array; `SceneError` naming `what` otherwise."""
+    if values.ndim != 2 or values.shape[1] != 3 or (count is not None and len(values) != count):
+        wanted = "N x 3" if count is None else f"{count} x 3 (one row per point)"
+        raise SceneError(f"point cloud {what} must be {wanted}, got shape {values.shape}")
+    if not np.isfinite(values).all():  # flat first: many times faster than per row on N x 3
+        row = int(np.flatnonzero(~np.isfinite(values).all(axis=1))[0])
+        raise SceneError(f"point cloud {what}[{row}] is not finite")
+    return len(values)
+
+
+def _same_optional(a: FloatArray | None, b: FloatArray | None) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return bool(np.array_equal(a, b))
+
+
+@dataclass(frozen=True, slots=True)
+class StampedPointCloud:
+    """A point cloud as a sensor sends it: the frame its points are expressed in, and when.
+
+    `time_us` is microseconds (Drake's `utime`); `frame` a ROS-style name (`::` already `/`).
+    """
+
+    cloud: PointCloud
+    frame: str
+    time_us: int
 
 
 @dataclass(frozen=True, slots=True)

@@ -21,3 +21,8 @@ def sec_nsec_from_us(time_us: int) -> tuple[int, int]:
     """A receive time in microseconds (wall clock, as transports stamp messages) as a stamp."""
     seconds, microseconds = divmod(int(time_us), 1_000_000)
     return seconds, microseconds * 1000
+
+
+def us_from_sec_nsec(seconds: int, nanoseconds: int) -> int:
+    """A stamp as microseconds (Drake's `utime`, e.g. of `lcmt_point_cloud`)."""
+    return int(seconds) * 1_000_000 + int(nanoseconds) // 1000

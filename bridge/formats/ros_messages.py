@@ -19,7 +19,7 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_typestore
 
 from bridge.errors import DecodeError, EncodeError
-from bridge.sim_time import sec_nsec_from_ms
+from bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -80,12 +80,18 @@ def time_parts(timestamp_ms: int) -> tuple[int, int]:
 
     Raises `EncodeError` for a time whose seconds do not fit an int32.
     """
-    seconds, nanoseconds = sec_nsec_from_ms(timestamp_ms)
-    if not -(2**31) <= seconds < 2**31:
-        raise EncodeError(
-            "builtin_interfaces/msg/Time", "sec", f"{timestamp_ms} ms does not fit int32 seconds"
-        )
-    return seconds, nanoseconds
+    return _int32_seconds(sec_nsec_from_ms(timestamp_ms), f"{timestamp_ms} ms")
+
+
+def time_parts_from_us(time_us: int) -> tuple[int, int]:
+    """A microsecond time (Drake's `utime`) as `builtin_interfaces/Time`; `EncodeError` as above."""
+    return _int32_seconds(sec_nsec_from_us(time_us), f"{time_us} us")
+
+
+def _int32_seconds(parts: tuple[int, int], what: str) -> tuple[int, int]:
+    if not -(2**31) <= parts[0] < 2**31:
+        raise EncodeError("builtin_interfaces/msg/Time", "sec", f"{what} does not fit int32 seconds")
+    return parts
 
 
 def stamp(timestamp_ms: int) -> Any:
@@ -194,3 +200,67 @@ class CdrWriter:
 
     def getvalue(self) -> bytes:
         return b"".join(self.chunks)
+
+
+class CdrReader:
+    """CDR of either byte order from a buffer, every read checked against the bytes left.
+
+    Alignment counts from after the 4-byte encapsulation header, as when writing. Bytes that do
+    not fit raise `DecodeError` naming `type_name`, the field and the offset.
+    """
+
+    def __init__(self, data: bytes | memoryview, type_name: str) -> None:
+        self.buffer = memoryview(data).cast("B")
+        self.type_name = type_name
+        if len(self.buffer) < 4 or self.buffer[0] != 0 or self.buffer[1] not in (0, 1):
+            raise DecodeError(type_name, "", 0, "not CDR (encapsulation 00 00 or 00 01)")
+        self.big_endian = self.buffer[1] == 0
+        self.order = ">" if self.big_endian else "<"
+        self.offset = 4
+
+    def take(self, size: int, alignment: int, field: str) -> int:
+        """The offset of the next `size` bytes at `alignment`, which are then consumed."""
+        start = 4 + -(-(self.offset - 4) // alignment) * alignment
+        if start + size > len(self.buffer):
+            left = max(len(self.buffer) - start, 0)
+            raise DecodeError(self.type_name, field, start, f"needs {size} bytes, {left} left")
+        self.offset = start + size
+        return start
+
+    def scalar(self, code: str, field: str) -> Any:
+        size = struct.calcsize(code)
+        return struct.unpack_from(self.order + code, self.buffer, self.take(size, size, field))[0]
+
+    def boolean(self, field: str) -> bool:
+        value = self.buffer[self.take(1, 1, field)]
+        if value > 1:
+            raise DecodeError(self.type_name, field, self.offset - 1, f"bool is {value}, not 0 or 1")
+        return bool(value)
+
+    def string(self, field: str) -> str:
+        length = self.scalar("I", field)
+        if length == 0:
+            raise DecodeError(self.type_name, field, self.offset - 4, "string length 0 (the NUL is counted)")
+        start = self.take(length, 1, field)
+        raw = self.buffer[start : start + length]
+        if raw[-1] != 0:
+            raise DecodeError(self.type_name, field, start, "string does not end with NUL")
+        try:
+            return str(raw[:-1], "utf-8")
+        except UnicodeDecodeError as error:
+            raise DecodeError(self.type_name, field, start + error.start, "string is not UTF-8") from None
+
+    def count(self, field: str, item_size: int) -> int:
+        """A sequence length, refused before anything is allocated if its items cannot fit."""
+        count = int(self.scalar("I", field))
+        left = len(self.buffer) - self.offset
+        if count * item_size > left:
+            raise DecodeError(
+                self.type_name, field, self.offset - 4, f"count {count} needs {count * item_size} bytes, {left} left"
+            )
+        return count
+
+    def octets(self, field: str) -> memoryview:
+        length = self.count(field, 1)
+        start = self.take(length, 1, field)
+        return self.buffer[start : start + length]

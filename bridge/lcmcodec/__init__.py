@@ -21,6 +21,8 @@ LINK_DATA = CODECS["drake.lcmt_viewer_link_data"]
 GEOMETRY_DATA = CODECS["drake.lcmt_viewer_geometry_data"]
 DRAW = CODECS["drake.lcmt_viewer_draw"]
 VIEWER2_COMMS = CODECS["robotlocomotion.viewer2_comms_t"]
+POINT_CLOUD = CODECS["drake.lcmt_point_cloud"]
+POINT_CLOUD_FIELD = CODECS["drake.lcmt_point_cloud_field"]
 
 _BY_FINGERPRINT = {codec.packed_fingerprint: codec for codec in CODECS.values()}
 
@@ -36,6 +38,8 @@ __all__ = [
     "GEOMETRY_DATA",
     "LINK_DATA",
     "LOAD_ROBOT",
+    "POINT_CLOUD",
+    "POINT_CLOUD_FIELD",
     "SCHEMA_DIR",
     "STRUCTS",
     "VIEWER2_COMMS",

@@ -2,9 +2,10 @@
 
 Grouped by family: `drake_ros` (Drake's LCM scene <-> ROS 2), `drake_tf` (a TF tree and
 markers in link frames, the way ROS consumes motion), `drake_foxglove` (Foxglove's SceneUpdate
-and FrameTransforms), `drake_ign` (<-> ign/gz
-protobuf), `tree_viewer` (Director's remote tree viewer, both sides); `drake_stream` holds the
-load cache and the decode-once draw every Drake translator shares; `base` what a translator is.
+and FrameTransforms), `drake_point_cloud` (point clouds both ways, DRAKE_DRAW_FRAMES as
+triads), `drake_ign` (<-> ign/gz protobuf), `tree_viewer` (Director's remote tree viewer, both
+sides); `drake_stream` holds the load cache and the decode-once draw every Drake translator
+shares; `base` what a translator is.
 `TRANSLATORS` is the registry a route's `translator:` word is looked up in; a plugin adds one
 with an entry point in the group `viewer_bridge.translators` naming a `Translator` subclass.
 """
@@ -34,6 +35,10 @@ _BUILTINS = {
     "drake_to_ign_pose_v": "drake_ign:DrakeToIgnPoseV",
     "drake_to_ign_poses_stamped": "drake_ign:DrakeToIgnPosesStamped",
     "ign_pose_v_to_drake_draw": "drake_ign:IgnPoseVToDrakeDraw",
+    "drake_point_cloud_to_ros": "drake_point_cloud:DrakePointCloudToRos",
+    "ros_point_cloud_to_drake": "drake_point_cloud:RosPointCloudToDrake",
+    "drake_point_cloud_to_tree_viewer": "drake_point_cloud:DrakePointCloudToTreeViewer",
+    "drake_draw_frames_to_markers": "drake_point_cloud:DrakeDrawFramesToMarkers",
 }
 
 TRANSLATORS: Registry[Translator] = Registry(

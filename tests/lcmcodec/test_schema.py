@@ -17,10 +17,13 @@ KNOWN_FINGERPRINTS = {
     "drake.lcmt_viewer_geometry_data": 0x5D2E34CB3257DB07,
     "drake.lcmt_viewer_draw": 0x414F0BFE5B2F4244,
     "robotlocomotion.viewer2_comms_t": 0xD368E03F33C568BE,
+    # Drake's point cloud types (checked against pydrake's classes below too).
+    "drake.lcmt_point_cloud": 0x17F2C128B5D25A95,
+    "drake.lcmt_point_cloud_field": 0xD2628D58FB331B3F,
 }
 
 
-def test_all_five_types_are_defined() -> None:
+def test_every_known_type_is_defined() -> None:
     assert set(STRUCTS) == set(KNOWN_FINGERPRINTS)
 
 
@@ -29,6 +32,14 @@ def test_fingerprint_equals_lcm_gen(name: str, lcmgen: dict[str, type]) -> None:
     generated = lcmgen[name]._get_packed_fingerprint()  # type: ignore[attr-defined]
     assert CODECS[name].packed_fingerprint == generated
     assert CODECS[name].fingerprint == struct.unpack(">Q", generated)[0] == KNOWN_FINGERPRINTS[name]
+
+
+@pytest.mark.parametrize("name", sorted(name for name in KNOWN_FINGERPRINTS if name.startswith("drake.")))
+def test_fingerprint_equals_pydrakes_class(name: str) -> None:
+    import drake  # Drake's own lcm-gen classes, shipped with pydrake
+
+    theirs = getattr(drake, name.removeprefix("drake."))._get_packed_fingerprint()
+    assert CODECS[name].packed_fingerprint == theirs
 
 
 def test_constants_come_from_the_schema() -> None:
