@@ -437,11 +437,12 @@ def measures(quick: bool = False) -> list[Measure]:
     finally:
         os.sched_setaffinity(0, everywhere)
     passthrough = runs["passthrough"]["cpu_us_per_draw"]
-    rows = [
-        Measure(f"router: bridge CPU per 1000-link draw at 1 kHz, pinned, {label} route", runs[label]["cpu_us_per_draw"],
-                passthrough, "us", "ratio >= 0.67 (<= 1.5x passthrough)", runs[label]["cpu_us_per_draw"] <= 1.5 * passthrough)
-        for label in ("poses", "tf")
-    ]  # fmt: skip
+    rows = []
+    for label in ("poses", "tf"):
+        ours = runs[label]["cpu_us_per_draw"]
+        rows.append(Measure(f"router: bridge CPU per 1000-link draw at 1 kHz, pinned, {label} route", ours,
+                            passthrough, "us", "ratio >= 0.67 (<= 1.5x passthrough)",
+                            ours <= 1.5 * passthrough))  # fmt: skip
     everything = at_2k["all"]
     dropped = sum(everything[f"{name}_dropped"] for name in _PER_DRAW_ROUTES)
     rows.append(Measure("router: default per-draw routes, 2 kHz x 1000 links, policy all: dropped in the bridge",
