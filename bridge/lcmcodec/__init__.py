@@ -21,6 +21,7 @@ LINK_DATA = CODECS["drake.lcmt_viewer_link_data"]
 GEOMETRY_DATA = CODECS["drake.lcmt_viewer_geometry_data"]
 DRAW = CODECS["drake.lcmt_viewer_draw"]
 VIEWER2_COMMS = CODECS["robotlocomotion.viewer2_comms_t"]
+CONTACT_RESULTS = CODECS["drake.lcmt_contact_results_for_viz"]
 
 _BY_FINGERPRINT = {codec.packed_fingerprint: codec for codec in CODECS.values()}
 
@@ -32,6 +33,7 @@ def codec_for(data: Buffer) -> StructCodec | None:
 
 __all__ = [
     "CODECS",
+    "CONTACT_RESULTS",
     "DRAW",
     "GEOMETRY_DATA",
     "LINK_DATA",
