@@ -312,6 +312,20 @@ routes:
     translator: drake_link_to_marker_array
     destination: {transport: ros, name: "drake{1:path}/deformable"}
     rate: {policy: latest}
+  # Contact results (meldis's contact view): arrows and pressure-coloured surfaces, latched like
+  # the markers; a WrenchStamped per contact pair for controllers.
+  - name: contact_markers
+    source: {transport: lcm, name: CONTACT_RESULTS}
+    translator: drake_contacts_to_marker_array
+    destination: {transport: ros, name: drake/contacts/markers}
+    rate: {policy: latest}
+    lazy: true
+  - name: contact_wrenches
+    source: {transport: lcm, name: CONTACT_RESULTS}
+    translator: drake_contacts_to_wrenches
+    destination: {transport: ros, name: drake/contacts/wrenches}
+    rate: {policy: latest}
+    lazy: true
   # viewer-bridge as a Director tree viewer: every client's tree to /director/<client id>/markers.
   - name: tree_viewer
     source: {transport: lcm, name: "DIRECTOR_TREE_VIEWER_REQUEST_<([^<>]*)>"}

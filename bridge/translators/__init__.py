@@ -34,6 +34,8 @@ _BUILTINS = {
     "drake_to_ign_pose_v": "drake_ign:DrakeToIgnPoseV",
     "drake_to_ign_poses_stamped": "drake_ign:DrakeToIgnPosesStamped",
     "ign_pose_v_to_drake_draw": "drake_ign:IgnPoseVToDrakeDraw",
+    "drake_contacts_to_marker_array": "drake_contact:DrakeContactsToMarkerArray",
+    "drake_contacts_to_wrenches": "drake_contact:DrakeContactsToWrenches",
 }
 
 TRANSLATORS: Registry[Translator] = Registry(
