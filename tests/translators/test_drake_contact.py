@@ -226,3 +226,15 @@ def test_a_drake_simulation_reaches_ros_as_contact_markers_and_wrenches() -> Non
         vertices[i] for i in fan(list(surface_message.poly_data))
     ]
     assert len(surface.colors) == len(surface.points)
+
+
+def test_dump_decodes_contact_results() -> None:
+    from bridge.dump import as_text, describe
+    from bridge.transports.lcm import LcmEvent
+
+    event = LcmEvent("CONTACT_RESULTS", pydrake_results().encode(), 5)
+    record = describe(event)
+    assert record["type"] == "drake.lcmt_contact_results_for_viz" and "error" not in record
+    surface = record["message"]["hydroelastic_contacts"][0]
+    assert surface["p_WV"][4] == {"x": 0.02, "y": 0.005, "z": 0.0} and surface["poly_data"][0] == 4
+    assert "  point_pair_contact_info[1]:" in as_text(event).splitlines()
