@@ -134,8 +134,9 @@ def contact_scene(results: ContactResults, options: ContactDrawOptions | None = 
     starts = [results.point.points] + [c.centroid[None, :] for c in results.hydroelastic]
     force_vectors = [results.point.forces] + [c.force[None, :] for c in results.hydroelastic]
     if results.pair_count():
-        forces = _arrows(np.concatenate(starts), np.concatenate(force_vectors) * options.force_scale,
-                         FORCE_COLOR, options)  # fmt: skip
+        forces = _arrows(
+            np.concatenate(starts), np.concatenate(force_vectors) * options.force_scale, FORCE_COLOR, options
+        )
     if results.hydroelastic:
         centroids = np.array([c.centroid for c in results.hydroelastic])
         moment_vectors = np.array([c.moment for c in results.hydroelastic]) * options.moment_scale
@@ -144,16 +145,18 @@ def contact_scene(results: ContactResults, options: ContactDrawOptions | None = 
     if options.surfaces:
         low, high = pressure_range(results, options)
         surfaces = tuple(
-            Geometry(
-                TriangleMesh(
-                    c.surface.vertices, c.surface.triangles, pressure_colors(c.surface.pressure, low, high)
-                )
-            )  # fmt: skip
-            for c in results.hydroelastic
-            if len(c.surface.triangles)
+            _surface(c.surface, low, high) for c in results.hydroelastic if len(c.surface.triangles)
         )
         links.append(Link(SURFACE_LINK, 0, surfaces))
     return Scene(tuple(links))
+
+
+def _surface(surface: ContactSurface, low: float, high: float) -> Geometry:
+    """A surface coloured per vertex; its one colour (for targets without vertex colours) is the
+    colour of its mean pressure."""
+    mean = pressure_colors(np.array([surface.pressure.mean()]), low, high)[0]
+    mesh = TriangleMesh(surface.vertices, surface.triangles, pressure_colors(surface.pressure, low, high))
+    return Geometry(mesh, color=(float(mean[0]), float(mean[1]), float(mean[2]), 1.0))
 
 
 def _arrows(
@@ -171,7 +174,7 @@ def _arrows(
                 end_head=True,
                 head_radius=2.5 * radius,
                 head_length=5 * radius,
-            ),  # fmt: skip
+            ),
             color=color,
         )
         for start, end in zip(starts[keep], ends[keep], strict=True)

@@ -48,17 +48,32 @@ def _rows(values: Sequence[Sequence[float]]) -> FloatArray:
 
 
 def _hydroelastic(message: LcmMessage, index: int) -> HydroelasticContact:
-    body1 = ContactBody(message.body1_name, message.model1_name, message.geometry1_name,
-                        message.body1_unique, message.collision_count1)  # fmt: skip
-    body2 = ContactBody(message.body2_name, message.model2_name, message.geometry2_name,
-                        message.body2_unique, message.collision_count2)  # fmt: skip
+    body1 = ContactBody(
+        message.body1_name,
+        message.model1_name,
+        message.geometry1_name,
+        message.body1_unique,
+        message.collision_count1,
+    )
+    body2 = ContactBody(
+        message.body2_name,
+        message.model2_name,
+        message.geometry2_name,
+        message.body2_unique,
+        message.collision_count2,
+    )
     vertices = np.array([(p.x, p.y, p.z) for p in message.p_WV], dtype=np.float64).reshape(-1, 3)
     field = f"hydroelastic_contacts[{index}].poly_data"
     triangles = triangles_from_polygons(np.asarray(message.poly_data, dtype=np.int64), len(vertices), field)
     surface = ContactSurface(vertices, np.asarray(message.pressure, dtype=np.float64), triangles)
-    return HydroelasticContact(body1, body2, np.array(message.centroid_W, dtype=np.float64),
-                               np.array(message.force_C_W, dtype=np.float64),
-                               np.array(message.moment_C_W, dtype=np.float64), surface)  # fmt: skip
+    return HydroelasticContact(
+        body1,
+        body2,
+        np.array(message.centroid_W, dtype=np.float64),
+        np.array(message.force_C_W, dtype=np.float64),
+        np.array(message.moment_C_W, dtype=np.float64),
+        surface,
+    )
 
 
 def triangles_from_polygons(poly_data: IntArray, vertex_count: int, field: str) -> IntArray:
@@ -114,7 +129,7 @@ def contact_results_to_lcm(results: ContactResults) -> LcmMessage:
             contact_point=point,
             contact_force=force,
             normal=normal,
-        )  # fmt: skip
+        )
         for (body1, body2), point, force, normal in zip(
             results.point.body_pairs,
             results.point.points.tolist(),
@@ -139,13 +154,24 @@ def _surface_message(contact: HydroelasticContact) -> LcmMessage:
     poly = np.concatenate((np.full((len(triangles), 1), 3), triangles), axis=1).reshape(-1).tolist()
     one, two = contact.body1, contact.body2
     return SURFACE.message_class(
-        geometry1_name=one.geometry, body1_name=one.body, model1_name=one.model,
-        body1_unique=one.body_unique, collision_count1=one.collision_count,
-        geometry2_name=two.geometry, body2_name=two.body, model2_name=two.model,
-        body2_unique=two.body_unique, collision_count2=two.collision_count,
-        centroid_W=contact.centroid.tolist(), force_C_W=contact.force.tolist(),
-        moment_C_W=contact.moment.tolist(), num_quadrature_points=0, quadrature_point_data=[],
+        geometry1_name=one.geometry,
+        body1_name=one.body,
+        model1_name=one.model,
+        body1_unique=one.body_unique,
+        collision_count1=one.collision_count,
+        geometry2_name=two.geometry,
+        body2_name=two.body,
+        model2_name=two.model,
+        body2_unique=two.body_unique,
+        collision_count2=two.collision_count,
+        centroid_W=contact.centroid.tolist(),
+        force_C_W=contact.force.tolist(),
+        moment_C_W=contact.moment.tolist(),
+        num_quadrature_points=0,
+        quadrature_point_data=[],
         num_vertices=len(surface.vertices),
         p_WV=[POINT.message_class(x=x, y=y, z=z) for x, y, z in surface.vertices.tolist()],
-        pressure=surface.pressure.tolist(), poly_data_int_count=len(poly), poly_data=poly,
-    )  # fmt: skip
+        pressure=surface.pressure.tolist(),
+        poly_data_int_count=len(poly),
+        poly_data=poly,
+    )

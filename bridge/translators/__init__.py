@@ -36,6 +36,8 @@ _BUILTINS = {
     "ign_pose_v_to_drake_draw": "drake_ign:IgnPoseVToDrakeDraw",
     "drake_contacts_to_marker_array": "drake_contact:DrakeContactsToMarkerArray",
     "drake_contacts_to_wrenches": "drake_contact:DrakeContactsToWrenches",
+    "drake_contacts_to_ign_contacts": "drake_contact:DrakeContactsToIgnContacts",
+    "drake_contacts_to_tree_viewer": "drake_contact:DrakeContactsToTreeViewer",
 }
 
 TRANSLATORS: Registry[Translator] = Registry(
