@@ -3,7 +3,8 @@
 Usage: python drake_contact_scene.py LCM_URL [SECONDS] [REALTIME]. A box (rigid hydroelastic
 properties, so against the rigid half-space it falls back to point contact) and a sphere
 (compliant hydroelastic: a contact surface with the half-space) fall onto a half-space in a
-`hydroelastic_with_fallback` plant; `ConnectContactResultsToDrakeVisualizer` publishes them.
+`hydroelastic_with_fallback` plant; `ConnectContactResultsToDrakeVisualizer` publishes them,
+and a DrakeVisualizer the bodies (unsuffixed channels).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pydrake.geometry import (
     AddContactMaterial,
     AddRigidHydroelasticProperties,
     Box,
+    DrakeVisualizer,
     HalfSpace,
     ProximityProperties,
     Sphere,
@@ -61,6 +63,7 @@ def main(url: str, seconds: float = 0.5, realtime: float = 0.0) -> None:
     plant.Finalize()
     lcm = DrakeLcm(url)
     ConnectContactResultsToDrakeVisualizer(builder, plant, scene_graph, lcm)
+    DrakeVisualizer.AddToBuilder(builder, scene_graph, lcm)  # the bodies too, for snapshots
     diagram = builder.Build()
     simulator = Simulator(diagram)
     context = plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())

@@ -3,6 +3,7 @@ against pydrake's own `lcmt_contact_results_for_viz` class and a real pydrake si
 
 from __future__ import annotations
 
+import io
 import subprocess
 import sys
 import time
@@ -14,7 +15,7 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from bridge.contact import ContactDrawOptions, pressure_colors
+from bridge.contact import FORCE_COLOR, ContactDrawOptions, demo_contact_results, pressure_colors
 from bridge.errors import DecodeError
 from bridge.formats import ros, tree_viewer
 from bridge.formats.drake_contact import contact_results_to_lcm, decode_contact_results
@@ -24,7 +25,7 @@ from bridge.formats.ros_contact import (
     contact_marker_array,
     contact_marker_array_cdr,
 )
-from bridge.scene import Line, TriangleMesh
+from bridge.scene import Line, Scene, TriangleMesh
 from bridge.translators import TRANSLATORS, LoadCache
 from bridge.transports.base import Received
 from tests.conftest import lcm_url
@@ -284,3 +285,19 @@ def test_tree_viewer_gets_arrows_as_lines_with_heads() -> None:
     (surface,) = links["contact::surfaces"].geometries
     assert isinstance(surface.shape, TriangleMesh) and len(surface.shape.triangles) == 3
     assert surface.color != (1.0, 1.0, 1.0, 1.0)  # the pressure colour of its mean pressure
+
+
+def test_snapshot_draws_arrows_and_pressure_bands() -> None:
+    from PIL import Image
+
+    from bridge.snapshot import snapshot, with_contacts
+
+    results = demo_contact_results(4, (20, 20))
+    scene = with_contacts(Scene(), results)
+    kinds = {type(g.shape).__name__ for link in scene.links for g in link.geometries}
+    assert kinds == {"TriangleMesh"}  # arrows tessellated, surfaces split into colour bands
+    picture = Image.open(io.BytesIO(snapshot(scene, 320, 240, image="label")))
+    colours = {tuple(pixel) for pixel in np.asarray(picture).reshape(-1, 3).tolist()}
+    assert tuple(round(255 * c) for c in FORCE_COLOR[:3]) in colours  # an arrow, unlit
+    ramp = {tuple(round(255 * c) for c in row) for row in pressure_colors(np.linspace(0, 1, 16), 0, 1)}
+    assert len(colours & ramp) >= 4  # the surface in several pressure bands
