@@ -449,6 +449,8 @@ def test_default_config_is_printed_and_valid() -> None:
         "poses",
         "shapes",
         "deformable",
+        "contact_markers",
+        "contact_wrenches",
         "tree_viewer",
         "foxglove_scene",
         "foxglove_transforms",
