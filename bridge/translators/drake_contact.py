@@ -41,10 +41,9 @@ def contact_results(message: Received) -> ContactResults:
 class ContactMarkerOptions(ContactDrawOptions, MarkerOptions):
     """How contacts are drawn (`bridge.contact.ContactDrawOptions`) and the marker table's options."""
 
-    def marker_overrides(self) -> dict[str, Any]:
-        return MarkerOptions.model_validate(
-            self.model_dump(include=set(MarkerOptions.model_fields))
-        ).table_overrides()
+    def table_overrides(self) -> dict[str, Any]:
+        """Only the marker table's options (the drawing options are not the table's)."""
+        return self.model_dump(include=set(MarkerOptions.model_fields), exclude_none=True)
 
 
 class DrakeContactsToMarkerArray(Translator):
@@ -58,7 +57,7 @@ class DrakeContactsToMarkerArray(Translator):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self._markers = self.options.marker_overrides()
+        self._markers = self.options.table_overrides()
 
     def translate(self, message: Received) -> Outputs:
         return [(0, contact_marker_array_cdr(contact_results(message), self.options, self._markers))]

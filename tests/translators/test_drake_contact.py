@@ -301,3 +301,16 @@ def test_snapshot_draws_arrows_and_pressure_bands() -> None:
     assert tuple(round(255 * c) for c in FORCE_COLOR[:3]) in colours  # an arrow, unlit
     ramp = {tuple(round(255 * c) for c in row) for row in pressure_colors(np.linspace(0, 1, 16), 0, 1)}
     assert len(colours & ramp) >= 4  # the surface in several pressure bands
+
+
+def test_marker_options_reach_the_table_and_unknown_ones_are_refused() -> None:
+    options = {"frame_id": "map", "force_scale": 0.5, "pressure_range": [0, 1e6], "surfaces": False}
+    translator = TRANSLATORS.get("drake_contacts_to_marker_array")(options, LoadCache())
+    ((_, data),) = translator.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
+    markers = ros.from_cdr(data, ros.MARKER_ARRAY).markers
+    assert {m.header.frame_id for m in markers[1:]} == {"map"}
+    assert not [m for m in markers if m.type == TRIANGLE_LIST]
+    force = markers[1]
+    assert force.points[1].z - force.points[0].z == pytest.approx(0.5 * 9.81)
+    with pytest.raises(ValueError, match="force_scael"):
+        TRANSLATORS.get("drake_contacts_to_marker_array")({"force_scael": 1}, LoadCache())
