@@ -107,6 +107,10 @@ def _parser() -> argparse.ArgumentParser:
         "--camera", metavar="EX,EY,EZ,TX,TY,TZ", help="eye and target (default: frame the scene)"
     )
     shot.add_argument("--duration", type=float, default=3.0, help="with an LCM URL: seconds to listen")
+    shot.add_argument("--contacts", action="store_true", help="draw the last CONTACT_RESULTS over the scene")
+    shot.add_argument(
+        "--hide", metavar="REGEX", help="leave out links whose names match (e.g. a body over a contact)"
+    )
 
     convert = commands.add_parser(
         "convert", help="translate an LCM log into an MCAP file (ROS 2 or Foxglove)"
@@ -253,7 +257,14 @@ def _convert(args: argparse.Namespace) -> int:
 
 
 def _snapshot(args: argparse.Namespace) -> int:
-    from bridge.snapshot import events_from, latest_scene, snapshot  # OpenGL only for this command
+    from bridge.snapshot import (  # OpenGL only for this command
+        events_from,
+        latest_contacts,
+        latest_scene,
+        snapshot,
+        with_contacts,
+        without_links,
+    )
 
     try:
         width, height = (int(value) for value in args.size.lower().split("x"))
@@ -263,7 +274,15 @@ def _snapshot(args: argparse.Namespace) -> int:
             if len(values) != 6:
                 raise ValueError("--camera needs six numbers: eye x,y,z and target x,y,z")
             eye, target = np.array(values[:3]), np.array(values[3:])
-        scene = latest_scene(events_from(args.source, args.duration), args.role.upper())
+        events = events_from(args.source, args.duration)
+        scene = latest_scene(events, args.role.upper())
+        if args.hide:
+            scene = without_links(scene, args.hide)
+        if args.contacts:
+            results = latest_contacts(events)
+            if results is None:
+                raise ValueError("no CONTACT_RESULTS message in the source")
+            scene = with_contacts(scene, results)
         picture = snapshot(scene, width, height, args.fov, eye, target, args.image)
     except (BridgeError, ValueError, OSError) as error:  # e.g. a mesh file the log names is not here
         print(f"viewer-bridge: {error}", file=sys.stderr)

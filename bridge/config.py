@@ -256,7 +256,8 @@ _FOXGLOVE_ROUTES = """\
     lazy: true
 """
 
-DEFAULT_CONFIG = """\
+DEFAULT_CONFIG = (
+    """\
 # viewer-bridge's built-in configuration: Drake's default viewer channels to ROS 2 under /drake
 # (under the node's namespace: `--ros-args -r __ns:=/sim1` gives /sim1/drake/...; /tf stays /tf).
 # An unsuffixed channel (Drake's illustration default) goes to /drake/..., a role-suffixed one
@@ -333,6 +334,20 @@ routes:
     translator: ros_point_cloud_to_drake
     destination: {transport: lcm, name: DRAKE_POINT_CLOUD_FROM_ROS}
     rate: {policy: latest}
+  # Contact results (meldis's contact view): arrows and pressure-coloured surfaces, latched like
+  # the markers; a WrenchStamped per contact pair for controllers.
+  - name: contact_markers
+    source: {transport: lcm, name: CONTACT_RESULTS}
+    translator: drake_contacts_to_marker_array
+    destination: {transport: ros, name: drake/contacts/markers}
+    rate: {policy: latest}
+    lazy: true
+  - name: contact_wrenches
+    source: {transport: lcm, name: CONTACT_RESULTS}
+    translator: drake_contacts_to_wrenches
+    destination: {transport: ros, name: drake/contacts/wrenches}
+    rate: {policy: latest}
+    lazy: true
   # viewer-bridge as a Director tree viewer: every client's tree to /director/<client id>/markers.
   - name: tree_viewer
     source: {transport: lcm, name: "DIRECTOR_TREE_VIEWER_REQUEST_<([^<>]*)>"}
@@ -341,7 +356,9 @@ routes:
     qos: {depth: 1000}
     rate: {policy: all}
     options: {mesh_roots: []}
-""" + _FOXGLOVE_ROUTES
+"""
+    + _FOXGLOVE_ROUTES
+)
 
 
 IGN_CONFIG = """\
@@ -370,7 +387,8 @@ routes:
     rate: {policy: all}
 """
 
-FOXGLOVE_CONFIG = """\
+FOXGLOVE_CONFIG = (
+    """\
 # Drake's default viewer channels to Foxglove, live in a browser with no ROS install: open the
 # URL the start-up line prints. The scene goes once per load (a client that connects later still
 # gets it), the frames every draw, stamped with Drake's sim time.
@@ -380,7 +398,9 @@ foxglove:
   host: 127.0.0.1
   port: 8765
 routes:
-""" + _FOXGLOVE_ROUTES
+"""
+    + _FOXGLOVE_ROUTES
+)
 
 BUILTIN_CONFIGS = {"default": DEFAULT_CONFIG, "ign": IGN_CONFIG, "foxglove": FOXGLOVE_CONFIG}
 

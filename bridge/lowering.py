@@ -23,8 +23,10 @@ from bridge.scene import (
     Capsule,
     Cylinder,
     Ellipsoid,
+    FloatArray,
     HalfSpace,
     InMemoryMesh,
+    Line,
     MeshFile,
     Pose,
     Shape,
@@ -118,6 +120,33 @@ def _from_trimesh(mesh: trimesh.Trimesh) -> TriangleMesh:
 
 def _scaled(mesh: TriangleMesh, scale: Vector3) -> TriangleMesh:
     return TriangleMesh(mesh.vertices * np.asarray(scale), mesh.triangles)
+
+
+def arrow_mesh(line: Line) -> TriangleMesh:
+    """A two-point line with an end head as a solid arrow (a shaft and a cone), for renderers that
+    draw only triangles. The head never outgrows the arrow: at most half its length."""
+    start, end = np.asarray(line.points[0], dtype=np.float64), np.asarray(line.points[-1], dtype=np.float64)
+    length = float(np.linalg.norm(end - start))
+    if length == 0.0:
+        raise SceneError("an arrow of zero length has no direction")
+    head = min(line.head_length, length / 2)
+    shaft = _from_trimesh(trimesh.creation.cylinder(line.radius, length - head, sections=_SECTIONS))
+    cone = _from_trimesh(trimesh.creation.cone(line.head_radius, head, sections=_SECTIONS))
+    vertices = np.concatenate(
+        (shaft.vertices + (0.0, 0.0, (length - head) / 2), cone.vertices + (0.0, 0.0, length - head))
+    )
+    triangles = np.concatenate((shaft.triangles, cone.triangles + len(shaft.vertices)))
+    # Built along +z from the origin; the columns of `basis` turn z onto the arrow's direction.
+    return TriangleMesh(vertices @ _basis_along((end - start) / length).T + start, triangles)
+
+
+def _basis_along(direction: FloatArray) -> FloatArray:
+    """A rotation matrix whose third column is the unit vector `direction`."""
+    helper = np.array([1.0, 0.0, 0.0]) if abs(direction[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, direction)
+    x /= np.linalg.norm(x)
+    basis: FloatArray = np.stack((x, np.cross(direction, x), direction), axis=1)
+    return basis
 
 
 LOWERINGS: dict[str, Lowering] = {

@@ -246,10 +246,15 @@ class MeshFile:
 
 @dataclass(frozen=True, eq=False, slots=True)
 class TriangleMesh:
-    """Vertices (V x 3) and triangles (T x 3 vertex indices) carried in the message itself."""
+    """Vertices (V x 3) and triangles (T x 3 vertex indices) carried in the message itself.
+
+    `colors` (V x 3 RGB in [0, 1], optional) colours each vertex (a contact surface's pressure);
+    targets that cannot colour vertices use the geometry's colour.
+    """
 
     vertices: FloatArray
     triangles: IntArray
+    colors: FloatArray | None = None
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, TriangleMesh):

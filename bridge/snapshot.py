@@ -3,22 +3,32 @@
 The scene is the last load of the chosen role with the last draw applied; it goes through the
 same path as a render request (scene -> glTF -> renderer), so what a user sees is what a glTF
 render server would draw. The default camera looks at the scene's middle from above and aside.
+
+With contacts (`--contacts`), the last `CONTACT_RESULTS` is drawn over the scene as meldis draws
+it: `bridge.contact.contact_scene`'s arrows as solid arrows, each hydroelastic surface in bands of
+its pressure colours (the renderer colours whole meshes, so triangles are grouped by the colour
+of their mean pressure). `--hide REGEX` leaves out the links whose names match, e.g. the body
+that covers a contact surface.
 """
 
 from __future__ import annotations
 
 import io
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
+from bridge.contact import ContactDrawOptions, ContactResults, contact_scene, pressure_colors
 from bridge.formats.drake import DrawDecoder, decode_load
+from bridge.formats.drake_contact import decode_contact_results
 from bridge.formats.gltf import read_gltf, write_gltf
-from bridge.lcmcodec import DRAW, LOAD_ROBOT
+from bridge.lcmcodec import CONTACT_RESULTS, DRAW, LOAD_ROBOT
+from bridge.lowering import arrow_mesh
 from bridge.render import Camera, Renderer, depth_mm, rgb8
-from bridge.scene import FloatArray, Scene
+from bridge.scene import FloatArray, Geometry, Line, Link, Scene, TriangleMesh
 from bridge.transports.lcm import LcmEvent, Subscription, read_log
 
 
@@ -38,6 +48,62 @@ def latest_scene(events: list[LcmEvent], role: str = "") -> Scene:
         raise ValueError(f"no DRAKE_VIEWER_LOAD_ROBOT{suffix} message in the source")
     scene = decode_load(load)
     return scene.with_poses(DrawDecoder().decode(draw)) if draw is not None else scene
+
+
+def latest_contacts(events: list[LcmEvent]) -> ContactResults | None:
+    """The last `CONTACT_RESULTS` message of the source, or None when it has none."""
+    data = None
+    for event in events:
+        if event.channel == "CONTACT_RESULTS" and event.data[:8] == CONTACT_RESULTS.packed_fingerprint:
+            data = event.data
+    return None if data is None else decode_contact_results(data)
+
+
+def without_links(scene: Scene, pattern: str) -> Scene:
+    """The scene less the links whose names match the regular expression `pattern` (searched)."""
+    matcher = re.compile(pattern)
+    return Scene(tuple(link for link in scene.links if not matcher.search(link.name)), scene.poses)
+
+
+def with_contacts(scene: Scene, results: ContactResults, options: ContactDrawOptions | None = None) -> Scene:
+    """The scene with its contacts drawn in the world frame, in shapes the renderer draws."""
+    contacts = contact_scene(results, options)
+    links = tuple(
+        Link(link.name, link.robot_num, tuple(part for g in link.geometries for part in _renderable(g)))
+        for link in contacts.links
+    )
+    return Scene(scene.links + links, scene.poses)
+
+
+_BANDS = 16  # colours a pressure-coloured surface is drawn in
+_SURFACE_LIFT = np.array([0.0, 0.0, 0.001])
+
+
+def _renderable(geometry: Geometry) -> list[Geometry]:
+    shape = geometry.shape
+    if isinstance(shape, Line):
+        return [Geometry(arrow_mesh(shape), geometry.pose, geometry.color)]
+    if isinstance(shape, TriangleMesh) and shape.colors is not None:
+        # Contact surfaces lie in the face of the body they press on: drawn 1 mm above it (the
+        # cameras here look from above), so the renderer's depth test does not mix the two.
+        lifted = TriangleMesh(shape.vertices + _SURFACE_LIFT, shape.triangles, shape.colors)
+        return _colour_bands(lifted, geometry)
+    return [geometry]
+
+
+def _colour_bands(mesh: TriangleMesh, geometry: Geometry) -> list[Geometry]:
+    """A vertex-coloured mesh as up to `_BANDS` single-coloured meshes, a triangle in the band of
+    its mean colour's position on the ramp."""
+    assert mesh.colors is not None
+    ramp = pressure_colors(np.linspace(0.0, 1.0, _BANDS), 0.0, 1.0)
+    face_colors = mesh.colors[mesh.triangles].mean(axis=1)
+    band = np.argmin(np.linalg.norm(face_colors[:, None, :] - ramp[None, :, :], axis=2), axis=1)
+    parts = []
+    for index in np.unique(band):
+        r, g, b = (float(value) for value in ramp[index])
+        part = TriangleMesh(mesh.vertices, mesh.triangles[band == index])
+        parts.append(Geometry(part, geometry.pose, (r, g, b, 1.0)))
+    return parts
 
 
 def look_at(eye: FloatArray, target: FloatArray) -> FloatArray:

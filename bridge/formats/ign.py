@@ -81,6 +81,20 @@ _SCHEMA: dict[str, list[tuple[str, int, str, bool]]] = {
     "Model": [("header", 1, "Header", False), ("name", 2, "string", False), ("id", 3, "uint32", False),
               ("pose", 5, "Pose", False), ("link", 7, "Link", True), ("visual", 9, "Visual", True)],
     "Model_V": [("header", 1, "Header", False), ("models", 2, "Model", True)],
+    # Contacts (ignition/msgs/contacts.proto, contact.proto, entity.proto, joint_wrench.proto, wrench.proto).
+    "Entity": [("header", 1, "Header", False), ("id", 2, "uint64", False), ("name", 3, "string", False),
+               ("type", 4, "Entity.Type", False)],
+    "Wrench": [("header", 1, "Header", False), ("force", 2, "Vector3d", False), ("torque", 3, "Vector3d", False),
+               ("force_offset", 4, "Vector3d", False)],
+    "JointWrench": [("header", 1, "Header", False), ("body_1_name", 2, "string", False),
+                    ("body_1_id", 3, "uint32", False), ("body_2_name", 4, "string", False),
+                    ("body_2_id", 5, "uint32", False), ("body_1_wrench", 6, "Wrench", False),
+                    ("body_2_wrench", 7, "Wrench", False)],
+    "Contact": [("header", 1, "Header", False), ("collision1", 2, "Entity", False),
+                ("collision2", 3, "Entity", False), ("position", 4, "Vector3d", True),
+                ("normal", 5, "Vector3d", True), ("depth", 6, "double", True),
+                ("wrench", 7, "JointWrench", True), ("world", 8, "Entity", False)],
+    "Contacts": [("header", 1, "Header", False), ("contact", 2, "Contact", True)],
     # ign-transport's own discovery datagrams (ignition/msgs/discovery.proto).
     "Discovery": [("header", 1, "Header", False), ("version", 2, "uint32", False),
                   ("process_uuid", 3, "string", False), ("type", 4, "Discovery.Type", False),
@@ -100,6 +114,8 @@ _ENUMS: dict[str, dict[str, int]] = {
     "Discovery.Type": {"UNINITIALIZED": 0, "ADVERTISE": 1, "SUBSCRIBE": 2, "UNADVERTISE": 3, "HEARTBEAT": 4,
                        "BYE": 5, "NEW_CONNECTION": 6, "END_CONNECTION": 7},
     "Discovery.Publisher.Scope": {"PROCESS": 0, "HOST": 1, "ALL": 2},
+    "Entity.Type": {"NONE": 0, "LIGHT": 1, "MODEL": 2, "LINK": 3, "VISUAL": 4, "COLLISION": 5, "SENSOR": 6,
+                    "JOINT": 7},
 }  # fmt: skip
 
 _SCALARS = {

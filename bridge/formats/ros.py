@@ -338,7 +338,8 @@ def marker_specs(scene: Scene, options: dict[str, Any] | None = None) -> list[Ma
                 if rule.encoder is not None:
                     values |= _ENCODERS[rule.encoder](shape, settings)
                 x, y, z = values.pop("scale")
-                code = rule.type_code if rule.type_code is not None else 0
+                # An encoder may choose another type for some shapes (a line with a head: ARROW).
+                code = values.pop("type", rule.type_code if rule.type_code is not None else 0)
                 specs.append(
                     MarkerSpec(
                         link.name, link.frame, marker_id, code, pose, (x, y, z), (r, g, b, a), **values
@@ -478,13 +479,24 @@ def _triad(shape: Triad, options: dict[str, Any]) -> dict[str, Any]:
     return {"points": _TRIAD_POINTS * shape.scale, "colors": _TRIAD_COLORS, "scale": (width, 0.0, 0.0)}
 
 
+_ARROW = 0  # visualization_msgs/Marker.ARROW
+
+
 def _line_strip(shape: Line, options: dict[str, Any]) -> dict[str, Any]:
     width = 2 * shape.radius if shape.radius > 0 else 0.002
+    if len(shape.points) == 2 and shape.end_head and not shape.start_head and not shape.closed:
+        # An arrow: ARROW with points (start, end); scale = shaft and head diameters, head length.
+        scale = (width, 2 * shape.head_radius, shape.head_length)
+        return {"type": _ARROW, "points": shape.points, "scale": scale}
     return {"points": shape.path(), "scale": (width, 0.0, 0.0)}
 
 
 def _triangle_list(shape: TriangleMesh, options: dict[str, Any]) -> dict[str, Any]:
-    return {"points": shape.vertices[shape.triangles.reshape(-1)]}
+    corners = shape.triangles.reshape(-1)
+    values: dict[str, Any] = {"points": shape.vertices[corners]}
+    if shape.colors is not None:  # per vertex (a contact surface's pressure), opaque
+        values["colors"] = np.concatenate((shape.colors[corners], np.ones((len(corners), 1))), axis=1)
+    return values
 
 
 _ENCODERS: dict[str, Callable[[Any, dict[str, Any]], dict[str, Any]]] = {

@@ -23,6 +23,7 @@ DRAW = CODECS["drake.lcmt_viewer_draw"]
 VIEWER2_COMMS = CODECS["robotlocomotion.viewer2_comms_t"]
 POINT_CLOUD = CODECS["drake.lcmt_point_cloud"]
 POINT_CLOUD_FIELD = CODECS["drake.lcmt_point_cloud_field"]
+CONTACT_RESULTS = CODECS["drake.lcmt_contact_results_for_viz"]
 
 _BY_FINGERPRINT = {codec.packed_fingerprint: codec for codec in CODECS.values()}
 
@@ -34,6 +35,7 @@ def codec_for(data: Buffer) -> StructCodec | None:
 
 __all__ = [
     "CODECS",
+    "CONTACT_RESULTS",
     "DRAW",
     "GEOMETRY_DATA",
     "LINK_DATA",

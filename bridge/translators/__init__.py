@@ -39,6 +39,10 @@ _BUILTINS = {
     "ros_point_cloud_to_drake": "drake_point_cloud:RosPointCloudToDrake",
     "drake_point_cloud_to_tree_viewer": "drake_point_cloud:DrakePointCloudToTreeViewer",
     "drake_draw_frames_to_markers": "drake_point_cloud:DrakeDrawFramesToMarkers",
+    "drake_contacts_to_marker_array": "drake_contact:DrakeContactsToMarkerArray",
+    "drake_contacts_to_wrenches": "drake_contact:DrakeContactsToWrenches",
+    "drake_contacts_to_ign_contacts": "drake_contact:DrakeContactsToIgnContacts",
+    "drake_contacts_to_tree_viewer": "drake_contact:DrakeContactsToTreeViewer",
 }
 
 TRANSLATORS: Registry[Translator] = Registry(

@@ -11,10 +11,12 @@ from typing import Any
 import numpy as np
 import pytest
 
+from bridge.contact import demo_contact_results
 from bridge.demo import demo_poses, demo_scene
 from bridge.errors import DecodeError
 from bridge.formats.drake import DrawDecoder, DrawEncoder, decode_load, load_from_scene
-from bridge.lcmcodec import DRAW, GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, VIEWER2_COMMS
+from bridge.formats.drake_contact import contact_results_to_lcm, decode_contact_results
+from bridge.lcmcodec import CODECS, CONTACT_RESULTS, DRAW, GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, VIEWER2_COMMS
 
 BUFFERS_PER_DECODER = 100_000
 EXTREME_WORDS = [
@@ -34,7 +36,20 @@ def seeds(tmp_path: Path) -> dict[str, bytes]:
     comms = VIEWER2_COMMS.message_class(
         utime=1, format="treeviewer_json", format_version_major=1, num_bytes=9, data=b'{"a": 1}\n'
     )
+    contacts = contact_results_to_lcm(demo_contact_results(2, (2, 2), 1_500))
+    surface = contacts.hydroelastic_contacts[0]
+    quadrature = CODECS["drake.lcmt_hydroelastic_quadrature_per_point_data_for_viz"].message_class(
+        p_WQ=[1.0, 2.0, 3.0], vt_BqAq_W=[0.0, 0.1, 0.0], traction_Aq_W=[0.0, 0.0, 5e4]
+    )
+    contacts_data = contacts.encode()
+    # Drake sends no quadrature points today; the surface seed carries one so its decoder is reached.
+    surface.num_quadrature_points, surface.quadrature_point_data = 1, [quadrature]
     return {
+        "contacts": contacts_data,
+        "point_pair": contacts.point_pair_contact_info[0].encode(),
+        "surface": surface.encode(),
+        "quadrature": quadrature.encode(),
+        "point": surface.p_WV[0].encode(),
         "load": load.encode(),
         "link": load.link[1].encode(),
         "geometry": load.link[7].geom[0].encode(),  # a mesh array
@@ -75,6 +90,20 @@ DECODERS: list[tuple[str, str, Callable[[bytes], Any]]] = [
     ("draw", "draw", DRAW.decode),
     ("draw (fast path)", "draw", fast_draw),
     ("viewer2_comms_t", "comms", VIEWER2_COMMS.decode),
+    ("contact_results_for_viz", "contacts", CONTACT_RESULTS.decode),
+    ("contact_results -> contacts", "contacts", decode_contact_results),
+    ("point_pair_contact_info", "point_pair", CODECS["drake.lcmt_point_pair_contact_info_for_viz"].decode),
+    (
+        "hydroelastic_contact_surface",
+        "surface",
+        CODECS["drake.lcmt_hydroelastic_contact_surface_for_viz"].decode,
+    ),
+    (
+        "hydroelastic_quadrature",
+        "quadrature",
+        CODECS["drake.lcmt_hydroelastic_quadrature_per_point_data_for_viz"].decode,
+    ),
+    ("point", "point", CODECS["drake.lcmt_point"].decode),
 ]
 
 

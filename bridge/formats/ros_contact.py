@@ -1,0 +1,70 @@
+"""Contact results to ROS 2: a `visualization_msgs/MarkerArray` to look at, `geometry_msgs/WrenchStamped`s
+for controllers.
+
+The markers are the contact scene (`bridge.contact.contact_scene`) written by the marker table
+(`mappings/ros.yaml`): an ARROW per force and per moment, a TRIANGLE_LIST per hydroelastic
+surface with a colour per vertex. The array starts with DELETEALL, so contacts that ended vanish.
+
+A WrenchStamped per contact pair, point contacts first, then hydroelastic ones, in Drake's
+order: the force (and for hydroelastic contacts the moment) exactly as Drake sends them, in
+world axes (`frame_id`); a point contact's force acts on body 2 at the contact point, a
+hydroelastic one's on body 1 at the surface's centroid (WrenchStamped has no application point).
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import Any
+
+import numpy as np
+
+from bridge.contact import ContactDrawOptions, ContactResults, contact_scene
+from bridge.formats import ros
+from bridge.formats.ros_messages import CDR_LE, cdr_string
+
+WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
+_STAMP = struct.Struct("<iI")
+
+
+def contact_marker_array_cdr(
+    results: ContactResults, draw: ContactDrawOptions | None = None, markers: dict[str, Any] | None = None
+) -> bytes:
+    """The contacts as MarkerArray CDR (DELETEALL first); `markers` overrides the marker table's options."""
+    return ros.marker_array_cdr(contact_scene(results, draw), markers, delete_all=True)
+
+
+def contact_marker_array(
+    results: ContactResults, draw: ContactDrawOptions | None = None, markers: dict[str, Any] | None = None
+) -> Any:
+    """The same as a rosbags message (the object path, for tests and `to_rclpy`)."""
+    return ros.marker_array(contact_scene(results, draw), markers, delete_all=True)
+
+
+def contact_wrenches(results: ContactResults) -> np.ndarray[Any, Any]:
+    """P x 6 rows (force x y z, torque x y z), one per contact pair in the order described above."""
+    point = np.concatenate((results.point.forces, np.zeros_like(results.point.forces)), axis=1)
+    hydroelastic = [np.concatenate((c.force, c.moment)) for c in results.hydroelastic]
+    return np.concatenate((point, np.array(hydroelastic).reshape(-1, 6)))
+
+
+class WrenchEncoder:
+    """One WrenchStamped CDR per contact pair, all in `frame_id`, from a pre-packed header."""
+
+    def __init__(self, frame_id: str = "world") -> None:
+        frame = cdr_string(frame_id, "header.frame_id")
+        header_size = _STAMP.size + len(frame)
+        self._frame = frame + b"\0" * (-header_size % 8)  # the wrench's doubles are 8-aligned
+
+    def encode(self, results: ContactResults, stamp: tuple[int, int]) -> list[bytes]:
+        prefix = CDR_LE + _STAMP.pack(*stamp) + self._frame
+        rows = np.ascontiguousarray(contact_wrenches(results), dtype="<f8")
+        return [prefix + row.tobytes() for row in rows]
+
+
+__all__ = [
+    "WRENCH_STAMPED",
+    "WrenchEncoder",
+    "contact_marker_array",
+    "contact_marker_array_cdr",
+    "contact_wrenches",
+]

@@ -1,0 +1,130 @@
+"""Drake's contact results (`CONTACT_RESULTS`, `lcmt_contact_results_for_viz`) to ROS 2, ign and Director.
+
+`drake_contacts_to_marker_array`: a MarkerArray per message (arrows, pressure-coloured
+surfaces; see `bridge.contact` for the drawing options), latched like the scene's markers.
+`drake_contacts_to_wrenches`: a `geometry_msgs/WrenchStamped` per contact pair, all on the one
+destination topic. `drake_contacts_to_ign_contacts`: `ignition.msgs.Contacts`.
+`drake_contacts_to_tree_viewer`: requests for Director's tree viewer (arrows as `line`s with a
+head). All decode a message once between them (`contact_results`).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from bridge.contact import ContactDrawOptions, ContactResults, contact_scene
+from bridge.formats import ign, ros, tree_viewer
+from bridge.formats.drake_contact import decode_contact_results
+from bridge.formats.ign_contact import contacts_message
+from bridge.formats.ros_contact import WRENCH_STAMPED, WrenchEncoder, contact_marker_array_cdr
+from bridge.formats.ros_tf import WORLD
+from bridge.lcmcodec import CONTACT_RESULTS
+from bridge.sim_time import sec_nsec_from_us
+from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
+from bridge.translators.drake_ign import IgnOptions, ign_type
+from bridge.translators.drake_ros import MarkerOptions, ros_type
+from bridge.translators.tree_viewer import ENVELOPE_TYPE
+from bridge.transports.base import LCM, MessageType, Received
+
+CONTACT_TYPE = MessageType(CONTACT_RESULTS.type_name, LCM)
+
+
+def _decode(message: Received) -> ContactResults:
+    return decode_contact_results(message.data)
+
+
+def contact_results(message: Received) -> ContactResults:
+    """A received `lcmt_contact_results_for_viz`, decoded once for every route that reads it."""
+    return message.decoded(_decode)
+
+
+class ContactMarkerOptions(ContactDrawOptions, MarkerOptions):
+    """How contacts are drawn (`bridge.contact.ContactDrawOptions`) and the marker table's options."""
+
+    def table_overrides(self) -> dict[str, Any]:
+        """Only the marker table's options (the drawing options are not the table's)."""
+        return self.model_dump(include=set(MarkerOptions.model_fields), exclude_none=True)
+
+
+class DrakeContactsToMarkerArray(Translator):
+    """contact results -> `MarkerArray` (DELETEALL, an ARROW per force and moment, a
+    TRIANGLE_LIST per hydroelastic surface coloured by pressure). Latched."""
+
+    Options = ContactMarkerOptions
+    options: ContactMarkerOptions
+    reads = (CONTACT_TYPE,)
+    outputs = (Output("", ros_type(ros.MARKER_ARRAY), latched=True),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._markers = self.options.table_overrides()
+
+    def translate(self, message: Received) -> Outputs:
+        return [(0, contact_marker_array_cdr(contact_results(message), self.options, self._markers))]
+
+
+class WrenchOptions(TranslatorOptions):
+    frame_id: str = WORLD  # the wrenches' axes: Drake's world frame
+    stamp: Literal["receive", "sim"] = "receive"  # sim: Drake's sim time (for use_sim_time nodes)
+
+
+class DrakeContactsToWrenches(Translator):
+    """contact results -> a `WrenchStamped` per contact pair (point contacts, then hydroelastic)."""
+
+    Options = WrenchOptions
+    options: WrenchOptions
+    reads = (CONTACT_TYPE,)
+    outputs = (Output("", ros_type(WRENCH_STAMPED)),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.encoder = WrenchEncoder(self.options.frame_id)
+
+    def translate(self, message: Received) -> Outputs:
+        results = contact_results(message)
+        time_us = results.timestamp_us if self.options.stamp == "sim" else message.received_us
+        return [(0, data) for data in self.encoder.encode(results, sec_nsec_from_us(time_us))]
+
+
+class IgnContactOptions(IgnOptions):
+    world: str = WORLD  # the name of the `world` entity in every Contact
+
+
+class DrakeContactsToIgnContacts(Translator):
+    """contact results -> `ignition.msgs.Contacts` (or `gz.msgs.Contacts`): a Contact per pair."""
+
+    Options = IgnContactOptions
+    options: IgnContactOptions
+    reads = (CONTACT_TYPE,)
+    outputs = (Output("", ign_type(ign.IGNITION, "Contacts")),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.msgs = self.options.messages()
+        self.outputs = (Output("", ign_type(self.msgs, "Contacts")),)
+
+    def translate(self, message: Received) -> Outputs:
+        contacts = contacts_message(contact_results(message), self.msgs, self.options.world)
+        return [(0, contacts.SerializeToString())]
+
+
+class ContactTreeViewerOptions(ContactDrawOptions):
+    prefix: list[str] = ["contacts"]  # where the contacts hang in the viewer's tree
+
+
+class DrakeContactsToTreeViewer(Translator):
+    """contact results -> tree viewer requests for a running Director: the old contacts deleted,
+    then a `line` with an arrowhead per force and moment, a `mesh_data` per surface (one colour:
+    the pressure map's colour at the surface's mean pressure; Director has no vertex colours)."""
+
+    Options = ContactTreeViewerOptions
+    options: ContactTreeViewerOptions
+    reads = (CONTACT_TYPE,)
+    outputs = (Output("", ENVELOPE_TYPE),)
+
+    def translate(self, message: Received) -> Outputs:
+        results = contact_results(message)
+        requests = tree_viewer.load_requests(
+            contact_scene(results, self.options), self.options.prefix, results.timestamp_us
+        )
+        return [(0, tree_viewer.encode(request)) for request in requests]

@@ -1,0 +1,316 @@
+"""Contact results: Drake's message -> neutral contacts -> ROS 2 markers and wrenches, checked
+against pydrake's own `lcmt_contact_results_for_viz` class and a real pydrake simulation."""
+
+from __future__ import annotations
+
+import io
+import subprocess
+import sys
+import time
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import drake as drake_lcmtypes
+import numpy as np
+import pytest
+
+from bridge.contact import FORCE_COLOR, ContactDrawOptions, demo_contact_results, pressure_colors
+from bridge.errors import DecodeError
+from bridge.formats import ros, tree_viewer
+from bridge.formats.drake_contact import contact_results_to_lcm, decode_contact_results
+from bridge.formats.ros_contact import (
+    WRENCH_STAMPED,
+    WrenchEncoder,
+    contact_marker_array,
+    contact_marker_array_cdr,
+)
+from bridge.scene import Line, Scene, TriangleMesh
+from bridge.translators import TRANSLATORS, LoadCache
+from bridge.transports.base import Received
+from tests.conftest import lcm_url
+from tests.peers import BridgeProcess, RosProbe
+from tests.test_router import LcmRecorder
+
+CONTACT_SCENE_SCRIPT = Path(__file__).parents[1] / "drake_contact_scene.py"
+ARROW, TRIANGLE_LIST, DELETEALL = 0, 11, 3
+
+
+def pydrake_results(polygons: list[int] | None = None, force_z: float = 9.81) -> Any:
+    """A message built with pydrake's classes: two point contacts and one surface (a quad and a triangle)."""
+    message = drake_lcmtypes.lcmt_contact_results_for_viz()
+    message.timestamp = 1_234_567
+    for index in range(2):
+        pair = drake_lcmtypes.lcmt_point_pair_contact_info_for_viz()
+        pair.timestamp = message.timestamp
+        pair.body1_name, pair.body2_name = "world(0)", f"box{index}(1)"
+        pair.contact_point = [0.1 * index, 0.2, -1e-5]
+        pair.contact_force = [0.5, -0.25, force_z]
+        pair.normal = [0.0, 0.0, 1.0]
+        message.point_pair_contact_info.append(pair)
+    message.num_point_pair_contacts = 2
+    surface = drake_lcmtypes.lcmt_hydroelastic_contact_surface_for_viz()
+    surface.geometry1_name, surface.body1_name, surface.model1_name = "ground", "world", "WorldModelInstance"
+    surface.geometry2_name, surface.body2_name, surface.model2_name = (
+        "sphere",
+        "sphere",
+        "DefaultModelInstance",
+    )
+    surface.body1_unique = surface.body2_unique = True
+    surface.collision_count1 = surface.collision_count2 = 1
+    surface.centroid_W, surface.force_C_W, surface.moment_C_W = [0.5, 0, 0], [0, 0, -9.4], [0.01, 0.02, 0]
+    for x, y in [(0, 0), (1, 0), (1, 1), (0, 1), (2, 0.5)]:
+        point = drake_lcmtypes.lcmt_point()
+        point.x, point.y, point.z = x * 0.01, y * 0.01, 0.0
+        surface.p_WV.append(point)
+    surface.num_vertices = 5
+    surface.pressure = [0.0, 1e5, 2e5, 3e5, 4e5]
+    surface.poly_data = polygons if polygons is not None else [4, 0, 1, 2, 3, 3, 1, 4, 2]
+    surface.poly_data_int_count = len(surface.poly_data)
+    message.hydroelastic_contacts.append(surface)
+    message.num_hydroelastic_contacts = 1
+    return message
+
+
+def test_decoded_values_equal_pydrake_and_encode_back() -> None:
+    message = pydrake_results(polygons=[3, 0, 1, 2, 3, 0, 2, 3])  # triangles: re-encoded byte for byte
+    results = decode_contact_results(message.encode())
+    assert results.timestamp_us == 1_234_567
+    assert results.point.body_pairs == (("world(0)", "box0(1)"), ("world(0)", "box1(1)"))
+    assert results.point.points.tolist() == [list(p.contact_point) for p in message.point_pair_contact_info]
+    assert results.point.forces.tolist() == [list(p.contact_force) for p in message.point_pair_contact_info]
+    (contact,) = results.hydroelastic
+    assert (contact.body1.geometry, contact.body2.body, contact.body2.model) == (
+        "ground",
+        "sphere",
+        "DefaultModelInstance",
+    )
+    assert contact.surface.vertices.tolist() == [
+        [p.x, p.y, p.z] for p in message.hydroelastic_contacts[0].p_WV
+    ]
+    assert contact.surface.triangles.tolist() == [[0, 1, 2], [0, 2, 3]]
+    assert contact_results_to_lcm(results).encode() == message.encode()
+
+
+def test_polygons_are_fanned_into_triangles() -> None:
+    (contact,) = decode_contact_results(pydrake_results().encode()).hydroelastic
+    assert contact.surface.triangles.tolist() == [[0, 1, 2], [0, 2, 3], [1, 4, 2]]
+
+
+@pytest.mark.parametrize(
+    ("polygons", "error"),
+    [
+        ([3, 0, 1, 7], "poly_data at element 3: vertex index 7 is outside the 5 vertices"),
+        ([3, 0, 1, -1], "poly_data at element 3: vertex index -1 is outside"),
+        ([2, 0, 1], "poly_data at element 0: polygon of 2 vertices"),
+        ([3, 0, 1, 2, 4, 0, 1], "poly_data at element 4: polygon of 4 vertices runs past the end"),
+        ([3, 0, 1, 2, 2**31 - 1], "polygon of 2147483647 vertices runs past the end"),
+    ],
+)
+def test_bad_polygons_are_decode_errors(polygons: list[int], error: str) -> None:
+    with pytest.raises(DecodeError, match=error) as caught:
+        decode_contact_results(pydrake_results(polygons).encode())
+    assert caught.value.field.startswith("hydroelastic_contacts[0].")
+
+
+def test_nan_and_huge_counts_are_decode_errors() -> None:
+    with pytest.raises(DecodeError, match=r"point_pair_contact_info\[0\].contact_force\[2\].*non-finite"):
+        decode_contact_results(pydrake_results(force_z=float("nan")).encode())
+    data = bytearray(pydrake_results().encode())
+    data[16:20] = (2**31 - 1).to_bytes(4, "big")  # num_point_pair_contacts
+    with pytest.raises(
+        DecodeError, match="num_point_pair_contacts|point_pair_contact_info.*count 2147483647"
+    ):
+        decode_contact_results(bytes(data))
+
+
+def test_markers_arrows_and_pressure_coloured_surface() -> None:
+    results = decode_contact_results(pydrake_results().encode())
+    draw = ContactDrawOptions(force_scale=0.1, moment_scale=2.0, pressure_range=(0.0, 4e5))
+    data = contact_marker_array_cdr(results, draw)
+    markers = ros.from_cdr(data, ros.MARKER_ARRAY).markers
+    assert ros.to_cdr(contact_marker_array(results, draw)) == data  # the object path agrees
+    assert markers[0].action == DELETEALL
+    arrows = [m for m in markers if m.type == ARROW]
+    forces = [m for m in arrows if m.ns == "contact/forces"]
+    assert len(forces) == 3 and len([m for m in arrows if m.ns == "contact/moments"]) == 1
+    start, end = forces[0].points
+    assert [start.x, start.y, start.z] == [0.0, 0.2, -1e-5]
+    assert np.allclose([end.x - start.x, end.y - start.y, end.z - start.z], [0.05, -0.025, 0.981])
+    (surface,) = [m for m in markers if m.type == TRIANGLE_LIST]
+    vertices = results.hydroelastic[0].surface.vertices
+    assert [[p.x, p.y, p.z] for p in surface.points] == vertices[[0, 1, 2, 0, 2, 3, 1, 4, 2]].tolist()
+    colours = np.array([[c.r, c.g, c.b, c.a] for c in surface.colors])
+    assert colours[0].tolist() == [0, 0, 1, 1] and colours[-2].tolist() == [1, 0, 0, 1]  # 0 Pa blue, 4e5 red
+    assert np.allclose(colours[:, :3], pressure_colors(np.array([0.0, 1, 2, 0, 2, 3, 1, 4, 2]) * 1e5, 0, 4e5))
+
+
+def test_wrenches_one_per_pair() -> None:
+    results = decode_contact_results(pydrake_results().encode())
+    wrenches = [ros.from_cdr(data, WRENCH_STAMPED) for data in WrenchEncoder("map").encode(results, (3, 5))]
+    assert len(wrenches) == 3
+    assert all(
+        (w.header.frame_id, w.header.stamp.sec, w.header.stamp.nanosec) == ("map", 3, 5) for w in wrenches
+    )
+    assert [[w.wrench.force.x, w.wrench.force.y, w.wrench.force.z] for w in wrenches] == [
+        [0.5, -0.25, 9.81], [0.5, -0.25, 9.81], [0.0, 0.0, -9.4]]  # fmt: skip
+    assert [w.wrench.torque.x for w in wrenches] == [0.0, 0.0, 0.01]
+    sim = TRANSLATORS.get("drake_contacts_to_wrenches")({"stamp": "sim"}, LoadCache())
+    out = sim.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
+    stamp = ros.from_cdr(out[0][1], WRENCH_STAMPED).header.stamp
+    assert (stamp.sec, stamp.nanosec) == (1, 234_567_000)
+
+
+# --- end to end: pydrake -> bridge process -> rclpy ---------------------------------------------------
+
+
+def fan(poly_data: list[int]) -> list[int]:
+    """The vertex indices of Drake's polygons as triangle fans, three per triangle."""
+    corners, offset = [], 0
+    while offset < len(poly_data):
+        count = poly_data[offset]
+        polygon = poly_data[offset + 1 : offset + 1 + count]
+        for k in range(1, count - 1):
+            corners += [polygon[0], polygon[k], polygon[k + 1]]
+        offset += 1 + count
+    return corners
+
+
+@pytest.mark.slow
+def test_a_drake_simulation_reaches_ros_as_contact_markers_and_wrenches() -> None:
+    probe = RosProbe("contact_probe")
+    url = lcm_url(15)
+    markers = probe.subscribe(
+        "/drake/contacts/markers", "visualization_msgs/msg/MarkerArray", 100, latched=True
+    )
+    wrenches = probe.subscribe("/drake/contacts/wrenches", "geometry_msgs/msg/WrenchStamped", 1000)
+    recorder = LcmRecorder(url)
+    bridge = BridgeProcess("--lcm-url", url, "--stats-period", "1")
+    try:
+        bridge.wait_for_line("routes running")
+        subprocess.run(
+            [sys.executable, str(CONTACT_SCENE_SCRIPT), url, "0.5", "1.0"], check=True, timeout=120
+        )
+        last = drake_lcmtypes.lcmt_contact_results_for_viz.decode(recorder.messages["CONTACT_RESULTS"][-1])
+        pairs = last.num_point_pair_contacts + last.num_hydroelastic_contacts
+        expected_forces = [list(p.contact_force) for p in last.point_pair_contact_info] + [
+            list(h.force_C_W) for h in last.hydroelastic_contacts
+        ]
+
+        def last_wrenches() -> list[list[float]]:
+            return [[w.wrench.force.x, w.wrench.force.y, w.wrench.force.z] for w in list(wrenches)[-pairs:]]
+
+        assert probe.wait_for(lambda: last_wrenches() == expected_forces)
+        time.sleep(0.5)  # the last MarkerArray is published beside the last wrenches
+    finally:
+        assert bridge.stop() == 0
+        recorder.close()
+        probe.close()
+    assert last.num_point_pair_contacts >= 1 and last.num_hydroelastic_contacts == 1  # both kinds happened
+    assert all(w.header.frame_id == "world" for w in wrenches)
+    torques = [[w.wrench.torque.x, w.wrench.torque.y, w.wrench.torque.z] for w in wrenches[-pairs:]]
+    assert torques[-1] == list(last.hydroelastic_contacts[0].moment_C_W)
+    # The last MarkerArray: a force arrow per pair from Drake's point (centroid), the surface's vertices.
+    array = markers[-1].markers
+    assert array[0].action == DELETEALL
+    starts = [[m.points[0].x, m.points[0].y, m.points[0].z] for m in array if m.ns == "contact/forces"]
+    expected_starts = [list(p.contact_point) for p in last.point_pair_contact_info] + [
+        list(h.centroid_W) for h in last.hydroelastic_contacts
+    ]
+    assert starts == expected_starts
+    for marker, force in zip([m for m in array if m.ns == "contact/forces"], expected_forces, strict=True):
+        assert marker.type == ARROW
+        end, start = marker.points[1], marker.points[0]
+        assert np.allclose([end.x - start.x, end.y - start.y, end.z - start.z], np.array(force) * 0.01)
+    surface_message = last.hydroelastic_contacts[0]
+    (surface,) = [m for m in array if m.type == TRIANGLE_LIST]
+    vertices = [[p.x, p.y, p.z] for p in surface_message.p_WV]
+    assert [[p.x, p.y, p.z] for p in surface.points] == [
+        vertices[i] for i in fan(list(surface_message.poly_data))
+    ]
+    assert len(surface.colors) == len(surface.points)
+
+
+def test_dump_decodes_contact_results() -> None:
+    from bridge.dump import as_text, describe
+    from bridge.transports.lcm import LcmEvent
+
+    event = LcmEvent("CONTACT_RESULTS", pydrake_results().encode(), 5)
+    record = describe(event)
+    assert record["type"] == "drake.lcmt_contact_results_for_viz" and "error" not in record
+    surface = record["message"]["hydroelastic_contacts"][0]
+    assert surface["p_WV"][4] == {"x": 0.02, "y": 0.005, "z": 0.0} and surface["poly_data"][0] == 4
+    assert "  point_pair_contact_info[1]:" in as_text(event).splitlines()
+
+
+def test_ign_contacts_read_by_debians_protos(debian_ign_msgs: ModuleType) -> None:
+    translator = TRANSLATORS.get("drake_contacts_to_ign_contacts")({}, LoadCache())
+    assert translator.outputs[0].type.name == "ignition.msgs.Contacts"
+    ((_, data),) = translator.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
+    theirs = debian_ign_msgs.Contacts.FromString(data)
+    assert (theirs.header.stamp.sec, theirs.header.stamp.nsec) == (1, 234_567_000)
+    assert len(theirs.contact) == 3
+    point, _, surface = theirs.contact
+    assert (point.collision1.name, point.collision2.name, point.world.name) == (
+        "world(0)",
+        "box0(1)",
+        "world",
+    )
+    assert point.collision1.type == debian_ign_msgs.Entity.LINK
+    assert [(p.x, p.y, p.z) for p in point.position] == [(0.0, 0.2, -1e-5)]
+    assert [(n.x, n.y, n.z) for n in point.normal] == [(0.0, 0.0, 1.0)]
+    (wrench,) = point.wrench
+    body2 = wrench.body_2_wrench.force  # Drake's point force acts on body 2
+    assert (wrench.body_2_name, body2.x, body2.y, body2.z) == ("box0(1)", 0.5, -0.25, 9.81)
+    assert wrench.body_1_wrench.force.z == -9.81
+    (surface_wrench,) = surface.wrench
+    assert surface.position[0].x == 0.5 and surface_wrench.body_1_wrench.force.z == -9.4
+    assert surface_wrench.body_1_wrench.torque.x == 0.01 and surface_wrench.body_2_wrench.torque.y == -0.02
+    gz = TRANSLATORS.get("drake_contacts_to_ign_contacts")({"package": "gz"}, LoadCache())
+    assert gz.outputs[0].type.name == "gz.msgs.Contacts"
+
+
+def test_tree_viewer_gets_arrows_as_lines_with_heads() -> None:
+    translator = TRANSLATORS.get("drake_contacts_to_tree_viewer")({"force_scale": 0.1}, LoadCache())
+    out = translator.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
+    requests = [tree_viewer.decode(data) for _, data in out]
+    assert requests[0]["delete"] == [{"path": ["contacts"]}]
+    state = tree_viewer.TreeState()
+    for request in requests:
+        assert state.apply(request)["status"] == tree_viewer.OK
+    links = {link.name: link for link in state.scene().links}
+    forces = [g.shape for g in links["contact::forces"].geometries]
+    assert all(isinstance(line, Line) and line.end_head and not line.start_head for line in forces)
+    assert np.allclose(forces[0].points, [[0.0, 0.2, -1e-5], [0.05, 0.175, 0.981 - 1e-5]], rtol=0, atol=1e-12)
+    (surface,) = links["contact::surfaces"].geometries
+    assert isinstance(surface.shape, TriangleMesh) and len(surface.shape.triangles) == 3
+    assert surface.color != (1.0, 1.0, 1.0, 1.0)  # the pressure colour of its mean pressure
+
+
+def test_snapshot_draws_arrows_and_pressure_bands() -> None:
+    from PIL import Image
+
+    from bridge.snapshot import snapshot, with_contacts
+
+    results = demo_contact_results(4, (20, 20))
+    scene = with_contacts(Scene(), results)
+    kinds = {type(g.shape).__name__ for link in scene.links for g in link.geometries}
+    assert kinds == {"TriangleMesh"}  # arrows tessellated, surfaces split into colour bands
+    picture = Image.open(io.BytesIO(snapshot(scene, 320, 240, image="label")))
+    colours = {tuple(pixel) for pixel in np.asarray(picture).reshape(-1, 3).tolist()}
+    assert tuple(round(255 * c) for c in FORCE_COLOR[:3]) in colours  # an arrow, unlit
+    ramp = {tuple(round(255 * c) for c in row) for row in pressure_colors(np.linspace(0, 1, 16), 0, 1)}
+    assert len(colours & ramp) >= 4  # the surface in several pressure bands
+
+
+def test_marker_options_reach_the_table_and_unknown_ones_are_refused() -> None:
+    options = {"frame_id": "map", "force_scale": 0.5, "pressure_range": [0, 1e6], "surfaces": False}
+    translator = TRANSLATORS.get("drake_contacts_to_marker_array")(options, LoadCache())
+    ((_, data),) = translator.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
+    markers = ros.from_cdr(data, ros.MARKER_ARRAY).markers
+    assert {m.header.frame_id for m in markers[1:]} == {"map"}
+    assert not [m for m in markers if m.type == TRIANGLE_LIST]
+    force = markers[1]
+    assert force.points[1].z - force.points[0].z == pytest.approx(0.5 * 9.81)
+    with pytest.raises(ValueError, match="force_scael"):
+        TRANSLATORS.get("drake_contacts_to_marker_array")({"force_scael": 1}, LoadCache())
