@@ -174,9 +174,10 @@ def _bad_count(type_name: str, field: str, offset: int, count: int, size: int, e
 def _check_finite(
     type_name: str, field: str, offset: int, size: int, values: Sequence[float], shape: Sequence[int]
 ) -> None:
-    # The sum is a cheap screen (any NaN or inf makes it non-finite); the scan only runs then.
-    total = math.fsum(values) if size == 8 else sum(values)
-    if math.isfinite(total):
+    # The sum is a cheap screen (any NaN or inf makes it non-finite); the scan only runs then, and
+    # also finds nothing when finite values merely overflowed the sum. (Not math.fsum: it raises
+    # OverflowError on such values.)
+    if math.isfinite(sum(values)):
         return
     for index, value in enumerate(values):
         if not math.isfinite(value):

@@ -181,3 +181,11 @@ def test_long_arrays_match_lcm_gen(links: int, lcmgen: dict[str, type]) -> None:
     with pytest.raises(DecodeError) as caught:
         DRAW.decode(broken)
     assert (caught.value.field, caught.value.offset) == ("quaternion[2][1]", nan_at)
+
+
+def test_finite_values_whose_sum_overflows_are_accepted() -> None:
+    """Found by hypothesis: the finiteness screen once raised OverflowError for such a message."""
+    codec = CODECS["drake.lcmt_hydroelastic_quadrature_per_point_data_for_viz"]
+    message = codec.message_class()
+    message.traction_Aq_W = [0.0, 3.3978799665285463e306, 1.7637143351970303e308]
+    assert codec.decode(codec.encode(message)).traction_Aq_W == message.traction_Aq_W
