@@ -16,6 +16,7 @@ import base64
 import json
 import struct
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -302,79 +303,128 @@ def draw_from_poses(poses: LinkPoses) -> LcmMessage:
 
 
 _HEADER = struct.Struct(">qi")
+_TIMESTAMP = struct.Struct(">q")
 _U32 = struct.Struct(">I")
+_NAMES_AT = 20  # fingerprint (8), timestamp (8), num_links (4)
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class _DrawLayout:
+    """Where a draw's arrays sit, for one name block: every offset follows from the names.
+
+    `key` is the draw's bytes from `num_links` to the end of the names; a draw that has the
+    same bytes there (compared in place) and is `size` bytes long has its arrays where
+    `arrays` (a structured dtype read at `arrays_at`) says.
+    """
+
+    key: bytes
+    names: tuple[str, ...]
+    size: int
+    arrays_at: int
+    floats_at: int  # position (N x 3), then quaternion (N x 4), float32, to the end
+    arrays: np.dtype[np.void]
+
+    @classmethod
+    def after_names(cls, data: bytes, names_end: int, names: tuple[str, ...]) -> _DrawLayout:
+        count = len(names)
+        key = bytes(data[_NAMES_AT - 4 : names_end])
+        floats_at = names_end + 4 * count  # after an int32 robot_num per link
+        return cls(key, names, floats_at + 28 * count, names_end, floats_at, _arrays_dtype(count))
+
+
+def _arrays_dtype(count: int) -> np.dtype[np.void]:
+    """The draw's arrays after the names as one record, big-endian as on the wire."""
+    return np.dtype(
+        [("robot_num", ">i4", (count,)), ("position", ">f4", (count, 3)), ("quaternion", ">f4", (count, 4))]
+    )
+
+
+_BIG_F32 = np.dtype(">f4")
+_NO_LAYOUT = _DrawLayout(b"", (), -1, 0, 0, _arrays_dtype(0))
 
 
 class DrawDecoder:
     """Fast `lcmt_viewer_draw` decoding into numpy views.
 
-    The link names rarely change between frames, so the parsed name block is kept and reused
-    while the next frame's bytes at that place are the same: a memory comparison instead of
-    N string decodes. The returned arrays are read-only big-endian float32 / int32 views into
-    `data`; they stay valid as long as `data` does. Anything irregular is handed to the generic
-    decoder, so the same inputs raise the same `DecodeError`s as `DRAW.decode`.
+    The link names rarely change between frames, so the layout the name block implies is kept
+    and reused while the next frame has the same bytes there: a memory comparison and a length
+    check instead of N string decodes, then a few views at known offsets. The returned arrays
+    are read-only big-endian float32 / int32 views into `data`; they stay valid as long as
+    `data` does. Anything irregular is handed to the generic decoder, so the same inputs raise
+    the same `DecodeError`s as `DRAW.decode`.
     """
 
     def __init__(self) -> None:
-        # The name block and its names, as one tuple: replaced in one store, so routes sharing
-        # a decoder on several threads never see the names of one block with another block.
-        self._known: tuple[bytes, tuple[str, ...]] = (b"", ())
+        # One object holding the names and their offsets: replaced in one store, so routes
+        # sharing a decoder on several threads never see one block's names with another's offsets.
+        self._layout = _NO_LAYOUT
 
     def decode(self, data: Buffer) -> LinkPoses:
-        end = len(data)
-        if end < 20 or data[:8] != DRAW.packed_fingerprint:
+        if not isinstance(data, bytes):
+            data = bytes(data)  # bytes compare in place; a view of a copy stays valid
+        known = self._layout
+        layout = (
+            known
+            if len(data) == known.size
+            and data.startswith(DRAW.packed_fingerprint)
+            and data.startswith(known.key, _NAMES_AT - 4)
+            else self._new_layout(data)
+        )
+        if layout is None:
             return self._generic(data)
-        timestamp, count = _HEADER.unpack_from(data, 8)
-        block, names = self._known
-        names_end: int | None = 20 + len(block)
-        if count != len(names) or not _same_bytes_at(data, 20, block):
-            names_end, names = self._parse_names(data, count)
-        # After the names: int32 robot_num, 3 float32 position, 4 float32 quaternion per link.
-        if names_end is None or end != names_end + 32 * count:
-            return self._generic(data)
-        robot_nums = np.frombuffer(data, dtype=">i4", count=count, offset=names_end)
-        floats = np.frombuffer(data, dtype=">f4", count=7 * count, offset=names_end + 4 * count)
-        if not np.isfinite(floats).all():
-            return self._generic(data)
+        # The finiteness check wants native floats: a byte-swapping copy, made from an aligned
+        # copy of the bytes (numpy swaps unaligned data at a third of the speed).
+        floats = np.frombuffer(data[layout.floats_at :], _BIG_F32).astype(np.float32)
+        if np.count_nonzero(np.isfinite(floats)) != len(floats):
+            return self._generic(data)  # which names the field and offset
+        arrays = np.ndarray((), layout.arrays, data, layout.arrays_at)
         return LinkPoses(
-            timestamp_ms=timestamp,
-            names=names,
-            robot_nums=robot_nums,
-            positions=floats[: 3 * count].reshape(count, 3),
-            quaternions_wxyz=floats[3 * count :].reshape(count, 4),
+            _TIMESTAMP.unpack_from(data, 8)[0],
+            layout.names,
+            arrays["robot_num"],
+            arrays["position"],
+            arrays["quaternion"],
         )
 
     @staticmethod
     def _generic(data: Buffer) -> LinkPoses:
         return poses_from_draw(DRAW.decode(data))
 
-    def _parse_names(self, data: Buffer, count: int) -> tuple[int | None, tuple[str, ...]]:
-        """Parse and keep the name block: (where it ends, the names); None when it is not well formed."""
-        end = len(data)
-        if count < 0 or 37 * count > end - 20:  # at least 5 bytes of name + 32 of arrays per link
-            return None, ()
-        names = []
-        offset = 20
-        for _ in range(count):
-            if offset + 4 > end:
-                return None, ()
-            (length,) = _U32.unpack_from(data, offset)
-            start = offset + 4
-            offset = start + length
-            if length == 0 or offset > end or data[offset - 1] != 0:
-                return None, ()
-            try:
-                names.append(str(data[start : offset - 1], "utf-8"))
-            except UnicodeDecodeError:
-                return None, ()
-        known = self._known = (bytes(data[20:offset]), tuple(names))
-        return offset, known[1]
+    def _new_layout(self, data: bytes) -> _DrawLayout | None:
+        """Parse the name block and keep its layout; None when the draw is not well formed."""
+        if len(data) < _NAMES_AT or not data.startswith(DRAW.packed_fingerprint):
+            return None
+        _, count = _HEADER.unpack_from(data, 8)
+        parsed = _parse_names(data, count)
+        if parsed is None:
+            return None
+        layout = _DrawLayout.after_names(data, *parsed)
+        if len(data) != layout.size:
+            return None
+        self._layout = layout
+        return layout
 
 
-def _same_bytes_at(data: Buffer, offset: int, expected: bytes) -> bool:
-    if isinstance(data, bytes | bytearray):
-        return data.startswith(expected, offset)  # compares in place, no copy
-    return data[offset : offset + len(expected)] == expected
+def _parse_names(data: bytes, count: int) -> tuple[int, tuple[str, ...]] | None:
+    """(where the name block ends, the names), or None when it is not well formed."""
+    end = len(data)
+    if count < 0 or 37 * count > end - _NAMES_AT:  # at least 5 bytes of name + 32 of arrays per link
+        return None
+    names = []
+    offset = _NAMES_AT
+    for _ in range(count):
+        if offset + 4 > end:
+            return None
+        (length,) = _U32.unpack_from(data, offset)
+        start = offset + 4
+        offset = start + length
+        if length == 0 or offset > end or data[offset - 1] != 0:
+            return None
+        try:
+            names.append(str(data[start : offset - 1], "utf-8"))
+        except UnicodeDecodeError:
+            return None
+    return offset, tuple(names)
 
 
 class DrawEncoder:
