@@ -10,7 +10,7 @@ edge. Poses of many links are kept as arrays so that a frame of 10,000 links sta
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -83,9 +83,8 @@ def rotation_matrix(quaternion_wxyz: FloatArray) -> FloatArray:
     )
 
 
-def _quaternion_product(
-    a: tuple[float, float, float, float], b: tuple[float, float, float, float]
-) -> tuple[float, float, float, float]:
+def _quaternion_product(a: Iterable[Any], b: Iterable[Any]) -> tuple[Any, Any, Any, Any]:
+    """The Hamilton product `a * b` of w-first quaternions: floats, or arrays row-wise."""
     aw, ax, ay, az = a
     bw, bx, by, bz = b
     return (
@@ -183,22 +182,87 @@ def link_poses_from_xyzw(
     return LinkPoses(int(timestamp_ms), tuple(names), numbers, position_array, quaternions)
 
 
-def compose_arrays(
-    parent_positions: FloatArray,
-    parent_wxyz: FloatArray,
-    child_positions: FloatArray,
-    child_wxyz: FloatArray,
-) -> tuple[FloatArray, FloatArray]:
-    """Row-wise `parent * child` for N poses at once (positions N x 3, quaternions N x 4 w-first)."""
-    pw, pv = parent_wxyz[:, :1], parent_wxyz[:, 1:]
-    cw, cv = child_wxyz[:, :1], child_wxyz[:, 1:]
-    # Rotate the child's position by the parent's quaternion: v + 2 w (u x v) + 2 u x (u x v).
-    twice_cross = 2.0 * np.cross(pv, child_positions)
-    positions = parent_positions + child_positions + pw * twice_cross + np.cross(pv, twice_cross)
-    quaternions = np.empty_like(parent_wxyz)
-    quaternions[:, :1] = pw * cw - np.sum(pv * cv, axis=1, keepdims=True)
-    quaternions[:, 1:] = pw * cv + cw * pv + np.cross(pv, cv)
-    return positions, quaternions
+class PartsOnLinks:
+    """Parts fixed on links (e.g. markers): every part's world pose, all at once per frame.
+
+    A part's world pose is its link's pose times the part's pose in the link. Both halves are
+    polynomials in the link's quaternion `a` = (w, x, y, z) with coefficients that depend only
+    on the part, so they are worked out once, at load, and a frame costs a few array operations:
+
+    * the part's orientation `a * b` is linear in `a`: column j of a 4 x 4 matrix per part is
+      `e_j * b` (the Hamilton product with the basis quaternion e_j);
+    * the link's rotation R(a) is quadratic in `a`: R = K (the 10 products a_j a_k) for a unit
+      `a`, and `R p` for the part's position p then takes 9 products per part.
+
+    Arrays are feature-major (one contiguous row per coefficient, one column per part) so that
+    every operation runs over long contiguous rows.
+    """
+
+    def __init__(self, positions: FloatArray, quaternions_wxyz: FloatArray) -> None:
+        """`positions` (M x 3) and unit `quaternions_wxyz` (M x 4) of the parts in their links."""
+        parts = np.asarray(quaternions_wxyz, dtype=np.float64).reshape(-1, 4)
+        self._positions = np.ascontiguousarray(np.asarray(positions, dtype=np.float64).reshape(-1, 3).T)
+        # [out, j, part]: out component (x, y, z, w order, as ROS and gz write it) of e_j * b.
+        columns = [_quaternion_product(basis, parts.T) for basis in np.eye(4)]
+        orientation = np.array([[np.broadcast_to(value, len(parts)) for value in c] for c in columns])
+        self._orientation = np.ascontiguousarray(orientation.transpose(1, 0, 2)[_XYZW_FROM_WXYZ])
+
+    def __len__(self) -> int:
+        return int(self._positions.shape[1])
+
+    def world_rows(
+        self, link_positions: npt.ArrayLike, link_wxyz: npt.ArrayLike, rows: IntArray
+    ) -> FloatArray:
+        """Each part's world pose as a row x y z, qx qy qz qw (M x 7, a transposed view).
+
+        Part i sits on link `rows[i]` of `link_positions` (N x 3) / `link_wxyz` (N x 4); the
+        row N (one past the last) is the identity, for parts on links the frame does not move.
+        """
+        links = np.asarray(link_positions).reshape(-1, 3)
+        count = len(links)
+        # One column per link: w x y z, then the position; the extra column is the identity.
+        poses = np.empty((7, count + 1))
+        poses[:4, :count] = np.asarray(link_wxyz).reshape(-1, 4).T
+        poses[4:, :count] = links.T
+        poses[:, count] = _IDENTITY_COLUMN
+        on_parts = poses.take(rows, axis=1)
+        a = on_parts[:4]
+        products = (a[:, None] * a[None]).reshape(16, -1)  # a_j a_k, row 4 j + k
+        rotation = (_ROTATION_FROM_PRODUCTS @ products).reshape(3, 3, -1)  # R[c, j] per part
+        out = np.empty((7, len(self)))
+        np.einsum("cjm,jm->cm", rotation, self._positions, out=out[:3])
+        out[:3] += on_parts[4:]
+        np.einsum("ojm,jm->om", self._orientation, a, out=out[3:])
+        return out.T
+
+
+def _rotation_coefficients() -> FloatArray:
+    """K (9 x 16): R(a), row-major, from the products a_j a_k (at 4 j + k) for a unit `a`.
+
+    Column i of R is `a * (0, e_i) * conj(a)`: a quadratic form in `a`. Its coefficients come
+    out of evaluating it at sums of basis quaternions (polarisation), through the one Hamilton
+    product above; each mixed term is shared equally between a_j a_k and a_k a_j.
+    """
+
+    def turned(quaternion: FloatArray, axis: int) -> FloatArray:
+        w, x, y, z = quaternion
+        vector = np.eye(4)[1 + axis]
+        return np.array(_quaternion_product(_quaternion_product(quaternion, vector), (w, -x, -y, -z))[1:])
+
+    basis = np.eye(4)
+    coefficients = np.zeros((3, 3, 4, 4))
+    for j in range(4):
+        for k in range(4):
+            for axis in range(3):
+                both = turned(basis[j] + basis[k], axis)
+                coefficients[:, axis, j, k] = (
+                    both / 4.0 if j == k else (both - turned(basis[j], axis) - turned(basis[k], axis)) / 2.0
+                )
+    return coefficients.reshape(9, 16)
+
+
+_ROTATION_FROM_PRODUCTS = _rotation_coefficients()
+_IDENTITY_COLUMN = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
 
 
 # --- shapes ------------------------------------------------------------------------------------
