@@ -117,6 +117,17 @@ def wxyz_from_xyzw(quaternions: npt.ArrayLike) -> FloatArray:
     return np.asarray(quaternions, dtype=np.float64)[..., _WXYZ_FROM_XYZW]
 
 
+def pose_rows_xyzw(positions: npt.ArrayLike, quaternions_wxyz: npt.ArrayLike) -> FloatArray:
+    """N poses as N x 7 rows x y z, qx qy qz qw: a ROS or gz Pose's fields in order.
+
+    Little-endian float64, as both CDR (little-endian) and protobuf write doubles.
+    """
+    rows = np.empty((len(np.asarray(positions)), 7), dtype="<f8")
+    rows[:, :3] = positions
+    rows[:, 3:] = np.asarray(quaternions_wxyz)[..., _XYZW_FROM_WXYZ]
+    return rows
+
+
 # How far from 1 a quaternion's length may be before it is refused rather than normalised.
 QUATERNION_TOLERANCE = 1e-2
 

@@ -308,39 +308,31 @@ _U32 = struct.Struct(">I")
 _NAMES_AT = 20  # fingerprint (8), timestamp (8), num_links (4)
 
 
-@dataclass(frozen=True, eq=False, slots=True)
+@dataclass(frozen=True, slots=True)
 class _DrawLayout:
     """Where a draw's arrays sit, for one name block: every offset follows from the names.
 
     `key` is the draw's bytes from `num_links` to the end of the names; a draw that has the
-    same bytes there (compared in place) and is `size` bytes long has its arrays where
-    `arrays` (a structured dtype read at `arrays_at`) says.
+    same bytes there (compared in place) and is `size` bytes long has its arrays at these offsets.
     """
 
     key: bytes
     names: tuple[str, ...]
     size: int
-    arrays_at: int
+    robot_nums_at: int
     floats_at: int  # position (N x 3), then quaternion (N x 4), float32, to the end
-    arrays: np.dtype[np.void]
 
     @classmethod
     def after_names(cls, data: bytes, names_end: int, names: tuple[str, ...]) -> _DrawLayout:
         count = len(names)
         key = bytes(data[_NAMES_AT - 4 : names_end])
         floats_at = names_end + 4 * count  # after an int32 robot_num per link
-        return cls(key, names, floats_at + 28 * count, names_end, floats_at, _arrays_dtype(count))
+        return cls(key, names, floats_at + 28 * count, names_end, floats_at)
 
 
-def _arrays_dtype(count: int) -> np.dtype[np.void]:
-    """The draw's arrays after the names as one record, big-endian as on the wire."""
-    return np.dtype(
-        [("robot_num", ">i4", (count,)), ("position", ">f4", (count, 3)), ("quaternion", ">f4", (count, 4))]
-    )
-
-
-_BIG_F32 = np.dtype(">f4")
-_NO_LAYOUT = _DrawLayout(b"", (), -1, 0, 0, _arrays_dtype(0))
+_BIG_F32, _BIG_I32 = np.dtype(">f4"), np.dtype(">i4")
+_FINGERPRINT = DRAW.packed_fingerprint
+_NO_LAYOUT = _DrawLayout(b"", (), -1, 0, 0)
 
 
 class DrawDecoder:
@@ -348,10 +340,10 @@ class DrawDecoder:
 
     The link names rarely change between frames, so the layout the name block implies is kept
     and reused while the next frame has the same bytes there: a memory comparison and a length
-    check instead of N string decodes, then a few views at known offsets. The returned arrays
-    are read-only big-endian float32 / int32 views into `data`; they stay valid as long as
-    `data` does. Anything irregular is handed to the generic decoder, so the same inputs raise
-    the same `DecodeError`s as `DRAW.decode`.
+    check instead of N string decodes. The positions and quaternions come back as read-only
+    native float32 arrays (views of one copy of the draw's floats), the robot numbers as a
+    big-endian int32 view into `data`. Anything irregular is handed to the generic decoder,
+    so the same inputs raise the same `DecodeError`s as `DRAW.decode`.
     """
 
     def __init__(self) -> None:
@@ -372,18 +364,20 @@ class DrawDecoder:
         )
         if layout is None:
             return self._generic(data)
-        # The finiteness check wants native floats: a byte-swapping copy, made from an aligned
-        # copy of the bytes (numpy swaps unaligned data at a third of the speed).
-        floats = np.frombuffer(data[layout.floats_at :], _BIG_F32).astype(np.float32)
-        if np.count_nonzero(np.isfinite(floats)) != len(floats):
+        # One copy of the floats, native and from an aligned copy of the bytes (numpy swaps
+        # unaligned data at a third of the speed): checked here, and what every consumer gets,
+        # since aligned native arrays are what numpy computes with fastest.
+        floats: np.ndarray[Any, Any] = np.frombuffer(data[layout.floats_at :], _BIG_F32).astype(np.float32)
+        count = len(layout.names)
+        if np.count_nonzero(np.isfinite(floats)) != 7 * count:
             return self._generic(data)  # which names the field and offset
-        arrays = np.ndarray((), layout.arrays, data, layout.arrays_at)
+        floats.flags.writeable = False  # one decoded draw may feed several routes
         return LinkPoses(
             _TIMESTAMP.unpack_from(data, 8)[0],
             layout.names,
-            arrays["robot_num"],
-            arrays["position"],
-            arrays["quaternion"],
+            np.ndarray((count,), _BIG_I32, data, layout.robot_nums_at),
+            floats[: 3 * count].reshape(count, 3),
+            floats[3 * count :].reshape(count, 4),
         )
 
     @staticmethod
@@ -392,7 +386,7 @@ class DrawDecoder:
 
     def _new_layout(self, data: bytes) -> _DrawLayout | None:
         """Parse the name block and keep its layout; None when the draw is not well formed."""
-        if len(data) < _NAMES_AT or not data.startswith(DRAW.packed_fingerprint):
+        if len(data) < _NAMES_AT or not data.startswith(_FINGERPRINT):
             return None
         _, count = _HEADER.unpack_from(data, 8)
         parsed = _parse_names(data, count)

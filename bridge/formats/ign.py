@@ -19,11 +19,13 @@ from functools import cache
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from google.protobuf.message import DecodeError as ProtobufDecodeError
 from google.protobuf.message import Message
 
 from bridge.errors import DecodeError, SceneError
+from bridge.formats import protowire as pw
 from bridge.mappings import ShapeRule, Table, tables
 from bridge.scene import (
     FileContents,
@@ -38,6 +40,7 @@ from bridge.scene import (
     TriangleMesh,
     link_poses_from_xyzw,
     pose_from_xyzw,
+    pose_rows_xyzw,
     xyzw_from_wxyz,
 )
 from bridge.sim_time import ms_from_sec_nsec, sec_nsec_from_ms
@@ -250,6 +253,99 @@ def _fill_poses(repeated: Any, poses: LinkPoses) -> None:
         position, orientation = pose.position, pose.orientation
         position.x, position.y, position.z = x, y, z
         orientation.x, orientation.y, orientation.z, orientation.w = qx, qy, qz, qw
+
+
+def _field(message: str, name: str) -> int:
+    """A field's number, from `_SCHEMA` (the one place the numbers are written)."""
+    return next(number for field, number, _, _ in _SCHEMA[message] if field == name)
+
+
+_DOUBLE_FIELDS = tuple(_field("Vector3d", axis) for axis in "xyz") + tuple(
+    _field("Quaternion", axis) for axis in "xyzw"
+)  # the 7 doubles of a pose, in `pose_rows_xyzw` order: position x y z, orientation x y z w
+
+
+class PosesEncoder:
+    """draw arrays -> `Pose_V` (or `PosesStamped`) bytes, byte for byte as protobuf writes them
+    from `pose_v` (`poses_stamped`), without building a message per link.
+
+    proto3 leaves out a double that is +0.0 and an id that is 0, so the bytes of a pose depend
+    on its name, its index and which of its seven doubles are zero. For one list of names and
+    one such pattern the poses are laid out once, with the byte offset of every double written;
+    a draw then copies that template and writes its doubles, and only a new pattern (a value
+    becoming exactly 0 or leaving 0) lays the poses out again.
+    """
+
+    def __init__(self, msgs: MessageSet = IGNITION, message: str = "Pose_V") -> None:
+        self.msgs, self.message = msgs, message
+        self._names: tuple[str, ...] = ()
+        self._pattern = b""
+        self._template = b""
+        self._double_bytes = np.zeros(0, dtype=np.intp)  # 8 byte offsets per double written
+        self._written = np.zeros(0, dtype=np.intp)  # which of the N x 7 doubles are written
+
+    def encode(self, poses: LinkPoses) -> bytes:
+        rows = pose_rows_xyzw(poses.positions, poses.quaternions_wxyz)
+        written = rows.view(np.uint64) != 0  # +0.0 is all zero bits; -0.0 is written
+        pattern = written.tobytes()
+        if pattern != self._pattern or (poses.names is not self._names and poses.names != self._names):
+            self._lay_out(poses.names, written)
+            self._names, self._pattern = poses.names, pattern
+        body = bytearray(self._template)
+        values = rows.reshape(-1)[self._written]
+        np.frombuffer(body, dtype=np.uint8)[self._double_bytes] = values.view(np.uint8)
+        return b"".join((self._head(poses.timestamp_ms), body))
+
+    def _head(self, timestamp_ms: int) -> bytes:
+        """The header with the stamp (and for `PosesStamped` the time field): before the poses."""
+        seconds, nanoseconds = sec_nsec_from_ms(timestamp_ms)
+        time = pw.varint_field(_field("Time", "sec"), seconds) + pw.varint_field(
+            _field("Time", "nsec"), nanoseconds
+        )
+        head = pw.length_delimited(
+            _field(self.message, "header"), pw.length_delimited(_field("Header", "stamp"), time)
+        )
+        if self.message == "PosesStamped":
+            head += pw.length_delimited(_field(self.message, "time"), time)
+        return head
+
+    def _lay_out(self, names: Sequence[str], written: npt.NDArray[np.bool_]) -> None:
+        chunks: list[bytes] = []
+        places: list[int] = []
+        size = 0
+        pose_field = _field(self.message, "pose")
+        for index, (name, present) in enumerate(zip(names, written.tolist(), strict=True)):
+            position, position_places = _doubles(_DOUBLE_FIELDS[:3], present[:3])
+            orientation, orientation_places = _doubles(_DOUBLE_FIELDS[3:], present[3:])
+            head = pw.length_delimited(_field("Pose", "name"), name.encode()) + pw.varint_field(
+                _field("Pose", "id"), index
+            )
+            position_head = pw.key(_field("Pose", "position"), pw.LENGTH_DELIMITED) + pw.varint(len(position))
+            orientation_head = pw.key(_field("Pose", "orientation"), pw.LENGTH_DELIMITED) + pw.varint(
+                len(orientation)
+            )
+            body = b"".join((head, position_head, position, orientation_head, orientation))
+            entry_head = pw.key(pose_field, pw.LENGTH_DELIMITED) + pw.varint(len(body))
+            at = size + len(entry_head) + len(head) + len(position_head)
+            places += [at + place for place in position_places]
+            at += len(position) + len(orientation_head)
+            places += [at + place for place in orientation_places]
+            chunks += (entry_head, body)
+            size += len(entry_head) + len(body)
+        self._template = b"".join(chunks)
+        self._double_bytes = (np.asarray(places, dtype=np.intp)[:, None] + np.arange(8)).reshape(-1)
+        self._written = np.flatnonzero(written.reshape(-1))
+
+
+def _doubles(fields: Sequence[int], present: Sequence[bool]) -> tuple[bytes, list[int]]:
+    """The doubles of a message with their keys (zeros for now), and where each written one sits."""
+    out, places = b"", []
+    for field, written in zip(fields, present, strict=True):
+        if written:
+            out += pw.key(field, pw.FIXED64)
+            places.append(len(out))
+            out += bytes(8)
+    return out, places
 
 
 def _xyzw(pose: Any) -> list[float]:
@@ -473,6 +569,7 @@ __all__ = [
     "GZ",
     "IGNITION",
     "MessageSet",
+    "PosesEncoder",
     "geometry_message",
     "message_set",
     "model",

@@ -56,8 +56,8 @@ from bridge.scene import (
     TriangleMesh,
     link_poses_from_xyzw,
     pose_from_xyzw,
+    pose_rows_xyzw,
     wxyz_from_xyzw,
-    xyzw_from_wxyz,
 )
 from bridge.sim_time import ms_from_sec_nsec
 
@@ -122,14 +122,6 @@ def poses_from_pose_array(
     return link_poses_from_xyzw(timestamp_ms, names, robot_nums, positions, xyzw, "poses")
 
 
-def _pose_rows(positions: FloatArray, wxyz: FloatArray) -> np.ndarray[Any, Any]:
-    """N x 7 little-endian float64, as geometry_msgs/Pose lays them out: x y z, qx qy qz qw."""
-    values = np.empty((len(positions), 7), dtype="<f8")
-    values[:, :3] = positions
-    values[:, 3:] = xyzw_from_wxyz(wxyz)
-    return values
-
-
 def _stamp_bytes(timestamp_ms: int) -> bytes:
     return _STAMP.pack(*time_parts(timestamp_ms))
 
@@ -149,7 +141,7 @@ class PoseArrayEncoder:
 
     def encode(self, poses: LinkPoses) -> bytes:
         count = U32.pack(len(poses))
-        rows = _pose_rows(poses.positions, poses.quaternions_wxyz).tobytes()
+        rows = pose_rows_xyzw(poses.positions, poses.quaternions_wxyz).tobytes()
         return b"".join((CDR_LE, _stamp_bytes(poses.timestamp_ms), self._frame, count, self._padding, rows))
 
 
@@ -167,7 +159,7 @@ class PoseStampedEncoder:
 
     def encode(self, poses: LinkPoses) -> list[bytes]:
         prefix = CDR_LE + _stamp_bytes(poses.timestamp_ms) + self._frame
-        return [prefix + row for row in map(bytes, _pose_rows(poses.positions, poses.quaternions_wxyz))]
+        return [prefix + row for row in map(bytes, pose_rows_xyzw(poses.positions, poses.quaternions_wxyz))]
 
 
 def pose_array_arrays(data: bytes | memoryview) -> tuple[int, str, FloatArray, FloatArray]:
@@ -581,7 +573,7 @@ def marker_array_cdr(scene: Scene, options: dict[str, Any] | None = None, delete
     frame_id = str(_marker_settings(options)["frame_id"])
     specs = marker_specs(scene, options)
     positions, wxyz = world_poses(scene, specs)
-    return _write_markers(specs, _pose_rows(positions, wxyz), frame_id, delete_all)[0]
+    return _write_markers(specs, pose_rows_xyzw(positions, wxyz), frame_id, delete_all)[0]
 
 
 def marker_array_in_link_frames_cdr(
@@ -595,7 +587,7 @@ def marker_array_in_link_frames_cdr(
     specs = marker_specs(scene, options)
     positions, wxyz = _part_poses(specs)
     frames = [frame_of(spec.link_name) for spec in specs]
-    return _write_markers(specs, _pose_rows(positions, wxyz), frames, True, frame_locked=True)[0]
+    return _write_markers(specs, pose_rows_xyzw(positions, wxyz), frames, True, frame_locked=True)[0]
 
 
 class MarkerStream:
@@ -611,7 +603,7 @@ class MarkerStream:
         frame_id = str(_marker_settings(options)["frame_id"])
         self._specs = marker_specs(scene, options)
         positions, wxyz = world_poses(scene, self._specs)
-        poses = _pose_rows(positions, wxyz)
+        poses = pose_rows_xyzw(positions, wxyz)
         self.load_cdr = _write_markers(self._specs, poses, frame_id, delete_all=True)[0]
         self._template, offsets = _write_markers(self._specs, poses, frame_id, delete_all=False)
         # Poses are 8-aligned in the payload, which starts after the 4-byte encapsulation: in a
