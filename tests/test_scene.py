@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bridge.scene import PartsOnLinks, Pose, frame_name, rotation_matrix
+from bridge.scene import LinkPoses, PartsOnLinks, Pose, frame_name, rotation_matrix
 
 
 def test_frame_names_follow_the_field_convention() -> None:
@@ -70,3 +72,11 @@ def test_parts_on_links_match_pose_compose(seed: int, parts: int, links: int) ->
         expected = link.compose(Pose(tuple(part_positions[part]), tuple(part_wxyz[part])))  # type: ignore[arg-type]
         np.testing.assert_allclose(world[part, :3], expected.position, atol=1e-6)
         np.testing.assert_allclose(world[part, 3:], expected.quaternion_xyzw, atol=1e-6)
+
+
+def test_link_poses_of_arrays_sets_every_field_as_the_constructor_does() -> None:
+    arrays = (np.zeros(2, np.int32), np.ones((2, 3)), np.tile([1.0, 0, 0, 0], (2, 1)))
+    fast, slow = LinkPoses.of_arrays(7, ("a", "b"), *arrays), LinkPoses(7, ("a", "b"), *arrays)
+    for field in dataclasses.fields(LinkPoses):
+        assert getattr(fast, field.name) is getattr(slow, field.name), field.name
+    assert fast.row_of("b") == 1 and fast == slow

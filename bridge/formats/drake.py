@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from bridge.errors import DecodeError, EncodeError
 from bridge.lcmcodec import DRAW, GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, Buffer, LcmMessage
@@ -303,6 +304,7 @@ def draw_from_poses(poses: LinkPoses) -> LcmMessage:
 
 
 _HEADER = struct.Struct(">qi")
+_BIG_F32, _BIG_I32 = np.dtype(">f4"), np.dtype(">i4")
 _TIMESTAMP = struct.Struct(">q")
 _U32 = struct.Struct(">I")
 _NAMES_AT = 20  # fingerprint (8), timestamp (8), num_links (4)
@@ -310,45 +312,50 @@ _NAMES_AT = 20  # fingerprint (8), timestamp (8), num_links (4)
 
 @dataclass(frozen=True, slots=True)
 class _DrawLayout:
-    """Where a draw's arrays sit, for one name block: every offset follows from the names.
+    """What a draw's names and robot numbers imply: the names, and where the floats sit.
 
-    `key` is the draw's bytes from `num_links` to the end of the names; a draw that has the
-    same bytes there (compared in place) and is `size` bytes long has its arrays at these offsets.
+    `key` is the draw's bytes from `num_links` to the end of the robot numbers; a draw that
+    has the same bytes there (compared in place) and is `size` bytes long has these names and
+    robot numbers (the robot numbers are a view of the key), and its floats at `floats_at`.
     """
 
     key: bytes
     names: tuple[str, ...]
+    robot_nums: npt.NDArray[np.int32]
     size: int
-    robot_nums_at: int
     floats_at: int  # position (N x 3), then quaternion (N x 4), float32, to the end
 
     @classmethod
-    def after_names(cls, data: bytes, names_end: int, names: tuple[str, ...]) -> _DrawLayout:
+    def after_names(cls, data: bytes, names_end: int, names: tuple[str, ...]) -> _DrawLayout | None:
+        """The layout, or None when `data` is not as long as these names make a draw."""
         count = len(names)
-        key = bytes(data[_NAMES_AT - 4 : names_end])
         floats_at = names_end + 4 * count  # after an int32 robot_num per link
-        return cls(key, names, floats_at + 28 * count, names_end, floats_at)
+        if len(data) != floats_at + 28 * count:
+            return None
+        key = bytes(data[_NAMES_AT - 4 : floats_at])
+        robot_nums = np.frombuffer(key, _BIG_I32, count, len(key) - 4 * count)
+        return cls(key, names, robot_nums, len(data), floats_at)
 
 
-_BIG_F32, _BIG_I32 = np.dtype(">f4"), np.dtype(">i4")
 _FINGERPRINT = DRAW.packed_fingerprint
-_NO_LAYOUT = _DrawLayout(b"", (), -1, 0, 0)
+_NO_LAYOUT = _DrawLayout(b"", (), np.zeros(0, dtype=np.int32), -1, 0)
 
 
 class DrawDecoder:
-    """Fast `lcmt_viewer_draw` decoding into numpy views.
+    """Fast `lcmt_viewer_draw` decoding into numpy arrays.
 
-    The link names rarely change between frames, so the layout the name block implies is kept
+    The link names and robot numbers rarely change between frames, so what they imply is kept
     and reused while the next frame has the same bytes there: a memory comparison and a length
-    check instead of N string decodes. The positions and quaternions come back as read-only
-    native float32 arrays (views of one copy of the draw's floats), the robot numbers as a
-    big-endian int32 view into `data`. Anything irregular is handed to the generic decoder,
-    so the same inputs raise the same `DecodeError`s as `DRAW.decode`.
+    check instead of N string decodes. The positions and quaternions come back as native
+    float32 arrays (views of one copy of the draw's floats, checked finite), the robot numbers
+    as a read-only big-endian int32 array. One decoded draw may feed several routes: never
+    change the arrays. Anything irregular is handed to the generic decoder, so the same inputs
+    raise the same `DecodeError`s as `DRAW.decode`.
     """
 
     def __init__(self) -> None:
-        # One object holding the names and their offsets: replaced in one store, so routes
-        # sharing a decoder on several threads never see one block's names with another's offsets.
+        # One object holding names, robot numbers and offsets: replaced in one store, so routes
+        # sharing a decoder on several threads never see one draw's names with another's offsets.
         self._layout = _NO_LAYOUT
 
     def decode(self, data: Buffer) -> LinkPoses:
@@ -358,7 +365,7 @@ class DrawDecoder:
         layout = (
             known
             if len(data) == known.size
-            and data.startswith(DRAW.packed_fingerprint)
+            and data.startswith(_FINGERPRINT)
             and data.startswith(known.key, _NAMES_AT - 4)
             else self._new_layout(data)
         )
@@ -369,13 +376,12 @@ class DrawDecoder:
         # since aligned native arrays are what numpy computes with fastest.
         floats: np.ndarray[Any, Any] = np.frombuffer(data[layout.floats_at :], _BIG_F32).astype(np.float32)
         count = len(layout.names)
-        if np.count_nonzero(np.isfinite(floats)) != 7 * count:
+        if 0 in np.isfinite(floats).tobytes():  # a False; faster than numpy's own counting
             return self._generic(data)  # which names the field and offset
-        floats.flags.writeable = False  # one decoded draw may feed several routes
-        return LinkPoses(
+        return LinkPoses.of_arrays(
             _TIMESTAMP.unpack_from(data, 8)[0],
             layout.names,
-            np.ndarray((count,), _BIG_I32, data, layout.robot_nums_at),
+            layout.robot_nums,
             floats[: 3 * count].reshape(count, 3),
             floats[3 * count :].reshape(count, 4),
         )
@@ -393,9 +399,8 @@ class DrawDecoder:
         if parsed is None:
             return None
         layout = _DrawLayout.after_names(data, *parsed)
-        if len(data) != layout.size:
-            return None
-        self._layout = layout
+        if layout is not None:
+            self._layout = layout
         return layout
 
 
