@@ -196,14 +196,12 @@ def link_poses_from_xyzw(
 class PartsOnLinks:
     """Parts fixed on links (e.g. markers): every part's world pose, all at once per frame.
 
-    A part's world pose is its link's pose times the part's pose in the link. Both halves are
-    polynomials in the link's quaternion `a` = (w, x, y, z) with coefficients that depend only
-    on the part, so they are worked out once, at load, and a frame costs a few array operations:
-
-    * the part's orientation `a * b` is linear in `a`: column j of a 4 x 4 matrix per part is
-      `e_j * b` (the Hamilton product with the basis quaternion e_j);
-    * the link's rotation R(a) is quadratic in `a`: R = K (the 10 products a_j a_k) for a unit
-      `a`, and `R p` for the part's position p then takes 9 products per part.
+    A part at (p, b) in its link, the link at (t, a) in the world, is at t + a (0, p) a* with
+    orientation a b (Hamilton products). Both `a (0, p)` and `a b` are linear in the link's
+    quaternion `a`, with a 4 x 4 matrix per part (column j is `e_j (0, p)`, `e_j b` for the
+    basis quaternion e_j), worked out once at load; `u a*` is bilinear in u and a with constant
+    coefficients: one matrix product with the 16 products u_j a_k. So a frame costs a gather,
+    one batched matrix-vector product, one outer product and one matrix product.
 
     Arrays are feature-major (one contiguous row per coefficient, one column per part) so that
     every operation runs over long contiguous rows.
@@ -211,15 +209,18 @@ class PartsOnLinks:
 
     def __init__(self, positions: FloatArray, quaternions_wxyz: FloatArray) -> None:
         """`positions` (M x 3) and unit `quaternions_wxyz` (M x 4) of the parts in their links."""
-        parts = np.asarray(quaternions_wxyz, dtype=np.float64).reshape(-1, 4)
-        self._positions = np.ascontiguousarray(np.asarray(positions, dtype=np.float64).reshape(-1, 3).T)
-        # [out, j, part]: out component (x, y, z, w order, as ROS and gz write it) of e_j * b.
-        columns = [_quaternion_product(basis, parts.T) for basis in np.eye(4)]
-        orientation = np.array([[np.broadcast_to(value, len(parts)) for value in c] for c in columns])
-        self._orientation = np.ascontiguousarray(orientation.transpose(1, 0, 2)[_XYZW_FROM_WXYZ])
+        orientations = np.asarray(quaternions_wxyz, dtype=np.float64).reshape(-1, 4).T
+        offsets = np.asarray(positions, dtype=np.float64).reshape(-1, 3).T
+        pure = np.concatenate((np.zeros((1, offsets.shape[1])), offsets))  # (0, p)
+        # [out, j, part]: rows 0-3 e_j (0, p) (w x y z), rows 4-7 e_j b (x y z w, as written).
+        by_basis = [
+            np.concatenate((_product_rows(basis, pure), _product_rows(basis, orientations)[_XYZW_FROM_WXYZ]))
+            for basis in np.eye(4)
+        ]
+        self._linear = np.ascontiguousarray(np.stack(by_basis, axis=1))
 
     def __len__(self) -> int:
-        return int(self._positions.shape[1])
+        return int(self._linear.shape[2])
 
     def world_rows(
         self, link_positions: npt.ArrayLike, link_wxyz: npt.ArrayLike, rows: IntArray
@@ -238,41 +239,30 @@ class PartsOnLinks:
         poses[:, count] = _IDENTITY_COLUMN
         on_parts = poses.take(rows, axis=1)
         a = on_parts[:4]
-        products = (a[:, None] * a[None]).reshape(16, -1)  # a_j a_k, row 4 j + k
-        rotation = (_ROTATION_FROM_PRODUCTS @ products).reshape(3, 3, -1)  # R[c, j] per part
-        out = np.empty((7, len(self)))
-        np.einsum("cjm,jm->cm", rotation, self._positions, out=out[:3])
-        out[:3] += on_parts[4:]
-        np.einsum("ojm,jm->om", self._orientation, a, out=out[3:])
-        return out.T
+        linear = np.einsum("ojm,jm->om", self._linear, a)  # u = a (0, p), then a b
+        products = (linear[:4, None] * a[None]).reshape(16, -1)  # u_j a_k, row 4 j + k
+        # u is used up: rows 1-3 take the position, so rows 1-7 are the answer as they lie.
+        np.matmul(_ROTATE, products, out=linear[1:4])  # the vector part of u a*
+        linear[1:4] += on_parts[4:]
+        world: FloatArray = linear[1:].T
+        return world
+
+
+def _product_rows(a: FloatArray, b: FloatArray) -> FloatArray:
+    """The Hamilton product a b of w-first quaternions as 4 rows (a column of b per part)."""
+    return np.array([np.broadcast_to(value, b.shape[1:]) for value in _quaternion_product(a, b)])
 
 
 def _rotation_coefficients() -> FloatArray:
-    """K (9 x 16): R(a), row-major, from the products a_j a_k (at 4 j + k) for a unit `a`.
-
-    Column i of R is `a * (0, e_i) * conj(a)`: a quadratic form in `a`. Its coefficients come
-    out of evaluating it at sums of basis quaternions (polarisation), through the one Hamilton
-    product above; each mixed term is shared equally between a_j a_k and a_k a_j.
-    """
-
-    def turned(quaternion: FloatArray, axis: int) -> FloatArray:
-        w, x, y, z = quaternion
-        vector = np.eye(4)[1 + axis]
-        return np.array(_quaternion_product(_quaternion_product(quaternion, vector), (w, -x, -y, -z))[1:])
-
+    """H (3 x 16): the vector part of u a* from the products u_j a_k (at 4 j + k)."""
     basis = np.eye(4)
-    coefficients = np.zeros((3, 3, 4, 4))
-    for j in range(4):
-        for k in range(4):
-            for axis in range(3):
-                both = turned(basis[j] + basis[k], axis)
-                coefficients[:, axis, j, k] = (
-                    both / 4.0 if j == k else (both - turned(basis[j], axis) - turned(basis[k], axis)) / 2.0
-                )
-    return coefficients.reshape(9, 16)
+    conjugate = np.array([1.0, -1.0, -1.0, -1.0])
+    return np.array(
+        [_quaternion_product(basis[j], basis[k] * conjugate)[1:] for j in range(4) for k in range(4)]
+    ).T
 
 
-_ROTATION_FROM_PRODUCTS = _rotation_coefficients()
+_ROTATE = _rotation_coefficients()
 _IDENTITY_COLUMN = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
 
 

@@ -607,16 +607,16 @@ class MarkerStream:
         self.load_cdr = _write_markers(self._specs, poses, frame_id, delete_all=True)[0]
         self._template, offsets = _write_markers(self._specs, poses, frame_id, delete_all=False)
         # Poses are 8-aligned in the payload, which starts after the 4-byte encapsulation: in a
-        # buffer with 4 bytes in front of the message, they are aligned for numpy, which writes
-        # unaligned doubles at a fraction of the speed. The buffer is kept: every update
-        # rewrites all the poses and nothing else, then copies the message out. One index per
-        # double, x of every marker first, then y ...: the order `PartsOnLinks` computes in.
-        self._slots = (np.arange(7)[:, None] + np.asarray(offsets, dtype=np.intp) // 8).ravel()
+        # buffer with 4 bytes in front of the message, they are aligned for numpy. The buffer is
+        # kept: every update rewrites all the poses and nothing else, then copies the message
+        # out. A pose's 7 doubles are one 56-byte item of a view that starts an item at every
+        # 8th byte, so each marker's pose is one copy.
         self._buffer = np.empty(_ALIGNED + len(self._template), dtype=np.uint8)
         self._buffer[_ALIGNED:] = np.frombuffer(self._template, dtype=np.uint8)
         payload = _ALIGNED + len(CDR_LE)
-        doubles = (len(self._template) - len(CDR_LE)) // 8
-        self._doubles = self._buffer[payload : payload + 8 * doubles].view("<f8")
+        starts = (len(self._template) - len(CDR_LE) - _POSE.itemsize) // 8 + 1
+        self._poses = np.ndarray((starts,), _POSE, self._buffer, payload, (8,))
+        self._pose_at = np.asarray(offsets, dtype=np.intp) // 8
         self._lock = threading.Lock()  # routes on several threads may share a stream
         self._link_names = [spec.link_name for spec in self._specs]
         self._parts = PartsOnLinks(*_part_poses(self._specs))
@@ -627,15 +627,16 @@ class MarkerStream:
 
     def update(self, poses: LinkPoses) -> bytes:
         """The MarkerArray CDR with every marker at its link's pose in `poses`."""
-        if poses.names != self._rows_for[0]:
+        if poses.names is not self._rows_for[0] and poses.names != self._rows_for[0]:
             self._rows_for = (poses.names, _link_rows(poses.names, self._link_names))
         rows = self._parts.world_rows(poses.positions, poses.quaternions_wxyz, self._rows_for[1])
         with self._lock:
-            self._doubles[self._slots] = rows.T.ravel()  # rows.T is contiguous: no copy
+            self._poses[self._pose_at] = np.ascontiguousarray(rows).view(_POSE).reshape(-1)
             return self._buffer[_ALIGNED:].tobytes()
 
 
 _ALIGNED = 4  # bytes in front of the message, so that its 8-aligned payload offsets are aligned
+_POSE = np.dtype((np.void, 56))  # geometry_msgs/Pose: 7 float64
 
 
 __all__ = [
