@@ -291,12 +291,13 @@ class PosesEncoder:
     def encode(self, poses: LinkPoses) -> bytes:
         rows = pose_rows_xyzw(poses.positions, poses.quaternions_wxyz)
         written = rows.view(np.uint64) != 0  # +0.0 is all zero bits; -0.0 is written
-        pattern = (poses.names, written.tobytes())
+        zeros = written.tobytes()
         head = self._head(poses.timestamp_ms)
         with self._lock:
-            if pattern != self._pattern:
+            names, known_zeros = self._pattern
+            if zeros != known_zeros or (poses.names is not names and poses.names != names):
                 self._layout = _PosesLayout(self._lay_out(poses.names, written), written)
-                self._pattern = pattern
+                self._pattern = (poses.names, zeros)
             return b"".join((head, self._layout.write(rows).data))
 
     def _head(self, timestamp_ms: int) -> bytes:
