@@ -469,7 +469,8 @@ class LinkPoses:
     """Every link's pose at one instant, as arrays (one row per link).
 
     `positions` is N x 3, `quaternions_wxyz` N x 4; `robot_nums` N. The arrays may be read-only
-    views into a received buffer: copy before changing them.
+    views into a received buffer, or shared by every route that reads one decoded draw (float32
+    from `DrawDecoder`): copy before changing them.
     """
 
     timestamp_ms: int
