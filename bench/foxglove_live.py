@@ -76,9 +76,7 @@ def main() -> None:
 
     load = scene(args.links)
     once = seconds_per_call(lambda: foxglove.scene_update(load, frames).SerializeToString(), args.budget)
-    print(
-        f"\nload -> foxglove.SceneUpdate bytes, {load.geometry_count()} geometries: {once * 1e3:.2f} ms (once per load)"
-    )
+    print(f"\nload -> foxglove.SceneUpdate bytes, {load.geometry_count()} geometries: {once * 1e3:.2f} ms (once per load)")
 
 
 if __name__ == "__main__":

@@ -256,8 +256,7 @@ _FOXGLOVE_ROUTES = """\
     lazy: true
 """
 
-DEFAULT_CONFIG = (
-    """\
+DEFAULT_CONFIG = """\
 # viewer-bridge's built-in configuration: Drake's default viewer channels to ROS 2 under /drake
 # (under the node's namespace: `--ros-args -r __ns:=/sim1` gives /sim1/drake/...; /tf stays /tf).
 # An unsuffixed channel (Drake's illustration default) goes to /drake/..., a role-suffixed one
@@ -321,9 +320,7 @@ routes:
     qos: {depth: 1000}
     rate: {policy: all}
     options: {mesh_roots: []}
-"""
-    + _FOXGLOVE_ROUTES
-)
+""" + _FOXGLOVE_ROUTES
 
 
 IGN_CONFIG = """\
@@ -352,8 +349,7 @@ routes:
     rate: {policy: all}
 """
 
-FOXGLOVE_CONFIG = (
-    """\
+FOXGLOVE_CONFIG = """\
 # Drake's default viewer channels to Foxglove, live in a browser with no ROS install: open the
 # URL the start-up line prints. The scene goes once per load (a client that connects later still
 # gets it), the frames every draw, stamped with Drake's sim time.
@@ -363,9 +359,7 @@ foxglove:
   host: 127.0.0.1
   port: 8765
 routes:
-"""
-    + _FOXGLOVE_ROUTES
-)
+""" + _FOXGLOVE_ROUTES
 
 BUILTIN_CONFIGS = {"default": DEFAULT_CONFIG, "ign": IGN_CONFIG, "foxglove": FOXGLOVE_CONFIG}
 

@@ -107,9 +107,7 @@ def test_a_file_that_is_not_an_lcm_log_is_refused(tmp_path: Path) -> None:
     assert not (tmp_path / "out.mcap").exists()  # nothing written for a file that is no log
 
 
-def test_a_log_cut_short_is_read_to_its_last_whole_event_with_a_warning(
-    drake_log: Path, tmp_path: Path
-) -> None:
+def test_a_log_cut_short_is_read_to_its_last_whole_event_with_a_warning(drake_log: Path, tmp_path: Path) -> None:
     events = list(read_log(drake_log))
     all_but_last = tmp_path / "all_but_last.lcmlog"
     write_log(all_but_last, events[:-1])
@@ -121,17 +119,12 @@ def test_a_log_cut_short_is_read_to_its_last_whole_event_with_a_warning(
     assert len(result.stdout.splitlines()) == len(events) - 1  # every whole event
     whole = all_but_last.stat().st_size
     tail = torn.stat().st_size - whole
-    assert (
-        f"{torn} ends in a partial event: the {tail} bytes after byte {whole} are not a whole event"
-        in result.stderr
-    )
+    assert f"{torn} ends in a partial event: the {tail} bytes after byte {whole} are not a whole event" in result.stderr
 
 
 def test_run_without_the_ros_extra_names_the_install_that_fixes_it() -> None:
     # As `pip install viewer-bridge` without `[ros]`: rclpy cannot be imported.
-    code = (
-        "import sys; sys.modules['rclpy'] = None; from bridge.cli import main; sys.exit(main(sys.argv[1:]))"
-    )
+    code = "import sys; sys.modules['rclpy'] = None; from bridge.cli import main; sys.exit(main(sys.argv[1:]))"
     result = subprocess.run(
         [sys.executable, "-c", code, "run", "--duration", "1", "--set", "foxglove.port=0"],
         capture_output=True,
@@ -139,8 +132,5 @@ def test_run_without_the_ros_extra_names_the_install_that_fixes_it() -> None:
         timeout=60,
     )
     assert result.returncode == 2, result.stderr
-    assert (
-        "the ros transport needs rclpy" in result.stderr
-        and "pip install 'viewer-bridge[ros]'" in result.stderr
-    )
+    assert "the ros transport needs rclpy" in result.stderr and "pip install 'viewer-bridge[ros]'" in result.stderr
     assert "Traceback" not in result.stderr

@@ -112,3 +112,4 @@ def test_plugin_options_are_checked_at_load(plugin_installed: None, tmp_path: Pa
     path.write_text(CONFIG.replace("bus: plugin-test", "bus: plugin-test, colour: red"))
     with pytest.raises(ConfigError, match=r"plugin.yaml:1: memory.colour: Extra inputs are not permitted"):
         load_config(path)
+

@@ -337,7 +337,6 @@ def test_a_broken_config_exits_2_naming_file_line_and_field(
 
 # --- lazy routes ------------------------------------------------------------------------------------------
 
-
 def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_path: Path) -> None:
     """The default config's TF and marker routes are lazy: nothing is translated for them until a
     subscriber appears, which then gets the model and the latest transforms at once."""
@@ -369,22 +368,15 @@ def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_p
         for name in lazy:  # draws flowed in, nothing went out (a draw conflated by `latest` is a drop)
             route = idle[name]
             assert route["messages_in"] >= 50 and route["messages_out"] == 0, (name, route)
-            assert route["idle_skipped"] + route["dropped"] + route["queued"] == route["messages_in"], (
-                name,
-                route,
-            )
-        assert (
-            idle["poses"]["messages_in"] >= 50 and idle["poses"]["messages_out"] >= 1
-        )  # not lazy: publishes
+            assert route["idle_skipped"] + route["dropped"] + route["queued"] == route["messages_in"], (name, route)
+        assert idle["poses"]["messages_in"] >= 50 and idle["poses"]["messages_out"] >= 1  # not lazy: publishes
         # Subscribers join while nothing is sent: they get the model (from the load the routes
         # skipped) and the last draw's transforms at once, then the draws that follow.
         link_markers = probe.subscribe("/drake/link_markers", "visualization_msgs/msg/MarkerArray", 10,
                                        latched=True)  # fmt: skip
         markers = probe.subscribe("/drake/markers", "visualization_msgs/msg/MarkerArray", 10, latched=True)
         tf = probe.subscribe("/tf", "tf2_msgs/msg/TFMessage")
-        assert probe.wait_for(lambda: bool(link_markers) and bool(markers) and bool(tf), timeout=5), (
-            bridge.lines
-        )
+        assert probe.wait_for(lambda: bool(link_markers) and bool(markers) and bool(tf), timeout=5), bridge.lines
         assert [_tip_z(message) for message in tf] == [0.98]  # the last draw before anyone listened
         draws(1.0, 10.0)
         assert probe.wait_for(lambda: _tip_z(tf[-1]) == 10.98, timeout=5)
@@ -401,13 +393,9 @@ def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_p
     assert {active[name]["state"] for name in lazy} == {"active"}, active
     assert all(active[name]["errors"] == {} for name in lazy), active
     # Stats lines: two decimals, or "-" for a route with no samples yet.
-    latencies = [
-        re.search(r"latency p50 (\S+) p99 (\S+) ms", line) for line in bridge.lines if "route " in line
-    ]
+    latencies = [re.search(r"latency p50 (\S+) p99 (\S+) ms", line) for line in bridge.lines if "route " in line]
     values = [value for match in latencies if match for value in match.groups()]
-    assert "-" in values and all(value == "-" or re.fullmatch(r"\d+\.\d\d", value) for value in values), (
-        values
-    )
+    assert "-" in values and all(value == "-" or re.fullmatch(r"\d+\.\d\d", value) for value in values), values
 
 
 def _tip_z(message: Any) -> float:
@@ -586,9 +574,7 @@ def test_clock_carries_drakes_sim_time() -> None:
     draw = DrawEncoder().encode(
         LinkPoses(61_250, names, np.ones(1, np.int32), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]]))
     )
-    ((_, data),) = TRANSLATORS["drake_to_clock"]({}, LoadCache()).translate(
-        Received("DRAKE_VIEWER_DRAW", draw)
-    )
+    ((_, data),) = TRANSLATORS["drake_to_clock"]({}, LoadCache()).translate(Received("DRAKE_VIEWER_DRAW", draw))
     clock = deserialize_message(data, Clock).clock
     assert (clock.sec, clock.nanosec) == (61, 250_000_000)
 

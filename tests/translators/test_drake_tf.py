@@ -75,10 +75,7 @@ def test_roles_get_their_own_frames_and_static_links_are_sent_once() -> None:
     assert [t.child_frame_id for t in first] == ["plant/robot/base", "plant/robot/tip"]
     assert (first[0].header.stamp.sec, first[0].header.stamp.nanosec) == (1_700_000_000, 250_000_000)
     proximity = ros.from_cdr(out["_PROXIMITY"][1][1], "tf2_msgs/msg/TFMessage").transforms
-    assert [t.child_frame_id for t in proximity] == [
-        "proximity/plant/robot/base",
-        "proximity/plant/robot/tip",
-    ]
+    assert [t.child_frame_id for t in proximity] == ["proximity/plant/robot/base", "proximity/plant/robot/tip"]
     sim = TRANSLATORS.get("drake_to_tf")({"stamp": "sim"}, LoadCache())
     ((_, data),) = translate_all(sim, Received("DRAKE_VIEWER_DRAW", draw_of(small_scene(), 61.25)))
     stamp = ros.from_cdr(data, "tf2_msgs/msg/TFMessage").transforms[0].header.stamp
@@ -135,19 +132,13 @@ def test_a_drake_simulation_reaches_ros_as_a_tf_tree(tmp_path: Path) -> None:
         assert bridge.stop() == 0
         recorder.close()
         probe.close()
-    last_draw = drake_lcmtypes.lcmt_viewer_draw.decode(
-        recorder.messages["DRAKE_VIEWER_DRAW_ILLUSTRATION"][-1]
-    )
-    load = drake_lcmtypes.lcmt_viewer_load_robot.decode(
-        recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0]
-    )
+    last_draw = drake_lcmtypes.lcmt_viewer_draw.decode(recorder.messages["DRAKE_VIEWER_DRAW_ILLUSTRATION"][-1])
+    load = drake_lcmtypes.lcmt_viewer_load_robot.decode(recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0])
     # The tree: the last illustration TFMessage (unprefixed frames) is the last draw, world -> link.
     illustration = [m for m in tf if not m.transforms[0].child_frame_id.startswith("proximity/")]
     transforms = {t.child_frame_id: t for t in illustration[-1].transforms}
     assert set(transforms) == {name.replace("::", "/") for name in last_draw.link_name}
-    for name, position, wxyz in zip(
-        last_draw.link_name, last_draw.position, last_draw.quaternion, strict=True
-    ):
+    for name, position, wxyz in zip(last_draw.link_name, last_draw.position, last_draw.quaternion, strict=True):
         found = transforms[name.replace("::", "/")]
         assert found.header.frame_id == "world"
         t, r = found.transform.translation, found.transform.rotation

@@ -94,9 +94,7 @@ def check_scene(entities: dict[str, Any], load: Any) -> None:
         assert entity.frame_locked
         geometry = link.geom[0]
         data = list(geometry.float_data)
-        kind = {1: "cubes", 2: "spheres", 3: "cylinders", 4: "models", 5: "cylinders", 6: "spheres"}[
-            geometry.type
-        ]
+        kind = {1: "cubes", 2: "spheres", 3: "cylinders", 4: "models", 5: "cylinders", 6: "spheres"}[geometry.type]
         (primitive, *_) = getattr(entity, kind)
         if geometry.type == 4:
             assert primitive.data[:4] == b"glTF" and primitive.media_type == "model/gltf-binary"
@@ -149,9 +147,7 @@ def test_a_drake_simulation_reaches_a_foxglove_client(tmp_path: Path) -> None:
                 each.close()
         assert bridge.stop() == 0
         recorder.close()
-    load = drake_lcmtypes.lcmt_viewer_load_robot.decode(
-        recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0]
-    )
+    load = drake_lcmtypes.lcmt_viewer_load_robot.decode(recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0])
     check_scene(scene_of(client.messages["/drake/illustration/scene"]), load)
     check_scene(scene_of(late.messages["/drake/illustration/scene"]), load)
     transforms = _transforms(client.messages["/drake/illustration/transforms"][-1])
@@ -229,9 +225,8 @@ def _listening_on_loopback_only(port: int) -> bool:
     return addresses == {"127.0.0.1"}
 
 
-def test_convert_to_foxglove_mcap_carries_the_scene_and_the_transforms(
-    drake_log: Path, tmp_path: Path
-) -> None:
+
+def test_convert_to_foxglove_mcap_carries_the_scene_and_the_transforms(drake_log: Path, tmp_path: Path) -> None:
     import subprocess
     import sys
 
@@ -250,11 +245,7 @@ def test_convert_to_foxglove_mcap_carries_the_scene_and_the_transforms(
     with out.open("rb") as file:
         reader = make_reader(file)
         for schema, channel, message in reader.iter_messages():
-            assert (
-                channel.message_encoding == "protobuf"
-                and schema is not None
-                and schema.encoding == "protobuf"
-            )
+            assert channel.message_encoding == "protobuf" and schema is not None and schema.encoding == "protobuf"
             topics.setdefault(channel.topic, []).append((schema.name, message.data, message.log_time))
     assert set(topics) == {f"/drake/{role}/{kind}" for role in ("illustration", "proximity")
                            for kind in ("scene", "transforms")}  # fmt: skip
