@@ -1,6 +1,10 @@
 """Benchmark: Drake draws -> ign-transport Pose_V, 1000 links at 1 kHz, CPU per message.
 
-Run: .venv/bin/python bench/ign.py [--seconds 10]
+Run: .venv/bin/python bench/ign.py [--seconds 10] [--quick]
+
+`measures()` gives issue 15's goal 2 as rows: draw bytes -> Pose_V bytes at 1000 links >= 20x
+the protobuf-object path (`ign.pose_v(...).SerializeToString()`, kept as the reference), and
+(unless quick) the live run below: 1 kHz x 1000 links carried by one core.
 
 The bridge (one `drake_to_ign_pose_v` route) runs as a process pinned to CPU 0; this process
 publishes 1000-link draws over LCM at 1 kHz and counts the Pose_V messages with an ign-transport
@@ -19,10 +23,12 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from draw_codec import frame, seconds_per_call  # noqa: E402
+from common import Measure  # noqa: E402
+from draw_codec import frame, paired, print_measures, seconds_per_call  # noqa: E402
 from router import Bridge, publish_at  # noqa: E402
 
-from bridge.formats.drake import DrawEncoder  # noqa: E402
+from bridge.formats import ign  # noqa: E402
+from bridge.formats.drake import DrawDecoder, DrawEncoder  # noqa: E402
 from bridge.translators import TRANSLATORS, LoadCache  # noqa: E402
 from bridge.transports.base import Received  # noqa: E402
 from bridge.transports.ign import IgnNode  # noqa: E402
@@ -45,19 +51,27 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--seconds", type=float, default=10.0)
-    args = parser.parse_args()
+def encode_measure(quick: bool) -> Measure:
+    """draw bytes -> Pose_V bytes (decode included on both sides), ours against the objects."""
+    draw = DrawEncoder().encode(frame(1000, seed=1))
+    decoder, encoder = DrawDecoder(), ign.PosesEncoder()
+
+    def ours() -> bytes:
+        return encoder.encode(decoder.decode(draw))
+
+    def objects() -> bytes:
+        return bytes(ign.pose_v(decoder.decode(draw)).SerializeToString())
+
+    assert ours() == objects()  # byte for byte
+    fast, slow = paired(ours, objects, quick)
+    return Measure("draw -> ign Pose_V bytes, 1000 links, vs protobuf objects", fast * 1e6, slow * 1e6, "us",
+                   "ratio >= 20x", slow / fast >= 20.0)  # fmt: skip
+
+
+def live(seconds: float) -> dict[str, float]:
+    """The bridge as a process pinned to CPU 0, fed 1000-link draws at 1 kHz for `seconds`."""
     links = 1000
     names = frame(links).names
-    translator = TRANSLATORS["drake_to_ign_pose_v"]({}, LoadCache())
-    draw = DrawEncoder().encode(frame(links))
-    translator.translate(Received("DRAKE_VIEWER_DRAW", draw))
-    own = seconds_per_call(lambda: translator.translate(Received("DRAKE_VIEWER_DRAW", draw)), 0.5)
-
     import router as bench_router
 
     with tempfile.TemporaryDirectory() as folder:
@@ -72,7 +86,7 @@ def main() -> None:
         time.sleep(2.0)
         sent: dict[int, int] = {}
         cpu_before = cpu_seconds(bridge.process.pid)
-        publisher = threading.Thread(target=publish_at, args=(bus, 1000.0, args.seconds, names, sent))
+        publisher = threading.Thread(target=publish_at, args=(bus, 1000.0, seconds, names, sent))
         publisher.start()
         publisher.join()
         time.sleep(1.0)
@@ -82,20 +96,62 @@ def main() -> None:
         node.close()
         bus.close()
     out = stats["messages_out"]
+    return {
+        "sent": len(sent),
+        "in": stats["messages_in"],
+        "out": out,
+        "dropped": stats["dropped"],
+        "received": len(received),
+        "bytes": received[0] if received else 0,
+        "cpu_us": cpu / max(out, 1) * 1e6,
+        "p50": stats["translate_ms"]["p50"],
+        "p99": stats["translate_ms"]["p99"],
+    }
+
+
+def live_measure(result: dict[str, float]) -> Measure:
+    carried = result["out"] >= 0.95 * result["sent"] and result["cpu_us"] < 1000.0
+    return Measure("bridge CPU per Pose_V, 1000 links at 1 kHz (one core)", result["cpu_us"], None, "us",
+                   "1 kHz carried", carried)  # fmt: skip
+
+
+def measures(quick: bool = False, seconds: float = 10.0) -> list[Measure]:
+    rows = [encode_measure(quick)]
+    if not quick:
+        rows.append(live_measure(live(seconds)))
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument("--quick", action="store_true", help="only the in-process ratio")
+    args = parser.parse_args()
+    rows = [encode_measure(args.quick)]
+    translator = TRANSLATORS["drake_to_ign_pose_v"]({}, LoadCache())
+    draw = DrawEncoder().encode(frame(1000))
+    translator.translate(Received("DRAKE_VIEWER_DRAW", draw))
+    own = seconds_per_call(lambda: translator.translate(Received("DRAKE_VIEWER_DRAW", draw)), 0.5)
+    if not args.quick:
+        result = live(args.seconds)
+        rows.append(live_measure(result))
+    print_measures(rows)
+    print(
+        f"\n  translator alone per Pose_V     {own * 1e6:8.1f} us  (draw bytes -> Pose_V bytes, in this process)"
+    )
+    if args.quick:
+        return
     print(
         f"1000-link draws at 1 kHz for {args.seconds:.0f} s -> Pose_V on ign-transport (bridge pinned to CPU 0)"
     )
-    print(f"  draws sent {len(sent)}, bridge in {stats['messages_in']}, out {out}, dropped {stats['dropped']}, "
-          f"received by an ign subscriber {len(received)} ({received[0] if received else 0} bytes each)")  # fmt: skip
+    print(f"  draws sent {result['sent']}, bridge in {result['in']}, out {result['out']}, dropped {result['dropped']}, "
+          f"received by an ign subscriber {result['received']} ({result['bytes']} bytes each)")  # fmt: skip
     print(
-        f"  bridge process CPU per Pose_V   {cpu / max(out, 1) * 1e6:8.1f} us  (LCM in, translate, ZMQ out, stats)"
+        f"  bridge process CPU per Pose_V   {result['cpu_us']:8.1f} us  (LCM in, translate, ZMQ out, stats)"
     )
-    print(
-        f"  translator alone per Pose_V     {own * 1e6:8.1f} us  (draw bytes -> Pose_V bytes, in this process)"
-    )
-    print(
-        f"  translate ms p50/p99 inside the bridge: {stats['translate_ms']['p50']}/{stats['translate_ms']['p99']}"
-    )
+    print(f"  translate ms p50/p99 inside the bridge: {result['p50']}/{result['p99']}")
 
 
 if __name__ == "__main__":

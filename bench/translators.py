@@ -1,6 +1,9 @@
 """Benchmark: the translators' hot and cold paths, each beside a baseline run in this process.
 
-Run: .venv/bin/python bench/translators.py [--links 1000] [--budget 0.3]
+Run: .venv/bin/python bench/translators.py [--links 1000] [--budget 0.3] [--quick]
+
+`measures()` gives issue 15's goal 3 as a row: `MarkerStream.update` for 1400 markers (1000
+links) <= 100 us, beside the algorithm it replaced (kept below as `ReferenceMarkerStream`).
 
 * draw -> geometry_msgs/PoseArray CDR. Ours: `lcmt_viewer_draw` bytes -> `DrawDecoder` ->
   `PoseArrayEncoder` (numpy, no message objects). Baseline: the usual rclpy way, one
@@ -17,7 +20,9 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 
-from draw_codec import frame, seconds_per_call  # bench/ is on sys.path when run as a script
+import numpy as np
+from common import Measure  # bench/ is on sys.path when run as a script
+from draw_codec import frame, paired, print_measures, seconds_per_call
 from geometry_msgs.msg import Point, Pose, PoseArray, PoseStamped, Quaternion
 from rclpy.serialization import serialize_message
 
@@ -50,6 +55,86 @@ def scene(links: int) -> Scene:
     )
 
 
+def reference_compose(
+    parent_positions: np.ndarray, parent_wxyz: np.ndarray, child_positions: np.ndarray, child_wxyz: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Before issue 15: row-wise `parent * child` with np.cross (the baseline's arithmetic)."""
+    pw, pv = parent_wxyz[:, :1], parent_wxyz[:, 1:]
+    cw, cv = child_wxyz[:, :1], child_wxyz[:, 1:]
+    twice_cross = 2.0 * np.cross(pv, child_positions)
+    positions = parent_positions + child_positions + pw * twice_cross + np.cross(pv, twice_cross)
+    quaternions = np.empty_like(parent_wxyz)
+    quaternions[:, :1] = pw * cw - np.sum(pv * cv, axis=1, keepdims=True)
+    quaternions[:, 1:] = pw * cv + cw * pv + np.cross(pv, cv)
+    return positions, quaternions
+
+
+class ReferenceMarkerStream:
+    """`MarkerStream.update` as it was before issue 15, on the same template: the baseline."""
+
+    def __init__(self, stream: ros.MarkerStream, specs: list[ros.MarkerSpec]) -> None:
+        self.template = stream._template
+        first_words = stream._pose_at  # each marker's x, as a double index in the payload
+        self.slots = first_words[:, None] + np.arange(7)
+        self.link_names = [spec.link_name for spec in specs]
+        self.part_positions = np.array([spec.pose.position for spec in specs], dtype=np.float64)
+        self.part_wxyz = np.array([spec.pose.quaternion_wxyz for spec in specs], dtype=np.float64)
+        self.rows_for: tuple[tuple[str, ...], np.ndarray] = ((), np.zeros(0, dtype=np.int64))
+
+    def update(self, poses: LinkPoses) -> bytes:
+        if poses.names != self.rows_for[0]:
+            index = {name: row for row, name in enumerate(poses.names)}
+            rows = np.array([index.get(name, len(poses)) for name in self.link_names], dtype=np.int64)
+            self.rows_for = (poses.names, rows)
+        count = len(poses)
+        link_positions = np.zeros((count + 1, 3))
+        link_positions[:count] = poses.positions
+        link_wxyz = np.zeros((count + 1, 4))
+        link_wxyz[:count] = poses.quaternions_wxyz
+        link_wxyz[count, 0] = 1.0
+        rows = self.rows_for[1]
+        positions, wxyz = reference_compose(
+            link_positions[rows], link_wxyz[rows], self.part_positions, self.part_wxyz
+        )
+        values = np.empty((len(positions), 7), dtype="<f8")
+        values[:, :3] = positions
+        values[:, 3:] = wxyz[:, [1, 2, 3, 0]]
+        buffer = bytearray(self.template)
+        words = np.frombuffer(buffer, dtype="<f8", offset=4, count=(len(buffer) - 4) // 8)
+        words[self.slots] = values
+        return bytes(buffer)
+
+
+def marker_stream_case(links: int) -> tuple[ros.MarkerStream, ReferenceMarkerStream, LinkPoses]:
+    """The scene's stream, its reference, and a moved frame as the bridge decodes it."""
+    load = scene(links).with_poses(frame(links))
+    stream = ros.MarkerStream(load)
+    reference = ReferenceMarkerStream(stream, ros.marker_specs(load))
+    moved = DrawDecoder().decode(DrawEncoder().encode(frame(links, seed=1)))
+    ours, theirs = (
+        np.frombuffer(out[4:], dtype=np.uint8) for out in (stream.update(moved), reference.update(moved))
+    )
+    changed = ours != theirs  # only pose doubles may differ, in their last bits
+    assert changed.sum() < 0.1 * len(ours)
+    return stream, reference, moved
+
+
+def measures(quick: bool = False) -> list[Measure]:
+    """Goal 3: `MarkerStream.update` for 1400 markers <= 100 us (baseline: the replaced algorithm)."""
+    stream, reference, moved = marker_stream_case(1000)
+    ours, base = paired(lambda: stream.update(moved), lambda: reference.update(moved), quick)
+    return [
+        Measure(
+            f"MarkerStream.update, {len(stream)} markers (1000 links)",
+            ours * 1e6,
+            base * 1e6,
+            "us",
+            "<= 100 us",
+            ours * 1e6 <= 100.0,
+        )
+    ]
+
+
 def rclpy_pose_array(poses: LinkPoses) -> bytes:
     """The baseline: rclpy message objects built one by one, then serialised."""
     message = PoseArray()
@@ -74,7 +159,12 @@ def main() -> None:
     )
     parser.add_argument("--links", type=int, default=1000)
     parser.add_argument("--budget", type=float, default=0.3, help="seconds per measurement")
+    parser.add_argument("--quick", action="store_true", help="only the goal row, fewer rounds")
     args = parser.parse_args()
+    print_measures(measures(args.quick))
+    if args.quick:
+        return
+    print()
     links = args.links
 
     draw = DrawEncoder().encode(frame(links))

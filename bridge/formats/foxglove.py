@@ -26,6 +26,9 @@ from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
 from bridge.formats.gltf import write_gltf
+from bridge.formats.protowire import key as _key
+from bridge.formats.protowire import length_delimited as _length_delimited
+from bridge.formats.protowire import varint as _varint
 from bridge.formats.ros_tf import FrameNames
 from bridge.lowering import triangle_mesh
 from bridge.mappings import tables
@@ -143,25 +146,6 @@ def _transform_rows(poses: LinkPoses) -> np.ndarray[Any, Any]:
     rows[:, :3] = poses.positions
     rows[:, 3:] = xyzw_from_wxyz(poses.quaternions_wxyz)
     return rows
-
-
-def _varint(value: int) -> bytes:
-    out = bytearray()
-    while True:
-        byte, value = value & 0x7F, value >> 7
-        if value:
-            out.append(byte | 0x80)
-        else:
-            out.append(byte)
-            return bytes(out)
-
-
-def _key(field: int, wire_type: int) -> bytes:
-    return _varint(field << 3 | wire_type)
-
-
-def _length_delimited(field: int, payload: bytes) -> bytes:
-    return _key(field, 2) + _varint(len(payload)) + payload
 
 
 def _timestamp(stamp: tuple[int, int]) -> bytes:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import struct
+import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache
@@ -46,16 +47,17 @@ from bridge.scene import (
     Line,
     LinkPoses,
     MeshFile,
+    PartsOnLinks,
     PointCloud,
     Pose,
     Scene,
     Shape,
     Triad,
     TriangleMesh,
-    compose_arrays,
     link_poses_from_xyzw,
     pose_from_xyzw,
-    xyzw_from_wxyz,
+    pose_rows_xyzw,
+    wxyz_from_xyzw,
 )
 from bridge.sim_time import ms_from_sec_nsec
 
@@ -120,14 +122,6 @@ def poses_from_pose_array(
     return link_poses_from_xyzw(timestamp_ms, names, robot_nums, positions, xyzw, "poses")
 
 
-def _pose_rows(positions: FloatArray, wxyz: FloatArray) -> np.ndarray[Any, Any]:
-    """N x 7 little-endian float64, as geometry_msgs/Pose lays them out: x y z, qx qy qz qw."""
-    values = np.empty((len(positions), 7), dtype="<f8")
-    values[:, :3] = positions
-    values[:, 3:] = xyzw_from_wxyz(wxyz)
-    return values
-
-
 def _stamp_bytes(timestamp_ms: int) -> bytes:
     return _STAMP.pack(*time_parts(timestamp_ms))
 
@@ -147,7 +141,7 @@ class PoseArrayEncoder:
 
     def encode(self, poses: LinkPoses) -> bytes:
         count = U32.pack(len(poses))
-        rows = _pose_rows(poses.positions, poses.quaternions_wxyz).tobytes()
+        rows = pose_rows_xyzw(poses.positions, poses.quaternions_wxyz).tobytes()
         return b"".join((CDR_LE, _stamp_bytes(poses.timestamp_ms), self._frame, count, self._padding, rows))
 
 
@@ -165,7 +159,7 @@ class PoseStampedEncoder:
 
     def encode(self, poses: LinkPoses) -> list[bytes]:
         prefix = CDR_LE + _stamp_bytes(poses.timestamp_ms) + self._frame
-        return [prefix + row for row in map(bytes, _pose_rows(poses.positions, poses.quaternions_wxyz))]
+        return [prefix + row for row in map(bytes, pose_rows_xyzw(poses.positions, poses.quaternions_wxyz))]
 
 
 def pose_array_arrays(data: bytes | memoryview) -> tuple[int, str, FloatArray, FloatArray]:
@@ -355,7 +349,10 @@ def world_poses(scene: Scene, specs: Sequence[MarkerSpec]) -> tuple[FloatArray, 
     if scene.poses is None:
         return positions, wxyz
     rows = _link_rows(scene.poses.names, [spec.link_name for spec in specs])
-    return _compose_on_links(scene.poses, rows, positions, wxyz)
+    world = PartsOnLinks(positions, wxyz).world_rows(
+        scene.poses.positions, scene.poses.quaternions_wxyz, rows
+    )
+    return world[:, :3], wxyz_from_xyzw(world[:, 3:])
 
 
 def _part_poses(specs: Sequence[MarkerSpec]) -> tuple[FloatArray, FloatArray]:
@@ -365,28 +362,10 @@ def _part_poses(specs: Sequence[MarkerSpec]) -> tuple[FloatArray, FloatArray]:
     return positions, wxyz
 
 
-def _compose_on_links(
-    poses: LinkPoses, rows: np.ndarray[Any, Any], positions: FloatArray, wxyz: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """Link pose (row `rows[i]` of `poses`; the extra row is the identity) times part pose i."""
-    link_positions, link_wxyz = _with_identity_row(poses)
-    return compose_arrays(link_positions[rows], link_wxyz[rows], positions, wxyz)
-
-
 def _link_rows(names: Sequence[str], wanted: Sequence[str]) -> np.ndarray[Any, Any]:
     """The row of each wanted link in a draw; links the draw lacks get the extra identity row."""
     index = {name: row for row, name in enumerate(names)}
     return np.array([index.get(name, len(names)) for name in wanted], dtype=np.int64)
-
-
-def _with_identity_row(poses: LinkPoses) -> tuple[FloatArray, FloatArray]:
-    count = len(poses)
-    positions = np.zeros((count + 1, 3))
-    positions[:count] = poses.positions
-    wxyz = np.zeros((count + 1, 4))
-    wxyz[:count] = poses.quaternions_wxyz
-    wxyz[count, 0] = 1.0
-    return positions, wxyz
 
 
 def _marker_settings(options: dict[str, Any] | None) -> dict[str, Any]:
@@ -606,7 +585,7 @@ def marker_array_cdr(scene: Scene, options: dict[str, Any] | None = None, delete
     frame_id = str(_marker_settings(options)["frame_id"])
     specs = marker_specs(scene, options)
     positions, wxyz = world_poses(scene, specs)
-    return _write_markers(specs, _pose_rows(positions, wxyz), frame_id, delete_all)[0]
+    return _write_markers(specs, pose_rows_xyzw(positions, wxyz), frame_id, delete_all)[0]
 
 
 def marker_array_in_link_frames_cdr(
@@ -620,7 +599,7 @@ def marker_array_in_link_frames_cdr(
     specs = marker_specs(scene, options)
     positions, wxyz = _part_poses(specs)
     frames = [frame_of(spec.link_name) for spec in specs]
-    return _write_markers(specs, _pose_rows(positions, wxyz), frames, True, frame_locked=True)[0]
+    return _write_markers(specs, pose_rows_xyzw(positions, wxyz), frames, True, frame_locked=True)[0]
 
 
 class MarkerStream:
@@ -636,13 +615,23 @@ class MarkerStream:
         frame_id = str(_marker_settings(options)["frame_id"])
         self._specs = marker_specs(scene, options)
         positions, wxyz = world_poses(scene, self._specs)
-        poses = _pose_rows(positions, wxyz)
+        poses = pose_rows_xyzw(positions, wxyz)
         self.load_cdr = _write_markers(self._specs, poses, frame_id, delete_all=True)[0]
         self._template, offsets = _write_markers(self._specs, poses, frame_id, delete_all=False)
-        # Poses are 8-aligned in the payload, which starts after the 4-byte encapsulation.
-        self._slots = (np.asarray(offsets, dtype=np.int64) // 8)[:, None] + np.arange(7)
+        # Poses are 8-aligned in the payload, which starts after the 4-byte encapsulation: in a
+        # buffer with 4 bytes in front of the message, they are aligned for numpy. The buffer is
+        # kept: every update rewrites all the poses and nothing else, then copies the message
+        # out. A pose's 7 doubles are one 56-byte item of a view that starts an item at every
+        # 8th byte, so each marker's pose is one copy.
+        self._buffer = np.empty(_ALIGNED + len(self._template), dtype=np.uint8)
+        self._buffer[_ALIGNED:] = np.frombuffer(self._template, dtype=np.uint8)
+        payload = _ALIGNED + len(CDR_LE)
+        starts = (len(self._template) - len(CDR_LE) - _POSE.itemsize) // 8 + 1
+        self._poses = np.ndarray((starts,), _POSE, self._buffer, payload, (8,))
+        self._pose_at = np.asarray(offsets, dtype=np.intp) // 8
+        self._lock = threading.Lock()  # routes on several threads may share a stream
         self._link_names = [spec.link_name for spec in self._specs]
-        self._part_positions, self._part_wxyz = _part_poses(self._specs)
+        self._parts = PartsOnLinks(*_part_poses(self._specs))
         self._rows_for: tuple[tuple[str, ...], np.ndarray[Any, Any]] = ((), np.zeros(0, dtype=np.int64))
 
     def __len__(self) -> int:
@@ -650,13 +639,16 @@ class MarkerStream:
 
     def update(self, poses: LinkPoses) -> bytes:
         """The MarkerArray CDR with every marker at its link's pose in `poses`."""
-        if poses.names != self._rows_for[0]:
+        if poses.names is not self._rows_for[0] and poses.names != self._rows_for[0]:
             self._rows_for = (poses.names, _link_rows(poses.names, self._link_names))
-        positions, wxyz = _compose_on_links(poses, self._rows_for[1], self._part_positions, self._part_wxyz)
-        buffer = bytearray(self._template)
-        words = np.frombuffer(buffer, dtype="<f8", offset=4, count=(len(buffer) - 4) // 8)
-        words[self._slots] = _pose_rows(positions, wxyz)
-        return bytes(buffer)
+        rows = self._parts.world_rows(poses.positions, poses.quaternions_wxyz, self._rows_for[1])
+        with self._lock:
+            self._poses[self._pose_at] = np.ascontiguousarray(rows).view(_POSE).reshape(-1)
+            return self._buffer[_ALIGNED:].tobytes()
+
+
+_ALIGNED = 4  # bytes in front of the message, so that its 8-aligned payload offsets are aligned
+_POSE = np.dtype((np.void, 56))  # geometry_msgs/Pose: 7 float64
 
 
 __all__ = [

@@ -95,21 +95,25 @@ class DrakeToIgnModelV(DrakeToIgnModel):
 
 
 class DrakeToIgnPoseV(_DrakeToIgn):
-    """draw -> `Pose_V`: a Pose per link, named with the link's Drake name."""
+    """draw -> `Pose_V`: a Pose per link, named with the link's Drake name.
+
+    Written by `ign.PosesEncoder` (the same bytes as `ign.pose_v` serialised, without objects).
+    """
 
     message_name = "Pose_V"
 
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.encoder = ign.PosesEncoder(self.message_name)
+
     def translate(self, message: Received) -> Outputs:
-        return [(0, bytes(ign.pose_v(draw_poses(message), self.msgs).SerializeToString()))]
+        return [(0, self.encoder.encode(draw_poses(message)))]
 
 
-class DrakeToIgnPosesStamped(_DrakeToIgn):
+class DrakeToIgnPosesStamped(DrakeToIgnPoseV):
     """draw -> the legacy `PosesStamped` (sim time in `time` too), for older tools."""
 
     message_name = "PosesStamped"
-
-    def translate(self, message: Received) -> Outputs:
-        return [(0, bytes(ign.poses_stamped(draw_poses(message), self.msgs).SerializeToString()))]
 
 
 class PoseVToDrawOptions(IgnOptions):

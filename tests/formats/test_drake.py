@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import json
+import warnings
 from collections import Counter
 from pathlib import Path
 from typing import Any
@@ -297,3 +298,48 @@ def test_in_memory_mesh_json_matches_drakes_writing() -> None:
     )
     data = load_with(geometry)
     assert load_from_scene(decode_load(data)).encode() == data
+
+
+def _drake_draw(quaternion_value: float, position_value: float = 0.5) -> bytes:
+    """Three links encoded by Drake's own class, one quaternion and one position value chosen."""
+    message = drake_lcmtypes.lcmt_viewer_draw()
+    message.timestamp, message.num_links = 17, 3
+    message.link_name = ["plant::a", "plant::b::c", "plant::d"]
+    message.robot_num = [0, 1, 2]
+    message.position = [[0.0, 1.0, 2.0], [3.0, 4.0, position_value], [6.0, 7.0, 8.0]]
+    message.quaternion = [[1.0, 0.0, 0.0, 0.0], [0.0, quaternion_value, 0.0, 0.0], [0.5, 0.5, 0.5, 0.5]]
+    return bytes(message.encode())
+
+
+@pytest.mark.parametrize(
+    ("value", "other"),
+    [(float("nan"), 0.5), (float("inf"), 0.5), (float("-inf"), 0.5), (float("inf"), float("-inf"))],
+)
+def test_draw_fast_path_refuses_what_is_not_finite_like_the_generic_decoder(
+    value: float, other: float
+) -> None:
+    decoder = DrawDecoder()
+    decoder.decode(_drake_draw(1.0))  # the names are known: the next draw takes the fast path
+    bad = _drake_draw(value, other)
+    with pytest.raises(DecodeError) as expected:
+        DRAW.decode(bad)
+    with warnings.catch_warnings(record=True) as shown:
+        for data in (bad, bytearray(bad), memoryview(bad)):
+            with pytest.raises(DecodeError) as caught:
+                decoder.decode(data)
+            assert str(caught.value) == str(expected.value)
+    assert not shown  # no numpy warning on the way
+
+
+def test_draw_fast_path_takes_the_largest_finite_floats() -> None:
+    largest = float(np.finfo(np.float32).max)
+    decoder = DrawDecoder()
+    decoder.decode(_drake_draw(1.0))
+    data = _drake_draw(-largest, largest)
+    with warnings.catch_warnings(record=True) as shown:
+        poses = decoder.decode(data)
+    assert not shown
+    theirs = drake_lcmtypes.lcmt_viewer_draw.decode(data)
+    assert poses.positions.tolist() == [list(p) for p in theirs.position]
+    assert poses.quaternions_wxyz.tolist() == [list(q) for q in theirs.quaternion]
+    assert not poses.positions.flags.owndata  # views of the one copy the decoder made

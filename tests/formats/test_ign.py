@@ -8,9 +8,11 @@ from typing import Any
 import numpy as np
 import pytest
 from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bridge.errors import DecodeError, SceneError
 from bridge.formats import ign
+from bridge.formats.drake import DrawDecoder, DrawEncoder
 from bridge.mappings import tables
 from bridge.scene import Box, Geometry, HalfSpace, Link, LinkPoses, Pose, Scene
 from tests.conftest import Capture
@@ -231,3 +233,48 @@ def test_mesh_array_objs_that_do_not_hold_together(obj: str) -> None:
     geometry.mesh.filename = "data:model/obj;base64," + base64.b64encode(obj.encode()).decode()
     with pytest.raises(SceneError, match="mesh array OBJ"):
         ign.scene_from_model(message)
+
+
+def _oracle(poses: LinkPoses, message: str) -> bytes:
+    """The protobuf-object path: the reference the template encoder must equal byte for byte."""
+    build = ign.pose_v if message == "Pose_V" else ign.poses_stamped
+    return bytes(build(poses).SerializeToString())
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.lists(link_poses(max_links=5), min_size=1, max_size=4), st.sampled_from(["Pose_V", "PosesStamped"]))
+def test_poses_encoder_writes_protobufs_bytes(frames: list[LinkPoses], message: str) -> None:
+    """One encoder over several frames (names and zeros changing or not): protobuf's bytes each time."""
+    encoder = ign.PosesEncoder(message)
+    for poses in frames:
+        assert encoder.encode(poses) == _oracle(poses, message)
+
+
+def test_poses_encoder_follows_zeros_and_signs_from_frame_to_frame() -> None:
+    """+0.0 is left out and -0.0 written, as protobuf does; a value reaching or leaving 0 changes
+    the layout; a negative or zero time leaves fields out as protobuf does."""
+    encoder = ign.PosesEncoder()
+    names = ("plant::a", "plant::robot::b", "world_fixed")
+    base = np.array([[0.5, -1.0, 2.0], [0.0, 0.0, 0.0], [1e-300, -0.0, 3.0]])
+    quaternions = np.array([[1.0, 0.0, 0.0, 0.0], [0.5, 0.5, 0.5, 0.5], [0.0, -0.0, 1.0, 0.0]])
+    for step, timestamp in enumerate([0, 1, 999, 1000, 1500, -1500, 2**40]):
+        positions = base.copy()
+        positions[0, 1] = 0.0 if step % 2 else -1.0  # a value reaching 0 and leaving it again
+        poses = LinkPoses(timestamp, names, np.zeros(3, np.int32), positions, quaternions)
+        assert encoder.encode(poses) == _oracle(poses, "Pose_V")
+    assert encoder.encode(LinkPoses(5, (), np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros((0, 4)))) == (
+        _oracle(LinkPoses(5, (), np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros((0, 4))), "Pose_V")
+    )
+
+
+@pytest.mark.parametrize("role", ROLES)
+def test_poses_encoder_on_drakes_draws(
+    drake_capture: dict[str, Capture], debian_ign_msgs: ModuleType, role: str
+) -> None:
+    """Drake's own draws, decoded on the fast path: protobuf's bytes, which Debian's protos read."""
+    poses = DrawDecoder().decode(DrawEncoder().encode(drake_capture[role].poses))  # Drake's bytes
+    assert poses.positions.dtype == np.float32  # the fast decoder's arrays, as the bridge has them
+    encoded = ign.PosesEncoder().encode(poses)
+    assert encoded == _oracle(poses, "Pose_V")
+    theirs = debian_ign_msgs.Pose_V.FromString(encoded)
+    assert [pose.name for pose in theirs.pose] == list(poses.names)
