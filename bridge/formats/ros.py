@@ -243,6 +243,68 @@ def shapes(scene: Scene) -> list[PosedShape]:
     return result
 
 
+def shapes_cdr(scene: Scene) -> list[tuple[str, bytes]]:
+    """`shapes` straight to CDR: (type name, bytes) per message, equal to `to_cdr` of each
+    `PosedShape.shape`, written from the table's values and the mesh arrays (no message objects).
+
+    Raises `SceneError` as `shapes` does.
+    """
+    table = _tables()["shape"]
+    out = []
+    # By id, holding the shape so that its id stays its own: lowered primitives share one
+    # cached mesh, written once.
+    written: dict[int, tuple[Shape, bytes]] = {}
+    for link in scene.links:
+        for geometry in link.geometries:
+            for rule, shape, _ in table.expand(geometry.shape, geometry.pose):
+                typename = rule.message or table.target
+                if typename != MESH:
+                    data = _SHAPE_WRITERS[typename](rule, shape)
+                elif id(shape) in written:
+                    data = written[id(shape)][1]
+                else:
+                    data = _mesh_cdr(rule, shape)
+                    written[id(shape)] = (shape, data)
+                out.append((typename, data))
+    return out
+
+
+_TYPE_AND_COUNT = struct.Struct("<B3xI")
+
+
+def _solid_primitive_cdr(rule: ShapeRule, shape: Shape) -> bytes:
+    """type (uint8), dimensions (float64[<=3], 8-aligned after its count), polygon (no points)."""
+    dimensions = rule.values(shape)["dimensions"]
+    count = len(dimensions)
+    return b"".join(
+        (CDR_LE, _TYPE_AND_COUNT.pack(rule.type_code, count), struct.pack(f"<{count}d", *dimensions), U32.pack(0))
+    )
+
+
+def _plane_cdr(rule: ShapeRule, shape: Shape) -> bytes:
+    return CDR_LE + struct.pack("<4d", *rule.values(shape)["coef"])
+
+
+def _mesh_cdr(rule: ShapeRule, shape: Shape) -> bytes:
+    """triangles (uint32 count, 3 uint32 each), vertices (uint32 count, 8-aligned, 3 float64 each)."""
+    assert isinstance(shape, TriangleMesh)
+    writer = CdrWriter()
+    writer.pack(U32, len(shape.triangles))
+    writer.add(np.ascontiguousarray(shape.triangles, dtype="<u4").tobytes())
+    writer.pack(U32, len(shape.vertices))
+    if len(shape.vertices):
+        writer.align(8)
+        writer.add(np.ascontiguousarray(shape.vertices, dtype="<f8").tobytes())
+    return writer.getvalue()
+
+
+_SHAPE_WRITERS: dict[str, Callable[[ShapeRule, Shape], bytes]] = {
+    SOLID_PRIMITIVE: _solid_primitive_cdr,
+    PLANE: _plane_cdr,
+    MESH: _mesh_cdr,
+}
+
+
 def _shape_message(rule: ShapeRule, shape: Shape, target: str) -> Any:
     values = rule.values(shape)
     if rule.encoder is not None:
@@ -672,6 +734,7 @@ __all__ = [
     "poses_from_pose_array_cdr",
     "shape_from_message",
     "shapes",
+    "shapes_cdr",
     "to_cdr",
     "to_rclpy",
     "world_poses",

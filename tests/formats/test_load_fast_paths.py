@@ -1,0 +1,94 @@
+"""The loads' fast paths against their references: the same bytes as the object paths."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from rclpy.serialization import deserialize_message
+from shape_msgs.msg import Mesh, SolidPrimitive
+
+from bridge.demo import TETRAHEDRON_OBJ
+from bridge.errors import SceneError
+from bridge.formats import ros
+from bridge.lowering import _tessellated, triangle_mesh
+from bridge.scene import (
+    Box,
+    Capsule,
+    Cylinder,
+    Ellipsoid,
+    FileContents,
+    Geometry,
+    HalfSpace,
+    InMemoryMesh,
+    Link,
+    MeshFile,
+    Pose,
+    Scene,
+    Sphere,
+    TriangleMesh,
+)
+from tests.conftest import Capture
+from tests.strategies import scenes
+
+
+def every_kind(folder: Path) -> Scene:
+    """Every shape a load can carry that the shape table writes, some repeated (cached meshes)."""
+    obj = folder / "tetra.obj"
+    obj.write_text(TETRAHEDRON_OBJ)
+    tilted = Pose((0.1, -0.2, 0.3), (0.5, 0.5, 0.5, 0.5))
+    shapes = [
+        Box((0.1, 0.2, 0.3)), Sphere(0.05), Cylinder(0.04, 0.3), Capsule(0.03, 0.2), Capsule(0.03, 0.2),
+        Ellipsoid((0.1, 0.2, 0.3)), Ellipsoid((0.1, 0.2, 0.3)), HalfSpace(), MeshFile(str(obj), (1.0, 2.0, 3.0)),
+        MeshFile(str(obj)), InMemoryMesh(FileContents(TETRAHEDRON_OBJ.encode(), ".obj", "t.obj"), {}, (2.0, 2.0, 2.0)),
+        TriangleMesh(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]])),
+    ]  # fmt: skip
+    links = tuple(
+        Link(f"plant::m::link_{index}", index % 3, (Geometry(shape, tilted, (0.1, 0.2, 0.3, 1.0)),))
+        for index, shape in enumerate(shapes)
+    )
+    return Scene(links)
+
+
+def reference_shapes(scene: Scene) -> list[tuple[str, bytes]]:
+    """The object path: rosbags messages, serialised by rosbags."""
+    return [(posed.typename, ros.to_cdr(posed.shape)) for posed in ros.shapes(scene)]
+
+
+def test_shape_bytes_equal_the_object_path_for_every_kind(tmp_path: Path) -> None:
+    scene = every_kind(tmp_path)
+    fast = ros.shapes_cdr(scene)
+    assert fast == reference_shapes(scene)
+    # and rclpy reads them: the real peer
+    kinds = {ros.SOLID_PRIMITIVE: SolidPrimitive, ros.MESH: Mesh}
+    read = [deserialize_message(data, kinds[name]) for name, data in fast if name in kinds]
+    assert [list(message.dimensions) for message in read[:2]] == [[0.1, 0.2, 0.3], [0.05]]
+    assert any(isinstance(message, Mesh) and len(message.triangles) == 1 for message in read)
+
+
+@settings(max_examples=100, deadline=None)
+@given(scenes())
+def test_shape_bytes_equal_the_object_path_for_random_scenes(scene: Scene) -> None:
+    try:
+        expected = reference_shapes(scene)
+    except SceneError:  # a mesh file that does not exist: the fast path refuses it as well
+        with pytest.raises(SceneError):
+            ros.shapes_cdr(scene)
+        return
+    assert ros.shapes_cdr(scene) == expected
+
+
+def test_shape_bytes_of_real_drake_loads(drake_capture: dict[str, Capture]) -> None:
+    for capture in drake_capture.values():
+        assert ros.shapes_cdr(capture.scene) == reference_shapes(capture.scene)
+
+
+def test_tessellations_are_cached_read_only_and_equal_fresh_ones() -> None:
+    for shape in (Box((1.0, 2.0, 3.0)), Sphere(0.5), Cylinder(0.1, 0.4), Capsule(0.1, 0.4), Ellipsoid((1.0, 2.0, 3.0)), HalfSpace()):  # fmt: skip
+        cached = triangle_mesh(shape)
+        assert triangle_mesh(shape) is cached
+        assert cached == _tessellated(shape)
+        with pytest.raises(ValueError, match="read-only"):
+            cached.vertices[0, 0] = 1.0
