@@ -86,7 +86,8 @@ def test_shape_bytes_of_real_drake_loads(drake_capture: dict[str, Capture]) -> N
 
 
 def test_tessellations_are_cached_read_only_and_equal_fresh_ones() -> None:
-    for shape in (Box((1.0, 2.0, 3.0)), Sphere(0.5), Cylinder(0.1, 0.4), Capsule(0.1, 0.4), Ellipsoid((1.0, 2.0, 3.0)), HalfSpace()):  # fmt: skip
+    primitives = (Box((1.0, 2.0, 3.0)), Sphere(0.5), Cylinder(0.1, 0.4), Capsule(0.1, 0.4), Ellipsoid((1.0, 2.0, 3.0)))
+    for shape in (*primitives, HalfSpace()):
         cached = triangle_mesh(shape)
         assert triangle_mesh(shape) is cached
         assert cached == _tessellated(shape)
