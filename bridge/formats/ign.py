@@ -318,7 +318,7 @@ def geometry_message(shape: Shape, msgs: MessageSet = IGNITION) -> Any:
 
 
 def _fill_geometry(message: Any, shape: Shape) -> None:
-    rule = _geometry_table().rule_for(shape)
+    ((rule, _, _),) = _geometry_table().expand(shape)  # a SceneError for a shape ign cannot hold
     message.type = rule.type_code
     values = rule.values(shape)
     if rule.encoder is not None:

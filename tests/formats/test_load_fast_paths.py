@@ -93,3 +93,14 @@ def test_tessellations_are_cached_read_only_and_equal_fresh_ones() -> None:
         assert cached == _tessellated(shape)
         with pytest.raises(ValueError, match="read-only"):
             cached.vertices[0, 0] = 1.0
+
+
+def test_every_load_target_writes_the_recorded_bytes() -> None:
+    """The load paths' bytes for fixed scenes, against digests recorded before they were optimised."""
+    import json
+
+    from tests.formats import load_outputs
+
+    load_outputs.FOLDER.mkdir(exist_ok=True)
+    recorded = json.loads((Path(__file__).parent / "load_digests.json").read_text())
+    assert load_outputs.digests(load_outputs.FOLDER) == recorded
