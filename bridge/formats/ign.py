@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import base64
 import re
+import struct
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cache
@@ -418,6 +419,177 @@ def model(scene: Scene, name: str = "drake", msgs: MessageSet = IGNITION) -> Any
     return message
 
 
+def model_bytes(scene: Scene, name: str = "drake", msgs: MessageSet = IGNITION) -> bytes:
+    """`model(scene, name, msgs).SerializeToString()`, written from pieces instead of objects.
+
+    A Model is its fields' encodings in field-number order, so it is written by concatenation:
+    each distinct shape's `Geometry` is serialised once by protobuf, and poses and colours are
+    packed here, leaving out zeros as proto3 does (by bit pattern: -0.0 is written). Filling a
+    `Model` object field by field was most of a load's time.
+    """
+    try:
+        return _model_payload(_ModelWriter(msgs), scene, scene.links, name, 0)
+    except OverflowError:  # a colour beyond float32: the object path writes it as protobuf does
+        return bytes(model(scene, name, msgs).SerializeToString())
+
+
+def model_v_bytes(scene: Scene, msgs: MessageSet = IGNITION) -> bytes:
+    """`model_v(scene, msgs).SerializeToString()`, written as `model_bytes` writes a Model."""
+    groups: dict[int, list[Link]] = {}
+    for link in scene.links:
+        groups.setdefault(link.robot_num, []).append(link)
+    if any(not 0 <= robot_num < 2**32 for robot_num in groups):  # no uint32 id: as the object path refuses it
+        return bytes(model_v(scene, msgs).SerializeToString())
+    try:
+        writer = _ModelWriter(msgs)
+        return b"".join(
+            _submessage(_MODELS, _model_payload(writer, scene, links, _model_name(links[0]), robot_num))
+            for robot_num, links in groups.items()
+        )
+    except OverflowError:
+        return bytes(model_v(scene, msgs).SerializeToString())
+
+
+def _model_payload(writer: _ModelWriter, scene: Scene, links: Sequence[Link], name: str, model_id: int) -> bytes:
+    poses = _link_pose_values(scene, links)
+    identity = _submessage(_MODEL_POSE, _pose_bytes(Pose()))
+    head = _string_field(_MODEL_NAME, name) + (_MODEL_ID + _varint(model_id) if model_id else b"") + identity
+    return head + b"".join(
+        _submessage(_MODEL_LINK, writer.link(link, pose)) for link, pose in zip(links, poses, strict=True)
+    )
+
+
+def _key(number: int, wire_type: int) -> bytes:
+    return _varint((number << 3) | wire_type)
+
+
+def _varint(value: int) -> bytes:
+    if value < 0x80:
+        return _SMALL_VARINTS[value]
+    out = bytearray()
+    while value > 0x7F:
+        out.append((value & 0x7F) | 0x80)
+        value >>= 7
+    out.append(value)
+    return bytes(out)
+
+
+_SMALL_VARINTS = [bytes((value,)) for value in range(0x80)]
+
+
+def _submessage(key: bytes, payload: bytes) -> bytes:
+    return key + _varint(len(payload)) + payload
+
+
+def _string_field(key: bytes, text: str) -> bytes:
+    return _submessage(key, text.encode()) if text else b""  # proto3 leaves out the empty string
+
+
+# Field keys (PROTOCOLS.md section 4): Model{name=2, id=3, pose=5, link=7}; Link{header=1, name=3,
+# pose=10, visual=11}; Header{data=2}, its Map{key=1, value=2}; Visual{name=2, id=3,
+# parent_name=4, pose=9, geometry=10, material=11}; Material{diffuse=6}; Color{r..a=2..5};
+# Pose{position=4, orientation=5}; Vector3d{x..z=2..4}; Quaternion{x..w=2..5}.
+_MODEL_NAME, _MODEL_ID, _MODEL_POSE, _MODEL_LINK = _key(2, 2), _key(3, 0), _key(5, 2), _key(7, 2)
+_MODELS = _key(2, 2)  # Model_V{models=2}
+_LINK_HEADER, _LINK_NAME, _LINK_POSE, _LINK_VISUAL = _key(1, 2), _key(3, 2), _key(10, 2), _key(11, 2)
+_VISUAL_NAME, _VISUAL_ID, _VISUAL_PARENT = _key(2, 2), _key(3, 0), _key(4, 2)
+_VISUAL_POSE, _VISUAL_GEOMETRY, _VISUAL_MATERIAL = _key(9, 2), _key(10, 2), _key(11, 2)
+_POSITION, _ORIENTATION, _DIFFUSE = _key(4, 2), _key(5, 2), _key(6, 2)
+_DOUBLE_KEYS = [_key(number, 1) for number in (2, 3, 4, 5)]
+_FLOAT_KEYS = [_key(number, 5) for number in (2, 3, 4, 5)]
+_DOUBLE, _FLOAT = struct.Struct("<d"), struct.Struct("<f")
+_ZERO_DOUBLE, _ZERO_FLOAT = bytes(8), bytes(4)
+
+
+def _doubles(values: Sequence[float]) -> bytes:
+    packed = [_DOUBLE.pack(value) for value in values]
+    return b"".join(key + data for key, data in zip(_DOUBLE_KEYS, packed, strict=False) if data != _ZERO_DOUBLE)
+
+
+# A pose with no zero in it: position (3 doubles, 27 bytes), orientation (4, 36 bytes) in one pack.
+_FULL_POSE = struct.Struct("<BB" + "Bd" * 3 + "BB" + "Bd" * 4)
+_FULL_POSE_KEYS = (0x22, 27, 0x11, 0x19, 0x21, 0x2A, 36, 0x11, 0x19, 0x21, 0x29)
+
+
+def _link_pose_values(scene: Scene, links: Sequence[Link]) -> list[list[float]]:
+    """Each link's world pose as x, y, z, qx, qy, qz, qw (`Scene.link_pose`, for all links at once)."""
+    if scene.poses is None:
+        return [[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]] * len(links)
+    count = len(scene.poses)
+    values = np.zeros((count + 1, 7))
+    values[count, 6] = 1.0  # the last row: identity, for links the frame lacks (e.g. world)
+    values[:count, :3] = scene.poses.positions
+    values[:count, 3:] = xyzw_from_wxyz(scene.poses.quaternions_wxyz)
+    rows = [scene.poses.row_of(link.name) for link in links]
+    chosen: list[list[float]] = values[[count if row is None else row for row in rows]].tolist()
+    return chosen
+
+
+def _pose_bytes(pose: Pose) -> bytes:
+    return _pose_values_bytes([*pose.position, *pose.quaternion_xyzw])
+
+
+def _pose_values_bytes(values: Sequence[float]) -> bytes:
+    x, y, z, qx, qy, qz, qw = values
+    if x and y and z and qx and qy and qz and qw:  # NaN is truthy and written, as protobuf does
+        p, l3, kx, ky, kz, o, l4, ox, oy, oz, ow = _FULL_POSE_KEYS
+        return _FULL_POSE.pack(p, l3, kx, x, ky, y, kz, z, o, l4, ox, qx, oy, qy, oz, qz, ow, qw)
+    return _submessage(_POSITION, _doubles(values[:3])) + _submessage(_ORIENTATION, _doubles(values[3:]))
+
+
+def _material(color: Sequence[float]) -> bytes:
+    """Material{diffuse}: float32 on the wire (OverflowError beyond float32's range)."""
+    packed = [_FLOAT.pack(value) for value in color]
+    diffuse = b"".join(key + data for key, data in zip(_FLOAT_KEYS, packed, strict=True) if data != _ZERO_FLOAT)
+    return _submessage(_VISUAL_MATERIAL, _submessage(_DIFFUSE, diffuse))
+
+
+class _ModelWriter:
+    """The pieces of one Model: Geometry bytes per distinct shape, header bytes per robot_num."""
+
+    def __init__(self, msgs: MessageSet) -> None:
+        self.msgs = msgs
+        self.geometries: dict[Any, bytes] = {}
+        self.headers: dict[int, bytes] = {}
+        self.poses: dict[Pose, bytes] = {}  # geometry poses repeat (the same part on many links)
+        self.colors: dict[tuple[float, ...], bytes] = {}
+
+    def link(self, link: Link, pose: Sequence[float]) -> bytes:
+        header = self.headers.get(link.robot_num)
+        if header is None:
+            entry = _string_field(_key(1, 2), _ROBOT_NUM) + _submessage(_key(2, 2), str(link.robot_num).encode())
+            header = self.headers[link.robot_num] = _submessage(_LINK_HEADER, _submessage(_key(2, 2), entry))
+        parts = [header, _string_field(_LINK_NAME, link.name), _submessage(_LINK_POSE, _pose_values_bytes(pose))]
+        for index, geometry in enumerate(link.geometries):
+            parts.append(_submessage(_LINK_VISUAL, self.visual(link.name, index, geometry)))
+        return b"".join(parts)
+
+    def visual(self, link_name: str, index: int, geometry: Geometry) -> bytes:
+        pose = self.poses.get(geometry.pose)
+        if pose is None:
+            pose = self.poses[geometry.pose] = _submessage(_VISUAL_POSE, _pose_bytes(geometry.pose))
+        material = self.colors.get(geometry.color)
+        if material is None:
+            material = self.colors[geometry.color] = _material(geometry.color)
+        return b"".join((
+            _string_field(_VISUAL_NAME, f"{link_name}::visual_{index}"),
+            _VISUAL_ID + _varint(index) if index else b"",
+            _string_field(_VISUAL_PARENT, link_name),
+            pose,
+            _submessage(_VISUAL_GEOMETRY, self.geometry(geometry.shape)),
+            material,
+        ))  # fmt: skip
+
+    def geometry(self, shape: Shape) -> bytes:
+        try:
+            return self.geometries[shape]
+        except KeyError:
+            data = self.geometries[shape] = bytes(geometry_message(shape, self.msgs).SerializeToString())
+        except TypeError:  # unhashable (an in-memory mesh's supporting files): not kept
+            data = bytes(geometry_message(shape, self.msgs).SerializeToString())
+        return data
+
+
 def model_v(scene: Scene, msgs: MessageSet = IGNITION) -> Any:
     """A load as `Model_V`: one `Model` per robot_num (model instance), id = robot_num."""
     message = msgs.Model_V()
@@ -476,7 +648,9 @@ __all__ = [
     "geometry_message",
     "message_set",
     "model",
+    "model_bytes",
     "model_v",
+    "model_v_bytes",
     "pose_v",
     "poses_from_pose_v",
     "poses_stamped",

@@ -7,12 +7,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from hypothesis import given, settings
+from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message
 from shape_msgs.msg import Mesh, SolidPrimitive
 
 from bridge.demo import TETRAHEDRON_OBJ
 from bridge.errors import SceneError
-from bridge.formats import ros
+from bridge.formats import ign, ros
 from bridge.lowering import _tessellated, triangle_mesh
 from bridge.scene import (
     Box,
@@ -24,6 +25,7 @@ from bridge.scene import (
     HalfSpace,
     InMemoryMesh,
     Link,
+    LinkPoses,
     MeshFile,
     Pose,
     Scene,
@@ -31,7 +33,7 @@ from bridge.scene import (
     TriangleMesh,
 )
 from tests.conftest import Capture
-from tests.strategies import scenes
+from tests.strategies import link_poses, poses, scenes
 
 
 def every_kind(folder: Path) -> Scene:
@@ -104,3 +106,21 @@ def test_every_load_target_writes_the_recorded_bytes() -> None:
     load_outputs.FOLDER.mkdir(exist_ok=True)
     recorded = json.loads((Path(__file__).parent / "load_digests.json").read_text())
     assert load_outputs.digests(load_outputs.FOLDER) == recorded
+
+
+@settings(max_examples=150, deadline=None)
+@given(scenes(), st.one_of(st.none(), link_poses(max_links=4)), st.sampled_from([ign.IGNITION, ign.GZ]))
+def test_ign_model_bytes_equal_the_protobuf_objects(scene: Scene, draw: LinkPoses | None, msgs: ign.MessageSet) -> None:
+    if draw is not None:  # some of the scene's links in the frame, some not
+        names = tuple(link.name for link in scene.links)[: len(draw)] + draw.names[len(scene.links) :]
+        scene = scene.with_poses(LinkPoses(draw.timestamp_ms, names, draw.robot_nums, draw.positions, draw.quaternions_wxyz))
+    assert ign.model_bytes(scene, "m", msgs) == ign.model(scene, "m", msgs).SerializeToString()
+    assert ign.model_v_bytes(scene, msgs) == ign.model_v(scene, msgs).SerializeToString()
+
+
+@given(poses)
+def test_ign_pose_bytes_with_zeros_and_negative_zeros(pose: Pose) -> None:
+    signed = Pose(tuple(-0.0 if value == 0 else value for value in pose.position), pose.quaternion_wxyz)  # type: ignore[arg-type]
+    for each in (pose, signed, Pose(), Pose((0.0, -0.0, 1.0), (0.0, 1.0, -0.0, 0.0))):
+        scene = Scene((Link("a", 1, (Geometry(Box((1.0, 2.0, 3.0)), each, (0.0, -0.0, 0.5, 1.0)),)),))
+        assert ign.model_bytes(scene) == ign.model(scene).SerializeToString()
