@@ -390,22 +390,22 @@ def marker_specs(scene: Scene, options: dict[str, Any] | None = None) -> list[Ma
     table = _tables()["marker"]
     settings = _marker_settings(options)
     specs = []
+    colors: dict[tuple[float, ...], tuple[float, ...]] = {}  # a load has few distinct colours
     for link in scene.links:
+        name, ns = link.name, link.frame
         marker_id = 0
         for geometry in link.geometries:
-            # ColorRGBA is float32 on the wire: round here so objects equal their CDR.
-            r, g, b, a = _FLOAT32X4.unpack(_FLOAT32X4.pack(*geometry.color))
+            color = colors.get(geometry.color)
+            if color is None:
+                # ColorRGBA is float32 on the wire: round here so objects equal their CDR.
+                color = colors[geometry.color] = _FLOAT32X4.unpack(_FLOAT32X4.pack(*geometry.color))
             for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
                 values = rule.values(shape)
                 if rule.encoder is not None:
                     values |= _ENCODERS[rule.encoder](shape, settings)
-                x, y, z = values.pop("scale")
+                scale = tuple(values.pop("scale"))
                 code = rule.type_code if rule.type_code is not None else 0
-                specs.append(
-                    MarkerSpec(
-                        link.name, link.frame, marker_id, code, pose, (x, y, z), (r, g, b, a), **values
-                    )
-                )
+                specs.append(MarkerSpec(name, ns, marker_id, code, pose, scale, color, **values))  # type: ignore[arg-type]
                 marker_id += 1
     return specs
 
@@ -626,18 +626,24 @@ def _write_markers(
         frames = [frames[0] if frames else "", *frames]
         poses = np.concatenate((_IDENTITY_XYZW[None, :], poses))
     headers: dict[str, bytes] = {}
+    namespaces: dict[str, bytes] = {}  # a link's markers share one
     tails: dict[tuple[str, str, int, bool], bytes] = {}
+    blocks = _blocks(specs, poses)
+    block_size = _POSE_TO_LIFETIME.size
     chunks = [CDR_LE, U32.pack(len(specs))]
     size = 4  # payload bytes so far
     offsets = []
-    for spec, pose, frame in zip(specs, poses.tolist(), frames, strict=True):
+    for index, (spec, frame) in enumerate(zip(specs, frames, strict=True)):
         if size % 4:  # the previous marker ended on a bool
             chunks.append(b"\0" * (-size % 4))
             size += -size % 4
         header = headers.get(frame)
         if header is None:
             header = headers[frame] = _STAMP.pack(0, 0) + _string_4(frame, "header.frame_id")
-        head = header + _string_4(spec.ns) + _ID_TYPE_ACTION.pack(spec.id, spec.type, spec.action)
+        namespace = namespaces.get(spec.ns)
+        if namespace is None:
+            namespace = namespaces[spec.ns] = _string_4(spec.ns)
+        head = header + namespace + _ID_TYPE_ACTION.pack(spec.id, spec.type, spec.action)
         padding = -(size + len(head)) % 8
         plain = spec.points is None and spec.colors is None
         key = (spec.mesh_resource, spec.mesh_file[0], id(spec.mesh_file[1]), plain)
@@ -645,10 +651,26 @@ def _write_markers(
         if tail is None:
             tail = tails[key] = _marker_tail(spec, frame_locked)
         offsets.append(size + len(head) + padding)
-        block = _POSE_TO_LIFETIME.pack(*pose, *spec.scale, *spec.color, 0, 0)
+        block = blocks[index * block_size : (index + 1) * block_size]
         chunks += (head, b"\0" * padding, block, tail)
-        size += len(head) + padding + len(block) + len(tail)
+        size += len(head) + padding + block_size + len(tail)
     return b"".join(chunks), offsets[1:] if delete_all else offsets
+
+
+# `_POSE_TO_LIFETIME` as a numpy record, to write every marker's block at once.
+_BLOCK = np.dtype([("pose", "<f8", 7), ("scale", "<f8", 3), ("color", "<f4", 4), ("lifetime", "<u4", 2)])
+assert _BLOCK.itemsize == _POSE_TO_LIFETIME.size
+
+
+def _blocks(specs: Sequence[MarkerSpec], poses: FloatArray) -> bytes:
+    """Every marker's pose, scale, colour and lifetime (zero), packed as `_POSE_TO_LIFETIME`."""
+    blocks = np.zeros(len(specs), dtype=_BLOCK)
+    if not specs:
+        return b""
+    blocks["pose"] = poses
+    blocks["scale"] = [spec.scale for spec in specs]
+    blocks["color"] = [spec.color for spec in specs]  # float32 values already (see marker_specs)
+    return blocks.tobytes()
 
 
 def marker_array_cdr(scene: Scene, options: dict[str, Any] | None = None, delete_all: bool = True) -> bytes:

@@ -124,3 +124,10 @@ def test_ign_pose_bytes_with_zeros_and_negative_zeros(pose: Pose) -> None:
     for each in (pose, signed, Pose(), Pose((0.0, -0.0, 1.0), (0.0, 1.0, -0.0, 0.0))):
         scene = Scene((Link("a", 1, (Geometry(Box((1.0, 2.0, 3.0)), each, (0.0, -0.0, 0.5, 1.0)),)),))
         assert ign.model_bytes(scene) == ign.model(scene).SerializeToString()
+
+
+def test_an_empty_scene_is_an_empty_marker_array() -> None:
+    assert ros.marker_array_cdr(Scene(), delete_all=False) == ros.to_cdr(ros.marker_array(Scene(), delete_all=False))
+    # With DELETEALL: its frame_id is "" here and "world" in the object path, as before.
+    (delete_all,) = ros.from_cdr(ros.marker_array_cdr(Scene()), ros.MARKER_ARRAY).markers
+    assert delete_all.action == 3
