@@ -21,7 +21,7 @@ import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -350,9 +350,11 @@ def _decoded(decode: Callable[[], Shape], typename: str) -> Shape:
 # --- markers -------------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
-class MarkerSpec:
+class MarkerSpec(NamedTuple):
     """One marker of a load, before it is a message: what both the object and CDR paths write.
+
+    A named tuple: a load makes one per marker, and a frozen dataclass took as long to build
+    as the rest of the load's markers together.
 
     `pose` is in the frame of link `link_name`; the marker's pose is that link's world pose
     times `pose`. `points` (K x 3) is for TRIANGLE_LIST; `mesh_file` = (filename, bytes) for an
