@@ -25,6 +25,7 @@ from google.protobuf.message import DecodeError as ProtobufDecodeError
 from google.protobuf.message import Message
 
 from bridge.errors import DecodeError, SceneError
+from bridge.formats import protowire as wire
 from bridge.mappings import ShapeRule, Table, tables
 from bridge.scene import (
     FileContents,
@@ -443,7 +444,7 @@ def model_v_bytes(scene: Scene, msgs: MessageSet = IGNITION) -> bytes:
     try:
         writer = _ModelWriter(msgs)
         return b"".join(
-            _submessage(_MODELS, _model_payload(writer, scene, links, _model_name(links[0]), robot_num))
+            wire.submessage(_MODELS, _model_payload(writer, scene, links, _model_name(links[0]), robot_num))
             for robot_num, links in groups.items()
         )
     except OverflowError:
@@ -452,58 +453,26 @@ def model_v_bytes(scene: Scene, msgs: MessageSet = IGNITION) -> bytes:
 
 def _model_payload(writer: _ModelWriter, scene: Scene, links: Sequence[Link], name: str, model_id: int) -> bytes:
     poses = _link_pose_values(scene, links)
-    identity = _submessage(_MODEL_POSE, _pose_bytes(Pose()))
-    head = _string_field(_MODEL_NAME, name) + (_MODEL_ID + _varint(model_id) if model_id else b"") + identity
+    identity = wire.submessage(_MODEL_POSE, _pose_bytes(Pose()))
+    head = wire.string_field(_MODEL_NAME, name) + (_MODEL_ID + wire.varint(model_id) if model_id else b"") + identity
     return head + b"".join(
-        _submessage(_MODEL_LINK, writer.link(link, pose)) for link, pose in zip(links, poses, strict=True)
+        wire.submessage(_MODEL_LINK, writer.link(link, pose)) for link, pose in zip(links, poses, strict=True)
     )
-
-
-def _key(number: int, wire_type: int) -> bytes:
-    return _varint((number << 3) | wire_type)
-
-
-def _varint(value: int) -> bytes:
-    if value < 0x80:
-        return _SMALL_VARINTS[value]
-    out = bytearray()
-    while value > 0x7F:
-        out.append((value & 0x7F) | 0x80)
-        value >>= 7
-    out.append(value)
-    return bytes(out)
-
-
-_SMALL_VARINTS = [bytes((value,)) for value in range(0x80)]
-
-
-def _submessage(key: bytes, payload: bytes) -> bytes:
-    return key + _varint(len(payload)) + payload
-
-
-def _string_field(key: bytes, text: str) -> bytes:
-    return _submessage(key, text.encode()) if text else b""  # proto3 leaves out the empty string
 
 
 # Field keys (PROTOCOLS.md section 4): Model{name=2, id=3, pose=5, link=7}; Link{header=1, name=3,
 # pose=10, visual=11}; Header{data=2}, its Map{key=1, value=2}; Visual{name=2, id=3,
 # parent_name=4, pose=9, geometry=10, material=11}; Material{diffuse=6}; Color{r..a=2..5};
 # Pose{position=4, orientation=5}; Vector3d{x..z=2..4}; Quaternion{x..w=2..5}.
-_MODEL_NAME, _MODEL_ID, _MODEL_POSE, _MODEL_LINK = _key(2, 2), _key(3, 0), _key(5, 2), _key(7, 2)
-_MODELS = _key(2, 2)  # Model_V{models=2}
-_LINK_HEADER, _LINK_NAME, _LINK_POSE, _LINK_VISUAL = _key(1, 2), _key(3, 2), _key(10, 2), _key(11, 2)
-_VISUAL_NAME, _VISUAL_ID, _VISUAL_PARENT = _key(2, 2), _key(3, 0), _key(4, 2)
-_VISUAL_POSE, _VISUAL_GEOMETRY, _VISUAL_MATERIAL = _key(9, 2), _key(10, 2), _key(11, 2)
-_POSITION, _ORIENTATION, _DIFFUSE = _key(4, 2), _key(5, 2), _key(6, 2)
-_DOUBLE_KEYS = [_key(number, 1) for number in (2, 3, 4, 5)]
-_FLOAT_KEYS = [_key(number, 5) for number in (2, 3, 4, 5)]
-_DOUBLE, _FLOAT = struct.Struct("<d"), struct.Struct("<f")
-_ZERO_DOUBLE, _ZERO_FLOAT = bytes(8), bytes(4)
-
-
-def _doubles(values: Sequence[float]) -> bytes:
-    packed = [_DOUBLE.pack(value) for value in values]
-    return b"".join(key + data for key, data in zip(_DOUBLE_KEYS, packed, strict=False) if data != _ZERO_DOUBLE)
+_MODEL_NAME, _MODEL_ID, _MODEL_POSE, _MODEL_LINK = wire.key(2, 2), wire.key(3, 0), wire.key(5, 2), wire.key(7, 2)
+_MODELS = wire.key(2, 2)  # Model_V{models=2}
+_LINK_HEADER, _LINK_NAME, _LINK_POSE, _LINK_VISUAL = wire.key(1, 2), wire.key(3, 2), wire.key(10, 2), wire.key(11, 2)
+_VISUAL_NAME, _VISUAL_ID, _VISUAL_PARENT = wire.key(2, 2), wire.key(3, 0), wire.key(4, 2)
+_VISUAL_POSE, _VISUAL_GEOMETRY, _VISUAL_MATERIAL = wire.key(9, 2), wire.key(10, 2), wire.key(11, 2)
+_POSITION, _ORIENTATION, _DIFFUSE = wire.key(4, 2), wire.key(5, 2), wire.key(6, 2)
+_DOUBLE_KEYS = wire.double_keys(2, 4)  # Vector3d and Quaternion count from 2 (1 is the header)
+_FLOAT_KEYS = [wire.key(number, wire.FIXED32) for number in (2, 3, 4, 5)]
+_FLOAT, _ZERO_FLOAT = struct.Struct("<f"), bytes(4)
 
 
 # A pose with no zero in it: position (3 doubles, 27 bytes), orientation (4, 36 bytes) in one pack.
@@ -534,14 +503,14 @@ def _pose_values_bytes(values: Sequence[float]) -> bytes:
     if x and y and z and qx and qy and qz and qw:  # NaN is truthy and written, as protobuf does
         p, l3, kx, ky, kz, o, l4, ox, oy, oz, ow = _FULL_POSE_KEYS
         return _FULL_POSE.pack(p, l3, kx, x, ky, y, kz, z, o, l4, ox, qx, oy, qy, oz, qz, ow, qw)
-    return _submessage(_POSITION, _doubles(values[:3])) + _submessage(_ORIENTATION, _doubles(values[3:]))
+    return wire.submessage(_POSITION, wire.doubles(_DOUBLE_KEYS, values[:3])) + wire.submessage(_ORIENTATION, wire.doubles(_DOUBLE_KEYS, values[3:]))
 
 
 def _material(color: Sequence[float]) -> bytes:
     """Material{diffuse}: float32 on the wire (OverflowError beyond float32's range)."""
     packed = [_FLOAT.pack(value) for value in color]
     diffuse = b"".join(key + data for key, data in zip(_FLOAT_KEYS, packed, strict=True) if data != _ZERO_FLOAT)
-    return _submessage(_VISUAL_MATERIAL, _submessage(_DIFFUSE, diffuse))
+    return wire.submessage(_VISUAL_MATERIAL, wire.submessage(_DIFFUSE, diffuse))
 
 
 class _ModelWriter:
@@ -557,26 +526,26 @@ class _ModelWriter:
     def link(self, link: Link, pose: Sequence[float]) -> bytes:
         header = self.headers.get(link.robot_num)
         if header is None:
-            entry = _string_field(_key(1, 2), _ROBOT_NUM) + _submessage(_key(2, 2), str(link.robot_num).encode())
-            header = self.headers[link.robot_num] = _submessage(_LINK_HEADER, _submessage(_key(2, 2), entry))
-        parts = [header, _string_field(_LINK_NAME, link.name), _submessage(_LINK_POSE, _pose_values_bytes(pose))]
+            entry = wire.string_field(wire.key(1, 2), _ROBOT_NUM) + wire.submessage(wire.key(2, 2), str(link.robot_num).encode())
+            header = self.headers[link.robot_num] = wire.submessage(_LINK_HEADER, wire.submessage(wire.key(2, 2), entry))
+        parts = [header, wire.string_field(_LINK_NAME, link.name), wire.submessage(_LINK_POSE, _pose_values_bytes(pose))]
         for index, geometry in enumerate(link.geometries):
-            parts.append(_submessage(_LINK_VISUAL, self.visual(link.name, index, geometry)))
+            parts.append(wire.submessage(_LINK_VISUAL, self.visual(link.name, index, geometry)))
         return b"".join(parts)
 
     def visual(self, link_name: str, index: int, geometry: Geometry) -> bytes:
         pose = self.poses.get(geometry.pose)
         if pose is None:
-            pose = self.poses[geometry.pose] = _submessage(_VISUAL_POSE, _pose_bytes(geometry.pose))
+            pose = self.poses[geometry.pose] = wire.submessage(_VISUAL_POSE, _pose_bytes(geometry.pose))
         material = self.colors.get(geometry.color)
         if material is None:
             material = self.colors[geometry.color] = _material(geometry.color)
         return b"".join((
-            _string_field(_VISUAL_NAME, f"{link_name}::visual_{index}"),
-            _VISUAL_ID + _varint(index) if index else b"",
-            _string_field(_VISUAL_PARENT, link_name),
+            wire.string_field(_VISUAL_NAME, f"{link_name}::visual_{index}"),
+            _VISUAL_ID + wire.varint(index) if index else b"",
+            wire.string_field(_VISUAL_PARENT, link_name),
             pose,
-            _submessage(_VISUAL_GEOMETRY, self.geometry(geometry.shape)),
+            wire.submessage(_VISUAL_GEOMETRY, self.geometry(geometry.shape)),
             material,
         ))  # fmt: skip
 

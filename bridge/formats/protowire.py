@@ -1,0 +1,54 @@
+"""Protobuf wire encoding by hand, for the loads written by concatenation (`ign.model_bytes`,
+`foxglove.scene_update_bytes`): a message is its fields' encodings in field-number order, as
+the protobuf runtime writes it, so pieces serialised once can be joined.
+
+proto3 leaves out a scalar equal to its default, judged by bit pattern (so -0.0 is written); a
+submessage that was touched is written even when empty. The helpers here follow both rules.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+
+LENGTH_DELIMITED, VARINT, FIXED64, FIXED32 = 2, 0, 1, 5
+_SMALL_VARINTS = [bytes((value,)) for value in range(0x80)]
+_DOUBLE = struct.Struct("<d")
+_ZERO_DOUBLE = bytes(8)
+
+
+def varint(value: int) -> bytes:
+    """A non-negative integer as a base-128 varint."""
+    if value < 0x80:
+        return _SMALL_VARINTS[value]
+    out = bytearray()
+    while value > 0x7F:
+        out.append((value & 0x7F) | 0x80)
+        value >>= 7
+    out.append(value)
+    return bytes(out)
+
+
+def key(number: int, wire_type: int) -> bytes:
+    return varint((number << 3) | wire_type)
+
+
+def submessage(field_key: bytes, payload: bytes) -> bytes:
+    """A length-delimited field (a message, string or bytes), written even when empty."""
+    return field_key + varint(len(payload)) + payload
+
+
+def string_field(field_key: bytes, text: str) -> bytes:
+    """A proto3 string field: left out when empty."""
+    return submessage(field_key, text.encode()) if text else b""
+
+
+def double_keys(first: int, count: int) -> list[bytes]:
+    """The keys of `count` double fields numbered from `first` (x, y, z[, w] of a vector)."""
+    return [key(number, FIXED64) for number in range(first, first + count)]
+
+
+def doubles(keys: Sequence[bytes], values: Sequence[float]) -> bytes:
+    """Double fields, each left out when its bits are all zero (0.0, not -0.0)."""
+    packed = [_DOUBLE.pack(value) for value in values]
+    return b"".join(field + data for field, data in zip(keys, packed, strict=False) if data != _ZERO_DOUBLE)
