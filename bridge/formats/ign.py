@@ -451,10 +451,16 @@ def model_v_bytes(scene: Scene, msgs: MessageSet = IGNITION) -> bytes:
         return bytes(model_v(scene, msgs).SerializeToString())
 
 
-def _model_payload(writer: _ModelWriter, scene: Scene, links: Sequence[Link], name: str, model_id: int) -> bytes:
+def _model_payload(
+    writer: _ModelWriter, scene: Scene, links: Sequence[Link], name: str, model_id: int
+) -> bytes:
     poses = _link_pose_values(scene, links)
     identity = wire.submessage(_MODEL_POSE, _pose_bytes(Pose()))
-    head = wire.string_field(_MODEL_NAME, name) + (_MODEL_ID + wire.varint(model_id) if model_id else b"") + identity
+    head = (
+        wire.string_field(_MODEL_NAME, name)
+        + (_MODEL_ID + wire.varint(model_id) if model_id else b"")
+        + identity
+    )
     return head + b"".join(
         wire.submessage(_MODEL_LINK, writer.link(link, pose)) for link, pose in zip(links, poses, strict=True)
     )
@@ -464,9 +470,19 @@ def _model_payload(writer: _ModelWriter, scene: Scene, links: Sequence[Link], na
 # pose=10, visual=11}; Header{data=2}, its Map{key=1, value=2}; Visual{name=2, id=3,
 # parent_name=4, pose=9, geometry=10, material=11}; Material{diffuse=6}; Color{r..a=2..5};
 # Pose{position=4, orientation=5}; Vector3d{x..z=2..4}; Quaternion{x..w=2..5}.
-_MODEL_NAME, _MODEL_ID, _MODEL_POSE, _MODEL_LINK = wire.key(2, 2), wire.key(3, 0), wire.key(5, 2), wire.key(7, 2)
+_MODEL_NAME, _MODEL_ID, _MODEL_POSE, _MODEL_LINK = (
+    wire.key(2, 2),
+    wire.key(3, 0),
+    wire.key(5, 2),
+    wire.key(7, 2),
+)
 _MODELS = wire.key(2, 2)  # Model_V{models=2}
-_LINK_HEADER, _LINK_NAME, _LINK_POSE, _LINK_VISUAL = wire.key(1, 2), wire.key(3, 2), wire.key(10, 2), wire.key(11, 2)
+_LINK_HEADER, _LINK_NAME, _LINK_POSE, _LINK_VISUAL = (
+    wire.key(1, 2),
+    wire.key(3, 2),
+    wire.key(10, 2),
+    wire.key(11, 2),
+)
 _VISUAL_NAME, _VISUAL_ID, _VISUAL_PARENT = wire.key(2, 2), wire.key(3, 0), wire.key(4, 2)
 _VISUAL_POSE, _VISUAL_GEOMETRY, _VISUAL_MATERIAL = wire.key(9, 2), wire.key(10, 2), wire.key(11, 2)
 _POSITION, _ORIENTATION, _DIFFUSE = wire.key(4, 2), wire.key(5, 2), wire.key(6, 2)
@@ -503,13 +519,16 @@ def _pose_values_bytes(values: Sequence[float]) -> bytes:
     if x and y and z and qx and qy and qz and qw:  # NaN is truthy and written, as protobuf does
         p, l3, kx, ky, kz, o, l4, ox, oy, oz, ow = _FULL_POSE_KEYS
         return _FULL_POSE.pack(p, l3, kx, x, ky, y, kz, z, o, l4, ox, qx, oy, qy, oz, qz, ow, qw)
-    return wire.submessage(_POSITION, wire.doubles(_DOUBLE_KEYS, values[:3])) + wire.submessage(_ORIENTATION, wire.doubles(_DOUBLE_KEYS, values[3:]))
+    position = wire.submessage(_POSITION, wire.doubles(_DOUBLE_KEYS, values[:3]))
+    return position + wire.submessage(_ORIENTATION, wire.doubles(_DOUBLE_KEYS, values[3:]))
 
 
 def _material(color: Sequence[float]) -> bytes:
     """Material{diffuse}: float32 on the wire (OverflowError beyond float32's range)."""
     packed = [_FLOAT.pack(value) for value in color]
-    diffuse = b"".join(key + data for key, data in zip(_FLOAT_KEYS, packed, strict=True) if data != _ZERO_FLOAT)
+    diffuse = b"".join(
+        key + data for key, data in zip(_FLOAT_KEYS, packed, strict=True) if data != _ZERO_FLOAT
+    )
     return wire.submessage(_VISUAL_MATERIAL, wire.submessage(_DIFFUSE, diffuse))
 
 
@@ -526,9 +545,16 @@ class _ModelWriter:
     def link(self, link: Link, pose: Sequence[float]) -> bytes:
         header = self.headers.get(link.robot_num)
         if header is None:
-            entry = wire.string_field(wire.key(1, 2), _ROBOT_NUM) + wire.submessage(wire.key(2, 2), str(link.robot_num).encode())
-            header = self.headers[link.robot_num] = wire.submessage(_LINK_HEADER, wire.submessage(wire.key(2, 2), entry))
-        parts = [header, wire.string_field(_LINK_NAME, link.name), wire.submessage(_LINK_POSE, _pose_values_bytes(pose))]
+            value = wire.submessage(wire.key(2, wire.LENGTH_DELIMITED), str(link.robot_num).encode())
+            entry = wire.string_field(wire.key(1, wire.LENGTH_DELIMITED), _ROBOT_NUM) + value
+            header = self.headers[link.robot_num] = wire.submessage(
+                _LINK_HEADER, wire.submessage(wire.key(2, 2), entry)
+            )
+        parts = [
+            header,
+            wire.string_field(_LINK_NAME, link.name),
+            wire.submessage(_LINK_POSE, _pose_values_bytes(pose)),
+        ]
         for index, geometry in enumerate(link.geometries):
             parts.append(wire.submessage(_LINK_VISUAL, self.visual(link.name, index, geometry)))
         return b"".join(parts)
