@@ -485,15 +485,12 @@ _LINK_HEADER, _LINK_NAME, _LINK_POSE, _LINK_VISUAL = (
 )
 _VISUAL_NAME, _VISUAL_ID, _VISUAL_PARENT = wire.key(2, 2), wire.key(3, 0), wire.key(4, 2)
 _VISUAL_POSE, _VISUAL_GEOMETRY, _VISUAL_MATERIAL = wire.key(9, 2), wire.key(10, 2), wire.key(11, 2)
-_POSITION, _ORIENTATION, _DIFFUSE = wire.key(4, 2), wire.key(5, 2), wire.key(6, 2)
-_DOUBLE_KEYS = wire.double_keys(2, 4)  # Vector3d and Quaternion count from 2 (1 is the header)
+_DIFFUSE = wire.key(6, 2)
 _FLOAT_KEYS = [wire.key(number, wire.FIXED32) for number in (2, 3, 4, 5)]
 _FLOAT, _ZERO_FLOAT = struct.Struct("<f"), bytes(4)
 
 
-# A pose with no zero in it: position (3 doubles, 27 bytes), orientation (4, 36 bytes) in one pack.
-_FULL_POSE = struct.Struct("<BB" + "Bd" * 3 + "BB" + "Bd" * 4)
-_FULL_POSE_KEYS = (0x22, 27, 0x11, 0x19, 0x21, 0x2A, 36, 0x11, 0x19, 0x21, 0x29)
+_POSE = wire.PoseWriter(4, 5, 2)  # Pose{position=4, orientation=5}, their components from 2
 
 
 def _link_pose_values(scene: Scene, links: Sequence[Link]) -> list[list[float]]:
@@ -515,12 +512,7 @@ def _pose_bytes(pose: Pose) -> bytes:
 
 
 def _pose_values_bytes(values: Sequence[float]) -> bytes:
-    x, y, z, qx, qy, qz, qw = values
-    if x and y and z and qx and qy and qz and qw:  # NaN is truthy and written, as protobuf does
-        p, l3, kx, ky, kz, o, l4, ox, oy, oz, ow = _FULL_POSE_KEYS
-        return _FULL_POSE.pack(p, l3, kx, x, ky, y, kz, z, o, l4, ox, qx, oy, qy, oz, qz, ow, qw)
-    position = wire.submessage(_POSITION, wire.doubles(_DOUBLE_KEYS, values[:3]))
-    return position + wire.submessage(_ORIENTATION, wire.doubles(_DOUBLE_KEYS, values[3:]))
+    return _POSE.pose(*values)
 
 
 def _material(color: Sequence[float]) -> bytes:

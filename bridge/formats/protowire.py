@@ -52,3 +52,30 @@ def doubles(keys: Sequence[bytes], values: Sequence[float]) -> bytes:
     """Double fields, each left out when its bits are all zero (0.0, not -0.0)."""
     packed = [_DOUBLE.pack(value) for value in values]
     return b"".join(field + data for field, data in zip(keys, packed, strict=False) if data != _ZERO_DOUBLE)
+
+
+class PoseWriter:
+    """A Pose message {position: Vector3, orientation: Quaternion} for given field numbers.
+
+    The common pose has no zero in it; its bytes then have a fixed layout, packed in one call.
+    """
+
+    def __init__(self, position: int, orientation: int, first_component: int) -> None:
+        self.position_key = key(position, LENGTH_DELIMITED)
+        self.orientation_key = key(orientation, LENGTH_DELIMITED)
+        self.vector_keys = double_keys(first_component, 3)
+        self.quaternion_keys = double_keys(first_component, 4)
+        parts = (self.position_key, self.orientation_key, *self.quaternion_keys)
+        assert all(len(part) == 1 for part in parts)  # field numbers below 16: one byte each
+        vector = [item[0] for item in self.vector_keys]
+        quaternion = [item[0] for item in self.quaternion_keys]
+        self._codes = [self.position_key[0], 27, *vector, self.orientation_key[0], 36, *quaternion]
+        self._full = struct.Struct("<BB" + "Bd" * 3 + "BB" + "Bd" * 4)
+
+    def pose(self, x: float, y: float, z: float, qx: float, qy: float, qz: float, qw: float) -> bytes:
+        """The pose's fields (quaternion x, y, z, w); zeros left out by bit pattern."""
+        if x and y and z and qx and qy and qz and qw:  # NaN is truthy and written, as protobuf does
+            p, l3, kx, ky, kz, o, l4, ox, oy, oz, ow = self._codes
+            return self._full.pack(p, l3, kx, x, ky, y, kz, z, o, l4, ox, qx, oy, qy, oz, qz, ow, qw)
+        position = submessage(self.position_key, doubles(self.vector_keys, (x, y, z)))
+        return position + submessage(self.orientation_key, doubles(self.quaternion_keys, (qx, qy, qz, qw)))
