@@ -529,10 +529,11 @@ class _ModelWriter:
 
     def __init__(self, msgs: MessageSet) -> None:
         self.msgs = msgs
-        self.geometries: dict[Any, bytes] = {}
+        self.geometries: dict[int, tuple[Shape, bytes]] = {}  # by id: the scene's shapes, held here
         self.headers: dict[int, bytes] = {}
-        self.poses: dict[Pose, bytes] = {}  # geometry poses repeat (the same part on many links)
-        self.colors: dict[tuple[float, ...], bytes] = {}
+        # By `wire.exact_key`: 0.0 and -0.0 are equal floats but written differently.
+        self.poses: dict[bytes, bytes] = {}  # geometry poses repeat (the same part on many links)
+        self.colors: dict[bytes, bytes] = {}
 
     def link(self, link: Link, pose: Sequence[float]) -> bytes:
         header = self.headers.get(link.robot_num)
@@ -552,12 +553,15 @@ class _ModelWriter:
         return b"".join(parts)
 
     def visual(self, link_name: str, index: int, geometry: Geometry) -> bytes:
-        pose = self.poses.get(geometry.pose)
+        values = (*geometry.pose.position, *geometry.pose.quaternion_xyzw)
+        pose_key = wire.exact_key(values)
+        pose = self.poses.get(pose_key)
         if pose is None:
-            pose = self.poses[geometry.pose] = wire.submessage(_VISUAL_POSE, _pose_bytes(geometry.pose))
-        material = self.colors.get(geometry.color)
+            pose = self.poses[pose_key] = wire.submessage(_VISUAL_POSE, _pose_values_bytes(values))
+        color_key = wire.exact_key(geometry.color)
+        material = self.colors.get(color_key)
         if material is None:
-            material = self.colors[geometry.color] = _material(geometry.color)
+            material = self.colors[color_key] = _material(geometry.color)
         return b"".join((
             wire.string_field(_VISUAL_NAME, f"{link_name}::visual_{index}"),
             _VISUAL_ID + wire.varint(index) if index else b"",
@@ -568,13 +572,10 @@ class _ModelWriter:
         ))  # fmt: skip
 
     def geometry(self, shape: Shape) -> bytes:
-        try:
-            return self.geometries[shape]
-        except KeyError:
-            data = self.geometries[shape] = bytes(geometry_message(shape, self.msgs).SerializeToString())
-        except TypeError:  # unhashable (an in-memory mesh's supporting files): not kept
-            data = bytes(geometry_message(shape, self.msgs).SerializeToString())
-        return data
+        known = self.geometries.get(id(shape))
+        if known is None:
+            known = self.geometries[id(shape)] = (shape, bytes(geometry_message(shape, self.msgs).SerializeToString()))
+        return known[1]
 
 
 def model_v(scene: Scene, msgs: MessageSet = IGNITION) -> Any:

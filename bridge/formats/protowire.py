@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Sequence
+from math import copysign
 
 LENGTH_DELIMITED, VARINT, FIXED64, FIXED32 = 2, 0, 1, 5
 _SMALL_VARINTS = [bytes((value,)) for value in range(0x80)]
 _DOUBLE = struct.Struct("<d")
-_ZERO_DOUBLE = bytes(8)
 
 
 def varint(value: int) -> bytes:
@@ -50,8 +50,8 @@ def double_keys(first: int, count: int) -> list[bytes]:
 
 def doubles(keys: Sequence[bytes], values: Sequence[float]) -> bytes:
     """Double fields, each left out when its bits are all zero (0.0, not -0.0)."""
-    packed = [_DOUBLE.pack(value) for value in values]
-    return b"".join(field + data for field, data in zip(keys, packed, strict=False) if data != _ZERO_DOUBLE)
+    pairs = zip(keys, values, strict=False)  # keys may be longer: a Vector3 uses 3 of 4
+    return b"".join([field + _DOUBLE.pack(value) for field, value in pairs if value or copysign(1.0, value) < 0])
 
 
 class PoseWriter:
@@ -79,3 +79,27 @@ class PoseWriter:
             return self._full.pack(p, l3, kx, x, ky, y, kz, z, o, l4, ox, qx, oy, qy, oz, qz, ow, qw)
         position = submessage(self.position_key, doubles(self.vector_keys, (x, y, z)))
         return position + submessage(self.orientation_key, doubles(self.quaternion_keys, (qx, qy, qz, qw)))
+
+
+class Vector3Writer:
+    """A length-delimited {x, y, z} doubles field (Vector3, Vector3d) with a fast path when no
+    component is zero (one pack)."""
+
+    def __init__(self, field: int, first_component: int) -> None:
+        self.field_key = key(field, LENGTH_DELIMITED)
+        self.keys = double_keys(first_component, 3)
+        assert len(self.field_key) == 1 and all(len(item) == 1 for item in self.keys)
+        self._codes = [self.field_key[0], 27, *(item[0] for item in self.keys)]
+        self._full = struct.Struct("<BB" + "Bd" * 3)
+
+    def field(self, x: float, y: float, z: float) -> bytes:
+        if x and y and z:
+            f, length, kx, ky, kz = self._codes
+            return self._full.pack(f, length, kx, x, ky, y, kz, z)
+        return submessage(self.field_key, doubles(self.keys, (x, y, z)))
+
+
+def exact_key(values: Sequence[float]) -> bytes:
+    """Floats as a dict key for caching their encoding: 0.0 and -0.0 are equal as floats (and
+    hash alike) but are written differently, so the key is their bits."""
+    return struct.pack(f"<{len(values)}d", *values)

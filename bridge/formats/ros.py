@@ -392,15 +392,17 @@ def marker_specs(scene: Scene, options: dict[str, Any] | None = None) -> list[Ma
     table = _tables()["marker"]
     settings = _marker_settings(options)
     specs = []
-    colors: dict[tuple[float, ...], tuple[float, ...]] = {}  # a load has few distinct colours
+    colors: dict[bytes, tuple[float, ...]] = {}  # a load has few distinct colours
     for link in scene.links:
         name, ns = link.name, link.frame
         marker_id = 0
         for geometry in link.geometries:
-            color = colors.get(geometry.color)
+            # ColorRGBA is float32 on the wire: round here so objects equal their CDR. Cached by
+            # the float32 bits, which tell -0.0 from 0.0 (equal floats, written differently).
+            packed = _FLOAT32X4.pack(*geometry.color)
+            color = colors.get(packed)
             if color is None:
-                # ColorRGBA is float32 on the wire: round here so objects equal their CDR.
-                color = colors[geometry.color] = _FLOAT32X4.unpack(_FLOAT32X4.pack(*geometry.color))
+                color = colors[packed] = _FLOAT32X4.unpack(packed)
             for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
                 values = rule.values(shape)
                 if rule.encoder is not None:
