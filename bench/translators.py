@@ -133,7 +133,7 @@ def our_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
         "MarkerArray": lambda: ros.marker_array_cdr(load),
         "ign Model": lambda: ign.model_bytes(load),
         "tree viewer setgeometry": lambda: [tv.encode(request) for request in tv.load_requests(load)],
-        "Foxglove SceneUpdate": lambda: foxglove.scene_update_bytes(load, frames),
+        "Foxglove SceneUpdate": lambda: foxglove.scene_update(load, frames).SerializeToString(),
         "shape_msgs": lambda: ros.shapes_cdr(load),
     }
 

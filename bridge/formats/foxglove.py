@@ -23,15 +23,13 @@ from typing import Any
 import numpy as np
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
-from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
-from bridge.formats import protowire as wire
 from bridge.formats.gltf import write_gltf
 from bridge.formats.ros_tf import FrameNames
 from bridge.lowering import triangle_mesh
-from bridge.mappings import ShapeRule, tables
-from bridge.scene import Geometry, Line, Link, LinkPoses, Pose, Rgba, Scene, Shape, Triad, xyzw_from_wxyz
+from bridge.mappings import tables
+from bridge.scene import Geometry, Line, Link, LinkPoses, Pose, Scene, Shape, Triad, xyzw_from_wxyz
 
 SCENE_UPDATE = "foxglove.SceneUpdate"
 FRAME_TRANSFORMS = "foxglove.FrameTransforms"
@@ -51,104 +49,13 @@ def scene_update(scene: Scene, frames: Callable[[str], str], stamp: tuple[int, i
         entity.timestamp.seconds, entity.timestamp.nanos = stamp
         for geometry in link.geometries:
             for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
-                _fill_primitive(getattr(entity, rule.type_code).add(), rule, shape, pose, geometry.color)
+                primitive = getattr(entity, rule.type_code).add()
+                _set_pose(primitive.pose, pose)
+                _set_fields(primitive, rule.values(shape))
+                if rule.encoder is not None:
+                    _ENCODERS[rule.encoder](primitive, shape)
+                _set_color(primitive, geometry.color)
     return update
-
-
-def _fill_primitive(primitive: Any, rule: ShapeRule, shape: Shape, pose: Pose, rgba: Rgba) -> None:
-    _set_pose(primitive.pose, pose)
-    _set_fields(primitive, rule.values(shape))
-    if rule.encoder is not None:
-        _ENCODERS[rule.encoder](primitive, shape)
-    _set_color(primitive, rgba)
-
-
-def scene_update_bytes(scene: Scene, frames: Callable[[str], str], stamp: tuple[int, int] = (0, 0)) -> bytes:
-    """`scene_update(...).SerializeToString()`, written by concatenation (see `protowire`).
-
-    Primitives the table fills alone (cubes, spheres, cylinders) are packed here; those an
-    encoder fills (models, lines) are built as protobuf objects one by one and serialised. An
-    entity's primitives are grouped by field number, as protobuf writes repeated fields.
-    """
-    table = _tables()["primitive"]
-    timestamp = wire.submessage(_ENTITY_KEYS["timestamp"], _timestamp(stamp))
-    colors: dict[bytes, bytes] = {}  # by `wire.exact_key`: 0.0 and -0.0 are written differently
-    poses: dict[bytes, bytes] = {}  # geometry poses repeat (identity, a part's offset)
-    entities = []
-    for link in scene.links:
-        if not link.geometries:
-            continue
-        groups: dict[str, list[bytes]] = {}
-        for geometry in link.geometries:
-            color_key = wire.exact_key(geometry.color)
-            color = colors.get(color_key)
-            if color is None:
-                color = colors[color_key] = wire.doubles(_COLOR_KEYS, geometry.color)
-            for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
-                values = (*pose.position, *pose.quaternion_xyzw)
-                pose_key = wire.exact_key(values)
-                pose_bytes = poses.get(pose_key)
-                if pose_bytes is None:
-                    pose_bytes = poses[pose_key] = _POSE.pose(*values)
-                data = _primitive_bytes(rule, shape, pose, pose_bytes, geometry.color, color)
-                groups.setdefault(rule.type_code, []).append(data)
-        parts = [
-            timestamp,
-            wire.string_field(_ENTITY_KEYS["frame_id"], frames(link.name)),
-            wire.string_field(_ENTITY_KEYS["id"], link.name),
-            _FRAME_LOCKED,
-        ]
-        for type_code in sorted(groups, key=_ENTITY_NUMBERS.__getitem__):
-            parts += [wire.submessage(_ENTITY_KEYS[type_code], data) for data in groups[type_code]]
-        entities.append(wire.submessage(_ENTITIES, b"".join(parts)))
-    return b"".join(entities)
-
-
-# Field numbers from the installed foxglove schemas (SceneUpdate, SceneEntity, the primitives).
-_ENTITY_FIELD = SceneUpdate.DESCRIPTOR.fields_by_name["entities"]
-_ENTITIES = wire.key(_ENTITY_FIELD.number, wire.LENGTH_DELIMITED)
-_ENTITY_NUMBERS = {field.name: field.number for field in SceneEntity.DESCRIPTOR.fields}
-_ENTITY_KEYS = {name: wire.key(number, wire.LENGTH_DELIMITED) for name, number in _ENTITY_NUMBERS.items()}
-_FRAME_LOCKED = wire.key(_ENTITY_NUMBERS["frame_locked"], wire.VARINT) + b"\x01"
-_COLOR_KEYS = wire.double_keys(1, 4)  # Color{r=1, g=2, b=3, a=4}
-_POSE = wire.PoseWriter(1, 2, 1)  # Pose{position=1, orientation=2}, Vector3/Quaternion from x=1
-
-
-@cache
-def _primitive_layout(type_code: str) -> list[tuple[str, bytes, wire.Vector3Writer | None]]:
-    """A primitive's fields in field-number order: name, key, and a Vector3 writer for a Vector3
-    (None for a double; the pose and colour are written apart)."""
-    descriptor = SceneEntity.DESCRIPTOR.fields_by_name[type_code].message_type
-    assert descriptor is not None
-    layout: list[tuple[str, bytes, wire.Vector3Writer | None]] = []
-    for field in sorted(descriptor.fields, key=lambda item: item.number):
-        if field.message_type is None:
-            layout.append((field.name, wire.key(field.number, wire.FIXED64), None))
-        else:
-            writer = wire.Vector3Writer(field.number, 1) if field.message_type.name == "Vector3" else None
-            layout.append((field.name, wire.key(field.number, wire.LENGTH_DELIMITED), writer))
-    return layout
-
-
-def _primitive_bytes(rule: ShapeRule, shape: Shape, pose: Pose, pose_bytes: bytes, rgba: Rgba, color: bytes) -> bytes:
-    if rule.encoder is not None:  # filled by a hook: built and serialised by protobuf
-        primitive = getattr(SceneEntity(), rule.type_code).add()
-        _fill_primitive(primitive, rule, shape, pose, rgba)
-        return bytes(primitive.SerializeToString())
-    values = rule.values(shape)
-    out = []
-    for name, field_key, vector in _primitive_layout(rule.type_code):
-        if name == "pose":
-            out.append(wire.submessage(field_key, pose_bytes))
-        elif name == "color":
-            out.append(wire.submessage(field_key, color))
-        elif name not in values:
-            continue
-        elif vector is not None:
-            out.append(vector.field(*values[name]))
-        else:
-            out.append(wire.doubles((field_key,), (values[name],)))
-    return b"".join(out)
 
 
 def _set_pose(target: Any, pose: Pose) -> None:

@@ -1,6 +1,7 @@
-"""Protobuf wire encoding by hand, for the loads written by concatenation (`ign.model_bytes`,
-`foxglove.scene_update_bytes`): a message is its fields' encodings in field-number order, as
-the protobuf runtime writes it, so pieces serialised once can be joined.
+"""Protobuf wire encoding by hand, for loads written by concatenation (`ign.model_bytes`): a
+message is its fields' encodings in field-number order, as the protobuf runtime writes it, so
+pieces serialised once can be joined. (Foxglove's SceneUpdate was tried the same way and was no
+faster than its protobuf objects: it stays with those.)
 
 proto3 leaves out a scalar equal to its default, judged by bit pattern (so -0.0 is written); a
 submessage that was touched is written even when empty. The helpers here follow both rules.
@@ -79,24 +80,6 @@ class PoseWriter:
             return self._full.pack(p, l3, kx, x, ky, y, kz, z, o, l4, ox, qx, oy, qy, oz, qz, ow, qw)
         position = submessage(self.position_key, doubles(self.vector_keys, (x, y, z)))
         return position + submessage(self.orientation_key, doubles(self.quaternion_keys, (qx, qy, qz, qw)))
-
-
-class Vector3Writer:
-    """A length-delimited {x, y, z} doubles field (Vector3, Vector3d) with a fast path when no
-    component is zero (one pack)."""
-
-    def __init__(self, field: int, first_component: int) -> None:
-        self.field_key = key(field, LENGTH_DELIMITED)
-        self.keys = double_keys(first_component, 3)
-        assert len(self.field_key) == 1 and all(len(item) == 1 for item in self.keys)
-        self._codes = [self.field_key[0], 27, *(item[0] for item in self.keys)]
-        self._full = struct.Struct("<BB" + "Bd" * 3)
-
-    def field(self, x: float, y: float, z: float) -> bytes:
-        if x and y and z:
-            f, length, kx, ky, kz = self._codes
-            return self._full.pack(f, length, kx, x, ky, y, kz, z)
-        return submessage(self.field_key, doubles(self.keys, (x, y, z)))
 
 
 def exact_key(values: Sequence[float]) -> bytes:

@@ -31,7 +31,7 @@ class DrakeToSceneUpdate(PerLoadTranslator):
     outputs = (Output("", SCENE_UPDATE, latched=True),)
 
     def on_scene(self, scene: Scene, channel: str) -> Outputs:
-        return [(0, foxglove.scene_update_bytes(scene, self.options.frames(channel)))]
+        return [(0, foxglove.scene_update(scene, self.options.frames(channel)).SerializeToString())]
 
 
 class FrameTransformsOptions(FrameOptions):

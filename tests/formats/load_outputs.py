@@ -113,7 +113,7 @@ def targets() -> dict[str, Callable[[Scene], bytes]]:
         "ign_model": lambda scene: ign.model_bytes(scene),
         "ign_model_v": lambda scene: ign.model_v_bytes(scene),
         "tree_viewer": lambda scene: b"|".join(tv.encode(request) for request in tv.load_requests(scene)),
-        "foxglove": lambda scene: foxglove.scene_update_bytes(scene, frames),
+        "foxglove": lambda scene: foxglove.scene_update(scene, frames).SerializeToString(),
     }
 
 

@@ -13,8 +13,7 @@ from shape_msgs.msg import Mesh, SolidPrimitive
 
 from bridge.demo import TETRAHEDRON_OBJ
 from bridge.errors import SceneError
-from bridge.formats import foxglove, ign, ros
-from bridge.formats.ros_tf import FrameNames
+from bridge.formats import ign, ros
 from bridge.lowering import _tessellated, triangle_mesh
 from bridge.scene import (
     Box,
@@ -134,22 +133,6 @@ def test_an_empty_scene_is_an_empty_marker_array() -> None:
     assert delete_all.action == 3
 
 
-@settings(max_examples=150, deadline=None)
-@given(scenes(), st.tuples(st.integers(0, 2**31), st.integers(0, 999_999_999)))
-def test_foxglove_scene_update_bytes_equal_the_protobuf_objects(scene: Scene, stamp: tuple[int, int]) -> None:
-    signed = Scene(tuple(Link(link.name, link.robot_num, tuple(
-        Geometry(geometry.shape, Pose((-0.0, 0.0, 1.0), (1.0, 0.0, -0.0, 0.0)), (0.0, -0.0, 1.0, 0.5))
-        for geometry in link.geometries)) for link in scene.links))  # fmt: skip
-    for each in (scene, signed):
-        try:
-            expected = foxglove.scene_update(each, FrameNames(), stamp).SerializeToString()
-        except SceneError:  # a mesh file that does not exist
-            with pytest.raises(SceneError):
-                foxglove.scene_update_bytes(each, FrameNames(), stamp)
-            continue
-        assert foxglove.scene_update_bytes(each, FrameNames(), stamp) == expected
-
-
 def test_zero_and_negative_zero_in_one_scene_are_not_confused_by_the_caches() -> None:
     """0.0 == -0.0 as floats, but the wire tells them apart: every cache must too."""
     geometries = tuple(
@@ -158,5 +141,4 @@ def test_zero_and_negative_zero_in_one_scene_are_not_confused_by_the_caches() ->
     )
     scene = Scene((Link("a", 1, geometries), Link("b", 2, geometries[::-1])))
     assert ign.model_bytes(scene) == ign.model(scene).SerializeToString()
-    assert foxglove.scene_update_bytes(scene, FrameNames()) == foxglove.scene_update(scene, FrameNames()).SerializeToString()
     assert ros.marker_array_cdr(scene) == ros.to_cdr(ros.marker_array(scene))
