@@ -1,8 +1,8 @@
-"""The load targets and the settransform path, as the base commit (65407f5) calls them.
+"""The load targets and the settransform path, timed as the base commit (65407f5) and as this
+checkout write them, each in a child process (`times`), for `bench/translators.py`.
 
-Imported twice by `bench/translators.py`: in its own process (our code) and in a child process
-whose `bridge` is the base commit's, unpacked with `git archive` (the baseline, same run, same
-machine). So this module uses only what both versions have.
+The base side's `bridge` is the base commit's, unpacked with `git archive`: so what runs on that
+side (`base_calls`) uses only what both versions have.
 """
 
 from __future__ import annotations
@@ -56,28 +56,46 @@ def base_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
     }
 
 
-def base_times(links: int, repeat: int) -> dict[str, float]:
-    """Seconds per call of `base_calls` with the base commit's code, in a child process."""
+def our_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
+    """Each path of `base_calls` as this checkout writes it (the same bytes; only called here)."""
+    frames = FrameNames()
+    settransform = tv.SettransformEncoder()
+    return {
+        "settransform": lambda: settransform.encode(draw),
+        "MarkerArray": lambda: ros.marker_array_cdr(load),
+        "ign Model": lambda: ign.model_bytes(load),
+        "tree viewer setgeometry": lambda: [tv.encode(request) for request in tv.load_requests(load)],
+        "Foxglove SceneUpdate": lambda: foxglove.scene_update(load, frames).SerializeToString(),
+        "shape_msgs": lambda: ros.shapes_cdr(load),
+    }
+
+
+def times(side: str, links: int, repeat: int) -> dict[str, float]:
+    """Seconds per call of each path, "base" (the base commit's code, unpacked with `git archive`)
+    or "ours" (this checkout), each in a child process of its own so that both sides run with
+    the same modules loaded."""
     root = Path(__file__).resolve().parent.parent
     with tempfile.TemporaryDirectory() as folder:
-        archive = subprocess.run(["git", "-C", str(root), "archive", BASE_COMMIT, "bridge", "mappings", "lcmtypes"],
-                                 check=True, capture_output=True).stdout  # fmt: skip
-        subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
+        if side == "base":
+            archive = subprocess.run(["git", "-C", str(root), "archive", BASE_COMMIT, "bridge", "mappings", "lcmtypes"],
+                                     check=True, capture_output=True).stdout  # fmt: skip
+            subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
         code = (
             "import json, sys, bridge; assert bridge.__file__.startswith(sys.argv[1]), bridge.__file__\n"
-            "from load_targets import _time_base; print(json.dumps(_time_base(int(sys.argv[2]), int(sys.argv[3]))))"
+            "from load_targets import _time; print(json.dumps(_time(*sys.argv[2:])))"
         )
-        # Run in `folder`: the working directory comes first on sys.path, before the editable install.
-        environment = {**os.environ, "PYTHONPATH": f"{folder}:{Path(__file__).parent}"}
-        result = subprocess.run([sys.executable, "-c", code, folder, str(links), str(repeat)], check=True,
-                                capture_output=True, text=True, cwd=folder, env=environment)  # fmt: skip
-    times: dict[str, float] = json.loads(result.stdout)
-    return times
+        # The working directory comes first on sys.path, before the editable install.
+        where = folder if side == "base" else str(root)
+        environment = {**os.environ, "PYTHONPATH": f"{where}:{Path(__file__).parent}"}
+        result = subprocess.run([sys.executable, "-c", code, where, side, str(links), str(repeat)], check=True,
+                                capture_output=True, text=True, cwd=where, env=environment)  # fmt: skip
+    seconds: dict[str, float] = json.loads(result.stdout)
+    return seconds
 
 
-def _time_base(links: int, repeat: int) -> dict[str, float]:
-    load, draw = inputs(links)
-    calls = base_calls(load, draw)
+def _time(side: str, links: str, repeat: str) -> dict[str, float]:
+    load, draw = inputs(int(links))
+    calls = base_calls(load, draw) if side == "base" else our_calls(load, draw)
     for call in calls.values():
         call()  # warm: tables loaded, caches filled, as in a running bridge
-    return {name: best_of(call, repeat) for name, call in calls.items()}
+    return {name: best_of(call, int(repeat)) for name, call in calls.items()}

@@ -17,19 +17,16 @@ Run: .venv/bin/python bench/translators.py [--links 1000] [--budget 0.3]
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
 
-from common import Measure, best_of  # bench/ is on sys.path when run as a script
+from common import Measure  # bench/ is on sys.path when run as a script
 from draw_codec import frame, seconds_per_call
 from geometry_msgs.msg import Point, Pose, PoseArray, PoseStamped, Quaternion
-from load_targets import base_times, inputs, scene
+from load_targets import scene, times
 from rclpy.serialization import serialize_message
 
-from bridge.formats import foxglove, ign, ros
-from bridge.formats import tree_viewer as tv
+from bridge.formats import ign, ros
 from bridge.formats.drake import DrawDecoder, DrawEncoder
-from bridge.formats.ros_tf import FrameNames
-from bridge.scene import LinkPoses, Scene
+from bridge.scene import LinkPoses
 
 
 def rclpy_pose_array(poses: LinkPoses) -> bytes:
@@ -124,37 +121,17 @@ SETTRANSFORM_GOAL = 200e-6
 LOAD_GOAL = 10e-3
 
 
-def our_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
-    """Each path of `load_targets.base_calls` as this checkout writes it (the same bytes)."""
-    frames = FrameNames()
-    settransform = tv.SettransformEncoder()
-    return {
-        "settransform": lambda: settransform.encode(draw),
-        "MarkerArray": lambda: ros.marker_array_cdr(load),
-        "ign Model": lambda: ign.model_bytes(load),
-        "tree viewer setgeometry": lambda: [tv.encode(request) for request in tv.load_requests(load)],
-        "Foxglove SceneUpdate": lambda: foxglove.scene_update(load, frames).SerializeToString(),
-        "shape_msgs": lambda: ros.shapes_cdr(load),
-    }
-
-
 def measures(quick: bool = False, links: int = 1000) -> list[Measure]:
     """Draw -> settransform and every load target for `links` links: ours beside the base commit."""
     repeat, rounds = (3, 1) if quick else (5, 3)
-    load, draw = inputs(links)
-    calls = our_calls(load, draw)
-    for call in calls.values():
-        call()  # warm, as the base side is
     # Rounds alternate between the base commit's process and ours, and each side keeps its best:
     # the machine is shared, and its load changes from one second to the next.
     baseline: dict[str, float] = {}
     best: dict[str, float] = {}
     for _ in range(rounds):
-        for name, seconds in base_times(links, repeat).items():
-            baseline[name] = min(seconds, baseline.get(name, seconds))
-        for name, call in calls.items():
-            seconds = best_of(call, repeat)
-            best[name] = min(seconds, best.get(name, seconds))
+        for side, kept in (("base", baseline), ("ours", best)):
+            for name, seconds in times(side, links, repeat).items():
+                kept[name] = min(seconds, kept.get(name, seconds))
     rows = []
     for name, ours in best.items():
         is_draw = name == "settransform"
