@@ -409,7 +409,10 @@ def marker_specs(scene: Scene, options: dict[str, Any] | None = None) -> list[Ma
                     values |= _ENCODERS[rule.encoder](shape, settings)
                 scale = tuple(values.pop("scale"))
                 code = rule.type_code if rule.type_code is not None else 0
-                specs.append(MarkerSpec(name, ns, marker_id, code, pose, scale, color, **values))  # type: ignore[arg-type]
+                if values:  # an encoder's points, colours or mesh
+                    specs.append(MarkerSpec(name, ns, marker_id, code, pose, scale, color, **values))  # type: ignore[arg-type]
+                else:
+                    specs.append(MarkerSpec(name, ns, marker_id, code, pose, scale, color))  # type: ignore[arg-type]
                 marker_id += 1
     return specs
 
@@ -629,9 +632,8 @@ def _write_markers(
         specs = [_DELETE_ALL, *specs]
         frames = [frames[0] if frames else "", *frames]
         poses = np.concatenate((_IDENTITY_XYZW[None, :], poses))
-    headers: dict[str, bytes] = {}
-    namespaces: dict[str, bytes] = {}  # a link's markers share one
-    tails: dict[tuple[str, str, int, bool], bytes] = {}
+    prefixes: dict[tuple[str, str], bytes] = {}  # stamp, frame_id, ns: a link's markers share one
+    tails: dict[tuple[str, str, int], bytes] = {}
     blocks = _blocks(specs, poses)
     block_size = _POSE_TO_LIFETIME.size
     chunks = [CDR_LE, U32.pack(len(specs))]
@@ -639,27 +641,29 @@ def _write_markers(
     offsets = []
     for index, (spec, frame) in enumerate(zip(specs, frames, strict=True)):
         if size % 4:  # the previous marker ended on a bool
-            chunks.append(b"\0" * (-size % 4))
+            chunks.append(_PADDING[-size % 4])
             size += -size % 4
-        header = headers.get(frame)
-        if header is None:
-            header = headers[frame] = _STAMP.pack(0, 0) + _string_4(frame, "header.frame_id")
-        namespace = namespaces.get(spec.ns)
-        if namespace is None:
-            namespace = namespaces[spec.ns] = _string_4(spec.ns)
-        head = header + namespace + _ID_TYPE_ACTION.pack(spec.id, spec.type, spec.action)
-        padding = -(size + len(head)) % 8
-        plain = spec.points is None and spec.colors is None
-        key = (spec.mesh_resource, spec.mesh_file[0], id(spec.mesh_file[1]), plain)
-        tail = tails.get(key) if plain else None
-        if tail is None:
-            tail = tails[key] = _marker_tail(spec, frame_locked)
-        offsets.append(size + len(head) + padding)
-        block = blocks[index * block_size : (index + 1) * block_size]
-        chunks += (head, b"\0" * padding, block, tail)
-        size += len(head) + padding + block_size + len(tail)
+        prefix = prefixes.get((frame, spec.ns))
+        if prefix is None:
+            prefix = _STAMP.pack(0, 0) + _string_4(frame, "header.frame_id") + _string_4(spec.ns)
+            prefixes[(frame, spec.ns)] = prefix
+        head = prefix + _ID_TYPE_ACTION.pack(spec.id, spec.type, spec.action)
+        head_end = size + len(head)
+        padding = -head_end % 8
+        if spec.points is None and spec.colors is None:  # the tail depends on the mesh fields only
+            key = (spec.mesh_resource, spec.mesh_file[0], id(spec.mesh_file[1]))
+            tail = tails.get(key)
+            if tail is None:
+                tail = tails[key] = _marker_tail(spec, frame_locked)
+        else:
+            tail = _marker_tail(spec, frame_locked)
+        offsets.append(head_end + padding)
+        chunks += (head, _PADDING[padding], blocks[index * block_size : (index + 1) * block_size], tail)
+        size = head_end + padding + block_size + len(tail)
     return b"".join(chunks), offsets[1:] if delete_all else offsets
 
+
+_PADDING = [b"\0" * count for count in range(8)]
 
 # `_POSE_TO_LIFETIME` as a numpy record, to write every marker's block at once.
 _BLOCK = np.dtype([("pose", "<f8", 7), ("scale", "<f8", 3), ("color", "<f4", 4), ("lifetime", "<u4", 2)])
