@@ -8,6 +8,7 @@ that is the only I/O in the translators, and a missing or unreadable file is a `
 
 from __future__ import annotations
 
+import functools
 import io
 import os
 from collections.abc import Callable
@@ -73,10 +74,38 @@ def triangle_mesh_parts(shape: Shape) -> Parts:
 
 
 def triangle_mesh(shape: Shape) -> TriangleMesh:
-    """Any shape as vertices and triangles; mesh files are read with trimesh."""
+    """Any shape as vertices and triangles; mesh files are read with trimesh.
+
+    Primitives are tessellated once per set of dimensions (a load often has many equal ones):
+    the arrays of a cached mesh are read-only, so that no caller can change another's.
+    """
     match shape:
         case TriangleMesh():
             return shape
+        case Box() | Sphere() | Ellipsoid() | Cylinder() | Capsule() | HalfSpace():
+            return _primitive_mesh(shape)
+        case MeshFile(path, scale):
+            if not os.path.isfile(path):
+                raise SceneError(f"mesh file {path} does not exist")
+            return _scaled(_load(path, None, path), scale)
+        case InMemoryMesh(mesh_file, _, scale):
+            data = io.BytesIO(mesh_file.contents)
+            return _scaled(
+                _load(data, mesh_file.extension, mesh_file.filename_hint or "in-memory mesh"), scale
+            )
+    raise SceneError(f"no triangle mesh for {shape!r}")
+
+
+@functools.lru_cache(maxsize=1024)
+def _primitive_mesh(shape: Box | Sphere | Ellipsoid | Cylinder | Capsule | HalfSpace) -> TriangleMesh:
+    mesh = _tessellated(shape)
+    mesh.vertices.flags.writeable = False
+    mesh.triangles.flags.writeable = False
+    return mesh
+
+
+def _tessellated(shape: Box | Sphere | Ellipsoid | Cylinder | Capsule | HalfSpace) -> TriangleMesh:
+    match shape:
         case Box(size):
             return _from_trimesh(trimesh.creation.box(extents=size))
         case Sphere(radius):
@@ -91,16 +120,6 @@ def triangle_mesh(shape: Shape) -> TriangleMesh:
         case HalfSpace():
             box = triangle_mesh(Box(HALF_SPACE_BOX))
             return TriangleMesh(box.vertices + HALF_SPACE_OFFSET.position, box.triangles)
-        case MeshFile(path, scale):
-            if not os.path.isfile(path):
-                raise SceneError(f"mesh file {path} does not exist")
-            return _scaled(_load(path, None, path), scale)
-        case InMemoryMesh(mesh_file, _, scale):
-            data = io.BytesIO(mesh_file.contents)
-            return _scaled(
-                _load(data, mesh_file.extension, mesh_file.filename_hint or "in-memory mesh"), scale
-            )
-    raise SceneError(f"no triangle mesh for {shape!r}")
 
 
 def _load(source: Any, extension: str | None, name: str) -> TriangleMesh:

@@ -9,11 +9,15 @@ P02 = (W - 2cx)/W, P11 = 2fy/H, P12 = -(H - 2cy)/H, rows flipped on readback.
 * depth: eye-space z in metres (not ray length), drawn into a float target;
 * label: the unlit baseColorFactor, no multisampling, white where nothing is.
 
-A `Renderer` owns its GL context: use it from one thread.
+A `Renderer` owns its GL context: use it from one thread. It keeps each mesh's GPU buffers
+across requests, keyed by a hash of the bytes it would upload (`MeshCache`): Drake's client
+sends the whole scene with every image, and a static mesh then costs no upload at all.
 """
 
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
@@ -85,19 +89,83 @@ class Camera:
         return matrix
 
 
-class Renderer:
-    """Renders `GltfScene`s; one GL context, one program, buffers made per scene."""
+# Enough for a few million triangles of static scenery; llvmpipe keeps buffers in host memory.
+DEFAULT_CACHE_BYTES = 256 * 1024 * 1024
 
-    def __init__(self) -> None:
+
+@dataclass
+class _GpuMesh:
+    vertices: Any  # moderngl.Buffer
+    indices: Any  # moderngl.Buffer
+    array: Any  # moderngl.VertexArray
+    size: int  # bytes held on the GPU
+
+    def release(self) -> None:
+        self.array.release()
+        self.vertices.release()
+        self.indices.release()
+
+
+class MeshCache:
+    """GPU buffers by content: a blake2b of the vertex and index bytes -> buffers and vertex array.
+
+    Least recently used entries are released once the total exceeds `max_bytes`. Keyed by the
+    very bytes uploaded, so a hit draws exactly what an upload would have.
+    """
+
+    def __init__(self, context: Any, program: Any, max_bytes: int = DEFAULT_CACHE_BYTES) -> None:
+        self.context, self.program, self.max_bytes = context, program, max_bytes
+        self.entries: OrderedDict[bytes, _GpuMesh] = OrderedDict()
+        self.bytes = 0
+        self.hits = self.misses = 0
+
+    def vertex_array(self, vertices: bytes, indices: bytes) -> Any:
+        key = hashlib.blake2b(vertices, digest_size=16)
+        key.update(indices)  # a separate buffer: same digest as hashing their concatenation
+        digest = key.digest() + len(vertices).to_bytes(8, "little")
+        entry = self.entries.get(digest)
+        if entry is not None:
+            self.hits += 1
+            self.entries.move_to_end(digest)
+            return entry.array
+        self.misses += 1
+        entry = self._upload(vertices, indices)
+        self.entries[digest] = entry
+        self.bytes += entry.size
+        while self.bytes > self.max_bytes and len(self.entries) > 1:
+            _, evicted = self.entries.popitem(last=False)
+            self.bytes -= evicted.size
+            evicted.release()
+        return entry.array
+
+    def _upload(self, vertices: bytes, indices: bytes) -> _GpuMesh:
+        vertex_buffer = self.context.buffer(vertices)
+        index_buffer = self.context.buffer(indices)
+        array = self.context.vertex_array(
+            self.program, [(vertex_buffer, "3f", "position")], index_buffer=index_buffer
+        )
+        return _GpuMesh(vertex_buffer, index_buffer, array, len(vertices) + len(indices))
+
+
+class Renderer:
+    """Renders `GltfScene`s; one GL context, one program, mesh buffers cached by content."""
+
+    def __init__(self, cache_bytes: int = DEFAULT_CACHE_BYTES) -> None:
         self.context = moderngl.create_standalone_context(backend="egl")  # type: ignore[arg-type]
         self.program = self.context.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
         self.uniforms: dict[str, Any] = {
             name: self.program[name] for name in ("projection", "view", "mode", "base_color")
         }
+        self.meshes = MeshCache(self.context, self.program, cache_bytes)
 
     def render(self, scene: GltfScene, camera: Camera, kind: str) -> np.ndarray[Any, Any]:
         """An H x W x 4 float32 image, top row first: colour in [0, 1], depth in metres (inf: no
         hit), or label colours in [0, 1] (white: no hit)."""
+        # Made current first: the cached buffers' ids mean nothing in another renderer's context.
+        with self.context:
+            return self._render(scene, camera, kind)
+
+    def _render(self, scene: GltfScene, camera: Camera, kind: str) -> np.ndarray[Any, Any]:
         ctx = self.context
         target = ctx.texture((camera.width, camera.height), 4, dtype="f4")
         depth = ctx.depth_renderbuffer((camera.width, camera.height))
@@ -120,13 +188,10 @@ class Renderer:
                 if not len(mesh.triangles):
                     continue
                 self.uniforms["base_color"].value = tuple(float(c) for c in mesh.color)
-                vertices = ctx.buffer(mesh.vertices.astype("f4").tobytes())
-                indices = ctx.buffer(mesh.triangles.astype("u4").tobytes())
-                array = ctx.vertex_array(self.program, [(vertices, "3f", "position")], index_buffer=indices)
+                array = self.meshes.vertex_array(
+                    mesh.vertices.astype("f4").tobytes(), mesh.triangles.astype("u4").tobytes()
+                )
                 array.render(moderngl.TRIANGLES)
-                array.release()
-                vertices.release()
-                indices.release()
             pixels = np.frombuffer(framebuffer.read(components=4, dtype="f4"), dtype=np.float32)
         finally:
             framebuffer.release()

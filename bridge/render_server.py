@@ -13,12 +13,11 @@ import http.server
 import io
 import logging
 import queue
+import re
 import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Future
-from email.parser import BytesParser
-from email.policy import default
 from typing import Any
 
 import numpy as np
@@ -37,22 +36,49 @@ class BadRequest(Exception):
     """A request the server refuses with 400 and this text."""
 
 
+_BOUNDARY = re.compile(r'boundary=(?:"([^"]+)"|([^;\s]+))', re.IGNORECASE)
+_NAME = re.compile(rb'(?:^|;)\s*name="([^"]*)"', re.IGNORECASE)
+
+
 def parse_form(content_type: str, body: bytes) -> dict[str, bytes]:
-    """The fields of a multipart/form-data body, by name."""
+    """The fields of a multipart/form-data body (RFC 7578), by name.
+
+    Split on the boundary with `bytes.find`: the generic email parser reads a 3 MB scene line by
+    line and took most of a request's time. Parts without a name are skipped, as before.
+    """
     if not content_type.startswith("multipart/form-data"):
         raise BadRequest("expected a multipart/form-data POST")
-    message = BytesParser(policy=default).parsebytes(
-        b"Content-Type: " + content_type.encode() + b"\r\n\r\n" + body
-    )
-    if not message.is_multipart():
+    match = _BOUNDARY.search(content_type)
+    if match is None:
+        raise BadRequest("the form could not be parsed")
+    delimiter = b"--" + (match.group(1) or match.group(2)).encode("latin-1")
+    start = body.find(delimiter)
+    if start < 0:
         raise BadRequest("the form could not be parsed")
     fields: dict[str, bytes] = {}
-    for part in message.iter_parts():
-        name = part.get_param("name", header="content-disposition")
-        payload = part.get_payload(decode=True)
-        if isinstance(name, str):
-            fields[name] = payload if isinstance(payload, bytes) else b""
+    separator = b"\r\n" + delimiter
+    position = start + len(delimiter)
+    while not body.startswith(b"--", position):  # "--" after a delimiter closes the form
+        head_start = body.find(b"\r\n", position) + 2
+        end = body.find(separator, head_start)
+        head_end = body.find(b"\r\n\r\n", head_start - 2, end)
+        if head_start < 2 or end < 0 or head_end < 0:
+            raise BadRequest("the form could not be parsed")
+        name = _part_name(body[head_start:head_end])
+        if name is not None:
+            fields[name] = body[head_end + 4 : end]
+        position = end + len(separator)
     return fields
+
+
+def _part_name(head: bytes) -> str | None:
+    """The `name` of a part's Content-Disposition header, if it has one."""
+    for line in head.split(b"\r\n"):
+        key, _, value = line.partition(b":")
+        if key.strip().lower() == b"content-disposition":
+            match = _NAME.search(value)
+            return match.group(1).decode("utf-8", "replace") if match else None
+    return None
 
 
 def render_request(

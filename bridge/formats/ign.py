@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import base64
 import re
+import struct
 import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -26,7 +27,7 @@ from google.protobuf.message import DecodeError as ProtobufDecodeError
 from google.protobuf.message import Message
 
 from bridge.errors import DecodeError, SceneError
-from bridge.formats import protowire as pw
+from bridge.formats import protowire as wire
 from bridge.mappings import ShapeRule, Table, tables
 from bridge.scene import (
     FileContents,
@@ -280,7 +281,7 @@ def _field(message: str, name: str) -> int:
 
 _HEADER, _HEADER_STAMP = _field("Pose_V", "header"), _field("Header", "stamp")
 # The keys of Time.sec and Time.nsec, varints each left out when 0 (proto3).
-_TIME_SEC, _TIME_NSEC = (pw.key(_field("Time", name), pw.VARINT) for name in ("sec", "nsec"))
+_TIME_SEC, _TIME_NSEC = (wire.key(_field("Time", name), wire.VARINT) for name in ("sec", "nsec"))
 _DOUBLE_FIELDS = tuple(_field("Vector3d", axis) for axis in "xyz") + tuple(
     _field("Quaternion", axis) for axis in "xyzw"
 )  # the 7 doubles of a pose, in `pose_rows_xyzw` order: position x y z, orientation x y z w
@@ -319,12 +320,12 @@ class PosesEncoder:
     def _head(self, timestamp_ms: int) -> bytes:
         """The header with the stamp (and for `PosesStamped` the time field): before the poses."""
         seconds, nanoseconds = sec_nsec_from_ms(timestamp_ms)
-        time = (_TIME_SEC + pw.varint(seconds) if seconds else b"") + (
-            _TIME_NSEC + pw.varint(nanoseconds) if nanoseconds else b""
+        time = (_TIME_SEC + wire.varint(seconds) if seconds else b"") + (
+            _TIME_NSEC + wire.varint(nanoseconds) if nanoseconds else b""
         )
-        head = pw.length_delimited(_HEADER, pw.length_delimited(_HEADER_STAMP, time))
+        head = wire.length_delimited(_HEADER, wire.length_delimited(_HEADER_STAMP, time))
         if self.message == "PosesStamped":
-            head += pw.length_delimited(_field(self.message, "time"), time)
+            head += wire.length_delimited(_field(self.message, "time"), time)
         return head
 
     def _lay_out(self, names: Sequence[str], written: npt.NDArray[np.bool_]) -> list[tuple[bytes, list[int]]]:
@@ -334,15 +335,15 @@ class PosesEncoder:
         for index, (name, present) in enumerate(zip(names, written.tolist(), strict=True)):
             position, position_places = _doubles(_DOUBLE_FIELDS[:3], present[:3])
             orientation, orientation_places = _doubles(_DOUBLE_FIELDS[3:], present[3:])
-            head = pw.length_delimited(_field("Pose", "name"), name.encode()) + pw.varint_field(
+            head = wire.length_delimited(_field("Pose", "name"), name.encode()) + wire.varint_field(
                 _field("Pose", "id"), index
             )
-            position_head = pw.key(_field("Pose", "position"), pw.LENGTH_DELIMITED) + pw.varint(len(position))
-            orientation_head = pw.key(_field("Pose", "orientation"), pw.LENGTH_DELIMITED) + pw.varint(
+            position_head = wire.key(_field("Pose", "position"), wire.LENGTH_DELIMITED) + wire.varint(len(position))
+            orientation_head = wire.key(_field("Pose", "orientation"), wire.LENGTH_DELIMITED) + wire.varint(
                 len(orientation)
             )
             body = b"".join((head, position_head, position, orientation_head, orientation))
-            entry_head = pw.key(pose_field, pw.LENGTH_DELIMITED) + pw.varint(len(body))
+            entry_head = wire.key(pose_field, wire.LENGTH_DELIMITED) + wire.varint(len(body))
             at = len(entry_head) + len(head) + len(position_head)
             places = [at + place for place in position_places]
             at += len(position) + len(orientation_head)
@@ -390,7 +391,7 @@ def _doubles(fields: Sequence[int], present: Sequence[bool]) -> tuple[bytes, lis
     out, places = b"", []
     for field, written in zip(fields, present, strict=True):
         if written:
-            out += pw.key(field, pw.FIXED64)
+            out += wire.key(field, wire.FIXED64)
             places.append(len(out))
             out += bytes(8)
     return out, places
@@ -462,7 +463,7 @@ def geometry_message(shape: Shape, msgs: MessageSet = IGNITION) -> Any:
 
 
 def _fill_geometry(message: Any, shape: Shape) -> None:
-    rule = _geometry_table().rule_for(shape)
+    ((rule, _, _),) = _geometry_table().expand(shape)  # a SceneError for a shape ign cannot hold
     message.type = rule.type_code
     values = rule.values(shape)
     if rule.encoder is not None:
@@ -562,6 +563,164 @@ def model(scene: Scene, name: str = "drake", msgs: MessageSet = IGNITION) -> Any
     return message
 
 
+def model_bytes(scene: Scene, name: str = "drake", msgs: MessageSet = IGNITION) -> bytes:
+    """`model(scene, name, msgs).SerializeToString()`, written from pieces instead of objects.
+
+    A Model is its fields' encodings in field-number order, so it is written by concatenation:
+    each distinct shape's `Geometry` is serialised once by protobuf, and poses and colours are
+    packed here, leaving out zeros as proto3 does (by bit pattern: -0.0 is written). Filling a
+    `Model` object field by field was most of a load's time.
+    """
+    try:
+        return _model_payload(_ModelWriter(msgs), scene, scene.links, name, 0)
+    except OverflowError:  # a colour beyond float32: the object path writes it as protobuf does
+        return bytes(model(scene, name, msgs).SerializeToString())
+
+
+def model_v_bytes(scene: Scene, msgs: MessageSet = IGNITION) -> bytes:
+    """`model_v(scene, msgs).SerializeToString()`, written as `model_bytes` writes a Model."""
+    groups: dict[int, list[Link]] = {}
+    for link in scene.links:
+        groups.setdefault(link.robot_num, []).append(link)
+    if any(not 0 <= robot_num < 2**32 for robot_num in groups):  # no uint32 id: as the object path refuses it
+        return bytes(model_v(scene, msgs).SerializeToString())
+    try:
+        writer = _ModelWriter(msgs)
+        return b"".join(
+            wire.submessage(_MODELS, _model_payload(writer, scene, links, _model_name(links[0]), robot_num))
+            for robot_num, links in groups.items()
+        )
+    except OverflowError:
+        return bytes(model_v(scene, msgs).SerializeToString())
+
+
+def _model_payload(
+    writer: _ModelWriter, scene: Scene, links: Sequence[Link], name: str, model_id: int
+) -> bytes:
+    poses = _link_pose_values(scene, links)
+    identity = wire.submessage(_MODEL_POSE, _pose_bytes(Pose()))
+    head = (
+        wire.string_field(_MODEL_NAME, name)
+        + (_MODEL_ID + wire.varint(model_id) if model_id else b"")
+        + identity
+    )
+    return head + b"".join(
+        wire.submessage(_MODEL_LINK, writer.link(link, pose)) for link, pose in zip(links, poses, strict=True)
+    )
+
+
+# Field keys (PROTOCOLS.md section 4): Model{name=2, id=3, pose=5, link=7}; Link{header=1, name=3,
+# pose=10, visual=11}; Header{data=2}, its Map{key=1, value=2}; Visual{name=2, id=3,
+# parent_name=4, pose=9, geometry=10, material=11}; Material{diffuse=6}; Color{r..a=2..5};
+# Pose{position=4, orientation=5}; Vector3d{x..z=2..4}; Quaternion{x..w=2..5}.
+_MODEL_NAME, _MODEL_ID, _MODEL_POSE, _MODEL_LINK = (
+    wire.key(2, 2),
+    wire.key(3, 0),
+    wire.key(5, 2),
+    wire.key(7, 2),
+)
+_MODELS = wire.key(2, 2)  # Model_V{models=2}
+_LINK_HEADER, _LINK_NAME, _LINK_POSE, _LINK_VISUAL = (
+    wire.key(1, 2),
+    wire.key(3, 2),
+    wire.key(10, 2),
+    wire.key(11, 2),
+)
+_VISUAL_NAME, _VISUAL_ID, _VISUAL_PARENT = wire.key(2, 2), wire.key(3, 0), wire.key(4, 2)
+_VISUAL_POSE, _VISUAL_GEOMETRY, _VISUAL_MATERIAL = wire.key(9, 2), wire.key(10, 2), wire.key(11, 2)
+_DIFFUSE = wire.key(6, 2)
+_FLOAT_KEYS = [wire.key(number, wire.FIXED32) for number in (2, 3, 4, 5)]
+_FLOAT, _ZERO_FLOAT = struct.Struct("<f"), bytes(4)
+
+
+_POSE = wire.PoseWriter(4, 5, 2)  # Pose{position=4, orientation=5}, their components from 2
+
+
+def _link_pose_values(scene: Scene, links: Sequence[Link]) -> list[list[float]]:
+    """Each link's world pose as x, y, z, qx, qy, qz, qw (`Scene.link_pose`, for all links at once)."""
+    if scene.poses is None:
+        return [[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0]] * len(links)
+    count = len(scene.poses)
+    values = np.zeros((count + 1, 7))
+    values[count, 6] = 1.0  # the last row: identity, for links the frame lacks (e.g. world)
+    values[:count, :3] = scene.poses.positions
+    values[:count, 3:] = xyzw_from_wxyz(scene.poses.quaternions_wxyz)
+    rows = [scene.poses.row_of(link.name) for link in links]
+    chosen: list[list[float]] = values[[count if row is None else row for row in rows]].tolist()
+    return chosen
+
+
+def _pose_bytes(pose: Pose) -> bytes:
+    return _pose_values_bytes([*pose.position, *pose.quaternion_xyzw])
+
+
+def _pose_values_bytes(values: Sequence[float]) -> bytes:
+    return _POSE.pose(*values)
+
+
+def _material(color: Sequence[float]) -> bytes:
+    """Material{diffuse}: float32 on the wire (OverflowError beyond float32's range)."""
+    packed = [_FLOAT.pack(value) for value in color]
+    diffuse = b"".join(
+        key + data for key, data in zip(_FLOAT_KEYS, packed, strict=True) if data != _ZERO_FLOAT
+    )
+    return wire.submessage(_VISUAL_MATERIAL, wire.submessage(_DIFFUSE, diffuse))
+
+
+class _ModelWriter:
+    """The pieces of one Model: Geometry bytes per distinct shape, header bytes per robot_num."""
+
+    def __init__(self, msgs: MessageSet) -> None:
+        self.msgs = msgs
+        self.geometries: dict[int, tuple[Shape, bytes]] = {}  # by id: the scene's shapes, held here
+        self.headers: dict[int, bytes] = {}
+        # By `wire.exact_key`: 0.0 and -0.0 are equal floats but written differently.
+        self.poses: dict[bytes, bytes] = {}  # geometry poses repeat (the same part on many links)
+        self.colors: dict[bytes, bytes] = {}
+
+    def link(self, link: Link, pose: Sequence[float]) -> bytes:
+        header = self.headers.get(link.robot_num)
+        if header is None:
+            value = wire.submessage(wire.key(2, wire.LENGTH_DELIMITED), str(link.robot_num).encode())
+            entry = wire.string_field(wire.key(1, wire.LENGTH_DELIMITED), _ROBOT_NUM) + value
+            header = self.headers[link.robot_num] = wire.submessage(
+                _LINK_HEADER, wire.submessage(wire.key(2, 2), entry)
+            )
+        parts = [
+            header,
+            wire.string_field(_LINK_NAME, link.name),
+            wire.submessage(_LINK_POSE, _pose_values_bytes(pose)),
+        ]
+        for index, geometry in enumerate(link.geometries):
+            parts.append(wire.submessage(_LINK_VISUAL, self.visual(link.name, index, geometry)))
+        return b"".join(parts)
+
+    def visual(self, link_name: str, index: int, geometry: Geometry) -> bytes:
+        values = (*geometry.pose.position, *geometry.pose.quaternion_xyzw)
+        pose_key = wire.exact_key(values)
+        pose = self.poses.get(pose_key)
+        if pose is None:
+            pose = self.poses[pose_key] = wire.submessage(_VISUAL_POSE, _pose_values_bytes(values))
+        color_key = wire.exact_key(geometry.color)
+        material = self.colors.get(color_key)
+        if material is None:
+            material = self.colors[color_key] = _material(geometry.color)
+        return b"".join((
+            wire.string_field(_VISUAL_NAME, f"{link_name}::visual_{index}"),
+            _VISUAL_ID + wire.varint(index) if index else b"",
+            wire.string_field(_VISUAL_PARENT, link_name),
+            pose,
+            wire.submessage(_VISUAL_GEOMETRY, self.geometry(geometry.shape)),
+            material,
+        ))  # fmt: skip
+
+    def geometry(self, shape: Shape) -> bytes:
+        known = self.geometries.get(id(shape))
+        if known is None:
+            known = self.geometries[id(shape)] = (shape, bytes(geometry_message(shape, self.msgs).SerializeToString()))
+        return known[1]
+
+
 def model_v(scene: Scene, msgs: MessageSet = IGNITION) -> Any:
     """A load as `Model_V`: one `Model` per robot_num (model instance), id = robot_num."""
     message = msgs.Model_V()
@@ -621,7 +780,9 @@ __all__ = [
     "geometry_message",
     "message_set",
     "model",
+    "model_bytes",
     "model_v",
+    "model_v_bytes",
     "pose_v",
     "poses_from_pose_v",
     "poses_stamped",

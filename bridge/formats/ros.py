@@ -22,7 +22,7 @@ import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -237,6 +237,68 @@ def shapes(scene: Scene) -> list[PosedShape]:
     return result
 
 
+def shapes_cdr(scene: Scene) -> list[tuple[str, bytes]]:
+    """`shapes` straight to CDR: (type name, bytes) per message, equal to `to_cdr` of each
+    `PosedShape.shape`, written from the table's values and the mesh arrays (no message objects).
+
+    Raises `SceneError` as `shapes` does.
+    """
+    table = _tables()["shape"]
+    out = []
+    # By id, holding the shape so that its id stays its own: lowered primitives share one
+    # cached mesh, written once.
+    written: dict[int, tuple[Shape, bytes]] = {}
+    for link in scene.links:
+        for geometry in link.geometries:
+            for rule, shape, _ in table.expand(geometry.shape, geometry.pose):
+                typename = rule.message or table.target
+                if typename != MESH:
+                    data = _SHAPE_WRITERS[typename](rule, shape)
+                elif id(shape) in written:
+                    data = written[id(shape)][1]
+                else:
+                    data = _mesh_cdr(rule, shape)
+                    written[id(shape)] = (shape, data)
+                out.append((typename, data))
+    return out
+
+
+_TYPE_AND_COUNT = struct.Struct("<B3xI")
+
+
+def _solid_primitive_cdr(rule: ShapeRule, shape: Shape) -> bytes:
+    """type (uint8), dimensions (float64[<=3], 8-aligned after its count), polygon (no points)."""
+    dimensions = rule.values(shape)["dimensions"]
+    count = len(dimensions)
+    return b"".join(
+        (CDR_LE, _TYPE_AND_COUNT.pack(rule.type_code, count), struct.pack(f"<{count}d", *dimensions), U32.pack(0))
+    )
+
+
+def _plane_cdr(rule: ShapeRule, shape: Shape) -> bytes:
+    return CDR_LE + struct.pack("<4d", *rule.values(shape)["coef"])
+
+
+def _mesh_cdr(rule: ShapeRule, shape: Shape) -> bytes:
+    """triangles (uint32 count, 3 uint32 each), vertices (uint32 count, 8-aligned, 3 float64 each)."""
+    assert isinstance(shape, TriangleMesh)
+    writer = CdrWriter()
+    writer.pack(U32, len(shape.triangles))
+    writer.add(np.ascontiguousarray(shape.triangles, dtype="<u4").tobytes())
+    writer.pack(U32, len(shape.vertices))
+    if len(shape.vertices):
+        writer.align(8)
+        writer.add(np.ascontiguousarray(shape.vertices, dtype="<f8").tobytes())
+    return writer.getvalue()
+
+
+_SHAPE_WRITERS: dict[str, Callable[[ShapeRule, Shape], bytes]] = {
+    SOLID_PRIMITIVE: _solid_primitive_cdr,
+    PLANE: _plane_cdr,
+    MESH: _mesh_cdr,
+}
+
+
 def _shape_message(rule: ShapeRule, shape: Shape, target: str) -> Any:
     values = rule.values(shape)
     if rule.encoder is not None:
@@ -282,9 +344,11 @@ def _decoded(decode: Callable[[], Shape], typename: str) -> Shape:
 # --- markers -------------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
-class MarkerSpec:
+class MarkerSpec(NamedTuple):
     """One marker of a load, before it is a message: what both the object and CDR paths write.
+
+    A named tuple: a load makes one per marker, and a frozen dataclass took as long to build
+    as the rest of the load's markers together.
 
     `pose` is in the frame of link `link_name`; the marker's pose is that link's world pose
     times `pose`. `points` (K x 3) is for TRIANGLE_LIST; `mesh_file` = (filename, bytes) for an
@@ -322,23 +386,28 @@ def marker_specs(scene: Scene, options: dict[str, Any] | None = None) -> list[Ma
     table = _tables()["marker"]
     settings = _marker_settings(options)
     specs = []
+    colors: dict[bytes, tuple[float, ...]] = {}  # a load has few distinct colours
     for link in scene.links:
+        name, ns = link.name, link.frame
         marker_id = 0
         for geometry in link.geometries:
-            # ColorRGBA is float32 on the wire: round here so objects equal their CDR.
-            r, g, b, a = _FLOAT32X4.unpack(_FLOAT32X4.pack(*geometry.color))
+            # ColorRGBA is float32 on the wire: round here so objects equal their CDR. Cached by
+            # the float32 bits, which tell -0.0 from 0.0 (equal floats, written differently).
+            packed = _FLOAT32X4.pack(*geometry.color)
+            color = colors.get(packed)
+            if color is None:
+                color = colors[packed] = _FLOAT32X4.unpack(packed)
             for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
                 values = rule.values(shape)
                 if rule.encoder is not None:
                     values |= _ENCODERS[rule.encoder](shape, settings)
-                x, y, z = values.pop("scale")
+                scale = tuple(values.pop("scale"))
                 # An encoder may choose another type for some shapes (a line with a head: ARROW).
                 code = values.pop("type", rule.type_code if rule.type_code is not None else 0)
-                specs.append(
-                    MarkerSpec(
-                        link.name, link.frame, marker_id, code, pose, (x, y, z), (r, g, b, a), **values
-                    )
-                )
+                if values:  # an encoder's points, colours or mesh
+                    specs.append(MarkerSpec(name, ns, marker_id, code, pose, scale, color, **values))  # type: ignore[arg-type]
+                else:
+                    specs.append(MarkerSpec(name, ns, marker_id, code, pose, scale, color))  # type: ignore[arg-type]
                 marker_id += 1
     return specs
 
@@ -554,30 +623,53 @@ def _write_markers(
         specs = [_DELETE_ALL, *specs]
         frames = [frames[0] if frames else "", *frames]
         poses = np.concatenate((_IDENTITY_XYZW[None, :], poses))
-    headers: dict[str, bytes] = {}
-    tails: dict[tuple[str, str, int, bool], bytes] = {}
+    prefixes: dict[tuple[str, str], bytes] = {}  # stamp, frame_id, ns: a link's markers share one
+    tails: dict[tuple[str, str, int], bytes] = {}
+    blocks = _blocks(specs, poses)
+    block_size = _POSE_TO_LIFETIME.size
     chunks = [CDR_LE, U32.pack(len(specs))]
     size = 4  # payload bytes so far
     offsets = []
-    for spec, pose, frame in zip(specs, poses.tolist(), frames, strict=True):
+    for index, (spec, frame) in enumerate(zip(specs, frames, strict=True)):
         if size % 4:  # the previous marker ended on a bool
-            chunks.append(b"\0" * (-size % 4))
+            chunks.append(_PADDING[-size % 4])
             size += -size % 4
-        header = headers.get(frame)
-        if header is None:
-            header = headers[frame] = _STAMP.pack(0, 0) + _string_4(frame, "header.frame_id")
-        head = header + _string_4(spec.ns) + _ID_TYPE_ACTION.pack(spec.id, spec.type, spec.action)
-        padding = -(size + len(head)) % 8
-        plain = spec.points is None and spec.colors is None
-        key = (spec.mesh_resource, spec.mesh_file[0], id(spec.mesh_file[1]), plain)
-        tail = tails.get(key) if plain else None
-        if tail is None:
-            tail = tails[key] = _marker_tail(spec, frame_locked)
-        offsets.append(size + len(head) + padding)
-        block = _POSE_TO_LIFETIME.pack(*pose, *spec.scale, *spec.color, 0, 0)
-        chunks += (head, b"\0" * padding, block, tail)
-        size += len(head) + padding + len(block) + len(tail)
+        prefix = prefixes.get((frame, spec.ns))
+        if prefix is None:
+            prefix = _STAMP.pack(0, 0) + _string_4(frame, "header.frame_id") + _string_4(spec.ns)
+            prefixes[(frame, spec.ns)] = prefix
+        head = prefix + _ID_TYPE_ACTION.pack(spec.id, spec.type, spec.action)
+        head_end = size + len(head)
+        padding = -head_end % 8
+        if spec.points is None and spec.colors is None:  # the tail depends on the mesh fields only
+            key = (spec.mesh_resource, spec.mesh_file[0], id(spec.mesh_file[1]))
+            tail = tails.get(key)
+            if tail is None:
+                tail = tails[key] = _marker_tail(spec, frame_locked)
+        else:
+            tail = _marker_tail(spec, frame_locked)
+        offsets.append(head_end + padding)
+        chunks += (head, _PADDING[padding], blocks[index * block_size : (index + 1) * block_size], tail)
+        size = head_end + padding + block_size + len(tail)
     return b"".join(chunks), offsets[1:] if delete_all else offsets
+
+
+_PADDING = [b"\0" * count for count in range(8)]
+
+# `_POSE_TO_LIFETIME` as a numpy record, to write every marker's block at once.
+_BLOCK = np.dtype([("pose", "<f8", 7), ("scale", "<f8", 3), ("color", "<f4", 4), ("lifetime", "<u4", 2)])
+assert _BLOCK.itemsize == _POSE_TO_LIFETIME.size
+
+
+def _blocks(specs: Sequence[MarkerSpec], poses: FloatArray) -> bytes:
+    """Every marker's pose, scale, colour and lifetime (zero), packed as `_POSE_TO_LIFETIME`."""
+    blocks = np.zeros(len(specs), dtype=_BLOCK)
+    if not specs:
+        return b""
+    blocks["pose"] = poses
+    blocks["scale"] = [spec.scale for spec in specs]
+    blocks["color"] = [spec.color for spec in specs]  # float32 values already (see marker_specs)
+    return blocks.tobytes()
 
 
 def marker_array_cdr(scene: Scene, options: dict[str, Any] | None = None, delete_all: bool = True) -> bytes:
@@ -676,6 +768,7 @@ __all__ = [
     "poses_from_pose_array_cdr",
     "shape_from_message",
     "shapes",
+    "shapes_cdr",
     "to_cdr",
     "to_rclpy",
     "world_poses",

@@ -153,6 +153,54 @@ def draw_request(poses: LinkPoses, prefix: Sequence[str] = DEFAULT_PREFIX, utime
     return _request(utime or poses.timestamp_ms * 1000, settransform=commands)
 
 
+class SettransformEncoder:
+    """A draw -> the envelope of its settransform request, equal to `encode(draw_request(...))`.
+
+    The JSON around the numbers depends only on the links (names, robot_nums) and the prefix,
+    so it is kept as a template per set of links. A draw writes its positions and quaternions
+    with one orjson call each (numpy in: the same shortest float text as for Python floats) and
+    splits them into rows (a number never holds `],[`), which fill the template's gaps. No dict
+    per link, which is what `draw_request` spends its time on.
+    """
+
+    _MIDDLE = b'],"quaternion":['
+
+    def __init__(self, prefix: Sequence[str] = DEFAULT_PREFIX) -> None:
+        self.prefix = tuple(prefix)
+        self._links: tuple[tuple[str, ...], bytes] | None = None
+        self._parts: list[bytes] = []
+
+    def encode(self, poses: LinkPoses, utime: int = 0) -> bytes:
+        utime = int(utime or poses.timestamp_ms * 1000)
+        self._layout(poses)
+        start = b'{"timestamp":%d,"setgeometry":[],"settransform":[' % utime
+        if not len(poses):
+            return _envelope(start + b'],"delete":[]}', utime)
+        parts = self._parts
+        parts[1::4] = _json_rows(poses.positions)
+        parts[3::4] = _json_rows(poses.quaternions_wxyz)
+        return _envelope(b"".join((start, *parts, b']}}],"delete":[]}')), utime)
+
+    def _layout(self, poses: LinkPoses) -> None:
+        robot_nums = poses.robot_nums.tobytes()
+        if self._links is not None and self._links[1] == robot_nums and self._links[0] == poses.names:
+            return
+        heads = []
+        for index, (name, robot_num) in enumerate(zip(poses.names, poses.robot_nums.tolist(), strict=True)):
+            path = orjson.dumps([*self.prefix, str(int(robot_num)), name])
+            heads.append((b"]}}," if index else b"") + b'{"path":' + path + b',"transform":{"translation":[')
+        self._parts = [b""] * (4 * len(heads))
+        self._parts[0::4] = heads
+        self._parts[2::4] = [self._MIDDLE] * len(heads)
+        self._links = (poses.names, robot_nums)
+
+
+def _json_rows(values: FloatArray) -> list[bytes]:
+    """Each row of an N x K float array (N > 0) as JSON numbers joined by commas, no brackets."""
+    text = orjson.dumps(np.ascontiguousarray(values, dtype=np.float64), option=orjson.OPT_SERIALIZE_NUMPY)
+    return text[2:-2].split(b"],[")
+
+
 def _request(utime: int, **commands: list[dict[str, Any]]) -> Request:
     return {
         "timestamp": int(utime),
@@ -165,10 +213,14 @@ def _request(utime: int, **commands: list[dict[str, Any]]) -> Request:
 def encode(payload: Request, utime: int = 0) -> bytes:
     """A request or response in its `viewer2_comms_t` envelope."""
     data = orjson.dumps(payload)  # compact; several times faster than json for float-heavy loads
+    return _envelope(data, int(utime or _echo_time(payload)))
+
+
+def _envelope(data: bytes, utime: int) -> bytes:
     major, minor = VERSION
     return VIEWER2_COMMS.encode(
         VIEWER2_COMMS.message_class(
-            utime=int(utime or _echo_time(payload)),
+            utime=utime,
             format=FORMAT,
             format_version_major=major,
             format_version_minor=minor,
@@ -579,6 +631,7 @@ __all__ = [
     "MISSING_PATHS",
     "OK",
     "RequestRejected",
+    "SettransformEncoder",
     "TreeState",
     "decode",
     "draw_request",

@@ -68,7 +68,7 @@ class DrakeToIgnModel(_DrakeToIgn):
         self._published_at = float("-inf")
 
     def build(self, scene: Scene) -> bytes:
-        return bytes(ign.model(scene, msgs=self.msgs).SerializeToString())
+        return ign.model_bytes(scene, msgs=self.msgs)
 
     def observe(self, message: Received) -> None:
         self.drake.observe(message)
@@ -91,7 +91,7 @@ class DrakeToIgnModelV(DrakeToIgnModel):
     message_name = "Model_V"
 
     def build(self, scene: Scene) -> bytes:
-        return bytes(ign.model_v(scene, msgs=self.msgs).SerializeToString())
+        return ign.model_v_bytes(scene, msgs=self.msgs)
 
 
 class DrakeToIgnPoseV(_DrakeToIgn):

@@ -107,7 +107,7 @@ class DrakeToShapes(PerLoadTranslator):
     _INDEX = {ros.SOLID_PRIMITIVE: 0, ros.MESH: 1, ros.PLANE: 2}
 
     def on_scene(self, scene: Scene, channel: str) -> Outputs:
-        return [(self._INDEX[posed.typename], ros.to_cdr(posed.shape)) for posed in ros.shapes(scene)]
+        return [(self._INDEX[typename], data) for typename, data in ros.shapes_cdr(scene)]
 
 
 class DrakeLinkToMarkerArray(Translator):

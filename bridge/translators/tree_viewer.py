@@ -102,6 +102,7 @@ class DrakeToTreeViewer(Translator):
         self.prefix = tuple(self.options.prefix)
         self.refused: str | None = None
         self.poses: LinkPoses | None = None
+        self.settransform = tree_viewer.SettransformEncoder(self.prefix)
 
     def observe(self, message: Received) -> None:
         self.drake.observe(message)
@@ -119,7 +120,7 @@ class DrakeToTreeViewer(Translator):
             ]
         if poses is not None:
             self.poses = poses
-            out.append((0, tree_viewer.encode(tree_viewer.draw_request(poses, self.prefix))))
+            out.append((0, self.settransform.encode(poses)))
         return out
 
     def _on_response(self, response: dict[str, Any]) -> Outputs:

@@ -1,0 +1,101 @@
+"""The load targets and the settransform path, timed as the base commit (65407f5) and as this
+checkout write them, each in a child process (`times`), for `bench/translators.py`.
+
+The base side's `bridge` is the base commit's, unpacked with `git archive`: so what runs on that
+side (`base_calls`) uses only what both versions have.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+from common import best_of
+from draw_codec import frame
+
+from bridge.formats import foxglove, ign, ros
+from bridge.formats import tree_viewer as tv
+from bridge.formats.drake import DrawDecoder, DrawEncoder
+from bridge.formats.ros_tf import FrameNames
+from bridge.scene import Box, Capsule, Cylinder, Ellipsoid, Geometry, Link, LinkPoses, Scene, Sphere
+from bridge.scene import Pose as ScenePose
+
+BASE_COMMIT = "65407f5"
+
+
+def scene(links: int) -> Scene:
+    """One primitive per link, cycling through the shapes (a 1000-link load has 1000 geometries)."""
+    shapes = [Box((0.1, 0.2, 0.3)), Sphere(0.05), Cylinder(0.04, 0.3), Capsule(0.03, 0.2), Ellipsoid((0.1, 0.2, 0.3))]
+    names = frame(links).names
+    geometry = [Geometry(shape, ScenePose((0.1, 0.0, 0.0)), (0.5, 0.5, 0.5, 1.0)) for shape in shapes]
+    return Scene(tuple(Link(name, index % 7, (geometry[index % 5],)) for index, name in enumerate(names)))
+
+
+def inputs(links: int) -> tuple[Scene, LinkPoses]:
+    """The load (with a frame's poses) and a draw as the decoder hands it over (float32 views)."""
+    load = scene(links).with_poses(frame(links))
+    draw = DrawDecoder().decode(DrawEncoder().encode(frame(links, seed=1)))
+    return load, draw
+
+
+def base_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
+    """Each measured path as the base commit writes it."""
+    frames = FrameNames()
+    return {
+        "settransform": lambda: tv.encode(tv.draw_request(draw)),
+        "MarkerArray": lambda: ros.marker_array_cdr(load),
+        "ign Model": lambda: ign.model(load).SerializeToString(),
+        "tree viewer setgeometry": lambda: [tv.encode(request) for request in tv.load_requests(load)],
+        "Foxglove SceneUpdate": lambda: foxglove.scene_update(load, frames).SerializeToString(),
+        "shape_msgs": lambda: [ros.to_cdr(posed.shape) for posed in ros.shapes(load)],
+    }
+
+
+def our_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
+    """Each path of `base_calls` as this checkout writes it (the same bytes; only called here)."""
+    frames = FrameNames()
+    settransform = tv.SettransformEncoder()
+    return {
+        "settransform": lambda: settransform.encode(draw),
+        "MarkerArray": lambda: ros.marker_array_cdr(load),
+        "ign Model": lambda: ign.model_bytes(load),
+        "tree viewer setgeometry": lambda: [tv.encode(request) for request in tv.load_requests(load)],
+        "Foxglove SceneUpdate": lambda: foxglove.scene_update(load, frames).SerializeToString(),
+        "shape_msgs": lambda: ros.shapes_cdr(load),
+    }
+
+
+def times(side: str, links: int, repeat: int) -> dict[str, float]:
+    """Seconds per call of each path, "base" (the base commit's code, unpacked with `git archive`)
+    or "ours" (this checkout), each in a child process of its own so that both sides run with
+    the same modules loaded."""
+    root = Path(__file__).resolve().parent.parent
+    with tempfile.TemporaryDirectory() as folder:
+        if side == "base":
+            archive = subprocess.run(["git", "-C", str(root), "archive", BASE_COMMIT, "bridge", "mappings", "lcmtypes"],
+                                     check=True, capture_output=True).stdout  # fmt: skip
+            subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
+        code = (
+            "import json, sys, bridge; assert bridge.__file__.startswith(sys.argv[1]), bridge.__file__\n"
+            "from load_targets import _time; print(json.dumps(_time(*sys.argv[2:])))"
+        )
+        # The working directory comes first on sys.path, before the editable install.
+        where = folder if side == "base" else str(root)
+        environment = {**os.environ, "PYTHONPATH": f"{where}:{Path(__file__).parent}"}
+        result = subprocess.run([sys.executable, "-c", code, where, side, str(links), str(repeat)], check=True,
+                                capture_output=True, text=True, cwd=where, env=environment)  # fmt: skip
+    seconds: dict[str, float] = json.loads(result.stdout)
+    return seconds
+
+
+def _time(side: str, links: str, repeat: str) -> dict[str, float]:
+    load, draw = inputs(int(links))
+    calls = base_calls(load, draw) if side == "base" else our_calls(load, draw)
+    for call in calls.values():
+        call()  # warm: tables loaded, caches filled, as in a running bridge
+    return {name: best_of(call, int(repeat)) for name, call in calls.items()}
