@@ -37,9 +37,15 @@ class YamlDocument:
     @classmethod
     def read(cls, path: Path | str) -> YamlDocument:
         try:
-            text = Path(path).read_text(encoding="utf-8")
+            data = Path(path).read_bytes()
         except OSError as error:
             raise ConfigError(str(path), None, "", f"cannot read: {error.strerror}") from None
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError as error:  # found by bench/fuzz.py
+            line = data.count(b"\n", 0, error.start) + 1
+            reason = f"not UTF-8 text: byte {error.start} is {data[error.start]:#04x}"
+            raise ConfigError(str(path), line, "", reason) from None
         return cls(str(path), text)
 
     def _index(self, node: yaml.Node, key_path: KeyPath) -> None:

@@ -38,6 +38,17 @@ from bridge.demo import TETRAHEDRON_OBJ
 
 
 def main(url: str, folder: Path, seconds: float | None = None) -> None:
+    lcm = DrakeLcm(url)
+    simulator = build_simulator(lcm, folder)
+    if seconds is None:
+        simulator.AdvanceTo(0.1)  # free fall: poses change from frame to frame
+    else:
+        simulator.set_target_realtime_rate(1.0)
+        simulator.AdvanceTo(seconds)
+
+
+def build_simulator(lcm: DrakeLcm, folder: Path) -> Simulator:
+    """The scene with every shape, its DrakeVisualizers (both roles) publishing on `lcm`."""
     obj = folder / "tetrahedron.obj"
     obj.write_text(TETRAHEDRON_OBJ)
     builder = DiagramBuilder()
@@ -66,16 +77,10 @@ def main(url: str, folder: Path, seconds: float | None = None) -> None:
         plant.world_body(), ground, HalfSpace(), "ground", CoulombFriction(0.9, 0.5)
     )
     plant.Finalize()
-    lcm = DrakeLcm(url)
     for role in (Role.kIllustration, Role.kProximity):
         params = DrakeVisualizerParams(role=role, use_role_channel_suffix=True)
         DrakeVisualizer.AddToBuilder(builder, scene_graph, lcm, params)
-    simulator = Simulator(builder.Build())
-    if seconds is None:
-        simulator.AdvanceTo(0.1)  # free fall: poses change from frame to frame
-    else:
-        simulator.set_target_realtime_rate(1.0)
-        simulator.AdvanceTo(seconds)
+    return Simulator(builder.Build())
 
 
 if __name__ == "__main__":

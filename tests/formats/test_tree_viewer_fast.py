@@ -28,8 +28,8 @@ def test_settransform_bytes_equal_the_reference(frames: list[LinkPoses], prefix:
 
 def test_settransform_of_real_drake_draws_through_the_decoder(drake_capture: dict[str, Capture]) -> None:
     for capture in drake_capture.values():
-        poses = DrawDecoder().decode(DrawEncoder().encode(capture.poses))  # big-endian float32 views
-        assert poses.positions.dtype == np.dtype(">f4")
+        poses = DrawDecoder().decode(DrawEncoder().encode(capture.poses))  # the decoder's float32 arrays
+        assert poses.positions.dtype == np.dtype(np.float32)
         encoder = tv.SettransformEncoder()
         assert encoder.encode(poses) == reference(poses, tv.DEFAULT_PREFIX)
         moved = LinkPoses(poses.timestamp_ms + 1, poses.names, poses.robot_nums, poses.positions * 2, poses.quaternions_wxyz)

@@ -1,0 +1,168 @@
+"""Coverage-guided fuzzing with atheris (libFuzzer) of every decoder and parser the bridge exposes.
+
+Run: .venv/bin/python bench/fuzz.py [--runs 1000000] [--only TARGET ...] [--list]
+
+Each target (tests/fuzz/targets.py: the LCM codecs of every schema, Drake's load and draw
+decoders, the tree viewer's request path, the ign protobuf paths, the glTF reader, the render
+server's form parser, contact results and point clouds both ways, the config loader) runs in a
+process of its own under libFuzzer, with the bridge's modules instrumented for coverage, for
+`--runs` executions. Its corpus is kept in `.fuzz-corpus/<target>/` across runs and seeded
+from a real Drake capture (tests/fuzz/seeds.py). A finding is an exception outside the target's
+documented error types, a crash, an input slower than `--timeout` seconds (a hang) or the
+process passing `--rss-mb` (memory growth); its input is saved as `.fuzz-corpus/<target>-crash-*`.
+The report: per target, executions, executions per second, coverage (libFuzzer's `cov`
+edges and `ft` features) at the end, new coverage in the last 10% of the run, peak RSS, findings.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+TOP = Path(__file__).resolve().parent.parent
+CORPUS = TOP / ".fuzz-corpus"
+# "#123456	NEW    cov: 1200 ft: 3400 corp: 80/2Kb lim: 4 exec/s: 20000 rss: 150Mb"
+_PROGRESS = re.compile(r"^#(\d+)\s+(\w+)\s+cov: (\d+) ft: (\d+).*?rss: (\d+)Mb")
+_STAT = re.compile(r"^stat::(\w+):\s+(\d+)")
+
+
+@dataclass
+class Report:
+    target: str
+    executions: int = 0
+    exec_per_s: float = 0.0
+    cov: int = 0
+    ft: int = 0
+    cov_last_10: int = 0  # edges first covered in the last 10% of the executions
+    ft_last_10: int = 0
+    peak_rss_mb: int = 0
+    finding: str = ""
+    seconds: float = 0.0
+
+
+def child(target_name: str, runs: int, timeout: int, rss_mb: int, corpus: Path, seeds: Path) -> None:
+    """In the fuzzing process: instrument the bridge, then hand the target to libFuzzer."""
+    import atheris
+
+    with atheris.instrument_imports(include=["bridge"]):
+        from tests.fuzz.targets import TARGETS
+    target = TARGETS[target_name]
+
+    def one_input(data: bytes) -> None:
+        with contextlib.suppress(target.documented):  # a documented refusal: what the target promises
+            target.run(data)
+
+    crash_prefix = f"{CORPUS}/{target_name}-"
+    atheris.Setup([sys.argv[0], f"-runs={runs}", f"-timeout={timeout}", f"-rss_limit_mb={rss_mb}",
+                   "-print_final_stats=1", f"-artifact_prefix={crash_prefix}", str(corpus), str(seeds)],
+                  one_input)  # fmt: skip
+    atheris.Fuzz()
+
+
+def run_target(name: str, runs: int, timeout: int, rss_mb: int, seeds: Path) -> Report:
+    corpus = CORPUS / name
+    corpus.mkdir(parents=True, exist_ok=True)
+    kinds = _seed_kinds(name)
+    with tempfile.TemporaryDirectory() as seed_dir:
+        for kind in kinds:  # the target's seed kinds, flattened into one directory
+            for path in (seeds / kind).glob("*") if (seeds / kind).is_dir() else ():
+                (Path(seed_dir) / path.name).write_bytes(path.read_bytes())
+        started = time.monotonic()
+        process = subprocess.run(
+            [sys.executable, __file__, "--child", name, "--runs", str(runs), "--timeout", str(timeout),
+             "--rss-mb", str(rss_mb), "--seeds", seed_dir],
+            capture_output=True, text=True, cwd=TOP, env=dict(os.environ, PYTHONPATH=str(TOP)),
+        )  # fmt: skip
+    report = parse(name, process.stderr, runs)
+    report.seconds = time.monotonic() - started
+    if not report.exec_per_s:  # libFuzzer's average is 0 for a run under a second
+        report.exec_per_s = report.executions / report.seconds
+    if process.returncode != 0 and not report.finding:
+        report.finding = f"exit status {process.returncode}: " + _last_lines(process.stderr)
+    return report
+
+
+def _seed_kinds(name: str) -> tuple[str, ...]:
+    from tests.fuzz.targets import TARGETS
+
+    return TARGETS[name].seed_kinds
+
+
+def parse(name: str, output: str, runs: int) -> Report:
+    """libFuzzer's progress lines and final stats -> a report."""
+    report = Report(name)
+    progress: list[tuple[int, int, int, int]] = []  # executions, cov, ft, rss
+    for line in output.splitlines():
+        if match := _PROGRESS.match(line):
+            executions, _, cov, ft, rss = match.groups()
+            progress.append((int(executions), int(cov), int(ft), int(rss)))
+        elif match := _STAT.match(line):
+            key, value = match.groups()
+            if key == "number_of_executed_units":
+                report.executions = int(value)
+            elif key == "average_exec_per_sec":
+                report.exec_per_s = float(value)
+            elif key == "peak_rss_mb":
+                report.peak_rss_mb = int(value)
+        elif "==ERROR" in line or "Uncaught Python exception" in line or "ERROR: libFuzzer" in line:
+            report.finding = report.finding or line.strip()
+    if progress:
+        report.cov, report.ft = progress[-1][1], progress[-1][2]
+        mark = 0.9 * max(report.executions, runs if not report.finding else progress[-1][0])
+        before = [entry for entry in progress if entry[0] <= mark] or progress[:1]
+        report.cov_last_10 = report.cov - before[-1][1]
+        report.ft_last_10 = report.ft - before[-1][2]
+    if report.finding:
+        report.finding += " | " + _last_lines(output, 6)
+    return report
+
+
+def _last_lines(text: str, count: int = 3) -> str:
+    return " / ".join(line.strip() for line in text.strip().splitlines()[-count:])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--runs", type=int, default=1_000_000, help="executions per target")
+    parser.add_argument("--only", nargs="*", help="these targets only")
+    parser.add_argument("--timeout", type=int, default=10, help="seconds one input may take (a hang)")
+    parser.add_argument("--rss-mb", type=int, default=2048, help="memory limit of a fuzzing process")
+    parser.add_argument("--list", action="store_true", help="list the targets")
+    parser.add_argument("--child", help=argparse.SUPPRESS)
+    parser.add_argument("--seeds", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        return child(args.child, args.runs, args.timeout, args.rss_mb, CORPUS / args.child, Path(args.seeds))
+    from tests.fuzz.seeds import write_seeds
+    from tests.fuzz.targets import TARGETS
+
+    if args.list:
+        print("\n".join(TARGETS))
+        return None
+    names = [name for name in TARGETS if not args.only or name in args.only]
+    print(f"{'target':<52} {'executions':>10} {'exec/s':>7} {'cov':>6} {'ft':>6} {'new cov/ft, last 10%':>20} "
+          f"{'peak RSS':>8}  findings")  # fmt: skip
+    findings = 0
+    with tempfile.TemporaryDirectory() as seeds:
+        write_seeds(Path(seeds))
+        for name in names:
+            r = run_target(name, args.runs, args.timeout, args.rss_mb, Path(seeds))
+            findings += bool(r.finding)
+            print(f"{name:<52} {r.executions:>10} {r.exec_per_s:>7.0f} {r.cov:>6} {r.ft:>6} "
+                  f"{f'{r.cov_last_10} / {r.ft_last_10}':>20} {r.peak_rss_mb:>6}MB  {r.finding or 'none'}",
+                  flush=True)  # fmt: skip
+    if findings:
+        raise SystemExit(f"{findings} target(s) with findings; inputs in {CORPUS}")
+    return None
+
+
+if __name__ == "__main__":
+    main()

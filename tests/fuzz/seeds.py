@@ -1,0 +1,138 @@
+"""Seed inputs for the fuzz targets, from a real Drake run: `write_seeds(folder)` -> folder/<kind>/<hash>.
+
+pydrake's DrakeVisualizer publishes the scene of tests/drake_scene.py (every shape, both roles)
+on an in-process LCM; every message it sends is a seed for its type's codec (found by
+fingerprint), and each nested struct one for its own type. The other formats' seeds are the
+bridge's own encodings of that captured scene: tree viewer envelopes, ign Pose_V and Model, glTF
+and a render form with RenderEngineGltfClient's fields; contact results and point clouds (LCM
+and PointCloud2) are the bridge's own encodings of small examples. The config seeds are the
+built-in configs.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import tempfile
+from collections import defaultdict
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from bridge.config import BUILTIN_CONFIGS
+from bridge.formats import ign, tree_viewer
+from bridge.formats.drake import decode_load, poses_from_draw
+from bridge.formats.gltf import write_gltf
+from bridge.lcmcodec import DRAW, LOAD_ROBOT, VIEWER2_COMMS, LcmMessage, codec_for
+from bridge.scene import Scene
+from tests.drake_scene import build_simulator
+
+Seeds = dict[str, list[bytes]]
+
+
+def write_seeds(folder: Path) -> dict[str, int]:
+    """Every seed kind's inputs as files under `folder/<kind>/`; returns the count per kind."""
+    with tempfile.TemporaryDirectory() as mesh_dir:  # the scene's mesh files, read by the encoders
+        seeds = drake_lcm_seeds(Path(mesh_dir))
+        for kind, inputs in bridge_encoded_seeds(seeds).items():
+            seeds[kind] += inputs
+        seeds["render_form"] = [render_form(decode_load(seeds[LOAD_ROBOT.type_name][0]))]
+    for kind, inputs in meldis_seeds().items():
+        seeds[kind] += inputs
+        for data in inputs:
+            codec = codec_for(data)
+            for nested in _nested_structs(codec.decode(data)) if codec is not None else ():
+                seeds[nested._type_name].append(nested.encode())
+    seeds["config"] = [text.encode() for text in BUILTIN_CONFIGS.values()]
+    for kind, inputs in seeds.items():
+        (folder / kind).mkdir(parents=True, exist_ok=True)
+        for data in inputs:
+            (folder / kind / hashlib.sha1(data).hexdigest()).write_bytes(data)
+    return {kind: len(inputs) for kind, inputs in seeds.items()}
+
+
+def drake_lcm_seeds(mesh_dir: Path, draws_per_channel: int = 3) -> Seeds:
+    """What DrakeVisualizer published, by LCM type, and the structs nested in it by theirs."""
+    from pydrake.lcm import DrakeLcm
+
+    lcm = DrakeLcm("memq://")
+    captured: list[bytes] = []
+    lcm.SubscribeAllChannels(lambda channel, data: captured.append(bytes(data)))
+    build_simulator(lcm, mesh_dir).AdvanceTo(0.01)
+    while lcm.HandleSubscriptions(0):
+        pass
+    seeds: Seeds = defaultdict(list)
+    for data in captured:
+        codec = codec_for(data)
+        if codec is None:
+            continue
+        if len(seeds[codec.type_name]) < draws_per_channel * 4:  # the draws repeat; a few suffice
+            seeds[codec.type_name].append(data)
+        for nested in _nested_structs(codec.decode(data)):
+            kind = seeds[nested._type_name]
+            encoded = nested.encode()
+            if encoded not in kind and len(kind) < 40:
+                kind.append(encoded)
+    return seeds
+
+
+def _nested_structs(message: LcmMessage) -> Iterator[LcmMessage]:
+    for name in message.field_names():
+        values = getattr(message, name)
+        for value in values if isinstance(values, list) else [values]:
+            if isinstance(value, LcmMessage):
+                yield value
+                yield from _nested_structs(value)
+
+
+def bridge_encoded_seeds(lcm_seeds: Seeds) -> Seeds:
+    """The captured scene as the bridge writes it for the other formats the fuzz targets read."""
+    load = next(data for data in lcm_seeds[LOAD_ROBOT.type_name])
+    scene = decode_load(load)
+    poses = poses_from_draw(DRAW.decode(lcm_seeds[DRAW.type_name][-1]))
+    envelopes = [tree_viewer.encode(request) for request in tree_viewer.load_requests(scene)]
+    envelopes.append(tree_viewer.encode(tree_viewer.draw_request(poses)))
+    return {
+        VIEWER2_COMMS.type_name: envelopes,
+        "ign.Pose_V": [ign.pose_v(poses).SerializeToString()],
+        "ign.Model": [ign.model(scene.with_poses(poses)).SerializeToString()],
+        "gltf": [write_gltf(scene.with_poses(poses))],
+    }
+
+
+def render_form(scene: Scene) -> bytes:
+    """A colour render request as RenderEngineGltfClient posts it (its form's fields), with the
+    captured scene as its glTF and a camera: the Content-Type line, then the body."""
+    document = json.loads(write_gltf(scene))
+    document["cameras"] = [{"type": "perspective", "perspective": {"yfov": 1.0, "znear": 0.01, "zfar": 10}}]
+    document["nodes"].append({"camera": 0, "matrix": [1.0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 3, 1]})
+    document["scenes"][0]["nodes"].append(len(document["nodes"]) - 1)
+    gltf = json.dumps(document).encode()
+    fields = {"scene": gltf, "scene_sha256": hashlib.sha256(gltf).hexdigest().encode(), "image_type": b"color",
+              "width": b"16", "height": b"12", "near": b"0.01", "far": b"10", "focal_x": b"14", "focal_y": b"14",
+              "center_x": b"7.5", "center_y": b"5.5"}  # fmt: skip
+    boundary = "fuzzboundary"
+    body = b"".join(
+        f'--{boundary}\r\nContent-Disposition: form-data; name="{name}"\r\n\r\n'.encode() + value + b"\r\n"
+        for name, value in fields.items()
+    )
+    return f"multipart/form-data; boundary={boundary}\n".encode() + body + f"--{boundary}--\r\n".encode()
+
+
+def meldis_seeds() -> Seeds:
+    """Contact results and point clouds (what meldis shows), as the bridge writes them."""
+    from bridge.contact import demo_contact_results
+    from bridge.formats.drake_contact import contact_results_to_lcm
+    from bridge.formats.drake_point_cloud import cloud_to_lcm
+    from bridge.formats.ros_point_cloud import cloud_to_cdr
+    from bridge.scene import PointCloud, StampedPointCloud
+
+    points = np.arange(30, dtype=np.float64).reshape(10, 3) / 10
+    clouds = [StampedPointCloud(PointCloud(points), "world", 1000),
+              StampedPointCloud(PointCloud(points, np.linspace(0, 1, 30).reshape(10, 3)), "camera", 2000)]  # fmt: skip
+    return {
+        "drake.lcmt_contact_results_for_viz": [contact_results_to_lcm(demo_contact_results()).encode()],
+        "drake.lcmt_point_cloud": [cloud_to_lcm(cloud) for cloud in clouds],
+        "sensor_msgs/PointCloud2": [cloud_to_cdr(cloud) for cloud in clouds],
+    }

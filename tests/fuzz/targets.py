@@ -1,0 +1,166 @@
+"""The fuzz targets: bytes into one real entry point each, and the errors it documents for bad input.
+
+A target runs one input through the same call the bridge makes on bytes from outside (a
+transport's payload, an uploaded form, a config file) and may raise only its documented error
+types; anything else, a hang or unbounded memory is a finding (see bench/fuzz.py).
+
+Adding a target is one line: `register(Target("name", function, (DocumentedError,), ("seed kind",)))`.
+Seed kinds are what tests/fuzz/seeds.py writes: every LCM type by its full name (from a real Drake
+capture, so a new schema Drake publishes gets seeds and a target with no code here), plus
+"ign.Pose_V", "ign.Model", "gltf", "render_form", "sensor_msgs/PointCloud2" and "config".
+
+This module imports `bridge` at its top on purpose: the fuzz runner imports it inside
+`atheris.instrument_imports()`, so that every bridge module is instrumented for coverage.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from bridge.config import load_config
+from bridge.errors import ConfigError, DecodeError, EncodeError, SceneError
+from bridge.formats import ign
+from bridge.formats.drake import DrawDecoder, decode_load
+from bridge.formats.drake_contact import decode_contact_results
+from bridge.formats.drake_point_cloud import cloud_from_lcm, cloud_to_lcm
+from bridge.formats.gltf import GltfError, read_gltf
+from bridge.formats.ros_point_cloud import cloud_from_cdr
+from bridge.formats.tree_viewer import RequestRejected
+from bridge.lcmcodec import CODECS, LOAD_ROBOT, VIEWER2_COMMS, StructCodec
+from bridge.render import Camera
+from bridge.render_server import BadRequest, parse_form, render_request
+from bridge.translators.drake_ign import IgnPoseVToDrakeDraw
+from bridge.translators.tree_viewer import TreeViewerServer
+from bridge.transports.base import Received
+
+
+@dataclass(frozen=True)
+class Target:
+    name: str
+    run: Callable[[bytes], object]
+    documented: tuple[type[Exception], ...]  # what bad input may raise; anything else is a finding
+    seed_kinds: tuple[str, ...]
+
+
+TARGETS: dict[str, Target] = {}
+
+
+def register(target: Target) -> None:
+    if target.name in TARGETS:
+        raise ValueError(f"fuzz target {target.name!r} is registered twice")
+    TARGETS[target.name] = target
+
+
+# --- LCM: every schema's generated codec, and the Drake decoders on top ---------------------------------
+
+
+def lcm_target_name(codec: StructCodec) -> str:
+    return "lcm_" + codec.type_name.rsplit(".", 1)[-1]
+
+
+for _codec in CODECS.values():
+    register(Target(lcm_target_name(_codec), _codec.decode, (DecodeError,), (_codec.type_name,)))
+
+register(Target("drake_load_scene", decode_load, (DecodeError,), (LOAD_ROBOT.type_name,)))
+register(Target("drake_draw_fast", DrawDecoder().decode, (DecodeError,), ("drake.lcmt_viewer_draw",)))
+
+
+# --- Director's tree viewer: the server's whole request path --------------------------------------------
+
+_MESH_ROOT = tempfile.mkdtemp(prefix="fuzz-meshes-")
+
+
+def tree_viewer_request(data: bytes) -> object:
+    """One envelope from a new client: decode, apply to its tree, reply, and the MarkerArray."""
+    server = TreeViewerServer({"mesh_roots": [_MESH_ROOT]})
+    replies: list[bytes] = []
+    server.reply = lambda channel, payload: replies.append(payload)
+    try:
+        return server.translate(Received("DIRECTOR_TREE_VIEWER_REQUEST_<fuzz>", data, 0))
+    finally:
+        if len(replies) != 1:  # the protocol's promise: every request gets exactly one reply
+            raise AssertionError(f"{len(replies)} replies to one request")
+
+
+register(
+    Target("tree_viewer_request", tree_viewer_request, (RequestRejected, SceneError), (VIEWER2_COMMS.type_name,))
+)
+
+
+# --- ign / gz protobuf ----------------------------------------------------------------------------------
+
+_POSE_V_TO_DRAW = IgnPoseVToDrakeDraw()
+
+
+def ign_pose_v(data: bytes) -> object:
+    """What the `from_ign` route does with a Pose_V: parse, poses, lcmt_viewer_draw bytes."""
+    return _POSE_V_TO_DRAW.translate(Received("/drake_in/pose_v", data, 0))
+
+
+def ign_model(data: bytes) -> object:
+    return ign.scene_from_model(ign.IGNITION.parse("Model", data))
+
+
+register(Target("ign_pose_v", ign_pose_v, (DecodeError, SceneError, EncodeError), ("ign.Pose_V",)))
+register(Target("ign_model", ign_model, (DecodeError, SceneError), ("ign.Model",)))
+
+
+# --- glTF and the render server's form ------------------------------------------------------------------
+
+
+def gltf(data: bytes) -> object:
+    return read_gltf(data).to_scene()
+
+
+def _blank_render(scene: object, camera: Camera, kind: str) -> np.ndarray:
+    """Stands in for the GL thread, so the form path runs before and after it without a GPU.
+
+    One pixel, whatever the camera says: a form may ask for 8192 x 8192 (the documented limit),
+    and a gigabyte image per input would measure the stub, not the parser.
+    """
+    return np.zeros((1, 1, 4), np.float32)
+
+
+def render_form(data: bytes) -> object:
+    """An upload as the server reads it: the Content-Type header line, then the body."""
+    content_type, _, body = data.partition(b"\n")
+    fields = parse_form(content_type.decode("latin-1"), body)  # http.server's header decoding
+    return render_request(fields, _blank_render)
+
+
+register(Target("gltf", gltf, (GltfError,), ("gltf",)))
+register(Target("render_form", render_form, (BadRequest,), ("render_form",)))
+
+
+# --- what meldis shows: contact results and point clouds, both ways ----------------------------------
+
+
+def ros_point_cloud(data: bytes) -> object:
+    """What the `point_cloud_from_ros` route does with a PointCloud2: read it, write lcmt_point_cloud."""
+    return cloud_to_lcm(cloud_from_cdr(data))
+
+
+register(Target("drake_contact_results", decode_contact_results, (DecodeError,), ("drake.lcmt_contact_results_for_viz",)))
+register(Target("drake_point_cloud", cloud_from_lcm, (DecodeError,), ("drake.lcmt_point_cloud",)))
+register(Target("ros_point_cloud2", ros_point_cloud, (DecodeError,), ("sensor_msgs/PointCloud2",)))
+
+
+# --- the config loader ----------------------------------------------------------------------------------
+
+_CONFIG_FILE = Path(tempfile.mkdtemp(prefix="fuzz-config-")) / "config.yaml"
+
+
+def config(data: bytes) -> object:
+    """A config file as `viewer-bridge --config FILE` reads it."""
+    _CONFIG_FILE.write_bytes(data)
+    return load_config(_CONFIG_FILE)
+
+
+register(Target("config", config, (ConfigError,), ("config",)))
+
+__all__ = ["TARGETS", "Target", "register"]

@@ -1,0 +1,38 @@
+"""A short run of bench/fuzz.py: every target under atheris for a few thousand executions, no findings.
+
+The long run (a million executions a target) is `.venv/bin/python bench/fuzz.py`.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+from bridge.config import load_config
+from bridge.errors import ConfigError
+from tests.fuzz.targets import TARGETS
+
+BENCH = Path(__file__).resolve().parents[2] / "bench" / "fuzz.py"
+
+
+def test_every_target_runs_under_atheris_without_findings() -> None:
+    result = subprocess.run([sys.executable, str(BENCH), "--runs", "2000"], capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout + result.stderr
+    rows = {line.split()[0]: line for line in result.stdout.splitlines()[1:] if line.strip()}
+    assert set(rows) == set(TARGETS)
+    for row in rows.values():
+        executions = int(row.split()[1])
+        assert executions >= 2000 and row.endswith("none"), row
+
+
+def test_a_config_that_is_not_utf8_is_a_config_error_naming_its_line(tmp_path: Path) -> None:
+    """The fuzzer's first finding: a UnicodeDecodeError escaped the config loader."""
+    path = tmp_path / "bridge.yaml"
+    path.write_bytes(b"# fine\n# not \xff\xff text\nroutes: []\n")
+    try:
+        load_config(path)
+    except ConfigError as error:
+        assert str(error).startswith(f"{path}:2:") and "not UTF-8 text: byte 13 is 0xff" in str(error)
+    else:
+        raise AssertionError("no ConfigError")
