@@ -18,7 +18,8 @@ from typing import Any
 
 import drake as drake_lcmtypes
 import numpy as np
-from draw_codec import seconds_per_call  # bench/ is on sys.path when run as a script
+from common import Measure  # bench/ is on sys.path when run as a script
+from draw_codec import seconds_per_call
 from geometry_msgs.msg import Point
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import ColorRGBA
@@ -94,6 +95,16 @@ def _same(ours: bytes, theirs: bytes) -> None:
         assert np.allclose(
             [(c.r, c.g, c.b) for c in x.colors], [(c.r, c.g, c.b) for c in y.colors], atol=1e-6
         )
+
+
+def measures(quick: bool = False) -> list[Measure]:
+    """Issue 13: 1000 point contacts and a 10,000-triangle surface -> MarkerArray CDR."""
+    data = contact_results_to_lcm(demo_contact_results(1000, (100, 50), 1_000_000)).encode()
+    budget = 0.2 if quick else 0.5
+    ours = seconds_per_call(lambda: contact_marker_array_cdr(decode_contact_results(data)), budget)
+    baseline = seconds_per_call(lambda: rclpy_markers(data), budget)
+    return [Measure("contact results (1000 points, 10,000-triangle surface) -> MarkerArray CDR",
+                    ours * 1e3, baseline * 1e3, "ms", "faster than rclpy objects", ours < baseline)]  # fmt: skip
 
 
 def main() -> None:

@@ -22,7 +22,8 @@ from typing import Any
 
 import drake as drake_lcmtypes
 import numpy as np
-from draw_codec import seconds_per_call  # bench/ is on sys.path when run as a script
+from common import Measure  # bench/ is on sys.path when run as a script
+from draw_codec import seconds_per_call
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import PointCloud2, PointField
 
@@ -110,6 +111,30 @@ def report(title: str, ours: Any, baseline: Any, budget: float) -> None:
     print(f"  viewer-bridge (numpy)                 {fast * 1e3:10.2f} ms")
     print(f"  baseline (point by point, rclpy)      {slow * 1e3:10.2f} ms")
     print(f"  ratio                                 {slow / fast:10.0f}x")
+
+
+def measures(quick: bool = False) -> list[Measure]:
+    """Issue 13: a 100,000-point coloured cloud -> PointCloud2 CDR, and both routes' bytes."""
+    budget = 0.2 if quick else 0.5
+    stamped = cloud(100_000)
+    assert stamped.cloud.colors is not None
+    rgb = np.rint(stamped.cloud.colors * 255).astype(int)
+    rows = [(*xyz, *color) for xyz, color in zip(stamped.cloud.points.tolist(), rgb.tolist(), strict=True)]
+    lcm = cloud_to_lcm(stamped)
+    cdr = cloud_to_cdr(stamped)
+    cases = [
+        ("100,000-point rgb cloud -> PointCloud2 CDR", lambda: cloud_to_cdr(stamped),
+         lambda: rclpy_cloud(rows, "camera", (1, 250_000_000))),
+        ("lcmt_point_cloud -> PointCloud2 CDR (100,000 points)", lambda: cloud_to_cdr(cloud_from_lcm(lcm)),
+         lambda: drake_to_ros_baseline(lcm)),
+        ("PointCloud2 CDR -> lcmt_point_cloud (100,000 points)", lambda: cloud_to_lcm(cloud_from_cdr(cdr)),
+         lambda: ros_to_drake_baseline(cdr)),
+    ]  # fmt: skip
+    rows_out = []
+    for name, ours, baseline in cases:
+        fast, slow = seconds_per_call(ours, budget), seconds_per_call(baseline, budget)
+        rows_out.append(Measure(name, fast * 1e3, slow * 1e3, "ms", "faster than rclpy objects", fast < slow))
+    return rows_out
 
 
 def main() -> None:
