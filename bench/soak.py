@@ -534,7 +534,7 @@ def _verdict(met: bool) -> str:
 
 
 def _ms(seconds: float | None) -> str:
-    return "never" if seconds is None else f"{seconds * 1e3:.0f} ms"
+    return "never" if seconds is None else f"{seconds * 1e3:.1f} ms"
 
 
 def main() -> None:
