@@ -34,6 +34,9 @@ PCL_RGB_LITTLE: RgbOrder = (2, 1, 0)  # PCL packs 0x00RRGGBB in a word: b, g, r,
 PCL_RGB_BIG: RgbOrder = (1, 2, 3)
 
 
+_MAX_POINT_STEP = 2**31 - 1  # numpy's largest record (a C int)
+
+
 @dataclass(frozen=True, slots=True)
 class PointField:
     name: str
@@ -71,6 +74,8 @@ class _Reader:
         for name in ("width", "height", "point_step", "row_step"):
             if getattr(layout, name) < 0:
                 raise self.fail(name, 0, f"{getattr(layout, name)} is negative")
+        if layout.point_step > _MAX_POINT_STEP:  # found by bench/fuzz.py: numpy's limit for a record
+            raise self.fail("point_step", 0, f"{layout.point_step} is more than {_MAX_POINT_STEP} bytes a point")
         count = layout.width * layout.height
         if count and layout.point_step == 0:
             raise self.fail("point_step", 0, "0 for a cloud with points")

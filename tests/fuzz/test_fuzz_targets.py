@@ -36,3 +36,22 @@ def test_a_config_that_is_not_utf8_is_a_config_error_naming_its_line(tmp_path: P
         assert str(error).startswith(f"{path}:2:") and "not UTF-8 text: byte 13 is 0xff" in str(error)
     else:
         raise AssertionError("no ConfigError")
+
+
+def test_a_point_cloud2_with_a_huge_point_step_is_a_decode_error() -> None:
+    """bench/fuzz.py's second finding (ros_point_cloud2, after 719,850 runs): an empty cloud whose
+    point_step is past numpy's record limit raised ValueError ('integer won't fit into a C int')."""
+    import base64
+
+    import pytest
+
+    from bridge.errors import DecodeError
+
+    data = base64.b64decode(
+        "AAEAAAAAAABAQg8ABgAAAHdvcmxkAAAAAQAAAAAAAAADAAAAAgAAAHgAAAAAAOkABwAAAAEAAAACAAAAeQAAAAQQAAAHAAAA"
+        "AQAAAAIAAAB6AAAACAAAAAcAAAABAAAAAAAAAAwAAKkAAAAAAAAAAAAAAAAADAAAAHgAAAB4AAAA9v///83MzD3NzEw+mpmZ"
+        "Ps3MzD4AAAA/mpkZPzMzMz/NzEw/ZmZmPwAAgD/NzIw/mpmZP2Zmpj8zM7M/AADAP83MzD8z8z8AAABAZmYGQM3MDEAzMxNA"
+        "mpkZQAAAIEBmZiZAzcwsQDMzM0CamTlAAQ=="
+    )
+    with pytest.raises(DecodeError, match="point_step"):
+        TARGETS["ros_point_cloud2"].run(data)
