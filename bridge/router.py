@@ -15,11 +15,11 @@ registries: no transport or format is named here.
 Threads: each transport delivers on a thread of its own. A route that is idle translates the
 message right there, on the transport's thread (`InlineBudget`: no wake-up of another thread,
 no GIL hand-off), as long as that thread is not too busy; otherwise the message goes to the
-route's worker thread, which translates and publishes. Between the two sits a `Mailbox`, bounded: with the `latest` policy
-it keeps the newest message per channel (a slow consumer gets the newest draw, never a
-backlog; a draw never displaces a load, which is on another channel), with `all` a FIFO of
-`qos.depth` that drops its oldest. Every drop, error and crash is counted per route and kind;
-a translator that raises skips that message only.
+route's worker thread, which translates and publishes. Between the two sits a `Mailbox`,
+bounded: with the `latest` policy it keeps the newest message per channel (a slow consumer
+gets the newest draw, never a backlog; a draw never displaces a load, which is on another
+channel), with `all` a FIFO of `qos.depth` that drops its oldest. Every drop, error and crash
+is counted per route and kind; a translator that raises skips that message only.
 
 A route has one translator per stream (a "lane"): per set of groups its source regex captures,
 so the illustration and proximity streams a route matches never share a translator's state,
