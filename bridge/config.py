@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import re
 import string
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
@@ -212,6 +213,13 @@ class _Checker:
 
 class _Template(string.Formatter):
     """`{1}`, `{1:lower}`, `{1:path}` over a regex match's groups (a missing group is empty)."""
+
+    def get_field(self, field_name: str, args: Sequence[Any], kwargs: Mapping[str, Any]) -> Any:
+        # Only group numbers: `{1.path}` or `{1[a]}` would reach into the group's str (found by
+        # bench/fuzz.py as an AttributeError escaping the config check).
+        if not field_name.isdigit():
+            raise ValueError(f"{{{field_name}}} is not a group number")
+        return super().get_field(field_name, args, kwargs)
 
     def format_field(self, value: Any, format_spec: str) -> str:
         text = "" if value is None else str(value)

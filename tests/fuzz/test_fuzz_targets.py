@@ -55,3 +55,17 @@ def test_a_point_cloud2_with_a_huge_point_step_is_a_decode_error() -> None:
     )
     with pytest.raises(DecodeError, match="point_step"):
         TARGETS["ros_point_cloud2"].run(data)
+
+
+def test_a_destination_reaching_into_a_group_is_a_config_error(tmp_path: Path) -> None:
+    """bench/fuzz.py's third finding: `{1.path}` (a dot for a colon) raised AttributeError."""
+    import pytest
+
+    path = tmp_path / "bridge.yaml"
+    for template in ("/drake{1.path}/model_v", "/drake{1[a]}/x", "/drake{1[0]}/x"):
+        path.write_text(
+            "routes:\n  - name: r\n    source: {transport: lcm, name: 'DRAKE_VIEWER_DRAW(_PROXIMITY)?'}\n"
+            f"    translator: drake_to_pose_array\n    destination: {{transport: ros, name: '{template}'}}\n"
+        )
+        with pytest.raises(ConfigError, match="is not a group number"):
+            load_config(path)
