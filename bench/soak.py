@@ -362,8 +362,16 @@ def fault_subscriber_restart(folder: Path) -> float | None:
 def fault_ign_peer_restart(folder: Path) -> float | None:
     """Debian's ign-transport CLI echoing Pose_V, killed and started again."""
     environment = dict(os.environ, IGN_PARTITION=f"soak{os.getpid()}", IGN_IP="127.0.0.1")
-    os.environ.update(IGN_PARTITION=environment["IGN_PARTITION"], IGN_IP="127.0.0.1")
-    bridge = Bridge(folder, "builtin:ign")
+    saved = {name: os.environ.get(name) for name in ("IGN_PARTITION", "IGN_IP")}
+    os.environ.update(IGN_PARTITION=environment["IGN_PARTITION"], IGN_IP="127.0.0.1")  # the bridge's too
+    try:
+        bridge = Bridge(folder, "builtin:ign")
+    finally:  # this process's own environment as it was
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
     publisher = Publisher(200.0)
 
     def echo() -> tuple[subprocess.Popen[bytes], float]:
@@ -422,15 +430,24 @@ def fault_director_viewer_restart(folder: Path) -> float | None:
     publisher = Publisher(100.0)
     wait_until(lambda: any(status == tv.OK for _, status in responses))
     viewer.kill()
+    killed_at = time.monotonic()
     viewer = Bridge(folder, str(folder / "viewer.yaml"))  # its tree is empty: the peer's return
-    back = viewer.up_at
+
+    def since_the_kill() -> list[tuple[float, int]]:
+        return [(at, status) for at, status in responses if at >= killed_at]
 
     def complete_again() -> bool:
-        after = [status for at, status in responses if at >= back]
+        after = [status for _, status in since_the_kill()]
         return tv.MISSING_PATHS in after and after[-1] == tv.OK
 
-    waited = wait_until(complete_again)
-    recovery = None if waited is None else time.monotonic() - back
+    recovery = None
+    if wait_until(complete_again) is not None:
+        after = since_the_kill()
+        # Back when it said so, or answered first (its first answers may come before its log line).
+        back = min(viewer.up_at, after[0][0])
+        missing = next(index for index, (_, status) in enumerate(after) if status == tv.MISSING_PATHS)
+        recovered = next(at for at, status in after[missing:] if status == tv.OK)
+        recovery = max(0.0, recovered - back)
     publisher.kill()
     viewer.stop()
     client.stop()
