@@ -109,7 +109,16 @@ _WXYZ_FROM_XYZW = np.array([3, 0, 1, 2])
 
 def xyzw_from_wxyz(quaternions: npt.ArrayLike) -> FloatArray:
     """N x 4 quaternions from Drake's w, x, y, z order to ROS/gz's x, y, z, w."""
-    return np.asarray(quaternions, dtype=np.float64)[..., _XYZW_FROM_WXYZ]
+    wxyz = np.asarray(quaternions)
+    xyzw = np.empty(wxyz.shape, dtype=np.float64)
+    _write_xyzw(xyzw, wxyz)
+    return xyzw
+
+
+def _write_xyzw(out: FloatArray, wxyz: npt.NDArray[Any]) -> None:
+    # Two slice copies: a fancy index would build a temporary and cost several times more.
+    out[..., :3] = wxyz[..., 1:]
+    out[..., 3] = wxyz[..., 0]
 
 
 def wxyz_from_xyzw(quaternions: npt.ArrayLike) -> FloatArray:
@@ -124,7 +133,7 @@ def pose_rows_xyzw(positions: npt.ArrayLike, quaternions_wxyz: npt.ArrayLike) ->
     """
     rows = np.empty((len(np.asarray(positions)), 7), dtype="<f8")
     rows[:, :3] = positions
-    rows[:, 3:] = np.asarray(quaternions_wxyz)[..., _XYZW_FROM_WXYZ]
+    _write_xyzw(rows[:, 3:], np.asarray(quaternions_wxyz))
     return rows
 
 

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from bridge.formats.ros_messages import U32, CdrWriter, make
-from bridge.scene import LinkPoses, frame_name, xyzw_from_wxyz
+from bridge.scene import LinkPoses, frame_name, pose_rows_xyzw
 
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 WORLD = "world"  # Drake's name for the world link, and ROS's usual fixed frame
@@ -46,53 +46,56 @@ class TransformsEncoder:
         self.frames = frames
         self._names: tuple[str, ...] | None = None
         self._template = b""
-        self._stamp_words = np.zeros(0, dtype=np.int64)
-        self._slots = np.zeros((0, 7), dtype=np.int64)
+        self._stamp_at = np.zeros(0, dtype=np.intp)
+        self._transform_at = np.zeros(0, dtype=np.intp)
 
     def encode(self, poses: LinkPoses, stamp: tuple[int, int]) -> bytes:
         if poses.names is not self._names and poses.names != self._names:  # one tuple while they repeat
             self._layout(poses.names)
         buffer = bytearray(self._template)
-        # The payload starts after the 4-byte encapsulation; stamps are 4-aligned in it and
-        # nanoseconds (< 1e9) fit an int32 word as they are.
-        words = np.frombuffer(buffer, dtype="<i4", offset=4)
-        words[self._stamp_words] = stamp[0]
-        words[self._stamp_words + 1] = stamp[1]
-        doubles = np.frombuffer(buffer, dtype="<f8", offset=4, count=(len(buffer) - 4) // 8)
-        doubles[self._slots] = _transform_rows(poses)
+        # Each stamp (8 bytes, 4-aligned in the payload) and each transform (56 bytes, 8-aligned)
+        # is one item of a window over the payload that starts an item every 4 or 8 bytes: one
+        # scatter of N items each, where a scatter of the 7N doubles costs several times more.
+        _window(buffer, _STAMP_ITEM, 4)[self._stamp_at] = np.frombuffer(_STAMP.pack(*stamp), _STAMP_ITEM)
+        _window(buffer, _TRANSFORM_ITEM, 8)[self._transform_at] = (
+            pose_rows_xyzw(poses.positions, poses.quaternions_wxyz).view(_TRANSFORM_ITEM).reshape(-1)
+        )
         return bytes(buffer)
 
     def _layout(self, names: tuple[str, ...]) -> None:
         writer = CdrWriter()
         writer.pack(U32, len(names))
         parent = self.frames.world_frame
-        stamp_words, slots = [], []
+        stamp_at, transform_at = [], []
         for name in names:
             writer.align(4)
-            stamp_words.append(writer.size // 4)
+            stamp_at.append(writer.size // 4)
             writer.pack(_STAMP, 0, 0)
             writer.string(parent, "header.frame_id")
             writer.string(self.frames(name), "child_frame_id")
             writer.align(8)
-            slots.append(writer.size // 8)
+            transform_at.append(writer.size // 8)
             writer.add(_TRANSFORM.pack(*([0.0] * 7)))
         self._template = writer.getvalue()
-        self._stamp_words = np.asarray(stamp_words, dtype=np.int64)
-        self._slots = np.asarray(slots, dtype=np.int64)[:, None] + np.arange(7)
+        self._stamp_at = np.asarray(stamp_at, dtype=np.intp)
+        self._transform_at = np.asarray(transform_at, dtype=np.intp)
         self._names = names
 
 
-def _transform_rows(poses: LinkPoses) -> np.ndarray[Any, Any]:
-    """N x 7: translation x y z, rotation x y z w (TF's order; the draw has w first)."""
-    rows = np.empty((len(poses), 7), dtype="<f8")
-    rows[:, :3] = poses.positions
-    rows[:, 3:] = xyzw_from_wxyz(poses.quaternions_wxyz)
-    return rows
+_STAMP_ITEM = np.dtype((np.void, _STAMP.size))
+_TRANSFORM_ITEM = np.dtype((np.void, _TRANSFORM.size))
+
+
+def _window(message: bytearray, item: np.dtype[Any], step: int) -> np.ndarray[Any, Any]:
+    """Items of `item`'s size starting every `step` bytes of the payload (after the 4-byte
+    encapsulation, where CDR's alignment counts from), overlapping when the item is longer."""
+    count = max(0, (len(message) - 4 - item.itemsize) // step + 1)
+    return np.ndarray((count,), dtype=item, buffer=message, offset=4, strides=(step,))
 
 
 def transforms_message(poses: LinkPoses, stamp: tuple[int, int], frames: FrameNames) -> Any:
     """The same `TFMessage` as rosbags objects, built one transform at a time (the slow reference)."""
-    rows = _transform_rows(poses).tolist()
+    rows = pose_rows_xyzw(poses.positions, poses.quaternions_wxyz).tolist()
     transforms: Sequence[Any] = [
         make(
             "geometry_msgs/msg/TransformStamped",
