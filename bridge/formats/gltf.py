@@ -16,6 +16,8 @@ from __future__ import annotations
 import base64
 import json
 import struct
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -135,12 +137,51 @@ def _buffer(item: Any, index: int) -> bytes:
     if not header.endswith(";base64"):
         raise GltfError(f"buffers[{index}]: the data: URI is not base64")
     try:
-        data = base64.b64decode(payload, validate=True)
+        data = _RECENT_PAYLOADS.decode(payload)
     except ValueError as error:
         raise GltfError(f"buffers[{index}]: not base64 ({error})") from None
     if len(data) < int(item.get("byteLength", 0) or 0):
         raise GltfError(f"buffers[{index}]: {len(data)} bytes, fewer than its byteLength")
     return data
+
+
+class _RecentPayloads:
+    """Decoded base64 payloads by their text: the most recent, up to `max_bytes` of text and data.
+
+    A render client sends every mesh again with each request (Drake's RenderEngineGltfClient
+    posts the whole scene per image), and decoding megabytes of base64 was half the time of
+    reading such a document. Small payloads are decoded each time: they cost less than a lookup.
+    """
+
+    SMALLEST = 64 * 1024  # characters
+
+    def __init__(self, max_bytes: int) -> None:
+        self.max_bytes = max_bytes
+        self._entries: OrderedDict[str, bytes] = OrderedDict()
+        self._size = 0
+        self._lock = threading.Lock()  # the render server reads documents on several threads
+
+    def decode(self, payload: str) -> bytes:
+        """`base64.b64decode(payload, validate=True)`, from the cache when the text was seen."""
+        if len(payload) < self.SMALLEST:
+            return base64.b64decode(payload, validate=True)
+        with self._lock:
+            data = self._entries.get(payload)
+            if data is not None:
+                self._entries.move_to_end(payload)
+                return data
+        data = base64.b64decode(payload, validate=True)
+        with self._lock:
+            if payload not in self._entries:
+                self._entries[payload] = data
+                self._size += len(payload) + len(data)
+            while self._size > self.max_bytes and self._entries:
+                text, evicted = self._entries.popitem(last=False)
+                self._size -= len(text) + len(evicted)
+        return data
+
+
+_RECENT_PAYLOADS = _RecentPayloads(max_bytes=256 * 1024 * 1024)
 
 
 class _Accessors:

@@ -11,7 +11,7 @@ import pytest
 
 from bridge.formats.gltf import GltfError, read_gltf, write_gltf
 from bridge.lowering import triangle_mesh
-from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere
+from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere, TriangleMesh
 
 
 def scene() -> Scene:
@@ -84,3 +84,34 @@ def test_malformed_documents_raise_gltf_errors(change: object, reason: str) -> N
     change(document)  # type: ignore[operator]
     with pytest.raises(GltfError, match=reason):
         read_gltf(json.dumps(document).encode())
+
+
+def test_large_payloads_are_decoded_once_and_the_cache_stays_bounded() -> None:
+    from bridge.formats.gltf import _RecentPayloads
+
+    cache = _RecentPayloads(max_bytes=1_000_000)
+    blobs = [bytes([index]) * 300_000 for index in range(4)]
+    texts = [base64.b64encode(blob).decode() for blob in blobs]
+    first = cache.decode(texts[0])
+    assert first == blobs[0]
+    assert cache.decode(texts[0]) is first  # the same text: the decoded bytes of the first time
+    for text, blob in zip(texts, blobs, strict=True):
+        assert cache.decode(text) == blob
+    assert cache._size <= cache.max_bytes  # 700 kB of text and data each: only the newest is kept
+    assert list(cache._entries) == [texts[-1]]
+    small = base64.b64encode(b"tiny").decode()
+    assert cache.decode(small) == b"tiny" and small not in cache._entries
+    with pytest.raises(ValueError):
+        cache.decode("!" * 100_000)  # not base64: refused as before, and nothing kept
+    assert "!" * 100_000 not in cache._entries
+
+
+def test_a_large_buffer_read_twice_gives_the_same_meshes() -> None:
+    rng = np.random.default_rng(3)
+    mesh = TriangleMesh(rng.uniform(-1, 1, (20_000, 3)), rng.integers(0, 20_000, (20_000, 3)))
+    document = write_gltf(Scene((Link("big", 0, (Geometry(mesh, Pose((1.0, 2.0, 3.0)), (0.1, 0.2, 0.3, 1.0)),)),)))
+    assert len(document) > 2 * 64 * 1024  # the payload is cached
+    first, second = read_gltf(document), read_gltf(document)
+    np.testing.assert_allclose(first.meshes[0].vertices, mesh.vertices + (1.0, 2.0, 3.0), atol=1e-6)
+    np.testing.assert_array_equal(second.meshes[0].vertices, first.meshes[0].vertices)
+    np.testing.assert_array_equal(second.meshes[0].triangles, mesh.triangles)
