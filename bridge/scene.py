@@ -132,9 +132,14 @@ def pose_rows_xyzw(positions: npt.ArrayLike, quaternions_wxyz: npt.ArrayLike) ->
     Little-endian float64, as both CDR (little-endian) and protobuf write doubles.
     """
     rows = np.empty((len(np.asarray(positions)), 7), dtype="<f8")
+    write_pose_rows_xyzw(rows, positions, quaternions_wxyz)
+    return rows
+
+
+def write_pose_rows_xyzw(rows: FloatArray, positions: npt.ArrayLike, quaternions_wxyz: npt.ArrayLike) -> None:
+    """`pose_rows_xyzw` into an N x 7 array the caller keeps (an encoder's buffer: no allocation)."""
     rows[:, :3] = positions
     _write_xyzw(rows[:, 3:], np.asarray(quaternions_wxyz))
-    return rows
 
 
 # How far from 1 a quaternion's length may be before it is refused rather than normalised.

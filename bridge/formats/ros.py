@@ -57,6 +57,7 @@ from bridge.scene import (
     link_poses_from_xyzw,
     pose_from_xyzw,
     pose_rows_xyzw,
+    write_pose_rows_xyzw,
     wxyz_from_xyzw,
 )
 from bridge.sim_time import ms_from_sec_nsec
@@ -132,17 +133,28 @@ class PoseArrayEncoder:
     Layout (payload offsets after the 4-byte encapsulation header): stamp (int32 sec, uint32
     nanosec), frame_id string, pad to 4, uint32 count, pad to 8, then per pose 7 float64
     (position x y z, orientation x y z w). The bytes up to the count depend only on the frame id.
+    The message is kept in one buffer per pose count: a draw writes its stamp and rows there and
+    returns a copy. One encoder serves one thread at a time (a route's translations are serialised).
     """
 
     def __init__(self, frame_id: str = "world") -> None:
         self.frame_id = frame_id
         self._frame = _string_4(frame_id, "header.frame_id")
         self._padding = b"\0" * (-(8 + len(self._frame) + 4) % 8)
+        self._layout(0)
 
     def encode(self, poses: LinkPoses) -> bytes:
-        count = U32.pack(len(poses))
-        rows = pose_rows_xyzw(poses.positions, poses.quaternions_wxyz).tobytes()
-        return b"".join((CDR_LE, _stamp_bytes(poses.timestamp_ms), self._frame, count, self._padding, rows))
+        if len(poses) != len(self._rows):
+            self._layout(len(poses))
+        self._buffer[_ALIGNED + 4 : _ALIGNED + 12] = _stamp_bytes(poses.timestamp_ms)
+        write_pose_rows_xyzw(self._rows, poses.positions, poses.quaternions_wxyz)
+        return bytes(self._message)
+
+    def _layout(self, count: int) -> None:
+        head = b"".join((CDR_LE, bytes(8), self._frame, U32.pack(count), self._padding))
+        self._buffer = bytearray(b"\0" * _ALIGNED + head + bytes(56 * count))
+        self._message = memoryview(self._buffer)[_ALIGNED:]
+        self._rows = np.frombuffer(self._buffer, dtype="<f8", offset=_ALIGNED + len(head)).reshape(count, 7)
 
 
 class PoseStampedEncoder:

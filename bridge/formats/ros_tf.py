@@ -7,7 +7,7 @@ perception roles) apart on one `/tf`. Drake's `world` link is the world frame it
 
 `TransformsEncoder` writes the CDR straight from the arrays: the per-link layout (stamps,
 frame names, where each transform's seven doubles sit) is a template made once per set of link
-names; a draw writes the stamps and the doubles into a copy of it. `transforms_message` builds
+names; a draw writes the stamps and the doubles into it and returns a copy. `transforms_message` builds
 the same message as rosbags objects, the reference the fast path is tested against.
 """
 
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from bridge.formats.ros_messages import U32, CdrWriter, make
-from bridge.scene import LinkPoses, frame_name, pose_rows_xyzw
+from bridge.scene import LinkPoses, frame_name, pose_rows_xyzw, write_pose_rows_xyzw
 
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 WORLD = "world"  # Drake's name for the world link, and ROS's usual fixed frame
@@ -40,27 +40,24 @@ class FrameNames:
 
 
 class TransformsEncoder:
-    """Link poses -> `TFMessage` CDR: `world_frame` -> every link, all with one stamp."""
+    """Link poses -> `TFMessage` CDR: `world_frame` -> every link, all with one stamp.
+
+    The message is kept in one buffer per set of link names; a draw rewrites only its stamps and
+    transforms there, and the bytes returned are a copy. One encoder serves one thread at a time
+    (a route's translations are serialised).
+    """
 
     def __init__(self, frames: FrameNames) -> None:
         self.frames = frames
-        self._names: tuple[str, ...] | None = None
-        self._template = b""
-        self._stamp_at = np.zeros(0, dtype=np.intp)
-        self._transform_at = np.zeros(0, dtype=np.intp)
+        self._layout(())
 
     def encode(self, poses: LinkPoses, stamp: tuple[int, int]) -> bytes:
         if poses.names is not self._names and poses.names != self._names:  # one tuple while they repeat
             self._layout(poses.names)
-        buffer = bytearray(self._template)
-        # Each stamp (8 bytes, 4-aligned in the payload) and each transform (56 bytes, 8-aligned)
-        # is one item of a window over the payload that starts an item every 4 or 8 bytes: one
-        # scatter of N items each, where a scatter of the 7N doubles costs several times more.
-        _window(buffer, _STAMP_ITEM, 4)[self._stamp_at] = np.frombuffer(_STAMP.pack(*stamp), _STAMP_ITEM)
-        _window(buffer, _TRANSFORM_ITEM, 8)[self._transform_at] = (
-            pose_rows_xyzw(poses.positions, poses.quaternions_wxyz).view(_TRANSFORM_ITEM).reshape(-1)
-        )
-        return bytes(buffer)
+        write_pose_rows_xyzw(self._rows, poses.positions, poses.quaternions_wxyz)
+        self._stamps[self._stamp_at] = np.frombuffer(_STAMP.pack(*stamp), _STAMP_ITEM)
+        self._transforms[self._transform_at] = self._rows.view(_TRANSFORM_ITEM).reshape(-1)
+        return bytes(self._message)
 
     def _layout(self, names: tuple[str, ...]) -> None:
         writer = CdrWriter()
@@ -76,9 +73,15 @@ class TransformsEncoder:
             writer.align(8)
             transform_at.append(writer.size // 8)
             writer.add(_TRANSFORM.pack(*([0.0] * 7)))
-        self._template = writer.getvalue()
+        self._message = bytearray(writer.getvalue())
+        # Each stamp (8 bytes, 4-aligned in the payload) and each transform (56 bytes, 8-aligned)
+        # is one item of a window over the payload that starts an item every 4 or 8 bytes: one
+        # scatter of N items each, where a scatter of the 7N doubles costs several times more.
+        self._stamps = _window(self._message, _STAMP_ITEM, 4)
+        self._transforms = _window(self._message, _TRANSFORM_ITEM, 8)
         self._stamp_at = np.asarray(stamp_at, dtype=np.intp)
         self._transform_at = np.asarray(transform_at, dtype=np.intp)
+        self._rows = np.empty((len(names), 7), dtype="<f8")
         self._names = names
 
 

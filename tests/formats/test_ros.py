@@ -255,6 +255,15 @@ def test_pose_array_fast_path_matches_the_objects(drake_capture: dict[str, Captu
         assert objects.pose.position.x == poses.positions[index][0]
 
 
+@settings(max_examples=30, deadline=None)
+@given(st.lists(link_poses(max_links=5), min_size=2, max_size=5))
+def test_one_pose_array_encoder_follows_changing_draws(frames: list[LinkPoses]) -> None:
+    """The encoder keeps its message between draws: nothing of one draw may show in the next."""
+    encoder = ros.PoseArrayEncoder("world")
+    for poses in frames:
+        assert deserialize_message(encoder.encode(poses), PoseArray) == ros.to_rclpy(ros.pose_array(poses))
+
+
 @settings(max_examples=60, deadline=None)
 @given(link_poses(), st.text(st.characters(exclude_characters="\0", exclude_categories=("Cs",)), max_size=9))
 def test_draw_to_pose_array_to_draw_round_trips(poses: LinkPoses, frame_id: str) -> None:

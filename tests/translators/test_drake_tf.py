@@ -40,6 +40,16 @@ def test_tf_fast_path_equals_the_objects(count: int) -> None:
         assert encoder.encode(poses, stamp) == ros.to_cdr(transforms_message(poses, stamp, frames))
 
 
+def test_one_tf_encoder_follows_changing_links_and_poses() -> None:
+    """The encoder keeps its message between draws: nothing of one draw may show in the next."""
+    frames = FrameNames()
+    encoder = TransformsEncoder(frames)
+    for seed, count in enumerate((3, 1000, 1000, 3, 0, 7)):
+        poses = random_poses(count, seed=seed)
+        stamp = (seed, 1000 * seed)
+        assert encoder.encode(poses, stamp) == ros.to_cdr(transforms_message(poses, stamp, frames))
+
+
 def test_frame_names() -> None:
     assert FrameNames()("plant::iiwa::iiwa_link_0") == "plant/iiwa/iiwa_link_0"
     assert FrameNames("map", "proximity/")("world") == "map"
