@@ -6,9 +6,9 @@ an optional prefix that keeps the trees of several scenes (Drake's illustration,
 perception roles) apart on one `/tf`. Drake's `world` link is the world frame itself.
 
 `TransformsEncoder` writes the CDR straight from the arrays: the per-link layout (stamps,
-frame names, where each transform's seven doubles sit) is a template made once per set of link
-names; a draw writes the stamps and the doubles into it and returns a copy. `transforms_message` builds
-the same message as rosbags objects, the reference the fast path is tested against.
+frame names, where each transform's seven doubles sit) is a message made once per set of link
+names; a draw writes the stamps and the doubles into it and returns a copy. `transforms_message`
+builds the same message as rosbags objects, the reference the fast path is tested against.
 """
 
 from __future__ import annotations
