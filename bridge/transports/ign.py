@@ -246,13 +246,20 @@ class IgnNode:
         key = (message.process_uuid, publisher.topic)  # type: ignore[attr-defined]
         if key in self._remotes:
             return
+        if not _is_tcp_address(publisher.address):  # ZMQ would raise, and end this node's thread
+            self._error("advertise_address", f"{publisher.topic}: not a tcp://host:port: {publisher.address[:80]!r}")
+            return
         remote = _Remote(
             publisher.topic, publisher.address, publisher.process_uuid, publisher.node_uuid, msg_type
         )
-        self._remotes[key] = remote
         if remote.address not in self._connected:
-            self._subscriber.connect(remote.address)
+            try:
+                self._subscriber.connect(remote.address)
+            except zmq.ZMQError as error:  # whatever else ZMQ refuses: counted, the node goes on
+                self._error("advertise_address", f"{publisher.topic}: {remote.address[:80]!r}: {error}")
+                return
             self._connected.add(remote.address)
+        self._remotes[key] = remote
         self._send(self._connection_record(NEW_CONNECTION, remote))
 
     def _on_subscribe(self, message: object) -> None:
@@ -345,6 +352,15 @@ class IgnNode:
         self._logged[kind] += 1
         if self._logged[kind] <= 5 or self._logged[kind] % 1000 == 0:
             log.warning("ign-transport: %s (%s #%d)", text, kind, self._logged[kind])
+
+
+_TCP_ADDRESS = re.compile(r"tcp://(?:\[[0-9A-Fa-f:.]+\]|[^\s/:\[\]]+):([0-9]{1,5})")
+
+
+def _is_tcp_address(address: str) -> bool:
+    """What an ign-transport publisher advertises: `tcp://host:port` (IPv6 hosts in brackets)."""
+    match = _TCP_ADDRESS.fullmatch(address)
+    return match is not None and 0 < int(match.group(1)) < 65536
 
 
 class IgnSettings(TransportSettings):

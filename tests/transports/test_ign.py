@@ -186,6 +186,13 @@ def test_malformed_datagrams_and_frames_are_counted_and_skipped(ign_environment:
             else:  # random bytes of any length
                 data = rng.bytes(int(rng.integers(0, 300)))
             udp.sendto(data, (DISCOVERY_GROUP, MESSAGE_PORT))
+        # Advertisements of the subscribed topic at addresses ZMQ cannot connect to: counted, and
+        # the node goes on (a ZMQError here once ended the node's thread, and all discovery with it).
+        for bad_address in ("garbage", "tcp://", "tcp://127.0.0.1", "tcp://127.0.0.1:99999", "inproc://x"):
+            bad_advertise = ign.IGNITION.Discovery(version=WIRE_VERSION, process_uuid=str(uuid.uuid4()), type=1)
+            bad_advertise.pub.topic, bad_advertise.pub.address = full, bad_address
+            bad_advertise.pub.msg_pub.msg_type = "ignition.msgs.Pose_V"
+            udp.sendto(datagram(bad_advertise), (DISCOVERY_GROUP, MESSAGE_PORT))
         # A publisher that advertises properly, then sends good and bad ZMQ messages.
         advertise = ign.IGNITION.Discovery(version=WIRE_VERSION, process_uuid=str(uuid.uuid4()), type=1)
         advertise.pub.topic, advertise.pub.address = full, address
@@ -220,6 +227,7 @@ def test_malformed_datagrams_and_frames_are_counted_and_skipped(ign_environment:
         assert (
             errors["discovery_length"] > 0 and errors["discovery_parse"] + errors["discovery_version"] > 0
         ), errors
+        assert errors["advertise_address"] == 5, errors
     finally:
         node.close()
         publisher.close()
