@@ -29,12 +29,14 @@ import numpy as np
 from bridge.errors import DecodeError, SceneError
 from bridge.formats.ros_messages import (
     CDR_LE,
+    POSE_ITEM,
     U32,
     CdrWriter,
     cdr_string,
     from_cdr,
     from_rclpy,
     make,
+    payload_items,
     stamp,
     time_parts,
     to_cdr,
@@ -725,13 +727,10 @@ class MarkerStream:
         # Poses are 8-aligned in the payload, which starts after the 4-byte encapsulation: in a
         # buffer with 4 bytes in front of the message, they are aligned for numpy. The buffer is
         # kept: every update rewrites all the poses and nothing else, then copies the message
-        # out. A pose's 7 doubles are one 56-byte item of a view that starts an item at every
-        # 8th byte, so each marker's pose is one copy.
+        # out. Each marker's pose is one 56-byte item (`payload_items`), so one copy.
         self._buffer = np.empty(_ALIGNED + len(self._template), dtype=np.uint8)
         self._buffer[_ALIGNED:] = np.frombuffer(self._template, dtype=np.uint8)
-        payload = _ALIGNED + len(CDR_LE)
-        starts = (len(self._template) - len(CDR_LE) - _POSE.itemsize) // 8 + 1
-        self._poses = np.ndarray((starts,), _POSE, self._buffer, payload, (8,))
+        self._poses = payload_items(self._buffer, POSE_ITEM, 8, front=_ALIGNED)
         self._pose_at = np.asarray(offsets, dtype=np.intp) // 8
         self._lock = threading.Lock()  # routes on several threads may share a stream
         self._link_names = [spec.link_name for spec in self._specs]
@@ -747,12 +746,11 @@ class MarkerStream:
             self._rows_for = (poses.names, _link_rows(poses.names, self._link_names))
         rows = self._parts.world_rows(poses.positions, poses.quaternions_wxyz, self._rows_for[1])
         with self._lock:
-            self._poses[self._pose_at] = np.ascontiguousarray(rows).view(_POSE).reshape(-1)
+            self._poses[self._pose_at] = np.ascontiguousarray(rows).view(POSE_ITEM).reshape(-1)
             return self._buffer[_ALIGNED:].tobytes()
 
 
 _ALIGNED = 4  # bytes in front of the message, so that its 8-aligned payload offsets are aligned
-_POSE = np.dtype((np.void, 56))  # geometry_msgs/Pose: 7 float64
 
 
 __all__ = [

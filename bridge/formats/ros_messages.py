@@ -153,6 +153,17 @@ def from_rclpy(message: Any) -> Any:
 
 U32 = struct.Struct("<I")
 CDR_LE = b"\x00\x01\x00\x00"
+POSE_ITEM = np.dtype((np.void, 56))  # geometry_msgs/Pose or Transform: 7 float64, as one item
+
+
+def payload_items(buffer: Any, item: np.dtype[Any], step: int, front: int = 0) -> np.ndarray[Any, Any]:
+    """A writable view of `buffer` (a message after `front` spare bytes) as items of `item`'s size,
+    one starting every `step` bytes of the payload (after the 4-byte encapsulation, where CDR's
+    alignment counts from); they overlap when the item is longer than the step. Writing item k
+    writes bytes `step * k` onwards of the payload: a whole pose or stamp in one copy."""
+    payload = front + len(CDR_LE)
+    count = max(0, (len(buffer) - payload - item.itemsize) // step + 1)
+    return np.ndarray((count,), dtype=item, buffer=buffer, offset=payload, strides=(step,))
 
 
 def cdr_string(text: str, field: str = "string") -> bytes:

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from bridge.formats.ros_messages import U32, CdrWriter, make
+from bridge.formats.ros_messages import POSE_ITEM, U32, CdrWriter, make, payload_items
 from bridge.scene import LinkPoses, frame_name, pose_rows_xyzw, write_pose_rows_xyzw
 
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
@@ -56,7 +56,7 @@ class TransformsEncoder:
             self._layout(poses.names)
         write_pose_rows_xyzw(self._rows, poses.positions, poses.quaternions_wxyz)
         self._stamps[self._stamp_at] = np.frombuffer(_STAMP.pack(*stamp), _STAMP_ITEM)
-        self._transforms[self._transform_at] = self._rows.view(_TRANSFORM_ITEM).reshape(-1)
+        self._transforms[self._transform_at] = self._rows.view(POSE_ITEM).reshape(-1)
         return bytes(self._message)
 
     def _layout(self, names: tuple[str, ...]) -> None:
@@ -75,10 +75,10 @@ class TransformsEncoder:
             writer.add(_TRANSFORM.pack(*([0.0] * 7)))
         self._message = bytearray(writer.getvalue())
         # Each stamp (8 bytes, 4-aligned in the payload) and each transform (56 bytes, 8-aligned)
-        # is one item of a window over the payload that starts an item every 4 or 8 bytes: one
-        # scatter of N items each, where a scatter of the 7N doubles costs several times more.
-        self._stamps = _window(self._message, _STAMP_ITEM, 4)
-        self._transforms = _window(self._message, _TRANSFORM_ITEM, 8)
+        # is one item: one scatter of N items each, where a scatter of the 7N doubles costs
+        # several times more.
+        self._stamps = payload_items(self._message, _STAMP_ITEM, 4)
+        self._transforms = payload_items(self._message, POSE_ITEM, 8)
         self._stamp_at = np.asarray(stamp_at, dtype=np.intp)
         self._transform_at = np.asarray(transform_at, dtype=np.intp)
         self._rows = np.empty((len(names), 7), dtype="<f8")
@@ -86,14 +86,6 @@ class TransformsEncoder:
 
 
 _STAMP_ITEM = np.dtype((np.void, _STAMP.size))
-_TRANSFORM_ITEM = np.dtype((np.void, _TRANSFORM.size))
-
-
-def _window(message: bytearray, item: np.dtype[Any], step: int) -> np.ndarray[Any, Any]:
-    """Items of `item`'s size starting every `step` bytes of the payload (after the 4-byte
-    encapsulation, where CDR's alignment counts from), overlapping when the item is longer."""
-    count = max(0, (len(message) - 4 - item.itemsize) // step + 1)
-    return np.ndarray((count,), dtype=item, buffer=message, offset=4, strides=(step,))
 
 
 def transforms_message(poses: LinkPoses, stamp: tuple[int, int], frames: FrameNames) -> Any:

@@ -211,6 +211,12 @@ def test_marker_cdr_paths_decode_to_the_objects(drake_capture: dict[str, Capture
     assert deserialize_message(stream.update(moved), MarkerArray) == expected
 
 
+def test_a_marker_stream_of_an_empty_scene_publishes_an_empty_array() -> None:
+    stream = ros.MarkerStream(Scene(()))  # once a ValueError: no room for even one pose's view
+    empty = LinkPoses(5, (), np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros((0, 4)))
+    assert deserialize_message(stream.update(empty), MarkerArray).markers == []
+
+
 def test_embedding_mesh_files_carries_their_bytes(
     drake_capture: dict[str, Capture], drake_mesh_dir: Path
 ) -> None:
