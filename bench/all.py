@@ -3,11 +3,10 @@
 Run: .venv/bin/python bench/all.py [--quick] [--only NAME ...] [--readme]
 
 Each script in bench/ that has a `measures(quick)` function is run in this process, in
-file-name order but with the router last: it keeps both cores busy for minutes, and nothing should
-be measured in its wake. Each script
-measures its own baseline in the same run: lcm-gen's Python, rclpy message objects, protobuf's
-Python API, RenderEngineVtk, a bare passthrough route. `--readme` writes the table into
-README.md between its `bench:begin` and `bench:end` markers.
+file-name order but with the router last: it keeps both cores busy for minutes, and nothing
+should be measured in its wake. Each script measures its own baseline in the same run: lcm-gen's
+Python, rclpy message objects, protobuf's Python API, RenderEngineVtk, a bare passthrough route.
+`--readme` writes the table into README.md between its `bench:begin` and `bench:end` markers.
 """
 
 from __future__ import annotations

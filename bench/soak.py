@@ -35,6 +35,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+from unittest import mock
 
 import numpy as np
 
@@ -362,16 +363,9 @@ def fault_subscriber_restart(folder: Path) -> float | None:
 def fault_ign_peer_restart(folder: Path) -> float | None:
     """Debian's ign-transport CLI echoing Pose_V, killed and started again."""
     environment = dict(os.environ, IGN_PARTITION=f"soak{os.getpid()}", IGN_IP="127.0.0.1")
-    saved = {name: os.environ.get(name) for name in ("IGN_PARTITION", "IGN_IP")}
-    os.environ.update(IGN_PARTITION=environment["IGN_PARTITION"], IGN_IP="127.0.0.1")  # the bridge's too
-    try:
+    # The bridge inherits them; this process's own environment is as it was afterwards.
+    with mock.patch.dict(os.environ, IGN_PARTITION=environment["IGN_PARTITION"], IGN_IP="127.0.0.1"):
         bridge = Bridge(folder, "builtin:ign")
-    finally:  # this process's own environment as it was
-        for name, value in saved.items():
-            if value is None:
-                os.environ.pop(name, None)
-            else:
-                os.environ[name] = value
     publisher = Publisher(200.0)
 
     def echo() -> tuple[subprocess.Popen[bytes], float]:
