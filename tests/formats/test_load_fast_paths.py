@@ -102,7 +102,9 @@ def test_every_load_target_writes_the_recorded_bytes() -> None:
 
     The six `*_posed/marker_array` and `marker_stream_load` entries were recorded again once
     world-frame marker poses were composed by `scene.PartsOnLinks` (issue 15): the same poses,
-    different last bits (`tests/test_scene.py` checks it against `Pose.compose`).
+    different last bits (`tests/test_scene.py` checks it against `Pose.compose`). The three
+    `*_posed/tree_viewer` entries were recorded again once settransform numbers were written to
+    `tv.DECIMALS` decimals (issue 15; `test_tree_viewer_fast.py` checks the rounding).
     """
     import json
 

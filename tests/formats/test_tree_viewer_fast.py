@@ -1,13 +1,20 @@
-"""The tree viewer's fast settransform path against the reference (`encode(draw_request(...))`)."""
+"""The tree viewer's fast settransform path against the reference (`encode(draw_request(...))`).
+
+JSON has many spellings of one value (the fast path pads with spaces and writes every decimal),
+so the two are compared as what a viewer reads: the decoded requests, which must be equal
+exactly, number for number.
+"""
 
 from __future__ import annotations
 
 import numpy as np
+import orjson
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from bridge.formats import tree_viewer as tv
 from bridge.formats.drake import DrawDecoder, DrawEncoder
+from bridge.lcmcodec import VIEWER2_COMMS
 from bridge.scene import LinkPoses
 from tests.conftest import Capture
 from tests.strategies import link_poses
@@ -17,13 +24,25 @@ def reference(poses: LinkPoses, prefix: tuple[str, ...], utime: int = 0) -> byte
     return tv.encode(tv.draw_request(poses, prefix, utime))
 
 
+def assert_same_request(fast: bytes, slow: bytes) -> None:
+    """Equal envelopes apart from the JSON's spelling, and equal requests."""
+    fast_message, slow_message = VIEWER2_COMMS.decode(fast), VIEWER2_COMMS.decode(slow)
+    assert (fast_message.utime, fast_message.format, fast_message.format_version_major) == (
+        slow_message.utime,
+        slow_message.format,
+        slow_message.format_version_major,
+    )
+    assert fast_message.num_bytes == len(fast_message.data)
+    assert tv.decode(fast) == tv.decode(slow) == orjson.loads(slow_message.data)
+
+
 @settings(max_examples=200, deadline=None)
 @given(st.lists(link_poses(max_links=8), min_size=1, max_size=4), st.sampled_from([(), ("drake",), ('a"\\', "é")]))
-def test_settransform_bytes_equal_the_reference(frames: list[LinkPoses], prefix: tuple[str, ...]) -> None:
+def test_settransform_equals_the_reference(frames: list[LinkPoses], prefix: tuple[str, ...]) -> None:
     encoder = tv.SettransformEncoder(prefix)  # one encoder for all frames: its template must follow the links
     for poses in frames:
-        assert encoder.encode(poses) == reference(poses, prefix)
-        assert encoder.encode(poses, utime=7) == reference(poses, prefix, 7)
+        assert_same_request(encoder.encode(poses), reference(poses, prefix))
+        assert_same_request(encoder.encode(poses, utime=7), reference(poses, prefix, 7))
 
 
 def test_settransform_of_real_drake_draws_through_the_decoder(drake_capture: dict[str, Capture]) -> None:
@@ -31,16 +50,35 @@ def test_settransform_of_real_drake_draws_through_the_decoder(drake_capture: dic
         poses = DrawDecoder().decode(DrawEncoder().encode(capture.poses))  # the decoder's float32 arrays
         assert poses.positions.dtype == np.dtype(np.float32)
         encoder = tv.SettransformEncoder()
-        assert encoder.encode(poses) == reference(poses, tv.DEFAULT_PREFIX)
+        assert_same_request(encoder.encode(poses), reference(poses, tv.DEFAULT_PREFIX))
         moved = LinkPoses(poses.timestamp_ms + 1, poses.names, poses.robot_nums, poses.positions * 2, poses.quaternions_wxyz)
-        assert encoder.encode(moved) == reference(moved, tv.DEFAULT_PREFIX)
+        assert_same_request(encoder.encode(moved), reference(moved, tv.DEFAULT_PREFIX))
 
 
-def test_unusual_numbers_are_written_as_the_reference_writes_them() -> None:
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.floats(-9999.999999994, 9999.999999994, allow_subnormal=True), min_size=7, max_size=7))
+def test_every_number_in_the_table_range_reads_back_as_the_rounded_value(numbers: list[float]) -> None:
+    poses = LinkPoses(1, ("a",), np.zeros(1, np.int32), np.array([numbers[:3]]), np.array([numbers[3:]]))
+    (command,) = tv.decode(tv.SettransformEncoder().encode(poses))["settransform"]
+    written = command["transform"]["translation"] + command["transform"]["quaternion"]
+    assert written == [round(number * 1e8) / 1e8 for number in numbers]  # the double nearest k / 10**8
+    assert all(abs(value - number) <= 5e-9 for value, number in zip(written, numbers, strict=True))
+
+
+def test_numbers_outside_the_tables_fall_back_to_orjson() -> None:
     values = [0.0, -0.0, 1e-7, 1e300, 5e-324, 123456789012345680.0, 1.0, -2.5]
     positions = np.array(values[:6], dtype=np.float64).reshape(2, 3)
     quaternions = np.array(values, dtype=np.float64).reshape(2, 4)
     poses = LinkPoses(3, ("a", 'b"\n\\'), np.array([0, -1], dtype=np.int32), positions, quaternions)
-    assert tv.SettransformEncoder().encode(poses) == reference(poses, tv.DEFAULT_PREFIX)
+    assert tv.SettransformEncoder().encode(poses) == reference(poses, tv.DEFAULT_PREFIX)  # orjson's own bytes
     empty = LinkPoses(3, (), np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros((0, 4)))
     assert tv.SettransformEncoder().encode(empty) == reference(empty, tv.DEFAULT_PREFIX)
+
+
+def test_the_fixed_width_text_is_what_it_claims() -> None:
+    positions = np.array([[-0.000000004, 9999.5, -12.25]])
+    poses = LinkPoses(1, ("link",), np.array([2], np.int32), positions, np.array([[1.0, -0.0, 0.5, -1.0]]))
+    data = VIEWER2_COMMS.decode(tv.SettransformEncoder().encode(poses)).data
+    # Each number in 16 bytes: separator, sign and integer part right-aligned, point, 8 decimals.
+    assert b'"translation":[     -0.00000000,  9999.50000000,   -12.25000000]' in data
+    assert b'"quaternion":[      1.00000000,    -0.00000000,     0.50000000,    -1.00000000]' in data
