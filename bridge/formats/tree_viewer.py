@@ -203,11 +203,11 @@ class SettransformEncoder:
         start = b'{"timestamp":%d,"setgeometry":[],"settransform":[' % utime
         end = b'],"delete":[]}'
         if not len(poses):
-            return _envelope(start + end, utime)
+            return envelope(start + end, utime)
         self._layout(poses)
         if not _number_tables().fill(self._slots, poses.positions, poses.quaternions_wxyz):
             return encode(draw_request(poses, self.prefix, utime), utime)
-        return _envelope(b"".join((start, self._rows.tobytes(), end)), utime)
+        return envelope(b"".join((start, self._rows.tobytes(), end)), utime)
 
     def _layout(self, poses: LinkPoses) -> None:
         robot_nums = poses.robot_nums.tobytes()
@@ -299,10 +299,11 @@ def _request(utime: int, **commands: list[dict[str, Any]]) -> Request:
 def encode(payload: Request, utime: int = 0) -> bytes:
     """A request or response in its `viewer2_comms_t` envelope."""
     data = orjson.dumps(payload)  # compact; several times faster than json for float-heavy loads
-    return _envelope(data, int(utime or _echo_time(payload)))
+    return envelope(data, int(utime or _echo_time(payload)))
 
 
-def _envelope(data: bytes, utime: int) -> bytes:
+def envelope(data: bytes, utime: int) -> bytes:
+    """JSON text already written, in its `viewer2_comms_t` envelope."""
     major, minor = VERSION
     return VIEWER2_COMMS.encode(
         VIEWER2_COMMS.message_class(
@@ -712,6 +713,7 @@ def scene_from_requests(
 
 
 __all__ = [
+    "DECIMALS",
     "DEFAULT_PREFIX",
     "FORMAT",
     "MISSING_PATHS",
@@ -722,10 +724,12 @@ __all__ = [
     "decode",
     "draw_request",
     "encode",
+    "envelope",
     "geometry_command",
     "geometry_from_command",
     "load_requests",
     "request_channel",
     "response_channel",
     "scene_from_requests",
+    "settransform_values",
 ]

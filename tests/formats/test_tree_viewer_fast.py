@@ -1,11 +1,14 @@
 """The tree viewer's fast settransform path against the reference (`encode(draw_request(...))`).
 
 JSON has many spellings of one value (the fast path pads with spaces and writes every decimal),
-so the two are compared as what a viewer reads: the decoded requests, which must be equal
-exactly, number for number.
+so the fast path is held to two references: the decoded request of `draw_request` (what a
+viewer reads, equal number for number), and its own bytes written the slow way, one number at a
+time in Python (`fixed_width_reference`).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import orjson
@@ -22,6 +25,35 @@ from tests.strategies import link_poses
 
 def reference(poses: LinkPoses, prefix: tuple[str, ...], utime: int = 0) -> bytes:
     return tv.encode(tv.draw_request(poses, prefix, utime))
+
+
+def fixed_width_reference(poses: LinkPoses, prefix: tuple[str, ...], utime: int = 0) -> bytes:
+    """The fast path's bytes, written the slow way: one number, one link at a time in Python,
+    from the integer k = round(value * 10**8) (exact integer text, no float formatting)."""
+
+    def number(value: float, separator: str) -> str:
+        k = round(value * 10**tv.DECIMALS)
+        sign = "-" if math.copysign(1.0, value) < 0 else ""  # -0.0 too, as the value's own sign
+        whole, fraction = divmod(abs(k), 10**tv.DECIMALS)
+        return separator + f"{sign}{whole}.".rjust(7) + f"{fraction:08d}"
+
+    heads = [
+        '{"path":' + orjson.dumps([*prefix, str(int(robot_num)), name]).decode() + ',"transform":{"translation":['
+        for name, robot_num in zip(poses.names, poses.robot_nums.tolist(), strict=True)
+    ]
+    width = -(-max(len(head.encode()) for head in heads) // 8) * 8
+    rows = []
+    for index, (head, position, quaternion) in enumerate(
+        zip(heads, poses.positions.tolist(), poses.quaternions_wxyz.tolist(), strict=True)
+    ):
+        values = [number(value, "," if place else " ") for place, value in enumerate(position)]
+        values.append('],"quaternion":[')
+        values += [number(value, "," if place else " ") for place, value in enumerate(quaternion)]
+        end = "]}}," if index < len(heads) - 1 else "]}}"
+        rows.append(" " * (width - len(head.encode())) + head + "".join(values) + end.ljust(8))
+    utime = utime or poses.timestamp_ms * 1000
+    text = f'{{"timestamp":{utime},"setgeometry":[],"settransform":[' + "".join(rows) + '],"delete":[]}'
+    return tv.envelope(text.encode(), utime)
 
 
 def assert_same_request(fast: bytes, slow: bytes) -> None:
@@ -43,6 +75,8 @@ def test_settransform_equals_the_reference(frames: list[LinkPoses], prefix: tupl
     for poses in frames:
         assert_same_request(encoder.encode(poses), reference(poses, prefix))
         assert_same_request(encoder.encode(poses, utime=7), reference(poses, prefix, 7))
+        if len(poses) and np.abs(tv.settransform_values(poses)).max() < 9999.999999995:
+            assert encoder.encode(poses, utime=7) == fixed_width_reference(poses, prefix, 7)
 
 
 def test_settransform_of_real_drake_draws_through_the_decoder(drake_capture: dict[str, Capture]) -> None:
@@ -51,6 +85,7 @@ def test_settransform_of_real_drake_draws_through_the_decoder(drake_capture: dic
         assert poses.positions.dtype == np.dtype(np.float32)
         encoder = tv.SettransformEncoder()
         assert_same_request(encoder.encode(poses), reference(poses, tv.DEFAULT_PREFIX))
+        assert encoder.encode(poses) == fixed_width_reference(poses, tv.DEFAULT_PREFIX)
         moved = LinkPoses(poses.timestamp_ms + 1, poses.names, poses.robot_nums, poses.positions * 2, poses.quaternions_wxyz)
         assert_same_request(encoder.encode(moved), reference(moved, tv.DEFAULT_PREFIX))
 
@@ -59,7 +94,9 @@ def test_settransform_of_real_drake_draws_through_the_decoder(drake_capture: dic
 @given(st.lists(st.floats(-9999.999999994, 9999.999999994, allow_subnormal=True), min_size=7, max_size=7))
 def test_every_number_in_the_table_range_reads_back_as_the_rounded_value(numbers: list[float]) -> None:
     poses = LinkPoses(1, ("a",), np.zeros(1, np.int32), np.array([numbers[:3]]), np.array([numbers[3:]]))
-    (command,) = tv.decode(tv.SettransformEncoder().encode(poses))["settransform"]
+    data = tv.SettransformEncoder().encode(poses)
+    assert data == fixed_width_reference(poses, tv.DEFAULT_PREFIX)
+    (command,) = tv.decode(data)["settransform"]
     written = command["transform"]["translation"] + command["transform"]["quaternion"]
     assert written == [round(number * 1e8) / 1e8 for number in numbers]  # the double nearest k / 10**8
     assert all(abs(value - number) <= 5e-9 for value, number in zip(written, numbers, strict=True))
