@@ -18,7 +18,8 @@ Run: .venv/bin/python bench/router.py [--seconds 10] [--baseline REV]
 3. `measures()` (for `bench/all.py`): issue 15's goals 4 and 5 (CPU per draw of the poses and TF
    routes beside the passthrough, best of two interleaved rounds; the default config's per-draw
    routes at 2 kHz), and the floor under goal 5: what rclpy alone spends, pinned, publishing the
-   bytes those routes write per draw, 2000 times a second (`publish_floor`).
+   bytes those routes write per draw, 2000 times a second (`publish_floor`); and what one thread
+   wake-up costs on the bridge's core (`wake_cost`), which every draw pays at least once.
 """
 
 from __future__ import annotations
@@ -355,6 +356,20 @@ def publish_floor(sizes: tuple[int, ...], rate_hz: float, seconds: float) -> flo
     return float(child.stdout.split()[-1]) / seconds
 
 
+def wake_cost(rate_hz: float = 1000.0, wakes: int = 3000) -> float:
+    """Seconds of CPU one thread wake-up costs on CPU 0 (where the bridge runs): a child that
+    only sleeps, `rate_hz` times a second, timed with its own process CPU clock. Every draw
+    wakes the bridge's LCM thread at least once, so this is a floor under CPU per draw."""
+    code = (
+        "import time\n"
+        f"cpu = time.process_time()\nfor _ in range({wakes}): time.sleep({1.0 / rate_hz})\n"
+        f"print((time.process_time() - cpu) / {wakes})"
+    )
+    child = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                           preexec_fn=lambda: os.sched_setaffinity(0, {0}))  # fmt: skip
+    return float(child.stdout)
+
+
 def _floor_child(sizes: tuple[int, ...], rate_hz: float, seconds: float) -> None:
     """`publish_floor`'s publisher: prints the CPU seconds it spent publishing for `seconds`."""
     import rclpy
@@ -504,6 +519,7 @@ def measures(quick: bool = False) -> list[Measure]:
                      for policy, config in (("all", DEFAULT_ALL), ("latest", DEFAULT_LATEST))}  # fmt: skip
             sizes = output_sizes()
             floor = publish_floor(tuple(sizes.values()), 2000.0, seconds)
+            wake = wake_cost()
     finally:
         os.sched_setaffinity(0, everywhere)
     passthrough = cpu["passthrough"]
@@ -525,6 +541,8 @@ def measures(quick: bool = False) -> list[Measure]:
     rows.append(Measure(f"router: floor for the 2 kHz run: rclpy alone publishing its {kilobytes:.0f} kB a draw "
                         "(no LCM, no translation), pinned", 100 * floor, None, "% of a core",
                         "none: what goal 5's run cannot go below", None))  # fmt: skip
+    rows.append(Measure("machine: CPU one thread wake-up costs on the bridge's core (a loop of 1 ms sleeps)",
+                        wake * 1e6, None, "us", "none: paid at least once per draw", None))  # fmt: skip
     return rows
 
 

@@ -21,9 +21,9 @@ from typing import Any, Literal
 import numpy as np
 
 from bridge.formats import ros
+from bridge.formats.ros_messages import time_parts, time_parts_from_us
 from bridge.formats.ros_tf import TF_MESSAGE, WORLD, FrameNames, TransformsEncoder
 from bridge.scene import LinkPoses, Scene
-from bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from bridge.translators.drake_ros import MarkerOptions, ros_type
 from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream, PerLoadTranslator, role_of
@@ -84,9 +84,10 @@ class DrakeToTf(Translator):
         return out
 
     def _stamp(self, message: Received, poses: LinkPoses) -> tuple[int, int]:
+        """(sec, nanosec); `EncodeError` for a time whose seconds do not fit an int32."""
         if self.options.stamp == "sim":
-            return sec_nsec_from_ms(poses.timestamp_ms)
-        return sec_nsec_from_us(message.received_us)
+            return time_parts(poses.timestamp_ms)
+        return time_parts_from_us(message.received_us)
 
 
 def _never_drawn(scene: Scene, poses: LinkPoses) -> LinkPoses:

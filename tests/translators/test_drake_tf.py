@@ -10,6 +10,7 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
+from bridge.errors import EncodeError
 from bridge.formats import ros
 from bridge.formats.drake import load_from_scene
 from bridge.formats.ros_tf import FrameNames, TransformsEncoder, transforms_message
@@ -90,6 +91,9 @@ def test_roles_get_their_own_frames_and_static_links_are_sent_once() -> None:
     ((_, data),) = translate_all(sim, Received("DRAKE_VIEWER_DRAW", draw_of(small_scene(), 61.25)))
     stamp = ros.from_cdr(data, "tf2_msgs/msg/TFMessage").transforms[0].header.stamp
     assert (stamp.sec, stamp.nanosec) == (61, 250_000_000)
+    before_1902 = Received("DRAKE_VIEWER_DRAW", draw_of(small_scene(), -(2.0**31) - 1))  # int32 sec: too early
+    with pytest.raises(EncodeError, match="does not fit int32 seconds"):
+        sim.translate(before_1902)
 
 
 def test_link_markers_are_in_link_frames_once_per_load() -> None:
