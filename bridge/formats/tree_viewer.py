@@ -163,14 +163,18 @@ def draw_request(poses: LinkPoses, prefix: Sequence[str] = DEFAULT_PREFIX, utime
 # be written from digit tables with a few numpy operations (`SettransformEncoder`).
 DECIMALS = 8
 _SCALE = 10.0**DECIMALS
+# Beyond this a double has no 8th decimal to round to, and value * 10**8 could overflow to inf.
+_ROUNDED_BELOW = 1e7
 
 
 def settransform_values(poses: LinkPoses) -> FloatArray:
     """The N x 7 numbers of a draw's settransforms, [x, y, z, w, qx, qy, qz] per link, rounded to
     `DECIMALS` decimals (the double nearest to k / 10**DECIMALS, which is what parsing that
-    decimal text gives)."""
+    decimal text gives); numbers of 10**7 or more in magnitude are left as they are."""
     values = np.concatenate((poses.positions, poses.quaternions_wxyz), axis=1, dtype=np.float64)
-    return np.rint(values * _SCALE) / _SCALE
+    with np.errstate(over="ignore"):  # the huge, kept as they are
+        rounded = np.rint(values * _SCALE) / _SCALE
+    return np.where(np.abs(values) < _ROUNDED_BELOW, rounded, values)
 
 
 class SettransformEncoder:
@@ -184,7 +188,7 @@ class SettransformEncoder:
     A number's slot is its separator, its sign and integer part right-aligned in spaces, the
     point, and the 8 decimals: three lookups in tables of digit groups (`_NumberTables`).
     A draw fills the slots with a few whole-array numpy operations and the request is the
-    table's bytes. A draw with a number of 10,000 or more in magnitude is written by orjson.
+    table's bytes. A draw with a number of 9,999 or more in magnitude is written by orjson.
     """
 
     _SLOT = 16
@@ -262,19 +266,20 @@ class _NumberTables:
     def fill(self, slots: npt.NDArray[np.uint64], positions: FloatArray, quaternions: FloatArray) -> bool:
         """Writes a draw's numbers into `slots` (N x 8 x 2, slot 3 left alone); False, writing
         nothing, when a number is too large for a slot."""
-        scaled = np.rint(np.concatenate((positions, quaternions), axis=1, dtype=np.float64) * _SCALE)
-        magnitude = np.abs(scaled)
-        if not magnitude.max() < self._WHOLE_LIMIT * _SCALE:  # also False for NaN
+        values = np.concatenate((positions, quaternions), axis=1, dtype=np.float64)
+        magnitude = np.abs(values)
+        if not magnitude.max() < self._WHOLE_LIMIT - 1:  # also False for NaN; the rest fit, rounded
             return False
+        magnitude = np.rint(magnitude * _SCALE)  # |k|: rint rounds half to even, symmetric in sign
         whole = np.floor(magnitude / _SCALE)  # exact: k / 1e8 is never rounded up to the next integer
         fraction = magnitude - whole * _SCALE
         high = np.floor(fraction / self._GROUP)
         low = fraction - high * self._GROUP
         whole += self.offsets
-        whole += np.signbit(scaled) * float(self._WHOLE_LIMIT)
-        texts = np.empty((len(scaled), 7, 2), np.uint64)
+        whole += np.signbit(values) * float(self._WHOLE_LIMIT)  # -0.0 too: a negative rounded to 0
+        texts = np.empty((len(values), 7, 2), np.uint64)
         texts[:, :, 0] = self.wholes.take(whole.astype(np.intp))
-        decimals = texts.view(np.uint32).reshape(len(scaled), 7, 4)
+        decimals = texts.view(np.uint32).reshape(len(values), 7, 4)
         decimals[:, :, 2] = self.groups.take(high.astype(np.intp))
         decimals[:, :, 3] = self.groups.take(low.astype(np.intp))
         slots[:, 0:3] = texts[:, 0:3]
