@@ -17,7 +17,6 @@ sends the whole scene with every image, and a static mesh then costs no upload a
 from __future__ import annotations
 
 import hashlib
-from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,6 +24,7 @@ import moderngl
 import numpy as np
 
 from bridge.formats.gltf import GltfScene
+from bridge.lru import SizedLru
 from bridge.scene import FloatArray
 
 BACKGROUND = (204 / 255, 229 / 255, 1.0)
@@ -114,9 +114,9 @@ class MeshCache:
     """
 
     def __init__(self, context: Any, program: Any, max_bytes: int = DEFAULT_CACHE_BYTES) -> None:
-        self.context, self.program, self.max_bytes = context, program, max_bytes
-        self.entries: OrderedDict[bytes, _GpuMesh] = OrderedDict()
-        self.bytes = 0
+        self.context, self.program = context, program
+        # The newest mesh stays even when it alone is larger: the request drawing it needs it.
+        self.entries: SizedLru[bytes, _GpuMesh] = SizedLru(max_bytes, keep_newest=True)
         self.hits = self.misses = 0
 
     def vertex_array(self, vertices: bytes, indices: bytes) -> Any:
@@ -126,15 +126,10 @@ class MeshCache:
         entry = self.entries.get(digest)
         if entry is not None:
             self.hits += 1
-            self.entries.move_to_end(digest)
             return entry.array
         self.misses += 1
         entry = self._upload(vertices, indices)
-        self.entries[digest] = entry
-        self.bytes += entry.size
-        while self.bytes > self.max_bytes and len(self.entries) > 1:
-            _, evicted = self.entries.popitem(last=False)
-            self.bytes -= evicted.size
+        for evicted in self.entries.put(digest, entry, entry.size):
             evicted.release()
         return entry.array
 

@@ -119,6 +119,6 @@ def test_the_cache_is_bounded_by_bytes() -> None:
     renderer = Renderer(cache_bytes=20_000)
     for step in range(6):
         render(renderer, 0.1 * step, "label")
-        assert renderer.meshes.bytes <= 20_000 or len(renderer.meshes.entries) == 1
-    assert renderer.meshes.bytes == sum(entry.size for entry in renderer.meshes.entries.values())
+        assert renderer.meshes.entries.total <= 20_000 or len(renderer.meshes.entries) == 1
+    assert renderer.meshes.entries.total == sum(entry.size for entry in renderer.meshes.entries.values())
     assert len(renderer.meshes.entries) < renderer.meshes.misses

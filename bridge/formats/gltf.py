@@ -17,7 +17,6 @@ import base64
 import json
 import struct
 import threading
-from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -25,6 +24,7 @@ import numpy as np
 
 from bridge.errors import BridgeError
 from bridge.lowering import triangle_mesh
+from bridge.lru import SizedLru
 from bridge.scene import FloatArray, Geometry, Link, Pose, Scene, TriangleMesh, rotation_matrix
 
 _COMPONENTS = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
@@ -156,9 +156,7 @@ class _RecentPayloads:
     SMALLEST = 64 * 1024  # characters
 
     def __init__(self, max_bytes: int) -> None:
-        self.max_bytes = max_bytes
-        self._entries: OrderedDict[str, bytes] = OrderedDict()
-        self._size = 0
+        self.entries: SizedLru[str, bytes] = SizedLru(max_bytes)  # sized by text + data
         self._lock = threading.Lock()  # the render server reads documents on several threads
 
     def decode(self, payload: str) -> bytes:
@@ -166,18 +164,11 @@ class _RecentPayloads:
         if len(payload) < self.SMALLEST:
             return base64.b64decode(payload, validate=True)
         with self._lock:
-            data = self._entries.get(payload)
-            if data is not None:
-                self._entries.move_to_end(payload)
-                return data
-        data = base64.b64decode(payload, validate=True)
-        with self._lock:
-            if payload not in self._entries:
-                self._entries[payload] = data
-                self._size += len(payload) + len(data)
-            while self._size > self.max_bytes and self._entries:
-                text, evicted = self._entries.popitem(last=False)
-                self._size -= len(text) + len(evicted)
+            data = self.entries.get(payload)
+        if data is None:
+            data = base64.b64decode(payload, validate=True)
+            with self._lock:
+                self.entries.put(payload, data, len(payload) + len(data))
         return data
 
 

@@ -97,13 +97,13 @@ def test_large_payloads_are_decoded_once_and_the_cache_stays_bounded() -> None:
     assert cache.decode(texts[0]) is first  # the same text: the decoded bytes of the first time
     for text, blob in zip(texts, blobs, strict=True):
         assert cache.decode(text) == blob
-    assert cache._size <= cache.max_bytes  # 700 kB of text and data each: only the newest is kept
-    assert list(cache._entries) == [texts[-1]]
+    assert cache.entries.total <= cache.entries.max_size  # 700 kB of text and data each: the newest is kept
+    assert cache.entries.keys() == [texts[-1]]
     small = base64.b64encode(b"tiny").decode()
-    assert cache.decode(small) == b"tiny" and small not in cache._entries
+    assert cache.decode(small) == b"tiny" and small not in cache.entries
     with pytest.raises(ValueError):
         cache.decode("!" * 100_000)  # not base64: refused as before, and nothing kept
-    assert "!" * 100_000 not in cache._entries
+    assert "!" * 100_000 not in cache.entries
 
 
 def test_a_large_buffer_read_twice_gives_the_same_meshes() -> None:
