@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from bridge.registry import Registry
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from bridge.translators.drake_stream import LoadCache
+from bridge.translators.load_cache import LoadCache
 
 _BUILTINS = {
     "drake_to_marker_array": "drake_ros:DrakeToMarkerArray",

@@ -14,14 +14,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict
 
+from bridge.translators.load_cache import LoadCache
 from bridge.transports.base import MessageType, Received
-
-if TYPE_CHECKING:
-    from bridge.translators.drake_stream import LoadCache
 
 
 class TranslatorOptions(BaseModel):
@@ -69,11 +67,7 @@ class Translator:
             if isinstance(options, TranslatorOptions)
             else self.Options.model_validate(dict(options or {}))
         )
-        if loads is None:
-            from bridge.translators.drake_stream import LoadCache  # it builds on this module
-
-            loads = LoadCache()
-        self.loads = loads
+        self.loads = LoadCache() if loads is None else loads
         self.reply: Reply = _no_reply
 
     def observe(self, message: Received) -> None:

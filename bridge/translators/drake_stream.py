@@ -1,7 +1,7 @@
 """Drake's scene as a stream: a load now and then, a draw every frame, shared by every route.
 
-Told apart by the message's fingerprint, not its channel. `LoadCache` keeps the last load per
-load channel for every route (and, with a folder, across runs). `draw_poses` decodes a draw
+Told apart by the message's fingerprint, not its channel. `LoadCache` (its own module) keeps
+the last load per load channel for every route (and, with a folder, across runs). `draw_poses` decodes a draw
 once however many routes read it. `DrakeStream` is one translator's view: it says when there is
 a scene to (re)publish, taking the load from the cache when the route has not seen it (a late
 start, a lazy route that was idle when the load came).
@@ -9,12 +9,8 @@ start, a lazy route that was idle when the load came).
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
-import threading
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 from bridge.errors import DecodeError
@@ -22,44 +18,11 @@ from bridge.formats.drake import DrawDecoder, decode_load
 from bridge.lcmcodec import DRAW, LOAD_ROBOT
 from bridge.scene import LinkPoses, Scene
 from bridge.translators.base import Outputs, Translator
+from bridge.translators.load_cache import LoadCache
 from bridge.transports.base import LCM, MessageType, Received
 
 LOAD_TYPE = MessageType(LOAD_ROBOT.type_name, LCM)
 DRAW_TYPE = MessageType(DRAW.type_name, LCM)
-
-
-class LoadCache:
-    """The last `lcmt_viewer_load_robot` bytes seen per load channel, shared by every route.
-
-    With a folder, loads are also written there (one file per channel) and read back at start,
-    so a bridge restarted while the simulation runs still has the model: Drake sends a load
-    only when the geometry changes.
-    """
-
-    def __init__(self, folder: str | Path | None = None) -> None:
-        self._loads: dict[str, bytes] = {}
-        self._lock = threading.Lock()
-        self._folder = Path(folder).expanduser() if folder else None
-        if self._folder is not None and self._folder.is_dir():
-            for path in self._folder.glob("*.lcm"):
-                self._loads[path.stem] = path.read_bytes()
-
-    def put(self, channel: str, data: bytes) -> None:
-        # Under the lock, file and memory change together: routes putting the same channel's
-        # loads cannot leave an older one on disk than in memory.
-        with self._lock:
-            if self._loads.get(channel) == data:
-                return
-            self._loads[channel] = data
-            if self._folder is not None and re.fullmatch(r"[A-Za-z0-9_.<>-]+", channel):
-                self._folder.mkdir(parents=True, exist_ok=True)
-                with tempfile.NamedTemporaryFile(dir=self._folder, delete=False) as file:
-                    file.write(data)
-                os.replace(file.name, self._folder / f"{channel}.lcm")
-
-    def get(self, channel: str) -> bytes | None:
-        with self._lock:
-            return self._loads.get(channel)
 
 
 _ROLE = re.compile(r"_(ILLUSTRATION|PROXIMITY|PERCEPTION)$")
