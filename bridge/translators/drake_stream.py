@@ -1,10 +1,10 @@
 """Drake's scene as a stream: a load now and then, a draw every frame, shared by every route.
 
 Told apart by the message's fingerprint, not its channel. `LoadCache` (its own module) keeps
-the last load per load channel for every route (and, with a folder, across runs). `draw_poses` decodes a draw
-once however many routes read it. `DrakeStream` is one translator's view: it says when there is
-a scene to (re)publish, taking the load from the cache when the route has not seen it (a late
-start, a lazy route that was idle when the load came).
+the last load per load channel for every route (and, with a folder, across runs). `draw_poses`
+decodes a draw once however many routes read it. `DrakeStream` is one translator's view: it
+says when there is a scene to (re)publish, taking the load from the cache when the route has
+not seen it (a late start, a lazy route that was idle when the load came).
 """
 
 from __future__ import annotations
