@@ -1,16 +1,25 @@
-"""Each load target's bytes for a few fixed scenes, as sha256 digests: what the tests hold the
-optimised load paths to. `load_digests.json` was written by running this module on the code
-before the optimisations (commit 65407f5), and must not change; one entry was corrected by
-hand: ign refused a point cloud with a TypeError, now a SceneError (a bug fixed since). Written by:
+"""Each load target's output for a few fixed scenes: what the tests hold the optimised load paths to.
 
-    .venv/bin/python -m tests.formats.load_outputs > tests/formats/load_digests.json
+`load_digests.json` holds the sha256 of every output, recorded by running this module on the code
+before the optimisations (commit 65407f5); one entry was corrected by hand (ign refused a point
+cloud with a TypeError, now a SceneError: a bug fixed since), and the posed entries were recorded
+again twice (see `test_every_load_target_writes_the_recorded_values`). `load_outputs.tar.xz` holds
+the outputs themselves, one member per message, written on a machine where every output had exactly
+its recorded digest. The digests hold the archive to its history (hashing stored bytes involves no
+arithmetic); the test compares today's outputs with the archive's by value, because composed poses
+differ in their last bits from one CPU or BLAS kernel to another. Written by:
+
+    .venv/bin/python -m tests.formats.load_outputs digests > tests/formats/load_digests.json
+    .venv/bin/python -m tests.formats.load_outputs record   # load_outputs.tar.xz, checked against the digests
 """
 
 from __future__ import annotations
 
 import hashlib
+import io
 import json
-import tempfile
+import sys
+import tarfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -102,18 +111,18 @@ def every_kind(folder: Path) -> Scene:
     )
 
 
-def targets() -> dict[str, Callable[[Scene], bytes]]:
-    """Every load target, as bytes, by the paths the translators take (recorded: by the paths of
-    the base commit, which wrote the same bytes from message objects)."""
+def targets() -> dict[str, Callable[[Scene], list[bytes]]]:
+    """Every load target, as the messages it writes, by the paths the translators take (recorded:
+    by the paths of the base commit, which wrote the same bytes from message objects)."""
     frames = FrameNames()
     return {
-        "marker_array": lambda scene: ros.marker_array_cdr(scene),
-        "marker_stream_load": lambda scene: ros.MarkerStream(scene).load_cdr,
-        "markers_in_link_frames": lambda scene: ros.marker_array_in_link_frames_cdr(scene, frames),
-        "ign_model": lambda scene: ign.model_bytes(scene),
-        "ign_model_v": lambda scene: ign.model_v_bytes(scene),
-        "tree_viewer": lambda scene: b"|".join(tv.encode(request) for request in tv.load_requests(scene)),
-        "foxglove": lambda scene: foxglove.scene_update(scene, frames).SerializeToString(),
+        "marker_array": lambda scene: [ros.marker_array_cdr(scene)],
+        "marker_stream_load": lambda scene: [ros.MarkerStream(scene).load_cdr],
+        "markers_in_link_frames": lambda scene: [ros.marker_array_in_link_frames_cdr(scene, frames)],
+        "ign_model": lambda scene: [ign.model_bytes(scene)],
+        "ign_model_v": lambda scene: [ign.model_v_bytes(scene)],
+        "tree_viewer": lambda scene: [tv.encode(request) for request in tv.load_requests(scene)],
+        "foxglove": lambda scene: [foxglove.scene_update(scene, frames).SerializeToString()],
     }
 
 
@@ -134,21 +143,71 @@ def scenes(folder: Path) -> dict[str, Scene]:
     }
 
 
-def digests(folder: Path) -> dict[str, str]:
-    """sha256 of every target's bytes for every scene; "refused" where the target refuses a shape."""
-    out = {}
+Output = list[bytes] | str  # the messages a target wrote, or "refused: <error type>"
+
+
+def outputs(folder: Path) -> dict[str, Output]:
+    """Every target's messages for every scene ("scene/target"), its mesh files in `folder`."""
+    out: dict[str, Output] = {}
     for scene_name, scene in scenes(folder).items():
         for target_name, write in targets().items():
             try:
-                # The file path is in the bytes of some targets: the same folder name every time.
-                out[f"{scene_name}/{target_name}"] = hashlib.sha256(write(scene)).hexdigest()
+                out[f"{scene_name}/{target_name}"] = write(scene)
             except Exception as error:  # noqa: BLE001 - what was raised is part of the record
                 out[f"{scene_name}/{target_name}"] = f"refused: {type(error).__name__}"
     return out
 
 
-FOLDER = Path(tempfile.gettempdir()) / "viewer-bridge-load-outputs"
+def digest(output: Output) -> str:
+    """sha256 of a target's messages joined by "|" (the form the digests were recorded in)."""
+    return output if isinstance(output, str) else hashlib.sha256(b"|".join(output)).hexdigest()
+
+
+def recorded_digests() -> dict[str, str]:
+    recorded: dict[str, str] = json.loads(DIGESTS.read_text())
+    return recorded
+
+
+def recorded_outputs() -> dict[str, Output]:
+    """The recorded outputs: the archive's messages, and the refusals the digests record."""
+    out: dict[str, Output] = {name: value for name, value in recorded_digests().items() if value.startswith("refused")}
+    with tarfile.open(ARCHIVE) as archive:
+        members = sorted(archive.getmembers(), key=lambda member: int(member.name.rsplit("/", 1)[1]))
+        for member in members:
+            parts = out.setdefault(member.name.rsplit("/", 1)[0], [])
+            file = archive.extractfile(member)
+            assert isinstance(parts, list) and file is not None, member.name
+            parts.append(file.read())
+    return out
+
+
+def record() -> None:
+    """Write the archive from this machine's outputs, if each has exactly its recorded digest."""
+    folder = Path(RECORDED_FOLDER)
+    folder.mkdir(exist_ok=True)
+    written = outputs(folder)
+    differ = [name for name, expected in recorded_digests().items() if digest(written[name]) != expected]
+    if differ:
+        raise SystemExit(f"not recorded: outputs differ from their digests on this machine: {differ}")
+    with tarfile.open(ARCHIVE, "w:xz", format=tarfile.PAX_FORMAT) as archive:  # one solid stream: 240 kB
+        for name, output in sorted(written.items()):
+            for index, part in enumerate([] if isinstance(output, str) else output):
+                member = tarfile.TarInfo(f"{name}/{index}")
+                member.size = len(part)
+                archive.addfile(member, io.BytesIO(part))
+
+
+# The recorded outputs name mesh files in this folder; a test writing elsewhere says where it wrote.
+RECORDED_FOLDER = "/tmp/viewer-bridge-load-outputs"
+DIGESTS = Path(__file__).with_name("load_digests.json")
+ARCHIVE = Path(__file__).with_name("load_outputs.tar.xz")
 
 if __name__ == "__main__":
-    FOLDER.mkdir(exist_ok=True)
-    print(json.dumps(digests(FOLDER), indent=1, sort_keys=True))
+    if sys.argv[1:] == ["record"]:
+        record()
+    elif sys.argv[1:] == ["digests"]:
+        Path(RECORDED_FOLDER).mkdir(exist_ok=True)
+        written = outputs(Path(RECORDED_FOLDER))
+        print(json.dumps({name: digest(output) for name, output in written.items()}, indent=1, sort_keys=True))
+    else:
+        raise SystemExit("usage: python -m tests.formats.load_outputs digests | record")

@@ -2,18 +2,24 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
+from typing import Any
 
 import numpy as np
 import pytest
+from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message
+from rosbags.typesys import Stores, get_typestore
 from shape_msgs.msg import Mesh, SolidPrimitive
 
 from bridge.demo import TETRAHEDRON_OBJ
 from bridge.errors import SceneError
 from bridge.formats import ign, ros
+from bridge.formats import tree_viewer as tv
 from bridge.lowering import _tessellated, triangle_mesh
 from bridge.scene import (
     Box,
@@ -33,6 +39,7 @@ from bridge.scene import (
     TriangleMesh,
 )
 from tests.conftest import Capture
+from tests.formats import load_outputs, values
 from tests.strategies import link_poses, poses, scenes
 
 
@@ -97,22 +104,55 @@ def test_tessellations_are_cached_read_only_and_equal_fresh_ones() -> None:
             cached.vertices[0, 0] = 1.0
 
 
-def test_every_load_target_writes_the_recorded_bytes() -> None:
-    """The load paths' bytes for fixed scenes, against digests recorded before they were optimised.
+def test_the_recorded_outputs_are_the_ones_whose_digests_were_recorded() -> None:
+    """The archive's bytes against the digests recorded over time (no arithmetic: stored bytes)."""
+    recorded = load_outputs.recorded_outputs()
+    assert {name: load_outputs.digest(output) for name, output in recorded.items()} == load_outputs.recorded_digests()
 
-    The six `*_posed/marker_array` and `marker_stream_load` entries were recorded again once
-    world-frame marker poses were composed by `scene.PartsOnLinks` (issue 15): the same poses,
-    different last bits (`tests/test_scene.py` checks it against `Pose.compose`). The three
-    `*_posed/tree_viewer` entries were recorded again once settransform numbers were written to
-    `tv.DECIMALS` decimals (issue 15; `test_tree_viewer_fast.py` checks the rounding).
+
+def test_every_load_target_writes_the_recorded_values(tmp_path: Path, debian_ign_msgs: ModuleType) -> None:
+    """The load paths' output for fixed scenes, against outputs recorded before they were optimised.
+
+    Compared by value (`tests/formats/values.py`): composed poses differ in their last bits
+    between CPUs and BLAS kernels. The `*_posed/marker_array` and `marker_stream_load` outputs
+    were recorded again once world-frame marker poses were composed by `scene.PartsOnLinks`
+    (issue 15; `tests/test_scene.py` checks it against `Pose.compose`); the `*_posed/tree_viewer`
+    ones once settransform numbers were written to `tv.DECIMALS` decimals (issue 15;
+    `test_tree_viewer_fast.py` checks the rounding).
     """
-    import json
+    store = get_typestore(Stores.ROS2_JAZZY)
 
-    from tests.formats import load_outputs
+    def cdr(typename: str) -> Callable[[bytes], Any]:
+        return lambda data: store.deserialize_cdr(data, typename)
 
-    load_outputs.FOLDER.mkdir(exist_ok=True)
-    recorded = json.loads((Path(__file__).parent / "load_digests.json").read_text())
-    assert load_outputs.digests(load_outputs.FOLDER) == recorded
+    def protobuf(message_class: Any) -> Callable[[bytes], Any]:
+        return lambda data: message_class.FromString(data)
+
+    marker_array = cdr("visualization_msgs/msg/MarkerArray")
+    readers: dict[str, Callable[[bytes], Any]] = {
+        "marker_array": marker_array,
+        "marker_stream_load": marker_array,
+        "markers_in_link_frames": marker_array,
+        "ign_model": protobuf(debian_ign_msgs.Model),
+        "ign_model_v": protobuf(debian_ign_msgs.Model_V),
+        "tree_viewer": values.json_envelope,
+        "foxglove": protobuf(SceneUpdate),
+    }
+    # Director's numbers are written to 8 decimals: a last-bit difference may round either way.
+    atol = {"tree_viewer": 1.5 * 10.0**-tv.DECIMALS}
+    recorded, recording_folder = load_outputs.recorded_outputs(), load_outputs.RECORDED_FOLDER
+    written = load_outputs.outputs(tmp_path)
+    assert written.keys() == recorded.keys()
+    for name, output in written.items():
+        expected, target = recorded[name], name.split("/")[1]
+        if isinstance(expected, str) or isinstance(output, str):
+            assert output == expected, name
+            continue
+        read, tolerance = readers[target], atol.get(target, values.ATOL)
+        # The meshes are in this test's folder; the recorded outputs name the recording's.
+        actual = values.renamed(values.plain([read(part) for part in output]), str(tmp_path), recording_folder)
+        found = list(values.differences(actual, values.plain([read(part) for part in expected]), tolerance, name))
+        assert not found, found[:5]
 
 
 @settings(max_examples=150, deadline=None)
