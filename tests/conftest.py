@@ -9,11 +9,12 @@ import subprocess
 import sys
 import sysconfig
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
 
+import lcm
 import pytest
 
 from bridge.formats.drake import decode_load, poses_from_draw
@@ -72,16 +73,39 @@ def drake_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
         stderr=subprocess.DEVNULL,
     )
     try:
-        deadline = time.monotonic() + 10
-        while not log.exists() and time.monotonic() < deadline:
-            time.sleep(0.05)
-        time.sleep(0.3)
+        _until_logged(url, log, b"logger listening")  # before Drake's one load message
         subprocess.run([sys.executable, str(DRAKE_SCENE_SCRIPT), url, str(folder)], check=True, timeout=300)
-        time.sleep(0.5)
+        _until_logged(url, log, b"simulation done")  # after its last message
     finally:
         logger.send_signal(signal.SIGINT)
-        logger.wait(timeout=10)
+        logger.wait(timeout=60)
     return log
+
+
+def _until_logged(url: str, log: Path, mark: bytes) -> None:
+    def logged() -> bool:
+        return log.exists() and any(event.data == mark for event in read_log(log, SYNC_CHANNEL))
+
+    publish_until(url, mark, logged)
+
+
+SYNC_CHANNEL = "TEST_SYNC"
+
+
+def publish_until(url: str, mark: bytes, received: Callable[[], bool], timeout: float = 120) -> None:
+    """Publish `mark` on `SYNC_CHANNEL` until `received()` (UDP may drop one).
+
+    A listener's socket queues datagrams in the order they arrive, so once it has read a mark
+    sent after a peer's last message, it has read that message too: no fixed wait needed.
+    """
+    bus = lcm.LCM(url)
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        bus.publish(SYNC_CHANNEL, mark)
+        time.sleep(0.1)
+        if received():
+            return
+    raise AssertionError(f"{mark!r} on {url} never arrived")
 
 
 @pytest.fixture(scope="session")

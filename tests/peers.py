@@ -60,7 +60,7 @@ class RosProbe:
     def publisher(self, topic: str, typename: str) -> Any:
         return self.node.create_publisher(message_class(typename), topic, qos())
 
-    def wait_for(self, condition: Callable[[], bool], timeout: float = 20.0) -> bool:
+    def wait_for(self, condition: Callable[[], bool], timeout: float = 60.0) -> bool:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             if condition():
@@ -90,7 +90,7 @@ class BridgeProcess:
         for line in self.process.stderr:
             self.lines.append(line.rstrip())
 
-    def wait_for_line(self, text: str, timeout: float = 30.0) -> str:
+    def wait_for_line(self, text: str, timeout: float = 60.0) -> str:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             for line in list(self.lines):

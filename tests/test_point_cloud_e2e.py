@@ -192,7 +192,7 @@ def test_rclpy_cloud_reaches_drake_as_lcmt_point_cloud(probe: RosProbe, tmp_path
     try:
         bridge.wait_for_line("routes running")
         received = lambda: recorder.messages.get("DRAKE_POINT_CLOUD_FROM_ROS")  # noqa: E731
-        deadline = time.monotonic() + 30
+        deadline = time.monotonic() + 60
         while not received() and time.monotonic() < deadline:  # until discovery has matched the two
             publisher.publish(message)
             time.sleep(0.2)

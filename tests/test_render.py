@@ -43,7 +43,7 @@ def start_server(*args: str) -> tuple[subprocess.Popen[str], str]:
     port = free_port()
     server = subprocess.Popen([sys.executable, "-m", "bridge.cli", "serve-render", "--port", str(port), *args],
                               stderr=subprocess.DEVNULL, text=True)  # fmt: skip
-    deadline = time.monotonic() + 30
+    deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
         try:
             socket.create_connection(("127.0.0.1", port), timeout=0.5).close()

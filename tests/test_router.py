@@ -7,6 +7,7 @@ import re
 import subprocess
 import sys
 import time
+import uuid
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +22,7 @@ from bridge.router import Mailbox, Message
 from bridge.scene import LinkPoses
 from bridge.transports.base import CallPublisher, Received
 from bridge.transports.lcm import LcmBus
-from tests.conftest import DRAKE_SCENE_SCRIPT, lcm_url
+from tests.conftest import DRAKE_SCENE_SCRIPT, SYNC_CHANNEL, lcm_url, publish_until
 from tests.formats import oracle
 from tests.peers import BridgeProcess, RosProbe, write_config
 
@@ -39,12 +40,18 @@ class LcmRecorder:
     """Every message on an LCM URL, recorded by channel (a bus of the test's own)."""
 
     def __init__(self, url: str) -> None:
+        self.url = url
         self.bus = LcmBus(url)
         self.messages: dict[str, list[bytes]] = {}
         self.bus.subscribe(
             ".*", lambda channel, data, _: self.messages.setdefault(channel, []).append(bytes(data))
         )
         self.bus.start()
+
+    def sync(self) -> None:
+        """Return once every message published on the URL before this call has been recorded."""
+        mark = uuid.uuid4().bytes
+        publish_until(self.url, mark, lambda: mark in self.messages.get(SYNC_CHANNEL, []))
 
     def close(self) -> None:
         self.bus.close()
@@ -74,11 +81,29 @@ def test_drake_simulation_reaches_ros_through_the_bridge(probe: RosProbe, tmp_pa
         bridge.wait_for_line("routes running")
         drake = start_drake(url, tmp_path, 3.0)
         assert drake.wait(timeout=120) == 0
+        recorder.sync()  # holds Drake's last draw
         draws = recorder.messages["DRAKE_VIEWER_DRAW_ILLUSTRATION"]
         last_draw = drake_lcmtypes.lcmt_viewer_draw.decode(draws[-1])
         stamp = last_draw.timestamp
         assert probe.wait_for(lambda: any(_stamp_ms(p.header.stamp) == stamp for p in poses))
-        time.sleep(0.5)  # the last MarkerArray follows the last PoseArray
+        load = drake_lcmtypes.lcmt_viewer_load_robot.decode(recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0])
+        box_link = next(link for link in load.link if link.name.endswith("robot1::body0"))
+        row = list(last_draw.link_name).index(box_link.name)
+        box_position, box_xyzw = oracle.world_pose(last_draw.position[row], last_draw.quaternion[row], box_link.geom[0])
+
+        def box(array: Any) -> Any:
+            (marker,) = [m for m in array.markers if m.ns == box_link.name.replace("::", "/")]
+            return marker
+
+        def at_last_draw(marker: Any) -> bool:
+            return oracle.close([marker.pose.position.x, marker.pose.position.y, marker.pose.position.z], box_position)
+
+        def last_drawn() -> Any:  # the load's array (DELETEALL first) has its own, latched writer
+            drawn = [array for array in markers if array.markers[0].action != 3]
+            return drawn[-1] if drawn else None
+
+        # The last draw's MarkerArray (its markers carry no stamp) follows the last PoseArray.
+        assert probe.wait_for(lambda: last_drawn() is not None and at_last_draw(box(last_drawn())))
     finally:
         assert bridge.stop() == 0
         recorder.close()
@@ -98,17 +123,11 @@ def test_drake_simulation_reaches_ros_through_the_bridge(probe: RosProbe, tmp_pa
     # MarkerArray: every array is the full model (the load's starts with DELETEALL, but DDS may have
     # matched this subscriber after it left the latched history); the last one at the last draw.
     assert all(len([m for m in array.markers if m.action == 0]) >= 16 for array in markers)
-    load = drake_lcmtypes.lcmt_viewer_load_robot.decode(
-        recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0]
-    )
-    box_link = next(link for link in load.link if link.name.endswith("robot1::body0"))
-    row = list(last_draw.link_name).index(box_link.name)
-    position, xyzw = oracle.world_pose(last_draw.position[row], last_draw.quaternion[row], box_link.geom[0])
-    (box,) = [m for m in markers[-1].markers if m.ns == box_link.name.replace("::", "/")]
-    assert oracle.close([box.pose.position.x, box.pose.position.y, box.pose.position.z], position)
-    assert oracle.same_rotation([box.pose.orientation.x, box.pose.orientation.y, box.pose.orientation.z,
-                                 box.pose.orientation.w], xyzw)  # fmt: skip
-    assert oracle.close([box.scale.x, box.scale.y, box.scale.z], [0.1, 0.2, 0.3])
+    last_box = box(last_drawn())
+    assert at_last_draw(last_box)
+    orientation = last_box.pose.orientation
+    assert oracle.same_rotation([orientation.x, orientation.y, orientation.z, orientation.w], box_xyzw)
+    assert oracle.close([last_box.scale.x, last_box.scale.y, last_box.scale.z], [0.1, 0.2, 0.3])
     # shape_msgs: SolidPrimitive per primitive geometry, cylinder HEIGHT first.
     dimensions = {(p.type, tuple(np.float32(p.dimensions).tolist())) for p in primitives}
     assert (1, tuple(np.float32([0.1, 0.2, 0.3]).tolist())) in dimensions
@@ -119,6 +138,20 @@ def test_drake_simulation_reaches_ros_through_the_bridge(probe: RosProbe, tmp_pa
 
 def _stamp_ms(stamp: Any) -> int:
     return int(stamp.sec) * 1000 + int(stamp.nanosec) // 1_000_000
+
+
+def _settled(route: dict[str, Any] | None, received: int) -> bool:
+    """A lazy route's stats while nobody listens, once `received` messages are in and each one
+    is published, skipped or dropped (a non-lazy route here publishes one message per draw)."""
+    if route is None or route["messages_in"] < received or route["queued"]:
+        return False
+    done = route["messages_out"] + route["idle_skipped"] + route["dropped"] + sum(route["errors"].values())
+    return bool(done >= route["messages_in"])
+
+
+def _active(route: dict[str, Any] | None, received: int) -> bool:
+    """A route's stats once `received` messages are in and it translates them for a subscriber."""
+    return route is not None and route["messages_in"] >= received and route["state"] == "active"
 
 
 # --- 2. ROS 2 -> LCM ---------------------------------------------------------------------------------
@@ -151,7 +184,7 @@ def test_ros_pose_array_arrives_as_a_drake_draw(probe: RosProbe, tmp_path: Path)
     try:
         bridge.wait_for_line("routes running")
         received = lambda: recorder.messages.get("DRAKE_VIEWER_DRAW_FROM_ROS")  # noqa: E731
-        deadline = time.monotonic() + 20
+        deadline = time.monotonic() + 60
         while not received() and time.monotonic() < deadline:  # until discovery has matched the two
             publisher.publish(message)
             time.sleep(0.2)
@@ -247,7 +280,7 @@ def test_a_malformed_message_is_counted_and_nothing_valid_is_lost(probe: RosProb
 
     try:
         bridge.wait_for_line("routes running")
-        deadline = time.monotonic() + 20
+        deadline = time.monotonic() + 60
         while not received and time.monotonic() < deadline:  # until discovery has matched the two
             bus.publish("DRAKE_VIEWER_DRAW", draw(0))
             time.sleep(0.2)
@@ -362,7 +395,8 @@ def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_p
         bridge.wait_for_line("routes running")
         bus.publish("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(scene).encode())  # the only load
         draws(1.0, 0.0)
-        time.sleep(0.5)
+        # Every draw is in and accounted for (the stats file is rewritten every 0.2 s).
+        assert probe.wait_for(lambda: all(_settled(stats().get(name), 50) for name in (*lazy, "poses"))), stats()
         idle = stats()
         assert {idle[name]["state"] for name in lazy} == {"idle: no subscriber"}, idle
         for name in lazy:  # draws flowed in, nothing went out (a draw conflated by `latest` is a drop)
@@ -376,11 +410,11 @@ def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_p
                                        latched=True)  # fmt: skip
         markers = probe.subscribe("/drake/markers", "visualization_msgs/msg/MarkerArray", 10, latched=True)
         tf = probe.subscribe("/tf", "tf2_msgs/msg/TFMessage")
-        assert probe.wait_for(lambda: bool(link_markers) and bool(markers) and bool(tf), timeout=5), bridge.lines
+        assert probe.wait_for(lambda: bool(link_markers) and bool(markers) and bool(tf)), bridge.lines
         assert [_tip_z(message) for message in tf] == [0.98]  # the last draw before anyone listened
         draws(1.0, 10.0)
-        assert probe.wait_for(lambda: _tip_z(tf[-1]) == 10.98, timeout=5)
-        time.sleep(0.5)
+        assert probe.wait_for(lambda: _tip_z(tf[-1]) == 10.98)
+        assert probe.wait_for(lambda: all(_active(stats().get(name), 100) for name in lazy)), stats()
         active = stats()
     finally:
         assert bridge.stop() == 0
@@ -425,7 +459,7 @@ def test_ros_args_are_passed_to_rclpy_like_any_node(probe: RosProbe, tmp_path: P
         client = AsyncParameterClient(probe.node, "/sim1/viewer_bridge")
         assert client.wait_for_services(timeout_sec=10)
         future = client.get_parameters(["use_sim_time"])
-        assert probe.wait_for(future.done, timeout=10)
+        assert probe.wait_for(future.done)
         assert future.result().values[0].bool_value is True
     finally:
         assert bridge.stop() == 0

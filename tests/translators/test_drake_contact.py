@@ -6,7 +6,6 @@ from __future__ import annotations
 import io
 import subprocess
 import sys
-import time
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -176,6 +175,11 @@ def fan(poly_data: list[int]) -> list[int]:
     return corners
 
 
+def _arrow_starts(markers: list[Any]) -> list[list[float]]:
+    """Where each force arrow of a MarkerArray starts (Drake's contact point or centroid)."""
+    return [[m.points[0].x, m.points[0].y, m.points[0].z] for m in markers if m.ns == "contact/forces"]
+
+
 @pytest.mark.slow
 def test_a_drake_simulation_reaches_ros_as_contact_markers_and_wrenches() -> None:
     probe = RosProbe("contact_probe")
@@ -191,6 +195,7 @@ def test_a_drake_simulation_reaches_ros_as_contact_markers_and_wrenches() -> Non
         subprocess.run(
             [sys.executable, str(CONTACT_SCENE_SCRIPT), url, "0.5", "1.0"], check=True, timeout=120
         )
+        recorder.sync()  # holds the simulation's last contact results
         last = drake_lcmtypes.lcmt_contact_results_for_viz.decode(recorder.messages["CONTACT_RESULTS"][-1])
         pairs = last.num_point_pair_contacts + last.num_hydroelastic_contacts
         expected_forces = [list(p.contact_force) for p in last.point_pair_contact_info] + [
@@ -200,8 +205,12 @@ def test_a_drake_simulation_reaches_ros_as_contact_markers_and_wrenches() -> Non
         def last_wrenches() -> list[list[float]]:
             return [[w.wrench.force.x, w.wrench.force.y, w.wrench.force.z] for w in list(wrenches)[-pairs:]]
 
+        expected_starts = [list(p.contact_point) for p in last.point_pair_contact_info] + [
+            list(h.centroid_W) for h in last.hydroelastic_contacts
+        ]
         assert probe.wait_for(lambda: last_wrenches() == expected_forces)
-        time.sleep(0.5)  # the last MarkerArray is published beside the last wrenches
+        # The last MarkerArray is published beside the last wrenches.
+        assert probe.wait_for(lambda: bool(markers) and _arrow_starts(markers[-1].markers) == expected_starts)
     finally:
         assert bridge.stop() == 0
         recorder.close()
@@ -213,11 +222,7 @@ def test_a_drake_simulation_reaches_ros_as_contact_markers_and_wrenches() -> Non
     # The last MarkerArray: a force arrow per pair from Drake's point (centroid), the surface's vertices.
     array = markers[-1].markers
     assert array[0].action == DELETEALL
-    starts = [[m.points[0].x, m.points[0].y, m.points[0].z] for m in array if m.ns == "contact/forces"]
-    expected_starts = [list(p.contact_point) for p in last.point_pair_contact_info] + [
-        list(h.centroid_W) for h in last.hydroelastic_contacts
-    ]
-    assert starts == expected_starts
+    assert _arrow_starts(array) == expected_starts
     for marker, force in zip([m for m in array if m.ns == "contact/forces"], expected_forces, strict=True):
         assert marker.type == ARROW
         end, start = marker.points[1], marker.points[0]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Any
 
@@ -140,13 +139,25 @@ def test_a_drake_simulation_reaches_ros_as_a_tf_tree(tmp_path: Path) -> None:
         bridge.wait_for_line("routes running")
         drake = start_drake(url, tmp_path, 2.0)
         assert drake.wait(timeout=120) == 0
-        time.sleep(1.0)  # the last draw's TFMessage follows the simulation's end
-        assert probe.wait_for(lambda: bool(markers) and bool(tf))
+        recorder.sync()  # holds Drake's last draw
+        last_draw = drake_lcmtypes.lcmt_viewer_draw.decode(recorder.messages["DRAKE_VIEWER_DRAW_ILLUSTRATION"][-1])
+
+        def has_last_draw() -> bool:  # stamps are receive times: the positions tell the draw
+            illustration = [m for m in tf if not m.transforms[0].child_frame_id.startswith("proximity/")]
+            if not illustration:
+                return False
+            by_child = {t.child_frame_id: t.transform.translation for t in illustration[-1].transforms}
+            return all(
+                (t := by_child.get(name.replace("::", "/"))) is not None and oracle.close([t.x, t.y, t.z], position)
+                for name, position in zip(last_draw.link_name, last_draw.position, strict=True)
+            )
+
+        # The last draw's TFMessage follows the simulation's end.
+        assert probe.wait_for(lambda: bool(markers) and has_last_draw())
     finally:
         assert bridge.stop() == 0
         recorder.close()
         probe.close()
-    last_draw = drake_lcmtypes.lcmt_viewer_draw.decode(recorder.messages["DRAKE_VIEWER_DRAW_ILLUSTRATION"][-1])
     load = drake_lcmtypes.lcmt_viewer_load_robot.decode(recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0])
     # The tree: the last illustration TFMessage (unprefixed frames) is the last draw, world -> link.
     illustration = [m for m in tf if not m.transforms[0].child_frame_id.startswith("proximity/")]

@@ -57,7 +57,7 @@ class FoxgloveClient:
         return until is not None and bool(until())
 
     def subscribe(self, *topics: str) -> None:
-        assert self.pump(10, lambda: all(topic in self.channels for topic in topics)), self.channels.keys()
+        assert self.pump(60, lambda: all(topic in self.channels for topic in topics)), self.channels.keys()
         subscriptions = []
         for topic in topics:
             subscription = len(self._topics) + 1
@@ -129,6 +129,7 @@ def test_a_drake_simulation_reaches_a_foxglove_client(tmp_path: Path) -> None:
         client = FoxgloveClient(port)
         client.subscribe("/drake/illustration/scene", "/drake/illustration/transforms")
         assert drake.wait(timeout=120) == 0
+        recorder.sync()  # holds Drake's last draw
         draws = recorder.messages["DRAKE_VIEWER_DRAW_ILLUSTRATION"]
         last = drake_lcmtypes.lcmt_viewer_draw.decode(draws[-1])
 
@@ -136,11 +137,11 @@ def test_a_drake_simulation_reaches_a_foxglove_client(tmp_path: Path) -> None:
             payloads = client.messages.get("/drake/illustration/transforms", [])  # type: ignore[union-attr]
             return bool(payloads) and _stamp_ms(_transforms(payloads[-1])) == last.timestamp
 
-        assert client.pump(10, has_last_draw)
+        assert client.pump(60, has_last_draw)
         # A client that connects after the load still receives the whole scene.
         late = FoxgloveClient(port)
         late.subscribe("/drake/illustration/scene")
-        assert late.pump(10, lambda: bool(late.messages.get("/drake/illustration/scene")))  # type: ignore[union-attr]
+        assert late.pump(60, lambda: bool(late.messages.get("/drake/illustration/scene")))  # type: ignore[union-attr]
     finally:
         for each in (client, late):
             if each is not None:

@@ -53,7 +53,7 @@ def test_a_peer_sees_the_jazzy_type_hash_of_a_tf_publisher(probes: tuple[RosProb
     def found() -> list[Any]:
         return peer.node.get_publishers_info_by_topic(topic)
 
-    assert peer.wait_for(lambda: len(found()) == 1, timeout=10), "the peer never discovered the publisher"
+    assert peer.wait_for(lambda: len(found()) == 1, timeout=60), "the peer never discovered the publisher"
     info = found()[0]
     assert info.topic_type == "tf2_msgs/msg/TFMessage"
     assert str(info.topic_type_hash) == TFMESSAGE_HASH == TYPESTORE.hash_rihs01("tf2_msgs/msg/TFMessage")
@@ -64,7 +64,7 @@ def test_cdr_bytes_from_rosbags_arrive_as_the_same_tf(probes: tuple[RosProbe, Ro
     topic = "/vb_test/tf_raw"
     received = peer.subscribe(topic, "tf2_msgs/msg/TFMessage")
     publisher = source.publisher(topic, "tf2_msgs/msg/TFMessage")
-    assert source.wait_for(lambda: publisher.get_subscription_count() == 1, timeout=10)
+    assert source.wait_for(lambda: publisher.get_subscription_count() == 1, timeout=60)
 
     store = TYPESTORE.types
     transforms = [
@@ -85,7 +85,7 @@ def test_cdr_bytes_from_rosbags_arrive_as_the_same_tf(probes: tuple[RosProbe, Ro
         store["tf2_msgs/msg/TFMessage"](transforms=transforms), "tf2_msgs/msg/TFMessage"
     )
     publisher.publish(bytes(raw))
-    assert peer.wait_for(lambda: len(received) >= 1, timeout=10), "the raw TF never arrived"
+    assert peer.wait_for(lambda: len(received) >= 1, timeout=60), "the raw TF never arrived"
 
     got = received[0].transforms
     assert [t.child_frame_id for t in got] == [f"plant::link_{index}" for index in range(3)]

@@ -67,7 +67,7 @@ class MemoryTransport(Transport):
             if pattern.fullmatch(channel):
                 deliver(message)
 
-    def wait_for(self, count: int, timeout: float = 10.0) -> list[tuple[str, str, bytes]]:
+    def wait_for(self, count: int, timeout: float = 60.0) -> list[tuple[str, str, bytes]]:
         with self.sent:
             self.sent.wait_for(lambda: len(self.published) >= count, timeout)
             return list(self.published)
