@@ -1,7 +1,7 @@
 """Rendering a glTF scene from a pinhole camera with OpenGL (moderngl): color, depth, label.
 
 Headless through EGL (Mesa llvmpipe here, a GPU where EGL finds one). The projection is built
-from the camera's intrinsics, not the glTF `yfov` (PROTOCOLS.md section 5): P00 = 2fx/W,
+from the camera's intrinsics, not the glTF `yfov` (docs/PROTOCOLS.md section 5): P00 = 2fx/W,
 P02 = (W - 2cx)/W, P11 = 2fy/H, P12 = -(H - 2cy)/H, rows flipped on readback.
 
 * color: the material colour lit from the camera (normals from screen-space derivatives, since

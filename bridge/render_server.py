@@ -1,4 +1,4 @@
-"""Drake's glTF render API, served: `POST /render` (seeds/gltf-render-server-api.txt).
+"""Drake's glTF render API, served: `POST /render` (docs/PROTOCOLS.md section 5).
 
 The multipart form carries the scene (glTF with embedded buffers), its sha256, the image type
 and the camera. Replies: a PNG (8-bit RGB colour or label, 16-bit millimetre depth), 400 with a

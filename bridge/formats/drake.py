@@ -1,7 +1,7 @@
 """Drake's LCM viewer messages to and from the scene model.
 
 `lcmt_viewer_load_robot` carries the geometry of every link; `lcmt_viewer_draw` every link's pose.
-How Drake fills a geometry (see PROTOCOLS.md section 1): the type code chooses the shape, and
+How Drake fills a geometry (see docs/PROTOCOLS.md section 1): the type code chooses the shape, and
 `float_data` holds its parameters, with two traps: a cylinder or capsule is [radius, length]
 (radius first), and a MESH is one of three things told apart by `string_data`: a file path, an
 in-memory mesh as JSON, or (when empty) a mesh array [V, T, 3V vertex floats, 3T index floats].

@@ -3,7 +3,7 @@
 Reading (`read_gltf`) flattens the node hierarchy: every triangle primitive becomes a mesh in
 world coordinates (node matrices or TRS composed from the root) with its material's
 baseColorFactor, and the camera node's world matrix is kept. This is what Drake's
-RenderEngineGltfClient sends (PROTOCOLS.md section 5). Everything is checked against the
+RenderEngineGltfClient sends (docs/PROTOCOLS.md section 5). Everything is checked against the
 buffers before use; a document that does not hold together raises `GltfError` naming where.
 
 Writing (`write_gltf`) turns a scene into a self-contained glTF: one node per geometry with its

@@ -1,7 +1,7 @@
 """ignition / gz protobuf messages (`Model`, `Model_V`, `Pose_V`, `PosesStamped`) to and from the scene.
 
 The message types are built at import from `_SCHEMA` below (field numbers from ign-msgs 8, see
-PROTOCOLS.md section 4) into a protobuf descriptor pool, once per package: `IGNITION`
+docs/PROTOCOLS.md section 4) into a protobuf descriptor pool, once per package: `IGNITION`
 (`ignition.msgs`, as Debian's ign-transport 11 speaks) and `GZ` (`gz.msgs`, newer Gazebo). The
 wire format is the `protobuf` package's; only the fields the bridge uses are declared, and a
 receiver with the full `.proto` files reads them (unknown fields are skipped both ways).
@@ -609,7 +609,7 @@ def _model_payload(
     )
 
 
-# Field keys (PROTOCOLS.md section 4): Model{name=2, id=3, pose=5, link=7}; Link{header=1, name=3,
+# Field keys (docs/PROTOCOLS.md section 4): Model{name=2, id=3, pose=5, link=7}; Link{header=1, name=3,
 # pose=10, visual=11}; Header{data=2}, its Map{key=1, value=2}; Visual{name=2, id=3,
 # parent_name=4, pose=9, geometry=10, material=11}; Material{diffuse=6}; Color{r..a=2..5};
 # Pose{position=4, orientation=5}; Vector3d{x..z=2..4}; Quaternion{x..w=2..5}.

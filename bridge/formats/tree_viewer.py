@@ -46,7 +46,7 @@ FORMAT = "treeviewer_json"
 VERSION = (1, 0)
 DEFAULT_PREFIX: tuple[str, ...] = ("drake",)
 
-# Response status codes (PROTOCOLS.md section 2).
+# Response status codes (docs/PROTOCOLS.md section 2).
 OK = 0
 MISSING_PATHS = 1
 ERROR_UNKNOWN_FORMAT = -1

@@ -1,6 +1,6 @@
 """ign-transport 11 as a transport, in Python: UDP multicast discovery plus ZeroMQ data.
 
-No Python binding of ign-transport exists, so this node speaks its wire protocol (PROTOCOLS.md
+No Python binding of ign-transport exists, so this node speaks its wire protocol (docs/PROTOCOLS.md
 section 4, checked against Debian's `ign-transport-topic`):
 
 * Discovery: datagrams `[uint16 length, little-endian][ignition.msgs.Discovery]` on

@@ -1,6 +1,6 @@
 """Independent expectations for the translator tests, computed from Drake's raw messages.
 
-The oracle reads `lcmt_viewer_geometry_data` fields by index (as PROTOCOLS.md describes them) and
+The oracle reads `lcmt_viewer_geometry_data` fields by index (as docs/PROTOCOLS.md describes them) and
 composes poses with pydrake's own RigidTransform, so it shares no code with the translators.
 """
 

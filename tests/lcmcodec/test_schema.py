@@ -11,7 +11,7 @@ from bridge.errors import SchemaError
 from bridge.lcmcodec import CODECS, STRUCTS
 from bridge.lcmcodec.schema import fingerprint, parse_lcm
 
-# Values printed by lcm-gen 1.5.3 (PROTOCOLS.md section 1 and 2).
+# Values printed by lcm-gen 1.5.3 (docs/PROTOCOLS.md section 1 and 2).
 KNOWN_FINGERPRINTS = {
     "drake.lcmt_viewer_load_robot": 0x8987209B10AA2D39,
     "drake.lcmt_viewer_link_data": 0x51252725AF982A63,
@@ -21,7 +21,7 @@ KNOWN_FINGERPRINTS = {
     # Drake's point cloud types (checked against pydrake's classes below too).
     "drake.lcmt_point_cloud": 0x17F2C128B5D25A95,
     "drake.lcmt_point_cloud_field": 0xD2628D58FB331B3F,
-    # Contact results (PROTOCOLS.md section 9): printed by pydrake 1.51's classes.
+    # Contact results (docs/PROTOCOLS.md section 9): printed by pydrake 1.51's classes.
     "drake.lcmt_contact_results_for_viz": 0x114C15EA77683B45,
     "drake.lcmt_point_pair_contact_info_for_viz": 0x124E4A5C0C2EE1E9,
     "drake.lcmt_hydroelastic_contact_surface_for_viz": 0xFD46C8E07468606E,
