@@ -12,6 +12,8 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from rich.console import Console
+from rich.logging import RichHandler
 
 from bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
 from bridge.convert import convert
@@ -20,6 +22,7 @@ from bridge.dump import as_json, as_text
 from bridge.errors import BridgeError, ConfigError
 from bridge.mappings import format_names, reference_markdown
 from bridge.router import Router
+from bridge.status import LiveTable, LogLines, StatusView
 from bridge.transports.base import TransportUnavailable
 from bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 
@@ -66,7 +69,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--print-config",
         metavar="NAME",
-        help="print a built-in config (default, ign) and exit; use it as -c builtin:NAME",
+        help=f"print a built-in config ({', '.join(BUILTIN_CONFIGS)}) and exit; use it as -c builtin:NAME",
     )
     run.add_argument(
         "--lcm-url", help="override the config's LCM URL (a log file or file://LOG?speed=S replays it)"
@@ -88,6 +91,9 @@ def _parser() -> argparse.ArgumentParser:
         "--duration", type=float, metavar="S", help="stop after S seconds (default: until Ctrl-C)"
     )
     run.add_argument("--demo", action="store_true", help="also publish the demo scene on the LCM URL")
+    run.add_argument(
+        "-q", "--quiet", action="store_true", help="print only warnings and errors (no route table or lines)"
+    )
 
     serve = commands.add_parser("serve-render", help="serve Drake's glTF render API (RenderEngineGltfClient)")
     serve.add_argument("--host", default="127.0.0.1", help="address to listen on (default: this host only)")
@@ -197,7 +203,7 @@ def _run(args: argparse.Namespace) -> int:
             return 2
         print(BUILTIN_CONFIGS[name], end="")
         return 0
-    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
+    view = _status_view(args.quiet)
     try:
         config = load_config(args.config)
         if args.lcm_url:
@@ -206,8 +212,9 @@ def _run(args: argparse.Namespace) -> int:
             config = _with_setting(config, setting)
         if args.ros_args:
             config = config.with_settings("ros", ros_args=args.ros_args)
-        router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period)
+        router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period, view=view)
     except (BridgeError, TransportUnavailable, OSError, ValueError) as error:
+        view.close()
         print(f"viewer-bridge: {error}", file=sys.stderr)
         return 2
     for signal_number in (signal.SIGINT, signal.SIGTERM):
@@ -227,6 +234,18 @@ def _run(args: argparse.Namespace) -> int:
         if demo is not None:
             demo.join(timeout=2)
     return 0
+
+
+def _status_view(quiet: bool) -> StatusView:
+    """A live route table when stdout is a terminal; plain log lines on stderr otherwise."""
+    level = logging.WARNING if quiet else logging.INFO
+    if quiet or not sys.stdout.isatty():
+        logging.basicConfig(level=level, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
+        return LogLines()
+    console = Console()
+    handler = RichHandler(console=console, show_path=False, log_time_format="%H:%M:%S")
+    logging.basicConfig(level=level, format="%(message)s", handlers=[handler])
+    return LiveTable(console)
 
 
 def _with_setting(config: BridgeConfig, setting: str) -> BridgeConfig:

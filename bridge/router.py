@@ -47,6 +47,7 @@ import numpy as np
 
 from bridge.config import BridgeConfig, Route, destination_name
 from bridge.errors import BridgeError
+from bridge.status import LogLines, StatusView
 from bridge.translators import TRANSLATORS, LoadCache, Output, Translator
 from bridge.transports import TRANSPORTS
 from bridge.transports.base import Publisher, Qos, Received, Transport
@@ -387,11 +388,13 @@ class Router:
         config: BridgeConfig,
         stats_json: str | Path | None = None,
         stats_period: float = 5.0,
+        view: StatusView | None = None,
     ) -> None:
         self.config = config
         self.loads = LoadCache(config.load_cache)
         self.stats_json = Path(stats_json) if stats_json else None
         self.stats_period = stats_period
+        self.view = view or LogLines()
         self.transports: dict[str, Transport] = {}
         self.routes: list[RouteRunner] = []
         self._inline = InlineBudget()
@@ -498,6 +501,7 @@ class Router:
         for runner in self.routes:
             runner.join(timeout=2)
         self.report()
+        self.view.close()
         self._close_transports()
 
     def _close_transports(self) -> None:
@@ -513,31 +517,10 @@ class Router:
         return snapshot
 
     def report(self) -> None:
-        """One log line per route, and the JSON file when asked for."""
+        """The routes' stats to the status view, and to the JSON file when asked for."""
         snapshot = self.snapshot()
-        for name, stats in snapshot.items():
-            if name == "transports":
-                log.info("transports: %s", stats)
-                continue
-            latency = stats["latency_ms"]
-            log.info(
-                "route %s: in %d out %d errors %d dropped %d latency p50 %s p99 %s ms%s",
-                name,
-                stats["messages_in"],
-                stats["messages_out"],
-                sum(stats["errors"].values()),
-                stats["dropped"],
-                _ms(latency["p50"]),
-                _ms(latency["p99"]),
-                f" ({stats['state']}, {stats['idle_skipped']} not translated)"
-                if stats["state"] != "active"
-                else "",
-            )
+        self.view.show(snapshot)
         if self.stats_json is not None:
             temporary = self.stats_json.with_suffix(".tmp")
             temporary.write_text(json.dumps(snapshot, indent=2))
             temporary.replace(self.stats_json)
-
-
-def _ms(value: float | None) -> str:
-    return "-" if value is None else f"{value:.2f}"
