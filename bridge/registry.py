@@ -14,12 +14,9 @@ A plugin cannot replace a built-in name: that would change what an existing conf
 from __future__ import annotations
 
 import importlib
-import logging
 from collections.abc import Mapping
 from importlib.metadata import entry_points
 from typing import Generic, TypeVar, cast
-
-log = logging.getLogger("viewer_bridge")
 
 Entry = TypeVar("Entry")
 
