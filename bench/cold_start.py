@@ -21,7 +21,7 @@ from router import frame, scene
 from bridge.formats.drake import DrawEncoder, load_from_scene
 from bridge.translators import TRANSLATORS, LoadCache
 from bridge.translators.base import Translator
-from bridge.translators.drake_stream import LOAD_TYPE
+from bridge.translators.types import LOAD_TYPE
 from bridge.transports.base import Received
 
 TRANSLATORS_PER_DRAW = ("drake_to_marker_array", "drake_to_tf", "drake_to_pose_array")

@@ -17,10 +17,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pydantic import Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from bridge.scene import FloatArray, Geometry, IntArray, Line, Link, Rgba, Scene, TriangleMesh
-from bridge.translators.base import TranslatorOptions
 
 
 @dataclass(frozen=True, eq=False, slots=True)
@@ -95,8 +94,10 @@ FORCE_LINK = "contact::forces"
 MOMENT_LINK = "contact::moments"
 
 
-class ContactDrawOptions(TranslatorOptions):
+class ContactDrawOptions(BaseModel):
     """How contacts are drawn (every contact translator that draws takes these)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)  # as a translator's options: checked at load
 
     force_scale: float = Field(0.01, gt=0)  # arrow length in metres per newton
     moment_scale: float = Field(0.1, gt=0)  # arrow length in metres per newton-metre

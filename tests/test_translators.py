@@ -415,7 +415,7 @@ def test_client_and_server_routes_carry_the_demo_scene_through_the_tree_viewer(t
 def test_a_draw_read_by_several_translators_is_decoded_once(monkeypatch: pytest.MonkeyPatch) -> None:
     from bridge.formats.drake import DrawDecoder, load_from_scene
     from bridge.translators import TRANSLATORS
-    from bridge.translators.drake_stream import LOAD_TYPE
+    from bridge.translators.types import LOAD_TYPE
 
     calls: list[int] = []
     decode = DrawDecoder.decode

@@ -3,9 +3,12 @@
 Grouped by family: `drake_ros` (Drake's LCM scene <-> ROS 2), `drake_tf` (a TF tree and
 markers in link frames, the way ROS consumes motion), `drake_foxglove` (Foxglove's SceneUpdate
 and FrameTransforms), `drake_point_cloud` (point clouds both ways, DRAKE_DRAW_FRAMES as
-triads), `drake_ign` (<-> ign/gz protobuf), `tree_viewer` (Director's remote tree viewer, both
-sides); `drake_stream` holds the decode-once draw every Drake translator shares, `load_cache`
-the last load per channel (kept across restarts), `base` what a translator is.
+triads), `drake_ign` (<-> ign/gz protobuf), `drake_contact` (contact results to all three),
+`tree_viewer` (Director's remote tree viewer, both sides). Families share only these: `base`
+(what a translator is), `types` (the message types, each named once), `options` (options to
+inherit: markers, frames, ign names), `drake_stream` (the decode-once draw, and
+`DrakeTranslator`, the base that follows Drake's load/draw stream) and `load_cache` (the last
+load per channel, kept across restarts); no family imports another.
 `TRANSLATORS` is the registry a route's `translator:` word is looked up in; a plugin adds one
 with an entry point in the group `viewer_bridge.translators` naming a `Translator` subclass.
 """

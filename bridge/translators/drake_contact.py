@@ -18,15 +18,11 @@ from bridge.formats.drake_contact import decode_contact_results
 from bridge.formats.ign_contact import contacts_message
 from bridge.formats.ros_contact import WRENCH_STAMPED, WrenchEncoder, contact_marker_array_cdr
 from bridge.formats.ros_tf import WORLD
-from bridge.lcmcodec import CONTACT_RESULTS
 from bridge.sim_time import sec_nsec_from_us
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from bridge.translators.drake_ign import IgnOptions, ign_type
-from bridge.translators.drake_ros import MarkerOptions, ros_type
-from bridge.translators.tree_viewer import ENVELOPE_TYPE
-from bridge.transports.base import LCM, MessageType, Received
-
-CONTACT_TYPE = MessageType(CONTACT_RESULTS.type_name, LCM)
+from bridge.translators.options import IgnOptions, MarkerOptions
+from bridge.translators.types import CONTACT_TYPE, ENVELOPE_TYPE, ign_type, ros_type
+from bridge.transports.base import Received
 
 
 def _decode(message: Received) -> ContactResults:
@@ -38,12 +34,8 @@ def contact_results(message: Received) -> ContactResults:
     return message.decoded(_decode)
 
 
-class ContactMarkerOptions(ContactDrawOptions, MarkerOptions):
+class ContactMarkerOptions(MarkerOptions, ContactDrawOptions):
     """How contacts are drawn (`bridge.contact.ContactDrawOptions`) and the marker table's options."""
-
-    def table_overrides(self) -> dict[str, Any]:
-        """Only the marker table's options (the drawing options are not the table's)."""
-        return self.model_dump(include=set(MarkerOptions.model_fields), exclude_none=True)
 
 
 class DrakeContactsToMarkerArray(Translator):
@@ -108,7 +100,7 @@ class DrakeContactsToIgnContacts(Translator):
         return [(0, contacts.SerializeToString())]
 
 
-class ContactTreeViewerOptions(ContactDrawOptions):
+class ContactTreeViewerOptions(TranslatorOptions, ContactDrawOptions):
     prefix: list[str] = ["contacts"]  # where the contacts hang in the viewer's tree
 
 

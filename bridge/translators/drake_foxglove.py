@@ -15,12 +15,10 @@ from bridge.formats import foxglove
 from bridge.scene import Scene
 from bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us
 from bridge.translators.base import Output, Outputs, Translator
-from bridge.translators.drake_stream import DRAW_TYPE, PerLoadTranslator, draw_poses
-from bridge.translators.drake_tf import FrameOptions
-from bridge.transports.base import PROTOBUF, MessageType, Received
-
-SCENE_UPDATE = MessageType(foxglove.SCENE_UPDATE, PROTOBUF)
-FRAME_TRANSFORMS = MessageType(foxglove.FRAME_TRANSFORMS, PROTOBUF)
+from bridge.translators.drake_stream import PerLoadTranslator, draw_poses
+from bridge.translators.options import FrameOptions
+from bridge.translators.types import DRAW_TYPE, FRAME_TRANSFORMS_TYPE, SCENE_UPDATE_TYPE
+from bridge.transports.base import Received
 
 
 class DrakeToSceneUpdate(PerLoadTranslator):
@@ -28,7 +26,7 @@ class DrakeToSceneUpdate(PerLoadTranslator):
 
     Options = FrameOptions
     options: FrameOptions
-    outputs = (Output("", SCENE_UPDATE, latched=True),)
+    outputs = (Output("", SCENE_UPDATE_TYPE, latched=True),)
 
     def on_scene(self, scene: Scene, channel: str) -> Outputs:
         return [(0, foxglove.scene_update(scene, self.options.frames(channel)).SerializeToString())]
@@ -44,7 +42,7 @@ class DrakeToFrameTransforms(Translator):
     Options = FrameTransformsOptions
     options: FrameTransformsOptions
     reads = (DRAW_TYPE,)
-    outputs = (Output("", FRAME_TRANSFORMS),)
+    outputs = (Output("", FRAME_TRANSFORMS_TYPE),)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)

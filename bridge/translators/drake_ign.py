@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from typing import Any, ClassVar, Literal
+from typing import Any, ClassVar
 
 from pydantic import Field
 
@@ -11,21 +11,10 @@ from bridge.formats import ign
 from bridge.formats.drake import DrawEncoder
 from bridge.scene import Scene
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream, draw_poses
-from bridge.transports.base import PROTOBUF, MessageType, Received
-
-
-class IgnOptions(TranslatorOptions):
-    """`ignition` (ign-msgs 8, as Debian's tools speak) or `gz` (newer Gazebo) message names."""
-
-    package: Literal["ignition", "gz"] = "ignition"
-
-    def messages(self) -> ign.MessageSet:
-        return ign.IGNITION if self.package == "ignition" else ign.GZ
-
-
-def ign_type(msgs: ign.MessageSet, name: str) -> MessageType:
-    return MessageType(msgs.full_name(name), PROTOBUF)
+from bridge.translators.drake_stream import DrakeTranslator, draw_poses
+from bridge.translators.options import IgnOptions
+from bridge.translators.types import DRAW_TYPE, LOAD_TYPE, ign_type
+from bridge.transports.base import MessageType, Received
 
 
 class _DrakeToIgn(Translator):
@@ -52,7 +41,7 @@ class ModelOptions(IgnOptions):
     republish_s: float = Field(1.0, ge=0)  # ign-transport has no latching: re-send for late subscribers
 
 
-class DrakeToIgnModel(_DrakeToIgn):
+class DrakeToIgnModel(_DrakeToIgn, DrakeTranslator):
     """load -> `Model` (every link of the scene). ign-transport has no latching, so the model is
     published again every `republish_s` seconds while draws flow, for subscribers that start
     late; its link poses follow the latest draw."""
@@ -64,14 +53,10 @@ class DrakeToIgnModel(_DrakeToIgn):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.drake = DrakeStream(self.loads)
         self._published_at = float("-inf")
 
     def build(self, scene: Scene) -> bytes:
         return ign.model_bytes(scene, msgs=self.msgs)
-
-    def observe(self, message: Received) -> None:
-        self.drake.observe(message)
 
     def translate(self, message: Received) -> Outputs:
         scene, poses = self.drake.read(message)

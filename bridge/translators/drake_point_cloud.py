@@ -13,17 +13,15 @@ from typing import Any
 from pydantic import Field
 
 from bridge.formats import ros, tree_viewer
-from bridge.formats.drake_point_cloud import TYPE_NAME as LCM_POINT_CLOUD
 from bridge.formats.drake_point_cloud import cloud_from_lcm, cloud_to_lcm
 from bridge.formats.ros_point_cloud import POINT_CLOUD2, cloud_from_cdr, cloud_to_cdr
 from bridge.scene import Geometry, Link, Pose, Scene, StampedPointCloud, Triad
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from bridge.translators.drake_ros import MarkerOptions, ros_type
-from bridge.translators.drake_stream import DRAW_TYPE, draw_poses
-from bridge.translators.tree_viewer import ENVELOPE_TYPE
-from bridge.transports.base import LCM, MessageType, Received
+from bridge.translators.drake_stream import draw_poses
+from bridge.translators.options import MarkerOptions
+from bridge.translators.types import DRAW_TYPE, ENVELOPE_TYPE, POINT_CLOUD_TYPE, ros_type
+from bridge.transports.base import Received
 
-POINT_CLOUD_TYPE = MessageType(LCM_POINT_CLOUD, LCM)
 MELDIS_TRIAD_LENGTH = 0.25  # meldis's _DrawFrameApplet: 0.25 m axes, 0.01 m radius
 
 
@@ -107,7 +105,6 @@ class DrakeDrawFramesToMarkers(Translator):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.names: tuple[str, ...] | None = None
-        self.marker_options = self.options.model_dump(exclude_none=True, exclude={"length"})
         self.triad = (Geometry(Triad(self.options.length, tube=True)),)
 
     def translate(self, message: Received) -> Outputs:
@@ -118,4 +115,4 @@ class DrakeDrawFramesToMarkers(Translator):
         )
         changed = poses.names != self.names
         self.names = poses.names
-        return [(0, ros.marker_array_cdr(Scene(links, poses), self.marker_options, delete_all=changed))]
+        return [(0, ros.marker_array_cdr(Scene(links, poses), self.options.table_overrides(), delete_all=changed))]

@@ -5,50 +5,30 @@ from __future__ import annotations
 import struct
 from typing import Any
 
-from pydantic import Field
-
 from bridge.formats import ros
 from bridge.formats.drake import DrawEncoder, link_from_lcm
 from bridge.formats.ros_messages import CDR_LE, time_parts
 from bridge.lcmcodec import LINK_DATA
 from bridge.scene import Scene
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream, PerLoadTranslator, draw_poses
-from bridge.transports.base import CDR, LCM, MessageType, Received
+from bridge.translators.drake_stream import DrakeTranslator, PerLoadTranslator, draw_poses
+from bridge.translators.options import MarkerOptions
+from bridge.translators.types import DRAW_TYPE, LINK_DATA_TYPE, LOAD_TYPE, ros_type
+from bridge.transports.base import LCM, MessageType, Received
 
 
-def ros_type(name: str) -> MessageType:
-    return MessageType(name, CDR)
-
-
-class MarkerOptions(TranslatorOptions):
-    """The marker table's options (`mappings/ros.yaml`); unset ones keep the table's value."""
-
-    frame_id: str | None = None
-    embed_mesh_files: bool | None = None
-    point_size: float | None = Field(None, gt=0)
-
-    def table_overrides(self) -> dict[str, Any]:
-        return self.model_dump(exclude_none=True)
-
-
-class DrakeToMarkerArray(Translator):
+class DrakeToMarkerArray(DrakeTranslator):
     """load + draw -> `visualization_msgs/MarkerArray`: the load's array (DELETEALL first), then
     each draw re-poses the markers (a CDR template, see `ros.MarkerStream`). Latched, so a late
     RViz gets the last full array."""
 
     Options = MarkerOptions
     options: MarkerOptions
-    reads = (LOAD_TYPE, DRAW_TYPE)
     outputs = (Output("", ros_type(ros.MARKER_ARRAY), latched=True),)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.drake = DrakeStream(self.loads)
         self.markers: ros.MarkerStream | None = None
-
-    def observe(self, message: Received) -> None:
-        self.drake.observe(message)
 
     def translate(self, message: Received) -> Outputs:
         scene, poses = self.drake.read(message)
@@ -116,7 +96,7 @@ class DrakeLinkToMarkerArray(Translator):
 
     Options = MarkerOptions
     options: MarkerOptions
-    reads = (MessageType(LINK_DATA.type_name, LCM),)
+    reads = (LINK_DATA_TYPE,)
     outputs = (Output("", ros_type(ros.MARKER_ARRAY)),)
 
     def translate(self, message: Received) -> Outputs:

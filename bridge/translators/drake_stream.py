@@ -19,11 +19,8 @@ from bridge.lcmcodec import DRAW, LOAD_ROBOT
 from bridge.scene import LinkPoses, Scene
 from bridge.translators.base import Outputs, Translator
 from bridge.translators.load_cache import LoadCache
-from bridge.transports.base import LCM, MessageType, Received
-
-LOAD_TYPE = MessageType(LOAD_ROBOT.type_name, LCM)
-DRAW_TYPE = MessageType(DRAW.type_name, LCM)
-
+from bridge.translators.types import DRAW_TYPE, LOAD_TYPE
+from bridge.transports.base import MessageType, Received
 
 _ROLE = re.compile(r"_(ILLUSTRATION|PROXIMITY|PERCEPTION)$")
 
@@ -110,9 +107,9 @@ class DrakeStream:
         return scene
 
 
-class PerLoadTranslator(Translator):
-    """A translator that publishes once per scene: each new load, and the cached load when a draw
-    comes for a scene it has not published (a late start, a lazy route that was idle)."""
+class DrakeTranslator(Translator):
+    """A translator of Drake's scene stream (loads and draws): it owns its `DrakeStream`, which
+    sees every message, translated or not, so that no load is missed while a route idles."""
 
     reads: tuple[MessageType, ...] = (LOAD_TYPE, DRAW_TYPE)
 
@@ -122,6 +119,11 @@ class PerLoadTranslator(Translator):
 
     def observe(self, message: Received) -> None:
         self.drake.observe(message)
+
+
+class PerLoadTranslator(DrakeTranslator):
+    """A translator that publishes once per scene: each new load, and the cached load when a draw
+    comes for a scene it has not published (a late start, a lazy route that was idle)."""
 
     def translate(self, message: Received) -> Outputs:
         scene, _ = self.drake.read(message)

@@ -22,35 +22,24 @@ import numpy as np
 
 from bridge.formats import ros
 from bridge.formats.ros_messages import time_parts, time_parts_from_us
-from bridge.formats.ros_tf import TF_MESSAGE, WORLD, FrameNames, TransformsEncoder
+from bridge.formats.ros_tf import TF_MESSAGE, WORLD, TransformsEncoder
 from bridge.scene import LinkPoses, Scene
-from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from bridge.translators.drake_ros import MarkerOptions, ros_type
-from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream, PerLoadTranslator, role_of
+from bridge.translators.base import Output, Outputs
+from bridge.translators.drake_stream import DrakeTranslator, PerLoadTranslator
+from bridge.translators.options import FrameOptions, MarkerOptions
+from bridge.translators.types import ros_type
 from bridge.transports.base import Received
-
-
-class FrameOptions(TranslatorOptions):
-    world_frame: str = WORLD  # the parent of every link frame (Drake's world link is this frame)
-    frame_prefix: str | None = None  # None: by role ("" illustration, "proximity/", "perception/")
-
-    def frames(self, channel: str) -> FrameNames:
-        if self.frame_prefix is not None:
-            return FrameNames(self.world_frame, self.frame_prefix)
-        role = role_of(channel)
-        return FrameNames(self.world_frame, "" if role in ("", "illustration") else f"{role}/")
 
 
 class TfOptions(FrameOptions):
     stamp: Literal["receive", "sim"] = "receive"
 
 
-class DrakeToTf(Translator):
+class DrakeToTf(DrakeTranslator):
     """draw -> `TFMessage` on the destination (`/tf`); per load, the links draws never move -> `<it>_static`."""
 
     Options = TfOptions
     options: TfOptions
-    reads = (LOAD_TYPE, DRAW_TYPE)
     outputs = (
         Output("", ros_type(TF_MESSAGE)),
         Output("_static", ros_type(TF_MESSAGE), latched=True),
@@ -58,12 +47,8 @@ class DrakeToTf(Translator):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.drake = DrakeStream(self.loads)
         self.encoder: TransformsEncoder | None = None
         self._static_due = False
-
-    def observe(self, message: Received) -> None:
-        self.drake.observe(message)
 
     def translate(self, message: Received) -> Outputs:
         scene, poses = self.drake.read(message)
@@ -114,12 +99,6 @@ class DrakeToLinkMarkers(PerLoadTranslator):
     options: LinkMarkerOptions
     outputs = (Output("", ros_type(ros.MARKER_ARRAY), latched=True),)
 
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self._marker_options = self.options.model_dump(
-            exclude_none=True, exclude={"world_frame", "frame_prefix"}
-        )
-
     def on_scene(self, scene: Scene, channel: str) -> Outputs:
         frames = self.options.frames(channel)
-        return [(0, ros.marker_array_in_link_frames_cdr(scene, frames, self._marker_options))]
+        return [(0, ros.marker_array_in_link_frames_cdr(scene, frames, self.options.table_overrides()))]

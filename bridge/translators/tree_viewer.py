@@ -10,11 +10,10 @@ from bridge.formats import ros, tree_viewer
 from bridge.lcmcodec import VIEWER2_COMMS
 from bridge.scene import LinkPoses, Scene
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from bridge.translators.drake_ros import MarkerOptions, ros_type
-from bridge.translators.drake_stream import DRAW_TYPE, LOAD_TYPE, DrakeStream
-from bridge.transports.base import LCM, MessageType, Received
-
-ENVELOPE_TYPE = MessageType(VIEWER2_COMMS.type_name, LCM)
+from bridge.translators.drake_stream import DrakeTranslator
+from bridge.translators.options import MarkerOptions
+from bridge.translators.types import DRAW_TYPE, ENVELOPE_TYPE, LOAD_TYPE, ros_type
+from bridge.transports.base import Received
 
 
 class TreeViewerServerOptions(MarkerOptions):
@@ -39,7 +38,6 @@ class TreeViewerServer(Translator):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.trees: dict[str, tree_viewer.TreeState] = {}
-        self._marker_options = self.options.model_dump(exclude_none=True, exclude={"mesh_roots"})
 
     def translate(self, message: Received) -> Outputs:
         match = self._CLIENT.fullmatch(message.channel)
@@ -61,7 +59,7 @@ class TreeViewerServer(Translator):
         self.reply(answer, tree_viewer.encode(response))
         if response["status"] not in (tree_viewer.OK, tree_viewer.MISSING_PATHS):
             raise tree_viewer.RequestRejected(response["status"], f"client {client}: {response['error']}")
-        return [(0, ros.marker_array_cdr(state.scene(), self._marker_options, delete_all=changed))]
+        return [(0, ros.marker_array_cdr(state.scene(), self.options.table_overrides(), delete_all=changed))]
 
     @staticmethod
     def _respond(state: tree_viewer.TreeState, data: bytes) -> tuple[dict[str, Any], bool]:
@@ -83,7 +81,7 @@ class TreeViewerClientOptions(TranslatorOptions):
     prefix: list[str] = list(tree_viewer.DEFAULT_PREFIX)  # where the scene hangs in the viewer's tree
 
 
-class DrakeToTreeViewer(Translator):
+class DrakeToTreeViewer(DrakeTranslator):
     """Drake load/draw -> tree viewer requests for a running Director (the client side).
 
     Route the client's response channel to it as well: on MISSING_PATHS it re-sends the geometry
@@ -98,14 +96,10 @@ class DrakeToTreeViewer(Translator):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.drake = DrakeStream(self.loads)
         self.prefix = tuple(self.options.prefix)
         self.refused: str | None = None
         self.poses: LinkPoses | None = None
         self.settransform = tree_viewer.SettransformEncoder(self.prefix)
-
-    def observe(self, message: Received) -> None:
-        self.drake.observe(message)
 
     def translate(self, message: Received) -> Outputs:
         if self.refused is not None:

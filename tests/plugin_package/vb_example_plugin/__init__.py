@@ -14,7 +14,8 @@ import threading
 from typing import ClassVar
 
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from bridge.translators.drake_stream import DRAW_TYPE, draw_poses
+from bridge.translators.drake_stream import draw_poses
+from bridge.translators.types import DRAW_TYPE
 from bridge.transports.base import (
     JSON,
     CallPublisher,

@@ -1,0 +1,48 @@
+"""Options that several translator families share, as classes to inherit from.
+
+Each is a `TranslatorOptions`: unknown keys are refused when the config loads. A translator's
+own options class combines these (e.g. contact markers: `ContactDrawOptions` + `MarkerOptions`).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import Field
+
+from bridge.formats import ign
+from bridge.formats.ros_tf import WORLD, FrameNames
+from bridge.translators.base import TranslatorOptions
+from bridge.translators.drake_stream import role_of
+
+
+class MarkerOptions(TranslatorOptions):
+    """The marker table's options (`mappings/ros.yaml`); unset ones keep the table's value."""
+
+    frame_id: str | None = None
+    embed_mesh_files: bool | None = None
+    point_size: float | None = Field(None, gt=0)
+
+    def table_overrides(self) -> dict[str, Any]:
+        """The marker table's options that are set, whatever else a subclass adds."""
+        return self.model_dump(include=set(MarkerOptions.model_fields), exclude_none=True)
+
+
+class FrameOptions(TranslatorOptions):
+    world_frame: str = WORLD  # the parent of every link frame (Drake's world link is this frame)
+    frame_prefix: str | None = None  # None: by role ("" illustration, "proximity/", "perception/")
+
+    def frames(self, channel: str) -> FrameNames:
+        if self.frame_prefix is not None:
+            return FrameNames(self.world_frame, self.frame_prefix)
+        role = role_of(channel)
+        return FrameNames(self.world_frame, "" if role in ("", "illustration") else f"{role}/")
+
+
+class IgnOptions(TranslatorOptions):
+    """`ignition` (ign-msgs 8, as Debian's tools speak) or `gz` (newer Gazebo) message names."""
+
+    package: Literal["ignition", "gz"] = "ignition"
+
+    def messages(self) -> ign.MessageSet:
+        return ign.IGNITION if self.package == "ignition" else ign.GZ

@@ -1,0 +1,34 @@
+"""The message types translators read and write, each named once: a type name and its encoding.
+
+A translator declares these in `reads`, `outputs` and `replies`; the config check matches them
+against what each route's transports carry. Families share them through this module, never
+through each other's.
+"""
+
+from __future__ import annotations
+
+from bridge.formats import foxglove, ign
+from bridge.lcmcodec import CONTACT_RESULTS, DRAW, LINK_DATA, LOAD_ROBOT, POINT_CLOUD, VIEWER2_COMMS
+from bridge.transports.base import CDR, LCM, PROTOBUF, MessageType
+
+# Drake's LCM messages.
+LOAD_TYPE = MessageType(LOAD_ROBOT.type_name, LCM)
+DRAW_TYPE = MessageType(DRAW.type_name, LCM)
+LINK_DATA_TYPE = MessageType(LINK_DATA.type_name, LCM)  # DRAKE_VIEWER_DEFORMABLE
+CONTACT_TYPE = MessageType(CONTACT_RESULTS.type_name, LCM)
+POINT_CLOUD_TYPE = MessageType(POINT_CLOUD.type_name, LCM)
+# Director's tree viewer envelope (requests and responses alike).
+ENVELOPE_TYPE = MessageType(VIEWER2_COMMS.type_name, LCM)
+# Foxglove's protobuf schemas.
+SCENE_UPDATE_TYPE = MessageType(foxglove.SCENE_UPDATE, PROTOBUF)
+FRAME_TRANSFORMS_TYPE = MessageType(foxglove.FRAME_TRANSFORMS, PROTOBUF)
+
+
+def ros_type(name: str) -> MessageType:
+    """A ROS 2 message type (`geometry_msgs/msg/PoseArray`), carried as CDR."""
+    return MessageType(name, CDR)
+
+
+def ign_type(msgs: ign.MessageSet, name: str) -> MessageType:
+    """An ign/gz protobuf message (`Pose_V`) under a package's names (`ignition.msgs.Pose_V`)."""
+    return MessageType(msgs.full_name(name), PROTOBUF)
