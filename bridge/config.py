@@ -6,7 +6,8 @@ template over the source's regex groups (`{1}`; `{1:lower}`; `{1:path}` turns `_
 `/proximity` and `` into ``; `{1:topic}` makes any text a valid ROS name token), QoS, a rate
 policy, `lazy`, and the translator's options. Each transport's settings are the top-level
 section named after it (`lcm:`, `ros:`, `ign:`, or a plugin's name), checked by its own model.
-`DEFAULT_CONFIG` bridges Drake's default channels to ROS 2 under `/drake`.
+The built-in configs (`-c builtin:NAME`; `default` bridges Drake's default channels to ROS 2
+under `/drake`) are the YAML files in `configs/`, shipped with the package and read like a user's.
 
 Everything is checked when the config loads: the names of transports and translators, each
 translator's options, and whether each route's transports carry the message types its
@@ -33,6 +34,7 @@ from pydantic import (
 )
 
 from bridge.errors import ConfigError
+from bridge.resources import data_dir
 from bridge.translators import TRANSLATORS, Translator, TranslatorOptions
 from bridge.transports import TRANSPORTS
 from bridge.transports.base import MessageType, Transport, TransportSettings
@@ -250,167 +252,14 @@ def destination_name(template: str, match: re.Match[str]) -> str:
     return _Template().format(template, match.group(0), *match.groups())
 
 
-_FOXGLOVE_ROUTES = """\
-  # Foxglove: the scene once per load, the frames every draw (both lazy: nothing without a client).
-  - name: foxglove_scene
-    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_scene_update
-    destination: {transport: foxglove, name: "/drake{1:path}/scene"}
-    lazy: true
-  - name: foxglove_transforms
-    source: {transport: lcm, name: "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_frame_transforms
-    destination: {transport: foxglove, name: "/drake{1:path}/transforms"}
-    lazy: true
-"""
-
-DEFAULT_CONFIG = (
-    """\
-# viewer-bridge's built-in configuration: Drake's default viewer channels to ROS 2 under /drake
-# (under the node's namespace: `--ros-args -r __ns:=/sim1` gives /sim1/drake/...; /tf stays /tf).
-# An unsuffixed channel (Drake's illustration default) goes to /drake/..., a role-suffixed one
-# (_ILLUSTRATION, _PROXIMITY, _PERCEPTION) to /drake/<role>/... Lazy routes translate nothing
-# while their topics have no subscriber.
-lcm:
-  url: udpm://239.255.76.67:7667?ttl=0
-ros:
-  node: viewer_bridge
-  namespace: ""
-  use_sim_time: false
-# Foxglove's live view, on this machine only: open the URL the start-up line prints.
-foxglove:
-  host: 127.0.0.1
-  port: 8765
-routes:
-  # Each draw as a TF tree on /tf (world -> plant/iiwa/iiwa_link_0 ...; proximity and perception
-  # frames prefixed proximity/ and perception/), what never moves on /tf_static.
-  - name: tf
-    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_tf
-    destination: {transport: ros, name: /tf}
-    qos: {depth: 100}
-    rate: {policy: latest}
-    lazy: true
-  # The scene's markers in their link frames, once per load (latched); TF moves them.
-  - name: link_markers
-    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_link_markers
-    destination: {transport: ros, name: "drake{1:path}/link_markers"}
-    rate: {policy: latest}
-    lazy: true
-  # The same markers in the world frame, re-posed every draw: for tools without TF.
-  - name: markers
-    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_marker_array
-    destination: {transport: ros, name: "drake{1:path}/markers"}
-    rate: {policy: latest}
-    lazy: true
-  - name: poses
-    source: {transport: lcm, name: "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_pose_array
-    destination: {transport: ros, name: "drake{1:path}/poses"}
-    rate: {policy: latest}
-  - name: shapes
-    source: {transport: lcm, name: "DRAKE_VIEWER_LOAD_ROBOT(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_shapes
-    destination: {transport: ros, name: "drake{1:path}/shapes"}
-    qos: {depth: 10000}
-    rate: {policy: all}
-  - name: deformable
-    source: {transport: lcm, name: "DRAKE_VIEWER_DEFORMABLE(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_link_to_marker_array
-    destination: {transport: ros, name: "drake{1:path}/deformable"}
-    rate: {policy: latest}
-  # What meldis shows besides the scene: Drake's point clouds (DRAKE_POINT_CLOUD -> /drake/point_cloud,
-  # DRAKE_POINT_CLOUD_FOO -> /drake/point_cloud/foo) and DRAKE_DRAW_FRAMES as triads.
-  - name: point_cloud
-    source: {transport: lcm, name: "DRAKE_POINT_CLOUD(.*)"}
-    translator: drake_point_cloud_to_ros
-    destination: {transport: ros, name: "drake/point_cloud{1:path}"}
-    qos: {depth: 1}
-    rate: {policy: latest}
-    lazy: true
-  - name: draw_frames
-    source: {transport: lcm, name: "DRAKE_DRAW_FRAMES(.*)"}
-    translator: drake_draw_frames_to_markers
-    destination: {transport: ros, name: "drake/draw_frames{1:path}"}
-    rate: {policy: latest}
-    lazy: true
-  # And back: a ROS camera's cloud published on /drake_in/point_cloud shows in meldis.
-  - name: point_cloud_from_ros
-    source: {transport: ros, name: drake_in/point_cloud}
-    translator: ros_point_cloud_to_drake
-    destination: {transport: lcm, name: DRAKE_POINT_CLOUD_FROM_ROS}
-    rate: {policy: latest}
-  # Contact results (meldis's contact view): arrows and pressure-coloured surfaces, latched like
-  # the markers; a WrenchStamped per contact pair for controllers.
-  - name: contact_markers
-    source: {transport: lcm, name: CONTACT_RESULTS}
-    translator: drake_contacts_to_marker_array
-    destination: {transport: ros, name: drake/contacts/markers}
-    rate: {policy: latest}
-    lazy: true
-  - name: contact_wrenches
-    source: {transport: lcm, name: CONTACT_RESULTS}
-    translator: drake_contacts_to_wrenches
-    destination: {transport: ros, name: drake/contacts/wrenches}
-    rate: {policy: latest}
-    lazy: true
-  # viewer-bridge as a Director tree viewer: every client's tree to /director/<client id>/markers.
-  - name: tree_viewer
-    source: {transport: lcm, name: "DIRECTOR_TREE_VIEWER_REQUEST_<([^<>]*)>"}
-    translator: tree_viewer_server
-    destination: {transport: ros, name: "director/{1:topic}/markers"}
-    qos: {depth: 1000}
-    rate: {policy: all}
-    options: {mesh_roots: []}
-"""
-    + _FOXGLOVE_ROUTES
-)
+def _builtin_configs() -> dict[str, str]:
+    """The configs shipped in `configs/` (`builtin:NAME`), by name, the default first."""
+    paths = sorted(data_dir("configs").glob("*.yaml"), key=lambda path: (path.stem != "default", path.stem))
+    return {path.stem: path.read_text() for path in paths}
 
 
-IGN_CONFIG = """\
-# Drake's default viewer channels to ign-transport (ign-msgs 8 names, as Debian's ign tools use),
-# and Pose_V from ign back to LCM. For newer Gazebo, set `options: {package: gz}` on a route.
-lcm:
-  url: udpm://239.255.76.67:7667?ttl=0
-ign: {partition: null, ip: null}
-routes:
-  - name: model
-    source: {transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_ign_model_v
-    destination: {transport: ign, name: "/drake{1:path}/model_v"}
-  - name: pose_v
-    source: {transport: lcm, name: "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_ign_pose_v
-    destination: {transport: ign, name: "/drake{1:path}/pose_v"}
-  - name: poses_stamped
-    source: {transport: lcm, name: "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"}
-    translator: drake_to_ign_poses_stamped
-    destination: {transport: ign, name: "/drake{1:path}/poses_stamped"}
-  - name: from_ign
-    source: {transport: ign, name: /drake_in/pose_v}
-    translator: ign_pose_v_to_drake_draw
-    destination: {transport: lcm, name: DRAKE_VIEWER_DRAW_FROM_IGN}
-    rate: {policy: all}
-"""
-
-FOXGLOVE_CONFIG = (
-    """\
-# Drake's default viewer channels to Foxglove, live in a browser with no ROS install: open the
-# URL the start-up line prints. The scene goes once per load (a client that connects later still
-# gets it), the frames every draw, stamped with Drake's sim time.
-lcm:
-  url: udpm://239.255.76.67:7667?ttl=0
-foxglove:
-  host: 127.0.0.1
-  port: 8765
-routes:
-"""
-    + _FOXGLOVE_ROUTES
-)
-
-BUILTIN_CONFIGS = {"default": DEFAULT_CONFIG, "ign": IGN_CONFIG, "foxglove": FOXGLOVE_CONFIG}
+BUILTIN_CONFIGS = _builtin_configs()
+DEFAULT_CONFIG = BUILTIN_CONFIGS["default"]
 
 
 def load_config(path: str | Path | None) -> BridgeConfig:
@@ -434,8 +283,6 @@ def load_config(path: str | Path | None) -> BridgeConfig:
 __all__ = [
     "BUILTIN_CONFIGS",
     "DEFAULT_CONFIG",
-    "FOXGLOVE_CONFIG",
-    "IGN_CONFIG",
     "BridgeConfig",
     "ConfigError",
     "Endpoint",
