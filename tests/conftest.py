@@ -60,12 +60,8 @@ def lcmgen(tmp_path_factory: pytest.TempPathFactory) -> dict[str, type]:
 DRAKE_SCENE_SCRIPT = Path(__file__).parent / "drake_scene.py"
 
 
-@pytest.fixture(scope="session")
-def drake_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """An LCM log recorded by the real lcm-logger while a pydrake simulation runs DrakeVisualizer."""
-    folder = tmp_path_factory.mktemp("drake")
-    log = folder / "drake.lcmlog"
-    url = lcm_url()
+def record_log(log: Path, url: str, simulation: list[str]) -> Path:
+    """`log`, recorded by the real lcm-logger on `url` while the `simulation` command runs."""
     logger = subprocess.Popen(
         [str(SCRIPTS / "lcm-logger"), "--lcm-url", url, "-f", str(log)],
         stdout=subprocess.DEVNULL,
@@ -76,12 +72,20 @@ def drake_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
         while not log.exists() and time.monotonic() < deadline:
             time.sleep(0.05)
         time.sleep(0.3)
-        subprocess.run([sys.executable, str(DRAKE_SCENE_SCRIPT), url, str(folder)], check=True, timeout=300)
+        subprocess.run(simulation, check=True, timeout=300)
         time.sleep(0.5)
     finally:
         logger.send_signal(signal.SIGINT)
         logger.wait(timeout=10)
     return log
+
+
+@pytest.fixture(scope="session")
+def drake_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An LCM log recorded by the real lcm-logger while a pydrake simulation runs DrakeVisualizer."""
+    folder = tmp_path_factory.mktemp("drake")
+    url = lcm_url()
+    return record_log(folder / "drake.lcmlog", url, [sys.executable, str(DRAKE_SCENE_SCRIPT), url, str(folder)])
 
 
 @pytest.fixture(scope="session")
