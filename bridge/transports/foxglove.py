@@ -12,6 +12,7 @@ served as well as those asking for `foxglove.sdk.v1`, the only name the SDK's se
 
 from __future__ import annotations
 
+import logging
 import threading
 from collections.abc import Iterable, Mapping
 from urllib.parse import urlencode
@@ -42,6 +43,17 @@ def foxglove_channel(topic: str, message_type: MessageType, context: foxglove.Co
         message_encoding="protobuf",
         context=context,
     )
+
+
+class _WithoutSdkAddress(logging.Filter):
+    """Drops the SDK's own "Started server on HOST:PORT": behind the front that is an internal
+    port no client should use, and the bridge's start-up line names the one to use."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not record.getMessage().startswith("Started server on")
+
+
+logging.getLogger("foxglove.websocket.server").addFilter(_WithoutSdkAddress())  # the SDK's Rust log
 
 
 class FoxgloveSettings(TransportSettings):

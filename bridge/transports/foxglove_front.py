@@ -87,6 +87,10 @@ def read_head(connection: socket.socket) -> tuple[bytes, bytes]:
     return bytes(data[: end + 4]), bytes(data[end + 4 :])
 
 
+def _address(address: tuple[str, int] | tuple[str, int, int, int]) -> str:
+    return f"{address[0]}:{address[1]}"
+
+
 def _shut_down(connection: socket.socket) -> None:
     """Shut both ways (a thread blocked on it wakes up), unless it is already gone."""
     with contextlib.suppress(OSError):
@@ -158,7 +162,10 @@ class SubprotocolFront:
         with self._lock:
             self._relays.add(relay)
         try:
-            self._handshake(client, sdk)
+            offered = self._handshake(client, sdk)
+            # The SDK's log names the relay's own address for this client: say which is which.
+            log.info("foxglove client %s (subprotocols %s) is %s to the SDK's server",
+                     _address(client.getpeername()), ", ".join(offered) or "none", _address(sdk.getsockname()))  # fmt: skip
         except (HandshakeError, OSError) as error:
             self._count("bad_handshake", error)
             self._forget(relay)
@@ -170,17 +177,19 @@ class SubprotocolFront:
         self._pump(relay, client, sdk)
 
     @staticmethod
-    def _handshake(client: socket.socket, sdk: socket.socket) -> None:
-        """Pass the client's request on and the SDK's answer back, renamed for an older name."""
+    def _handshake(client: socket.socket, sdk: socket.socket) -> list[str]:
+        """Pass the client's request on and the SDK's answer back, renamed for an older name;
+        the subprotocols the client offered."""
         client.settimeout(HANDSHAKE_SECONDS)
         request, early = read_head(client)
         older = older_name_asked(request)
         if older is None:  # the SDK's own name, or none it knows: the SDK answers as it does
             sdk.sendall(request + early)
-            return
-        sdk.sendall(naming(request, SDK_SUBPROTOCOL) + early)
-        answer, rest = read_head(sdk)
-        client.sendall(naming(answer, older) + rest)
+        else:
+            sdk.sendall(naming(request, SDK_SUBPROTOCOL) + early)
+            answer, rest = read_head(sdk)
+            client.sendall(naming(answer, older) + rest)
+        return subprotocols(request)
 
     def _pump(self, relay: _Relay, source: socket.socket, target: socket.socket) -> None:
         if relay.pump(source, target):

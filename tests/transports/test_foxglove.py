@@ -158,6 +158,8 @@ def foxglove_port(bridge: BridgeProcess) -> int:
     line = bridge.wait_for_line("routes running")
     match = re.search(r"ws://127\.0\.0\.1:(\d+)", line)
     assert match is not None, line
+    # The SDK's own start-up line would name the port behind the front: not shown.
+    assert not [line for line in bridge.lines if "Started server on" in line], bridge.lines
     return int(match.group(1))
 
 
