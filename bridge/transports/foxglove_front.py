@@ -38,7 +38,7 @@ SDK_SUBPROTOCOL = "foxglove.sdk.v1"
 OLDER_NAMES = frozenset({"foxglove.websocket.v1"})  # the same protocol under the name it had first
 MAX_HEAD = 64 * 1024  # an HTTP head longer than this is not a WebSocket handshake
 HANDSHAKE_SECONDS = 10.0  # a client that has not finished its request by then is dropped
-CHUNK = 256 * 1024  # bytes relayed per read; a 1000-link FrameTransforms frame is about 80 KB
+CHUNK = 256 * 1024  # bytes relayed per read; a 1000-link FrameTransforms frame is about 108 kB
 _PROTOCOL_HEADER = b"sec-websocket-protocol"
 
 
