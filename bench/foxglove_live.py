@@ -7,21 +7,32 @@ protobuf wire template; numpy scatters the doubles and the stamp). Baseline: the
 `foxglove.messages.FrameTransform` built per link from the same decoded arrays, then
 `FrameTransforms.encode()`. Both parse to the same `foxglove.FrameTransforms` (checked). Also the
 once-per-load SceneUpdate of a 1000-geometry scene.
+
+Then the live server: from `publish` of those bytes to a WebSocket client's receipt, a client
+connected straight to the SDK's server (the baseline: what the SDK costs alone) beside clients
+connected through our front (bridge/transports/foxglove_front.py) with either subprotocol name.
+Two figures each: one message at a time (publish, wait for it: the latency), and a burst of
+messages back to back (the time per message when the relay is kept busy).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import time
 
 from draw_codec import frame, seconds_per_call  # bench/ is on sys.path when run as a script
 from foxglove.messages import FrameTransform, FrameTransforms, Quaternion, Timestamp, Vector3
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms as FrameTransformsProto
 from translators import scene
+from websockets.sync.client import ClientConnection, connect
 
 from bridge.formats import foxglove
 from bridge.formats.drake import DrawDecoder, DrawEncoder
 from bridge.formats.ros_tf import FrameNames
 from bridge.scene import LinkPoses
+from bridge.transports.base import PROTOBUF, MessageType, Publisher, Qos
+from bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
 
 
 def sdk_frame_transforms(poses: LinkPoses, stamp: tuple[int, int], frames: FrameNames) -> bytes:
@@ -48,12 +59,78 @@ def parsed(data: bytes) -> FrameTransformsProto:
     return message
 
 
+def subscribe(ws: ClientConnection) -> None:
+    """Subscribes to the one channel the server advertises."""
+    while (message := json.loads(ws.recv(timeout=10)))["op"] != "advertise":
+        pass
+    channel = message["channels"][0]["id"]
+    ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channel}]}))
+
+
+def receive_data(ws: ClientConnection) -> int:
+    """Waits for the next message-data frame; its size."""
+    while True:
+        frame = ws.recv(timeout=10)
+        if isinstance(frame, bytes) and frame[0] == 0x01:
+            return len(frame)
+
+
+def wait_for_subscriber(publisher: Publisher) -> None:
+    deadline = time.monotonic() + 10
+    while publisher.subscriber_count() != 1:
+        assert time.monotonic() < deadline, "the client's subscription never arrived"
+        time.sleep(0.001)
+
+
+def per_message(publisher: Publisher, ws: ClientConnection, payload: bytes, count: int, burst: bool) -> float:
+    """Seconds per message from `publish` to its receipt, one at a time or `count` back to back."""
+    start = time.perf_counter()
+    if burst:
+        for _ in range(count):
+            publisher.publish(payload)
+        for _ in range(count):
+            receive_data(ws)
+    else:
+        for _ in range(count):
+            publisher.publish(payload)
+            receive_data(ws)
+    return (time.perf_counter() - start) / count
+
+
+def live_paths(payload: bytes, count: int, rounds: int = 5) -> dict[str, tuple[float, float]]:
+    """(one at a time, in a burst) seconds per message for each way of reaching the server, the
+    best of `rounds` alternating rounds (this machine's load drifts)."""
+    transport = FoxgloveTransport(FoxgloveSettings(port=0))
+    try:
+        publisher = transport.publisher("/bench", MessageType("foxglove.FrameTransforms", PROTOBUF), Qos())
+        paths = {  # name: (port, subprotocol)
+            "SDK server alone, foxglove.sdk.v1 (baseline)": (transport.server.port, "foxglove.sdk.v1"),
+            "through the front, foxglove.sdk.v1": (transport.port, "foxglove.sdk.v1"),
+            "through the front, foxglove.websocket.v1": (transport.port, "foxglove.websocket.v1"),
+        }
+        best: dict[str, tuple[float, float]] = {}
+        for _ in range(rounds):
+            for name, (port, subprotocol) in paths.items():
+                with connect(f"ws://127.0.0.1:{port}", subprotocols=[subprotocol], max_size=None) as ws:  # type: ignore[list-item]
+                    assert ws.subprotocol == subprotocol
+                    subscribe(ws)
+                    wait_for_subscriber(publisher)
+                    per_message(publisher, ws, payload, 20, burst=False)  # warm up
+                    figures = tuple(per_message(publisher, ws, payload, count, burst) for burst in (False, True))
+                old = best.get(name, (float("inf"), float("inf")))
+                best[name] = (min(old[0], figures[0]), min(old[1], figures[1]))
+        return best
+    finally:
+        transport.close()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--links", type=int, default=1000)
     parser.add_argument("--budget", type=float, default=0.5, help="seconds per measurement")
+    parser.add_argument("--messages", type=int, default=500, help="messages per live measurement")
     args = parser.parse_args()
 
     draw = DrawEncoder().encode(frame(args.links))
@@ -78,6 +155,14 @@ def main() -> None:
     once = seconds_per_call(lambda: foxglove.scene_update(load, frames).SerializeToString(), args.budget)
     print(f"\nload -> foxglove.SceneUpdate bytes, {load.geometry_count()} geometries: {once * 1e3:.2f} ms (once per load)")
 
+
+    for links in (10, args.links):  # a small message (mostly the hop's wake-ups) and a big one
+        payload = encoder.encode(decoder.decode(DrawEncoder().encode(frame(links))), stamp)
+        print(f"\nlive server, publish -> client receipt of a {len(payload)}-byte FrameTransforms, {links} links"
+              " (best of 5 rounds)")  # fmt: skip
+        print(f"  {'path':44} {'one at a time':>14} {'in a burst':>12}")
+        for name, (single, burst) in live_paths(payload, args.messages).items():
+            print(f"  {name:44} {single * 1e6:11.1f} us {burst * 1e6:9.1f} us")
 
 if __name__ == "__main__":
     main()

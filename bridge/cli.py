@@ -316,11 +316,12 @@ def _serve_render(args: argparse.Namespace) -> int:
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
     server = make_server(args.host, args.port, args.max_upload)
+    # Ctrl-C stops it cleanly from the moment it says it is ready.
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, lambda *_: threading.Thread(target=server.shutdown).start())
     logging.getLogger("viewer_bridge").info(
         "render server on http://%s:%d/render", *server.server_address[:2]
     )
-    for signal_number in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signal_number, lambda *_: threading.Thread(target=server.shutdown).start())
     server.serve_forever()
     server.server_close()
     return 0

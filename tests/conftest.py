@@ -61,20 +61,16 @@ def lcmgen(tmp_path_factory: pytest.TempPathFactory) -> dict[str, type]:
 DRAKE_SCENE_SCRIPT = Path(__file__).parent / "drake_scene.py"
 
 
-@pytest.fixture(scope="session")
-def drake_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """An LCM log recorded by the real lcm-logger while a pydrake simulation runs DrakeVisualizer."""
-    folder = tmp_path_factory.mktemp("drake")
-    log = folder / "drake.lcmlog"
-    url = lcm_url()
+def record_log(log: Path, url: str, simulation: list[str]) -> Path:
+    """`log`, recorded by the real lcm-logger on `url` while the `simulation` command runs."""
     logger = subprocess.Popen(
         [str(SCRIPTS / "lcm-logger"), "--lcm-url", url, "-f", str(log)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
     try:
-        _until_logged(url, log, b"logger listening")  # before Drake's one load message
-        subprocess.run([sys.executable, str(DRAKE_SCENE_SCRIPT), url, str(folder)], check=True, timeout=300)
+        _until_logged(url, log, b"logger listening")  # before the simulation's first message
+        subprocess.run(simulation, check=True, timeout=300)
         _until_logged(url, log, b"simulation done")  # after its last message
     finally:
         logger.send_signal(signal.SIGINT)
@@ -106,6 +102,14 @@ def publish_until(url: str, mark: bytes, received: Callable[[], bool], timeout: 
         if received():
             return
     raise AssertionError(f"{mark!r} on {url} never arrived")
+
+
+@pytest.fixture(scope="session")
+def drake_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An LCM log recorded by the real lcm-logger while a pydrake simulation runs DrakeVisualizer."""
+    folder = tmp_path_factory.mktemp("drake")
+    url = lcm_url()
+    return record_log(folder / "drake.lcmlog", url, [sys.executable, str(DRAKE_SCENE_SCRIPT), url, str(folder)])
 
 
 @pytest.fixture(scope="session")

@@ -4,13 +4,18 @@ Publish only: each name a route publishes on is a Foxglove channel (protobuf, wi
 its `foxglove.*` type), served to browsers on `host:port` (127.0.0.1:8765 unless configured). A
 Foxglove client that subscribes is counted (so lazy routes wake up), and a latched output's last
 message is logged again when a client subscribes, so a client that connects after the load still
-gets the scene (SceneUpdates are idempotent). Everything about the protocol is the SDK's.
+gets the scene (SceneUpdates are idempotent). Everything about the protocol is the SDK's; unless
+`accept_websocket_v1` is false, a front of ours (bridge/transports/foxglove_front.py) holds the
+public port so that clients asking for the protocol's older name, `foxglove.websocket.v1`, are
+served as well as those asking for `foxglove.sdk.v1`, the only name the SDK's server accepts.
 """
 
 from __future__ import annotations
 
+import logging
 import threading
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
+from urllib.parse import urlencode
 
 import foxglove
 from foxglove.websocket import ChannelView, Client, ServerListener
@@ -27,6 +32,7 @@ from bridge.transports.base import (
     TransportSettings,
     TransportUnavailable,
 )
+from bridge.transports.foxglove_front import SubprotocolFront
 
 
 def foxglove_channel(topic: str, message_type: MessageType, context: foxglove.Context) -> foxglove.Channel:
@@ -39,10 +45,25 @@ def foxglove_channel(topic: str, message_type: MessageType, context: foxglove.Co
     )
 
 
+class _WithoutSdkAddress(logging.Filter):
+    """Drops the SDK's own "Started server on HOST:PORT": behind the front that is an internal
+    port no client should use, and the bridge's start-up line names the one to use."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not record.getMessage().startswith("Started server on")
+
+
+logging.getLogger("foxglove.websocket.server").addFilter(_WithoutSdkAddress())  # the SDK's Rust log
+
+
 class FoxgloveSettings(TransportSettings):
     host: str = "127.0.0.1"  # this machine only, unless you mean to serve other hosts
     port: int = Field(8765, ge=0, le=65535)  # 0: any free port (the start-up line says which)
     name: str = "viewer-bridge"
+    # Also serve clients that ask for the protocol's older name, foxglove.websocket.v1, through a
+    # relay of ours on the port (it costs every client a loopback hop per message). false: the
+    # SDK's server alone on the port, for foxglove.sdk.v1 clients only.
+    accept_websocket_v1: bool = True
 
 
 class _Channel:
@@ -102,19 +123,33 @@ class FoxgloveTransport(Transport):
         super().__init__(settings)
         self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
         self.context = foxglove.Context()
+        relayed = settings.accept_websocket_v1  # then the front holds the public port
         try:
             self.server = foxglove.start_server(
                 name=settings.name,
-                host=settings.host,
-                port=settings.port,
+                host="127.0.0.1" if relayed else settings.host,
+                port=0 if relayed else settings.port,
                 context=self.context,
                 server_listener=_Listener(self._channels),
             )
         except Exception as error:  # the SDK raises its own error types, e.g. for a port in use
-            where = f"{settings.host}:{settings.port}"
-            raise TransportUnavailable(
-                f"the foxglove server cannot listen on {where} (foxglove.port): {error}"
-            ) from None
+            raise self._cannot_listen(error) from None
+        self.front: SubprotocolFront | None = None
+        if relayed:
+            try:
+                self.front = SubprotocolFront(settings.host, settings.port, self.server.port)
+            except OSError as error:  # a port in use, an address not of this machine
+                self.server.stop()
+                raise self._cannot_listen(error) from None
+
+    def _cannot_listen(self, error: Exception) -> TransportUnavailable:
+        where = f"{self.settings.host}:{self.settings.port}"
+        return TransportUnavailable(f"the foxglove server cannot listen on {where} (foxglove.port): {error}")
+
+    @property
+    def port(self) -> int:
+        """The port clients connect to."""
+        return self.server.port if self.front is None else self.front.port
 
     @classmethod
     def carries(cls, message_type: MessageType) -> bool:
@@ -142,7 +177,14 @@ class FoxgloveTransport(Transport):
         return publisher
 
     def describe(self) -> str:
-        return f"Foxglove WebSocket server ws://{self.settings.host}:{self.server.port} (open {self.server.app_url()})"
+        url = f"ws://{self.settings.host}:{self.port}"
+        app = "https://app.foxglove.dev?" + urlencode({"ds": "foxglove-websocket", "ds.url": url})
+        return f"Foxglove WebSocket server {url} (open {app})"
+
+    def errors(self) -> Mapping[str, int]:
+        return {} if self.front is None else self.front.errors()
 
     def close(self) -> None:
+        if self.front is not None:
+            self.front.close()
         self.server.stop()

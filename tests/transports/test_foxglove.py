@@ -1,22 +1,29 @@
 """The Foxglove transport end to end: a real pydrake simulation, the bridge as a process with
-`-c builtin:foxglove`, and a WebSocket client written here from the Foxglove WebSocket protocol
+`-c builtin:foxglove`, and two clients: one written here from the Foxglove WebSocket protocol
 (JSON control messages; binary message data `0x01 | u32 subscription id | u64 time | payload`),
-its payloads decoded with foxglove-schemas-protobuf."""
+which the server answers with `foxglove.sdk.v1`, and Foxglove's own `@foxglove/ws-protocol`
+client under Node.js (tests/node/foxglove_client.js), which asks for `foxglove.websocket.v1`.
+Payloads are decoded with foxglove-schemas-protobuf."""
 
 from __future__ import annotations
 
+import base64
 import json
 import re
 import socket
 import struct
+import subprocess
+import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import drake as drake_lcmtypes
 import pytest
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import ClientConnection, connect
 
 from tests.conftest import lcm_url
@@ -26,6 +33,7 @@ from tests.test_router import LcmRecorder, start_drake
 
 pytestmark = pytest.mark.slow
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
+NODE_CLIENT = Path(__file__).parents[1] / "node" / "foxglove_client.js"  # ./dev installs its packages
 
 
 class FoxgloveClient:
@@ -34,6 +42,7 @@ class FoxgloveClient:
     def __init__(self, port: int) -> None:
         self._connection = connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS)  # type: ignore[arg-type]
         self.ws: ClientConnection = self._connection.__enter__()
+        self.subprotocol: str | None = self.ws.subprotocol
         self.channels: dict[str, dict[str, Any]] = {}  # topic -> advertised channel
         self.messages: dict[str, list[bytes]] = {}  # topic -> payloads, in arrival order
         self._topics: dict[int, str] = {}  # subscription id -> topic
@@ -65,14 +74,92 @@ class FoxgloveClient:
             subscriptions.append({"id": subscription, "channelId": self.channels[topic]["id"]})
         self.ws.send(json.dumps({"op": "subscribe", "subscriptions": subscriptions}))
 
+    def log(self) -> str:
+        """What it saw, for a failed wait: the channels advertised, the payloads per topic."""
+        return f"advertised {sorted(self.channels)}, received {_counts(self.messages)}"
+
     def close(self) -> None:
         self._connection.__exit__(None, None, None)
+
+
+class WsProtocolClient:
+    """Foxglove's `@foxglove/ws-protocol` FoxgloveClient in a Node.js process, subscribed to
+    `topics` as they are advertised; it prints what it receives as JSON lines."""
+
+    def __init__(self, port: int, *topics: str) -> None:
+        command = ["node", str(NODE_CLIENT), f"ws://127.0.0.1:{port}", *topics]
+        self.process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self.subprotocol: str | None = None
+        self.events: list[dict[str, Any]] = []  # every line, errors included (shown when a wait fails)
+        self.messages: dict[str, list[bytes]] = {}  # topic -> payloads, in arrival order
+        self._arrived = threading.Condition()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.process.stdout is not None
+        for line in self.process.stdout:
+            event = json.loads(line)
+            with self._arrived:
+                self.events.append(event)
+                if event["event"] == "open":
+                    self.subprotocol = event["subprotocol"]
+                elif event["event"] == "message":
+                    self.messages.setdefault(event["topic"], []).append(base64.b64decode(event["data"]))
+                self._arrived.notify_all()
+
+    def pump(self, seconds: float, until: Callable[[], bool]) -> bool:
+        with self._arrived:
+            return self._arrived.wait_for(until, timeout=seconds)
+
+    def log(self) -> str:
+        """What it saw, for a failed wait: every event but the messages, then the payloads per topic."""
+        events = [event for event in self.events if event["event"] != "message"]
+        return f"events {events}, received {_counts(self.messages)}"
+
+    def close(self) -> None:
+        assert self.process.stdin is not None
+        self.process.stdin.close()  # the client closes its WebSocket and exits
+        assert self.process.wait(timeout=30) == 0
+        self._reader.join(timeout=5)
+        errors = [event for event in self.events if event["event"] == "error"]
+        assert not errors, errors
+
+
+def _counts(messages: dict[str, list[bytes]]) -> dict[str, int]:
+    return {topic: len(payloads) for topic, payloads in messages.items()}
+
+
+class Client(Protocol):
+    subprotocol: str | None
+    messages: dict[str, list[bytes]]
+
+    def pump(self, seconds: float, until: Callable[[], bool]) -> bool: ...
+
+    def log(self) -> str: ...
+
+    def close(self) -> None: ...
+
+
+def python_client(port: int, *topics: str) -> Client:
+    client = FoxgloveClient(port)
+    client.subscribe(*topics)
+    return client
+
+
+# Each client, and the subprotocol the server must have chosen for it.
+CLIENTS: dict[str, tuple[Callable[..., Client], str]] = {
+    "python": (python_client, "foxglove.sdk.v1"),  # offers both names
+    "ws-protocol": (WsProtocolClient, "foxglove.websocket.v1"),  # offers the older name only
+}
 
 
 def foxglove_port(bridge: BridgeProcess) -> int:
     line = bridge.wait_for_line("routes running")
     match = re.search(r"ws://127\.0\.0\.1:(\d+)", line)
     assert match is not None, line
+    # The SDK's own start-up line would name the port behind the front: not shown.
+    assert not [line for line in bridge.lines if "Started server on" in line], bridge.lines
     return int(match.group(1))
 
 
@@ -116,7 +203,9 @@ def check_scene(entities: dict[str, Any], load: Any) -> None:
                 [s.size.x, s.size.y, s.size.z], [2 * data[0]] * 3) for s in entity.spheres)  # fmt: skip
 
 
-def test_a_drake_simulation_reaches_a_foxglove_client(tmp_path: Path) -> None:
+@pytest.mark.parametrize("client_kind", list(CLIENTS))
+def test_a_drake_simulation_reaches_a_foxglove_client(client_kind: str, tmp_path: Path) -> None:
+    connect_client, subprotocol = CLIENTS[client_kind]
     url = lcm_url(12)
     recorder = LcmRecorder(url)
     bridge = BridgeProcess("-c", "builtin:foxglove", "--lcm-url", url, "--stats-period", "1")
@@ -126,8 +215,7 @@ def test_a_drake_simulation_reaches_a_foxglove_client(tmp_path: Path) -> None:
         drake = start_drake(url, tmp_path, 3.0)
         # A channel is advertised with its stream's first message; the lazy routes translate
         # once this client subscribes, the load they skipped first.
-        client = FoxgloveClient(port)
-        client.subscribe("/drake/illustration/scene", "/drake/illustration/transforms")
+        client = connect_client(port, "/drake/illustration/scene", "/drake/illustration/transforms")
         assert drake.wait(timeout=120) == 0
         recorder.sync()  # holds Drake's last draw
         draws = recorder.messages["DRAKE_VIEWER_DRAW_ILLUSTRATION"]
@@ -137,11 +225,12 @@ def test_a_drake_simulation_reaches_a_foxglove_client(tmp_path: Path) -> None:
             payloads = client.messages.get("/drake/illustration/transforms", [])  # type: ignore[union-attr]
             return bool(payloads) and _stamp_ms(_transforms(payloads[-1])) == last.timestamp
 
-        assert client.pump(60, has_last_draw)
+        assert client.pump(60, has_last_draw), client.log()
+        assert client.pump(60, lambda: bool(client.messages.get("/drake/illustration/scene"))), client.log()  # type: ignore[union-attr]
+        assert client.subprotocol == subprotocol
         # A client that connects after the load still receives the whole scene.
-        late = FoxgloveClient(port)
-        late.subscribe("/drake/illustration/scene")
-        assert late.pump(60, lambda: bool(late.messages.get("/drake/illustration/scene")))  # type: ignore[union-attr]
+        late = connect_client(port, "/drake/illustration/scene")
+        assert late.pump(60, lambda: bool(late.messages.get("/drake/illustration/scene"))), late.log()  # type: ignore[union-attr]
     finally:
         for each in (client, late):
             if each is not None:
@@ -206,7 +295,7 @@ def test_bad_clients_do_not_stop_the_bridge_or_other_clients(tmp_path: Path) -> 
         for index in range(25):
             bus.publish("DRAKE_VIEWER_DRAW", draw_of(scene, index / 10))
             time.sleep(0.02)
-        assert good.pump(5, lambda: len(good.messages.get("/drake/transforms", [])) >= 20)  # type: ignore[union-attr]
+        assert good.pump(60, lambda: len(good.messages.get("/drake/transforms", [])) >= 20)  # type: ignore[union-attr]
         assert bridge.process.poll() is None
     finally:
         if good is not None:
@@ -266,3 +355,77 @@ def test_convert_to_foxglove_mcap_carries_the_scene_and_the_transforms(drake_log
         assert rows == [list(p) + list(q) for p, q in zip(draw.position, draw.quaternion, strict=True)]
     proximity = _transforms(topics["/drake/proximity/transforms"][0][1])
     assert all(t.child_frame_id.startswith("proximity/") for t in proximity.transforms)
+
+
+# --- The front: both subprotocol names on one port ------------------------------------------------
+
+
+def test_the_front_serves_each_name_what_it_asked_for() -> None:
+    from websockets.exceptions import InvalidStatus
+
+    from bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
+
+    transport = FoxgloveTransport(FoxgloveSettings(port=0))
+    url = f"ws://127.0.0.1:{transport.port}"
+    closed = False
+    try:
+        for offered, chosen in [
+            (["foxglove.websocket.v1"], "foxglove.websocket.v1"),
+            (["foxglove.sdk.v1"], "foxglove.sdk.v1"),
+            (["foxglove.websocket.v1", "foxglove.sdk.v1"], "foxglove.sdk.v1"),
+        ]:
+            with connect(url, subprotocols=offered, open_timeout=60) as ws:  # type: ignore[arg-type]
+                assert ws.subprotocol == chosen
+                info = json.loads(ws.recv(timeout=60))
+                assert info["op"] == "serverInfo" and info["name"] == "viewer-bridge"
+        with pytest.raises(InvalidStatus, match="400"):  # a name neither of them: the SDK refuses it
+            connect(url, subprotocols=["foxglove.websocket.v2"], open_timeout=60)  # type: ignore[list-item]
+        # A request cut off before its end is dropped and counted; the front goes on serving.
+        with socket.create_connection(("127.0.0.1", transport.port)) as raw:
+            raw.sendall(b"GET / HTTP/1.1\r\nHost: x\r\n")
+        deadline = time.monotonic() + 60
+        while transport.errors().get("bad_handshake") != 1 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert transport.errors() == {"bad_handshake": 1}
+        with connect(url, subprotocols=["foxglove.websocket.v1"], open_timeout=60) as ws:  # type: ignore[list-item]
+            ws.recv(timeout=60)
+            transport.close()
+            closed = True
+            with pytest.raises(ConnectionClosed):  # closing the transport ends its clients' connections
+                ws.recv(timeout=60)
+    finally:
+        if not closed:
+            transport.close()
+
+
+
+def test_without_the_front_only_the_sdks_name_is_served() -> None:
+    from websockets.exceptions import InvalidStatus
+
+    from bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
+
+    transport = FoxgloveTransport(FoxgloveSettings(port=0, accept_websocket_v1=False))
+    url = f"ws://127.0.0.1:{transport.port}"
+    try:
+        assert transport.front is None and transport.port == transport.server.port
+        with connect(url, subprotocols=["foxglove.sdk.v1"], open_timeout=60) as ws:  # type: ignore[list-item]
+            assert ws.subprotocol == "foxglove.sdk.v1"
+        with pytest.raises(InvalidStatus, match="400"):
+            connect(url, subprotocols=["foxglove.websocket.v1"], open_timeout=60)  # type: ignore[list-item]
+    finally:
+        transport.close()
+
+
+def test_the_front_renames_the_subprotocol_header_only() -> None:
+    from bridge.transports.foxglove_front import naming, older_name_asked, subprotocols
+
+    request = (b"GET / HTTP/1.1\r\nHost: x\r\nsec-websocket-protocol: a, foxglove.websocket.v1\r\n"
+               b"Sec-WebSocket-Protocol: b\r\nUpgrade: websocket\r\n\r\n")  # fmt: skip
+    assert subprotocols(request) == ["a", "foxglove.websocket.v1", "b"]
+    assert older_name_asked(request) == "foxglove.websocket.v1"
+    renamed = naming(request, "foxglove.sdk.v1")
+    assert renamed == (b"GET / HTTP/1.1\r\nSec-WebSocket-Protocol: foxglove.sdk.v1\r\nHost: x\r\n"
+                       b"Upgrade: websocket\r\n\r\n")  # fmt: skip
+    assert older_name_asked(renamed) is None  # the SDK's own name: nothing to rename
+    refusal = b"HTTP/1.1 400 Bad Request\r\ncontent-length: 0\r\n\r\n"
+    assert naming(refusal, "foxglove.websocket.v1") == refusal  # no header to rename

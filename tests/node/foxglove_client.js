@@ -1,0 +1,62 @@
+// A test peer: Foxglove's own ws-protocol client (`FoxgloveClient`, the subprotocol it names,
+// foxglove.websocket.v1) over the `ws` package's WebSocket. It subscribes to the topics named on
+// its command line as they are advertised and prints what it receives as JSON lines on stdout,
+// payloads in base64, for the Python test to decode. It ends when its stdin closes.
+//
+//   node foxglove_client.js ws://127.0.0.1:8765 /drake/scene /drake/transforms
+const { FoxgloveClient } = require("@foxglove/ws-protocol");
+const { WebSocket } = require("ws");
+
+const [url, ...topics] = process.argv.slice(2);
+const print = (event) => process.stdout.write(JSON.stringify(event) + "\n");
+
+const ws = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL]);
+const client = new FoxgloveClient({ ws });
+const topicOfSubscription = new Map();
+const wanted = new Map(); // channel id -> topic, for the topics asked for
+const retries = new Map(); // channel id -> subscriptions sent again
+
+function subscribeTo(channelId) {
+  topicOfSubscription.set(client.subscribe(channelId), wanted.get(channelId));
+}
+
+client.on("open", () => print({ event: "open", subprotocol: ws.protocol }));
+client.on("error", (error) => print({ event: "error", message: String(error) }));
+client.on("close", (event) => print({ event: "close", code: event.code }));
+client.on("serverInfo", (info) => print({ event: "serverInfo", name: info.name }));
+client.on("unadvertise", (ids) => print({ event: "unadvertise", channelIds: ids }));
+client.on("advertise", (channels) => {
+  for (const channel of channels) {
+    print({ event: "advertise", id: channel.id, topic: channel.topic, encoding: channel.encoding, schemaName: channel.schemaName });
+    if (topics.includes(channel.topic)) {
+      wanted.set(channel.id, channel.topic);
+      subscribeTo(channel.id);
+    }
+  }
+});
+client.on("status", (status) => {
+  print({ event: "status", level: status.level, message: status.message });
+  // The SDK's server sends an advertisement before it records the channel as advertised to this
+  // client, so a subscription sent at once can be refused as an unknown channel: send it again.
+  const refused = /Unknown channel ID: (\d+)/.exec(status.message);
+  const channelId = refused ? Number(refused[1]) : undefined;
+  if (wanted.has(channelId) && (retries.get(channelId) ?? 0) < 10) {
+    retries.set(channelId, (retries.get(channelId) ?? 0) + 1);
+    subscribeTo(channelId);
+  }
+});
+client.on("message", ({ subscriptionId, timestamp, data }) => {
+  const bytes = Buffer.from(data.buffer, data.byteOffset, data.byteLength);
+  print({
+    event: "message",
+    topic: topicOfSubscription.get(subscriptionId),
+    timestamp: timestamp.toString(),
+    data: bytes.toString("base64"),
+  });
+});
+
+process.stdin.resume();
+process.stdin.on("end", () => {
+  client.close();
+  process.exit(0);
+});
