@@ -37,6 +37,7 @@ from bridge.dump import as_json, as_text
 from bridge.errors import BridgeError
 from bridge.mappings import format_names, reference_markdown
 from bridge.router import Router
+from bridge.skipped import collecting
 from bridge.transports.base import TransportUnavailable
 from bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 
@@ -327,9 +328,13 @@ def _snapshot(args: argparse.Namespace) -> int:
             scene = with_contacts(scene, results)
     except ValueError as error:
         raise UsageError(str(error)) from None
-    picture = snapshot(scene, width, height, args.fov, eye, target, args.image, "JPEG" if jpeg else "PNG")
+    with collecting() as skipped:  # a geometry that cannot be drawn is left out, and named
+        picture = snapshot(scene, width, height, args.fov, eye, target, args.image, "JPEG" if jpeg else "PNG")
+    for geometry in skipped:
+        print(f"viewer-bridge snapshot: warning: {geometry}", file=sys.stderr)
     Path(args.out).write_bytes(picture)
-    print(f"wrote {args.out}: {len(scene.links)} links, {scene.geometry_count()} geometries")
+    drawn = scene.geometry_count() - len(skipped)
+    print(f"wrote {args.out}: {len(scene.links)} links, {drawn} geometries ({len(skipped)} skipped)")
     return 0
 
 

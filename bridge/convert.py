@@ -218,10 +218,11 @@ def _progress_bar(total: int, shown: bool) -> Iterator[Callable[[int], None]]:
 
 
 def _report_errors(runners: list[RouteRunner]) -> None:
+    """Per route, its errors and warnings (each was logged as it happened, the first few in full)."""
     for runner in runners:
-        errors = dict(runner.stats.errors)
-        if errors:
-            log.warning("route %s: %s", runner.route.name, errors)
+        counts = runner.stats.errors + runner.stats.warnings
+        if counts:
+            log.warning("route %s: %s", runner.route.name, dict(counts))
 
 
 def _lcm_to(carries: Callable[[Output], bool], route: Route) -> bool:

@@ -47,6 +47,7 @@ import numpy as np
 
 from bridge.config import BridgeConfig, Route, destination_name
 from bridge.errors import BridgeError
+from bridge.skipped import collecting
 from bridge.translators import TRANSLATORS, LoadCache, Output, Translator
 from bridge.transports import TRANSPORTS
 from bridge.transports.base import Publisher, Qos, Received, Transport
@@ -148,6 +149,7 @@ class RouteStats:
     bytes_out: int = 0
     idle_skipped: int = 0  # messages a lazy route did not translate: nobody was listening
     errors: Counter[str] = field(default_factory=Counter)
+    warnings: Counter[str] = field(default_factory=Counter)  # e.g. a geometry skipped (bridge.skipped)
     translate_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
     latency_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
 
@@ -160,6 +162,7 @@ class RouteStats:
             "bytes_out": self.bytes_out,
             "idle_skipped": self.idle_skipped,
             "errors": dict(self.errors),
+            "warnings": dict(self.warnings),
             "dropped": dropped,
             "queued": queued,
             "translate_ms": _percentiles(self.translate_ms),
@@ -337,7 +340,8 @@ class RouteRunner:
     def _translate(self, lane: _Lane, message: Message) -> None:
         started = time.perf_counter()
         try:
-            outputs = lane.translator.translate(message.received)
+            with collecting() as skipped:
+                outputs = lane.translator.translate(message.received)
         except BridgeError as error:
             self._error(type(error).__name__, f"{message.channel}: {error}")
             return
@@ -345,6 +349,8 @@ class RouteRunner:
             self._error(f"crash:{type(error).__name__}", f"{message.channel}: {traceback.format_exc()}")
             return
         self.stats.translate_ms.append((time.perf_counter() - started) * 1e3)
+        for geometry in skipped:  # the rest of the scene is translated: a warning, not an error
+            self._count(self.stats.warnings, "skipped_geometry", f"{message.channel}: {geometry}")
         for index, payload in outputs:
             try:
                 lane.publisher(index).publish(payload)
@@ -357,7 +363,10 @@ class RouteRunner:
             self.stats.latency_ms.append((time.time_ns() // 1000 - message.received.received_us) / 1e3)
 
     def _error(self, kind: str, text: str) -> None:
-        self.stats.errors[kind] += 1
+        self._count(self.stats.errors, kind, text)
+
+    def _count(self, counts: Counter[str], kind: str, text: str) -> None:
+        counts[kind] += 1
         self._logged[kind] += 1
         count = self._logged[kind]
         if count <= 5 or count % 1000 == 0:  # the first few, then a reminder: never a flood
@@ -521,11 +530,12 @@ class Router:
                 continue
             latency = stats["latency_ms"]
             log.info(
-                "route %s: in %d out %d errors %d dropped %d latency p50 %s p99 %s ms%s",
+                "route %s: in %d out %d errors %d%s dropped %d latency p50 %s p99 %s ms%s",
                 name,
                 stats["messages_in"],
                 stats["messages_out"],
                 sum(stats["errors"].values()),
+                f" warnings {sum(stats['warnings'].values())}" if stats["warnings"] else "",
                 stats["dropped"],
                 _ms(latency["p50"]),
                 _ms(latency["p99"]),
