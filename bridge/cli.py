@@ -34,7 +34,7 @@ from bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
 from bridge.convert import Interrupted, convert
 from bridge.demo import run_demo
 from bridge.dump import as_json, as_text
-from bridge.errors import BridgeError
+from bridge.errors import BridgeError, ConfigError
 from bridge.mappings import format_names, reference_markdown
 from bridge.router import Router
 from bridge.skipped import collecting
@@ -234,8 +234,9 @@ def _run(args: argparse.Namespace) -> int:
         if args.lcm_url:
             config = config.with_settings("lcm", url=args.lcm_url)
         for setting in args.set:
-            config = _with_setting(config, setting)
+            config = _with_setting(config, setting, args.config)
         if args.ros_args:
+            _uses(config, "ros", "--ros-args", args.config)
             config = config.with_settings("ros", ros_args=args.ros_args)
         router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period)
     except (OSError, ValueError) as error:
@@ -259,13 +260,30 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _with_setting(config: BridgeConfig, setting: str) -> BridgeConfig:
+def _with_setting(config: BridgeConfig, setting: str, config_name: str | None) -> BridgeConfig:
     """`TRANSPORT.KEY=VALUE` (the value read as YAML: 9000 is a number, true a bool) applied."""
     name, _, value = setting.partition("=")
     transport, _, key = name.partition(".")
     if not (transport and key and _):
         raise UsageError(f"--set {setting!r}: expected TRANSPORT.KEY=VALUE, e.g. foxglove.port=9000")
-    return config.with_settings(transport, **{key: yaml.safe_load(value)})
+    _uses(config, transport, f"--set {setting}", config_name)
+    try:
+        return config.with_settings(transport, **{key: yaml.safe_load(value)})
+    except ConfigError as error:
+        raise UsageError(f"--set {setting}: {error.key}: {error.reason}") from None
+
+
+def _uses(config: BridgeConfig, transport: str, option: str, config_name: str | None) -> None:
+    """Warn about an option for a transport that no route of the config uses: it does nothing.
+    (A warning, not a refusal: one command line may serve several configs, e.g. in scripts.)"""
+    used = config.transports()
+    if transport not in used:
+        print(
+            f"viewer-bridge run: warning: {option} does nothing: no route of "
+            f"{config_name or 'the built-in config'} uses the {transport} transport "
+            f"(its routes use: {', '.join(used) or 'none'})",
+            file=sys.stderr,
+        )
 
 
 def _lcm_url(config: BridgeConfig) -> str:

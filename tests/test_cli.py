@@ -277,7 +277,12 @@ MISTAKES = [
     (["demo", "--url", "nope://x"], "unknown LCM provider 'nope'"),
     (["convert", "nope.lcmlog", "TMP/x.mcap"], "nope.lcmlog: no such file"),
     (["convert", "LOG", "MISSING/x.mcap"], "the folder MISSING does not exist"),
-]
+    # Settings a config would refuse, or that would do nothing with it.
+    (["run", "--set", "foxglove.prot=9000"], "--set foxglove.prot=9000: foxglove.prot: unknown key 'prot' "
+     "(did you mean 'port'?); known keys: host, port"),
+    (["run", "--set", "ros.namespace=/sim 1"], "'/sim 1' is not a valid ROS 2 namespace"),
+    (["run", "--set", "ros.node=9x"], "'9x' is not a valid ROS 2 node name: it starts with a digit"),
+]  # fmt: skip
 
 
 @pytest.mark.parametrize(("words", "said"), MISTAKES, ids=[" ".join(words) for words, _ in MISTAKES])
@@ -318,3 +323,17 @@ def test_ros_args_end_at_a_double_dash(tmp_path: Path) -> None:
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     assert json.loads(stats.read_text())["poses"]["messages_out"] == 60
+
+
+def test_ros_settings_for_a_config_with_no_ros_route_are_reported(tmp_path: Path) -> None:
+    log = demo_log(tmp_path / "demo.lcmlog", 10)
+    result = run(
+        "run", "-c", "builtin:foxglove", "--lcm-url", f"file://{log}?speed=0", "--set", "foxglove.port=0",
+        "--set", "ros.namespace=/sim1", "--ros-args", "-r", "__ns:=/sim1", "--", "--duration", "30",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    for option in ("--set ros.namespace=/sim1", "--ros-args"):
+        assert (
+            f"viewer-bridge run: warning: {option} does nothing: no route of builtin:foxglove uses the ros "
+            "transport (its routes use: lcm, foxglove)"
+        ) in result.stderr.splitlines()

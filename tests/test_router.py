@@ -292,7 +292,7 @@ BROKEN_CONFIGS = [
     # Options are the translator's model: a misspelt key and a wrong type are refused at load.
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n    options:\n      frmae_id: map\n", 7,
-     "routes.0.options.frmae_id", "Extra inputs are not permitted"),
+     "routes.0.options.frmae_id", "unknown key 'frmae_id' (did you mean 'frame_id'?); known keys: frame_id"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_ign_model\n"
      "    destination: {transport: ign, name: /x}\n    options: {republish_s: soon}\n", 6,
      "routes.0.options.republish_s", "valid number"),
@@ -307,7 +307,24 @@ BROKEN_CONFIGS = [
      "    destination: {transport: ros, name: /y}\n", 5, "routes.0.destination.transport",
      "writes ignition.msgs.Pose_V (protobuf), which the ros transport does not carry"),
     # Transport sections are checked by the transport's own settings model.
-    ("lcm: {uri: 'udpm://x'}\nroutes: []\n", 1, "lcm.uri", "Extra inputs are not permitted"),
+    ("lcm: {uri: 'udpm://x'}\nroutes: []\n", 1, "lcm.uri", "unknown key 'uri' (did you mean 'url'?); known keys: url"),
+    # A misspelt key is named as unknown, not only as the key it leaves missing.
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translater: drake_to_pose_array\n"
+     "    destination: {transport: ros, name: /x}\n", 4, "routes.0.translater",
+     "unknown key 'translater' (did you mean 'translator'?); known keys: name, source, translator, destination"),
+    # ROS names by ROS 2's rules (rcl's topic name validation), refused at load, not at each publish.
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: 'X(_.*)?'}\n    translator: drake_to_pose_array\n"
+     "    destination: {transport: ros, name: '/sim2/bad topic!'}\n", 5, "routes.0.destination.name",
+     "'/sim2/bad topic!' is not a valid ROS 2 topic name: it has characters a ROS name cannot hold: ' !'"),
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: 'X(_.*)?'}\n    translator: drake_to_pose_array\n"
+     "    destination: {transport: ros, name: 'drake/{1:lower}/2d'}\n", 5, "routes.0.destination.name",
+     "'drake/x/2d' is not a valid ROS 2 topic name: a part of it starts with a digit: '2d'"),
+    ("routes:\n  - name: a\n    source: {transport: ros, name: /in//cloud}\n    translator: ros_point_cloud_to_drake\n"
+     "    destination: {transport: lcm, name: X}\n", 3, "routes.0.source.name", "it has // (an empty part)"),
+    ("ros: {namespace: /sim2/2d}\nroutes: []\n", 1, "ros.namespace",
+     "'/sim2/2d' is not a valid ROS 2 namespace: a part of it starts with a digit: '2d'"),
+    ("ros:\n  node: viewer-bridge\nroutes: []\n", 2, "ros.node",
+     "'viewer-bridge' is not a valid ROS 2 node name: it has characters a ROS name cannot hold: '-'"),
     ("routes: []\nzmq: {port: 1}\n", 2, "zmq", "'zmq' is not a config key (load_cache, routes) nor a transport"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n  - name: a\n    source: {transport: lcm, name: X}\n"
