@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
 import logging
 import signal
 import sys
@@ -44,6 +45,7 @@ from bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 
 def _parser() -> argparse.ArgumentParser:
     parser = Parser(prog="viewer-bridge", description="Translate Drake's viewer scene between ecosystems.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     commands = parser.add_subparsers(dest="command", required=True)
 
     dump = commands.add_parser("dump", help="decode an LCM log (or a live LCM bus) to text or JSON")
@@ -172,8 +174,17 @@ def _parser() -> argparse.ArgumentParser:
         "ros-interfaces", help="build ROS 2 interface packages PyPI has no wheel for (tf2_msgs) into the venv"
     )
     interfaces.add_argument("action", choices=["install", "status"])
-    interfaces.add_argument("names", nargs="*", metavar="NAME", help="packages to install (default: all)")
+    interfaces.add_argument(
+        "names", nargs="*", metavar="NAME", help="optional: the packages to install or show (default: all of them)"
+    )
     return parser
+
+
+def _version() -> str:
+    try:
+        return importlib.metadata.version("viewer-bridge")
+    except importlib.metadata.PackageNotFoundError:  # run from a checkout that is not installed
+        return "(not installed)"
 
 
 def _dump(args: argparse.Namespace) -> int:
@@ -208,10 +219,12 @@ def _dump(args: argparse.Namespace) -> int:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    try:
-        sent = run_demo(args.url, args.duration, args.rate)
-    except KeyboardInterrupt:
-        return 0
+    stop = threading.Event()  # Ctrl-C or SIGTERM: the summary line, then exit 0
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, lambda *_: stop.set())
+    until = f"for {args.duration:g} s" if args.duration else "until Ctrl-C"
+    print(f"publishing the demo scene on {args.url} at {args.rate:g} Hz, {until}", flush=True)
+    sent = run_demo(args.url, args.duration, args.rate, stop=stop)
     print(f"published {sent} draw messages on {args.url}")
     return 0
 
@@ -377,9 +390,13 @@ def _serve_render(args: argparse.Namespace) -> int:
 def _ros_interfaces(args: argparse.Namespace) -> int:
     from bridge import ros_interfaces
 
+    unknown = [name for name in args.names if name not in ros_interfaces.INTERFACES]
+    if unknown:
+        known = ", ".join(ros_interfaces.INTERFACES)
+        raise UsageError(f"unknown interface package {', '.join(unknown)} (known: {known})")
     if args.action == "status":
         absent = ros_interfaces.missing()
-        for name in ros_interfaces.INTERFACES:
+        for name in args.names or ros_interfaces.INTERFACES:
             print(f"{name}: {'missing' if name in absent else 'installed'} in {sys.prefix}")
         return 0
     ros_interfaces.install(args.names or None, log=lambda line: print(line, file=sys.stderr))

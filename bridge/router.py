@@ -70,19 +70,27 @@ class Message:
 class Mailbox:
     """Messages between a transport thread and a route's worker; never grows without bound."""
 
-    def __init__(self, policy: str, depth: int) -> None:
+    def __init__(self, policy: str, depth: int, rate_limited: bool = False) -> None:
         self.keep_latest = policy == "latest"
         self._latest: OrderedDict[str, Message] = OrderedDict()
         self._fifo: deque[Message] = deque()
         self._depth = depth
         self._ready = threading.Condition()
         self.dropped = 0
+        # With max_hz, a message superseded while the worker waits out the rate is skipped by
+        # design: counted apart from drops (which say the bridge could not keep up).
+        self._rate_limited = rate_limited
+        self.rate_skipped = 0
 
     def put(self, message: Message) -> None:
         with self._ready:
             if self.keep_latest:
                 if self._latest.pop(message.channel, None) is not None:
-                    self.dropped += 1  # superseded before it was translated
+                    # superseded before it was translated
+                    if self._rate_limited:
+                        self.rate_skipped += 1
+                    else:
+                        self.dropped += 1
                 self._latest[message.channel] = message
             else:
                 if len(self._fifo) >= self._depth:
@@ -153,7 +161,7 @@ class RouteStats:
     translate_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
     latency_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
 
-    def snapshot(self, dropped: int, queued: int, state: str) -> dict[str, Any]:
+    def snapshot(self, dropped: int, queued: int, state: str, max_hz_skipped: int = 0) -> dict[str, Any]:
         return {
             "state": state,
             "messages_in": self.messages_in,
@@ -164,6 +172,7 @@ class RouteStats:
             "errors": dict(self.errors),
             "warnings": dict(self.warnings),
             "dropped": dropped,
+            "max_hz_skipped": max_hz_skipped,  # superseded while a rate-limited route waited
             "queued": queued,
             "translate_ms": _percentiles(self.translate_ms),
             "latency_ms": _percentiles(self.latency_ms),
@@ -227,7 +236,7 @@ class RouteRunner:
     ) -> None:
         self.route = route
         self.pattern = re.compile(route.source.name)
-        self.mailbox = Mailbox(route.rate.policy, route.qos.depth)
+        self.mailbox = Mailbox(route.rate.policy, route.qos.depth, rate_limited=bool(route.rate.max_hz))
         self.stats = RouteStats()
         # A rate-limited route waits between messages: only its worker can do that.
         self._inline = None if route.rate.max_hz else inline
@@ -302,7 +311,8 @@ class RouteRunner:
     def _replay(self, lane: _Lane) -> None:
         skipped, lane.skipped = lane.skipped, {}
         for message in skipped.values():
-            self._translate(lane, message)
+            # Kept while nobody listened: how long it waited is no latency of the bridge's.
+            self._translate(lane, message, latency=False)
 
     def _publisher(self, name: str, output: Output) -> Publisher:
         publisher = self._publishers.get(name)
@@ -337,7 +347,7 @@ class RouteRunner:
             return
         self._translate(lane, message)
 
-    def _translate(self, lane: _Lane, message: Message) -> None:
+    def _translate(self, lane: _Lane, message: Message, latency: bool = True) -> None:
         started = time.perf_counter()
         try:
             with collecting() as skipped:
@@ -359,7 +369,7 @@ class RouteRunner:
                 continue
             self.stats.messages_out += 1
             self.stats.bytes_out += len(payload)
-        if outputs:
+        if outputs and latency:
             self.stats.latency_ms.append((time.time_ns() // 1000 - message.received.received_us) / 1e3)
 
     def _error(self, kind: str, text: str) -> None:
@@ -378,7 +388,9 @@ class RouteRunner:
         return "active"
 
     def snapshot(self) -> dict[str, Any]:
-        return self.stats.snapshot(self.mailbox.dropped, len(self.mailbox), self.state())
+        return self.stats.snapshot(
+            self.mailbox.dropped, len(self.mailbox), self.state(), self.mailbox.rate_skipped
+        )
 
 
 def output_qos(route: Route, latched_by_default: bool) -> Qos:
@@ -481,21 +493,31 @@ class Router:
         deadline = None if duration is None else time.monotonic() + duration
         next_report = time.monotonic() + self.stats_period
         try:
-            while not self._stop.is_set():
+            while not self._ending(deadline):
                 remaining = None if deadline is None else deadline - time.monotonic()
-                if remaining is not None and remaining <= 0:
-                    break
-                if self._source_ended() and self._idle():
-                    break
                 self._stop.wait(min(0.1, remaining) if remaining is not None else 0.1)
-                if time.monotonic() >= next_report:
+                # The last report is close()'s: none just before it, so it is printed once.
+                if time.monotonic() >= next_report and not self._ending(deadline):
                     next_report += self.stats_period
                     self.report()
         finally:
             self.close()
 
-    def _source_ended(self) -> bool:
-        return any(transport.finished() for transport in self.transports.values())
+    def _ending(self, deadline: float | None) -> bool:
+        """Whether to stop: asked to, the duration is over, or a finite source ended (said once)."""
+        if self._stop.is_set() or (deadline is not None and time.monotonic() >= deadline):
+            return True
+        ended = self._source_ended()
+        if ended is not None and self._idle():
+            log.info("viewer-bridge: %s has ended: stopping", ended)
+            self._stop.set()
+            return True
+        return False
+
+    def _source_ended(self) -> str | None:
+        """The transport (described) whose finite source, a replayed log, has ended, or None."""
+        ended = (transport.describe() for transport in self.transports.values() if transport.finished())
+        return next(ended, None)
 
     def _idle(self) -> bool:
         return all(len(runner.mailbox) == 0 for runner in self.routes)
@@ -530,13 +552,14 @@ class Router:
                 continue
             latency = stats["latency_ms"]
             log.info(
-                "route %s: in %d out %d errors %d%s dropped %d latency p50 %s p99 %s ms%s",
+                "route %s: in %d out %d errors %d%s dropped %d%s latency p50 %s p99 %s ms%s",
                 name,
                 stats["messages_in"],
                 stats["messages_out"],
                 sum(stats["errors"].values()),
                 f" warnings {sum(stats['warnings'].values())}" if stats["warnings"] else "",
                 stats["dropped"],
+                f" max_hz skipped {stats['max_hz_skipped']}" if stats["max_hz_skipped"] else "",
                 _ms(latency["p50"]),
                 _ms(latency["p99"]),
                 f" ({stats['state']}, {stats['idle_skipped']} not translated)"
