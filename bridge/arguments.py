@@ -87,23 +87,22 @@ def _number(text: str) -> float:
 
 def port(text: str) -> int:
     """A TCP port: 0 (any free port) to 65535."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a port number") from None
-    if not 0 <= value <= 65535:
-        raise argparse.ArgumentTypeError(f"a port is 0 (any free one) to 65535, got {text}")
-    return value
+    return _whole(text, "a port number", 0, 65535, "a port is 0 (any free one) to 65535")
 
 
 def byte_count(text: str) -> int:
     """A size in bytes, at least 1."""
+    return _whole(text, "a whole number of bytes", 1, None, "must be at least 1 byte")
+
+
+def _whole(text: str, what: str, low: int, high: int | None, rule: str) -> int:
+    """`text` as a whole number from `low` to `high` (None: no limit); `rule` says the range."""
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number of bytes") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1 byte, got {text}")
+        raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+    if value < low or (high is not None and value > high):
+        raise argparse.ArgumentTypeError(f"{rule}, got {text}")
     return value
 
 
