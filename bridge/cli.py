@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
 import logging
 import signal
 import sys
@@ -15,44 +16,66 @@ import yaml
 from rich.console import Console
 from rich.logging import RichHandler
 
+from bridge.arguments import (
+    IMAGE_SUFFIXES,
+    Parser,
+    UsageError,
+    byte_count,
+    camera,
+    fail,
+    field_of_view,
+    image_size,
+    input_file,
+    lcm_source,
+    output_file,
+    port,
+    positive,
+    regex,
+    split_ros_args,
+)
 from bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
-from bridge.convert import convert
+from bridge.convert import Interrupted, convert
 from bridge.demo import run_demo
 from bridge.dump import as_json, as_text
 from bridge.errors import BridgeError, ConfigError
 from bridge.mappings import format_names, reference_markdown
 from bridge.router import Router
+from bridge.skipped import collecting
 from bridge.status import LiveTable, LogLines, StatusView
 from bridge.transports.base import TransportUnavailable
 from bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="viewer-bridge", description="Translate Drake's viewer scene between ecosystems."
-    )
+    parser = Parser(prog="viewer-bridge", description="Translate Drake's viewer scene between ecosystems.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     commands = parser.add_subparsers(dest="command", required=True)
 
     dump = commands.add_parser("dump", help="decode an LCM log (or a live LCM bus) to text or JSON")
-    dump.add_argument("log", nargs="?", help="an .lcmlog file (omit with --live)")
+    dump.add_argument("log", nargs="?", type=input_file, help="an .lcmlog file (omit with --live)")
     dump.add_argument(
         "--live",
         nargs="?",
         const=DEFAULT_URL,
+        type=lcm_source,
         metavar="URL",
         help=f"listen on an LCM URL (default {DEFAULT_URL})",
     )
-    dump.add_argument("--channel", default=".*", metavar="REGEX", help="only channels that fully match REGEX")
+    dump.add_argument(
+        "--channel", default=".*", type=regex, metavar="REGEX", help="only channels that fully match REGEX"
+    )
     dump.add_argument("--json", action="store_true", help="one JSON object per message")
-    dump.add_argument("--duration", type=float, help="with --live: stop after this many seconds")
+    dump.add_argument("--duration", type=positive, help="with --live: stop after this many seconds")
     dump.add_argument(
         "--demo", action="store_true", help="with --live: also publish the demo scene on the same URL"
     )
 
     demo = commands.add_parser("demo", help="publish a moving Drake-like scene with every shape over LCM")
-    demo.add_argument("--url", default=DEFAULT_URL, help="LCM URL to publish on")
-    demo.add_argument("--duration", type=float, help="stop after this many seconds (default: until Ctrl-C)")
-    demo.add_argument("--rate", type=float, default=60.0, help="draw messages per second")
+    demo.add_argument("--url", type=lcm_source, default=DEFAULT_URL, help="LCM URL to publish on")
+    demo.add_argument(
+        "--duration", type=positive, help="stop after this many seconds (default: until Ctrl-C)"
+    )
+    demo.add_argument("--rate", type=positive, default=60.0, help="draw messages per second")
 
     commands.add_parser(
         "mappings", help="print the mapping reference (mappings/REFERENCE.md) from the tables"
@@ -60,7 +83,7 @@ def _parser() -> argparse.ArgumentParser:
 
     run = commands.add_parser(
         "run",
-        help="run the router: bridge Drake's LCM scene to ROS 2 (and back); --ros-args ... as any ROS 2 node",
+        help="run the router: bridge Drake's LCM scene to ROS 2 (and back); --ros-args ... [--] as any ROS 2 node",
     )
     run.add_argument(
         "-c", "--config", help="a YAML config (default: the built-in one, see --print-default-config)"
@@ -72,7 +95,9 @@ def _parser() -> argparse.ArgumentParser:
         help=f"print a built-in config ({', '.join(BUILTIN_CONFIGS)}) and exit; use it as -c builtin:NAME",
     )
     run.add_argument(
-        "--lcm-url", help="override the config's LCM URL (a log file or file://LOG?speed=S replays it)"
+        "--lcm-url",
+        type=lcm_source,
+        help="override the config's LCM URL (a log file or file://LOG?speed=S replays it)",
     )
     run.add_argument(
         "--set",
@@ -82,13 +107,16 @@ def _parser() -> argparse.ArgumentParser:
         help="override a transport setting, e.g. foxglove.port=9000 or ros.namespace=/sim1 (repeatable)",
     )
     run.add_argument(
-        "--stats-json", metavar="PATH", help="write per-route stats as JSON every period and at exit"
+        "--stats-json",
+        type=output_file(),
+        metavar="PATH",
+        help="write per-route stats as JSON every period and at exit",
     )
     run.add_argument(
-        "--stats-period", type=float, default=5.0, metavar="S", help="seconds between stats lines"
+        "--stats-period", type=positive, default=5.0, metavar="S", help="seconds between stats lines"
     )
     run.add_argument(
-        "--duration", type=float, metavar="S", help="stop after S seconds (default: until Ctrl-C)"
+        "--duration", type=positive, metavar="S", help="stop after S seconds (default: until Ctrl-C)"
     )
     run.add_argument("--demo", action="store_true", help="also publish the demo scene on the LCM URL")
     run.add_argument(
@@ -96,53 +124,78 @@ def _parser() -> argparse.ArgumentParser:
     )
 
     serve = commands.add_parser("serve-render", help="serve Drake's glTF render API (RenderEngineGltfClient)")
-    serve.add_argument("--host", default="127.0.0.1", help="address to listen on (default: this host only)")
-    serve.add_argument("--port", type=int, default=8000)
-    serve.add_argument("--max-upload", type=int, default=256 * 1024 * 1024, metavar="BYTES")
+    serve.add_argument("--host", default="127.0.0.1", help="address to listen on (127.0.0.1: this host only)")
+    serve.add_argument("--port", type=port, default=8000, help="TCP port to listen on (0: any free port)")
+    serve.add_argument(
+        "--max-upload",
+        type=byte_count,
+        default=256 * 1024 * 1024,
+        metavar="BYTES",
+        help="largest request body accepted",
+    )
 
     shot = commands.add_parser(
-        "snapshot", help="render the current scene of a log or a live LCM bus to a PNG"
+        "snapshot", help="render the current scene of a log or a live LCM bus to a PNG or JPEG"
     )
-    shot.add_argument("source", help="an .lcmlog file, or an LCM URL to listen on")
-    shot.add_argument("out", help="the .png to write")
+    shot.add_argument("source", type=lcm_source, help="an .lcmlog file, or an LCM URL to listen on")
+    shot.add_argument(
+        "out", type=output_file(IMAGE_SUFFIXES), help="the image to write: .png, or .jpg/.jpeg for JPEG"
+    )
     shot.add_argument("--role", default="", help="channel suffix, e.g. ILLUSTRATION (default: unsuffixed)")
     shot.add_argument("--image", choices=["color", "label", "depth"], default="color")
-    shot.add_argument("--size", default="640x480", help="WIDTHxHEIGHT")
-    shot.add_argument("--fov", type=float, default=45.0, help="vertical field of view, degrees")
+    shot.add_argument("--size", type=image_size, default="640x480", help="WIDTHxHEIGHT")
+    shot.add_argument("--fov", type=field_of_view, default=45.0, help="vertical field of view, degrees")
     shot.add_argument(
-        "--camera", metavar="EX,EY,EZ,TX,TY,TZ", help="eye and target (default: frame the scene)"
+        "--camera",
+        type=camera,
+        metavar="EX,EY,EZ,TX,TY,TZ",
+        help="eye and target (default: frame the scene)",
     )
-    shot.add_argument("--duration", type=float, default=3.0, help="with an LCM URL: seconds to listen")
+    shot.add_argument("--duration", type=positive, default=3.0, help="with an LCM URL: seconds to listen")
     shot.add_argument("--contacts", action="store_true", help="draw the last CONTACT_RESULTS over the scene")
     shot.add_argument(
-        "--hide", metavar="REGEX", help="leave out links whose names match (e.g. a body over a contact)"
+        "--hide",
+        type=regex,
+        metavar="REGEX",
+        help="leave out links whose names match (e.g. a body over a contact)",
     )
 
     convert = commands.add_parser(
         "convert", help="translate an LCM log into an MCAP file (ROS 2 or Foxglove)"
     )
-    convert.add_argument("log", help="an .lcmlog file")
-    convert.add_argument("mcap", help="the .mcap file to write")
+    convert.add_argument("log", type=input_file, help="an .lcmlog file")
+    convert.add_argument(
+        "mcap", type=output_file(), help="the .mcap file to write (written as MCAP.partial until complete)"
+    )
     convert.add_argument("-c", "--config", help="a YAML config whose LCM routes are used (default: built-in)")
     convert.add_argument(
         "--schema",
         choices=["ros2", "foxglove"],
         default="ros2",
-        help="ros2: CDR with ros2msg schemas (default); foxglove: Foxglove's protobuf SceneUpdate and FrameTransforms",
+        help="ros2: CDR with ros2msg schemas; foxglove: Foxglove's protobuf SceneUpdate and FrameTransforms",
     )
+    convert.add_argument("--force", action="store_true", help="replace the output file if it exists")
 
     interfaces = commands.add_parser(
         "ros-interfaces", help="build ROS 2 interface packages PyPI has no wheel for (tf2_msgs) into the venv"
     )
     interfaces.add_argument("action", choices=["install", "status"])
-    interfaces.add_argument("names", nargs="*", metavar="NAME", help="packages to install (default: all)")
+    interfaces.add_argument(
+        "names", nargs="*", metavar="NAME", help="optional: the packages to install or show (default: all of them)"
+    )
     return parser
+
+
+def _version() -> str:
+    try:
+        return importlib.metadata.version("viewer-bridge")
+    except importlib.metadata.PackageNotFoundError:  # run from a checkout that is not installed
+        return "(not installed)"
 
 
 def _dump(args: argparse.Namespace) -> int:
     if (args.log is None) == (args.live is None):
-        print("viewer-bridge dump: give either a log file or --live [URL]", file=sys.stderr)
-        return 2
+        raise UsageError("give either a log file or --live [URL]")
     stop = threading.Event()
     demo: threading.Thread | None = None
     events: Iterator[LcmEvent]
@@ -160,9 +213,6 @@ def _dump(args: argparse.Namespace) -> int:
     try:
         for event in events:
             print(render(event), flush=True)
-    except BridgeError as error:  # e.g. a file that is not an LCM log
-        print(f"viewer-bridge: {error}", file=sys.stderr)
-        return 2
     except KeyboardInterrupt:
         pass
     except BrokenPipeError:
@@ -175,20 +225,18 @@ def _dump(args: argparse.Namespace) -> int:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    try:
-        sent = run_demo(args.url, args.duration, args.rate)
-    except KeyboardInterrupt:
-        return 0
+    stop = threading.Event()  # Ctrl-C or SIGTERM: the summary line, then exit 0
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, lambda *_: stop.set())
+    until = f"for {args.duration:g} s" if args.duration else "until Ctrl-C"
+    print(f"publishing the demo scene on {args.url} at {args.rate:g} Hz, {until}", flush=True)
+    sent = run_demo(args.url, args.duration, args.rate, stop=stop)
     print(f"published {sent} draw messages on {args.url}")
     return 0
 
 
 def _mappings(args: argparse.Namespace) -> int:
-    try:
-        print(reference_markdown(format_names()), end="")
-    except ConfigError as error:
-        print(f"viewer-bridge: {error}", file=sys.stderr)
-        return 2
+    print(reference_markdown(format_names()), end="")
     return 0
 
 
@@ -196,11 +244,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.print_default_config or args.print_config:
         name = args.print_config or "default"
         if name not in BUILTIN_CONFIGS:
-            print(
-                f"viewer-bridge: no built-in config {name!r} (known: {', '.join(BUILTIN_CONFIGS)})",
-                file=sys.stderr,
-            )
-            return 2
+            raise UsageError(f"no built-in config {name!r} (known: {', '.join(BUILTIN_CONFIGS)})")
         print(BUILTIN_CONFIGS[name], end="")
         return 0
     view = _status_view(args.quiet)
@@ -209,14 +253,16 @@ def _run(args: argparse.Namespace) -> int:
         if args.lcm_url:
             config = config.with_settings("lcm", url=args.lcm_url)
         for setting in args.set:
-            config = _with_setting(config, setting)
+            config = _with_setting(config, setting, args.config)
         if args.ros_args:
+            _uses(config, "ros", "--ros-args", args.config)
             config = config.with_settings("ros", ros_args=args.ros_args)
         router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period, view=view)
-    except (BridgeError, TransportUnavailable, OSError, ValueError) as error:
-        view.close()
-        print(f"viewer-bridge: {error}", file=sys.stderr)
-        return 2
+    except BaseException as error:
+        view.close()  # a live table leaves the screen before the one-line error
+        if isinstance(error, (OSError, ValueError)):
+            raise UsageError(str(error)) from None
+        raise
     for signal_number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signal_number, lambda *_: router.stop())
     stop_demo = threading.Event()
@@ -248,13 +294,30 @@ def _status_view(quiet: bool) -> StatusView:
     return LiveTable(console)
 
 
-def _with_setting(config: BridgeConfig, setting: str) -> BridgeConfig:
+def _with_setting(config: BridgeConfig, setting: str, config_name: str | None) -> BridgeConfig:
     """`TRANSPORT.KEY=VALUE` (the value read as YAML: 9000 is a number, true a bool) applied."""
     name, _, value = setting.partition("=")
     transport, _, key = name.partition(".")
     if not (transport and key and _):
-        raise ValueError(f"--set {setting!r}: expected TRANSPORT.KEY=VALUE, e.g. foxglove.port=9000")
-    return config.with_settings(transport, **{key: yaml.safe_load(value)})
+        raise UsageError(f"--set {setting!r}: expected TRANSPORT.KEY=VALUE, e.g. foxglove.port=9000")
+    _uses(config, transport, f"--set {setting}", config_name)
+    try:
+        return config.with_settings(transport, **{key: yaml.safe_load(value)})
+    except ConfigError as error:
+        raise UsageError(f"--set {setting}: {error.key}: {error.reason}") from None
+
+
+def _uses(config: BridgeConfig, transport: str, option: str, config_name: str | None) -> None:
+    """Warn about an option for a transport that no route of the config uses: it does nothing.
+    (A warning, not a refusal: one command line may serve several configs, e.g. in scripts.)"""
+    used = config.transports()
+    if transport not in used:
+        print(
+            f"viewer-bridge run: warning: {option} does nothing: no route of "
+            f"{config_name or 'the built-in config'} uses the {transport} transport "
+            f"(its routes use: {', '.join(used) or 'none'})",
+            file=sys.stderr,
+        )
 
 
 def _lcm_url(config: BridgeConfig) -> str:
@@ -264,12 +327,25 @@ def _lcm_url(config: BridgeConfig) -> str:
 
 def _convert(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    config = load_config(args.config)
+    # Ctrl-C (or a SIGTERM) stops after the message being converted: the MCAP is closed properly.
+    stop = threading.Event()
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, lambda *_: stop.set())
     try:
-        config = load_config(args.config)
-        written = convert(args.log, args.mcap, config, progress=sys.stderr.isatty(), schema=args.schema)
-    except (BridgeError, OSError) as error:
-        print(f"viewer-bridge: {error}", file=sys.stderr)
-        return 2
+        written = convert(
+            args.log,
+            args.mcap,
+            config,
+            progress=sys.stderr.isatty(),
+            schema=args.schema,
+            force=args.force,
+            config_name=args.config or "the built-in config",
+            stop=stop,
+        )
+    except Interrupted as interrupted:
+        print(f"viewer-bridge convert: {interrupted}", file=sys.stderr)
+        return 130
     for topic, count in sorted(written.items()):
         print(f"{count:8d}  {topic}")
     return 0
@@ -285,14 +361,14 @@ def _snapshot(args: argparse.Namespace) -> int:
         without_links,
     )
 
+    width, height = args.size
+    eye = target = None
+    if args.camera:
+        eye, target = np.array(args.camera[:3]), np.array(args.camera[3:])
+    jpeg = Path(args.out).suffix.lower() != ".png"
+    if jpeg and args.image == "depth":
+        raise UsageError("a depth image is 16-bit: write it as .png (JPEG holds 8 bits)")
     try:
-        width, height = (int(value) for value in args.size.lower().split("x"))
-        eye = target = None
-        if args.camera:
-            values = [float(value) for value in args.camera.split(",")]
-            if len(values) != 6:
-                raise ValueError("--camera needs six numbers: eye x,y,z and target x,y,z")
-            eye, target = np.array(values[:3]), np.array(values[3:])
         events = events_from(args.source, args.duration)
         scene = latest_scene(events, args.role.upper())
         if args.hide:
@@ -302,12 +378,15 @@ def _snapshot(args: argparse.Namespace) -> int:
             if results is None:
                 raise ValueError("no CONTACT_RESULTS message in the source")
             scene = with_contacts(scene, results)
-        picture = snapshot(scene, width, height, args.fov, eye, target, args.image)
-    except (BridgeError, ValueError, OSError) as error:  # e.g. a mesh file the log names is not here
-        print(f"viewer-bridge: {error}", file=sys.stderr)
-        return 2
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    with collecting() as skipped:  # a geometry that cannot be drawn is left out, and named
+        picture = snapshot(scene, width, height, args.fov, eye, target, args.image, "JPEG" if jpeg else "PNG")
+    for geometry in skipped:
+        print(f"viewer-bridge snapshot: warning: {geometry}", file=sys.stderr)
     Path(args.out).write_bytes(picture)
-    print(f"wrote {args.out}: {len(scene.links)} links, {scene.geometry_count()} geometries")
+    drawn = scene.geometry_count() - len(skipped)
+    print(f"wrote {args.out}: {len(scene.links)} links, {drawn} geometries ({len(skipped)} skipped)")
     return 0
 
 
@@ -315,7 +394,10 @@ def _serve_render(args: argparse.Namespace) -> int:
     from bridge.render_server import make_server  # OpenGL only for this command
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
-    server = make_server(args.host, args.port, args.max_upload)
+    try:
+        server = make_server(args.host, args.port, args.max_upload)
+    except OSError as error:  # e.g. the port is taken, or the host is not an address of this machine
+        raise UsageError(f"cannot listen on {args.host}:{args.port}: {error.strerror or error}") from None
     # Ctrl-C stops it cleanly from the moment it says it is ready.
     for signal_number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signal_number, lambda *_: threading.Thread(target=server.shutdown).start())
@@ -330,38 +412,49 @@ def _serve_render(args: argparse.Namespace) -> int:
 def _ros_interfaces(args: argparse.Namespace) -> int:
     from bridge import ros_interfaces
 
+    unknown = [name for name in args.names if name not in ros_interfaces.INTERFACES]
+    if unknown:
+        known = ", ".join(ros_interfaces.INTERFACES)
+        raise UsageError(f"unknown interface package {', '.join(unknown)} (known: {known})")
     if args.action == "status":
         absent = ros_interfaces.missing()
-        for name in ros_interfaces.INTERFACES:
+        for name in args.names or ros_interfaces.INTERFACES:
             print(f"{name}: {'missing' if name in absent else 'installed'} in {sys.prefix}")
         return 0
-    try:
-        ros_interfaces.install(args.names or None, log=lambda line: print(line, file=sys.stderr))
-    except BridgeError as error:
-        print(f"viewer-bridge: {error}", file=sys.stderr)
-        return 2
+    ros_interfaces.install(args.names or None, log=lambda line: print(line, file=sys.stderr))
     return 0
+
+
+_HANDLERS = {
+    "dump": _dump,
+    "demo": _demo,
+    "mappings": _mappings,
+    "run": _run,
+    "convert": _convert,
+    "serve-render": _serve_render,
+    "snapshot": _snapshot,
+    "ros-interfaces": _ros_interfaces,
+}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     words = list(sys.argv[1:] if argv is None else argv)
-    ros_args: list[str] = []
-    if "--ros-args" in words:  # everything after it is rclpy's, as for any ROS 2 node
-        at = words.index("--ros-args")
-        words, ros_args = words[:at], words[at + 1 :]
-    args = _parser().parse_args(words)
+    parser = _parser()
+    try:
+        words, ros_args = split_ros_args(words)  # everything in --ros-args ... [--] is rclpy's
+    except UsageError as error:
+        command = next((word for word in words if word in _HANDLERS), "")
+        parser.exit(2, f"{' '.join(filter(None, ('viewer-bridge', command)))}: {error}\n")
+    args = parser.parse_args(words)
     args.ros_args = ros_args
-    handlers = {
-        "dump": _dump,
-        "demo": _demo,
-        "mappings": _mappings,
-        "run": _run,
-        "convert": _convert,
-        "serve-render": _serve_render,
-        "snapshot": _snapshot,
-        "ros-interfaces": _ros_interfaces,
-    }
-    return handlers[args.command](args)
+    if ros_args and args.command != "run":
+        parser.exit(2, f"viewer-bridge {args.command}: --ros-args: only `run` is a ROS 2 node\n")
+    try:
+        return _HANDLERS[args.command](args)
+    except (BridgeError, TransportUnavailable, OSError) as error:  # mistakes in what was given: one line
+        return fail(args.command, str(error))
+    except KeyboardInterrupt:  # Ctrl-C before a command's own handling of it: no traceback
+        return 130
 
 
 if __name__ == "__main__":

@@ -153,7 +153,7 @@ class _Checker:
         try:
             return model.model_validate(data)
         except ValidationError as error:
-            raise self.document.validation_error(error, at) from None
+            raise self.document.validation_error(error, at, model) from None
 
     def transport(self, name: str, at: KeyPath, what: str = "a transport") -> type[Transport]:
         try:
@@ -174,6 +174,10 @@ class _Checker:
             source.check_source(route.source.name)
         except ValueError as error:
             raise self.error((*at, "source", "name"), str(error)) from None
+        try:
+            destination.check_destination(_sample_destination(route))
+        except ValueError as error:
+            raise self.error((*at, "destination", "name"), str(error)) from None
         self._carried(
             source, route.source.transport, translator.reads, (*at, "source", "transport"), route, "reads"
         )
@@ -246,6 +250,12 @@ def _check_template(template: str, groups: int) -> None:
             f"destination name {template!r} does not fit a source with {groups} groups "
             f"(use {{0}}..{{{groups}}}, with :lower, :path or :topic): {error}"
         ) from None
+
+
+def _sample_destination(route: Route) -> str:
+    """The route's destination name for a sample message (each group of its source: `x`)."""
+    groups = re.compile(route.source.name).groups
+    return _Template().format(route.destination.name, "x", *(["x"] * groups))
 
 
 def destination_name(template: str, match: re.Match[str]) -> str:

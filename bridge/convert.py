@@ -8,15 +8,22 @@ and writes the chosen schema family, as the live router would:
 * `foxglove`: Foxglove's protobuf messages (SceneUpdate, FrameTransforms), written by the
   foxglove-sdk's own MCAP writer, so the 3D panel works with no ROS message definitions.
 
-Messages carry the log's receive time.
+Messages carry the log's receive time. Nothing is lost: the output is never the input, an
+existing file is replaced only when asked (`force`), and the MCAP is written as `OUT.partial`,
+renamed to `OUT` once complete. Stopped midway (`stop` set, e.g. by Ctrl-C), the MCAP is closed
+properly (readable, with what was written so far) and left as `OUT.partial`: `Interrupted` says
+how many messages it holds.
 """
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import logging
+import os
+import threading
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Literal, Protocol
 
@@ -26,6 +33,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rosbags.typesys import Stores, get_typestore
 
 from bridge.config import BridgeConfig, Route
+from bridge.errors import BridgeError
 from bridge.router import Message, RouteRunner
 from bridge.translators import TRANSLATORS, LoadCache, Output, Translator
 from bridge.transports.base import CDR, LCM, CallPublisher, Publisher, Received
@@ -41,8 +49,6 @@ class _Sink(Protocol):
 
     time_ns: int
     messages: Counter[str]
-
-    def carries(self, output: Output) -> bool: ...
 
     def publisher(self, topic: str, output: Output) -> Publisher: ...
 
@@ -61,9 +67,6 @@ class _Ros2Mcap:
         self._channels: dict[str, int] = {}
         self.messages: Counter[str] = Counter()
         self.time_ns = 0
-
-    def carries(self, output: Output) -> bool:
-        return output.type.encoding == CDR
 
     def publisher(self, topic: str, output: Output) -> Publisher:
         typename = output.type.name
@@ -95,9 +98,6 @@ class _FoxgloveMcap:
         self.messages: Counter[str] = Counter()
         self.time_ns = 0
 
-    def carries(self, output: Output) -> bool:
-        return output.type.name.startswith("foxglove.")
-
     def publisher(self, topic: str, output: Output) -> Publisher:
         channel = foxglove_channel(topic, output.type, self._context)
 
@@ -111,58 +111,125 @@ class _FoxgloveMcap:
         self._writer.close()
 
 
+# What each schema family's file carries: ROS 2 CDR messages, or Foxglove's protobuf ones.
+_CARRIES: dict[Schema, Callable[[Output], bool]] = {
+    "ros2": lambda output: output.type.encoding == CDR,
+    "foxglove": lambda output: output.type.name.startswith("foxglove."),
+}
+
+
+class ConvertError(BridgeError):
+    """A conversion that cannot start: the output would overwrite something, or nothing would be written."""
+
+
+class Interrupted(BridgeError):
+    """A conversion stopped midway; `path` (`OUT.partial`) is a valid MCAP of `messages` messages."""
+
+    def __init__(self, messages: int, path: Path) -> None:
+        self.messages = messages
+        self.path = path
+        super().__init__(f"interrupted: {messages} messages written to {path}")
+
+
 def convert(
     log_path: str | Path,
     mcap_path: str | Path,
     config: BridgeConfig,
     progress: bool = True,
     schema: Schema = "ros2",
+    force: bool = False,
+    config_name: str = "the config",
+    stop: threading.Event | None = None,
 ) -> dict[str, int]:
     """Write the outputs of `config`'s LCM routes in the `schema` family for the log into an MCAP file.
 
     Returns messages written per topic. Bad messages are counted per route and reported, as
-    the live router does; they do not stop the conversion.
+    the live router does; they do not stop the conversion. Raises `ConvertError` before
+    anything is written when `mcap_path` is the log itself, exists (unless `force`), or no route
+    writes `schema`; `Interrupted` when `stop` is set midway.
     """
+    target = Path(mcap_path)
+    _check_target(Path(log_path), target, force)
     events = read_log(log_path)
     first = next(events, None)  # a file that is not an LCM log fails here, before anything is written
-    sink: _Sink = _Ros2Mcap(Path(mcap_path)) if schema == "ros2" else _FoxgloveMcap(Path(mcap_path))
-    routes = [route for route in config.routes if _lcm_to(sink, route)]
+    writes = [route for route in config.routes if _lcm_to(_CARRIES[schema], route)]
+    if not writes:
+        raise ConvertError(f"no route of {config_name} reads LCM and writes the {schema} schema")
+    partial = target.with_name(target.name + ".partial")
+    sink: _Sink = _Ros2Mcap(partial) if schema == "ros2" else _FoxgloveMcap(partial)
     loads = LoadCache()
-    runners = [RouteRunner(route, _offline(route, loads), sink.publisher) for route in routes]
-    total = Path(log_path).stat().st_size
-    columns = (
-        TextColumn("converting"),
-        BarColumn(),
-        TextColumn("{task.percentage:>3.0f}%"),
-        TimeRemainingColumn(),
-    )
+    runners = [RouteRunner(route, _offline(route, loads), sink.publisher) for route in writes]
+    stop = stop or threading.Event()
     try:
-        with Progress(*columns, disable=not progress, transient=True) as bar:
-            task = bar.add_task("convert", total=total)
-            done = 0
+        with _progress_bar(Path(log_path).stat().st_size, progress) as advance:
             for event in itertools.chain([first] if first is not None else [], events):
+                if stop.is_set():
+                    break
                 sink.time_ns = event.timestamp_us * 1000
                 received = Received(event.channel, event.data, event.timestamp_us)
                 for runner in runners:
                     match = runner.pattern.fullmatch(event.channel)
                     if match is not None:
                         runner.handle(Message(received, match))
-                done += len(event.data) + len(event.channel) + 36  # roughly one event record
-                bar.update(task, completed=min(done, total))
-    finally:
+                advance(len(event.data) + len(event.channel) + 36)  # roughly one event record
+    except BaseException:
         sink.finish()
-    for runner in runners:
-        errors = dict(runner.stats.errors)
-        if errors:
-            log.warning("route %s: %s", runner.route.name, errors)
+        partial.unlink(missing_ok=True)  # a failure midway leaves no file that looks like output
+        raise
+    sink.finish()
+    _report_errors(runners)
+    if stop.is_set():
+        raise Interrupted(sum(sink.messages.values()), partial)
+    os.replace(partial, target)
     return dict(sink.messages)
 
 
-def _lcm_to(sink: _Sink, route: Route) -> bool:
-    """Whether a route reads LCM and writes only what the sink carries."""
+def _check_target(log_path: Path, target: Path, force: bool) -> None:
+    """Refuse an output that is the input (also through a link) or, without `force`, any existing file."""
+    if not target.exists():
+        return
+    if log_path.exists() and os.path.samefile(log_path, target):
+        raise ConvertError(f"{target} is the input log {log_path}: give another output file")
+    if target.is_dir():
+        raise ConvertError(f"{target} is a folder, not a file")
+    if not force:
+        raise ConvertError(f"{target} exists: give another output file, or --force to replace it")
+
+
+@contextlib.contextmanager
+def _progress_bar(total: int, shown: bool) -> Iterator[Callable[[int], None]]:
+    """A progress bar over `total` bytes (when `shown`); yields the function that advances it."""
+    columns = (
+        TextColumn("converting"),
+        BarColumn(),
+        TextColumn("{task.percentage:>3.0f}%"),
+        TimeRemainingColumn(),
+    )
+    with Progress(*columns, disable=not shown, transient=True) as bar:
+        task = bar.add_task("convert", total=total)
+        done = 0
+
+        def advance(size: int) -> None:
+            nonlocal done
+            done += size
+            bar.update(task, completed=min(done, total))
+
+        yield advance
+
+
+def _report_errors(runners: list[RouteRunner]) -> None:
+    """Per route, its errors and warnings (each was logged as it happened, the first few in full)."""
+    for runner in runners:
+        counts = runner.stats.errors + runner.stats.warnings
+        if counts:
+            log.warning("route %s: %s", runner.route.name, dict(counts))
+
+
+def _lcm_to(carries: Callable[[Output], bool], route: Route) -> bool:
+    """Whether a route reads LCM and writes only what a sink `carries`."""
     translator = TRANSLATORS.get(route.translator)
     return all(read.encoding == LCM for read in translator.reads) and all(
-        sink.carries(output) for output in translator.outputs
+        carries(output) for output in translator.outputs
     )
 
 

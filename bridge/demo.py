@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -31,23 +30,13 @@ from bridge.scene import (
 )
 from bridge.transports.lcm import Publisher
 
-TETRAHEDRON_OBJ = """\
-v 0 0 0
-v 0.1 0 0
-v 0 0.1 0
-v 0 0 0.1
-vn -0.577 -0.577 -0.577
-f 1//1 3//1 2//1
-f 1//1 2//1 4//1
-f 1//1 4//1 3//1
-f 2//1 3//1 4//1
-"""
+# Inside the package (and the wheel), so that a recording of the demo still finds its mesh file.
+DEMO_MESH = Path(__file__).resolve().parent / "demo_data" / "tetrahedron.obj"
+TETRAHEDRON_OBJ = DEMO_MESH.read_text()
 
 
-def demo_scene(mesh_dir: Path) -> Scene:
+def demo_scene() -> Scene:
     """One model instance with a link per shape, plus a ground half-space on `world`."""
-    mesh_path = mesh_dir / "tetrahedron.obj"
-    mesh_path.write_text(TETRAHEDRON_OBJ)
     vertices = np.array([[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.1]], dtype=np.float64)
     triangles = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], dtype=np.int64)
     shapes: list[Shape] = [
@@ -56,7 +45,7 @@ def demo_scene(mesh_dir: Path) -> Scene:
         Cylinder(0.03, 0.2),
         Capsule(0.03, 0.1),
         Ellipsoid((0.05, 0.08, 0.03)),
-        MeshFile(str(mesh_path), (1.0, 1.0, 1.0)),
+        MeshFile(str(DEMO_MESH), (1.0, 1.0, 1.0)),
         TriangleMesh(vertices, triangles),
         InMemoryMesh(FileContents(TETRAHEDRON_OBJ.encode(), ".obj", "tetrahedron.obj")),
     ]
@@ -103,19 +92,18 @@ def run_demo(
     publisher = Publisher(url)
     encoder = DrawEncoder()
     sent = 0
-    with tempfile.TemporaryDirectory(prefix="viewer-bridge-demo-") as folder:
-        scene = demo_scene(Path(folder))
-        load = load_from_scene(scene).encode()
-        start = time.monotonic()
-        next_load = start
-        while not stop.is_set():
-            now = time.monotonic()
-            if duration is not None and now - start >= duration:
-                break
-            if now >= next_load:
-                publisher.publish("DRAKE_VIEWER_LOAD_ROBOT", load)
-                next_load = now + load_every
-            publisher.publish("DRAKE_VIEWER_DRAW", encoder.encode(demo_poses(scene, now - start)))
-            sent += 1
-            stop.wait(1.0 / rate_hz)
+    scene = demo_scene()
+    load = load_from_scene(scene).encode()
+    start = time.monotonic()
+    next_load = start
+    while not stop.is_set():
+        now = time.monotonic()
+        if duration is not None and now - start >= duration:
+            break
+        if now >= next_load:
+            publisher.publish("DRAKE_VIEWER_LOAD_ROBOT", load)
+            next_load = now + load_every
+        publisher.publish("DRAKE_VIEWER_DRAW", encoder.encode(demo_poses(scene, now - start)))
+        sent += 1
+        stop.wait(1.0 / rate_hz)
     return sent

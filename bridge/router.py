@@ -47,6 +47,7 @@ import numpy as np
 
 from bridge.config import BridgeConfig, Route, destination_name
 from bridge.errors import BridgeError
+from bridge.skipped import collecting
 from bridge.status import LogLines, StatusView
 from bridge.translators import TRANSLATORS, LoadCache, Output, Translator
 from bridge.transports import TRANSPORTS
@@ -70,19 +71,27 @@ class Message:
 class Mailbox:
     """Messages between a transport thread and a route's worker; never grows without bound."""
 
-    def __init__(self, policy: str, depth: int) -> None:
+    def __init__(self, policy: str, depth: int, rate_limited: bool = False) -> None:
         self.keep_latest = policy == "latest"
         self._latest: OrderedDict[str, Message] = OrderedDict()
         self._fifo: deque[Message] = deque()
         self._depth = depth
         self._ready = threading.Condition()
         self.dropped = 0
+        # With max_hz, a message superseded while the worker waits out the rate is skipped by
+        # design: counted apart from drops (which say the bridge could not keep up).
+        self._rate_limited = rate_limited
+        self.rate_skipped = 0
 
     def put(self, message: Message) -> None:
         with self._ready:
             if self.keep_latest:
                 if self._latest.pop(message.channel, None) is not None:
-                    self.dropped += 1  # superseded before it was translated
+                    # superseded before it was translated
+                    if self._rate_limited:
+                        self.rate_skipped += 1
+                    else:
+                        self.dropped += 1
                 self._latest[message.channel] = message
             else:
                 if len(self._fifo) >= self._depth:
@@ -149,10 +158,11 @@ class RouteStats:
     bytes_out: int = 0
     idle_skipped: int = 0  # messages a lazy route did not translate: nobody was listening
     errors: Counter[str] = field(default_factory=Counter)
+    warnings: Counter[str] = field(default_factory=Counter)  # e.g. a geometry skipped (bridge.skipped)
     translate_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
     latency_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
 
-    def snapshot(self, dropped: int, queued: int, state: str) -> dict[str, Any]:
+    def snapshot(self, dropped: int, queued: int, state: str, max_hz_skipped: int = 0) -> dict[str, Any]:
         return {
             "state": state,
             "messages_in": self.messages_in,
@@ -161,7 +171,9 @@ class RouteStats:
             "bytes_out": self.bytes_out,
             "idle_skipped": self.idle_skipped,
             "errors": dict(self.errors),
+            "warnings": dict(self.warnings),
             "dropped": dropped,
+            "max_hz_skipped": max_hz_skipped,  # superseded while a rate-limited route waited
             "queued": queued,
             "translate_ms": _percentiles(self.translate_ms),
             "latency_ms": _percentiles(self.latency_ms),
@@ -225,7 +237,7 @@ class RouteRunner:
     ) -> None:
         self.route = route
         self.pattern = re.compile(route.source.name)
-        self.mailbox = Mailbox(route.rate.policy, route.qos.depth)
+        self.mailbox = Mailbox(route.rate.policy, route.qos.depth, rate_limited=bool(route.rate.max_hz))
         self.stats = RouteStats()
         # A rate-limited route waits between messages: only its worker can do that.
         self._inline = None if route.rate.max_hz else inline
@@ -300,7 +312,8 @@ class RouteRunner:
     def _replay(self, lane: _Lane) -> None:
         skipped, lane.skipped = lane.skipped, {}
         for message in skipped.values():
-            self._translate(lane, message)
+            # Kept while nobody listened: how long it waited is no latency of the bridge's.
+            self._translate(lane, message, latency=False)
 
     def _publisher(self, name: str, output: Output) -> Publisher:
         publisher = self._publishers.get(name)
@@ -335,10 +348,11 @@ class RouteRunner:
             return
         self._translate(lane, message)
 
-    def _translate(self, lane: _Lane, message: Message) -> None:
+    def _translate(self, lane: _Lane, message: Message, latency: bool = True) -> None:
         started = time.perf_counter()
         try:
-            outputs = lane.translator.translate(message.received)
+            with collecting() as skipped:
+                outputs = lane.translator.translate(message.received)
         except BridgeError as error:
             self._error(type(error).__name__, f"{message.channel}: {error}")
             return
@@ -346,6 +360,8 @@ class RouteRunner:
             self._error(f"crash:{type(error).__name__}", f"{message.channel}: {traceback.format_exc()}")
             return
         self.stats.translate_ms.append((time.perf_counter() - started) * 1e3)
+        for geometry in skipped:  # the rest of the scene is translated: a warning, not an error
+            self._count(self.stats.warnings, "skipped_geometry", f"{message.channel}: {geometry}")
         for index, payload in outputs:
             try:
                 lane.publisher(index).publish(payload)
@@ -354,11 +370,14 @@ class RouteRunner:
                 continue
             self.stats.messages_out += 1
             self.stats.bytes_out += len(payload)
-        if outputs:
+        if outputs and latency:
             self.stats.latency_ms.append((time.time_ns() // 1000 - message.received.received_us) / 1e3)
 
     def _error(self, kind: str, text: str) -> None:
-        self.stats.errors[kind] += 1
+        self._count(self.stats.errors, kind, text)
+
+    def _count(self, counts: Counter[str], kind: str, text: str) -> None:
+        counts[kind] += 1
         self._logged[kind] += 1
         count = self._logged[kind]
         if count <= 5 or count % 1000 == 0:  # the first few, then a reminder: never a flood
@@ -370,7 +389,9 @@ class RouteRunner:
         return "active"
 
     def snapshot(self) -> dict[str, Any]:
-        return self.stats.snapshot(self.mailbox.dropped, len(self.mailbox), self.state())
+        return self.stats.snapshot(
+            self.mailbox.dropped, len(self.mailbox), self.state(), self.mailbox.rate_skipped
+        )
 
 
 def output_qos(route: Route, latched_by_default: bool) -> Qos:
@@ -475,21 +496,31 @@ class Router:
         deadline = None if duration is None else time.monotonic() + duration
         next_report = time.monotonic() + self.stats_period
         try:
-            while not self._stop.is_set():
+            while not self._ending(deadline):
                 remaining = None if deadline is None else deadline - time.monotonic()
-                if remaining is not None and remaining <= 0:
-                    break
-                if self._source_ended() and self._idle():
-                    break
                 self._stop.wait(min(0.1, remaining) if remaining is not None else 0.1)
-                if time.monotonic() >= next_report:
+                # The last report is close()'s: none just before it, so it is printed once.
+                if time.monotonic() >= next_report and not self._ending(deadline):
                     next_report += self.stats_period
                     self.report()
         finally:
             self.close()
 
-    def _source_ended(self) -> bool:
-        return any(transport.finished() for transport in self.transports.values())
+    def _ending(self, deadline: float | None) -> bool:
+        """Whether to stop: asked to, the duration is over, or a finite source ended (said once)."""
+        if self._stop.is_set() or (deadline is not None and time.monotonic() >= deadline):
+            return True
+        ended = self._source_ended()
+        if ended is not None and self._idle():
+            log.info("viewer-bridge: %s has ended: stopping", ended)
+            self._stop.set()
+            return True
+        return False
+
+    def _source_ended(self) -> str | None:
+        """The transport (described) whose finite source, a replayed log, has ended, or None."""
+        ended = (transport.describe() for transport in self.transports.values() if transport.finished())
+        return next(ended, None)
 
     def _idle(self) -> bool:
         return all(len(runner.mailbox) == 0 for runner in self.routes)

@@ -1,4 +1,4 @@
-"""`viewer-bridge snapshot`: the current scene of a log or a live LCM bus, rendered to a PNG.
+"""`viewer-bridge snapshot`: the current scene of a log or a live LCM bus, rendered to a PNG or JPEG.
 
 The scene is the last load of the chosen role with the last draw applied; it goes through the
 same path as a render request (scene -> glTF -> renderer), so what a user sees is what a glTF
@@ -137,8 +137,10 @@ def snapshot(
     eye: FloatArray | None = None,
     target: FloatArray | None = None,
     image: str = "color",
+    file_format: str = "PNG",
 ) -> bytes:
-    """PNG bytes of the scene (color, label or 16-bit millimetre depth)."""
+    """The scene as an image file's bytes: color, label or 16-bit millimetre depth, as a PNG (or
+    in another format Pillow writes, e.g. JPEG for color and label)."""
     gltf = read_gltf(write_gltf(scene))
     fov_y = math.radians(fov_y_deg)
     if eye is None or target is None:
@@ -153,7 +155,7 @@ def snapshot(
         Image.fromarray(depth_mm(pixels, 0.01, 100.0)) if depth else Image.fromarray(rgb8(pixels), "RGB")
     )
     out = io.BytesIO()
-    picture.save(out, format="PNG")
+    picture.save(out, format=file_format)
     return out.getvalue()
 
 

@@ -39,6 +39,11 @@ def errors_of(stats: dict[str, Any]) -> int:
     return sum(stats["errors"].values())
 
 
+def warnings_of(stats: dict[str, Any]) -> int:
+    """What a route left out but carried on with (a geometry a target cannot draw, say)."""
+    return sum(stats["warnings"].values())
+
+
 def _ms(value: float | None) -> str:
     return "-" if value is None else f"{value:.2f}"
 
@@ -50,12 +55,14 @@ class LogLines:
         for name, stats in routes_of(snapshot).items():
             latency = stats["latency_ms"]
             log.info(
-                "route %s: in %d out %d errors %d dropped %d latency p50 %s p99 %s ms%s",
+                "route %s: in %d out %d errors %d%s dropped %d%s latency p50 %s p99 %s ms%s",
                 name,
                 stats["messages_in"],
                 stats["messages_out"],
                 errors_of(stats),
+                f" warnings {warnings_of(stats)}" if stats["warnings"] else "",
                 stats["dropped"],
+                f" max_hz skipped {stats['max_hz_skipped']}" if stats["max_hz_skipped"] else "",
                 _ms(latency["p50"]),
                 _ms(latency["p99"]),
                 f" ({stats['state']}, {stats['idle_skipped']} not translated)" if stats["state"] != "active" else "",
@@ -111,12 +118,12 @@ class LiveTable:
     @staticmethod
     def _table(title: str, routes: dict[str, dict[str, Any]], rates: dict[str, tuple[float, float]]) -> Table:
         table = Table(title=title, title_justify="left", expand=False)
-        for heading in ("route", "in/s", "out/s", "in", "out", "errors", "dropped", "p50 ms", "p99 ms"):
+        for heading in ("route", "in/s", "out/s", "in", "out", "errors", "warnings", "dropped", "p50 ms", "p99 ms"):
             table.add_column(heading, justify="left" if heading == "route" else "right", no_wrap=True)
         for name, stats in routes.items():
             rate_in, rate_out = rates[name]
             latency = stats["latency_ms"]
-            errors, dropped = errors_of(stats), stats["dropped"]
+            errors, warnings, dropped = errors_of(stats), warnings_of(stats), stats["dropped"]
             table.add_row(
                 name,
                 f"{rate_in:.1f}",
@@ -124,6 +131,7 @@ class LiveTable:
                 str(stats["messages_in"]),
                 str(stats["messages_out"]),
                 Text(str(errors), style="bold red" if errors else ""),
+                Text(str(warnings), style="yellow" if warnings else ""),
                 Text(str(dropped), style="yellow" if dropped else ""),
                 _ms(latency["p50"]),
                 _ms(latency["p99"]),

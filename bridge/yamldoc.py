@@ -6,6 +6,8 @@ a compiler error (`mappings/ros.yaml:12: shapes.box.type: unknown type 'CUBE'`),
 
 from __future__ import annotations
 
+import difflib
+import typing
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -85,15 +87,55 @@ class YamlDocument:
         try:
             return model.model_validate(self.data, context=context)
         except ValidationError as error:
-            raise self.validation_error(error) from None
+            raise self.validation_error(error, model=model) from None
 
-    def validation_error(self, error: ValidationError, at: KeyPath = ()) -> ConfigError:
-        """The first error of validating the part of the document at `at`, as a `ConfigError`."""
-        first = error.errors()[0]
-        return self.error(self._file_path((*at, *first["loc"])), _reason(first))
+    def validation_error(
+        self, error: ValidationError, at: KeyPath = (), model: type[BaseModel] | None = None
+    ) -> ConfigError:
+        """The first error of validating the part of the document at `at` (as `model`), as a
+        `ConfigError`. An unknown key comes first, since it often explains a missing one (a
+        misspelt `translater:`); it is named, with the keys that are known there."""
+        errors = error.errors()
+        unknown = [detail for detail in errors if detail["type"] == "extra_forbidden"]
+        if not unknown:
+            return self.error(self._file_path((*at, *errors[0]["loc"])), _reason(errors[0]))
+        loc = unknown[0]["loc"]
+        parent, key = loc[:-1], loc[-1]
+        missing = [str(d["loc"][-1]) for d in errors if d["type"] == "missing" and d["loc"][:-1] == parent]
+        known = _fields_at(model, parent) if model is not None else []
+        reason = f"unknown key {key!r}"
+        guess = difflib.get_close_matches(str(key), missing or known, n=1)
+        if guess:
+            reason += f" (did you mean {guess[0]!r}?)"
+        if known:
+            reason += f"; known keys: {', '.join(known)}"
+        return self.error(self._file_path((*at, *loc)), reason)
 
 
 _TYPE_TAGS = {"float", "int", "str", "bool", "none", "dict", "list"}  # pydantic's union branch names
+
+
+def _fields_at(model: type[BaseModel], loc: tuple[Any, ...]) -> list[str]:
+    """The field names of the model found at `loc` inside `model` (through lists and dicts), or []."""
+    annotation: Any = model
+    for part in loc:
+        if isinstance(part, str) and isinstance(annotation, type) and issubclass(annotation, BaseModel):
+            field = next(
+                (f for name, f in annotation.model_fields.items() if part in (name, f.alias)), None
+            )
+            if field is None:
+                return []
+            annotation = field.annotation
+        else:  # an item of a list, or a value of a dict
+            arguments = [arg for arg in typing.get_args(annotation) if arg is not type(None)]
+            if not arguments:
+                return []
+            annotation = arguments[-1]
+    while typing.get_args(annotation) and not isinstance(annotation, type):  # X | None
+        annotation = next(arg for arg in typing.get_args(annotation) if arg is not type(None))
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [field.alias or name for name, field in annotation.model_fields.items()]  # as written
+    return []
 
 
 def _reason(detail: Any) -> str:

@@ -5,9 +5,15 @@ from __future__ import annotations
 import json
 import os
 import random
+import re
+import signal
+import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
+
+import pytest
 
 from bridge.lcmcodec import DRAW
 from bridge.transports.lcm import LcmEvent, read_log, write_log
@@ -134,3 +140,257 @@ def test_run_without_the_ros_extra_names_the_install_that_fixes_it() -> None:
     assert result.returncode == 2, result.stderr
     assert "the ros transport needs rclpy" in result.stderr and "pip install 'viewer-bridge[ros]'" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+# --- convert: nothing lost ----------------------------------------------------------------------------
+
+
+def demo_log(path: Path, draws: int) -> Path:
+    """A log of the demo scene: its load, then `draws` draws at 60 Hz."""
+    from bridge.demo import demo_poses, demo_scene
+    from bridge.formats.drake import DrawEncoder, load_from_scene
+
+    scene = demo_scene()
+    encoder = DrawEncoder()
+    events = [LcmEvent("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(scene).encode(), 0)]
+    events += [
+        LcmEvent("DRAKE_VIEWER_DRAW", encoder.encode(demo_poses(scene, i / 60)), 1000 + i * 16_667)
+        for i in range(draws)
+    ]
+    write_log(path, events)
+    return path
+
+
+def test_convert_never_writes_over_its_input_even_through_links(tmp_path: Path) -> None:
+    log = demo_log(tmp_path / "demo.lcmlog", 10)
+    before = log.read_bytes()
+    symlink = tmp_path / "link.mcap"
+    symlink.symlink_to(log)
+    hardlink = tmp_path / "hard.mcap"
+    hardlink.hardlink_to(log)
+    for target in (log, symlink, hardlink):
+        for force in ((), ("--force",)):
+            result = run("convert", str(log), str(target), *force)
+            assert result.returncode == 2, result
+            assert result.stderr.startswith(f"viewer-bridge convert: {target} is the input log"), result.stderr
+            assert "Traceback" not in result.stderr
+    assert log.read_bytes() == before
+
+
+def test_convert_replaces_an_existing_file_only_with_force(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+
+    log = demo_log(tmp_path / "demo.lcmlog", 10)
+    out = tmp_path / "out.mcap"
+    out.write_text("keep me")
+    refused = run("convert", str(log), str(out))
+    assert refused.returncode == 2, refused
+    assert refused.stderr == f"viewer-bridge convert: {out} exists: give another output file, or --force to replace it\n"
+    assert out.read_text() == "keep me"
+    forced = run("convert", str(log), str(out), "--force")
+    assert forced.returncode == 0, forced.stderr
+    with out.open("rb") as file:
+        topics = {channel.topic for _, channel, _ in make_reader(file).iter_messages()}
+    assert "/drake/poses" in topics
+    assert not (tmp_path / "out.mcap.partial").exists()  # renamed once complete
+
+
+def test_convert_with_no_route_for_the_schema_exits_2_naming_config_and_schema(tmp_path: Path) -> None:
+    log = demo_log(tmp_path / "demo.lcmlog", 3)
+    out = tmp_path / "out.mcap"
+    result = run("convert", str(log), str(out), "-c", "builtin:ign")
+    assert result.returncode == 2, result
+    assert result.stderr == "viewer-bridge convert: no route of builtin:ign reads LCM and writes the ros2 schema\n"
+    empty = tmp_path / "empty.yaml"
+    empty.write_text("routes: []\n")
+    result = run("convert", str(log), str(out), "-c", str(empty), "--schema", "foxglove")
+    assert result.returncode == 2, result
+    assert f"no route of {empty} reads LCM and writes the foxglove schema" in result.stderr
+    assert not out.exists() and not (tmp_path / "out.mcap.partial").exists()
+
+
+def test_ctrl_c_during_convert_leaves_a_readable_partial_file_and_exits_130(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+
+    # Forty copies of the markers route make the conversion slow (about 30 s unloaded) from a
+    # small log, so that the interrupt surely comes midway.
+    routes = "".join(
+        f"  - name: markers{i}\n"
+        f"    source: {{transport: lcm, name: \"DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)\"}}\n"
+        f"    translator: drake_to_marker_array\n"
+        f"    destination: {{transport: ros, name: slow/markers{i}}}\n"
+        for i in range(40)
+    )
+    config = tmp_path / "slow.yaml"
+    config.write_text(f"routes:\n{routes}")
+    log = demo_log(tmp_path / "demo.lcmlog", 20_000)
+    out = tmp_path / "out.mcap"
+    partial = tmp_path / "out.mcap.partial"
+    child = subprocess.Popen(
+        [*CLI, "convert", str(log), str(out), "-c", str(config)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while not partial.exists() and child.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert partial.exists(), child.communicate(timeout=60)
+        child.send_signal(signal.SIGINT)
+        _, stderr = child.communicate(timeout=60)
+    finally:
+        child.kill()
+    assert child.returncode == 130, stderr
+    assert "Traceback" not in stderr
+    said = rf"^viewer-bridge convert: interrupted: (\d+) messages written to {re.escape(str(partial))}$"
+    match = re.search(said, stderr, re.M)
+    assert match, stderr
+    with partial.open("rb") as file:
+        messages = sum(1 for _ in make_reader(file).iter_messages())
+    assert messages == int(match.group(1)) < 40 * 20_001
+    assert not out.exists()
+
+
+# --- one-line errors ------------------------------------------------------------------------------------
+
+# (command words, a part of the message); LOG is a real log, MISSING a folder that does not exist.
+MISTAKES = [
+    (["dump", "nope.lcmlog"], "nope.lcmlog: no such file"),
+    (["dump", "TMP"], "is a folder, not a file"),
+    (["dump", "LOG", "--channel", "DRAKE_(VIEWER"], "'DRAKE_(VIEWER' is not a regular expression"),
+    (["dump", "--live", "URL", "--channel", "DRAKE_(VIEWER"], "'DRAKE_(VIEWER' is not a regular expression"),
+    (["run", "--lcm-url", "missing.lcmlog"], "argument --lcm-url: missing.lcmlog: no such file"),
+    (["run", "--stats-json", "MISSING/s.json", "--duration", "30"], "the folder MISSING does not exist"),
+    (["run", "--ros-args", "-r", "__ns:=/sim1", "--duration", "2"], "'--duration' is not a ROS argument"),
+    (["snapshot", "nope.lcmlog", "TMP/x.png"], "nope.lcmlog: no such file"),
+    (["snapshot", "LOG", "TMP/x.png", "--fov", "0"], "argument --fov: must be between 0 and 180"),
+    (["snapshot", "LOG", "TMP/x.png", "--size", "0x0"], "argument --size: width and height must be 1 to"),
+    (["snapshot", "LOG", "TMP/x.png", "--size", "640"], "argument --size: '640' is not WIDTHxHEIGHT"),
+    (["snapshot", "LOG", "TMP/x.png", "--hide", "("], "argument --hide: '(' is not a regular expression"),
+    (["snapshot", "LOG", "MISSING/x.png"], "the folder MISSING does not exist"),
+    (["snapshot", "LOG", "TMP/x.gif"], "x.gif: the name must end in .png, .jpg, .jpeg"),
+    (["snapshot", "LOG", "TMP/x.jpg", "--image", "depth"], "a depth image is 16-bit: write it as .png"),
+    (["serve-render", "--port", "70000"], "argument --port: a port is 0 (any free one) to 65535"),
+    (["serve-render", "--port", "BUSY"], "cannot listen on 127.0.0.1:BUSY: Address already in use"),
+    (["demo", "--rate", "0"], "argument --rate: must be greater than 0"),
+    (["demo", "--url", "nope://x"], "unknown LCM provider 'nope'"),
+    (["convert", "nope.lcmlog", "TMP/x.mcap"], "nope.lcmlog: no such file"),
+    (["convert", "LOG", "MISSING/x.mcap"], "the folder MISSING does not exist"),
+    # Settings a config would refuse, or that would do nothing with it.
+    (["run", "--set", "foxglove.prot=9000"], "--set foxglove.prot=9000: foxglove.prot: unknown key 'prot' "
+     "(did you mean 'port'?); known keys: host, port"),
+    (["run", "--set", "ros.namespace=/sim 1"], "'/sim 1' is not a valid ROS 2 namespace"),
+    (["run", "--set", "ros.node=9x"], "'9x' is not a valid ROS 2 node name: it starts with a digit"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("words", "said"), MISTAKES, ids=[" ".join(words) for words, _ in MISTAKES])
+def test_a_mistake_is_one_line_and_exit_2(tmp_path: Path, words: list[str], said: str) -> None:
+    log = demo_log(tmp_path / "demo.lcmlog", 3)
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        names = {
+            "LOG": str(log),
+            "TMP": str(tmp_path),
+            "MISSING": str(tmp_path / "missing"),
+            "URL": lcm_url(),
+            "BUSY": str(busy.getsockname()[1]),
+        }
+
+        def named(text: str) -> str:
+            return re.sub("|".join(names), lambda found: names[found.group(0)], text)
+
+        started = time.monotonic()
+        result = run(*(named(word) for word in words), timeout=120)
+    assert result.returncode == 2, result
+    assert "Traceback" not in result.stderr
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"viewer-bridge {words[0]}: "), result.stderr
+    assert named(said) in lines[0]
+    assert not result.stdout
+    assert time.monotonic() - started < 25  # refused at once, not after --duration 30
+    assert not (tmp_path / "x.png").exists() and not (tmp_path / "x.jpg").exists()
+
+
+def test_ros_args_end_at_a_double_dash(tmp_path: Path) -> None:
+    log = demo_log(tmp_path / "demo.lcmlog", 60)
+    stats = tmp_path / "stats.json"
+    result = run(
+        "run", "--set", "foxglove.port=0", "--lcm-url", f"file://{log}?speed=0", "--stats-json", str(stats),
+        "--ros-args", "-r", "__ns:=/sim1", "--", "--duration", "20",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    poses = json.loads(stats.read_text())["poses"]
+    assert poses["messages_in"] == 60 and poses["messages_out"] >= 1  # the whole log, replayed
+
+
+def test_ros_settings_for_a_config_with_no_ros_route_are_reported(tmp_path: Path) -> None:
+    log = demo_log(tmp_path / "demo.lcmlog", 10)
+    result = run(
+        "run", "-c", "builtin:foxglove", "--lcm-url", f"file://{log}?speed=0", "--set", "foxglove.port=0",
+        "--set", "ros.namespace=/sim1", "--ros-args", "-r", "__ns:=/sim1", "--", "--duration", "30",
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    for option in ("--set ros.namespace=/sim1", "--ros-args"):
+        assert (
+            f"viewer-bridge run: warning: {option} does nothing: no route of builtin:foxglove uses the ros "
+            "transport (its routes use: lcm, foxglove)"
+        ) in result.stderr.splitlines()
+
+
+# --- the smaller things ---------------------------------------------------------------------------------
+
+
+def test_version_and_defaults_in_every_help() -> None:
+    version = run("--version")
+    assert version.returncode == 0 and re.fullmatch(r"viewer-bridge \S+\n", version.stdout), version
+    serve = run("serve-render", "--help").stdout
+    assert "(default: 8000)" in serve and "(default: 268435456)" in serve
+    shot = run("snapshot", "--help").stdout
+    assert "(default: 640x480)" in shot and "(default: 45.0)" in shot
+    assert "(default: None)" not in shot  # options with no default say nothing
+    interfaces = run("ros-interfaces", "--help").stdout
+    assert "[NAME ...]" in interfaces and "optional: the packages to install or show" in interfaces
+
+
+def test_ros_interfaces_status_shows_the_names_asked_for() -> None:
+    status = run("ros-interfaces", "status", "tf2_msgs")
+    assert status.returncode == 0 and status.stdout.startswith("tf2_msgs: "), status
+    unknown = run("ros-interfaces", "status", "no_such_msgs")
+    assert unknown.returncode == 2
+    assert unknown.stderr == "viewer-bridge ros-interfaces: unknown interface package no_such_msgs (known: tf2_msgs)\n"
+
+
+def test_demo_says_when_it_starts() -> None:
+    url = lcm_url(3)
+    result = run("demo", "--url", url, "--duration", "0.5", "--rate", "20")
+    assert result.returncode == 0, result.stderr
+    first, last = result.stdout.splitlines()
+    assert first == f"publishing the demo scene on {url} at 20 Hz, for 0.5 s"
+    assert re.fullmatch(rf"published \d+ draw messages on {re.escape(url)}", last)
+
+
+def test_snapshot_writes_the_format_its_name_asks_for(tmp_path: Path) -> None:
+    from PIL import Image
+
+    log = demo_log(tmp_path / "demo.lcmlog", 3)
+    for name, kind in (("x.jpg", "JPEG"), ("x.jpeg", "JPEG"), ("x.png", "PNG")):
+        result = run("snapshot", str(log), str(tmp_path / name), "--size", "64x48")
+        assert result.returncode == 0, result.stderr
+        with Image.open(tmp_path / name) as image:
+            assert (image.format, image.size) == (kind, (64, 48))
+
+
+def test_a_replayed_log_says_it_ended_and_the_stats_come_once_at_shutdown(tmp_path: Path) -> None:
+    log = demo_log(tmp_path / "demo.lcmlog", 5)
+    replay = run("run", "-c", "builtin:foxglove", "--set", "foxglove.port=0", "--lcm-url", f"file://{log}?speed=0")
+    assert replay.returncode == 0, replay.stderr
+    assert f"viewer-bridge: LCM file://{log} has ended: stopping" in replay.stderr
+    # A duration that is a whole number of stats periods: one report at 2 s, the last one at 4 s
+    # (before, the report due at 4 s came too, just before the same one at shutdown).
+    live = run("run", "-c", "builtin:foxglove", "--set", "foxglove.port=0", "--lcm-url", lcm_url(4),
+               "--demo", "--duration", "4", "--stats-period", "2")  # fmt: skip
+    assert live.returncode == 0, live.stderr
+    assert sum(" route foxglove_scene: " in line for line in live.stderr.splitlines()) == 2, live.stderr

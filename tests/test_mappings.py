@@ -94,7 +94,8 @@ def table_file(tmp_path: Path, shapes: str, types: str = "{BOX: 1, SPHERE: 2}") 
         ("      box: {type: BOX, as: half_space_box}\n      sphere: {type: SPHERE}\n", 7, "or 'as' (a lowering)"),
         ("      box: {type: BOX}\n", 6, "tables.t.shapes: no rule for sphere"),
         ("      box: {type: BOX}\n      teapot: {type: BOX}\n      sphere: {type: SPHERE}\n", 8, "unknown shape kind"),
-        ("      box: {type: BOX, colour: red}\n      sphere: {type: SPHERE}\n", 7, "colour: Extra inputs"),
+        ("      box: {type: BOX, colour: red}\n      sphere: {type: SPHERE}\n", 7,
+         "box.colour: unknown key 'colour'; known keys: type, as, fields, encoder, message, unsupported, note"),
         ("      box: {type: BOX\n", 8, "not valid YAML"),
     ],
 )  # fmt: skip

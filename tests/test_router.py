@@ -15,7 +15,7 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from bridge.config import DEFAULT_CONFIG, destination_name, load_config
+from bridge.config import DEFAULT_CONFIG, Route, destination_name, load_config
 from bridge.errors import ConfigError
 from bridge.formats.drake import DrawEncoder
 from bridge.router import Mailbox, Message
@@ -325,7 +325,7 @@ BROKEN_CONFIGS = [
     # Options are the translator's model: a misspelt key and a wrong type are refused at load.
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n    options:\n      frmae_id: map\n", 7,
-     "routes.0.options.frmae_id", "Extra inputs are not permitted"),
+     "routes.0.options.frmae_id", "unknown key 'frmae_id' (did you mean 'frame_id'?); known keys: frame_id"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_ign_model\n"
      "    destination: {transport: ign, name: /x}\n    options: {republish_s: soon}\n", 6,
      "routes.0.options.republish_s", "valid number"),
@@ -340,7 +340,24 @@ BROKEN_CONFIGS = [
      "    destination: {transport: ros, name: /y}\n", 5, "routes.0.destination.transport",
      "writes ignition.msgs.Pose_V (protobuf), which the ros transport does not carry"),
     # Transport sections are checked by the transport's own settings model.
-    ("lcm: {uri: 'udpm://x'}\nroutes: []\n", 1, "lcm.uri", "Extra inputs are not permitted"),
+    ("lcm: {uri: 'udpm://x'}\nroutes: []\n", 1, "lcm.uri", "unknown key 'uri' (did you mean 'url'?); known keys: url"),
+    # A misspelt key is named as unknown, not only as the key it leaves missing.
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translater: drake_to_pose_array\n"
+     "    destination: {transport: ros, name: /x}\n", 4, "routes.0.translater",
+     "unknown key 'translater' (did you mean 'translator'?); known keys: name, source, translator, destination"),
+    # ROS names by ROS 2's rules (rcl's topic name validation), refused at load, not at each publish.
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: 'X(_.*)?'}\n    translator: drake_to_pose_array\n"
+     "    destination: {transport: ros, name: '/sim2/bad topic!'}\n", 5, "routes.0.destination.name",
+     "'/sim2/bad topic!' is not a valid ROS 2 topic name: it has characters a ROS name cannot hold: ' !'"),
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: 'X(_.*)?'}\n    translator: drake_to_pose_array\n"
+     "    destination: {transport: ros, name: 'drake/{1:lower}/2d'}\n", 5, "routes.0.destination.name",
+     "'drake/x/2d' is not a valid ROS 2 topic name: a part of it starts with a digit: '2d'"),
+    ("routes:\n  - name: a\n    source: {transport: ros, name: /in//cloud}\n    translator: ros_point_cloud_to_drake\n"
+     "    destination: {transport: lcm, name: X}\n", 3, "routes.0.source.name", "it has // (an empty part)"),
+    ("ros: {namespace: /sim2/2d}\nroutes: []\n", 1, "ros.namespace",
+     "'/sim2/2d' is not a valid ROS 2 namespace: a part of it starts with a digit: '2d'"),
+    ("ros:\n  node: viewer-bridge\nroutes: []\n", 2, "ros.node",
+     "'viewer-bridge' is not a valid ROS 2 node name: it has characters a ROS name cannot hold: '-'"),
     ("routes: []\nzmq: {port: 1}\n", 2, "zmq", "'zmq' is not a config key (load_cache, routes) nor a transport"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n  - name: a\n    source: {transport: lcm, name: X}\n"
@@ -634,3 +651,62 @@ def test_a_log_replays_through_the_routes_and_the_bridge_stops_at_its_end(
     route = json.loads(stats.read_text())["poses"]
     draws = len(list(read_log(drake_log, "DRAKE_VIEWER_DRAW_ILLUSTRATION")))
     assert route["messages_in"] == route["messages_out"] == draws and route["errors"] == {}
+
+
+def lazy_pose_route(**rate: Any) -> Route:
+    return Route.model_validate(
+        {"name": "r", "source": {"transport": "lcm", "name": "DRAKE_VIEWER_DRAW"}, "translator": "drake_to_pose_array",
+         "destination": {"transport": "ros", "name": "/x"}, "lazy": True, "rate": rate or {"policy": "latest"}}
+    )  # fmt: skip
+
+
+def test_a_lazy_route_that_wakes_does_not_count_the_wait_as_latency() -> None:
+    from bridge.router import RouteRunner
+    from bridge.translators import TRANSLATORS, LoadCache
+    from tests.test_translators import draw_of, small_scene
+
+    listeners = 0
+    published: list[bytes] = []
+    route = lazy_pose_route()
+    runner = RouteRunner(
+        route,
+        lambda: TRANSLATORS.get("drake_to_pose_array")({}, LoadCache()),
+        lambda name, output: CallPublisher(published.append, lambda: listeners),
+    )
+    match = re.fullmatch("DRAKE_VIEWER_DRAW", "DRAKE_VIEWER_DRAW")
+    assert match is not None
+    scene = small_scene()
+    five_seconds_ago = time.time_ns() // 1000 - 5_000_000
+    runner.handle(Message(Received("DRAKE_VIEWER_DRAW", draw_of(scene, 1.0), five_seconds_ago), match))
+    assert runner.stats.idle_skipped == 1 and not published
+    listeners = 1
+    deadline = time.monotonic() + 30
+    while not published and time.monotonic() < deadline:  # the subscriber is noticed within 0.25 s
+        runner.catch_up()
+        time.sleep(0.01)
+    assert len(published) == 1  # the message kept while nobody listened, translated on waking
+    assert not runner.stats.latency_ms  # its five seconds of waiting are no latency
+    runner.handle(Message(Received("DRAKE_VIEWER_DRAW", draw_of(scene, 2.0)), match))
+    assert len(published) == 2 and len(runner.stats.latency_ms) == 1
+    assert runner.stats.latency_ms[0] < 5_000
+
+
+def test_messages_a_rate_limit_skips_are_counted_as_skipped_not_dropped() -> None:
+    from bridge.router import RouteRunner
+    from bridge.translators import TRANSLATORS, LoadCache
+
+    def runner(**rate: Any) -> RouteRunner:
+        return RouteRunner(
+            lazy_pose_route(**rate),
+            lambda: TRANSLATORS.get("drake_to_pose_array")({}, LoadCache()),
+            lambda name, output: CallPublisher(print),
+        )
+
+    for rate, dropped, skipped in (({"policy": "latest", "max_hz": 5}, 0, 2), ({"policy": "latest"}, 2, 0)):
+        route = runner(**rate)
+        match = re.fullmatch("D", "D")
+        assert match is not None
+        for index in range(3):  # queued, not taken: the worker is not started
+            route.mailbox.put(Message(Received("DRAKE_VIEWER_DRAW", bytes([index])), match))
+        stats = route.snapshot()
+        assert (stats["dropped"], stats["max_hz_skipped"], stats["queued"]) == (dropped, skipped, 1), rate

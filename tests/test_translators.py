@@ -19,6 +19,7 @@ import pytest
 from rclpy.serialization import deserialize_message
 from visualization_msgs.msg import Marker, MarkerArray
 
+from bridge.demo import DEMO_MESH
 from bridge.errors import BridgeError
 from bridge.formats import tree_viewer as tv
 from bridge.formats.drake import DrawEncoder, decode_load, load_from_scene
@@ -382,8 +383,8 @@ routes:
     destination: {transport: ros, name: "/director/{1:topic}/markers"}
     rate: {policy: all}
     qos: {depth: 100}
-    options: {mesh_roots: ["/tmp"]}
-"""
+    options: {mesh_roots: ["DEMO_MESHES"]}
+""".replace("DEMO_MESHES", str(DEMO_MESH.parent))
 
 
 @pytest.mark.slow

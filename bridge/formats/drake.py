@@ -38,6 +38,7 @@ from bridge.scene import (
     TriangleMesh,
     Vector3,
 )
+from bridge.skipped import per_geometry
 
 
 def _geometry_code(name: str) -> int:
@@ -266,7 +267,7 @@ def geometry_to_lcm(geometry: Geometry) -> LcmMessage:
 
 
 def link_to_lcm(link: Link) -> LcmMessage:
-    geoms = [geometry_to_lcm(geometry) for geometry in link.geometries]
+    geoms = per_geometry(link, lambda _, geometry: geometry_to_lcm(geometry))
     return LINK_DATA.message_class(name=link.name, robot_num=link.robot_num, num_geom=len(geoms), geom=geoms)
 
 

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
+from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
 from bridge.formats.gltf import write_gltf
@@ -33,6 +34,7 @@ from bridge.formats.ros_tf import FrameNames
 from bridge.lowering import triangle_mesh
 from bridge.mappings import tables
 from bridge.scene import Geometry, Line, Link, LinkPoses, Pose, Scene, Shape, Triad, xyzw_from_wxyz
+from bridge.skipped import per_geometry
 
 SCENE_UPDATE = "foxglove.SceneUpdate"
 FRAME_TRANSFORMS = "foxglove.FrameTransforms"
@@ -42,22 +44,30 @@ FRAME_TRANSFORMS = "foxglove.FrameTransforms"
 
 
 def scene_update(scene: Scene, frames: Callable[[str], str], stamp: tuple[int, int] = (0, 0)) -> Any:
-    """The scene as a SceneUpdate: an entity per link (with geometry), in its link's frame."""
+    """The scene as a SceneUpdate: an entity per link with geometry to draw, in its link's frame."""
     table = _tables()["primitive"]
     update = SceneUpdate()
+
+    def primitives(_: int, geometry: Geometry) -> Any:
+        """The geometry's primitives in an entity of their own: merged once all are made."""
+        part = SceneEntity()
+        for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
+            primitive = getattr(part, rule.type_code).add()
+            _set_pose(primitive.pose, pose)
+            _set_fields(primitive, rule.values(shape))
+            if rule.encoder is not None:
+                _ENCODERS[rule.encoder](primitive, shape)
+            _set_color(primitive, geometry.color)
+        return part
+
     for link in scene.links:
-        if not link.geometries:
+        parts = per_geometry(link, primitives)
+        if not parts:
             continue
         entity = update.entities.add(id=link.name, frame_id=frames(link.name), frame_locked=True)
         entity.timestamp.seconds, entity.timestamp.nanos = stamp
-        for geometry in link.geometries:
-            for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
-                primitive = getattr(entity, rule.type_code).add()
-                _set_pose(primitive.pose, pose)
-                _set_fields(primitive, rule.values(shape))
-                if rule.encoder is not None:
-                    _ENCODERS[rule.encoder](primitive, shape)
-                _set_color(primitive, geometry.color)
+        for part in parts:
+            entity.MergeFrom(part)
     return update
 
 

@@ -26,6 +26,7 @@ from bridge.errors import BridgeError
 from bridge.lowering import triangle_mesh
 from bridge.lru import SizedLru
 from bridge.scene import FloatArray, Geometry, Link, Pose, Scene, TriangleMesh, rotation_matrix
+from bridge.skipped import per_geometry
 
 _COMPONENTS = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
 _WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
@@ -290,8 +291,14 @@ def _mesh(
 # --- writing ---------------------------------------------------------------------------------------
 
 
+def _with_mesh(_: int, geometry: Geometry) -> tuple[Geometry, TriangleMesh]:
+    return geometry, triangle_mesh(geometry.shape)
+
+
 def write_gltf(scene: Scene, binary: bool = False) -> bytes:
-    """A scene as a self-contained glTF 2.0 document (`.gltf` JSON, or `.glb` when `binary`)."""
+    """A scene as a self-contained glTF 2.0 document (`.gltf` JSON, or `.glb` when `binary`).
+
+    A geometry with no triangles to draw (a missing mesh file) is skipped (`bridge.skipped`)."""
     document: dict[str, Any] = {
         "asset": {"version": "2.0", "generator": "viewer-bridge"},
         "scene": 0, "scenes": [{"nodes": []}], "nodes": [], "meshes": [], "materials": [],
@@ -300,8 +307,7 @@ def write_gltf(scene: Scene, binary: bool = False) -> bytes:
     blob = bytearray()
     for link in scene.links:
         link_pose = scene.link_pose(link)
-        for geometry in link.geometries:
-            mesh = triangle_mesh(geometry.shape)
+        for geometry, mesh in per_geometry(link, _with_mesh):
             pose = link_pose.compose(geometry.pose)
             matrix = pose.matrix()
             positions = _add_accessor(document, blob, mesh.vertices.astype("<f4"), "VEC3", 5126, 34962)

@@ -47,6 +47,7 @@ from bridge.scene import (
     xyzw_from_wxyz,
 )
 from bridge.sim_time import ms_from_sec_nsec, sec_nsec_from_ms
+from bridge.skipped import per_geometry
 
 # name -> fields (name, number, type, repeated). Types are scalar protobuf types or message names.
 _SCHEMA: dict[str, list[tuple[str, int, str, bool]]] = {
@@ -542,12 +543,20 @@ def _fill_link(message: Any, link: Link, pose: Pose) -> None:
     message.name = link.name
     message.header.data.add(key=_ROBOT_NUM, value=[str(link.robot_num)])
     _set_pose(message.pose, pose)
-    for index, geometry in enumerate(link.geometries):
-        visual = message.visual.add(name=f"{link.name}::visual_{index}", id=index, parent_name=link.name)
+
+    def visual(index: int, geometry: Geometry) -> Any:
+        """The geometry's visual in a Link of its own: merged once it is made."""
+        part = type(message)()
+        visual = part.visual.add(name=f"{link.name}::visual_{index}", id=index, parent_name=link.name)
         _set_pose(visual.pose, geometry.pose)
         _fill_geometry(visual.geometry, geometry.shape)
         diffuse = visual.material.diffuse  # float32 on the wire, as Drake's colour is
         diffuse.r, diffuse.g, diffuse.b, diffuse.a = geometry.color
+        return part
+
+    for part in per_geometry(link, visual):
+        message.MergeFrom(part)
+
 
 
 def model(scene: Scene, name: str = "drake", msgs: MessageSet = IGNITION) -> Any:
@@ -691,8 +700,9 @@ class _ModelWriter:
             wire.string_field(_LINK_NAME, link.name),
             wire.submessage(_LINK_POSE, _pose_values_bytes(pose)),
         ]
-        for index, geometry in enumerate(link.geometries):
-            parts.append(wire.submessage(_LINK_VISUAL, self.visual(link.name, index, geometry)))
+        parts += per_geometry(
+            link, lambda index, geometry: wire.submessage(_LINK_VISUAL, self.visual(link.name, index, geometry))
+        )
         return b"".join(parts)
 
     def visual(self, link_name: str, index: int, geometry: Geometry) -> bytes:

@@ -45,6 +45,7 @@ from bridge.formats.ros_messages import (
 from bridge.mappings import ShapeRule, tables
 from bridge.scene import (
     FloatArray,
+    Geometry,
     InMemoryMesh,
     Line,
     LinkPoses,
@@ -63,6 +64,7 @@ from bridge.scene import (
     wxyz_from_xyzw,
 )
 from bridge.sim_time import ms_from_sec_nsec
+from bridge.skipped import per_geometry
 
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
@@ -236,18 +238,22 @@ class PosedShape:
 
 
 def shapes(scene: Scene) -> list[PosedShape]:
-    """Every geometry of the scene as a shape_msgs message in its link's frame (none dropped).
+    """Every geometry of the scene as a shape_msgs message in its link's frame.
 
-    Raises `SceneError` for a mesh file that cannot be read.
+    A geometry that cannot be written (a mesh file that cannot be read) is skipped alone.
     """
     table = _tables()["shape"]
     result = []
     for link in scene.links:
-        for geometry in link.geometries:
-            for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
-                result.append(
-                    PosedShape(link.frame, pose_message(pose), _shape_message(rule, shape, table.target))
-                )
+
+        def posed(_: int, geometry: Geometry, frame: str = link.frame) -> list[PosedShape]:
+            return [
+                PosedShape(frame, pose_message(pose), _shape_message(rule, shape, table.target))
+                for rule, shape, pose in table.expand(geometry.shape, geometry.pose)
+            ]
+
+        for parts in per_geometry(link, posed):
+            result += parts
     return result
 
 
@@ -255,25 +261,31 @@ def shapes_cdr(scene: Scene) -> list[tuple[str, bytes]]:
     """`shapes` straight to CDR: (type name, bytes) per message, equal to `to_cdr` of each
     `PosedShape.shape`, written from the table's values and the mesh arrays (no message objects).
 
-    Raises `SceneError` as `shapes` does.
+    Skips a geometry as `shapes` does.
     """
     table = _tables()["shape"]
     out = []
     # By id, holding the shape so that its id stays its own: lowered primitives share one
     # cached mesh, written once.
     written: dict[int, tuple[Shape, bytes]] = {}
+
+    def messages(_: int, geometry: Geometry) -> list[tuple[str, bytes]]:
+        parts = []
+        for rule, shape, _pose in table.expand(geometry.shape, geometry.pose):
+            typename = rule.message or table.target
+            if typename != MESH:
+                data = _SHAPE_WRITERS[typename](rule, shape)
+            elif id(shape) in written:
+                data = written[id(shape)][1]
+            else:
+                data = _mesh_cdr(rule, shape)
+                written[id(shape)] = (shape, data)
+            parts.append((typename, data))
+        return parts
+
     for link in scene.links:
-        for geometry in link.geometries:
-            for rule, shape, _ in table.expand(geometry.shape, geometry.pose):
-                typename = rule.message or table.target
-                if typename != MESH:
-                    data = _SHAPE_WRITERS[typename](rule, shape)
-                elif id(shape) in written:
-                    data = written[id(shape)][1]
-                else:
-                    data = _mesh_cdr(rule, shape)
-                    written[id(shape)] = (shape, data)
-                out.append((typename, data))
+        for parts in per_geometry(link, messages):
+            out += parts
     return out
 
 
@@ -395,33 +407,41 @@ def marker_specs(scene: Scene, options: dict[str, Any] | None = None) -> list[Ma
     """The markers of a scene, by `mappings/ros.yaml` (`options` override the table's options).
 
     The namespace is the link's frame name and ids count the link's marker parts, so a marker
-    keeps its ns/id from one load of the same scene to the next.
+    keeps its ns/id from one load of the same scene to the next. A geometry that cannot be
+    written (a mesh file to embed that cannot be read) is skipped alone.
     """
     table = _tables()["marker"]
     settings = _marker_settings(options)
     specs = []
     colors: dict[bytes, tuple[float, ...]] = {}  # a load has few distinct colours
+
+    def parts(_: int, geometry: Geometry) -> list[tuple[Any, Pose, Any, Any, dict[str, Any]]]:
+        # ColorRGBA is float32 on the wire: round here so objects equal their CDR. Cached by
+        # the float32 bits, which tell -0.0 from 0.0 (equal floats, written differently).
+        packed = _FLOAT32X4.pack(*geometry.color)
+        color = colors.get(packed)
+        if color is None:
+            color = colors[packed] = _FLOAT32X4.unpack(packed)
+        made = []
+        for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
+            values = rule.values(shape)
+            if rule.encoder is not None:
+                values |= _ENCODERS[rule.encoder](shape, settings)
+            scale = tuple(values.pop("scale"))
+            # An encoder may choose another type for some shapes (a line with a head: ARROW).
+            code = values.pop("type", rule.type_code if rule.type_code is not None else 0)
+            made.append((code, pose, scale, color, values))
+        return made
+
     for link in scene.links:
         name, ns = link.name, link.frame
         marker_id = 0
-        for geometry in link.geometries:
-            # ColorRGBA is float32 on the wire: round here so objects equal their CDR. Cached by
-            # the float32 bits, which tell -0.0 from 0.0 (equal floats, written differently).
-            packed = _FLOAT32X4.pack(*geometry.color)
-            color = colors.get(packed)
-            if color is None:
-                color = colors[packed] = _FLOAT32X4.unpack(packed)
-            for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
-                values = rule.values(shape)
-                if rule.encoder is not None:
-                    values |= _ENCODERS[rule.encoder](shape, settings)
-                scale = tuple(values.pop("scale"))
-                # An encoder may choose another type for some shapes (a line with a head: ARROW).
-                code = values.pop("type", rule.type_code if rule.type_code is not None else 0)
+        for geometry_parts in per_geometry(link, parts):
+            for code, pose, scale, color, values in geometry_parts:
                 if values:  # an encoder's points, colours or mesh
-                    specs.append(MarkerSpec(name, ns, marker_id, code, pose, scale, color, **values))  # type: ignore[arg-type]
+                    specs.append(MarkerSpec(name, ns, marker_id, code, pose, scale, color, **values))
                 else:
-                    specs.append(MarkerSpec(name, ns, marker_id, code, pose, scale, color))  # type: ignore[arg-type]
+                    specs.append(MarkerSpec(name, ns, marker_id, code, pose, scale, color))
                 marker_id += 1
     return specs
 

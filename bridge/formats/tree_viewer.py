@@ -41,6 +41,7 @@ from bridge.scene import (
     TriangleMesh,
     unit_quaternions,
 )
+from bridge.skipped import per_geometry
 
 FORMAT = "treeviewer_json"
 VERSION = (1, 0)
@@ -126,14 +127,17 @@ def load_requests(scene: Scene, prefix: Sequence[str] = DEFAULT_PREFIX, utime: i
 
     Two requests rather than one, because a viewer may apply `delete` after `setgeometry`
     within a request. If the scene has poses, the second request also sets the links' transforms.
-    Raises `SceneError` for an in-memory mesh trimesh cannot read.
+    A geometry the format cannot hold (an in-memory mesh trimesh cannot read) is skipped.
     """
     commands = []
     for link in scene.links:
         path = link_path(link, prefix)
-        for index, geometry in enumerate(link.geometries):
+
+        def setgeometry(index: int, geometry: Geometry, path: list[str] = path) -> dict[str, Any]:
             command = geometry_command(geometry.shape, geometry.pose, geometry.color)
-            commands.append({"path": [*path, str(index)], "geometry": command})
+            return {"path": [*path, str(index)], "geometry": command}
+
+        commands += per_geometry(link, setgeometry)
     settransform = draw_request(scene.poses, prefix, utime)["settransform"] if scene.poses else []
     return [
         _request(utime, delete=[{"path": list(prefix)}]),

@@ -122,6 +122,12 @@ class Transport(ABC):
         """Raise `ValueError` when `name` cannot be subscribed to (checked at config load)."""
         return None
 
+    @classmethod
+    def check_destination(cls, name: str) -> None:
+        """Raise `ValueError` when `name` cannot be published on (checked at config load, on the
+        destination template filled in with sample groups)."""
+        return None
+
     def require(self, message_types: Iterable[MessageType]) -> None:
         """Raise `TransportUnavailable`, saying what to install, for a type this process cannot
         send or receive here (called once at start for every type the routes use)."""

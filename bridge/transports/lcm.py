@@ -86,6 +86,14 @@ def write_log(path: str | Path, events: Iterator[LcmEvent] | list[LcmEvent]) -> 
     return count
 
 
+def _open(url: str) -> lcm.LCM:
+    """An LCM instance on `url`; a URL LCM cannot open is an `OSError` that names it."""
+    try:
+        return lcm.LCM(url)
+    except RuntimeError as error:  # LCM says only "Couldn't create LCM"
+        raise OSError(f"LCM cannot open {url} ({error}): is it an LCM URL, e.g. {DEFAULT_URL}?") from None
+
+
 class Subscription:
     """Events received live on `url` whose channel matches the regex `channel`.
 
@@ -94,7 +102,7 @@ class Subscription:
     """
 
     def __init__(self, url: str, channel: str = ".*") -> None:
-        self._bus = lcm.LCM(url)
+        self._bus = _open(url)
         self._received: deque[LcmEvent] = deque()
         self._subscription = self._bus.subscribe(channel, self._on_message)
 
@@ -117,7 +125,7 @@ class Publisher:
     """Publishes bytes on an LCM URL."""
 
     def __init__(self, url: str = DEFAULT_URL) -> None:
-        self._bus = lcm.LCM(url)
+        self._bus = _open(url)
 
     def publish(self, channel: str, data: bytes) -> None:
         self._bus.publish(channel, data)
@@ -195,7 +203,7 @@ class LcmBus:
 
     def __init__(self, url: str = DEFAULT_URL) -> None:
         self.url = url
-        self._lcm = lcm.LCM(with_receive_buffer(url))
+        self._lcm = _open(with_receive_buffer(url))
         self._port = _udpm_port(url)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"lcm {url}", daemon=True)

@@ -18,6 +18,8 @@ import threading
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
+from pydantic import field_validator
+
 from bridge.transports.base import (
     CDR,
     CallPublisher,
@@ -30,6 +32,7 @@ from bridge.transports.base import (
     TransportSettings,
     TransportUnavailable,
 )
+from bridge.transports.ros_names import namespace_problem, node_name_problem, topic_problem
 
 if TYPE_CHECKING:
     from rclpy.qos import QoSProfile
@@ -62,12 +65,38 @@ class RosSettings(TransportSettings):
     use_sim_time: bool = False
     ros_args: list[str] = []  # what follows `--ros-args` on the command line: remaps, -p, ...
 
+    @field_validator("node")
+    @classmethod
+    def _valid_node_name(cls, node: str) -> str:
+        return _valid(node, node_name_problem(node), "node name")
+
+    @field_validator("namespace")
+    @classmethod
+    def _valid_namespace(cls, namespace: str) -> str:
+        return _valid(namespace, namespace_problem(namespace), "namespace")
+
+
+def _valid(name: str, problem: str | None, what: str) -> str:
+    """`name`, or a `ValueError` saying why it is no valid ROS 2 `what`."""
+    if problem is not None:
+        raise ValueError(f"{name!r} is not a valid ROS 2 {what}: {problem}")
+    return name
+
 
 class RosTransport(Transport):
     """One rclpy node in a context of its own, spun by a thread of its own."""
 
     Settings = RosSettings
     encodings = frozenset({CDR})
+
+    @classmethod
+    def check_source(cls, name: str) -> None:
+        if _PLAIN_TOPIC.match(name):  # one topic, not a pattern matched against the graph
+            _valid(name, topic_problem(name), "topic name")
+
+    @classmethod
+    def check_destination(cls, name: str) -> None:
+        _valid(name, topic_problem(name), "topic name")
     settings: RosSettings
 
     def __init__(self, settings: RosSettings) -> None:

@@ -110,6 +110,7 @@ def test_the_recorded_outputs_are_the_ones_whose_digests_were_recorded() -> None
     assert {name: load_outputs.digest(output) for name, output in recorded.items()} == load_outputs.recorded_digests()
 
 
+
 def test_every_load_target_writes_the_recorded_values(tmp_path: Path, debian_ign_msgs: ModuleType) -> None:
     """The load paths' output for fixed scenes, against outputs recorded before they were optimised.
 
@@ -118,7 +119,10 @@ def test_every_load_target_writes_the_recorded_values(tmp_path: Path, debian_ign
     were recorded again once world-frame marker poses were composed by `scene.PartsOnLinks`
     (issue 15; `tests/test_scene.py` checks it against `Pose.compose`); the `*_posed/tree_viewer`
     ones once settransform numbers were written to `tv.DECIMALS` decimals (issue 15;
-    `test_tree_viewer_fast.py` checks the rounding).
+    `test_tree_viewer_fast.py` checks the rounding). The six `every_kind*/foxglove` and
+    `every_kind*/ign_model*` outputs, "refused" before, were recorded once a geometry a target
+    cannot write was skipped alone (issue 26): the point cloud is left out and the rest written
+    (`tests/test_skipped.py` checks them against the scene without the point cloud).
     """
     store = get_typestore(Stores.ROS2_JAZZY)
 

@@ -102,12 +102,22 @@ def test_shape_messages_cdr_decodes_to_the_objects(drake_capture: dict[str, Capt
             )
 
 
-def test_a_missing_mesh_file_is_a_scene_error() -> None:
-    scene = Scene((Link("l", 0, (Geometry(MeshFile("/nowhere/mesh.obj")),)),))
-    with pytest.raises(SceneError, match="/nowhere/mesh.obj does not exist"):
-        ros.shapes(scene)
-    with pytest.raises(SceneError, match="cannot be embedded"):
-        ros.marker_array(scene, {"embed_mesh_files": True})
+def test_a_missing_mesh_file_is_skipped_alone_with_a_warning() -> None:
+    from bridge.scene import Box
+    from bridge.skipped import collecting
+
+    scene = Scene((Link("l", 0, (Geometry(MeshFile("/nowhere/mesh.obj")), Geometry(Box((1.0, 2.0, 3.0))))),))
+    with collecting() as skipped:
+        assert [posed.typename for posed in ros.shapes(scene)] == [ros.SOLID_PRIMITIVE]
+        assert ros.shapes_cdr(scene) == [(posed.typename, ros.to_cdr(posed.shape)) for posed in ros.shapes(scene)]
+        markers = ros.marker_array(scene, {"embed_mesh_files": True}).markers
+    assert [marker.type for marker in markers[1:]] == [Marker.CUBE]
+    assert [str(item) for item in skipped] == [
+        "l geometry 0 skipped: mesh file /nowhere/mesh.obj does not exist",
+        "l geometry 0 skipped: mesh file /nowhere/mesh.obj does not exist",
+        "l geometry 0 skipped: mesh file /nowhere/mesh.obj does not exist",
+        "l geometry 0 skipped: mesh file /nowhere/mesh.obj cannot be embedded: No such file or directory",
+    ]
     assert (
         ros.marker_array(scene).markers[1].mesh_resource == "file:///nowhere/mesh.obj"
     )  # by reference: fine
@@ -373,8 +383,11 @@ def test_points_triads_and_lines_as_markers_both_paths_agree() -> None:
     assert (points.type, points.scale.x, [c.g for c in points.colors]) == (Marker.POINTS, 0.01, [0.0, 1.0])
     assert triad.type == Marker.LINE_LIST and [p.x for p in triad.points] == [0, 2, 0, 0, 0, 0]
     assert strip.type == Marker.LINE_STRIP and len(strip.points) == 3 and strip.scale.x == 0.002
-    with pytest.raises(SceneError, match="shape_msgs has no point clouds"):
+    from bridge.skipped import collecting
+
+    with collecting() as skipped:
         ros.shapes(scene)
+    assert [item.index for item in skipped if "shape_msgs has no point clouds" in item.reason] == [0]
 
 
 def test_review_fixes_times_and_mesh_indices() -> None:

@@ -31,7 +31,7 @@ EXTREME_WORDS = [
 
 
 def seeds(tmp_path: Path) -> dict[str, bytes]:
-    scene = demo_scene(tmp_path)
+    scene = demo_scene()
     load = load_from_scene(scene)
     comms = VIEWER2_COMMS.message_class(
         utime=1, format="treeviewer_json", format_version_major=1, num_bytes=9, data=b'{"a": 1}\n'

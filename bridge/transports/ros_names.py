@@ -1,0 +1,88 @@
+"""ROS 2's rules for topic names, namespaces and node names, checked when a config loads.
+
+The rules are rcl's and rmw's (rcl/validate_topic_name.h, rmw/validate_full_topic_name.h,
+rmw/validate_namespace.h, rmw/validate_node_name.h): a name rclpy would refuse at its first
+publish is refused here, with the reason, before the bridge starts. Pure Python, so that a
+config is checked on a machine without the ROS 2 wheels too; tests hold it to rclpy's own checks.
+Each function returns what is wrong, or None for a valid name.
+"""
+
+from __future__ import annotations
+
+import re
+
+_TOPIC_CHARACTERS = re.compile(r"[A-Za-z0-9_/~{}]")
+_NAME_CHARACTERS = re.compile(r"[A-Za-z0-9_/]")
+_SUBSTITUTION = re.compile(r"\{([^{}]*)\}")
+_SUBSTITUTIONS = ("{node}", "{ns}", "{namespace}")  # what rcl expands in a topic name
+MAX_NAMESPACE_LENGTH = 255 - 2 - 8  # rmw: what DDS allows, less room for the topic and prefixes
+MAX_NODE_NAME_LENGTH = 255
+
+
+def topic_problem(name: str) -> str | None:
+    """What makes `name` no valid ROS 2 topic name (relative, absolute or private), or None."""
+    if not name:
+        return "it is empty"
+    if name.endswith("/"):
+        return "it ends with /"
+    if problem := _unallowed(name, _TOPIC_CHARACTERS, "letters, digits, _, / and {} substitutions"):
+        return problem
+    if "~" in name[1:]:
+        return "~ may only be its first character"
+    # rcl wants / after a leading ~ (`~/x`); it lets one character pass (`~x`: the node's name
+    # followed by x), so this does too, to refuse exactly what rclpy refuses.
+    if name.startswith("~") and len(name) > 2 and name[1] != "/":
+        return "~ must be followed by /"
+    outside = _SUBSTITUTION.sub("", name)  # what is left once every {substitution} is taken out
+    if "{" in outside or "}" in outside:
+        return "it has an unmatched { or }"
+    for substitution in _SUBSTITUTION.findall(name):
+        if f"{{{substitution}}}" not in _SUBSTITUTIONS:
+            return f"{{{substitution}}} is not a substitution ROS knows ({', '.join(_SUBSTITUTIONS)})"
+    return _tokens(name)
+
+
+def namespace_problem(namespace: str) -> str | None:
+    """What makes `namespace` no valid node namespace ("" is the root), or None.
+
+    A relative namespace (`sim1`) is taken as absolute (`/sim1`), as rcl does when a node is made.
+    """
+    if namespace in ("", "/"):
+        return None
+    if namespace.endswith("/"):
+        return "it ends with /"
+    if problem := _unallowed(namespace, _NAME_CHARACTERS, "letters, digits, _ and /"):
+        return problem
+    if len(namespace) > MAX_NAMESPACE_LENGTH:
+        return f"it is longer than {MAX_NAMESPACE_LENGTH} characters"
+    return _tokens(namespace.removeprefix("/"))
+
+
+def node_name_problem(name: str) -> str | None:
+    """What makes `name` no valid node name, or None."""
+    if not name:
+        return "it is empty"
+    if problem := _unallowed(name, re.compile(r"[A-Za-z0-9_]"), "letters, digits and _"):
+        return problem
+    if name[0].isdigit():
+        return "it starts with a digit"
+    if len(name) > MAX_NODE_NAME_LENGTH:
+        return f"it is longer than {MAX_NODE_NAME_LENGTH} characters"
+    return None
+
+
+def _unallowed(name: str, allowed: re.Pattern[str], what: str) -> str | None:
+    bad = "".join(dict.fromkeys(character for character in name if not allowed.fullmatch(character)))
+    return f"it has characters a ROS name cannot hold: {bad!r} (only {what})" if bad else None
+
+
+def _tokens(name: str) -> str | None:
+    if "//" in name:
+        return "it has // (an empty part)"
+    tokens = name.split("/")
+    if tokens[0].startswith("~"):  # `~x` becomes the node's name followed by x: no token of its own
+        tokens = tokens[1:]
+    for token in tokens:
+        if token[:1].isdigit():
+            return f"a part of it starts with a digit: {token!r}"
+    return None

@@ -1,0 +1,88 @@
+"""ROS 2 name rules as the config check applies them, held to rclpy's own checks (rcl and rmw)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+import rclpy
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from rclpy.context import Context
+from rclpy.exceptions import InvalidNamespaceException, InvalidNodeNameException, InvalidTopicNameException
+from rclpy.expand_topic_name import expand_topic_name
+from rclpy.node import Node
+from rclpy.validate_full_topic_name import validate_full_topic_name
+from rclpy.validate_namespace import validate_namespace
+from rclpy.validate_node_name import validate_node_name
+from rclpy.validate_topic_name import validate_topic_name
+
+from bridge.transports.ros_names import namespace_problem, node_name_problem, topic_problem
+
+TOPICS = [
+    "/tf", "drake/markers", "/sim2/bad topic!", "a/", "/", "", "/a//b", "~", "~/a", "~a", "a/~", "1a", "a/1b",
+    "/a_1/b_2", "{node}/x", "{1x}", "a{b", "a}b", "{a-b}", "/drake/proximity/shapes", "ü", "a.b", "_a", "/__x",
+]  # fmt: skip
+NAMESPACES = ["", "/", "/sim1", "sim1", "sim1/a", "/sim1/", "/a//b", "/1a", "1a", "/a-b", "/a_b/c"]
+NODES = ["viewer_bridge", "", "9x", "viewer-bridge", "a b", "_x", "ünder"]
+
+
+def rclpy_accepts_topic(name: str) -> bool:
+    """What rclpy does with a topic name when a publisher is made: check, expand, check in full."""
+    try:
+        validate_topic_name(name)
+        validate_full_topic_name(expand_topic_name(name, "viewer_bridge", "/ns"))
+    except (InvalidTopicNameException, ValueError):  # ValueError: an unknown {substitution}
+        return False
+    return True
+
+
+def accepted(check: object, name: str, refused: type[Exception]) -> bool:
+    try:
+        check(name)  # type: ignore[operator]
+    except refused:
+        return False
+    return True
+
+
+@pytest.mark.parametrize("name", TOPICS)
+def test_topic_names_as_rclpy_judges_them(name: str) -> None:
+    assert (topic_problem(name) is None) == rclpy_accepts_topic(name), topic_problem(name)
+
+
+@given(st.text(alphabet="a1_/~{} !nodes", max_size=10))
+@settings(max_examples=500, deadline=None)
+def test_any_topic_name_as_rclpy_judges_it(name: str) -> None:
+    assert (topic_problem(name) is None) == rclpy_accepts_topic(name), topic_problem(name)
+
+
+@pytest.fixture(scope="module")
+def context() -> Iterator[Context]:
+    context = Context()
+    rclpy.init(context=context)
+    yield context
+    rclpy.shutdown(context=context)
+
+
+def node_made(context: Context, name: str, namespace: str) -> bool:
+    """Whether rclpy makes a node of this name in this namespace (what the ros transport does)."""
+    try:
+        node = Node(name, namespace=namespace, context=context)
+    except (InvalidNamespaceException, InvalidNodeNameException):
+        return False
+    node.destroy_node()
+    return True
+
+
+@pytest.mark.parametrize("namespace", NAMESPACES)
+def test_namespaces_as_rclpy_judges_them(context: Context, namespace: str) -> None:
+    expected = node_made(context, "viewer_bridge", namespace)
+    assert expected == accepted(validate_namespace, "/" + namespace.lstrip("/"), InvalidNamespaceException)
+    assert (namespace_problem(namespace) is None) == expected, namespace_problem(namespace)
+
+
+@pytest.mark.parametrize("node", NODES)
+def test_node_names_as_rclpy_judges_them(context: Context, node: str) -> None:
+    expected = node_made(context, node, "")
+    assert expected == accepted(validate_node_name, node, InvalidNodeNameException)
+    assert (node_name_problem(node) is None) == expected, node_name_problem(node)
