@@ -17,11 +17,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn
 
-from bridge.errors import BridgeError
-
-
-class UsageError(BridgeError):
-    """A command line that cannot be run as given: reported as one line, exit status 2."""
+from bridge.errors import UsageError
 
 
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):

@@ -19,7 +19,6 @@ from rich.logging import RichHandler
 from bridge.arguments import (
     IMAGE_SUFFIXES,
     Parser,
-    UsageError,
     byte_count,
     camera,
     fail,
@@ -34,15 +33,14 @@ from bridge.arguments import (
     split_ros_args,
 )
 from bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
-from bridge.convert import Interrupted, convert
+from bridge.convert import convert
 from bridge.demo import run_demo
 from bridge.dump import as_json, as_text
-from bridge.errors import BridgeError, ConfigError
+from bridge.errors import BridgeError, ConfigError, Interrupted, UsageError
 from bridge.mappings import format_names, reference_markdown
 from bridge.router import Router
 from bridge.skipped import collecting
 from bridge.status import LiveTable, LogLines, StatusView
-from bridge.transports.base import TransportUnavailable
 from bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 
 
@@ -451,7 +449,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.exit(2, f"viewer-bridge {args.command}: --ros-args: only `run` is a ROS 2 node\n")
     try:
         return _HANDLERS[args.command](args)
-    except (BridgeError, TransportUnavailable, OSError) as error:  # mistakes in what was given: one line
+    except (BridgeError, OSError) as error:  # mistakes in what was given: one line
         return fail(args.command, str(error))
     except KeyboardInterrupt:  # Ctrl-C before a command's own handling of it: no traceback
         return 130

@@ -33,7 +33,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from rosbags.typesys import Stores, get_typestore
 
 from bridge.config import BridgeConfig, Route
-from bridge.errors import BridgeError
+from bridge.errors import ConvertError, Interrupted
 from bridge.router import Message, RouteRunner
 from bridge.translators import TRANSLATORS, LoadCache, Output, Translator
 from bridge.transports.base import CDR, LCM, CallPublisher, Publisher, Received
@@ -116,19 +116,6 @@ _CARRIES: dict[Schema, Callable[[Output], bool]] = {
     "ros2": lambda output: output.type.encoding == CDR,
     "foxglove": lambda output: output.type.name.startswith("foxglove."),
 }
-
-
-class ConvertError(BridgeError):
-    """A conversion that cannot start: the output would overwrite something, or nothing would be written."""
-
-
-class Interrupted(BridgeError):
-    """A conversion stopped midway; `path` (`OUT.partial`) is a valid MCAP of `messages` messages."""
-
-    def __init__(self, messages: int, path: Path) -> None:
-        self.messages = messages
-        self.path = path
-        super().__init__(f"interrupted: {messages} messages written to {path}")
 
 
 def convert(

@@ -1,10 +1,13 @@
-"""The typed errors viewer-bridge raises at its edges.
+"""The typed errors viewer-bridge raises at its edges, all of them here, under `BridgeError`.
 
 Every error names what was wrong and where, so that the router can count it by kind and log one
 useful line, and so that a user reading a message knows which field of which type to look at.
+The command line catches `BridgeError` once: whatever subclass, one line and exit status 2.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 
 class BridgeError(Exception):
@@ -70,3 +73,61 @@ class ConfigError(BridgeError):
         self.reason = reason
         where = f"{path}:{line}" if line is not None else path
         super().__init__(f"{where}: {key}: {reason}" if key else f"{where}: {reason}")
+
+
+# --- Files and documents others wrote.
+
+
+class LogError(BridgeError):
+    """A file that is not an LCM log."""
+
+
+class GltfError(BridgeError):
+    """A glTF document that cannot be read; the message names the part."""
+
+
+# --- Director's tree viewer: a request it answers with an error status.
+
+
+class RequestRejected(BridgeError):
+    """A request the tree viewer cannot handle; `status` is the response code that says why:
+    -1 unknown format, -2 unknown version, -3 a request it cannot handle, -4 an unknown command."""
+
+    def __init__(self, status: int, reason: str) -> None:
+        super().__init__(reason)
+        self.status = status
+
+
+# --- Transports and what they need on this machine.
+
+
+class TransportUnavailable(BridgeError):
+    """A transport that cannot start here (a missing package, a port in use); says what to do."""
+
+
+class HandshakeError(BridgeError):
+    """A client connection whose opening handshake cannot be relayed (cut off, too long, too slow)."""
+
+
+class RosInterfaceError(BridgeError):
+    """An interface package could not be built or installed; says which step and why."""
+
+
+# --- The command line.
+
+
+class UsageError(BridgeError):
+    """A command line that cannot be run as given: reported as one line, exit status 2."""
+
+
+class ConvertError(BridgeError):
+    """A conversion that cannot start: the output would overwrite something, or nothing would be written."""
+
+
+class Interrupted(BridgeError):
+    """A conversion stopped midway; `path` (`OUT.partial`) is a valid MCAP of `messages` messages."""
+
+    def __init__(self, messages: int, path: Path) -> None:
+        self.messages = messages
+        self.path = path
+        super().__init__(f"interrupted: {messages} messages written to {path}")

@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
-from bridge.formats.gltf import GltfError, read_gltf
+from bridge.errors import GltfError
+from bridge.formats.gltf import read_gltf
 from bridge.render import Camera, Renderer, depth_mm, rgb8
 
 log = logging.getLogger("viewer_bridge")

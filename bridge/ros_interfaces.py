@@ -30,14 +30,10 @@ from typing import TYPE_CHECKING
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from bridge.errors import BridgeError
+from bridge.errors import RosInterfaceError
 
 if TYPE_CHECKING:
     from rosbags.interfaces.typing import Typesdict
-
-
-class RosInterfaceError(BridgeError):
-    """An interface package could not be built or installed; says which step and why."""
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from bridge.errors import BridgeError
+from bridge.errors import GltfError
 from bridge.lowering import triangle_mesh
 from bridge.lru import SizedLru
 from bridge.scene import FloatArray, Geometry, Link, Pose, Scene, TriangleMesh, rotation_matrix
@@ -31,10 +31,6 @@ from bridge.skipped import per_geometry
 _COMPONENTS = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
 _WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 _MAX_ELEMENTS = 50_000_000  # no accessor may claim more: a bound on memory, whatever the header says
-
-
-class GltfError(BridgeError):
-    """A glTF document that cannot be read; the message names the part."""
 
 
 @dataclass(frozen=True)

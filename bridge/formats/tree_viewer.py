@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 import orjson
 
-from bridge.errors import BridgeError, SceneError
+from bridge.errors import RequestRejected, SceneError
 from bridge.lcmcodec import VIEWER2_COMMS, Buffer
 from bridge.mappings import Table, tables
 from bridge.scene import (
@@ -324,15 +324,6 @@ def envelope(data: bytes, utime: int) -> bytes:
             data=data,
         )
     )
-
-
-class RequestRejected(BridgeError):
-    """A request the tree viewer cannot handle; `status` is the response code that says why:
-    -1 unknown format, -2 unknown version, -3 a request it cannot handle, -4 an unknown command."""
-
-    def __init__(self, status: int, reason: str) -> None:
-        super().__init__(reason)
-        self.status = status
 
 
 _ENVELOPE = VIEWER2_COMMS.type_name

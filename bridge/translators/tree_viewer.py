@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from bridge.errors import DecodeError, SceneError
+from bridge.errors import DecodeError, RequestRejected, SceneError
 from bridge.formats import ros, tree_viewer
 from bridge.lcmcodec import VIEWER2_COMMS
 from bridge.scene import LinkPoses, Scene
@@ -58,7 +58,7 @@ class TreeViewerServer(Translator):
             raise
         self.reply(answer, tree_viewer.encode(response))
         if response["status"] not in (tree_viewer.OK, tree_viewer.MISSING_PATHS):
-            raise tree_viewer.RequestRejected(response["status"], f"client {client}: {response['error']}")
+            raise RequestRejected(response["status"], f"client {client}: {response['error']}")
         return [(0, ros.marker_array_cdr(state.scene(), self.options.table_overrides(), delete_all=changed))]
 
     @staticmethod
@@ -66,7 +66,7 @@ class TreeViewerServer(Translator):
         """The response to one envelope, and whether the tree's geometry changed."""
         try:
             request = tree_viewer.decode(data)
-        except tree_viewer.RequestRejected as error:
+        except RequestRejected as error:
             response: dict[str, Any] = {"status": error.status, "error": str(error)}
             if error.status == tree_viewer.ERROR_UNKNOWN_FORMAT:
                 response["supported_formats"] = {tree_viewer.FORMAT: [list(tree_viewer.VERSION)]}

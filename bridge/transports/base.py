@@ -95,10 +95,6 @@ class TransportSettings(BaseModel):
     model_config = ConfigDict(extra="forbid")
 
 
-class TransportUnavailable(Exception):
-    """A transport that cannot start here (a missing package, a port in use); says what to do."""
-
-
 class Transport(ABC):
     """A message bus the router can read from and publish to.
 

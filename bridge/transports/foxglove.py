@@ -21,6 +21,7 @@ import foxglove
 from foxglove.websocket import ChannelView, Client, ServerListener
 from pydantic import Field
 
+from bridge.errors import TransportUnavailable
 from bridge.formats.foxglove import schema
 from bridge.transports.base import (
     PROTOBUF,
@@ -30,7 +31,6 @@ from bridge.transports.base import (
     Qos,
     Transport,
     TransportSettings,
-    TransportUnavailable,
 )
 from bridge.transports.foxglove_front import SubprotocolFront
 

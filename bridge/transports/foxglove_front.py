@@ -30,7 +30,7 @@ import socket
 import threading
 from collections import Counter
 
-from bridge.errors import BridgeError
+from bridge.errors import HandshakeError
 
 log = logging.getLogger(__name__)
 
@@ -40,10 +40,6 @@ MAX_HEAD = 64 * 1024  # an HTTP head longer than this is not a WebSocket handsha
 HANDSHAKE_SECONDS = 10.0  # a client that has not finished its request by then is dropped
 CHUNK = 256 * 1024  # bytes relayed per read; a 1000-link FrameTransforms frame is about 108 kB
 _PROTOCOL_HEADER = b"sec-websocket-protocol"
-
-
-class HandshakeError(BridgeError):
-    """A client connection whose opening handshake cannot be relayed (cut off, too long, too slow)."""
 
 
 def subprotocols(head: bytes) -> list[str]:

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import lcm
 
-from bridge.errors import BridgeError
+from bridge.errors import LogError
 from bridge.transports import base
 
 _log = logging.getLogger("viewer_bridge")
@@ -33,10 +33,6 @@ class LcmEvent:
     channel: str
     data: bytes
     timestamp_us: int  # the log's receive time, or the local receive time when live
-
-
-class LogError(BridgeError):
-    """A file that is not an LCM log."""
 
 
 _SYNC = bytes.fromhex("eda1da01")  # every LCM log event starts with this word

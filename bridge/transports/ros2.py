@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from pydantic import field_validator
 
+from bridge.errors import TransportUnavailable
 from bridge.transports.base import (
     CDR,
     CallPublisher,
@@ -30,7 +31,6 @@ from bridge.transports.base import (
     Received,
     Transport,
     TransportSettings,
-    TransportUnavailable,
 )
 from bridge.transports.ros_names import namespace_problem, node_name_problem, topic_problem
 

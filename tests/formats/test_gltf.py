@@ -9,7 +9,8 @@ import struct
 import numpy as np
 import pytest
 
-from bridge.formats.gltf import GltfError, read_gltf, write_gltf
+from bridge.errors import GltfError
+from bridge.formats.gltf import read_gltf, write_gltf
 from bridge.lowering import triangle_mesh
 from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere, TriangleMesh
 
