@@ -75,7 +75,7 @@ class ConfigError(BridgeError):
         super().__init__(f"{where}: {key}: {reason}" if key else f"{where}: {reason}")
 
 
-# --- Files and documents others wrote.
+# Files and documents others wrote.
 
 
 class LogError(BridgeError):
@@ -86,7 +86,7 @@ class GltfError(BridgeError):
     """A glTF document that cannot be read; the message names the part."""
 
 
-# --- Director's tree viewer: a request it answers with an error status.
+# Director's tree viewer: a request it answers with an error status.
 
 
 class RequestRejected(BridgeError):
@@ -98,7 +98,7 @@ class RequestRejected(BridgeError):
         self.status = status
 
 
-# --- Transports and what they need on this machine.
+# Transports and what they need on this machine.
 
 
 class TransportUnavailable(BridgeError):
@@ -113,7 +113,7 @@ class RosInterfaceError(BridgeError):
     """An interface package could not be built or installed; says which step and why."""
 
 
-# --- The command line.
+# The command line.
 
 
 class UsageError(BridgeError):
