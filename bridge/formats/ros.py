@@ -29,6 +29,7 @@ import numpy as np
 from bridge.errors import DecodeError, SceneError
 from bridge.formats.ros_messages import (
     CDR_LE,
+    CDR_TIME,
     POSE_ITEM,
     U32,
     CdrWriter,
@@ -128,7 +129,7 @@ def poses_from_pose_array(
 
 
 def _stamp_bytes(timestamp_ms: int) -> bytes:
-    return _STAMP.pack(*time_parts(timestamp_ms))
+    return CDR_TIME.pack(*time_parts(timestamp_ms))
 
 
 class PoseArrayEncoder:
@@ -600,7 +601,6 @@ def _tables() -> dict[str, Any]:
 # --- the MarkerArray fast path ---------------------------------------------------------------------
 
 
-_STAMP = struct.Struct("<iI")
 _ID_TYPE_ACTION = struct.Struct("<iii")
 # pose (7), scale (3), color (4 float32), lifetime (sec, nanosec): one block, 8-aligned.
 _POSE_TO_LIFETIME = struct.Struct("<10d4fiI")
@@ -625,7 +625,7 @@ def _marker_tail(spec: MarkerSpec, frame_locked: bool) -> bytes:
     writer.pack(U32, len(colors))
     writer.add(np.ascontiguousarray(colors, dtype="<f4").tobytes())
     writer.string("")  # texture_resource
-    writer.pack(_STAMP, 0, 0)  # texture.header.stamp
+    writer.pack(CDR_TIME, 0, 0)  # texture.header.stamp
     writer.string("")  # texture.header.frame_id
     writer.string("")  # texture.format
     writer.octets(b"")  # texture.data
@@ -670,7 +670,7 @@ def _write_markers(
             size += -size % 4
         prefix = prefixes.get((frame, spec.ns))
         if prefix is None:
-            prefix = _STAMP.pack(0, 0) + _string_4(frame, "header.frame_id") + _string_4(spec.ns)
+            prefix = CDR_TIME.pack(0, 0) + _string_4(frame, "header.frame_id") + _string_4(spec.ns)
             prefixes[(frame, spec.ns)] = prefix
         head = prefix + _ID_TYPE_ACTION.pack(spec.id, spec.type, spec.action)
         head_end = size + len(head)

@@ -13,17 +13,15 @@ hydroelastic one's on body 1 at the surface's centroid (WrenchStamped has no app
 
 from __future__ import annotations
 
-import struct
 from typing import Any
 
 import numpy as np
 
 from bridge.contact import ContactDrawOptions, ContactResults, contact_scene
 from bridge.formats import ros
-from bridge.formats.ros_messages import CDR_LE, cdr_string
+from bridge.formats.ros_messages import CDR_LE, CDR_TIME, cdr_string
 
 WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
-_STAMP = struct.Struct("<iI")
 
 
 def contact_marker_array_cdr(
@@ -52,11 +50,11 @@ class WrenchEncoder:
 
     def __init__(self, frame_id: str = "world") -> None:
         frame = cdr_string(frame_id, "header.frame_id")
-        header_size = _STAMP.size + len(frame)
+        header_size = CDR_TIME.size + len(frame)
         self._frame = frame + b"\0" * (-header_size % 8)  # the wrench's doubles are 8-aligned
 
     def encode(self, results: ContactResults, stamp: tuple[int, int]) -> list[bytes]:
-        prefix = CDR_LE + _STAMP.pack(*stamp) + self._frame
+        prefix = CDR_LE + CDR_TIME.pack(*stamp) + self._frame
         rows = np.ascontiguousarray(contact_wrenches(results), dtype="<f8")
         return [prefix + row.tobytes() for row in rows]
 

@@ -75,6 +75,9 @@ def _default_of(definition: tuple[Any, Any]) -> Callable[[], Any]:
 _NUMPY_TYPES = {"byte": "uint8", "octet": "uint8", "char": "uint8", "bool": "bool"}
 
 
+CDR_TIME = struct.Struct("<iI")  # builtin_interfaces/Time in little-endian CDR: int32 sec, uint32 nanosec
+
+
 def time_parts(timestamp_ms: int) -> tuple[int, int]:
     """Drake's millisecond sim time as `builtin_interfaces/Time` (int32 sec, uint32 nanosec).
 

@@ -21,12 +21,11 @@ from bridge.formats.point_fields import (
     read_points,
     write_points,
 )
-from bridge.formats.ros_messages import U32, CdrReader, CdrWriter, time_parts_from_us
+from bridge.formats.ros_messages import CDR_TIME, U32, CdrReader, CdrWriter, time_parts_from_us
 from bridge.scene import StampedPointCloud
 from bridge.sim_time import us_from_sec_nsec
 
 POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
-_STAMP = struct.Struct("<iI")
 _TWO_U32 = struct.Struct("<II")
 _SMALLEST_POINT_FIELD = 13  # name (length + NUL), offset, datatype, count: never fewer bytes
 
@@ -35,7 +34,7 @@ def cloud_to_cdr(stamped: StampedPointCloud, default_frame: str = "world") -> by
     """A stamped cloud as PointCloud2 CDR (frame `default_frame` when the cloud names none)."""
     fields, point_step, data = write_points(stamped.cloud, PCL_RGB_LITTLE, FLOAT32)
     writer = CdrWriter()
-    writer.pack(_STAMP, *time_parts_from_us(stamped.time_us))
+    writer.pack(CDR_TIME, *time_parts_from_us(stamped.time_us))
     writer.string(stamped.frame or default_frame, "header.frame_id")
     writer.pack(_TWO_U32, 1, len(stamped.cloud))  # height, width
     writer.pack(U32, len(fields))

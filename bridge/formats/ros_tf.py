@@ -19,12 +19,11 @@ from typing import Any
 
 import numpy as np
 
-from bridge.formats.ros_messages import POSE_ITEM, U32, CdrWriter, make, payload_items
+from bridge.formats.ros_messages import CDR_TIME, POSE_ITEM, U32, CdrWriter, make, payload_items
 from bridge.scene import LinkPoses, frame_name, pose_rows_xyzw, write_pose_rows_xyzw
 
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 WORLD = "world"  # Drake's name for the world link, and ROS's usual fixed frame
-_STAMP = struct.Struct("<iI")
 _TRANSFORM = struct.Struct("<7d")
 
 
@@ -55,7 +54,7 @@ class TransformsEncoder:
         if poses.names is not self._names and poses.names != self._names:  # one tuple while they repeat
             self._layout(poses.names)
         write_pose_rows_xyzw(self._rows, poses.positions, poses.quaternions_wxyz)
-        self._stamps[self._stamp_at] = np.frombuffer(_STAMP.pack(*stamp), _STAMP_ITEM)
+        self._stamps[self._stamp_at] = np.frombuffer(CDR_TIME.pack(*stamp), _STAMP_ITEM)
         self._transforms[self._transform_at] = self._rows.view(POSE_ITEM).reshape(-1)
         return bytes(self._message)
 
@@ -67,7 +66,7 @@ class TransformsEncoder:
         for name in names:
             writer.align(4)
             stamp_at.append(writer.size // 4)
-            writer.pack(_STAMP, 0, 0)
+            writer.pack(CDR_TIME, 0, 0)
             writer.string(parent, "header.frame_id")
             writer.string(self.frames(name), "child_frame_id")
             writer.align(8)
@@ -85,7 +84,7 @@ class TransformsEncoder:
         self._names = names
 
 
-_STAMP_ITEM = np.dtype((np.void, _STAMP.size))
+_STAMP_ITEM = np.dtype((np.void, CDR_TIME.size))
 
 
 def transforms_message(poses: LinkPoses, stamp: tuple[int, int], frames: FrameNames) -> Any:
