@@ -26,7 +26,7 @@ import math
 import re
 from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, cached_property
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -36,6 +36,9 @@ from bridge.lowering import LOWERINGS
 from bridge.resources import data_dir
 from bridge.scene import SHAPE_KINDS, Pose, Shape, shape_kind
 from bridge.yamldoc import KeyPath, YamlDocument
+
+# A function that writes what a table's terms cannot (a mesh's vertices, say): the fields it sets.
+Encoder = Callable[..., dict[str, Any]]
 
 _TERM = re.compile(r"^(?:(?P<factor>[0-9]+(?:\.[0-9]*)?)\s*\*\s*)?(?P<field>[a-z_]+)(?:\.(?P<axis>[xyz]))?$")
 _AXES = "xyz"
@@ -80,15 +83,20 @@ class ShapeRule:
     message: str | None = None
     unsupported: str | None = None  # why the target cannot express this kind: a SceneError
     note: str = ""
+    encode: Encoder | None = dataclasses.field(default=None, repr=False, compare=False)  # `encoder`, bound
 
     reader: Callable[[Shape], dict[str, Any]] = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "reader", _compile_reader(self.fields, self.list_fields))
 
-    def values(self, shape: Shape) -> dict[str, Any]:
-        """The target fields this rule sets, read from `shape`: a value or a list per field."""
-        return self.reader(shape)
+    def values(self, shape: Shape, *context: Any) -> dict[str, Any]:
+        """The target fields this rule sets for `shape`: a value or a list per field, read by
+        the table's terms, then what the rule's encoder adds (given `context`, e.g. options)."""
+        values = self.reader(shape)
+        if self.encode is not None:
+            values |= self.encode(shape, *context)
+        return values
 
     @property
     def invertible(self) -> bool:
@@ -285,9 +293,29 @@ def load_tables(document: YamlDocument, encoders: Collection[str] | None = None)
 
 
 @cache
-def tables(format_name: str, encoders: tuple[str, ...] | None = None) -> dict[str, Table]:
-    """The tables of `mappings/<format_name>.yaml`, loaded once."""
-    return load_tables(YamlDocument.read(data_dir("mappings") / f"{format_name}.yaml"), encoders)
+def tables(format_name: str) -> dict[str, Table]:
+    """The tables of `mappings/<format_name>.yaml` as written, encoders unbound (for the reference)."""
+    return load_tables(YamlDocument.read(data_dir("mappings") / f"{format_name}.yaml"))
+
+
+class FormatTables:
+    """A format's tables with its encoders bound to the rules that name them, read on first use.
+
+    A format module holds one, made from the functions that write what a table cannot express
+    (`FormatTables("ros", {"mesh": _mesh_message, ...})`); `TABLES["marker"]` is then a `Table`
+    whose rules yield all their values (`rule.values(shape, ...)`), with no dispatch of its own.
+    """
+
+    def __init__(self, format_name: str, encoders: Mapping[str, Encoder]) -> None:
+        self.format_name = format_name
+        self.encoders = dict(encoders)
+
+    @cached_property
+    def _tables(self) -> dict[str, Table]:
+        return load_tables(YamlDocument.read(data_dir("mappings") / f"{self.format_name}.yaml"), self.encoders)
+
+    def __getitem__(self, name: str) -> Table:
+        return self._tables[name]
 
 
 def _table(
@@ -357,6 +385,7 @@ def _rule(
         fields=fields,
         list_fields=frozenset(list_fields),
         encoder=spec.encoder,
+        encode=encoders[spec.encoder] if isinstance(encoders, Mapping) and spec.encoder else None,
         message=spec.message,
         unsupported=spec.unsupported,
         note=spec.note,

@@ -15,7 +15,7 @@ from __future__ import annotations
 import base64
 import json
 import struct
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 from bridge.errors import DecodeError, EncodeError
 from bridge.lcmcodec import DRAW, GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, Buffer, LcmMessage
-from bridge.mappings import tables
+from bridge.mappings import FormatTables
 from bridge.scene import (
     FileContents,
     Geometry,
@@ -159,10 +159,10 @@ def geometry_from_lcm(message: LcmMessage) -> Geometry:
     """One `lcmt_viewer_geometry_data` as a scene geometry (raises `_ShapeDataError`)."""
     if message.type == MESH:  # three kinds of mesh, told apart by string_data: code, not table
         shape = _mesh(message.float_data, message.string_data)
-    elif message.type in GEOMETRY_TABLE.types.values():
+    elif message.type in TABLES["geometry_data"].types.values():
         values = {"float_data": message.float_data, "string_data": message.string_data}
         try:
-            shape = GEOMETRY_TABLE.decode(message.type, values)
+            shape = TABLES["geometry_data"].decode(message.type, values)
         except ValueError as error:
             raise _ShapeDataError(str(error), len(message.float_data)) from None
     else:
@@ -223,11 +223,7 @@ def _in_memory(shape: InMemoryMesh) -> dict[str, Any]:
 
 
 # The encoders the table (mappings/drake.yaml) names for what it cannot express itself.
-_ENCODERS: dict[str, Callable[[Any], dict[str, Any]]] = {
-    "mesh_array": _mesh_array,
-    "in_memory_json": _in_memory,
-}
-GEOMETRY_TABLE = tables("drake", tuple(_ENCODERS))["geometry_data"]
+TABLES = FormatTables("drake", {"mesh_array": _mesh_array, "in_memory_json": _in_memory})
 
 
 def _in_memory_json(mesh_file: FileContents, supporting: Any) -> str:
@@ -250,10 +246,8 @@ def _in_memory_json(mesh_file: FileContents, supporting: Any) -> str:
 
 def geometry_to_lcm(geometry: Geometry) -> LcmMessage:
     """One scene geometry as Drake writes it (a half-space becomes Drake's box)."""
-    ((rule, shape, pose),) = GEOMETRY_TABLE.expand(geometry.shape, geometry.pose)
+    ((rule, shape, pose),) = TABLES["geometry_data"].expand(geometry.shape, geometry.pose)
     fields = {"float_data": [], "string_data": ""} | rule.values(shape)
-    if rule.encoder is not None:
-        fields |= _ENCODERS[rule.encoder](shape)
     float_data, string_data = fields["float_data"], fields["string_data"]
     return GEOMETRY_DATA.message_class(
         type=rule.type_code,
@@ -472,7 +466,7 @@ def _encode_string(text: str) -> bytes:
 
 
 __all__ = [
-    "GEOMETRY_TABLE",
+    "TABLES",
     "DrawDecoder",
     "DrawEncoder",
     "decode_load",

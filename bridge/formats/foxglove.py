@@ -32,7 +32,7 @@ from bridge.formats.protowire import length_delimited as _length_delimited
 from bridge.formats.protowire import varint as _varint
 from bridge.formats.ros_tf import FrameNames
 from bridge.lowering import triangle_mesh
-from bridge.mappings import tables
+from bridge.mappings import FormatTables
 from bridge.scene import Geometry, Line, Link, LinkPoses, Pose, Scene, Shape, Triad, xyzw_from_wxyz
 from bridge.skipped import per_geometry
 
@@ -45,7 +45,7 @@ FRAME_TRANSFORMS = "foxglove.FrameTransforms"
 
 def scene_update(scene: Scene, frames: Callable[[str], str], stamp: tuple[int, int] = (0, 0)) -> Any:
     """The scene as a SceneUpdate: an entity per link with geometry to draw, in its link's frame."""
-    table = _tables()["primitive"]
+    table = TABLES["primitive"]
     update = SceneUpdate()
 
     def primitives(_: int, geometry: Geometry) -> Any:
@@ -55,8 +55,6 @@ def scene_update(scene: Scene, frames: Callable[[str], str], stamp: tuple[int, i
             primitive = getattr(part, rule.type_code).add()
             _set_pose(primitive.pose, pose)
             _set_fields(primitive, rule.values(shape))
-            if rule.encoder is not None:
-                _ENCODERS[rule.encoder](primitive, shape)
             _set_color(primitive, geometry.color)
         return part
 
@@ -79,7 +77,11 @@ def _set_pose(target: Any, pose: Pose) -> None:
 
 def _set_fields(primitive: Any, values: dict[str, Any]) -> None:
     for name, value in values.items():
-        if isinstance(value, list):  # a Vector3
+        if primitive.DESCRIPTOR.fields_by_name[name].is_repeated:  # points, colors: one dict each
+            field = getattr(primitive, name)
+            for item in value:
+                field.add(**item)
+        elif isinstance(value, list):  # a Vector3
             target = getattr(primitive, name)
             target.x, target.y, target.z = value
         else:
@@ -91,48 +93,38 @@ def _set_color(primitive: Any, rgba: tuple[float, float, float, float]) -> None:
     color.r, color.g, color.b, color.a = rgba
 
 
-def _glb_model(primitive: Any, shape: Shape) -> None:
+def _glb_model(shape: Shape) -> dict[str, Any]:
     """The shape as an embedded binary glTF, its scale applied to the vertices, in the geometry's
     colour (Drake's colour is the geometry's, whatever the file's materials say)."""
     single = Scene((Link("mesh", 0, (Geometry(triangle_mesh(shape)),)),))
-    primitive.data = write_gltf(single, binary=True)
-    primitive.media_type = "model/gltf-binary"
-    primitive.scale.x = primitive.scale.y = primitive.scale.z = 1.0
-    primitive.override_color = True
+    data = write_gltf(single, binary=True)
+    return {"data": data, "media_type": "model/gltf-binary", "scale": [1.0, 1.0, 1.0], "override_color": True}
 
 
-def _triad_lines(primitive: Any, shape: Shape) -> None:
+def _triad_lines(shape: Shape) -> dict[str, Any]:
+    """Three axes as a LINE_LIST from the origin, red x, green y, blue z (as meldis draws them)."""
     assert isinstance(shape, Triad)
-    primitive.type = LinePrimitive.LINE_LIST
-    primitive.thickness = shape.tube if shape.tube > 0 else 0.01
+    points, colors = [], []
     for axis in range(3):
         end = [0.0, 0.0, 0.0]
         end[axis] = shape.scale
+        rgb = [0.0, 0.0, 0.0]
+        rgb[axis] = 1.0
         for point in ([0.0, 0.0, 0.0], end):
-            primitive.points.add(x=point[0], y=point[1], z=point[2])
-            rgb = [0.0, 0.0, 0.0]
-            rgb[axis] = 1.0
-            primitive.colors.add(r=rgb[0], g=rgb[1], b=rgb[2], a=1.0)
+            points.append({"x": point[0], "y": point[1], "z": point[2]})
+            colors.append({"r": rgb[0], "g": rgb[1], "b": rgb[2], "a": 1.0})
+    thickness = shape.tube if shape.tube > 0 else 0.01
+    return {"type": LinePrimitive.LINE_LIST, "thickness": thickness, "points": points, "colors": colors}
 
 
-def _polyline(primitive: Any, shape: Shape) -> None:
+def _polyline(shape: Shape) -> dict[str, Any]:
     assert isinstance(shape, Line)
-    primitive.type = LinePrimitive.LINE_LOOP if shape.closed else LinePrimitive.LINE_STRIP
-    primitive.thickness = 2 * shape.radius if shape.radius > 0 else 0.01
-    for x, y, z in np.asarray(shape.points, dtype=np.float64).tolist():
-        primitive.points.add(x=x, y=y, z=z)
+    kind = LinePrimitive.LINE_LOOP if shape.closed else LinePrimitive.LINE_STRIP
+    points = [{"x": x, "y": y, "z": z} for x, y, z in np.asarray(shape.points, dtype=np.float64).tolist()]
+    return {"type": kind, "thickness": 2 * shape.radius if shape.radius > 0 else 0.01, "points": points}
 
 
-_ENCODERS: dict[str, Callable[[Any, Shape], None]] = {
-    "glb_model": _glb_model,
-    "triad_lines": _triad_lines,
-    "polyline": _polyline,
-}
-
-
-@cache
-def _tables() -> dict[str, Any]:
-    return tables("foxglove", tuple(_ENCODERS))
+TABLES = FormatTables("foxglove", {"glb_model": _glb_model, "triad_lines": _triad_lines, "polyline": _polyline})
 
 
 # --- draw -> FrameTransforms ----------------------------------------------------------------------

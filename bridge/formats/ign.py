@@ -15,9 +15,8 @@ import base64
 import re
 import struct
 import threading
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from functools import cache
 from typing import Any
 
 import numpy as np
@@ -28,7 +27,7 @@ from google.protobuf.message import Message
 
 from bridge.errors import DecodeError, SceneError
 from bridge.formats import protowire as wire
-from bridge.mappings import ShapeRule, Table, tables
+from bridge.mappings import FormatTables, ShapeRule
 from bridge.scene import (
     FileContents,
     FloatArray,
@@ -195,7 +194,7 @@ def _file_descriptor(package: str, geometry_types: Mapping[str, int]) -> descrip
 def message_set(package: str) -> MessageSet:
     """Build the message classes for `package` in a pool of their own."""
     pool = descriptor_pool.DescriptorPool()
-    pool.Add(_file_descriptor(package, _geometry_table().types))
+    pool.Add(_file_descriptor(package, TABLES["geometry"].types))
     names = [name for name in _SCHEMA if "." not in name]
     classes = {
         name: message_factory.GetMessageClass(pool.FindMessageTypeByName(f"{package}.{name}"))
@@ -221,16 +220,9 @@ def _polyline_points(shape: Line) -> dict[str, Any]:
     return {"points": shape.path().tolist()}
 
 
-_ENCODERS: dict[str, Callable[[Any], dict[str, Any]]] = {
-    "obj_data_uri": _data_uri_obj,
-    "file_data_uri": _data_uri_file,
-    "polyline_points": _polyline_points,
-}
-
-
-@cache
-def _geometry_table() -> Table:
-    return tables("ign", tuple(_ENCODERS))["geometry"]
+TABLES = FormatTables(
+    "ign", {"obj_data_uri": _data_uri_obj, "file_data_uri": _data_uri_file, "polyline_points": _polyline_points}
+)
 
 
 IGNITION = message_set("ignition.msgs")
@@ -464,18 +456,15 @@ def geometry_message(shape: Shape, msgs: MessageSet = IGNITION) -> Any:
 
 
 def _fill_geometry(message: Any, shape: Shape) -> None:
-    ((rule, _, _),) = _geometry_table().expand(shape)  # a SceneError for a shape ign cannot hold
+    ((rule, _, _),) = TABLES["geometry"].expand(shape)  # a SceneError for a shape ign cannot hold
     message.type = rule.type_code
-    values = rule.values(shape)
-    if rule.encoder is not None:
-        values |= _ENCODERS[rule.encoder](shape)
-    for path, value in values.items():
+    for path, value in rule.values(shape).items():
         _set_field(message, path, value)
 
 
 def shape_from_geometry(message: Any) -> Shape:
     """A `Geometry` back as a scene shape; raises `SceneError` for one the bridge cannot read."""
-    table = _geometry_table()
+    table = TABLES["geometry"]
     filename = message.mesh.filename if message.type == table.types["MESH"] else ""
     if filename.startswith("data:"):
         return _shape_from_data_uri(filename, message)

@@ -21,7 +21,6 @@ import struct
 import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from functools import cache
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -43,7 +42,7 @@ from bridge.formats.ros_messages import (
     to_cdr,
     to_rclpy,
 )
-from bridge.mappings import ShapeRule, tables
+from bridge.mappings import FormatTables, ShapeRule
 from bridge.scene import (
     FloatArray,
     Geometry,
@@ -243,7 +242,7 @@ def shapes(scene: Scene) -> list[PosedShape]:
 
     A geometry that cannot be written (a mesh file that cannot be read) is skipped alone.
     """
-    table = _tables()["shape"]
+    table = TABLES["shape"]
     result = []
     for link in scene.links:
 
@@ -264,7 +263,7 @@ def shapes_cdr(scene: Scene) -> list[tuple[str, bytes]]:
 
     Skips a geometry as `shapes` does.
     """
-    table = _tables()["shape"]
+    table = TABLES["shape"]
     out = []
     # By id, holding the shape so that its id stays its own: lowered primitives share one
     # cached mesh, written once.
@@ -327,9 +326,7 @@ _SHAPE_WRITERS: dict[str, Callable[[ShapeRule, Shape], bytes]] = {
 
 
 def _shape_message(rule: ShapeRule, shape: Shape, target: str) -> Any:
-    values = rule.values(shape)
-    if rule.encoder is not None:
-        values |= _ENCODERS[rule.encoder](shape, {})
+    values = rule.values(shape, {})
     typename = rule.message or target
     if rule.type_code is not None:
         values["type"] = rule.type_code
@@ -353,7 +350,7 @@ def shape_from_message(message: Any) -> Shape:
         if triangles.size and triangles.max() >= len(vertices):
             raise SceneError(f"{MESH}: a triangle refers to vertex {int(triangles.max())} of {len(vertices)}")
         return TriangleMesh(vertices, triangles)
-    table = _tables()["shape"]
+    table = TABLES["shape"]
     if message.__msgtype__ == PLANE:
         return _decoded(lambda: table.decode_message(PLANE, {"coef": list(message.coef)}), PLANE)
     return _decoded(
@@ -411,7 +408,7 @@ def marker_specs(scene: Scene, options: dict[str, Any] | None = None) -> list[Ma
     keeps its ns/id from one load of the same scene to the next. A geometry that cannot be
     written (a mesh file to embed that cannot be read) is skipped alone.
     """
-    table = _tables()["marker"]
+    table = TABLES["marker"]
     settings = _marker_settings(options)
     specs = []
     colors: dict[bytes, tuple[float, ...]] = {}  # a load has few distinct colours
@@ -425,9 +422,7 @@ def marker_specs(scene: Scene, options: dict[str, Any] | None = None) -> list[Ma
             color = colors[packed] = _FLOAT32X4.unpack(packed)
         made = []
         for rule, shape, pose in table.expand(geometry.shape, geometry.pose):
-            values = rule.values(shape)
-            if rule.encoder is not None:
-                values |= _ENCODERS[rule.encoder](shape, settings)
+            values = rule.values(shape, settings)
             scale = tuple(values.pop("scale"))
             # An encoder may choose another type for some shapes (a line with a head: ARROW).
             code = values.pop("type", rule.type_code if rule.type_code is not None else 0)
@@ -473,7 +468,7 @@ def _link_rows(names: Sequence[str], wanted: Sequence[str]) -> np.ndarray[Any, A
 
 
 def _marker_settings(options: dict[str, Any] | None) -> dict[str, Any]:
-    return {**_tables()["marker"].options, **(options or {})}
+    return {**TABLES["marker"].options, **(options or {})}
 
 
 def marker_array(scene: Scene, options: dict[str, Any] | None = None, delete_all: bool = True) -> Any:
@@ -582,20 +577,18 @@ def _triangle_list(shape: TriangleMesh, options: dict[str, Any]) -> dict[str, An
     return values
 
 
-_ENCODERS: dict[str, Callable[[Any, dict[str, Any]], dict[str, Any]]] = {
-    "mesh": _mesh_message,
-    "mesh_resource": _mesh_resource,
-    "embedded_mesh": _embedded_mesh,
-    "triangle_list": _triangle_list,
-    "points": _points,
-    "triad": _triad,
-    "line_strip": _line_strip,
-}
-
-
-@cache
-def _tables() -> dict[str, Any]:
-    return tables("ros", tuple(_ENCODERS))
+TABLES = FormatTables(
+    "ros",
+    {
+        "mesh": _mesh_message,
+        "mesh_resource": _mesh_resource,
+        "embedded_mesh": _embedded_mesh,
+        "triangle_list": _triangle_list,
+        "points": _points,
+        "triad": _triad,
+        "line_strip": _line_strip,
+    },
+)
 
 
 # --- the MarkerArray fast path ---------------------------------------------------------------------

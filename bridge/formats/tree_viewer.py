@@ -26,7 +26,7 @@ import orjson
 
 from bridge.errors import RequestRejected, SceneError
 from bridge.lcmcodec import VIEWER2_COMMS, Buffer
-from bridge.mappings import Table, tables
+from bridge.mappings import FormatTables
 from bridge.scene import (
     FloatArray,
     Geometry,
@@ -93,16 +93,7 @@ def _line(shape: Line) -> dict[str, Any]:
     }
 
 
-_ENCODERS: dict[str, Callable[[Any], dict[str, Any]]] = {
-    "mesh_data": _mesh_data,
-    "pointcloud": _pointcloud,
-    "line": _line,
-}
-
-
-@cache
-def _table() -> Table:
-    return tables("tree_viewer", tuple(_ENCODERS))["geometry"]
+TABLES = FormatTables("tree_viewer", {"mesh_data": _mesh_data, "pointcloud": _pointcloud, "line": _line})
 
 
 def transform(pose: Pose) -> dict[str, list[float]]:
@@ -115,11 +106,8 @@ def link_path(link: Link, prefix: Sequence[str] = DEFAULT_PREFIX) -> list[str]:
 
 def geometry_command(shape: Shape, pose: Pose, color: Sequence[float]) -> dict[str, Any]:
     """The `geometry` object of a setgeometry for one shape (see mappings/tree_viewer.yaml)."""
-    ((rule, lowered, lowered_pose),) = _table().expand(shape, pose)
-    values = rule.values(lowered)
-    if rule.encoder is not None:
-        values |= _ENCODERS[rule.encoder](lowered)
-    return {"type": rule.type_code, **values, "color": list(color), "transform": transform(lowered_pose)}
+    ((rule, lowered, lowered_pose),) = TABLES["geometry"].expand(shape, pose)
+    return {"type": rule.type_code, **rule.values(lowered), "color": list(color), "transform": transform(lowered_pose)}
 
 
 def load_requests(scene: Scene, prefix: Sequence[str] = DEFAULT_PREFIX, utime: int = 0) -> list[Request]:
@@ -589,7 +577,7 @@ def geometry_from_command(value: Any, where: str) -> Geometry:
 
 
 def _shape(value: dict[str, Any], kind: Any, where: str) -> Shape:
-    table = _table()
+    table = TABLES["geometry"]
     reader = _SHAPE_READERS.get(kind) if isinstance(kind, str) else None
     if reader is not None:
         return reader(value, where)
