@@ -391,7 +391,7 @@ def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_p
     """The default config's TF and marker routes are lazy: nothing is translated for them until a
     subscriber appears, which then gets the model and the latest transforms at once."""
     from bridge.formats.drake import load_from_scene
-    from tests.test_translators import draw_of, small_scene
+    from tests.scenes import draw_of, small_scene
 
     url = lcm_url(10)
     stats_path = tmp_path / "stats.json"
@@ -458,7 +458,7 @@ def _tip_z(message: Any) -> float:
 def test_ros_args_are_passed_to_rclpy_like_any_node(probe: RosProbe, tmp_path: Path) -> None:
     from rclpy.parameter_client import AsyncParameterClient
 
-    from tests.test_translators import draw_of, small_scene
+    from tests.scenes import draw_of, small_scene
 
     url = lcm_url(14)
     bridge = BridgeProcess("--lcm-url", url, "--ros-args", "-r", "__ns:=/sim1", "-p", "use_sim_time:=true")
@@ -663,7 +663,7 @@ def lazy_pose_route(**rate: Any) -> Route:
 def test_a_lazy_route_that_wakes_does_not_count_the_wait_as_latency() -> None:
     from bridge.router import RouteRunner
     from bridge.translators import TRANSLATORS, LoadCache
-    from tests.test_translators import draw_of, small_scene
+    from tests.scenes import draw_of, small_scene
 
     listeners = 0
     published: list[bytes] = []

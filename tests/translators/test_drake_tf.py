@@ -19,8 +19,8 @@ from bridge.transports.base import Received
 from tests.conftest import lcm_url
 from tests.formats import oracle
 from tests.peers import BridgeProcess, RosProbe
+from tests.scenes import draw_of, small_scene
 from tests.test_router import LcmRecorder, start_drake
-from tests.test_translators import draw_of, small_scene
 
 
 def random_poses(count: int, seed: int) -> LinkPoses:

@@ -22,14 +22,15 @@ from visualization_msgs.msg import Marker, MarkerArray
 from bridge.demo import DEMO_MESH
 from bridge.errors import BridgeError
 from bridge.formats import tree_viewer as tv
-from bridge.formats.drake import DrawEncoder, decode_load, load_from_scene
-from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere
+from bridge.formats.drake import decode_load, load_from_scene
+from bridge.scene import Pose
 from bridge.translators import LoadCache
 from bridge.translators.tree_viewer import DrakeToTreeViewer, TreeViewerServer
 from bridge.transports.base import Received
 from bridge.transports.lcm import LcmBus
 from tests.conftest import lcm_url
 from tests.peers import BridgeProcess, RosProbe, write_config
+from tests.scenes import draw_of, small_scene
 
 REQUEST = "DIRECTOR_TREE_VIEWER_REQUEST_<spec client>"
 RESPONSE = "DIRECTOR_TREE_VIEWER_RESPONSE_<spec client>"
@@ -262,24 +263,6 @@ def test_100000_fuzzed_requests_get_a_reply_each_and_never_crash(tmp_path: Path)
 # --- the client side ----------------------------------------------------------------------------
 
 
-def small_scene() -> Scene:
-    return Scene(
-        (
-            Link("plant::robot::base", 1, (Geometry(Box((0.1, 0.2, 0.3))),)),
-            Link("plant::robot::tip", 1, (Geometry(Sphere(0.05), Pose((0, 0, 0.1))),)),
-        )
-    )
-
-
-def draw_of(scene: Scene, seconds: float) -> bytes:
-    names = tuple(link.name for link in scene.links)
-    positions = np.array([[0.0, 0.0, seconds], [0.5, 0.0, seconds]])
-    poses = LinkPoses(
-        int(seconds * 1000), names, np.ones(2, np.int32), positions, np.tile([1.0, 0, 0, 0], (2, 1))
-    )
-    return DrawEncoder().encode(poses)
-
-
 def test_client_resends_on_missing_paths_and_the_viewer_tree_is_complete() -> None:
     scene = small_scene()
     client = DrakeToTreeViewer({}, LoadCache())
@@ -408,37 +391,3 @@ def test_client_and_server_routes_carry_the_demo_scene_through_the_tree_viewer(t
     }
     routes = json.loads(stats.read_text())
     assert routes["to_director"]["messages_out"] > 0 and routes["as_director"]["messages_out"] > 0
-
-
-# --- decode once, fan out ---------------------------------------------------------------------------------
-
-
-def test_a_draw_read_by_several_translators_is_decoded_once(monkeypatch: pytest.MonkeyPatch) -> None:
-    from bridge.formats.drake import DrawDecoder, load_from_scene
-    from bridge.translators import TRANSLATORS
-    from bridge.translators.types import LOAD_TYPE
-
-    calls: list[int] = []
-    decode = DrawDecoder.decode
-
-    def counting(self: DrawDecoder, data: Any) -> Any:
-        calls.append(len(data))
-        return decode(self, data)
-
-    monkeypatch.setattr(DrawDecoder, "decode", counting)
-    scene = small_scene()
-    loads = LoadCache()
-    names = ["drake_to_marker_array", "drake_to_pose_array", "drake_to_clock", "drake_to_ign_pose_v"]
-    translators = [TRANSLATORS.get(name)({}, loads) for name in names]
-    load = Received("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(scene).encode())
-    for translator in translators:
-        translator.observe(load)
-        if LOAD_TYPE in translator.reads:
-            translator.translate(load)
-    draw = Received("DRAKE_VIEWER_DRAW", draw_of(scene, 1.0))
-    outputs = [translator.translate(draw) for translator in translators]
-    assert calls == [len(draw.data)]  # four translators, one decode
-    assert all(len(out) == 1 for out in outputs)
-    again = Received("DRAKE_VIEWER_DRAW", draw_of(scene, 2.0))  # the next message is decoded anew
-    translators[1].translate(again)
-    assert len(calls) == 2
