@@ -59,9 +59,10 @@ SUBSTITUTIONS: list[tuple[str, str, str]] = [
      "-c builtin:default --stats-json stats.json --stats-period 1 --duration 2 --demo --quiet",
      "the optional arguments, given"),
     (r"foxglove\.port=9000", "foxglove.port=0", "any free port: other bridges may be running here"),
-    (r"^(viewer-bridge convert \S+) out\.mcap \[--schema ros2\|foxglove\]$",
-     "\\1 out-ros2.mcap --schema ros2\n\\1 out-foxglove.mcap --schema foxglove",
-     "each schema, each into a file of its own"),
+    (r"^(viewer-bridge convert \S+) out\.mcap \[--schema ros2\|foxglove\] \[--force\]$",
+     "\\1 out-ros2.mcap --schema ros2\n\\1 out-foxglove.mcap --schema foxglove\n"
+     "\\1 out-foxglove.mcap --schema foxglove --force",
+     "each schema, each into a file of its own; then --force over an existing one"),
     (r"\[-c CONFIG\]", "-c builtin:default", "the optional argument, given"),
     (r"^(viewer-bridge ros-interfaces) install\|status$", "\\1 install\n\\1 status", "each action"),
     (r"\[--host 127\.0\.0\.1\] \[--port 8000\] \[--max-upload BYTES\]",

@@ -23,7 +23,8 @@ def route(messages_in: int, messages_out: int, state: str = "active", **counts: 
     return {
         "state": state, "messages_in": messages_in, "messages_out": messages_out, "bytes_in": 0, "bytes_out": 0,
         "idle_skipped": counts.get("idle_skipped", 0), "errors": counts.get("errors", {}),
-        "dropped": counts.get("dropped", 0), "queued": 0, "translate_ms": no_samples,
+        "warnings": counts.get("warnings", {}), "dropped": counts.get("dropped", 0),
+        "max_hz_skipped": counts.get("max_hz_skipped", 0), "queued": 0, "translate_ms": no_samples,
         "latency_ms": counts.get("latency_ms", no_samples),
     }  # fmt: skip
 
@@ -40,7 +41,7 @@ def test_the_table_shows_busy_routes_with_rates_and_folds_the_quiet_ones() -> No
     time.sleep(0.5)
     latency = {"p50": 0.25, "p99": 1.5, "max": 2.0}
     table.show({
-        "poses": route(30, 30, latency_ms=latency),
+        "poses": route(30, 30, latency_ms=latency, warnings={"skipped_geometry": 2}),
         "tf": route(30, 0, "idle: no subscriber", idle_skipped=30),
         "broken": route(5, 0, "idle: no subscriber", errors={"DecodeError": 5}),
         "empty": route(0, 0),
@@ -50,9 +51,9 @@ def test_the_table_shows_busy_routes_with_rates_and_folds_the_quiet_ones() -> No
     last = out.getvalue().split("viewer-bridge: 4 routes")[-1]  # the last frame drawn
     rows = {cells[0]: cells[1:] for cells in map(table_cells, last.splitlines()) if cells}
     assert set(rows) == {"poses", "broken"}  # traffic, or an error even while idle
-    rate_in, rate_out, total_in, total_out, errors, dropped, p50, p99 = rows["poses"]
+    rate_in, rate_out, total_in, total_out, errors, warnings, dropped, p50, p99 = rows["poses"]
     assert 0 < float(rate_in) == float(rate_out) <= 30 / 0.5 and (total_in, total_out) == ("30", "30")
-    assert (errors, dropped, p50, p99) == ("0", "0", "0.25", "1.50")
+    assert (errors, warnings, dropped, p50, p99) == ("0", "2", "0", "0.25", "1.50")
     assert rows["broken"][4] == "5"  # errors
     assert "2 more routes quiet (1 idle: no subscriber; 1 without traffic): tf, empty" in last
     assert "dropped_by_kernel" in last
@@ -63,11 +64,13 @@ def test_log_lines_are_one_per_route_with_the_transports_last(caplog: Any) -> No
         LogLines().show({
             "poses": route(3, 3, latency_ms={"p50": 0.25, "p99": 1.5, "max": 2.0}),
             "tf": route(2, 0, "idle: no subscriber", idle_skipped=2),
+            "slow": route(5, 2, warnings={"skipped_geometry": 1}, max_hz_skipped=3),
             "transports": {"lcm": {"errors": {"dropped_by_kernel": 1}}},
         })  # fmt: skip
     assert [record.getMessage() for record in caplog.records] == [
         "route poses: in 3 out 3 errors 0 dropped 0 latency p50 0.25 p99 1.50 ms",
         "route tf: in 2 out 0 errors 0 dropped 0 latency p50 - p99 - ms (idle: no subscriber, 2 not translated)",
+        "route slow: in 5 out 2 errors 0 warnings 1 dropped 0 max_hz skipped 3 latency p50 - p99 - ms",
         "transports: {'lcm': {'errors': {'dropped_by_kernel': 1}}}",
     ]
 
