@@ -19,7 +19,6 @@ from common import best_of
 from draw_codec import frame
 
 from bridge.formats import foxglove, ign, ros
-from bridge.formats import tree_viewer as tv
 from bridge.formats.drake import DrawDecoder, DrawEncoder
 from bridge.formats.ros_tf import FrameNames
 from bridge.scene import Box, Capsule, Cylinder, Ellipsoid, Geometry, Link, LinkPoses, Scene, Sphere
@@ -45,6 +44,8 @@ def inputs(links: int) -> tuple[Scene, LinkPoses]:
 
 def base_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
     """Each measured path as the base commit writes it."""
+    from bridge.formats import tree_viewer as tv  # the base commit's one module (a package since)
+
     frames = FrameNames()
     return {
         "settransform": lambda: tv.encode(tv.draw_request(draw)),
@@ -58,13 +59,16 @@ def base_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
 
 def our_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
     """Each path of `base_calls` as this checkout writes it (the same bytes; only called here)."""
+    from bridge.formats.tree_viewer import envelope
+    from bridge.formats.tree_viewer.requests import SettransformEncoder, load_requests
+
     frames = FrameNames()
-    settransform = tv.SettransformEncoder()
+    settransform = SettransformEncoder()
     return {
         "settransform": lambda: settransform.encode(draw),
         "MarkerArray": lambda: ros.marker_array_cdr(load),
         "ign Model": lambda: ign.model_bytes(load),
-        "tree viewer setgeometry": lambda: [tv.encode(request) for request in tv.load_requests(load)],
+        "tree viewer setgeometry": lambda: [envelope.encode(request) for request in load_requests(load)],
         "Foxglove SceneUpdate": lambda: foxglove.scene_update(load, frames).SerializeToString(),
         "shape_msgs": lambda: ros.shapes_cdr(load),
     }

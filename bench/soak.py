@@ -410,19 +410,19 @@ routes:
 
 def fault_director_viewer_restart(folder: Path) -> float | None:
     """The viewer (the bridge's tree viewer server, as a process) SIGKILLed and restarted empty."""
-    from bridge.formats import tree_viewer as tv
+    from bridge.formats.tree_viewer import envelope
 
     (folder / "client.yaml").write_text(DIRECTOR_CLIENT)
     (folder / "viewer.yaml").write_text(DIRECTOR_VIEWER)
     responses: list[tuple[float, int]] = []
     bus = LcmBus(URL)
     bus.subscribe("DIRECTOR_TREE_VIEWER_RESPONSE_<drake>", lambda channel, data, _: responses.append(
-        (time.monotonic(), int(tv.decode(data)["status"]))))  # fmt: skip
+        (time.monotonic(), int(envelope.decode(data)["status"]))))  # fmt: skip
     bus.start()
     client = Bridge(folder, str(folder / "client.yaml"))
     viewer = Bridge(folder, str(folder / "viewer.yaml"))
     publisher = Publisher(100.0)
-    wait_until(lambda: any(status == tv.OK for _, status in responses))
+    wait_until(lambda: any(status == envelope.OK for _, status in responses))
     viewer.kill()
     killed_at = time.monotonic()
     viewer = Bridge(folder, str(folder / "viewer.yaml"))  # its tree is empty: the peer's return
@@ -432,15 +432,15 @@ def fault_director_viewer_restart(folder: Path) -> float | None:
 
     def complete_again() -> bool:
         after = [status for _, status in since_the_kill()]
-        return tv.MISSING_PATHS in after and after[-1] == tv.OK
+        return envelope.MISSING_PATHS in after and after[-1] == envelope.OK
 
     recovery = None
     if wait_until(complete_again) is not None:
         after = since_the_kill()
         # Back when it said so, or answered first (its first answers may come before its log line).
         back = min(viewer.up_at, after[0][0])
-        missing = next(index for index, (_, status) in enumerate(after) if status == tv.MISSING_PATHS)
-        recovered = next(at for at, status in after[missing:] if status == tv.OK)
+        missing = next(index for index, (_, status) in enumerate(after) if status == envelope.MISSING_PATHS)
+        recovered = next(at for at, status in after[missing:] if status == envelope.OK)
         recovery = max(0.0, recovered - back)
     publisher.kill()
     viewer.stop()

@@ -19,7 +19,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from draw_codec import seconds_per_call  # noqa: E402
 
-from bridge.formats import tree_viewer as tv  # noqa: E402
+from bridge.formats.tree_viewer.envelope import FORMAT  # noqa: E402
+from bridge.lcmcodec import VIEWER2_COMMS  # noqa: E402
 from bridge.translators import LoadCache  # noqa: E402
 from bridge.translators.tree_viewer import TreeViewerServer  # noqa: E402
 from bridge.transports.base import Received  # noqa: E402
@@ -48,15 +49,15 @@ def main() -> None:
     print(f"{'request':<36} {'bytes':>10} | {'json.loads':>10} | {'bridge -> markers':>17} | {'ratio':>5}")
     for index, (label, data) in enumerate(payloads().items()):
         channel = f"DIRECTOR_TREE_VIEWER_REQUEST_<bench{index}>"  # a client (a tree) per request
-        message = tv.VIEWER2_COMMS.message_class(
+        message = VIEWER2_COMMS.message_class(
             utime=1,
-            format=tv.FORMAT,
+            format=FORMAT,
             format_version_major=1,
             format_version_minor=0,
             num_bytes=len(data),
             data=data,
         )
-        raw = tv.VIEWER2_COMMS.encode(message)
+        raw = VIEWER2_COMMS.encode(message)
         ((_, markers),) = server.translate(Received(channel, raw))
         baseline = seconds_per_call(lambda data=data: json.loads(data), 1.0)
         ours = seconds_per_call(

@@ -13,11 +13,13 @@ from __future__ import annotations
 from typing import Any, Literal
 
 from bridge.contact import ContactDrawOptions, ContactResults, contact_scene
-from bridge.formats import ign, ros, tree_viewer
+from bridge.formats import ign, ros
 from bridge.formats.drake_contact import decode_contact_results
 from bridge.formats.ign_contact import contacts_message
 from bridge.formats.ros_contact import WRENCH_STAMPED, WrenchEncoder, contact_marker_array_cdr
 from bridge.formats.ros_tf import WORLD
+from bridge.formats.tree_viewer import envelope
+from bridge.formats.tree_viewer.requests import load_requests
 from bridge.sim_time import sec_nsec_from_us
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from bridge.translators.options import IgnOptions, MarkerOptions
@@ -116,7 +118,7 @@ class DrakeContactsToTreeViewer(Translator):
 
     def translate(self, message: Received) -> Outputs:
         results = contact_results(message)
-        requests = tree_viewer.load_requests(
+        requests = load_requests(
             contact_scene(results, self.options), self.options.prefix, results.timestamp_us
         )
-        return [(0, tree_viewer.encode(request)) for request in requests]
+        return [(0, envelope.encode(request)) for request in requests]

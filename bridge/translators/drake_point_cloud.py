@@ -12,9 +12,11 @@ from typing import Any
 
 from pydantic import Field
 
-from bridge.formats import ros, tree_viewer
+from bridge.formats import ros
 from bridge.formats.drake_point_cloud import cloud_from_lcm, cloud_to_lcm
 from bridge.formats.ros_point_cloud import POINT_CLOUD2, cloud_from_cdr, cloud_to_cdr
+from bridge.formats.tree_viewer import envelope
+from bridge.formats.tree_viewer.requests import geometry_command
 from bridge.scene import Geometry, Link, Pose, Scene, StampedPointCloud, Triad
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from bridge.translators.drake_stream import draw_poses
@@ -78,14 +80,14 @@ class DrakePointCloudToTreeViewer(Translator):
     def translate(self, message: Received) -> Outputs:
         stamped = lcm_cloud(message)
         name = message.channel.removeprefix("DRAKE_POINT_CLOUD").lstrip("_") or "default"
-        command = tree_viewer.geometry_command(stamped.cloud, Pose(), (1.0, 1.0, 1.0, 1.0))
+        command = geometry_command(stamped.cloud, Pose(), (1.0, 1.0, 1.0, 1.0))
         request = {
             "timestamp": stamped.time_us,
             "setgeometry": [{"path": [*self.options.prefix, name], "geometry": command}],
             "settransform": [],
             "delete": [],
         }
-        return [(0, tree_viewer.encode(request))]
+        return [(0, envelope.encode(request))]
 
 
 class DrawFramesOptions(MarkerOptions):

@@ -6,7 +6,10 @@ import re
 from typing import Any
 
 from bridge.errors import DecodeError, RequestRejected, SceneError
-from bridge.formats import ros, tree_viewer
+from bridge.formats import ros
+from bridge.formats.tree_viewer import envelope
+from bridge.formats.tree_viewer.requests import DEFAULT_PREFIX, SettransformEncoder, link_path, load_requests
+from bridge.formats.tree_viewer.tree import TreeState
 from bridge.lcmcodec import VIEWER2_COMMS
 from bridge.scene import LinkPoses, Scene
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
@@ -37,7 +40,7 @@ class TreeViewerServer(Translator):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.trees: dict[str, tree_viewer.TreeState] = {}
+        self.trees: dict[str, TreeState] = {}
 
     def translate(self, message: Received) -> Outputs:
         match = self._CLIENT.fullmatch(message.channel)
@@ -46,39 +49,39 @@ class TreeViewerServer(Translator):
                 VIEWER2_COMMS.type_name, "", 0, f"{message.channel} is not a tree viewer request channel"
             )
         client = match.group(1)
-        state = self.trees.setdefault(client, tree_viewer.TreeState(self.options.mesh_roots))
-        answer = tree_viewer.response_channel(client)
+        state = self.trees.setdefault(client, TreeState(self.options.mesh_roots))
+        answer = envelope.response_channel(client)
         try:
             response, changed = self._respond(state, message.data)
         except Exception as error:  # a bug of ours: still answer, then let the router count it
             self.reply(
                 answer,
-                tree_viewer.encode({"status": tree_viewer.ERROR_HANDLING_REQUEST, "error": repr(error)}),
+                envelope.encode({"status": envelope.ERROR_HANDLING_REQUEST, "error": repr(error)}),
             )
             raise
-        self.reply(answer, tree_viewer.encode(response))
-        if response["status"] not in (tree_viewer.OK, tree_viewer.MISSING_PATHS):
+        self.reply(answer, envelope.encode(response))
+        if response["status"] not in (envelope.OK, envelope.MISSING_PATHS):
             raise RequestRejected(response["status"], f"client {client}: {response['error']}")
         return [(0, ros.marker_array_cdr(state.scene(), self.options.table_overrides(), delete_all=changed))]
 
     @staticmethod
-    def _respond(state: tree_viewer.TreeState, data: bytes) -> tuple[dict[str, Any], bool]:
+    def _respond(state: TreeState, data: bytes) -> tuple[dict[str, Any], bool]:
         """The response to one envelope, and whether the tree's geometry changed."""
         try:
-            request = tree_viewer.decode(data)
+            request = envelope.decode(data)
         except RequestRejected as error:
             response: dict[str, Any] = {"status": error.status, "error": str(error)}
-            if error.status == tree_viewer.ERROR_UNKNOWN_FORMAT:
-                response["supported_formats"] = {tree_viewer.FORMAT: [list(tree_viewer.VERSION)]}
+            if error.status == envelope.ERROR_UNKNOWN_FORMAT:
+                response["supported_formats"] = {envelope.FORMAT: [list(envelope.VERSION)]}
             return response, False
         except DecodeError as error:
-            return {"status": tree_viewer.ERROR_HANDLING_REQUEST, "error": str(error)}, False
+            return {"status": envelope.ERROR_HANDLING_REQUEST, "error": str(error)}, False
         changed = bool(request.get("setgeometry") or request.get("delete"))
         return state.respond(request), changed
 
 
 class TreeViewerClientOptions(TranslatorOptions):
-    prefix: list[str] = list(tree_viewer.DEFAULT_PREFIX)  # where the scene hangs in the viewer's tree
+    prefix: list[str] = list(DEFAULT_PREFIX)  # where the scene hangs in the viewer's tree
 
 
 class DrakeToTreeViewer(DrakeTranslator):
@@ -99,19 +102,17 @@ class DrakeToTreeViewer(DrakeTranslator):
         self.prefix = tuple(self.options.prefix)
         self.refused: str | None = None
         self.poses: LinkPoses | None = None
-        self.settransform = tree_viewer.SettransformEncoder(self.prefix)
+        self.settransform = SettransformEncoder(self.prefix)
 
     def translate(self, message: Received) -> Outputs:
         if self.refused is not None:
             raise SceneError(self.refused)
         if message.data[:8] == VIEWER2_COMMS.packed_fingerprint:
-            return self._on_response(tree_viewer.decode(message.data))
+            return self._on_response(envelope.decode(message.data))
         scene, poses = self.drake.read(message)
         out: Outputs = []
         if scene is not None:
-            out += [
-                (0, tree_viewer.encode(request)) for request in tree_viewer.load_requests(scene, self.prefix)
-            ]
+            out += [(0, envelope.encode(request)) for request in load_requests(scene, self.prefix)]
         if poses is not None:
             self.poses = poses
             out.append((0, self.settransform.encode(poses)))
@@ -119,29 +120,29 @@ class DrakeToTreeViewer(DrakeTranslator):
 
     def _on_response(self, response: dict[str, Any]) -> Outputs:
         status = response.get("status")
-        if status in (tree_viewer.ERROR_UNKNOWN_FORMAT, tree_viewer.ERROR_UNKNOWN_FORMAT_VERSION):
+        if status in (envelope.ERROR_UNKNOWN_FORMAT, envelope.ERROR_UNKNOWN_FORMAT_VERSION):
             self.refused = (
-                f"the viewer refused {tree_viewer.FORMAT} {tree_viewer.VERSION[0]}.{tree_viewer.VERSION[1]} "
+                f"the viewer refused {envelope.FORMAT} {envelope.VERSION[0]}.{envelope.VERSION[1]} "
                 f"(status {status}: {response.get('error', 'no reason given')}); no longer sending to it"
             )
             raise SceneError(self.refused)
         scene = self.drake.scene
-        if status != tree_viewer.MISSING_PATHS or scene is None:
+        if status != envelope.MISSING_PATHS or scene is None:
             return []
         missing = [tuple(path) for path in response.get("missing_paths", []) if isinstance(path, list)]
         links = tuple(
             link
             for link in scene.links
-            if any(_related(tuple(tree_viewer.link_path(link, self.prefix)), path) for path in missing)
+            if any(_related(tuple(link_path(link, self.prefix)), path) for path in missing)
         )
         if not links:
             return []
         partial = Scene(links, self.poses)
-        request = tree_viewer.load_requests(partial, self.prefix)[1]  # setgeometry (+ transforms), no delete
-        return [(0, tree_viewer.encode(request))]
+        request = load_requests(partial, self.prefix)[1]  # setgeometry (+ transforms), no delete
+        return [(0, envelope.encode(request))]
 
 
-def _related(link_path: tuple[str, ...], missing: tuple[Any, ...]) -> bool:
+def _related(link: tuple[str, ...], missing: tuple[Any, ...]) -> bool:
     """Whether a link lies under a missing path, or the missing path under the link."""
-    shorter = min(len(link_path), len(missing))
-    return link_path[:shorter] == tuple(missing[:shorter])
+    shorter = min(len(link), len(missing))
+    return link[:shorter] == tuple(missing[:shorter])

@@ -28,8 +28,9 @@ from pathlib import Path
 import numpy as np
 
 from bridge.formats import foxglove, ign, ros
-from bridge.formats import tree_viewer as tv
 from bridge.formats.ros_tf import FrameNames
+from bridge.formats.tree_viewer import envelope
+from bridge.formats.tree_viewer.requests import load_requests
 from bridge.scene import (
     Box,
     Capsule,
@@ -123,7 +124,7 @@ def targets() -> dict[str, Callable[[Scene], list[bytes]]]:
         "markers_in_link_frames": lambda scene: [ros.marker_array_in_link_frames_cdr(scene, frames)],
         "ign_model": lambda scene: [ign.model_bytes(scene)],
         "ign_model_v": lambda scene: [ign.model_v_bytes(scene)],
-        "tree_viewer": lambda scene: [tv.encode(request) for request in tv.load_requests(scene)],
+        "tree_viewer": lambda scene: [envelope.encode(request) for request in load_requests(scene)],
         "foxglove": lambda scene: [foxglove.scene_update(scene, frames).SerializeToString()],
     }
 

@@ -19,7 +19,7 @@ from shape_msgs.msg import Mesh, SolidPrimitive
 from bridge.demo import TETRAHEDRON_OBJ
 from bridge.errors import SceneError
 from bridge.formats import ign, ros
-from bridge.formats import tree_viewer as tv
+from bridge.formats.tree_viewer.requests import DECIMALS
 from bridge.lowering import _tessellated, triangle_mesh
 from bridge.scene import (
     Box,
@@ -118,8 +118,8 @@ def test_every_load_target_writes_the_recorded_values(tmp_path: Path, debian_ign
     between CPUs and BLAS kernels. The `*_posed/marker_array` and `marker_stream_load` outputs
     were recorded again once world-frame marker poses were composed by `scene.PartsOnLinks`
     (issue 15; `tests/test_scene.py` checks it against `Pose.compose`); the `*_posed/tree_viewer`
-    ones once settransform numbers were written to `tv.DECIMALS` decimals (issue 15;
-    `test_tree_viewer_fast.py` checks the rounding). The six `every_kind*/foxglove` and
+    ones once settransform numbers were written to `DECIMALS` decimals (issue 15;
+    `tree_viewer/test_requests.py` checks the rounding). The six `every_kind*/foxglove` and
     `every_kind*/ign_model*` outputs, "refused" before, were recorded once a geometry a target
     cannot write was skipped alone (issue 26): the point cloud is left out and the rest written
     (`tests/test_skipped.py` checks them against the scene without the point cloud).
@@ -143,7 +143,7 @@ def test_every_load_target_writes_the_recorded_values(tmp_path: Path, debian_ign
         "foxglove": protobuf(SceneUpdate),
     }
     # Director's numbers are written to 8 decimals: a last-bit difference may round either way.
-    atol = {"tree_viewer": 1.5 * 10.0**-tv.DECIMALS}
+    atol = {"tree_viewer": 1.5 * 10.0**-DECIMALS}
     recorded, recording_folder = load_outputs.recorded_outputs(), load_outputs.RECORDED_FOLDER
     written = load_outputs.outputs(tmp_path)
     assert written.keys() == recorded.keys()

@@ -21,9 +21,11 @@ from pathlib import Path
 import numpy as np
 
 from bridge.config import BUILTIN_CONFIGS
-from bridge.formats import ign, tree_viewer
+from bridge.formats import ign
 from bridge.formats.drake import decode_load, poses_from_draw
 from bridge.formats.gltf import write_gltf
+from bridge.formats.tree_viewer import envelope
+from bridge.formats.tree_viewer.requests import draw_request, load_requests
 from bridge.lcmcodec import DRAW, LOAD_ROBOT, VIEWER2_COMMS, LcmMessage, codec_for
 from bridge.scene import Scene
 from tests.drake_scene import build_simulator
@@ -91,8 +93,8 @@ def bridge_encoded_seeds(lcm_seeds: Seeds) -> Seeds:
     load = next(data for data in lcm_seeds[LOAD_ROBOT.type_name])
     scene = decode_load(load)
     poses = poses_from_draw(DRAW.decode(lcm_seeds[DRAW.type_name][-1]))
-    envelopes = [tree_viewer.encode(request) for request in tree_viewer.load_requests(scene)]
-    envelopes.append(tree_viewer.encode(tree_viewer.draw_request(poses)))
+    envelopes = [envelope.encode(request) for request in load_requests(scene)]
+    envelopes.append(envelope.encode(draw_request(poses)))
     return {
         VIEWER2_COMMS.type_name: envelopes,
         "ign.Pose_V": [ign.pose_v(poses).SerializeToString()],

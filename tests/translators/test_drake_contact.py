@@ -16,7 +16,7 @@ import pytest
 
 from bridge.contact import FORCE_COLOR, ContactDrawOptions, demo_contact_results, pressure_colors
 from bridge.errors import DecodeError
-from bridge.formats import ros, tree_viewer
+from bridge.formats import ros
 from bridge.formats.drake_contact import contact_results_to_lcm, decode_contact_results
 from bridge.formats.ros_contact import (
     WRENCH_STAMPED,
@@ -24,6 +24,8 @@ from bridge.formats.ros_contact import (
     contact_marker_array,
     contact_marker_array_cdr,
 )
+from bridge.formats.tree_viewer import envelope
+from bridge.formats.tree_viewer.tree import TreeState
 from bridge.scene import Line, Scene, TriangleMesh
 from bridge.translators import TRANSLATORS, LoadCache
 from bridge.transports.base import Received
@@ -278,11 +280,11 @@ def test_ign_contacts_read_by_debians_protos(debian_ign_msgs: ModuleType) -> Non
 def test_tree_viewer_gets_arrows_as_lines_with_heads() -> None:
     translator = TRANSLATORS.get("drake_contacts_to_tree_viewer")({"force_scale": 0.1}, LoadCache())
     out = translator.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
-    requests = [tree_viewer.decode(data) for _, data in out]
+    requests = [envelope.decode(data) for _, data in out]
     assert requests[0]["delete"] == [{"path": ["contacts"]}]
-    state = tree_viewer.TreeState()
+    state = TreeState()
     for request in requests:
-        assert state.apply(request)["status"] == tree_viewer.OK
+        assert state.apply(request)["status"] == envelope.OK
     links = {link.name: link for link in state.scene().links}
     forces = [g.shape for g in links["contact::forces"].geometries]
     assert all(isinstance(line, Line) and line.end_head and not line.start_head for line in forces)

@@ -12,9 +12,10 @@ from visualization_msgs.msg import MarkerArray
 from bridge.config import load_config
 from bridge.convert import convert
 from bridge.errors import DecodeError
-from bridge.formats import tree_viewer
 from bridge.formats.drake import DrawEncoder
 from bridge.formats.drake_point_cloud import cloud_from_lcm
+from bridge.formats.tree_viewer import envelope
+from bridge.formats.tree_viewer.tree import TreeState
 from bridge.scene import LinkPoses, PointCloud
 from bridge.translators import TRANSLATORS
 from bridge.transports.base import Received
@@ -25,18 +26,18 @@ from tests.formats.test_point_cloud import pydrake_message
 def test_a_drake_cloud_becomes_a_tree_viewer_pointcloud_our_server_reads_back() -> None:
     translator = TRANSLATORS.get("drake_point_cloud_to_tree_viewer")()
     data = pydrake_message(("kXYZs", "kRGBs"), count=25)
-    ((index, envelope),) = translator.translate(Received("DRAKE_POINT_CLOUD_WRIST", data))
-    request = tree_viewer.decode(envelope)
+    ((index, sent),) = translator.translate(Received("DRAKE_POINT_CLOUD_WRIST", data))
+    request = envelope.decode(sent)
     (command,) = request["setgeometry"]
     assert index == 0 and command["path"] == ["point_clouds", "WRIST"]
     assert command["geometry"]["type"] == "pointcloud" and len(command["geometry"]["points"]) == 25
-    state = tree_viewer.TreeState()
-    assert state.respond(request)["status"] == tree_viewer.OK
+    state = TreeState()
+    assert state.respond(request)["status"] == envelope.OK
     ((geometry,),) = [link.geometries for link in state.scene().links]
     assert isinstance(geometry.shape, PointCloud)
     assert geometry.shape == cloud_from_lcm(data).cloud  # points and colours, as Director gets them
     (_, unnamed), *_ = translator.translate(Received("DRAKE_POINT_CLOUD", data))
-    assert tree_viewer.decode(unnamed)["setgeometry"][0]["path"] == ["point_clouds", "default"]
+    assert envelope.decode(unnamed)["setgeometry"][0]["path"] == ["point_clouds", "default"]
 
 
 def poses_of(names: tuple[str, ...]) -> bytes:

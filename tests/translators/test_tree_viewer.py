@@ -21,8 +21,9 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from bridge.demo import DEMO_MESH
 from bridge.errors import BridgeError
-from bridge.formats import tree_viewer as tv
 from bridge.formats.drake import decode_load, load_from_scene
+from bridge.formats.tree_viewer import envelope
+from bridge.lcmcodec import VIEWER2_COMMS
 from bridge.scene import Pose
 from bridge.translators import LoadCache
 from bridge.translators.tree_viewer import DrakeToTreeViewer, TreeViewerServer
@@ -233,11 +234,11 @@ def fuzzed_requests(count: int, seed: int = 7) -> list[bytes]:
         if rng.random() < 0.3:  # damage the JSON text
             cut = rng.randrange(len(data))
             data = data[:cut] + bytes([rng.randrange(256)]) + data[cut + 1 :]
-        message = tv.VIEWER2_COMMS.message_class(
+        message = VIEWER2_COMMS.message_class(
             utime=0, format=rng.choice(["treeviewer_json"] * 9 + ["json"]),
             format_version_major=rng.choice([1] * 9 + [0]), format_version_minor=0, num_bytes=len(data), data=data,
         )  # fmt: skip
-        raw = tv.VIEWER2_COMMS.encode(message)
+        raw = VIEWER2_COMMS.encode(message)
         if rng.random() < 0.1:  # damage the envelope itself
             raw = raw[: rng.randrange(len(raw))]
         out.append(raw)
@@ -254,7 +255,7 @@ def test_100000_fuzzed_requests_get_a_reply_each_and_never_crash(tmp_path: Path)
         with contextlib.suppress(BridgeError):  # a bad request: answered, and counted by the router
             server.translate(Received(REQUEST, data))
         assert len(replies.sent) == before + 1
-        status = tv.decode(replies.sent[-1][1])["status"]
+        status = envelope.decode(replies.sent[-1][1])["status"]
         statuses[status] = statuses.get(status, 0) + 1
     assert set(statuses) <= {0, 1, -1, -2, -3, -4} and len(statuses) >= 5, statuses
     assert statuses.get(0, 0) > 1000 and statuses.get(-3, 0) > 1000
@@ -279,10 +280,10 @@ def test_client_resends_on_missing_paths_and_the_viewer_tree_is_complete() -> No
     # The viewer restarts and forgets its tree; the next draw's settransforms miss their paths.
     viewer.trees.clear()
     deliver(client.translate(Received("DRAKE_VIEWER_DRAW", draw_of(scene, 2.0))))
-    answer = tv.decode(to_client.sent[-1][1])
-    assert answer["status"] == tv.MISSING_PATHS and len(answer["missing_paths"]) == 2
+    answer = envelope.decode(to_client.sent[-1][1])
+    assert answer["status"] == envelope.MISSING_PATHS and len(answer["missing_paths"]) == 2
     deliver(client.translate(Received("DIRECTOR_TREE_VIEWER_RESPONSE_<drake>", to_client.sent[-1][1])))
-    assert tv.decode(to_client.sent[-1][1])["status"] == tv.OK
+    assert envelope.decode(to_client.sent[-1][1])["status"] == envelope.OK
     rebuilt = viewer.trees["drake"].scene()
     sent = decode_load(load_from_scene(scene).encode())  # as the client saw it: float32 on LCM
     assert {link.name: link for link in rebuilt.links} == {link.name: link for link in sent.links}
@@ -291,7 +292,9 @@ def test_client_resends_on_missing_paths_and_the_viewer_tree_is_complete() -> No
 
 def test_client_stops_when_the_viewer_does_not_speak_its_format() -> None:
     client = DrakeToTreeViewer({}, LoadCache())
-    refusal = tv.encode({"status": tv.ERROR_UNKNOWN_FORMAT_VERSION, "error": "unknown version 1.0"})
+    refusal = envelope.encode(
+        {"status": envelope.ERROR_UNKNOWN_FORMAT_VERSION, "error": "unknown version 1.0"}
+    )
     with pytest.raises(BridgeError, match="the viewer refused treeviewer_json 1.0 .status -2"):
         client.translate(Received("DIRECTOR_TREE_VIEWER_RESPONSE_<drake>", refusal))
     with pytest.raises(BridgeError, match="no longer sending"):
