@@ -88,8 +88,10 @@ def _until_logged(url: str, log: Path, mark: bytes) -> None:
 SYNC_CHANNEL = "TEST_SYNC"
 
 
-def publish_until(url: str, mark: bytes, received: Callable[[], bool], timeout: float = 120) -> None:
-    """Publish `mark` on `SYNC_CHANNEL` until `received()` (UDP may drop one).
+def publish_until(
+    url: str, mark: bytes, received: Callable[[], bool], timeout: float = 120, channel: str = SYNC_CHANNEL
+) -> None:
+    """Publish `mark` on `channel` until `received()` (UDP may drop one).
 
     A listener's socket queues datagrams in the order they arrive, so once it has read a mark
     sent after a peer's last message, it has read that message too: no fixed wait needed.
@@ -97,7 +99,7 @@ def publish_until(url: str, mark: bytes, received: Callable[[], bool], timeout: 
     bus = lcm.LCM(url)
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        bus.publish(SYNC_CHANNEL, mark)
+        bus.publish(channel, mark)
         time.sleep(0.1)
         if received():
             return

@@ -26,7 +26,7 @@ from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import ClientConnection, connect
 
-from tests.conftest import lcm_url
+from tests.conftest import lcm_url, publish_until
 from tests.formats import oracle
 from tests.peers import BridgeProcess
 from tests.test_router import LcmRecorder, start_drake
@@ -203,6 +203,9 @@ def check_scene(entities: dict[str, Any], load: Any) -> None:
                 [s.size.x, s.size.y, s.size.z], [2 * data[0]] * 3) for s in entity.spheres)  # fmt: skip
 
 
+DRAW_CHANNEL = "DRAKE_VIEWER_DRAW_ILLUSTRATION"
+
+
 @pytest.mark.parametrize("client_kind", list(CLIENTS))
 def test_a_drake_simulation_reaches_a_foxglove_client(client_kind: str, tmp_path: Path) -> None:
     connect_client, subprotocol = CLIENTS[client_kind]
@@ -218,14 +221,18 @@ def test_a_drake_simulation_reaches_a_foxglove_client(client_kind: str, tmp_path
         client = connect_client(port, "/drake/illustration/scene", "/drake/illustration/transforms")
         assert drake.wait(timeout=120) == 0
         recorder.sync()  # holds Drake's last draw
-        draws = recorder.messages["DRAKE_VIEWER_DRAW_ILLUSTRATION"]
+        draws = recorder.messages[DRAW_CHANNEL]
         last = drake_lcmtypes.lcmt_viewer_draw.decode(draws[-1])
 
         def has_last_draw() -> bool:
             payloads = client.messages.get("/drake/illustration/transforms", [])  # type: ignore[union-attr]
             return bool(payloads) and _stamp_ms(_transforms(payloads[-1])) == last.timestamp
 
-        assert client.pump(60, has_last_draw), client.log()
+        if not client.pump(60, has_last_draw):
+            # Drake sent its last draw once, over UDP: on a loaded machine the datagram can be lost
+            # before the bridge reads it (counted as the LCM transport's dropped_by_kernel). The
+            # same bytes again, until the client has them.
+            publish_until(url, draws[-1], lambda: client.pump(0.5, has_last_draw), 60, DRAW_CHANNEL)
         assert client.pump(60, lambda: bool(client.messages.get("/drake/illustration/scene"))), client.log()  # type: ignore[union-attr]
         assert client.subprotocol == subprotocol
         # A client that connects after the load still receives the whole scene.
