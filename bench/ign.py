@@ -3,8 +3,9 @@
 Run: .venv/bin/python bench/ign.py [--seconds 10] [--quick]
 
 `measures()` gives issue 15's goal 2 as rows: draw bytes -> Pose_V bytes at 1000 links >= 20x
-the protobuf-object path (`ign.pose_v(...).SerializeToString()`, kept as the reference), and
-(unless quick) the live run below: 1 kHz x 1000 links carried by one core.
+the protobuf-object path (`pose_v(...).SerializeToString()`, the reference in
+tests/formats/ign/oracle.py), and (unless quick) the live run below: 1 kHz x 1000 links carried
+by one core.
 
 The bridge (one `drake_to_ign_pose_v` route) runs as a process pinned to CPU 0; this process
 publishes 1000-link draws over LCM at 1 kHz and counts the Pose_V messages with an ign-transport
@@ -27,12 +28,13 @@ from common import Measure  # noqa: E402
 from draw_codec import frame, paired, print_measures, seconds_per_call  # noqa: E402
 from router import Bridge, publish_at  # noqa: E402
 
-from bridge.formats import ign  # noqa: E402
 from bridge.formats.drake import DrawDecoder, DrawEncoder  # noqa: E402
+from bridge.formats.ign.poses import PosesEncoder  # noqa: E402
 from bridge.translators import TRANSLATORS, LoadCache  # noqa: E402
 from bridge.transports.base import Received  # noqa: E402
 from bridge.transports.ign import IgnNode  # noqa: E402
 from bridge.transports.lcm import LcmBus  # noqa: E402
+from tests.formats.ign.oracle import pose_v  # noqa: E402
 
 os.environ.setdefault("IGN_PARTITION", f"bench{os.getpid()}")
 os.environ.setdefault("IGN_IP", "127.0.0.1")
@@ -54,13 +56,13 @@ def cpu_seconds(pid: int) -> float:
 def encode_measure(quick: bool) -> Measure:
     """draw bytes -> Pose_V bytes (decode included on both sides), ours against the objects."""
     draw = DrawEncoder().encode(frame(1000, seed=1))
-    decoder, encoder = DrawDecoder(), ign.PosesEncoder()
+    decoder, encoder = DrawDecoder(), PosesEncoder()
 
     def ours() -> bytes:
         return encoder.encode(decoder.decode(draw))
 
     def objects() -> bytes:
-        return bytes(ign.pose_v(decoder.decode(draw)).SerializeToString())
+        return bytes(pose_v(decoder.decode(draw)).SerializeToString())
 
     assert ours() == objects()  # byte for byte
     fast, slow = paired(ours, objects, quick)

@@ -59,6 +59,7 @@ def base_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
 
 def our_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
     """Each path of `base_calls` as this checkout writes it (the same bytes; only called here)."""
+    from bridge.formats.ign.model import model_bytes  # a package here, one module in the base commit
     from bridge.formats.tree_viewer import envelope
     from bridge.formats.tree_viewer.requests import SettransformEncoder, load_requests
 
@@ -67,7 +68,7 @@ def our_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
     return {
         "settransform": lambda: settransform.encode(draw),
         "MarkerArray": lambda: ros.marker_array_cdr(load),
-        "ign Model": lambda: ign.model_bytes(load),
+        "ign Model": lambda: model_bytes(load),
         "tree viewer setgeometry": lambda: [envelope.encode(request) for request in load_requests(load)],
         "Foxglove SceneUpdate": lambda: foxglove.scene_update(load, frames).SerializeToString(),
         "shape_msgs": lambda: ros.shapes_cdr(load),

@@ -27,9 +27,10 @@ from geometry_msgs.msg import Point, Pose, PoseArray, PoseStamped, Quaternion
 from load_targets import scene, times
 from rclpy.serialization import serialize_message
 
-from bridge.formats import ign, ros
+from bridge.formats import ros
 from bridge.formats.drake import DrawDecoder, DrawEncoder
 from bridge.scene import LinkPoses
+from tests.formats.ign.oracle import pose_v as pose_v_message
 
 
 def reference_compose(
@@ -193,7 +194,7 @@ def main() -> None:
     print(f"  MarkerStream.update (template)   {update * 1e3:8.2f} ms")
     print(f"  marker_array_cdr (rebuilt)       {rebuild * 1e3:8.2f} ms   ratio {rebuild / update:.0f}x")
 
-    pose_v = seconds_per_call(lambda: ign.pose_v(moved).SerializeToString(), args.budget)
+    pose_v = seconds_per_call(lambda: pose_v_message(moved).SerializeToString(), args.budget)
     print(f"\ndraw -> ign Pose_V bytes, {links} links: {pose_v * 1e3:.2f} ms")
     print(f"\nload -> target ({links} geometries) and draw -> settransform, beside the base commit's code")
     print_measures(load_measures(links=links))

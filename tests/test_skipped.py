@@ -143,7 +143,8 @@ def test_run_publishes_every_other_shape_and_counts_the_warning(tmp_path: Path) 
 def test_targets_that_cannot_draw_a_point_cloud_write_the_rest_of_the_scene(tmp_path: Path) -> None:
     """Foxglove and ign have no point cloud shape: the scene is written without it, the same
     bytes as the scene whose link has no geometry, and the skip is named."""
-    from bridge.formats import foxglove, ign
+    from bridge.formats import foxglove
+    from bridge.formats.ign.model import model_bytes, model_v_bytes
     from bridge.formats.ros_tf import FrameNames
     from bridge.scene import PointCloud
     from tests.formats.load_outputs import every_kind
@@ -159,8 +160,8 @@ def test_targets_that_cannot_draw_a_point_cloud_write_the_rest_of_the_scene(tmp_
     )
     targets = {
         "foxglove": lambda s: foxglove.scene_update(s, FrameNames()).SerializeToString(),
-        "ign_model": lambda s: ign.model_bytes(s),
-        "ign_model_v": lambda s: ign.model_v_bytes(s),
+        "ign_model": lambda s: model_bytes(s),
+        "ign_model_v": lambda s: model_v_bytes(s),
     }
     for name, write in targets.items():
         with collecting() as skipped:

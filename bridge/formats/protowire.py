@@ -1,8 +1,8 @@
 """The protobuf wire format by hand, for the encoders that write bytes without message objects.
 
 A message is its fields' encodings in field-number order, as protobuf's own writer (upb) lays
-it out, so pieces serialised once can be joined (`ign.model_bytes`) or rewritten in place
-(`ign.PosesEncoder`), and the bytes equal protobuf's. proto3 leaves out a scalar equal to its
+it out, so pieces serialised once can be joined (`ign.model.model_bytes`) or rewritten in
+place (`ign.poses.PosesEncoder`), and the bytes equal protobuf's. proto3 leaves out a scalar equal to its
 default, judged by bit pattern (so -0.0 is written); a submessage that was set is written even
 when empty. The helpers here follow both rules. (Foxglove's SceneUpdate was tried this way and
 was no faster than its protobuf objects: it stays with those.)

@@ -13,9 +13,10 @@ from __future__ import annotations
 from typing import Any, Literal
 
 from bridge.contact import ContactDrawOptions, ContactResults, contact_scene
-from bridge.formats import ign, ros
+from bridge.formats import ros
 from bridge.formats.drake_contact import decode_contact_results
-from bridge.formats.ign_contact import contacts_message
+from bridge.formats.ign import schema as ign
+from bridge.formats.ign.contact import contacts_message
 from bridge.formats.ros_contact import WRENCH_STAMPED, WrenchEncoder, contact_marker_array_cdr
 from bridge.formats.ros_tf import WORLD
 from bridge.formats.tree_viewer import envelope

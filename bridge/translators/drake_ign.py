@@ -7,8 +7,10 @@ from typing import Any, ClassVar
 
 from pydantic import Field
 
-from bridge.formats import ign
 from bridge.formats.drake import DrawEncoder
+from bridge.formats.ign.model import model_bytes, model_v_bytes
+from bridge.formats.ign.poses import PosesEncoder, poses_from_pose_v
+from bridge.formats.ign.schema import IGNITION
 from bridge.scene import Scene
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from bridge.translators.drake_stream import DrakeTranslator, draw_poses
@@ -29,7 +31,7 @@ class _DrakeToIgn(Translator):
         # What the class declares (checked against the route's transports when the config loads);
         # an instance names the package its options pick.
         super().__init_subclass__(**kwargs)
-        cls.outputs = (Output("", ign_type(ign.IGNITION, cls.message_name), latched=True),)
+        cls.outputs = (Output("", ign_type(IGNITION, cls.message_name), latched=True),)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -56,7 +58,7 @@ class DrakeToIgnModel(_DrakeToIgn, DrakeTranslator):
         self._published_at = float("-inf")
 
     def build(self, scene: Scene) -> bytes:
-        return ign.model_bytes(scene, msgs=self.msgs)
+        return model_bytes(scene, msgs=self.msgs)
 
     def translate(self, message: Received) -> Outputs:
         scene, poses = self.drake.read(message)
@@ -76,20 +78,20 @@ class DrakeToIgnModelV(DrakeToIgnModel):
     message_name = "Model_V"
 
     def build(self, scene: Scene) -> bytes:
-        return ign.model_v_bytes(scene, msgs=self.msgs)
+        return model_v_bytes(scene, msgs=self.msgs)
 
 
 class DrakeToIgnPoseV(_DrakeToIgn):
     """draw -> `Pose_V`: a Pose per link, named with the link's Drake name.
 
-    Written by `ign.PosesEncoder` (the same bytes as `ign.pose_v` serialised, without objects).
+    Written by `PosesEncoder` (the bytes protobuf writes for the same message, without objects).
     """
 
     message_name = "Pose_V"
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.encoder = ign.PosesEncoder(self.message_name)
+        self.encoder = PosesEncoder(self.message_name)
 
     def translate(self, message: Received) -> Outputs:
         return [(0, self.encoder.encode(draw_poses(message)))]
@@ -110,7 +112,7 @@ class IgnPoseVToDrakeDraw(Translator):
 
     Options = PoseVToDrawOptions
     options: PoseVToDrawOptions
-    reads = (ign_type(ign.IGNITION, "Pose_V"),)
+    reads = (ign_type(IGNITION, "Pose_V"),)
     outputs = (Output("", DRAW_TYPE),)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -121,5 +123,5 @@ class IgnPoseVToDrakeDraw(Translator):
 
     def translate(self, message: Received) -> Outputs:
         parsed = self.msgs.parse("Pose_V", message.data)
-        poses = ign.poses_from_pose_v(parsed, self.options.robot_nums)
+        poses = poses_from_pose_v(parsed, self.options.robot_nums)
         return [(0, self.encoder.encode(poses))]

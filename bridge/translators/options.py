@@ -10,7 +10,7 @@ from typing import Any, Literal
 
 from pydantic import Field
 
-from bridge.formats import ign
+from bridge.formats.ign.schema import GZ, IGNITION, MessageSet
 from bridge.formats.ros_tf import WORLD, FrameNames
 from bridge.translators.base import TranslatorOptions
 from bridge.translators.drake_stream import role_of
@@ -44,5 +44,5 @@ class IgnOptions(TranslatorOptions):
 
     package: Literal["ignition", "gz"] = "ignition"
 
-    def messages(self) -> ign.MessageSet:
-        return ign.IGNITION if self.package == "ignition" else ign.GZ
+    def messages(self) -> MessageSet:
+        return IGNITION if self.package == "ignition" else GZ

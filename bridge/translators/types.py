@@ -7,7 +7,8 @@ through each other's.
 
 from __future__ import annotations
 
-from bridge.formats import foxglove, ign
+from bridge.formats import foxglove
+from bridge.formats.ign.schema import MessageSet
 from bridge.lcmcodec import CONTACT_RESULTS, DRAW, LINK_DATA, LOAD_ROBOT, POINT_CLOUD, VIEWER2_COMMS
 from bridge.transports.base import CDR, LCM, PROTOBUF, MessageType
 
@@ -29,6 +30,6 @@ def ros_type(name: str) -> MessageType:
     return MessageType(name, CDR)
 
 
-def ign_type(msgs: ign.MessageSet, name: str) -> MessageType:
+def ign_type(msgs: MessageSet, name: str) -> MessageType:
     """An ign/gz protobuf message (`Pose_V`) under a package's names (`ignition.msgs.Pose_V`)."""
     return MessageType(msgs.full_name(name), PROTOBUF)

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import zmq
 from google.protobuf.message import DecodeError as ProtobufDecodeError
 
-from bridge.formats.ign import IGNITION
+from bridge.formats.ign.schema import IGNITION
 from bridge.transports.base import (
     PROTOBUF,
     CallPublisher,

@@ -27,7 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bridge.formats import foxglove, ign, ros
+from bridge.formats import foxglove, ros
+from bridge.formats.ign.model import model_bytes, model_v_bytes
 from bridge.formats.ros_tf import FrameNames
 from bridge.formats.tree_viewer import envelope
 from bridge.formats.tree_viewer.requests import load_requests
@@ -122,8 +123,8 @@ def targets() -> dict[str, Callable[[Scene], list[bytes]]]:
         "marker_array": lambda scene: [ros.marker_array_cdr(scene)],
         "marker_stream_load": lambda scene: [ros.MarkerStream(scene).load_cdr],
         "markers_in_link_frames": lambda scene: [ros.marker_array_in_link_frames_cdr(scene, frames)],
-        "ign_model": lambda scene: [ign.model_bytes(scene)],
-        "ign_model_v": lambda scene: [ign.model_v_bytes(scene)],
+        "ign_model": lambda scene: [model_bytes(scene)],
+        "ign_model_v": lambda scene: [model_v_bytes(scene)],
         "tree_viewer": lambda scene: [envelope.encode(request) for request in load_requests(scene)],
         "foxglove": lambda scene: [foxglove.scene_update(scene, frames).SerializeToString()],
     }

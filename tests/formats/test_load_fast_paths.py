@@ -18,7 +18,9 @@ from shape_msgs.msg import Mesh, SolidPrimitive
 
 from bridge.demo import TETRAHEDRON_OBJ
 from bridge.errors import SceneError
-from bridge.formats import ign, ros
+from bridge.formats import ros
+from bridge.formats.ign.model import model, model_bytes, model_v, model_v_bytes
+from bridge.formats.ign.schema import GZ, IGNITION, MessageSet
 from bridge.formats.tree_viewer.requests import DECIMALS
 from bridge.lowering import _tessellated, triangle_mesh
 from bridge.scene import (
@@ -160,13 +162,13 @@ def test_every_load_target_writes_the_recorded_values(tmp_path: Path, debian_ign
 
 
 @settings(max_examples=150, deadline=None)
-@given(scenes(), st.one_of(st.none(), link_poses(max_links=4)), st.sampled_from([ign.IGNITION, ign.GZ]))
-def test_ign_model_bytes_equal_the_protobuf_objects(scene: Scene, draw: LinkPoses | None, msgs: ign.MessageSet) -> None:
+@given(scenes(), st.one_of(st.none(), link_poses(max_links=4)), st.sampled_from([IGNITION, GZ]))
+def test_ign_model_bytes_equal_the_protobuf_objects(scene: Scene, draw: LinkPoses | None, msgs: MessageSet) -> None:
     if draw is not None:  # some of the scene's links in the frame, some not
         names = tuple(link.name for link in scene.links)[: len(draw)] + draw.names[len(scene.links) :]
         scene = scene.with_poses(LinkPoses(draw.timestamp_ms, names, draw.robot_nums, draw.positions, draw.quaternions_wxyz))
-    assert ign.model_bytes(scene, "m", msgs) == ign.model(scene, "m", msgs).SerializeToString()
-    assert ign.model_v_bytes(scene, msgs) == ign.model_v(scene, msgs).SerializeToString()
+    assert model_bytes(scene, "m", msgs) == model(scene, "m", msgs).SerializeToString()
+    assert model_v_bytes(scene, msgs) == model_v(scene, msgs).SerializeToString()
 
 
 @given(poses)
@@ -174,7 +176,7 @@ def test_ign_pose_bytes_with_zeros_and_negative_zeros(pose: Pose) -> None:
     signed = Pose(tuple(-0.0 if value == 0 else value for value in pose.position), pose.quaternion_wxyz)  # type: ignore[arg-type]
     for each in (pose, signed, Pose(), Pose((0.0, -0.0, 1.0), (0.0, 1.0, -0.0, 0.0))):
         scene = Scene((Link("a", 1, (Geometry(Box((1.0, 2.0, 3.0)), each, (0.0, -0.0, 0.5, 1.0)),)),))
-        assert ign.model_bytes(scene) == ign.model(scene).SerializeToString()
+        assert model_bytes(scene) == model(scene).SerializeToString()
 
 
 def test_an_empty_scene_is_an_empty_marker_array() -> None:
@@ -191,5 +193,5 @@ def test_zero_and_negative_zero_in_one_scene_are_not_confused_by_the_caches() ->
         for zero in (0.0, -0.0, 0.0, -0.0)
     )
     scene = Scene((Link("a", 1, geometries), Link("b", 2, geometries[::-1])))
-    assert ign.model_bytes(scene) == ign.model(scene).SerializeToString()
+    assert model_bytes(scene) == model(scene).SerializeToString()
     assert ros.marker_array_cdr(scene) == ros.to_cdr(ros.marker_array(scene))

@@ -21,14 +21,15 @@ from pathlib import Path
 import numpy as np
 
 from bridge.config import BUILTIN_CONFIGS
-from bridge.formats import ign
 from bridge.formats.drake import decode_load, poses_from_draw
 from bridge.formats.gltf import write_gltf
+from bridge.formats.ign.model import model
 from bridge.formats.tree_viewer import envelope
 from bridge.formats.tree_viewer.requests import draw_request, load_requests
 from bridge.lcmcodec import DRAW, LOAD_ROBOT, VIEWER2_COMMS, LcmMessage, codec_for
 from bridge.scene import Scene
 from tests.drake_scene import build_simulator
+from tests.formats.ign.oracle import pose_v
 
 Seeds = dict[str, list[bytes]]
 
@@ -97,8 +98,8 @@ def bridge_encoded_seeds(lcm_seeds: Seeds) -> Seeds:
     envelopes.append(envelope.encode(draw_request(poses)))
     return {
         VIEWER2_COMMS.type_name: envelopes,
-        "ign.Pose_V": [ign.pose_v(poses).SerializeToString()],
-        "ign.Model": [ign.model(scene.with_poses(poses)).SerializeToString()],
+        "ign.Pose_V": [pose_v(poses).SerializeToString()],
+        "ign.Model": [model(scene.with_poses(poses)).SerializeToString()],
         "gltf": [write_gltf(scene.with_poses(poses))],
     }
 

@@ -17,10 +17,11 @@ import numpy as np
 import pytest
 import zmq
 
-from bridge.formats import ign
+from bridge.formats.ign.schema import IGNITION
 from bridge.scene import LinkPoses
 from bridge.transports.ign import DISCOVERY_GROUP, MESSAGE_PORT, WIRE_VERSION, IgnNode
 from tests.conftest import DRAKE_SCENE_SCRIPT, lcm_url
+from tests.formats.ign.oracle import pose_v
 from tests.peers import BridgeProcess
 from tests.test_router import LcmRecorder
 
@@ -171,7 +172,7 @@ def test_malformed_datagrams_and_frames_are_counted_and_skipped(ign_environment:
         # the node goes on (a ZMQError here once ended the node's thread, and all discovery with it).
         # Sent first, while the node's socket is empty: behind the flood below, UDP may drop them.
         for bad_address in ("garbage", "tcp://", "tcp://127.0.0.1", "tcp://127.0.0.1:99999", "inproc://x"):
-            bad_advertise = ign.IGNITION.Discovery(version=WIRE_VERSION, process_uuid=str(uuid.uuid4()), type=1)
+            bad_advertise = IGNITION.Discovery(version=WIRE_VERSION, process_uuid=str(uuid.uuid4()), type=1)
             bad_advertise.pub.topic, bad_advertise.pub.address = full, bad_address
             bad_advertise.pub.msg_pub.msg_type = "ignition.msgs.Pose_V"
             udp.sendto(datagram(bad_advertise), (DISCOVERY_GROUP, MESSAGE_PORT))
@@ -179,7 +180,7 @@ def test_malformed_datagrams_and_frames_are_counted_and_skipped(ign_environment:
         while node.errors["advertise_address"] < 5 and time.monotonic() < deadline:
             time.sleep(0.02)
         rng = np.random.default_rng(3)
-        good_header = ign.IGNITION.Discovery(version=WIRE_VERSION, process_uuid="fuzzer", type=4)
+        good_header = IGNITION.Discovery(version=WIRE_VERSION, process_uuid="fuzzer", type=4)
         for _ in range(300):
             kind = rng.integers(4)
             if kind == 0:  # a length prefix that disagrees with the datagram
@@ -189,17 +190,17 @@ def test_malformed_datagrams_and_frames_are_counted_and_skipped(ign_environment:
                 data = struct.pack("<H", 40) + rng.bytes(40)
             elif kind == 2:  # the wrong wire version
                 data = datagram(
-                    ign.IGNITION.Discovery(version=int(rng.integers(0, 9)), process_uuid="x", type=1)
+                    IGNITION.Discovery(version=int(rng.integers(0, 9)), process_uuid="x", type=1)
                 )
             else:  # random bytes of any length
                 data = rng.bytes(int(rng.integers(0, 300)))
             udp.sendto(data, (DISCOVERY_GROUP, MESSAGE_PORT))
         # A publisher that advertises properly, then sends good and bad ZMQ messages.
-        advertise = ign.IGNITION.Discovery(version=WIRE_VERSION, process_uuid=str(uuid.uuid4()), type=1)
+        advertise = IGNITION.Discovery(version=WIRE_VERSION, process_uuid=str(uuid.uuid4()), type=1)
         advertise.pub.topic, advertise.pub.address = full, address
         advertise.pub.process_uuid, advertise.pub.node_uuid = advertise.process_uuid, "node"
         advertise.pub.msg_pub.msg_type = "ignition.msgs.Pose_V"
-        payload = ign.pose_v(poses()).SerializeToString()
+        payload = pose_v(poses()).SerializeToString()
         deadline = time.monotonic() + 60
         while not got and time.monotonic() < deadline:
             udp.sendto(datagram(advertise), (DISCOVERY_GROUP, MESSAGE_PORT))

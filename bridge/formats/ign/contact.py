@@ -1,7 +1,7 @@
 """Contact results to `ignition.msgs.Contacts` (or `gz.msgs.Contacts`): one `Contact` per contact pair.
 
 Field numbers from Debian's ign-msgs 8 protos (contacts.proto, contact.proto, joint_wrench.proto,
-wrench.proto, entity.proto), declared in `bridge.formats.ign`. Each Contact names its two
+wrench.proto, entity.proto), declared in `bridge.formats.ign.schema`. Each Contact names its two
 bodies (`collision1`/`collision2`, LINK entities named by Drake's body names), has one
 `position` (the contact point, or a surface's centroid), one `normal` (a point contact's; for a
 surface, the direction of its force), `depth` 0 (Drake does not send penetration depth), and one
@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from bridge.contact import ContactResults
-from bridge.formats.ign import IGNITION, MessageSet
+from bridge.formats.ign.schema import IGNITION, MessageSet
 from bridge.scene import FloatArray
 
 _LINK = 3  # Entity.Type.LINK
