@@ -16,8 +16,9 @@ from bridge.contact import ContactDrawOptions, ContactResults, contact_scene
 from bridge.formats import ign, ros, tree_viewer
 from bridge.formats.drake_contact import decode_contact_results
 from bridge.formats.ign_contact import contacts_message
-from bridge.formats.ros_contact import WRENCH_STAMPED, WrenchEncoder, contact_marker_array_cdr
-from bridge.formats.ros_tf import WORLD
+from bridge.formats.ros import WRENCH_STAMPED
+from bridge.formats.ros.contact import WrenchEncoder, contact_marker_array_cdr
+from bridge.formats.ros.tf import WORLD
 from bridge.sim_time import sec_nsec_from_us
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from bridge.translators.options import IgnOptions, MarkerOptions

@@ -7,6 +7,7 @@ from typing import Any
 
 from bridge.errors import DecodeError, RequestRejected, SceneError
 from bridge.formats import ros, tree_viewer
+from bridge.formats.ros.markers import marker_array_cdr
 from bridge.lcmcodec import VIEWER2_COMMS
 from bridge.scene import LinkPoses, Scene
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
@@ -59,7 +60,7 @@ class TreeViewerServer(Translator):
         self.reply(answer, tree_viewer.encode(response))
         if response["status"] not in (tree_viewer.OK, tree_viewer.MISSING_PATHS):
             raise RequestRejected(response["status"], f"client {client}: {response['error']}")
-        return [(0, ros.marker_array_cdr(state.scene(), self.options.table_overrides(), delete_all=changed))]
+        return [(0, marker_array_cdr(state.scene(), self.options.table_overrides(), delete_all=changed))]
 
     @staticmethod
     def _respond(state: tree_viewer.TreeState, data: bytes) -> tuple[dict[str, Any], bool]:

@@ -27,9 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from bridge.formats import foxglove, ign, ros
+from bridge.formats import foxglove, ign
 from bridge.formats import tree_viewer as tv
-from bridge.formats.ros_tf import FrameNames
+from bridge.formats.ros.markers import MarkerStream, marker_array_cdr, marker_array_in_link_frames_cdr
+from bridge.formats.ros.tf import FrameNames
 from bridge.scene import (
     Box,
     Capsule,
@@ -118,9 +119,9 @@ def targets() -> dict[str, Callable[[Scene], list[bytes]]]:
     by the paths of the base commit, which wrote the same bytes from message objects)."""
     frames = FrameNames()
     return {
-        "marker_array": lambda scene: [ros.marker_array_cdr(scene)],
-        "marker_stream_load": lambda scene: [ros.MarkerStream(scene).load_cdr],
-        "markers_in_link_frames": lambda scene: [ros.marker_array_in_link_frames_cdr(scene, frames)],
+        "marker_array": lambda scene: [marker_array_cdr(scene)],
+        "marker_stream_load": lambda scene: [MarkerStream(scene).load_cdr],
+        "markers_in_link_frames": lambda scene: [marker_array_in_link_frames_cdr(scene, frames)],
         "ign_model": lambda scene: [ign.model_bytes(scene)],
         "ign_model_v": lambda scene: [ign.model_v_bytes(scene)],
         "tree_viewer": lambda scene: [tv.encode(request) for request in tv.load_requests(scene)],
