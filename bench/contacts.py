@@ -33,7 +33,7 @@ from bridge.contact import (
     pressure_colors,
 )
 from bridge.formats.drake_contact import contact_results_to_lcm, decode_contact_results
-from bridge.formats.ros_contact import contact_marker_array_cdr
+from bridge.formats.ros.contact import contact_marker_array_cdr
 
 
 def _arrow(

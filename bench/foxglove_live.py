@@ -29,7 +29,7 @@ from websockets.sync.client import ClientConnection, connect
 
 from bridge.formats import foxglove
 from bridge.formats.drake import DrawDecoder, DrawEncoder
-from bridge.formats.ros_tf import FrameNames
+from bridge.formats.ros.tf import FrameNames
 from bridge.scene import LinkPoses
 from bridge.transports.base import PROTOBUF, MessageType, Publisher, Qos
 from bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport

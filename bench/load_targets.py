@@ -2,7 +2,9 @@
 checkout write them, each in a child process (`times`), for `bench/translators.py`.
 
 The base side's `bridge` is the base commit's, unpacked with `git archive`: so what runs on that
-side (`base_calls`) uses only what both versions have.
+side (`base_calls`) uses only what both versions have, and each side imports the ROS modules by
+its own paths (the base commit's `bridge/formats/ros.py` and `ros_tf.py` are `bridge/formats/ros/`
+here), in the function that uses them.
 """
 
 from __future__ import annotations
@@ -18,9 +20,8 @@ from pathlib import Path
 from common import best_of
 from draw_codec import frame
 
-from bridge.formats import foxglove, ign, ros
+from bridge.formats import foxglove, ign
 from bridge.formats.drake import DrawDecoder, DrawEncoder
-from bridge.formats.ros_tf import FrameNames
 from bridge.scene import Box, Capsule, Cylinder, Ellipsoid, Geometry, Link, LinkPoses, Scene, Sphere
 from bridge.scene import Pose as ScenePose
 
@@ -44,9 +45,10 @@ def inputs(links: int) -> tuple[Scene, LinkPoses]:
 
 def base_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
     """Each measured path as the base commit writes it."""
+    from bridge.formats import ros, ros_tf  # the base commit's modules: one file each then
     from bridge.formats import tree_viewer as tv  # the base commit's one module (a package since)
 
-    frames = FrameNames()
+    frames = ros_tf.FrameNames()
     return {
         "settransform": lambda: tv.encode(tv.draw_request(draw)),
         "MarkerArray": lambda: ros.marker_array_cdr(load),
@@ -60,6 +62,9 @@ def base_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
 def our_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
     """Each path of `base_calls` as this checkout writes it (the same bytes; only called here)."""
     from bridge.formats.ign.model import model_bytes  # a package here, one module in the base commit
+    from bridge.formats.ros.markers import marker_array_cdr
+    from bridge.formats.ros.shapes import shapes_cdr
+    from bridge.formats.ros.tf import FrameNames
     from bridge.formats.tree_viewer import envelope
     from bridge.formats.tree_viewer.requests import SettransformEncoder, load_requests
 
@@ -67,11 +72,11 @@ def our_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
     settransform = SettransformEncoder()
     return {
         "settransform": lambda: settransform.encode(draw),
-        "MarkerArray": lambda: ros.marker_array_cdr(load),
+        "MarkerArray": lambda: marker_array_cdr(load),
         "ign Model": lambda: model_bytes(load),
         "tree viewer setgeometry": lambda: [envelope.encode(request) for request in load_requests(load)],
         "Foxglove SceneUpdate": lambda: foxglove.scene_update(load, frames).SerializeToString(),
-        "shape_msgs": lambda: ros.shapes_cdr(load),
+        "shape_msgs": lambda: shapes_cdr(load),
     }
 
 

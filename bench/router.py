@@ -203,7 +203,7 @@ class Subscriber:
 
 
 def pose_array_sequence(data: bytes) -> int:
-    from bridge.formats.ros import pose_array_arrays
+    from bridge.formats.ros.poses import pose_array_arrays
 
     return int(pose_array_arrays(data)[2][0, 0])
 
@@ -329,8 +329,9 @@ def throughput_run(
 
 def output_sizes(links: int = 1000) -> dict[str, int]:
     """Bytes of each per-draw route's message for one `links`-link draw, from the bridge's encoders."""
-    from bridge.formats.ros import MarkerStream, PoseArrayEncoder
-    from bridge.formats.ros_tf import FrameNames, TransformsEncoder
+    from bridge.formats.ros.markers import MarkerStream
+    from bridge.formats.ros.poses import PoseArrayEncoder
+    from bridge.formats.ros.tf import FrameNames, TransformsEncoder
 
     the_scene = scene(links)
     poses = frame(tuple(link.name for link in the_scene.links), 1)

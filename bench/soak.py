@@ -219,7 +219,7 @@ def wait_until(condition: Callable[[], bool], timeout: float = 20.0) -> float | 
 
 
 def pose_array_epoch(data: bytes) -> int:
-    from bridge.formats.ros import pose_array_arrays
+    from bridge.formats.ros.poses import pose_array_arrays
 
     return int(pose_array_arrays(data)[2][0, 1])
 

@@ -20,9 +20,9 @@ from rclpy.serialization import deserialize_message, serialize_message
 from tf2_msgs.msg import TFMessage
 from translators import scene
 
-from bridge.formats import ros
 from bridge.formats.drake import DrawDecoder, DrawEncoder
-from bridge.formats.ros_tf import FrameNames, TransformsEncoder
+from bridge.formats.ros.markers import MarkerStream, marker_array_in_link_frames_cdr
+from bridge.formats.ros.tf import FrameNames, TransformsEncoder
 from bridge.scene import LinkPoses
 
 
@@ -71,10 +71,10 @@ def main() -> None:
     print(f"  ratio                                 {slow / fast:10.0f}x   (goal >= 100x)")
 
     load = scene(args.links).with_poses(frame(args.links))
-    stream = ros.MarkerStream(load)
+    stream = MarkerStream(load)
     moved = frame(args.links, seed=1)
     per_draw = seconds_per_call(lambda: stream.update(moved), args.budget)
-    once = seconds_per_call(lambda: ros.marker_array_in_link_frames_cdr(load, frames), args.budget)
+    once = seconds_per_call(lambda: marker_array_in_link_frames_cdr(load, frames), args.budget)
     print(f"\nper draw, {len(stream)} markers: what the world-frame route does, what the TF set-up does")
     print(f"  world frame: MarkerStream.update every draw    {per_draw * 1e6:10.1f} us")
     print(f"  link frames: one TFMessage every draw          {fast * 1e6:10.1f} us")

@@ -27,10 +27,12 @@ from geometry_msgs.msg import Point, Pose, PoseArray, PoseStamped, Quaternion
 from load_targets import scene, times
 from rclpy.serialization import serialize_message
 
-from bridge.formats import ros
 from bridge.formats.drake import DrawDecoder, DrawEncoder
+from bridge.formats.ros.markers import MarkerSpec, MarkerStream, marker_array_cdr, marker_specs
+from bridge.formats.ros.poses import PoseArrayEncoder
 from bridge.scene import LinkPoses
 from tests.formats.ign.oracle import pose_v as pose_v_message
+from tests.formats.ros.oracle import PoseStampedEncoder
 
 
 def reference_compose(
@@ -50,7 +52,7 @@ def reference_compose(
 class ReferenceMarkerStream:
     """`MarkerStream.update` as it was before issue 15, on the same template: the baseline."""
 
-    def __init__(self, stream: ros.MarkerStream, specs: list[ros.MarkerSpec]) -> None:
+    def __init__(self, stream: MarkerStream, specs: list[MarkerSpec]) -> None:
         self.template = stream._template
         first_words = stream._pose_at  # each marker's x, as a double index in the payload
         self.slots = first_words[:, None] + np.arange(7)
@@ -83,11 +85,11 @@ class ReferenceMarkerStream:
         return bytes(buffer)
 
 
-def marker_stream_case(links: int) -> tuple[ros.MarkerStream, ReferenceMarkerStream, LinkPoses]:
+def marker_stream_case(links: int) -> tuple[MarkerStream, ReferenceMarkerStream, LinkPoses]:
     """The scene's stream, its reference, and a moved frame as the bridge decodes it."""
     load = scene(links).with_poses(frame(links))
-    stream = ros.MarkerStream(load)
-    reference = ReferenceMarkerStream(stream, ros.marker_specs(load))
+    stream = MarkerStream(load)
+    reference = ReferenceMarkerStream(stream, marker_specs(load))
     moved = DrawDecoder().decode(DrawEncoder().encode(frame(links, seed=1)))
     ours, theirs = (
         np.frombuffer(out[4:], dtype=np.uint8) for out in (stream.update(moved), reference.update(moved))
@@ -141,7 +143,7 @@ def main() -> None:
     links = args.links
 
     draw = DrawEncoder().encode(frame(links))
-    decoder, encoder = DrawDecoder(), ros.PoseArrayEncoder("world")
+    decoder, encoder = DrawDecoder(), PoseArrayEncoder("world")
     decoder.decode(draw)  # steady state: the name block is cached after the first frame
 
     def ours() -> bytes:
@@ -159,7 +161,7 @@ def main() -> None:
     print(f"  rclpy objects one by one     {slow * 1e6:10.1f} us")
     print(f"  ratio                        {slow / fast:10.0f}x")
 
-    stamped = ros.PoseStampedEncoder("world")
+    stamped = PoseStampedEncoder("world")
 
     def rclpy_pose_stamped() -> list[bytes]:
         poses = decoder.decode(draw)
@@ -182,11 +184,11 @@ def main() -> None:
     print(f"  ratio                        {slow / fast:10.0f}x")
 
     load = scene(links).with_poses(frame(links))
-    stream = ros.MarkerStream(load)
+    stream = MarkerStream(load)
     moved = frame(links, seed=1)
     update = seconds_per_call(lambda: stream.update(moved), args.budget)
     rebuild = seconds_per_call(
-        lambda: ros.marker_array_cdr(load.with_poses(moved), delete_all=False), args.budget
+        lambda: marker_array_cdr(load.with_poses(moved), delete_all=False), args.budget
     )
     print(
         f"\ndraw -> MarkerArray CDR, {len(stream)} markers ({links} links, a fifth of them capsules: 3 markers each)"

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from bridge.config import load_config
-from bridge.formats import ros
+from bridge.formats.ros.poses import pose_array_arrays
 from bridge.router import Router
 from bridge.translators import TRANSLATORS
 from bridge.transports import TRANSPORTS
@@ -94,7 +94,7 @@ def test_a_plugin_transport_and_translator_carry_a_drake_draw(plugin_installed: 
     }
     typename, data = by_name["/poses/proximity"]
     assert typename == "geometry_msgs/msg/PoseArray"
-    stamp_ms, frame_id, positions, xyzw = ros.pose_array_arrays(data)
+    stamp_ms, frame_id, positions, xyzw = pose_array_arrays(data)
     assert (stamp_ms, frame_id) == (1234, "world")
     assert np.array_equal(positions, [[0.5, -0.25, 1.0], [0.0, 0.125, 2.0]])
     assert np.array_equal(xyzw, [[0, 0, 0, 1.0], [0, 0, 1.0, 0]])

@@ -71,7 +71,7 @@ def test_per_geometry_skips_the_one_that_fails_and_names_it() -> None:
 def test_convert_to_ros2_writes_every_other_shape_and_warns(tmp_path: Path) -> None:
     from mcap.reader import make_reader
 
-    from bridge.formats.ros import shapes_cdr
+    from bridge.formats.ros.shapes import shapes_cdr
 
     out = tmp_path / "gone.mcap"
     result = run("convert", str(recording(tmp_path)), str(out))
@@ -145,7 +145,7 @@ def test_targets_that_cannot_draw_a_point_cloud_write_the_rest_of_the_scene(tmp_
     bytes as the scene whose link has no geometry, and the skip is named."""
     from bridge.formats import foxglove
     from bridge.formats.ign.model import model_bytes, model_v_bytes
-    from bridge.formats.ros_tf import FrameNames
+    from bridge.formats.ros.tf import FrameNames
     from bridge.scene import PointCloud
     from tests.formats.load_outputs import every_kind
 

@@ -4,7 +4,7 @@
 The scene goes out once per load as one SceneEntity per link, in the link's frame and
 frame_locked, with a primitive per geometry by `mappings/foxglove.yaml` (meshes embedded as
 binary glTF from `bridge.formats.gltf`). A draw is then one FrameTransforms: world -> each link
-frame, named as on ROS's /tf (`bridge.formats.ros_tf.FrameNames`).
+frame, named as on ROS's /tf (`bridge.formats.ros.tf.FrameNames`).
 
 `FrameTransformsEncoder` writes the FrameTransforms bytes straight from the draw arrays: the
 protobuf wire layout per set of link names is a template (every field written, zeros too, which
@@ -30,7 +30,7 @@ from bridge.formats.gltf import write_gltf
 from bridge.formats.protowire import key as _key
 from bridge.formats.protowire import length_delimited as _length_delimited
 from bridge.formats.protowire import varint as _varint
-from bridge.formats.ros_tf import FrameNames
+from bridge.formats.ros.tf import FrameNames
 from bridge.lowering import triangle_mesh
 from bridge.mappings import FormatTables
 from bridge.scene import Geometry, Line, Link, LinkPoses, Pose, Scene, Shape, Triad, xyzw_from_wxyz

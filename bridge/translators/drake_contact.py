@@ -17,8 +17,9 @@ from bridge.formats import ros
 from bridge.formats.drake_contact import decode_contact_results
 from bridge.formats.ign import schema as ign
 from bridge.formats.ign.contact import contacts_message
-from bridge.formats.ros_contact import WRENCH_STAMPED, WrenchEncoder, contact_marker_array_cdr
-from bridge.formats.ros_tf import WORLD
+from bridge.formats.ros import WRENCH_STAMPED
+from bridge.formats.ros.contact import WrenchEncoder, contact_marker_array_cdr
+from bridge.formats.ros.tf import WORLD
 from bridge.formats.tree_viewer import envelope
 from bridge.formats.tree_viewer.requests import load_requests
 from bridge.sim_time import sec_nsec_from_us

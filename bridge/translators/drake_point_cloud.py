@@ -14,7 +14,9 @@ from pydantic import Field
 
 from bridge.formats import ros
 from bridge.formats.drake_point_cloud import cloud_from_lcm, cloud_to_lcm
-from bridge.formats.ros_point_cloud import POINT_CLOUD2, cloud_from_cdr, cloud_to_cdr
+from bridge.formats.ros import POINT_CLOUD2
+from bridge.formats.ros.markers import marker_array_cdr
+from bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
 from bridge.formats.tree_viewer import envelope
 from bridge.formats.tree_viewer.requests import geometry_command
 from bridge.scene import Geometry, Link, Pose, Scene, StampedPointCloud, Triad
@@ -117,4 +119,4 @@ class DrakeDrawFramesToMarkers(Translator):
         )
         changed = poses.names != self.names
         self.names = poses.names
-        return [(0, ros.marker_array_cdr(Scene(links, poses), self.options.table_overrides(), delete_all=changed))]
+        return [(0, marker_array_cdr(Scene(links, poses), self.options.table_overrides(), delete_all=changed))]

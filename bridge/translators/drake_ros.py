@@ -7,7 +7,10 @@ from typing import Any
 
 from bridge.formats import ros
 from bridge.formats.drake import DrawEncoder, link_from_lcm
-from bridge.formats.ros_messages import CDR_LE, time_parts
+from bridge.formats.ros.cdr import CDR_LE, time_parts
+from bridge.formats.ros.markers import MarkerStream, marker_array_cdr
+from bridge.formats.ros.poses import PoseArrayEncoder, pose_array_arrays, poses_from_pose_array_cdr
+from bridge.formats.ros.shapes import shapes_cdr
 from bridge.lcmcodec import LINK_DATA
 from bridge.scene import Scene
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
@@ -19,7 +22,7 @@ from bridge.transports.base import LCM, MessageType, Received
 
 class DrakeToMarkerArray(DrakeTranslator):
     """load + draw -> `visualization_msgs/MarkerArray`: the load's array (DELETEALL first), then
-    each draw re-poses the markers (a CDR template, see `ros.MarkerStream`). Latched, so a late
+    each draw re-poses the markers (a CDR template, see `MarkerStream`). Latched, so a late
     RViz gets the last full array."""
 
     Options = MarkerOptions
@@ -28,13 +31,13 @@ class DrakeToMarkerArray(DrakeTranslator):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.markers: ros.MarkerStream | None = None
+        self.markers: MarkerStream | None = None
 
     def translate(self, message: Received) -> Outputs:
         scene, poses = self.drake.read(message)
         out: Outputs = []
         if scene is not None:
-            self.markers = ros.MarkerStream(scene, self.options.table_overrides())
+            self.markers = MarkerStream(scene, self.options.table_overrides())
             out.append((0, self.markers.load_cdr))
         if poses is not None and self.markers is not None:
             out.append((0, self.markers.update(poses)))
@@ -55,7 +58,7 @@ class DrakeToPoseArray(Translator):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.encoder = ros.PoseArrayEncoder(self.options.frame_id)
+        self.encoder = PoseArrayEncoder(self.options.frame_id)
 
     def translate(self, message: Received) -> Outputs:
         return [(0, self.encoder.encode(draw_poses(message)))]  # needs no load
@@ -87,7 +90,7 @@ class DrakeToShapes(PerLoadTranslator):
     _INDEX = {ros.SOLID_PRIMITIVE: 0, ros.MESH: 1, ros.PLANE: 2}
 
     def on_scene(self, scene: Scene, channel: str) -> Outputs:
-        return [(self._INDEX[typename], data) for typename, data in ros.shapes_cdr(scene)]
+        return [(self._INDEX[typename], data) for typename, data in shapes_cdr(scene)]
 
 
 class DrakeLinkToMarkerArray(Translator):
@@ -102,7 +105,7 @@ class DrakeLinkToMarkerArray(Translator):
     def translate(self, message: Received) -> Outputs:
         link = link_from_lcm(LINK_DATA.decode(message.data))
         scene = Scene((link,))
-        return [(0, ros.marker_array_cdr(scene, self.options.table_overrides(), delete_all=False))]
+        return [(0, marker_array_cdr(scene, self.options.table_overrides(), delete_all=False))]
 
 
 class PoseArrayToDrawOptions(TranslatorOptions):
@@ -126,9 +129,9 @@ class RosPoseArrayToDrakeDraw(Translator):
 
     def translate(self, message: Received) -> Outputs:
         data = message.data
-        count = ros.pose_array_arrays(data)[2].shape[0]
+        count = pose_array_arrays(data)[2].shape[0]
         names = self.options.link_names or [f"pose_{index}" for index in range(count)]
-        poses = ros.poses_from_pose_array_cdr(data, names, self.options.robot_nums)
+        poses = poses_from_pose_array_cdr(data, names, self.options.robot_nums)
         return [(0, self.encoder.encode(poses))]
 
 

@@ -21,8 +21,10 @@ from typing import Any, Literal
 import numpy as np
 
 from bridge.formats import ros
-from bridge.formats.ros_messages import time_parts, time_parts_from_us
-from bridge.formats.ros_tf import TF_MESSAGE, WORLD, TransformsEncoder
+from bridge.formats.ros import TF_MESSAGE
+from bridge.formats.ros.cdr import time_parts, time_parts_from_us
+from bridge.formats.ros.markers import marker_array_in_link_frames_cdr
+from bridge.formats.ros.tf import WORLD, TransformsEncoder
 from bridge.scene import LinkPoses, Scene
 from bridge.translators.base import Output, Outputs
 from bridge.translators.drake_stream import DrakeTranslator, PerLoadTranslator
@@ -101,4 +103,4 @@ class DrakeToLinkMarkers(PerLoadTranslator):
 
     def on_scene(self, scene: Scene, channel: str) -> Outputs:
         frames = self.options.frames(channel)
-        return [(0, ros.marker_array_in_link_frames_cdr(scene, frames, self.options.table_overrides()))]
+        return [(0, marker_array_in_link_frames_cdr(scene, frames, self.options.table_overrides()))]

@@ -11,7 +11,7 @@ from typing import Any, Literal
 from pydantic import Field
 
 from bridge.formats.ign.schema import GZ, IGNITION, MessageSet
-from bridge.formats.ros_tf import WORLD, FrameNames
+from bridge.formats.ros.tf import WORLD, FrameNames
 from bridge.translators.base import TranslatorOptions
 from bridge.translators.drake_stream import role_of
 

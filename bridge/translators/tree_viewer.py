@@ -7,6 +7,7 @@ from typing import Any
 
 from bridge.errors import DecodeError, RequestRejected, SceneError
 from bridge.formats import ros
+from bridge.formats.ros.markers import marker_array_cdr
 from bridge.formats.tree_viewer import envelope
 from bridge.formats.tree_viewer.requests import DEFAULT_PREFIX, SettransformEncoder, link_path, load_requests
 from bridge.formats.tree_viewer.tree import TreeState
@@ -62,7 +63,7 @@ class TreeViewerServer(Translator):
         self.reply(answer, envelope.encode(response))
         if response["status"] not in (envelope.OK, envelope.MISSING_PATHS):
             raise RequestRejected(response["status"], f"client {client}: {response['error']}")
-        return [(0, ros.marker_array_cdr(state.scene(), self.options.table_overrides(), delete_all=changed))]
+        return [(0, marker_array_cdr(state.scene(), self.options.table_overrides(), delete_all=changed))]
 
     @staticmethod
     def _respond(state: TreeState, data: bytes) -> tuple[dict[str, Any], bool]:

@@ -27,9 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from bridge.formats import foxglove, ros
+from bridge.formats import foxglove
 from bridge.formats.ign.model import model_bytes, model_v_bytes
-from bridge.formats.ros_tf import FrameNames
+from bridge.formats.ros.markers import MarkerStream, marker_array_cdr, marker_array_in_link_frames_cdr
+from bridge.formats.ros.tf import FrameNames
 from bridge.formats.tree_viewer import envelope
 from bridge.formats.tree_viewer.requests import load_requests
 from bridge.scene import (
@@ -120,9 +121,9 @@ def targets() -> dict[str, Callable[[Scene], list[bytes]]]:
     by the paths of the base commit, which wrote the same bytes from message objects)."""
     frames = FrameNames()
     return {
-        "marker_array": lambda scene: [ros.marker_array_cdr(scene)],
-        "marker_stream_load": lambda scene: [ros.MarkerStream(scene).load_cdr],
-        "markers_in_link_frames": lambda scene: [ros.marker_array_in_link_frames_cdr(scene, frames)],
+        "marker_array": lambda scene: [marker_array_cdr(scene)],
+        "marker_stream_load": lambda scene: [MarkerStream(scene).load_cdr],
+        "markers_in_link_frames": lambda scene: [marker_array_in_link_frames_cdr(scene, frames)],
         "ign_model": lambda scene: [model_bytes(scene)],
         "ign_model_v": lambda scene: [model_v_bytes(scene)],
         "tree_viewer": lambda scene: [envelope.encode(request) for request in load_requests(scene)],

@@ -21,6 +21,9 @@ from bridge.errors import SceneError
 from bridge.formats import ros
 from bridge.formats.ign.model import model, model_bytes, model_v, model_v_bytes
 from bridge.formats.ign.schema import GZ, IGNITION, MessageSet
+from bridge.formats.ros.markers import marker_array_cdr
+from bridge.formats.ros.messages import from_cdr, to_cdr
+from bridge.formats.ros.shapes import shapes_cdr
 from bridge.formats.tree_viewer.requests import DECIMALS
 from bridge.lowering import _tessellated, triangle_mesh
 from bridge.scene import (
@@ -42,6 +45,7 @@ from bridge.scene import (
 )
 from tests.conftest import Capture
 from tests.formats import load_outputs, values
+from tests.formats.ros import oracle as ros_oracle
 from tests.strategies import link_poses, poses, scenes
 
 
@@ -65,12 +69,12 @@ def every_kind(folder: Path) -> Scene:
 
 def reference_shapes(scene: Scene) -> list[tuple[str, bytes]]:
     """The object path: rosbags messages, serialised by rosbags."""
-    return [(posed.typename, ros.to_cdr(posed.shape)) for posed in ros.shapes(scene)]
+    return [(posed.typename, to_cdr(posed.shape)) for posed in ros_oracle.shapes(scene)]
 
 
 def test_shape_bytes_equal_the_object_path_for_every_kind(tmp_path: Path) -> None:
     scene = every_kind(tmp_path)
-    fast = ros.shapes_cdr(scene)
+    fast = shapes_cdr(scene)
     assert fast == reference_shapes(scene)
     # and rclpy reads them: the real peer
     kinds = {ros.SOLID_PRIMITIVE: SolidPrimitive, ros.MESH: Mesh}
@@ -86,14 +90,14 @@ def test_shape_bytes_equal_the_object_path_for_random_scenes(scene: Scene) -> No
         expected = reference_shapes(scene)
     except SceneError:  # a mesh file that does not exist: the fast path refuses it as well
         with pytest.raises(SceneError):
-            ros.shapes_cdr(scene)
+            shapes_cdr(scene)
         return
-    assert ros.shapes_cdr(scene) == expected
+    assert shapes_cdr(scene) == expected
 
 
 def test_shape_bytes_of_real_drake_loads(drake_capture: dict[str, Capture]) -> None:
     for capture in drake_capture.values():
-        assert ros.shapes_cdr(capture.scene) == reference_shapes(capture.scene)
+        assert shapes_cdr(capture.scene) == reference_shapes(capture.scene)
 
 
 def test_tessellations_are_cached_read_only_and_equal_fresh_ones() -> None:
@@ -180,9 +184,9 @@ def test_ign_pose_bytes_with_zeros_and_negative_zeros(pose: Pose) -> None:
 
 
 def test_an_empty_scene_is_an_empty_marker_array() -> None:
-    assert ros.marker_array_cdr(Scene(), delete_all=False) == ros.to_cdr(ros.marker_array(Scene(), delete_all=False))
+    assert marker_array_cdr(Scene(), delete_all=False) == to_cdr(ros_oracle.marker_array(Scene(), delete_all=False))
     # With DELETEALL: its frame_id is "" here and "world" in the object path, as before.
-    (delete_all,) = ros.from_cdr(ros.marker_array_cdr(Scene()), ros.MARKER_ARRAY).markers
+    (delete_all,) = from_cdr(marker_array_cdr(Scene()), ros.MARKER_ARRAY).markers
     assert delete_all.action == 3
 
 
@@ -194,4 +198,4 @@ def test_zero_and_negative_zero_in_one_scene_are_not_confused_by_the_caches() ->
     )
     scene = Scene((Link("a", 1, geometries), Link("b", 2, geometries[::-1])))
     assert model_bytes(scene) == model(scene).SerializeToString()
-    assert ros.marker_array_cdr(scene) == ros.to_cdr(ros.marker_array(scene))
+    assert marker_array_cdr(scene) == to_cdr(ros_oracle.marker_array(scene))

@@ -16,7 +16,7 @@ import pytest
 
 from bridge.errors import DecodeError
 from bridge.formats.drake_point_cloud import cloud_from_lcm
-from bridge.formats.ros_point_cloud import cloud_from_cdr, cloud_to_cdr
+from bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
 from bridge.scene import StampedPointCloud
 from tests.formats.test_point_cloud import pydrake_message, sample_cloud
 from tests.lcmcodec.test_fuzz import BUFFERS_PER_DECODER, mutate

@@ -128,7 +128,7 @@ def meldis_seeds() -> Seeds:
     from bridge.contact import demo_contact_results
     from bridge.formats.drake_contact import contact_results_to_lcm
     from bridge.formats.drake_point_cloud import cloud_to_lcm
-    from bridge.formats.ros_point_cloud import cloud_to_cdr
+    from bridge.formats.ros.point_cloud import cloud_to_cdr
     from bridge.scene import PointCloud, StampedPointCloud
 
     points = np.arange(30, dtype=np.float64).reshape(10, 3) / 10

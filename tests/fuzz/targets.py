@@ -30,7 +30,7 @@ from bridge.formats.drake_point_cloud import cloud_from_lcm, cloud_to_lcm
 from bridge.formats.gltf import read_gltf
 from bridge.formats.ign.model import scene_from_model
 from bridge.formats.ign.schema import IGNITION
-from bridge.formats.ros_point_cloud import cloud_from_cdr
+from bridge.formats.ros.point_cloud import cloud_from_cdr
 from bridge.lcmcodec import CODECS, LOAD_ROBOT, VIEWER2_COMMS, StructCodec
 from bridge.render import Camera
 from bridge.render_server import BadRequest, parse_form, render_request

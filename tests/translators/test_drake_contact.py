@@ -13,16 +13,11 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from bridge.contact import FORCE_COLOR, ContactDrawOptions, demo_contact_results, pressure_colors
+from bridge.contact import FORCE_COLOR, demo_contact_results, pressure_colors
 from bridge.errors import DecodeError
 from bridge.formats import ros
 from bridge.formats.drake_contact import contact_results_to_lcm, decode_contact_results
-from bridge.formats.ros_contact import (
-    WRENCH_STAMPED,
-    WrenchEncoder,
-    contact_marker_array,
-    contact_marker_array_cdr,
-)
+from bridge.formats.ros.messages import from_cdr
 from bridge.formats.tree_viewer import envelope
 from bridge.formats.tree_viewer.tree import TreeState
 from bridge.scene import Line, Scene, TriangleMesh
@@ -122,43 +117,6 @@ def test_nan_and_huge_counts_are_decode_errors() -> None:
         DecodeError, match="num_point_pair_contacts|point_pair_contact_info.*count 2147483647"
     ):
         decode_contact_results(bytes(data))
-
-
-def test_markers_arrows_and_pressure_coloured_surface() -> None:
-    results = decode_contact_results(pydrake_results().encode())
-    draw = ContactDrawOptions(force_scale=0.1, moment_scale=2.0, pressure_range=(0.0, 4e5))
-    data = contact_marker_array_cdr(results, draw)
-    markers = ros.from_cdr(data, ros.MARKER_ARRAY).markers
-    assert ros.to_cdr(contact_marker_array(results, draw)) == data  # the object path agrees
-    assert markers[0].action == DELETEALL
-    arrows = [m for m in markers if m.type == ARROW]
-    forces = [m for m in arrows if m.ns == "contact/forces"]
-    assert len(forces) == 3 and len([m for m in arrows if m.ns == "contact/moments"]) == 1
-    start, end = forces[0].points
-    assert [start.x, start.y, start.z] == [0.0, 0.2, -1e-5]
-    assert np.allclose([end.x - start.x, end.y - start.y, end.z - start.z], [0.05, -0.025, 0.981])
-    (surface,) = [m for m in markers if m.type == TRIANGLE_LIST]
-    vertices = results.hydroelastic[0].surface.vertices
-    assert [[p.x, p.y, p.z] for p in surface.points] == vertices[[0, 1, 2, 0, 2, 3, 1, 4, 2]].tolist()
-    colours = np.array([[c.r, c.g, c.b, c.a] for c in surface.colors])
-    assert colours[0].tolist() == [0, 0, 1, 1] and colours[-2].tolist() == [1, 0, 0, 1]  # 0 Pa blue, 4e5 red
-    assert np.allclose(colours[:, :3], pressure_colors(np.array([0.0, 1, 2, 0, 2, 3, 1, 4, 2]) * 1e5, 0, 4e5))
-
-
-def test_wrenches_one_per_pair() -> None:
-    results = decode_contact_results(pydrake_results().encode())
-    wrenches = [ros.from_cdr(data, WRENCH_STAMPED) for data in WrenchEncoder("map").encode(results, (3, 5))]
-    assert len(wrenches) == 3
-    assert all(
-        (w.header.frame_id, w.header.stamp.sec, w.header.stamp.nanosec) == ("map", 3, 5) for w in wrenches
-    )
-    assert [[w.wrench.force.x, w.wrench.force.y, w.wrench.force.z] for w in wrenches] == [
-        [0.5, -0.25, 9.81], [0.5, -0.25, 9.81], [0.0, 0.0, -9.4]]  # fmt: skip
-    assert [w.wrench.torque.x for w in wrenches] == [0.0, 0.0, 0.01]
-    sim = TRANSLATORS.get("drake_contacts_to_wrenches")({"stamp": "sim"}, LoadCache())
-    out = sim.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
-    stamp = ros.from_cdr(out[0][1], WRENCH_STAMPED).header.stamp
-    assert (stamp.sec, stamp.nanosec) == (1, 234_567_000)
 
 
 # --- end to end: pydrake -> bridge process -> rclpy ---------------------------------------------------
@@ -286,7 +244,7 @@ def test_marker_options_reach_the_table_and_unknown_ones_are_refused() -> None:
     options = {"frame_id": "map", "force_scale": 0.5, "pressure_range": [0, 1e6], "surfaces": False}
     translator = TRANSLATORS.get("drake_contacts_to_marker_array")(options, LoadCache())
     ((_, data),) = translator.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
-    markers = ros.from_cdr(data, ros.MARKER_ARRAY).markers
+    markers = from_cdr(data, ros.MARKER_ARRAY).markers
     assert {m.header.frame_id for m in markers[1:]} == {"map"}
     assert not [m for m in markers if m.type == TRIANGLE_LIST]
     force = markers[1]

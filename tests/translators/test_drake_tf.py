@@ -1,4 +1,5 @@
-"""A TF tree per draw and markers in link frames: fast paths, roles, and a real pydrake simulation."""
+"""A TF tree per draw and markers in link frames: roles, static links, and a real pydrake simulation
+(the TFMessage encoder itself: tests/formats/ros/test_tf.py)."""
 
 from __future__ import annotations
 
@@ -10,10 +11,9 @@ import numpy as np
 import pytest
 
 from bridge.errors import EncodeError
-from bridge.formats import ros
 from bridge.formats.drake import load_from_scene
-from bridge.formats.ros_tf import FrameNames, TransformsEncoder, transforms_message
-from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
+from bridge.formats.ros.messages import from_cdr
+from bridge.scene import Box, Geometry, Link, Pose, Scene
 from bridge.translators import TRANSLATORS, LoadCache
 from bridge.transports.base import Received
 from tests.conftest import lcm_url
@@ -21,39 +21,6 @@ from tests.formats import oracle
 from tests.peers import BridgeProcess, RosProbe
 from tests.scenes import draw_of, small_scene
 from tests.test_router import LcmRecorder, start_drake
-
-
-def random_poses(count: int, seed: int) -> LinkPoses:
-    generator = np.random.default_rng(seed)
-    wxyz = generator.normal(size=(count, 4))
-    wxyz /= np.linalg.norm(wxyz, axis=1)[:, None]
-    names = tuple(f"plant::robot{index % 3}::link_{index}" for index in range(count))
-    return LinkPoses(7_250, names, np.ones(count, np.int32), generator.normal(size=(count, 3)), wxyz)
-
-
-@pytest.mark.parametrize("count", [0, 1, 7, 1000])
-def test_tf_fast_path_equals_the_objects(count: int) -> None:
-    frames = FrameNames("map", "proximity/")
-    encoder = TransformsEncoder(frames)
-    for stamp in ((12, 500_000_000), (-3, 999_999_999)):  # the template is rewritten, not rebuilt
-        poses = random_poses(count, seed=count)
-        assert encoder.encode(poses, stamp) == ros.to_cdr(transforms_message(poses, stamp, frames))
-
-
-def test_one_tf_encoder_follows_changing_links_and_poses() -> None:
-    """The encoder keeps its message between draws: nothing of one draw may show in the next."""
-    frames = FrameNames()
-    encoder = TransformsEncoder(frames)
-    for seed, count in enumerate((3, 1000, 1000, 3, 0, 7)):
-        poses = random_poses(count, seed=seed)
-        stamp = (seed, 1000 * seed)
-        assert encoder.encode(poses, stamp) == ros.to_cdr(transforms_message(poses, stamp, frames))
-
-
-def test_frame_names() -> None:
-    assert FrameNames()("plant::iiwa::iiwa_link_0") == "plant/iiwa/iiwa_link_0"
-    assert FrameNames("map", "proximity/")("world") == "map"
-    assert FrameNames("map", "proximity/")("plant::a") == "proximity/plant/a"
 
 
 def translate_all(translator: Any, *messages: Received) -> list[tuple[int, bytes]]:
@@ -79,16 +46,16 @@ def test_roles_get_their_own_frames_and_static_links_are_sent_once() -> None:
         )
     # Per load, /tf_static once (index 1), before the first /tf; then /tf per draw.
     assert [index for index, _ in out[""]] == [1, 0, 0]
-    static = ros.from_cdr(out[""][0][1], "tf2_msgs/msg/TFMessage").transforms
+    static = from_cdr(out[""][0][1], "tf2_msgs/msg/TFMessage").transforms
     assert [(t.header.frame_id, t.child_frame_id) for t in static] == [("world", "plant/robot/fixed")]
-    first = ros.from_cdr(out[""][1][1], "tf2_msgs/msg/TFMessage").transforms
+    first = from_cdr(out[""][1][1], "tf2_msgs/msg/TFMessage").transforms
     assert [t.child_frame_id for t in first] == ["plant/robot/base", "plant/robot/tip"]
     assert (first[0].header.stamp.sec, first[0].header.stamp.nanosec) == (1_700_000_000, 250_000_000)
-    proximity = ros.from_cdr(out["_PROXIMITY"][1][1], "tf2_msgs/msg/TFMessage").transforms
+    proximity = from_cdr(out["_PROXIMITY"][1][1], "tf2_msgs/msg/TFMessage").transforms
     assert [t.child_frame_id for t in proximity] == ["proximity/plant/robot/base", "proximity/plant/robot/tip"]
     sim = TRANSLATORS.get("drake_to_tf")({"stamp": "sim"}, LoadCache())
     ((_, data),) = translate_all(sim, Received("DRAKE_VIEWER_DRAW", draw_of(small_scene(), 61.25)))
-    stamp = ros.from_cdr(data, "tf2_msgs/msg/TFMessage").transforms[0].header.stamp
+    stamp = from_cdr(data, "tf2_msgs/msg/TFMessage").transforms[0].header.stamp
     assert (stamp.sec, stamp.nanosec) == (61, 250_000_000)
     before_1902 = Received("DRAKE_VIEWER_DRAW", draw_of(small_scene(), -(2.0**31) - 1))  # int32 sec: too early
     with pytest.raises(EncodeError, match="does not fit int32 seconds"):
@@ -102,7 +69,7 @@ def test_link_markers_are_in_link_frames_once_per_load() -> None:
     load = Received("DRAKE_VIEWER_LOAD_ROBOT_PROXIMITY", load_from_scene(scene).encode())
     draw = Received("DRAKE_VIEWER_DRAW_PROXIMITY", draw_of(small_scene(), 1.0))
     ((_, data),) = translate_all(markers, load, draw, load)  # the draw and the re-sent load: nothing
-    array = ros.from_cdr(data, "visualization_msgs/msg/MarkerArray").markers
+    array = from_cdr(data, "visualization_msgs/msg/MarkerArray").markers
     assert array[0].action == 3  # DELETEALL
     base, world = array[1], array[2]
     assert (base.header.frame_id, base.frame_locked) == ("proximity/plant/robot/base", True)

@@ -7,22 +7,18 @@ perception roles) apart on one `/tf`. Drake's `world` link is the world frame it
 
 `TransformsEncoder` writes the CDR straight from the arrays: the per-link layout (stamps,
 frame names, where each transform's seven doubles sit) is a message made once per set of link
-names; a draw writes the stamps and the doubles into it and returns a copy. `transforms_message`
-builds the same message as rosbags objects, the reference the fast path is tested against.
+names; a draw writes the stamps and the doubles into it and returns a copy.
 """
 
 from __future__ import annotations
 
 import struct
-from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 
-from bridge.formats.ros_messages import CDR_TIME, POSE_ITEM, U32, CdrWriter, make, payload_items
-from bridge.scene import LinkPoses, frame_name, pose_rows_xyzw, write_pose_rows_xyzw
+from bridge.formats.ros.cdr import CDR_TIME, POSE_ITEM, U32, CdrWriter, payload_items
+from bridge.scene import LinkPoses, frame_name, write_pose_rows_xyzw
 
-TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 WORLD = "world"  # Drake's name for the world link, and ROS's usual fixed frame
 _TRANSFORM = struct.Struct("<7d")
 
@@ -85,26 +81,3 @@ class TransformsEncoder:
 
 
 _STAMP_ITEM = np.dtype((np.void, CDR_TIME.size))
-
-
-def transforms_message(poses: LinkPoses, stamp: tuple[int, int], frames: FrameNames) -> Any:
-    """The same `TFMessage` as rosbags objects, built one transform at a time (the slow reference)."""
-    rows = pose_rows_xyzw(poses.positions, poses.quaternions_wxyz).tolist()
-    transforms: Sequence[Any] = [
-        make(
-            "geometry_msgs/msg/TransformStamped",
-            header=make(
-                "std_msgs/msg/Header",
-                stamp=make("builtin_interfaces/msg/Time", sec=stamp[0], nanosec=stamp[1]),
-                frame_id=frames.world_frame,
-            ),
-            child_frame_id=frames(name),
-            transform=make(
-                "geometry_msgs/msg/Transform",
-                translation=make("geometry_msgs/msg/Vector3", x=x, y=y, z=z),
-                rotation=make("geometry_msgs/msg/Quaternion", x=qx, y=qy, z=qz, w=qw),
-            ),
-        )
-        for name, (x, y, z, qx, qy, qz, qw) in zip(poses.names, rows, strict=True)
-    ]
-    return make(TF_MESSAGE, transforms=list(transforms))

@@ -21,11 +21,11 @@ from bridge.formats.point_fields import (
     read_points,
     write_points,
 )
-from bridge.formats.ros_messages import CDR_TIME, U32, CdrReader, CdrWriter, time_parts_from_us
+from bridge.formats.ros import POINT_CLOUD2
+from bridge.formats.ros.cdr import CDR_TIME, U32, CdrReader, CdrWriter, time_parts_from_us
 from bridge.scene import StampedPointCloud
 from bridge.sim_time import us_from_sec_nsec
 
-POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
 _TWO_U32 = struct.Struct("<II")
 _SMALLEST_POINT_FIELD = 13  # name (length + NUL), offset, datatype, count: never fewer bytes
 

@@ -18,24 +18,15 @@ from typing import Any
 import numpy as np
 
 from bridge.contact import ContactDrawOptions, ContactResults, contact_scene
-from bridge.formats import ros
-from bridge.formats.ros_messages import CDR_LE, CDR_TIME, cdr_string
-
-WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
+from bridge.formats.ros.cdr import CDR_LE, CDR_TIME, cdr_string
+from bridge.formats.ros.markers import marker_array_cdr
 
 
 def contact_marker_array_cdr(
     results: ContactResults, draw: ContactDrawOptions | None = None, markers: dict[str, Any] | None = None
 ) -> bytes:
     """The contacts as MarkerArray CDR (DELETEALL first); `markers` overrides the marker table's options."""
-    return ros.marker_array_cdr(contact_scene(results, draw), markers, delete_all=True)
-
-
-def contact_marker_array(
-    results: ContactResults, draw: ContactDrawOptions | None = None, markers: dict[str, Any] | None = None
-) -> Any:
-    """The same as a rosbags message (the object path, for tests and `to_rclpy`)."""
-    return ros.marker_array(contact_scene(results, draw), markers, delete_all=True)
+    return marker_array_cdr(contact_scene(results, draw), markers, delete_all=True)
 
 
 def contact_wrenches(results: ContactResults) -> np.ndarray[Any, Any]:
@@ -60,9 +51,7 @@ class WrenchEncoder:
 
 
 __all__ = [
-    "WRENCH_STAMPED",
     "WrenchEncoder",
-    "contact_marker_array",
     "contact_marker_array_cdr",
     "contact_wrenches",
 ]

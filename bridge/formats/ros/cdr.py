@@ -1,81 +1,26 @@
-"""ROS 2 message plumbing: build any Jazzy message, turn it into CDR or an rclpy object.
+"""ROS 2 CDR written and read directly, for the fast paths: the little-endian header, the
+`builtin_interfaces/Time` stamp (`CDR_TIME`, `time_parts`), strings, a chunked writer, a checked
+reader, and numpy views of a message's poses and stamps.
 
-Messages are rosbags dataclasses (pure Python, every Jazzy type, CDR included), so everything
-here works without a ROS installation; `to_rclpy` needs the ROS 2 message packages. The CDR
-helpers at the end are for the fast paths in `bridge.formats.ros`, which write bytes directly.
+Messages as rosbags objects (`make`, `to_cdr`, ...) are in `bridge.formats.ros.messages`.
 """
 
 from __future__ import annotations
 
-import importlib
 import struct
-from collections.abc import Callable
-from dataclasses import fields, is_dataclass
-from functools import cache
 from typing import Any
 
 import numpy as np
-from rosbags.interfaces import Nodetype
-from rosbags.typesys import Stores, get_typestore
 
 from bridge.errors import DecodeError, EncodeError
 from bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us
 
-STORE = get_typestore(Stores.ROS2_JAZZY)
-
-# --- building messages ---------------------------------------------------------------------------
-
-
-def make(typename: str, **values: Any) -> Any:
-    """A rosbags message of `typename`; fields not given take ROS's defaults (0, "", empty).
-
-    Numeric array fields may be given as lists; they become the numpy arrays rosbags expects.
-    """
-    for name, default in _defaults(typename).items():
-        if name not in values:
-            values[name] = default()
-    for name, dtype in _array_dtypes(typename).items():
-        if not isinstance(values[name], np.ndarray):
-            values[name] = np.asarray(values[name], dtype=dtype)
-    return STORE.types[typename](**values)
-
-
-@cache
-def _defaults(typename: str) -> dict[str, Callable[[], Any]]:
-    _, field_defs = STORE.fielddefs[typename]
-    return {name: _default_of(definition) for name, definition in field_defs}
-
-
-@cache
-def _array_dtypes(typename: str) -> dict[str, np.dtype[Any]]:
-    """The fields of `typename` that rosbags holds as numpy arrays, with their dtypes."""
-    samples = {name: default() for name, default in _defaults(typename).items()}
-    return {name: value.dtype for name, value in samples.items() if isinstance(value, np.ndarray)}
-
-
-def _default_of(definition: tuple[Any, Any]) -> Callable[[], Any]:
-    node, detail = definition
-    if node == Nodetype.BASE:
-        base = detail[0]
-        value: Any = "" if base == "string" else False if base == "bool" else 0.0 if "float" in base else 0
-        return lambda: value
-    if node == Nodetype.NAME:
-        return lambda: make(detail)
-    (item_node, item_detail), length = detail
-    if item_node == Nodetype.BASE and item_detail[0] != "string":
-        dtype = np.dtype(_NUMPY_TYPES.get(item_detail[0], item_detail[0]))
-        size = length if node == Nodetype.ARRAY else 0
-        return lambda: np.zeros(size, dtype=dtype)
-    if node == Nodetype.ARRAY:
-        item = _default_of((item_node, item_detail))
-        return lambda: [item() for _ in range(length)]
-    return list
-
-
-_NUMPY_TYPES = {"byte": "uint8", "octet": "uint8", "char": "uint8", "bool": "bool"}
-
-
+CDR_LE = b"\x00\x01\x00\x00"  # the encapsulation header: little-endian plain CDR
+U32 = struct.Struct("<I")
 CDR_TIME = struct.Struct("<iI")  # builtin_interfaces/Time in little-endian CDR: int32 sec, uint32 nanosec
+POSE_ITEM = np.dtype((np.void, 56))  # geometry_msgs/Pose or Transform: 7 float64, as one item
+# Bytes in front of a message in a buffer, so that its 8-aligned payload offsets are aligned in memory.
+FRONT_PADDING = 4
 
 
 def time_parts(timestamp_ms: int) -> tuple[int, int]:
@@ -95,68 +40,6 @@ def _int32_seconds(parts: tuple[int, int], what: str) -> tuple[int, int]:
     if not -(2**31) <= parts[0] < 2**31:
         raise EncodeError("builtin_interfaces/msg/Time", "sec", f"{what} does not fit int32 seconds")
     return parts
-
-
-def stamp(timestamp_ms: int) -> Any:
-    """A `builtin_interfaces/Time` for Drake's millisecond sim time."""
-    seconds, nanoseconds = time_parts(timestamp_ms)
-    return make("builtin_interfaces/msg/Time", sec=seconds, nanosec=nanoseconds)
-
-
-def to_cdr(message: Any) -> bytes:
-    """Little-endian CDR with its 4-byte encapsulation header, as rclpy publishes and reads it."""
-    return bytes(STORE.serialize_cdr(message, message.__msgtype__))
-
-
-def from_cdr(data: bytes | memoryview, typename: str) -> Any:
-    """Raw CDR as a rosbags message; raises `DecodeError` for bytes that are not one."""
-    try:
-        return STORE.deserialize_cdr(bytes(data), typename)
-    except Exception as error:  # rosbags raises struct.error, IndexError, ... on bad bytes
-        raise DecodeError(typename, "", 0, f"not a valid CDR message: {error}") from None
-
-
-def to_rclpy(message: Any) -> Any:
-    """The same message as an rclpy message object (needs the ROS 2 message packages)."""
-    package, _, name = message.__msgtype__.split("/")
-    cls = getattr(importlib.import_module(f"{package}.msg"), name)
-    values = {item.name: _rclpy_value(getattr(message, item.name)) for item in fields(message)}
-    return cls(**values)
-
-
-def _rclpy_value(value: Any) -> Any:
-    if is_dataclass(value):
-        return to_rclpy(value)
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, list):
-        return [_rclpy_value(item) for item in value]
-    return value
-
-
-def from_rclpy(message: Any) -> Any:
-    """An rclpy message object as the rosbags message of the same type."""
-    module, name = type(message).__module__, type(message).__name__
-    typename = f"{module.split('.')[0]}/msg/{name}"
-    _, field_defs = STORE.fielddefs[typename]
-    values = {}  # numeric arrays (array.array, numpy) are made numpy arrays by `make`
-    for field_name, _ in field_defs:
-        value = getattr(message, field_name)
-        if isinstance(value, list):
-            value = [
-                from_rclpy(item) if hasattr(item, "get_fields_and_field_types") else item for item in value
-            ]
-        elif hasattr(value, "get_fields_and_field_types"):
-            value = from_rclpy(value)
-        values[field_name] = value
-    return make(typename, **values)
-
-
-# --- writing CDR directly ------------------------------------------------------------------------
-
-U32 = struct.Struct("<I")
-CDR_LE = b"\x00\x01\x00\x00"
-POSE_ITEM = np.dtype((np.void, 56))  # geometry_msgs/Pose or Transform: 7 float64, as one item
 
 
 def payload_items(buffer: Any, item: np.dtype[Any], step: int, front: int = 0) -> np.ndarray[Any, Any]:
@@ -182,6 +65,12 @@ def cdr_string(text: str, field: str = "string") -> bytes:
     except UnicodeEncodeError as error:  # a lone surrogate
         raise EncodeError("CDR", field, f"{text!r} is not valid Unicode ({error.reason})") from None
     return U32.pack(len(data)) + data
+
+
+def cdr_string_4(text: str, field: str = "string") -> bytes:
+    """A CDR string padded to a multiple of 4, for a string that starts 4-aligned."""
+    data = cdr_string(text, field)
+    return data + b"\0" * (-len(data) % 4)
 
 
 class CdrWriter:

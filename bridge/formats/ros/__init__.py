@@ -1,0 +1,18 @@
+"""ROS 2 (Jazzy) messages to and from the scene model, one module per message family.
+
+`messages` builds any message as a rosbags object (no ROS installation needed) and turns it into
+CDR or an rclpy object; `cdr` writes and reads CDR directly, for the per-frame fast paths of
+`poses` (PoseArray), `markers` (MarkerArray), `tf` (TFMessage), `point_cloud` (PointCloud2) and
+`contact` (contact markers and WrenchStamped); `shapes` writes shape_msgs. `tables` binds
+`mappings/ros.yaml` (which shape becomes which message or marker) to its encoders.
+"""
+
+# The message types this package writes and reads, each named once.
+POSE_ARRAY = "geometry_msgs/msg/PoseArray"
+MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
+SOLID_PRIMITIVE = "shape_msgs/msg/SolidPrimitive"
+MESH = "shape_msgs/msg/Mesh"
+PLANE = "shape_msgs/msg/Plane"
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
+POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
