@@ -293,9 +293,16 @@ def load_tables(document: YamlDocument, encoders: Collection[str] | None = None)
 
 
 @cache
+def _document(format_name: str) -> YamlDocument:
+    """`mappings/<format_name>.yaml`, parsed once however many readers it has."""
+    return YamlDocument.read(data_dir("mappings") / f"{format_name}.yaml")
+
+
+@cache
 def tables(format_name: str) -> dict[str, Table]:
-    """The tables of `mappings/<format_name>.yaml` as written, encoders unbound (for the reference)."""
-    return load_tables(YamlDocument.read(data_dir("mappings") / f"{format_name}.yaml"))
+    """The tables of `mappings/<format_name>.yaml` as written, encoders unbound (for the reference,
+    and for schemas that take a table's type codes)."""
+    return load_tables(_document(format_name))
 
 
 class FormatTables:
@@ -312,7 +319,7 @@ class FormatTables:
 
     @cached_property
     def _tables(self) -> dict[str, Table]:
-        return load_tables(YamlDocument.read(data_dir("mappings") / f"{self.format_name}.yaml"), self.encoders)
+        return load_tables(_document(self.format_name), self.encoders)
 
     def __getitem__(self, name: str) -> Table:
         return self._tables[name]

@@ -10,16 +10,14 @@ from __future__ import annotations
 
 import base64
 import re
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from bridge.errors import SceneError
+from bridge.formats.ign.schema import MessageSet
 from bridge.mappings import FormatTables, ShapeRule
 from bridge.scene import FileContents, InMemoryMesh, Line, Shape, TriangleMesh
-
-if TYPE_CHECKING:  # the schema takes its Geometry.Type codes from TABLES below
-    from bridge.formats.ign.schema import MessageSet
 
 
 def _data_uri_obj(shape: TriangleMesh) -> dict[str, Any]:

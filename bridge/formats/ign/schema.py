@@ -7,7 +7,7 @@ Debian's ign-transport 11 speaks) and `GZ` (`gz.msgs`, newer Gazebo). The wire f
 `.proto` files reads them (unknown fields are skipped both ways). The ign transport uses it for
 its discovery datagrams; the format modules beside it for poses, models and contacts.
 
-The `Geometry.Type` codes are the geometry table's (`mappings/ign.yaml`, bound in `geometry.TABLES`).
+The `Geometry.Type` codes are the geometry table's (`mappings/ign.yaml`): written once, there.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from google.protobuf.message import DecodeError as ProtobufDecodeError
 from google.protobuf.message import Message
 
 from bridge.errors import DecodeError
-from bridge.formats.ign.geometry import TABLES
+from bridge.mappings import tables
 
 # name -> fields (name, number, type, repeated). Types are scalar protobuf types or message names.
 _SCHEMA: dict[str, list[tuple[str, int, str, bool]]] = {
@@ -169,7 +169,7 @@ def _file_descriptor(package: str, geometry_types: Mapping[str, int]) -> descrip
 def message_set(package: str) -> MessageSet:
     """Build the message classes for `package` in a pool of their own."""
     pool = descriptor_pool.DescriptorPool()
-    pool.Add(_file_descriptor(package, TABLES["geometry"].types))
+    pool.Add(_file_descriptor(package, tables("ign")["geometry"].types))
     names = [name for name in _SCHEMA if "." not in name]
     classes = {
         name: message_factory.GetMessageClass(pool.FindMessageTypeByName(f"{package}.{name}"))
