@@ -118,6 +118,9 @@ class BridgeConfig(BaseModel):
                 raise check.error(
                     ("routes", index, "name"), f"route names must be unique: {route.name!r} again"
                 )
+        for name in self.transports():  # a used transport without a section: is a setting required?
+            if name not in self._settings:
+                self._settings[name] = check.model(TRANSPORTS.get(name).Settings, {}, (name,))
         return self
 
     def transports(self) -> list[str]:

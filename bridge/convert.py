@@ -1,7 +1,8 @@
 """Offline: an LCM log through the router's translators into an MCAP file (Foxglove opens it).
 
-Every event of the log is offered, in order, to every route whose translator reads LCM messages
-and writes the chosen schema family, as the live router would:
+The config's routes whose translator reads LCM messages and writes the chosen schema family
+become a router whose every route ends in the `mcap` transport (bridge/transports/mcap.py), and
+every event of the log is fed to it in order (`Router.feed`), as the live router would take it:
 
 * `ros2`: CDR messages, each topic with the `ros2msg` schema rosbags generates for its type
   (what ROS 2 tools and Foxglove read);
@@ -25,97 +26,19 @@ import threading
 from collections import Counter
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Literal, Protocol
 
-import foxglove
-from mcap.writer import Writer
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-from rosbags.typesys import Stores, get_typestore
 
-from bridge.config import BridgeConfig, Route
+from bridge.config import BridgeConfig, Endpoint, Route
 from bridge.errors import ConvertError, Interrupted
-from bridge.router import Message, RouteRunner
-from bridge.translators import TRANSLATORS, LoadCache, Output, Translator
-from bridge.transports.base import CDR, LCM, CallPublisher, Publisher, Received
-from bridge.transports.foxglove import foxglove_channel
+from bridge.router import Router
+from bridge.status import Snapshot, routes_of
+from bridge.translators import TRANSLATORS
+from bridge.transports.base import LCM, Received
 from bridge.transports.lcm import read_log
+from bridge.transports.mcap import McapTransport, Profile
 
 log = logging.getLogger("viewer_bridge")
-Schema = Literal["ros2", "foxglove"]
-
-
-class _Sink(Protocol):
-    """Where converted messages go: a publisher per topic, stamped with `time_ns`."""
-
-    time_ns: int
-    messages: Counter[str]
-
-    def publisher(self, topic: str, output: Output) -> Publisher: ...
-
-    def finish(self) -> None: ...
-
-
-class _Ros2Mcap:
-    """An MCAP file of ROS 2 CDR messages; channels and schemas registered as topics appear."""
-
-    def __init__(self, path: Path) -> None:
-        self._file = path.open("wb")
-        self._writer = Writer(self._file)
-        self._writer.start(profile="ros2", library="viewer-bridge")
-        self._store = get_typestore(Stores.ROS2_JAZZY)
-        self._schemas: dict[str, int] = {}
-        self._channels: dict[str, int] = {}
-        self.messages: Counter[str] = Counter()
-        self.time_ns = 0
-
-    def publisher(self, topic: str, output: Output) -> Publisher:
-        typename = output.type.name
-        topic = topic if topic.startswith("/") else f"/{topic}"  # as a node in the root namespace names it
-        if topic not in self._channels:
-            if typename not in self._schemas:
-                text, _ = self._store.generate_msgdef(typename, ros_version=2)
-                self._schemas[typename] = self._writer.register_schema(typename, "ros2msg", text.encode())
-            self._channels[topic] = self._writer.register_channel(topic, CDR, self._schemas[typename])
-        channel_id = self._channels[topic]
-
-        def write(data: bytes) -> None:
-            self.messages[topic] += 1
-            self._writer.add_message(channel_id, self.time_ns, data, self.time_ns)
-
-        return CallPublisher(write)
-
-    def finish(self) -> None:
-        self._writer.finish()  # type: ignore[no-untyped-call]
-        self._file.close()
-
-
-class _FoxgloveMcap:
-    """An MCAP file of Foxglove protobuf messages, written by the foxglove-sdk."""
-
-    def __init__(self, path: Path) -> None:
-        self._context = foxglove.Context()
-        self._writer = foxglove.open_mcap(path, allow_overwrite=True, context=self._context)
-        self.messages: Counter[str] = Counter()
-        self.time_ns = 0
-
-    def publisher(self, topic: str, output: Output) -> Publisher:
-        channel = foxglove_channel(topic, output.type, self._context)
-
-        def write(data: bytes) -> None:
-            self.messages[topic] += 1
-            channel.log(data, log_time=self.time_ns)
-
-        return CallPublisher(write)
-
-    def finish(self) -> None:
-        self._writer.close()
-
-
-# What each schema family's file carries: ROS 2 CDR messages, or Foxglove's protobuf ones.
-_CARRIES: dict[Schema, Callable[[Output], bool]] = {
-    "ros2": lambda output: output.type.encoding == CDR,
-    "foxglove": lambda output: output.type.name.startswith("foxglove."),
-}
 
 
 def convert(
@@ -123,7 +46,7 @@ def convert(
     mcap_path: str | Path,
     config: BridgeConfig,
     progress: bool = True,
-    schema: Schema = "ros2",
+    schema: Profile = "ros2",
     force: bool = False,
     config_name: str = "the config",
     stop: threading.Event | None = None,
@@ -139,36 +62,75 @@ def convert(
     _check_target(Path(log_path), target, force)
     events = read_log(log_path)
     first = next(events, None)  # a file that is not an LCM log fails here, before anything is written
-    writes = [route for route in config.routes if _lcm_to(_CARRIES[schema], route)]
+    writes = [route for route in config.routes if _lcm_to(schema, route)]
     if not writes:
         raise ConvertError(f"no route of {config_name} reads LCM and writes the {schema} schema")
     partial = target.with_name(target.name + ".partial")
-    sink: _Sink = _Ros2Mcap(partial) if schema == "ros2" else _FoxgloveMcap(partial)
-    loads = LoadCache()
-    runners = [RouteRunner(route, _offline(route, loads), sink.publisher) for route in writes]
+    router = Router(_into_mcap(writes, partial, schema), view=_RouteErrors())
+    mcap = router.transports["mcap"]
+    assert isinstance(mcap, McapTransport)
     stop = stop or threading.Event()
     try:
         with _progress_bar(Path(log_path).stat().st_size, progress) as advance:
             for event in itertools.chain([first] if first is not None else [], events):
                 if stop.is_set():
                     break
-                sink.time_ns = event.timestamp_us * 1000
-                received = Received(event.channel, event.data, event.timestamp_us)
-                for runner in runners:
-                    match = runner.pattern.fullmatch(event.channel)
-                    if match is not None:
-                        runner.handle(Message(received, match))
+                router.feed("lcm", Received(event.channel, event.data, event.timestamp_us))
                 advance(len(event.data) + len(event.channel) + 36)  # roughly one event record
     except BaseException:
-        sink.finish()
+        router.close()
         partial.unlink(missing_ok=True)  # a failure midway leaves no file that looks like output
         raise
-    sink.finish()
-    _report_errors(runners)
+    router.close()  # the MCAP file complete; each route's errors reported
     if stop.is_set():
-        raise Interrupted(sum(sink.messages.values()), partial)
+        raise Interrupted(sum(mcap.messages.values()), partial)
     os.replace(partial, target)
-    return dict(sink.messages)
+    return dict(mcap.messages)
+
+
+def _lcm_to(schema: Profile, route: Route) -> bool:
+    """Whether a route reads LCM and writes only what an MCAP file of `schema` holds."""
+    translator = TRANSLATORS.get(route.translator)
+    return all(read.encoding == LCM for read in translator.reads) and all(
+        McapTransport.carries(output.type, schema) for output in translator.outputs
+    )
+
+
+def _into_mcap(routes: list[Route], path: Path, schema: Profile) -> BridgeConfig:
+    """A config of `routes`, read from LCM and written into the MCAP file `path`.
+
+    LCM is an in-process bus that is never started: the log's events are fed to the router by
+    hand. No load cache: a load comes from the log, never from an earlier run.
+    """
+    return BridgeConfig.model_validate(
+        {
+            "lcm": {"url": "memq://"},
+            "mcap": {"path": path, "profile": schema, "overwrite": True},  # a .partial left by an earlier run
+            "routes": [
+                route.model_copy(
+                    update={
+                        "source": route.source.model_copy(update={"transport": "lcm"}),
+                        "destination": Endpoint(transport="mcap", name=route.destination.name),
+                    }
+                )
+                for route in routes
+            ],
+        }
+    )
+
+
+class _RouteErrors:
+    """The router's status view for convert: per route, its errors and warnings, once at the end
+    (each was logged as it happened, the first few in full)."""
+
+    def show(self, snapshot: Snapshot) -> None:
+        for name, stats in routes_of(snapshot).items():
+            counts = Counter(stats["errors"]) + Counter(stats["warnings"])
+            if counts:
+                log.warning("route %s: %s", name, dict(counts))
+
+    def close(self) -> None:
+        pass
 
 
 def _check_target(log_path: Path, target: Path, force: bool) -> None:
@@ -202,28 +164,3 @@ def _progress_bar(total: int, shown: bool) -> Iterator[Callable[[int], None]]:
             bar.update(task, completed=min(done, total))
 
         yield advance
-
-
-def _report_errors(runners: list[RouteRunner]) -> None:
-    """Per route, its errors and warnings (each was logged as it happened, the first few in full)."""
-    for runner in runners:
-        counts = runner.stats.errors + runner.stats.warnings
-        if counts:
-            log.warning("route %s: %s", runner.route.name, dict(counts))
-
-
-def _lcm_to(carries: Callable[[Output], bool], route: Route) -> bool:
-    """Whether a route reads LCM and writes only what a sink `carries`."""
-    translator = TRANSLATORS.get(route.translator)
-    return all(read.encoding == LCM for read in translator.reads) and all(
-        carries(output) for output in translator.outputs
-    )
-
-
-def _offline(route: Route, loads: LoadCache) -> Callable[[], Translator]:
-    def make() -> Translator:
-        translator = TRANSLATORS.get(route.translator)(route.translator_options(), loads)
-        translator.reply = lambda channel, data: None  # offline: there is nobody to answer
-        return translator
-
-    return make

@@ -26,6 +26,10 @@ so the illustration and proximity streams a route matches never share a translat
 even when they publish on one topic (`/tf`). A lazy route that skipped messages while nobody
 listened keeps the newest per channel and translates them the moment a subscriber appears, so
 the subscriber gets the model and the latest poses at once, not at the next draw.
+
+Offline, nothing runs on threads: `Router.feed` hands one message to every matching route of a
+source and translates and publishes it at once, on the caller's thread (`convert` feeds a log
+this way to routes that end in an MCAP file).
 """
 
 from __future__ import annotations
@@ -51,7 +55,7 @@ from bridge.skipped import collecting
 from bridge.status import LogLines, StatusView
 from bridge.translators import TRANSLATORS, LoadCache, Output, Translator
 from bridge.transports import TRANSPORTS
-from bridge.transports.base import Publisher, Qos, Received, Transport
+from bridge.transports.base import MessageTime, Publisher, Qos, Received, Shared, Transport
 
 log = logging.getLogger("viewer_bridge")
 
@@ -234,6 +238,7 @@ class RouteRunner:
         make_translator: Callable[[], Translator],
         publisher_for: PublisherFor,
         inline: InlineBudget | None = None,
+        message_time: MessageTime | None = None,
     ) -> None:
         self.route = route
         self.pattern = re.compile(route.source.name)
@@ -244,6 +249,7 @@ class RouteRunner:
         self._turn = threading.Lock()  # held by whichever thread translates for this route
         self._make_translator = make_translator
         self._publisher_for = publisher_for
+        self._message_time = MessageTime() if message_time is None else message_time
         self.prototype: Translator | None = make_translator()  # made now: errors show at start
         self._lanes: dict[tuple[str | None, ...], _Lane] = {}  # by the source's captured groups
         self._publishers: dict[str, Publisher] = {}  # by full name: lanes may share a topic
@@ -260,6 +266,15 @@ class RouteRunner:
             message = Message(received, match)
             if not self._translated_inline(message):
                 self.mailbox.put(message)
+
+    def feed(self, received: Received) -> None:
+        """Offline (no worker running): translate and publish at once, on the caller's thread, if
+        this route's source matches; no mailbox and no rate limit, so every message is translated."""
+        match = self.pattern.fullmatch(received.channel)
+        if match is not None:
+            self.stats.messages_in += 1
+            self.stats.bytes_in += len(received.data)
+            self.handle(Message(received, match))
 
     def _translated_inline(self, message: Message) -> bool:
         """Translate on the caller's thread when the route is idle and the budget allows."""
@@ -362,6 +377,7 @@ class RouteRunner:
         self.stats.translate_ms.append((time.perf_counter() - started) * 1e3)
         for geometry in skipped:  # the rest of the scene is translated: a warning, not an error
             self._count(self.stats.warnings, "skipped_geometry", f"{message.channel}: {geometry}")
+        self._message_time.received_us = message.received.received_us  # what a file stamps its outputs with
         for index, payload in outputs:
             try:
                 lane.publisher(index).publish(payload)
@@ -416,16 +432,20 @@ class Router:
         self.stats_json = Path(stats_json) if stats_json else None
         self.stats_period = stats_period
         self.view = view or LogLines()
+        self.shared = Shared()  # what the transports share: one Foxglove context, the message time
         self.transports: dict[str, Transport] = {}
         self.routes: list[RouteRunner] = []
+        self._sourced: dict[str, list[RouteRunner]] = {}  # by source transport, for `feed`
         self._inline = InlineBudget()
         self._stop = threading.Event()
         self._started = False
         try:
             for name in config.transports():
-                self.transports[name] = TRANSPORTS.get(name)(config.settings(name))
+                self.transports[name] = TRANSPORTS.get(name).create(config.settings(name), self.shared)
             for route in config.routes:
-                self.routes.append(self._runner(route))
+                runner = self._runner(route)
+                self.routes.append(runner)
+                self._sourced.setdefault(route.source.transport, []).append(runner)
         except BaseException:
             self._close_transports()
             raise
@@ -442,7 +462,9 @@ class Router:
                 translator.reply = reply
             return translator
 
-        runner = RouteRunner(route, make_translator, self._publisher_factory(route), self._inline)
+        runner = RouteRunner(
+            route, make_translator, self._publisher_factory(route), self._inline, self.shared.message_time
+        )
         translator = runner.prototype
         assert translator is not None
         # Before anything runs, each transport checks it has every type the route uses: a missing
@@ -489,6 +511,13 @@ class Router:
 
     def stop(self) -> None:
         self._stop.set()
+
+    def feed(self, transport: str, received: Received) -> None:
+        """Offline, instead of `start`: `received` as if the `transport` had received it, translated
+        and published at once, on this thread, by every route whose source is that transport and
+        matches it (in the config's order; nothing is queued, dropped or rate-limited)."""
+        for runner in self._sourced.get(transport, ()):
+            runner.feed(received)
 
     def run(self, duration: float | None = None) -> None:
         """Serve until `stop()` (a signal handler calls it), `duration` ends, or a finite source ends."""

@@ -7,15 +7,20 @@ through `Transport`; which one a route uses is a word in the config, looked up i
 
 A message received once is one `Received`, handed to every subscription it matches, so a
 decoded form of it (`Received.decoded`) is computed once however many routes read it.
+
+A router makes its transports with `Transport.create(settings, shared)`: `Shared` holds what the
+transports of one router share (one Foxglove context for the live server and an MCAP file), and
+the receive time of the message being published (`MessageTime`), which a file stamps.
 """
 
 from __future__ import annotations
 
+import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol, TypeVar
+from typing import Any, ClassVar, Protocol, Self, TypeVar, cast
 
 from pydantic import BaseModel, ConfigDict
 
@@ -72,6 +77,35 @@ class Received:
 Deliver = Callable[[Received], None]  # called on the transport's thread: hand over and return
 
 
+class MessageTime(threading.local):
+    """The receive time (microseconds) of the message whose outputs this thread publishes.
+
+    The router sets it before it publishes a translation's outputs, so a transport that stamps
+    what it writes (an MCAP file's log time) gives every output its message's receive time: the
+    log's own time offline, the bus's receive time live. One per router; each thread sees its own.
+    """
+
+    received_us: int = 0
+
+
+Made = TypeVar("Made")
+
+
+class Shared:
+    """What the transports of one router share: the `MessageTime`, and whatever is made once per
+    router on first ask (`get(FoxgloveContext)`: the live server and an MCAP file log to one)."""
+
+    def __init__(self) -> None:
+        self.message_time = MessageTime()
+        self._made: dict[Callable[[], object], object] = {}
+
+    def get(self, make: Callable[[], Made]) -> Made:
+        """This router's one `make()`, made on the first ask."""
+        if make not in self._made:
+            self._made[make] = make()
+        return cast(Made, self._made[make])
+
+
 @dataclass(frozen=True, slots=True)
 class Qos:
     """What a route asks of a publisher or subscription; transports use what they have of it."""
@@ -107,6 +141,12 @@ class Transport(ABC):
 
     def __init__(self, settings: TransportSettings) -> None:
         self.settings = settings
+
+    @classmethod
+    def create(cls, settings: TransportSettings, shared: Shared) -> Self:
+        """How a router makes this transport: from its settings, with what the router's transports
+        share; a transport that uses some of it overrides this (the default takes none of it)."""
+        return cls(settings)
 
     @classmethod
     def carries(cls, message_type: MessageType) -> bool:

@@ -8,6 +8,13 @@ gets the scene (SceneUpdates are idempotent). Everything about the protocol is t
 `accept_websocket_v1` is false, a front of ours (bridge/transports/foxglove_front.py) holds the
 public port so that clients asking for the protocol's older name, `foxglove.websocket.v1`, are
 served as well as those asking for `foxglove.sdk.v1`, the only name the SDK's server accepts.
+
+Where a config also writes an MCAP file of Foxglove messages (bridge/transports/mcap.py), the
+server and the file log to one `FoxgloveContext`, as in the SDK: a message logged on a channel,
+by a route to either, is written once to each, and a topic is one channel. Route a topic to one
+of them (to both, each message would be written twice: the bridge warns). A latched output's
+message logged again for a late client then reaches the file again too (a SceneUpdate is
+idempotent: the file plays back the same).
 """
 
 from __future__ import annotations
@@ -29,20 +36,57 @@ from bridge.transports.base import (
     MessageType,
     Publisher,
     Qos,
+    Shared,
     Transport,
     TransportSettings,
 )
 from bridge.transports.foxglove_front import SubprotocolFront
 
 
-def foxglove_channel(topic: str, message_type: MessageType, context: foxglove.Context) -> foxglove.Channel:
-    """A Foxglove channel of a `foxglove.*` protobuf type in `context` (a server's, or an MCAP file's)."""
-    return foxglove.Channel(
-        topic,
-        schema=foxglove.Schema(name=message_type.name, encoding="protobuf", data=schema(message_type.name)),
-        message_encoding="protobuf",
-        context=context,
-    )
+def require_schemas(message_types: Iterable[MessageType]) -> None:
+    """Raise `TransportUnavailable` for a `foxglove.*` type whose protobuf schema is not installed."""
+    for message_type in message_types:
+        try:
+            schema(message_type.name)
+        except (ImportError, KeyError) as error:
+            raise TransportUnavailable(
+                f"foxglove-schemas-protobuf has no {message_type.name} ({error})"
+            ) from None
+
+
+class FoxgloveContext:
+    """A router's one Foxglove context: its sinks (the live server, an MCAP file) and channels.
+
+    The SDK makes one channel per topic and schema in a context (asked again, it returns the same
+    one) and writes each message logged on it to every sink. `channel` says so when two
+    transports ask for one topic: each message of it would reach every sink twice.
+    """
+
+    def __init__(self) -> None:
+        self.context = foxglove.Context()
+        self._asked_by: dict[str, str] = {}  # topic -> the transport that first asked for it
+        self._lock = threading.Lock()
+
+    def channel(self, topic: str, message_type: MessageType, transport: str) -> foxglove.Channel:
+        """The channel of a `foxglove.*` protobuf type on `topic`, for the `transport` named."""
+        with self._lock:
+            first = self._asked_by.setdefault(topic, transport)
+        if first != transport:
+            log.warning(
+                "%s is routed to both the %s and the %s transport, which log to one Foxglove context: "
+                "each of its messages reaches the server and the file twice (route it to one of them)",
+                topic,
+                first,
+                transport,
+            )
+        return foxglove.Channel(
+            topic,
+            schema=foxglove.Schema(
+                name=message_type.name, encoding="protobuf", data=schema(message_type.name)
+            ),
+            message_encoding="protobuf",
+            context=self.context,
+        )
 
 
 class _WithoutSdkAddress(logging.Filter):
@@ -54,6 +98,7 @@ class _WithoutSdkAddress(logging.Filter):
 
 
 logging.getLogger("foxglove.websocket.server").addFilter(_WithoutSdkAddress())  # the SDK's Rust log
+log = logging.getLogger("viewer_bridge")
 
 
 class FoxgloveSettings(TransportSettings):
@@ -113,23 +158,23 @@ class _Listener(ServerListener):
 
 
 class FoxgloveTransport(Transport):
-    """A Foxglove WebSocket server with a context (its channels) of its own."""
+    """A Foxglove WebSocket server on a context of its own, or of its router's (`create`)."""
 
     Settings = FoxgloveSettings
     encodings = frozenset({PROTOBUF})
     settings: FoxgloveSettings
 
-    def __init__(self, settings: FoxgloveSettings) -> None:
+    def __init__(self, settings: FoxgloveSettings, context: FoxgloveContext | None = None) -> None:
         super().__init__(settings)
         self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
-        self.context = foxglove.Context()
+        self.context = FoxgloveContext() if context is None else context
         relayed = settings.accept_websocket_v1  # then the front holds the public port
         try:
             self.server = foxglove.start_server(
                 name=settings.name,
                 host="127.0.0.1" if relayed else settings.host,
                 port=0 if relayed else settings.port,
-                context=self.context,
+                context=self.context.context,
                 server_listener=_Listener(self._channels),
             )
         except Exception as error:  # the SDK raises its own error types, e.g. for a port in use
@@ -141,6 +186,11 @@ class FoxgloveTransport(Transport):
             except OSError as error:  # a port in use, an address not of this machine
                 self.server.stop()
                 raise self._cannot_listen(error) from None
+
+    @classmethod
+    def create(cls, settings: TransportSettings, shared: Shared) -> FoxgloveTransport:
+        assert isinstance(settings, FoxgloveSettings)
+        return cls(settings, shared.get(FoxgloveContext))  # an MCAP file of this router logs to it too
 
     def _cannot_listen(self, error: Exception) -> TransportUnavailable:
         where = f"{self.settings.host}:{self.settings.port}"
@@ -160,19 +210,13 @@ class FoxgloveTransport(Transport):
         raise ValueError("the foxglove transport only publishes; it cannot be a route's source")
 
     def require(self, message_types: Iterable[MessageType]) -> None:
-        for message_type in message_types:
-            try:
-                schema(message_type.name)
-            except (ImportError, KeyError) as error:
-                raise TransportUnavailable(
-                    f"foxglove-schemas-protobuf has no {message_type.name} ({error})"
-                ) from None
+        require_schemas(message_types)
 
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
         raise TransportUnavailable("the foxglove transport only publishes")
 
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
-        channel = foxglove_channel(name, message_type, self.context)
+        channel = self.context.channel(name, message_type, "foxglove")
         publisher = self._channels[channel.id()] = _Channel(channel, qos.latched)
         return publisher
 
