@@ -27,8 +27,9 @@ from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms as Fra
 from translators import scene
 from websockets.sync.client import ClientConnection, connect
 
-from bridge.formats import foxglove
 from bridge.formats.drake import DrawDecoder, DrawEncoder
+from bridge.formats.foxglove.scene import scene_update
+from bridge.formats.foxglove.transforms import FrameTransformsEncoder
 from bridge.formats.ros.tf import FrameNames
 from bridge.scene import LinkPoses
 from bridge.transports.base import PROTOBUF, MessageType, Publisher, Qos
@@ -135,7 +136,7 @@ def main() -> None:
 
     draw = DrawEncoder().encode(frame(args.links))
     decoder, frames = DrawDecoder(), FrameNames()
-    encoder = foxglove.FrameTransformsEncoder(frames)
+    encoder = FrameTransformsEncoder(frames)
     stamp = (61, 250_000_000)
 
     def ours() -> bytes:
@@ -152,7 +153,7 @@ def main() -> None:
     print(f"  ratio                                    {slow / fast:10.0f}x")
 
     load = scene(args.links)
-    once = seconds_per_call(lambda: foxglove.scene_update(load, frames).SerializeToString(), args.budget)
+    once = seconds_per_call(lambda: scene_update(load, frames).SerializeToString(), args.budget)
     print(f"\nload -> foxglove.SceneUpdate bytes, {load.geometry_count()} geometries: {once * 1e3:.2f} ms (once per load)")
 
 

@@ -20,7 +20,6 @@ from pathlib import Path
 from common import best_of
 from draw_codec import frame
 
-from bridge.formats import foxglove, ign
 from bridge.formats.drake import DrawDecoder, DrawEncoder
 from bridge.scene import Box, Capsule, Cylinder, Ellipsoid, Geometry, Link, LinkPoses, Scene, Sphere
 from bridge.scene import Pose as ScenePose
@@ -45,7 +44,7 @@ def inputs(links: int) -> tuple[Scene, LinkPoses]:
 
 def base_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
     """Each measured path as the base commit writes it."""
-    from bridge.formats import ros, ros_tf  # the base commit's modules: one file each then
+    from bridge.formats import foxglove, ign, ros, ros_tf  # the base commit's modules: one file each then
     from bridge.formats import tree_viewer as tv  # the base commit's one module (a package since)
 
     frames = ros_tf.FrameNames()
@@ -61,7 +60,10 @@ def base_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
 
 def our_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
     """Each path of `base_calls` as this checkout writes it (the same bytes; only called here)."""
-    from bridge.formats.ign.model import model_bytes  # a package here, one module in the base commit
+    from bridge.formats.foxglove.scene import (
+        scene_update,  # packages here, one module each in the base commit
+    )
+    from bridge.formats.ign.model import model_bytes
     from bridge.formats.ros.markers import marker_array_cdr
     from bridge.formats.ros.shapes import shapes_cdr
     from bridge.formats.ros.tf import FrameNames
@@ -75,7 +77,7 @@ def our_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
         "MarkerArray": lambda: marker_array_cdr(load),
         "ign Model": lambda: model_bytes(load),
         "tree viewer setgeometry": lambda: [envelope.encode(request) for request in load_requests(load)],
-        "Foxglove SceneUpdate": lambda: foxglove.scene_update(load, frames).SerializeToString(),
+        "Foxglove SceneUpdate": lambda: scene_update(load, frames).SerializeToString(),
         "shape_msgs": lambda: shapes_cdr(load),
     }
 

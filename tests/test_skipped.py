@@ -90,7 +90,7 @@ def test_convert_to_foxglove_writes_the_scene_less_the_missing_mesh(tmp_path: Pa
     from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
     from mcap.reader import make_reader
 
-    from bridge.formats.foxglove import scene_update
+    from bridge.formats.foxglove.scene import scene_update
 
     out = tmp_path / "gone.mcap"
     result = run("convert", str(recording(tmp_path)), str(out), "--schema", "foxglove")
@@ -143,7 +143,7 @@ def test_run_publishes_every_other_shape_and_counts_the_warning(tmp_path: Path) 
 def test_targets_that_cannot_draw_a_point_cloud_write_the_rest_of_the_scene(tmp_path: Path) -> None:
     """Foxglove and ign have no point cloud shape: the scene is written without it, the same
     bytes as the scene whose link has no geometry, and the skip is named."""
-    from bridge.formats import foxglove
+    from bridge.formats.foxglove.scene import scene_update
     from bridge.formats.ign.model import model_bytes, model_v_bytes
     from bridge.formats.ros.tf import FrameNames
     from bridge.scene import PointCloud
@@ -159,7 +159,7 @@ def test_targets_that_cannot_draw_a_point_cloud_write_the_rest_of_the_scene(tmp_
         )
     )
     targets = {
-        "foxglove": lambda s: foxglove.scene_update(s, FrameNames()).SerializeToString(),
+        "foxglove": lambda s: scene_update(s, FrameNames()).SerializeToString(),
         "ign_model": lambda s: model_bytes(s),
         "ign_model_v": lambda s: model_v_bytes(s),
     }

@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from bridge.formats import foxglove
+from bridge.formats.foxglove.scene import scene_update
+from bridge.formats.foxglove.transforms import FrameTransformsEncoder
 from bridge.scene import Scene
 from bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us
 from bridge.translators.base import Output, Outputs, Translator
@@ -29,7 +30,7 @@ class DrakeToSceneUpdate(PerLoadTranslator):
     outputs = (Output("", SCENE_UPDATE_TYPE, latched=True),)
 
     def on_scene(self, scene: Scene, channel: str) -> Outputs:
-        return [(0, foxglove.scene_update(scene, self.options.frames(channel)).SerializeToString())]
+        return [(0, scene_update(scene, self.options.frames(channel)).SerializeToString())]
 
 
 class FrameTransformsOptions(FrameOptions):
@@ -46,12 +47,12 @@ class DrakeToFrameTransforms(Translator):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.encoder: foxglove.FrameTransformsEncoder | None = None
+        self.encoder: FrameTransformsEncoder | None = None
 
     def translate(self, message: Received) -> Outputs:
         poses = draw_poses(message)
         if self.encoder is None:  # one stream per translator: its role is its first channel's
-            self.encoder = foxglove.FrameTransformsEncoder(self.options.frames(message.channel))
+            self.encoder = FrameTransformsEncoder(self.options.frames(message.channel))
         if self.options.stamp == "sim":
             stamp = sec_nsec_from_ms(poses.timestamp_ms)
         else:

@@ -7,7 +7,7 @@ through each other's.
 
 from __future__ import annotations
 
-from bridge.formats import foxglove
+from bridge.formats.foxglove.schema import FRAME_TRANSFORMS, SCENE_UPDATE
 from bridge.formats.ign.schema import MessageSet
 from bridge.lcmcodec import CONTACT_RESULTS, DRAW, LINK_DATA, LOAD_ROBOT, POINT_CLOUD, VIEWER2_COMMS
 from bridge.transports.base import CDR, LCM, PROTOBUF, MessageType
@@ -21,8 +21,8 @@ POINT_CLOUD_TYPE = MessageType(POINT_CLOUD.type_name, LCM)
 # Director's tree viewer envelope (requests and responses alike).
 ENVELOPE_TYPE = MessageType(VIEWER2_COMMS.type_name, LCM)
 # Foxglove's protobuf schemas.
-SCENE_UPDATE_TYPE = MessageType(foxglove.SCENE_UPDATE, PROTOBUF)
-FRAME_TRANSFORMS_TYPE = MessageType(foxglove.FRAME_TRANSFORMS, PROTOBUF)
+SCENE_UPDATE_TYPE = MessageType(SCENE_UPDATE, PROTOBUF)
+FRAME_TRANSFORMS_TYPE = MessageType(FRAME_TRANSFORMS, PROTOBUF)
 
 
 def ros_type(name: str) -> MessageType:

@@ -29,7 +29,7 @@ from foxglove.websocket import ChannelView, Client, ServerListener
 from pydantic import Field
 
 from bridge.errors import TransportUnavailable
-from bridge.formats.foxglove import schema
+from bridge.formats.foxglove.schema import schema
 from bridge.transports.base import (
     PROTOBUF,
     Deliver,

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bridge.formats import foxglove
+from bridge.formats.foxglove.scene import scene_update
 from bridge.formats.ign.model import model_bytes, model_v_bytes
 from bridge.formats.ros.markers import MarkerStream, marker_array_cdr, marker_array_in_link_frames_cdr
 from bridge.formats.ros.tf import FrameNames
@@ -127,7 +127,7 @@ def targets() -> dict[str, Callable[[Scene], list[bytes]]]:
         "ign_model": lambda scene: [model_bytes(scene)],
         "ign_model_v": lambda scene: [model_v_bytes(scene)],
         "tree_viewer": lambda scene: [envelope.encode(request) for request in load_requests(scene)],
-        "foxglove": lambda scene: [foxglove.scene_update(scene, frames).SerializeToString()],
+        "foxglove": lambda scene: [scene_update(scene, frames).SerializeToString()],
     }
 
 
