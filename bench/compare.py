@@ -1,0 +1,103 @@
+"""Two checkouts' benchmarks in one run: this one and another (e.g. a restructure's starting commit
+in a git worktree), script by script, alternating, so that both meet the same machine.
+
+Run: .venv/bin/python bench/compare.py OTHER_CHECKOUT [--quick] [--only NAME ...] [--rounds N]
+
+Each script of bench/all.py runs in a child process per checkout (its own `bridge` on
+PYTHONPATH), `--rounds` times each, the two sides taking turns. The table gives each row's ratio
+to its own baseline (measured in the same process; `x`), or its figure where it has no baseline,
+for both checkouts, with half their spread over the rounds, and the change: a restructure whose
+changes stay within the spread changed nothing measurable.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+CHILD = """
+import dataclasses, json, sys
+sys.path[:0] = [sys.argv[1]]
+module = __import__(sys.argv[2])
+print("ROWS" + json.dumps([dataclasses.asdict(row) for row in module.measures(quick=sys.argv[3] == "1")]))
+"""
+
+
+def scripts(checkout: Path) -> list[str]:
+    """The scripts bench/all.py runs, in its order."""
+    code = "import sys; sys.path[:0] = [sys.argv[1]]; import all; print(' '.join(all.scripts()))"
+    found = subprocess.run([sys.executable, "-c", code, str(checkout / "bench")], check=True, capture_output=True,
+                           text=True, env=_environment(checkout)).stdout  # fmt: skip
+    return found.split()
+
+
+def _environment(checkout: Path) -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": f"{checkout}:{checkout / 'bench'}"}
+
+
+def measure(checkout: Path, script: str, quick: bool) -> list[dict[str, object]]:
+    """One script's rows as `checkout` measures them, in a child process."""
+    result = subprocess.run([sys.executable, "-c", CHILD, str(checkout / "bench"), script, "1" if quick else "0"],
+                            capture_output=True, text=True, env=_environment(checkout), cwd=checkout)  # fmt: skip
+    for line in result.stdout.splitlines():
+        if line.startswith("ROWS"):
+            return list(json.loads(line[4:]))
+    raise SystemExit(f"{checkout}: bench/{script}.py failed:\n{result.stderr[-2000:]}")
+
+
+def figure(row: dict[str, object]) -> tuple[str, float] | None:
+    """A row's ratio to its own baseline, or its figure itself (with its unit) where it has none."""
+    ours, baseline = row.get("ours"), row.get("baseline")
+    if not isinstance(ours, (int, float)) or not ours:
+        return None
+    if isinstance(baseline, (int, float)) and baseline:
+        return "x", float(baseline) / float(ours)
+    return f" {row.get('unit', '')}", float(ours)
+
+
+def _cell(values: list[float], unit: str) -> str:
+    if not values:
+        return "-"
+    middle = sorted(values)[len(values) // 2]
+    spread = (max(values) - min(values)) / middle * 100 if middle else 0.0
+    return f"{middle:.3g}{unit} ±{spread / 2:.0f}%"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("other", type=Path, help="the other checkout (a git worktree)")
+    parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--only", nargs="*")
+    parser.add_argument("--rounds", type=int, default=2)
+    args = parser.parse_args()
+    here, other = HERE.parent, args.other.resolve()
+    figures: dict[tuple[str, str, str], dict[str, list[float]]] = {}
+    for script in scripts(here):
+        if args.only and script not in args.only:
+            continue
+        sides = [("this", here)] + ([("other", other)] if (other / "bench" / f"{script}.py").exists() else [])
+        for _ in range(args.rounds):
+            for side, checkout in reversed(sides):
+                print(f"--- {side}: bench/{script}.py", file=sys.stderr, flush=True)
+                for row in measure(checkout, script, args.quick):
+                    found = figure(row)
+                    if found is not None:
+                        unit, value = found
+                        figures.setdefault((script, str(row["name"]), unit), {}).setdefault(side, []).append(value)
+    print(f"| script | measure | {other.name} | this checkout | change |")
+    print("|---|---|---:|---:|---:|")
+    for (script, name, unit), values in figures.items():
+        before, after = values.get("other", []), values.get("this", [])
+        change = "-"
+        if before and after:
+            change = f"{(sorted(after)[len(after) // 2] / sorted(before)[len(before) // 2] - 1) * 100:+.0f}%"
+        print(f"| {script} | {name} | {_cell(before, unit)} | {_cell(after, unit)} | {change} |")
+
+
+if __name__ == "__main__":
+    main()
