@@ -7,7 +7,7 @@ from typing import Any
 
 from bridge.formats import ros
 from bridge.formats.drake import DrawEncoder, link_from_lcm
-from bridge.formats.ros.cdr import CDR_LE, time_parts
+from bridge.formats.ros.cdr import CDR_LE, CDR_TIME, time_parts
 from bridge.formats.ros.markers import MarkerStream, marker_array_cdr
 from bridge.formats.ros.poses import PoseArrayEncoder, pose_array_arrays, poses_from_pose_array_cdr
 from bridge.formats.ros.shapes import shapes_cdr
@@ -69,11 +69,10 @@ class DrakeToClock(Translator):
 
     reads = (DRAW_TYPE,)
     outputs = (Output("", ros_type("rosgraph_msgs/msg/Clock")),)
-    _CLOCK = struct.Struct("<4siI")
 
     def translate(self, message: Received) -> Outputs:
         seconds, nanoseconds = time_parts(draw_poses(message).timestamp_ms)
-        return [(0, self._CLOCK.pack(CDR_LE, seconds, nanoseconds))]
+        return [(0, CDR_LE + CDR_TIME.pack(seconds, nanoseconds))]
 
 
 class DrakeToShapes(PerLoadTranslator):
