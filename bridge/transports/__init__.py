@@ -1,4 +1,4 @@
-"""Transports: bytes in and out of LCM, ROS 2, ign-transport, and whatever plugins add.
+"""Transports: bytes in and out of LCM, ROS 2, ign-transport, Foxglove, Zenoh, and whatever plugins add.
 
 `TRANSPORTS` is the registry a config's `transport:` words are looked up in. A plugin adds a
 transport with an entry point in the group `viewer_bridge.transports` naming a `Transport`
@@ -18,6 +18,7 @@ TRANSPORTS: Registry[Transport] = Registry(
         "ros": "bridge.transports.ros2:RosTransport",
         "ign": "bridge.transports.ign:IgnTransport",
         "foxglove": "bridge.transports.foxglove:FoxgloveTransport",
+        "zenoh": "bridge.transports.zenoh.transport:ZenohTransport",
     },
     Transport,
 )
