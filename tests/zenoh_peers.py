@@ -3,7 +3,7 @@ node written from rmw_zenoh's design document and sources, not from the bridge's
 
 Everything listens on 127.0.0.1 only, on a free port; nothing scouts by multicast.
 `RmwZenohPeer` builds its keys, tokens and attachments here, by hand, from docs/PROTOCOLS.md
-section 11: the tests compare what the bridge sends with what this peer expects.
+section 10: the tests compare what the bridge sends with what this peer expects.
 """
 
 from __future__ import annotations

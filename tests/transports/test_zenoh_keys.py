@@ -1,5 +1,5 @@
 """rmw_zenoh's names and stamps (bridge.transports.zenoh.keys) against examples written by hand
-from rmw_zenoh's design document and sources (docs/PROTOCOLS.md section 11), and the session's
+from rmw_zenoh's design document and sources (docs/PROTOCOLS.md section 10), and the session's
 configuration as rmw_zenoh composes it. Pure functions: no session, no router."""
 
 from __future__ import annotations

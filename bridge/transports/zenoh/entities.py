@@ -2,7 +2,7 @@
 
 A ROS 2 publisher is a Zenoh publisher on the topic's data key, a liveliness token that tells
 rmw_zenoh's graph about it, and the 33-byte attachment on every sample (docs/PROTOCOLS.md
-section 11). A latched one (TRANSIENT_LOCAL) is what rmw_zenoh's Jazzy release makes of it: an
+section 10). A latched one (TRANSIENT_LOCAL) is what rmw_zenoh's Jazzy release makes of it: an
 advanced publisher with a cache of `depth` samples that announces itself, so that a subscriber
 that starts later, with history and late-publisher detection, queries the cache. LCM channels
 are plain publishers under a key prefix, without tokens or attachments; latched, the last

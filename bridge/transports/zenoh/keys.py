@@ -1,7 +1,7 @@
 """rmw_zenoh's names and stamps on the wire, as pure functions: data keys, liveliness tokens, attachments.
 
 The format is rmw_zenoh_cpp's for ROS 2 Jazzy, releases 0.2.4 and later (docs/PROTOCOLS.md
-section 11). Everything here builds or parses text and bytes, with no session, so the parsers are
+section 10). Everything here builds or parses text and bytes, with no session, so the parsers are
 fuzz targets and the builders are checked against hand-written examples. A parser refuses what
 it cannot read with a `DecodeError` naming the part and the character (or byte) where it failed.
 """

@@ -1,6 +1,6 @@
 """The Zenoh session: its configuration, opened in the background until a router answers.
 
-`session_config` builds the configuration the way rmw_zenoh does (docs/PROTOCOLS.md section 11):
+`session_config` builds the configuration the way rmw_zenoh does (docs/PROTOCOLS.md section 10):
 a Zenoh config file (`ZENOH_SESSION_CONFIG_URI`, or the transport's own `config_file`), else the
 bridge's defaults: client mode to `tcp/localhost:7447`, where `rmw_zenohd` listens, with no
 listening port and no multicast scouting; then `ZENOH_CONFIG_OVERRIDE` (`key=value;key=value`),
