@@ -73,13 +73,18 @@ def make_config(file: str | None, pairs: Sequence[tuple[str, str]]) -> zenoh.Con
     try:
         config = zenoh.Config.from_file(file) if file else zenoh.Config()
     except zenoh.ZError as error:
-        raise ValueError(f"Zenoh config file {file}: {error}") from None
+        raise ValueError(f"Zenoh config file {file}: {_reason(error)}") from None
     for key, value in pairs:
         try:
             config.insert_json5(key, value)
         except zenoh.ZError as error:
-            raise ValueError(f"Zenoh config {key}={value}: {error}") from None
+            raise ValueError(f"Zenoh config {key}={value}: {_reason(error)}") from None
     return config
+
+
+def _reason(error: zenoh.ZError) -> str:
+    """Zenoh's message without the Rust source location it ends with."""
+    return str(error).split(" at /")[0].strip()
 
 
 Declare = Callable[[zenoh.Session], None]
@@ -133,7 +138,7 @@ class Link:
         except zenoh.ZError as error:
             if log:
                 _log.warning("Zenoh: no session yet at %s (%s); trying again every %.0f s",
-                             self.where, str(error).split(" at ")[0], self._retry_s)  # fmt: skip
+                             self.where, _reason(error), self._retry_s)  # fmt: skip
             return False
         if self._stop.is_set():  # closed while this attempt was under way
             session.close()  # type: ignore[no-untyped-call]
