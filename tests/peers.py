@@ -23,6 +23,16 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from bridge.transports.ros2 import message_class
 
 
+def wait_for(condition: Callable[[], bool], timeout: float = 60.0) -> bool:
+    """Whether `condition()` came true within `timeout` seconds (checked every 50 ms)."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if condition():
+            return True
+        time.sleep(0.05)
+    return condition()
+
+
 def qos(depth: int = 100, latched: bool = False) -> QoSProfile:
     return QoSProfile(
         history=HistoryPolicy.KEEP_LAST,
@@ -61,12 +71,7 @@ class RosProbe:
         return self.node.create_publisher(message_class(typename), topic, qos())
 
     def wait_for(self, condition: Callable[[], bool], timeout: float = 60.0) -> bool:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if condition():
-                return True
-            time.sleep(0.05)
-        return condition()
+        return wait_for(condition, timeout)
 
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=1)

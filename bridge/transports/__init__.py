@@ -1,4 +1,4 @@
-"""Transports: bytes in and out of LCM, ROS 2, ign-transport, Foxglove, MCAP files, and plugins'.
+"""Transports: bytes in and out of LCM, ROS 2, ign-transport, Foxglove, MCAP files, Zenoh, and plugins'.
 
 `TRANSPORTS` is the registry a config's `transport:` words are looked up in. A plugin adds a
 transport with an entry point in the group `viewer_bridge.transports` naming a `Transport`
@@ -19,6 +19,7 @@ TRANSPORTS: Registry[Transport] = Registry(
         "ign": "bridge.transports.ign:IgnTransport",
         "foxglove": "bridge.transports.foxglove:FoxgloveTransport",
         "mcap": "bridge.transports.mcap:McapTransport",
+        "zenoh": "bridge.transports.zenoh.transport:ZenohTransport",
     },
     Transport,
 )

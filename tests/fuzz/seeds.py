@@ -48,6 +48,7 @@ def write_seeds(folder: Path) -> dict[str, int]:
             for nested in _nested_structs(codec.decode(data)) if codec is not None else ():
                 seeds[nested._type_name].append(nested.encode())
     seeds["config"] = [text.encode() for text in BUILTIN_CONFIGS.values()]
+    seeds.update(zenoh_seeds())
     for kind, inputs in seeds.items():
         (folder / kind).mkdir(parents=True, exist_ok=True)
         for data in inputs:
@@ -121,6 +122,24 @@ def render_form(scene: Scene) -> bytes:
         for name, value in fields.items()
     )
     return f"multipart/form-data; boundary={boundary}\n".encode() + body + f"--{boundary}--\r\n".encode()
+
+
+def zenoh_seeds() -> Seeds:
+    """rmw_zenoh's data keys, liveliness tokens and attachments, as the Zenoh transport writes them."""
+    from bridge.transports.zenoh import keys
+
+    node = keys.NodeName("viewer_bridge", "/sim1")
+    tokens, data_keys = [keys.Token(0, "0f1e2d3c", 0, 0, keys.NODE, node).key()], []
+    for index, name in enumerate(("geometry_msgs/msg/PoseArray", "tf2_msgs/msg/TFMessage")):
+        kind = keys.topic_type(name)
+        data_keys.append(keys.data_key(7, "/drake/poses", kind).encode())
+        entity = keys.TopicEntity("/sim1/drake/poses", kind.dds_name, kind.hash, keys.TokenQos(index == 0, True, False, 1))
+        tokens.append(keys.Token(7, "0f1e2d3c", 0, index + 1, keys.PUBLISHER, node, entity).key())
+    return {
+        "rmw_zenoh.data_key": data_keys,
+        "rmw_zenoh.token": [token.encode() for token in tokens],
+        "rmw_zenoh.attachment": [keys.attachment(12, 1_700_000_000_000_000_000, keys.gid(tokens[1]))],
+    }
 
 
 def meldis_seeds() -> Seeds:

@@ -7,7 +7,8 @@ types; anything else, a hang or unbounded memory is a finding (see bench/fuzz.py
 Adding a target is one line: `register(Target("name", function, (DocumentedError,), ("seed kind",)))`.
 Seed kinds are what tests/fuzz/seeds.py writes: every LCM type by its full name (from a real Drake
 capture, so a new schema Drake publishes gets seeds and a target with no code here), plus
-"ign.Pose_V", "ign.Model", "gltf", "render_form", "sensor_msgs/PointCloud2" and "config".
+"ign.Pose_V", "ign.Model", "gltf", "render_form", "sensor_msgs/PointCloud2", "config" and the
+rmw_zenoh kinds "rmw_zenoh.data_key", "rmw_zenoh.token" and "rmw_zenoh.attachment".
 
 This module imports `bridge` at its top on purpose: the fuzz runner imports it inside
 `atheris.instrument_imports()`, so that every bridge module is instrumented for coverage.
@@ -37,6 +38,7 @@ from bridge.render_server import BadRequest, parse_form, render_request
 from bridge.translators.drake_ign import IgnPoseVToDrakeDraw
 from bridge.translators.tree_viewer import TreeViewerServer
 from bridge.transports.base import Received
+from bridge.transports.zenoh import keys as zenoh_keys
 
 
 @dataclass(frozen=True)
@@ -148,6 +150,16 @@ def ros_point_cloud(data: bytes) -> object:
 register(Target("drake_contact_results", decode_contact_results, (DecodeError,), ("drake.lcmt_contact_results_for_viz",)))
 register(Target("drake_point_cloud", cloud_from_lcm, (DecodeError,), ("drake.lcmt_point_cloud",)))
 register(Target("ros_point_cloud2", ros_point_cloud, (DecodeError,), ("sensor_msgs/PointCloud2",)))
+
+
+# --- rmw_zenoh's names and stamps: what the Zenoh transport parses from other sessions --------------------
+# Key expressions reach Python as text; the bytes are read as latin-1 so that every input is one.
+
+register(Target("zenoh_data_key", lambda data: zenoh_keys.parse_data_key(data.decode("latin-1")), (DecodeError,),
+                ("rmw_zenoh.data_key",)))  # fmt: skip
+register(Target("zenoh_token", lambda data: zenoh_keys.parse_token(data.decode("latin-1")), (DecodeError,),
+                ("rmw_zenoh.token",)))  # fmt: skip
+register(Target("zenoh_attachment", zenoh_keys.parse_attachment, (DecodeError,), ("rmw_zenoh.attachment",)))
 
 
 # --- the config loader ----------------------------------------------------------------------------------

@@ -1,0 +1,177 @@
+"""The Zenoh session: its configuration, opened in the background until a router answers.
+
+`session_config` builds the configuration the way rmw_zenoh does (docs/PROTOCOLS.md section 10):
+a Zenoh config file (`ZENOH_SESSION_CONFIG_URI`, or the transport's own `config_file`), else the
+bridge's defaults: client mode to `tcp/localhost:7447`, where `rmw_zenohd` listens, with no
+listening port and no multicast scouting; then `ZENOH_CONFIG_OVERRIDE` (`key=value;key=value`),
+then the transport's settings. TLS, mTLS and user/password are Zenoh config keys, passed through.
+
+`Link` opens the session. A client cannot open without a router, so a router that is down at
+start is tried again every second while the other routes run; once open, Zenoh itself reconnects
+after a router restart and declares the session's subscribers and tokens again. `connected`
+says whether any Zenoh transport (a router, a peer) is up now, for counting what cannot be sent.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import zenoh
+
+_log = logging.getLogger("viewer_bridge")
+ROUTER_ENDPOINT = "tcp/localhost:7447"  # rmw_zenohd's
+# Without a config file: a client of the local router that listens nowhere and scouts no multicast.
+_DEFAULTS = (
+    ("mode", '"client"'),
+    ("connect/endpoints", json.dumps([ROUTER_ENDPOINT])),
+    ("listen/endpoints", "[]"),
+    ("scouting/multicast/enabled", "false"),
+)
+# Always: the publication caches that serve TRANSIENT_LOCAL history need timestamped samples.
+_REQUIRED = (("timestamping/enabled", "true"),)
+
+
+def overrides_from_env(text: str) -> list[tuple[str, str]]:
+    """`ZENOH_CONFIG_OVERRIDE`: `key=value` pairs separated by `;`, values in JSON5, as
+    rmw_zenoh reads it (a pair without `=` is skipped; the value is everything after the first `=`)."""
+    pairs = []
+    for pair in text.split(";"):
+        key, equals, value = pair.partition("=")
+        if key.strip() and equals and value:
+            pairs.append((key.strip(), value))
+    return pairs
+
+
+def session_config(
+    config_file: str | None,
+    settings: Mapping[str, Any],
+    options: Mapping[str, Any],
+    environ: Mapping[str, str],
+) -> tuple[str | None, list[tuple[str, str]]]:
+    """The config file to start from (None: Zenoh's defaults), and the `(key, JSON5 value)`
+    pairs to set on it, in order, later ones winning.
+
+    `settings`: the transport's mode, connect and listen endpoints (None: not set);
+    `options`: any Zenoh config keys (`transport/link/tls/root_ca_certificate`: a path).
+    """
+    file = config_file or environ.get("ZENOH_SESSION_CONFIG_URI") or None
+    pairs = [] if file else list(_DEFAULTS)
+    pairs += overrides_from_env(environ.get("ZENOH_CONFIG_OVERRIDE", ""))
+    for key, value in settings.items():
+        if value is not None:
+            pairs.append((f"{key}/endpoints" if key in ("connect", "listen") else key, json.dumps(value)))
+    pairs += [(key, json.dumps(value)) for key, value in options.items()]
+    return file, pairs + list(_REQUIRED)
+
+
+def make_config(file: str | None, pairs: Sequence[tuple[str, str]]) -> zenoh.Config:
+    """A `zenoh.Config`; `ValueError` naming the file or the key Zenoh refuses."""
+    try:
+        config = zenoh.Config.from_file(file) if file else zenoh.Config()
+    except zenoh.ZError as error:
+        raise ValueError(f"Zenoh config file {file}: {_reason(error)}") from None
+    for key, value in pairs:
+        try:
+            config.insert_json5(key, value)
+        except zenoh.ZError as error:
+            raise ValueError(f"Zenoh config {key}={value}: {_reason(error)}") from None
+    return config
+
+
+def _reason(error: zenoh.ZError) -> str:
+    """Zenoh's message without the Rust source location it ends with."""
+    return str(error).split(" at /")[0].strip()
+
+
+Declare = Callable[[zenoh.Session], None]
+
+
+class Link:
+    """One Zenoh session: opened at `start`, or by a thread that tries every `retry_s` seconds
+    until it opens. What is declared through `when_open` is declared as soon as it can be."""
+
+    def __init__(self, config: Callable[[], zenoh.Config], where: str, retry_s: float = 1.0) -> None:
+        self._config = config  # a new Config per attempt: opening consumes it
+        self.where = where
+        self._retry_s = retry_s
+        self.session: zenoh.Session | None = None
+        self._declares: list[Declare] = []
+        self._held: list[object] = []  # Zenoh undeclares what is dropped
+        self._transports: set[str] = set()
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._keep_opening, name="zenoh open", daemon=True)
+
+    @property
+    def connected(self) -> bool:
+        """Whether any Zenoh transport (to a router or a peer) is up now."""
+        return bool(self._transports)
+
+    def hold(self, handle: object) -> None:
+        self._held.append(handle)
+
+    def when_open(self, declare: Declare) -> None:
+        """Run `declare(session)` now if the session is open, else once it opens."""
+        with self._lock:
+            if self.session is None:
+                self._declares.append(declare)
+                return
+            session = self.session
+        self._run(declare, session)
+
+    def start(self) -> None:
+        if not self._try_open():
+            self._thread.start()
+
+    def _keep_opening(self) -> None:
+        attempts = 1
+        while not self._stop.wait(self._retry_s) and not self._try_open(log=attempts % 60 == 0):
+            attempts += 1
+
+    def _try_open(self, log: bool = True) -> bool:
+        try:
+            session = zenoh.open(self._config())
+        except zenoh.ZError as error:
+            if log:
+                _log.warning("Zenoh: no session yet at %s (%s); trying again every %.0f s",
+                             self.where, _reason(error), self._retry_s)  # fmt: skip
+            return False
+        if self._stop.is_set():  # closed while this attempt was under way
+            session.close()  # type: ignore[no-untyped-call]
+            return True
+        listener = session.info.declare_transport_events_listener(self._on_transport, history=True)
+        with self._lock:
+            self.session = session
+            self._held.append(listener)
+            declares, self._declares = self._declares, []
+        for declare in declares:
+            self._run(declare, session)
+        _log.info("Zenoh: session %s open at %s", session.zid(), self.where)
+        return True
+
+    def _on_transport(self, event: zenoh.TransportEvent) -> None:
+        zid = str(event.transport.zid)
+        if event.kind == zenoh.SampleKind.PUT:
+            self._transports.add(zid)
+        else:
+            self._transports.discard(zid)
+
+    def _run(self, declare: Declare, session: zenoh.Session) -> None:
+        try:
+            declare(session)
+        except zenoh.ZError as error:  # a key Zenoh refuses: that entity is missing, the rest works
+            _log.warning("Zenoh: cannot declare on %s: %s", self.where, error)
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2)
+        with self._lock:
+            session, self.session = self.session, None
+            self._held.clear()
+        if session is not None:
+            session.close()  # type: ignore[no-untyped-call]

@@ -1,0 +1,202 @@
+"""Zenoh peers for the tests: a router (in this process, or a process to kill), and an rmw_zenoh
+node written from rmw_zenoh's design document and sources, not from the bridge's code.
+
+Everything listens on 127.0.0.1 only, on a free port; nothing scouts by multicast.
+`RmwZenohPeer` builds its keys, tokens and attachments here, by hand, from docs/PROTOCOLS.md
+section 10: the tests compare what the bridge sends with what this peer expects.
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+import struct
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import xxhash
+import zenoh
+import zenoh.ext
+from rosbags.typesys import Stores, get_typestore
+
+STORE = get_typestore(Stores.ROS2_JAZZY)
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def free_lcm_url() -> str:
+    """An LCM bus of its own: a UDP port no socket holds now, so that no other test process's
+    traffic (tests/conftest.py's `lcm_url` ports are shared by every process) lands on it."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("0.0.0.0", 0))
+        return f"udpm://239.255.76.67:{probe.getsockname()[1]}?ttl=0"
+
+
+def _config(mode: str, **keys: Any) -> zenoh.Config:
+    config = zenoh.Config()
+    config.insert_json5("mode", json.dumps(mode))
+    config.insert_json5("scouting/multicast/enabled", "false")
+    config.insert_json5("timestamping/enabled", "true")
+    for key, value in keys.items():
+        config.insert_json5(key.replace("__", "/"), json.dumps(value))
+    return config
+
+
+def router_config(port: int) -> zenoh.Config:
+    return _config("router", listen__endpoints=[f"tcp/127.0.0.1:{port}"])
+
+
+def client(endpoint: str) -> zenoh.Session:
+    return zenoh.open(_config("client", connect__endpoints=[endpoint]))
+
+
+class Router:
+    """A Zenoh router in this process, on 127.0.0.1 and a free port."""
+
+    def __init__(self, port: int | None = None) -> None:
+        self.port = port or free_port()
+        self.endpoint = f"tcp/127.0.0.1:{self.port}"
+        self.session = zenoh.open(router_config(self.port))
+
+    def close(self) -> None:
+        self.session.close()  # type: ignore[no-untyped-call]
+
+
+_ROUTER_SCRIPT = """
+import signal, sys, zenoh
+from tests.zenoh_peers import router_config
+session = zenoh.open(router_config(int(sys.argv[1])))
+print("router up", flush=True)
+signal.sigwait([signal.SIGTERM, signal.SIGINT])
+"""
+
+
+class RouterProcess:
+    """A Zenoh router in a process of its own, to be killed (SIGKILL) and started again on its port."""
+
+    def __init__(self) -> None:
+        self.port = free_port()
+        self.endpoint = f"tcp/127.0.0.1:{self.port}"
+        self.process: subprocess.Popen[str] | None = None
+
+    def start(self) -> float:
+        """Start it; returns the monotonic time at which it said it was up."""
+        self.process = subprocess.Popen(
+            [sys.executable, "-c", _ROUTER_SCRIPT, str(self.port)], stdout=subprocess.PIPE, text=True
+        )
+        assert self.process.stdout is not None
+        assert self.process.stdout.readline().strip() == "router up"
+        return time.monotonic()
+
+    def kill(self) -> None:
+        if self.process is not None:
+            self.process.kill()
+            self.process.wait(timeout=30)
+
+
+# --- an rmw_zenoh node, from the design document -------------------------------------------------------
+
+
+def type_hash(typename: str) -> str:
+    return STORE.hash_rihs01(typename)  # type: ignore[no-any-return]
+
+
+def dds_name(typename: str) -> str:
+    package, _, name = typename.split("/")
+    return f"{package}::msg::dds_::{name}_"
+
+
+def data_key(domain: int, topic: str, typename: str) -> str:
+    return f"{domain}/{topic.strip('/')}/{dds_name(typename)}/{type_hash(typename)}"
+
+
+def publisher_token(
+    domain: int, zid: str, entity: int, node: str, topic: str, typename: str, qos: str
+) -> str:
+    """`@ros2_lv/<domain>/<zid>/<node id>/<entity id>/MP/<enclave>/<namespace>/<node>/<topic>/<type>/<hash>/<qos>`
+    with `/` as `%` inside a part (the root namespace and enclave `/`: `%`)."""
+    mangled = topic.replace("/", "%")
+    return f"@ros2_lv/{domain}/{zid}/0/{entity}/MP/%/%/{node}/{mangled}/{dds_name(typename)}/{type_hash(typename)}/{qos}"
+
+
+@dataclass
+class Arrival:
+    key: str
+    payload: bytes
+    attachment: bytes | None
+    at_ns: int
+
+
+class RmwZenohPeer:
+    """One session acting as an rmw_zenoh node: subscribes to data keys (with history when
+    latched, as rmw_zenoh's TRANSIENT_LOCAL subscriptions do), reads the graph's tokens, and
+    publishes with its own token and attachments."""
+
+    def __init__(self, endpoint: str, domain: int, node: str = "probe") -> None:
+        self.session = client(endpoint)
+        self.zid = str(self.session.zid())
+        self.domain = domain
+        self.node = node
+        self.arrivals: dict[str, list[Arrival]] = {}
+        self._held: list[Any] = [
+            self.session.liveliness().declare_token(f"@ros2_lv/{domain}/{self.zid}/0/0/NN/%/%/{node}")
+        ]
+        self._lock = threading.Lock()
+        self._sequence = 0
+
+    def subscribe(self, topic: str, typename: str, latched: bool = False, depth: int = 10) -> list[Arrival]:
+        arrivals = self.arrivals.setdefault(topic, [])
+
+        def keep(sample: zenoh.Sample) -> None:
+            attachment = sample.attachment
+            with self._lock:
+                arrivals.append(
+                    Arrival(str(sample.key_expr), sample.payload.to_bytes(),
+                            None if attachment is None else attachment.to_bytes(), time.time_ns())
+                )  # fmt: skip
+
+        key = data_key(self.domain, topic, typename)
+        if latched:
+            history = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=depth)
+            self._held.append(zenoh.ext.declare_advanced_subscriber(self.session, key, keep, history=history))
+        else:
+            self._held.append(self.session.declare_subscriber(key, keep))
+        return arrivals
+
+    def tokens(self) -> list[str]:
+        replies = self.session.liveliness().get(f"@ros2_lv/{self.domain}/**")
+        return [str(reply.ok.key_expr) for reply in replies if reply.ok is not None]
+
+    def publisher(self, topic: str, typename: str, entity: int = 1) -> Callable[..., None]:
+        """`publish(cdr, attachment=None)`: on the topic's key, with this node's MP token; the
+        attachment is rmw_zenoh's unless one is given."""
+        token = publisher_token(self.domain, self.zid, entity, self.node, topic, typename, "::,10:,:,:,,")
+        self._held.append(self.session.liveliness().declare_token(token))
+        digest = xxhash.xxh3_128_intdigest(token.encode())
+        gid = struct.pack("<QQ", digest & (2**64 - 1), digest >> 64)
+        put = self.session.declare_publisher(data_key(self.domain, topic, typename))
+        self._held.append(put)
+
+        def publish(cdr: bytes, attachment: bytes | None = None) -> None:
+            self._sequence += 1
+            stamp = struct.pack("<qqB", self._sequence, time.time_ns(), 16) + gid
+            put.put(cdr, attachment=stamp if attachment is None else attachment)
+
+        return publish
+
+    def close(self) -> None:
+        self._held.clear()
+        self.session.close()  # type: ignore[no-untyped-call]
+
+
+def decode(arrival: Arrival, typename: str) -> Any:
+    return STORE.deserialize_cdr(arrival.payload, typename)
