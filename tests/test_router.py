@@ -17,7 +17,7 @@ import pytest
 
 from bridge.config import DEFAULT_CONFIG, Route, destination_name, load_config
 from bridge.errors import ConfigError
-from bridge.formats.drake import DrawEncoder
+from bridge.formats.drake.draw import DrawEncoder
 from bridge.router import Mailbox, Message
 from bridge.scene import LinkPoses
 from bridge.transports.base import CallPublisher, Received
@@ -390,7 +390,7 @@ def test_a_broken_config_exits_2_naming_file_line_and_field(
 def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_path: Path) -> None:
     """The default config's TF and marker routes are lazy: nothing is translated for them until a
     subscriber appears, which then gets the model and the latest transforms at once."""
-    from bridge.formats.drake import load_from_scene
+    from bridge.formats.drake.load import load_from_scene
     from tests.scenes import draw_of, small_scene
 
     url = lcm_url(10)
