@@ -18,7 +18,8 @@ import time
 
 from router import frame, scene
 
-from bridge.formats.drake import DrawEncoder, load_from_scene
+from bridge.formats.drake.draw import DrawEncoder
+from bridge.formats.drake.load import load_from_scene
 from bridge.translators import TRANSLATORS, LoadCache
 from bridge.translators.base import Translator
 from bridge.translators.types import LOAD_TYPE

@@ -32,8 +32,9 @@ from bridge.contact import (
     demo_contact_results,
     pressure_colors,
 )
-from bridge.formats.drake_contact import contact_results_to_lcm, decode_contact_results
+from bridge.formats.drake.contact import decode_contact_results
 from bridge.formats.ros.contact import contact_marker_array_cdr
+from tests.formats.drake.oracle import contact_results_to_lcm
 
 
 def _arrow(

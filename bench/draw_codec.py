@@ -20,12 +20,10 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-from common import Measure, best_of  # bench/ is on sys.path when run as a script
+from common import Measure, best_of, frame  # bench/ is on sys.path when run as a script
 
-from bridge.formats.drake import DrawDecoder, DrawEncoder
+from bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from bridge.lcmcodec import DRAW, SCHEMA_DIR
-from bridge.scene import LinkPoses
 
 
 def lcm_gen_draw_class(folder: Path) -> Any:
@@ -39,19 +37,6 @@ def lcm_gen_draw_class(folder: Path) -> Any:
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module.lcmt_viewer_draw
-
-
-def frame(links: int, seed: int = 0) -> LinkPoses:
-    rng = np.random.default_rng(seed)
-    quaternions = rng.normal(size=(links, 4))
-    quaternions /= np.linalg.norm(quaternions, axis=1, keepdims=True)
-    return LinkPoses(
-        timestamp_ms=1234,
-        names=tuple(f"plant::robot{i % 7}::link_{i}" for i in range(links)),
-        robot_nums=(np.arange(links) % 7).astype(np.int32),
-        positions=rng.normal(size=(links, 3)),
-        quaternions_wxyz=quaternions,
-    )
 
 
 def seconds_per_call(function: Callable[[], object], budget: float) -> float:

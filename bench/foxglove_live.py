@@ -21,13 +21,14 @@ import argparse
 import json
 import time
 
-from draw_codec import frame, seconds_per_call  # bench/ is on sys.path when run as a script
+from common import frame  # bench/ is on sys.path when run as a script
+from draw_codec import seconds_per_call
 from foxglove.messages import FrameTransform, FrameTransforms, Quaternion, Timestamp, Vector3
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms as FrameTransformsProto
 from translators import scene
 from websockets.sync.client import ClientConnection, connect
 
-from bridge.formats.drake import DrawDecoder, DrawEncoder
+from bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from bridge.formats.foxglove.scene import scene_update
 from bridge.formats.foxglove.transforms import FrameTransformsEncoder
 from bridge.formats.ros.tf import FrameNames

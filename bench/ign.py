@@ -24,11 +24,11 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from common import Measure  # noqa: E402
-from draw_codec import frame, paired, print_measures, seconds_per_call  # noqa: E402
+from common import Measure, frame  # noqa: E402
+from draw_codec import paired, print_measures, seconds_per_call  # noqa: E402
 from router import Bridge, publish_at  # noqa: E402
 
-from bridge.formats.drake import DrawDecoder, DrawEncoder  # noqa: E402
+from bridge.formats.drake.draw import DrawDecoder, DrawEncoder  # noqa: E402
 from bridge.formats.ign.poses import PosesEncoder  # noqa: E402
 from bridge.translators import TRANSLATORS, LoadCache  # noqa: E402
 from bridge.transports.base import Received  # noqa: E402

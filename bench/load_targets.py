@@ -2,9 +2,9 @@
 checkout write them, each in a child process (`times`), for `bench/translators.py`.
 
 The base side's `bridge` is the base commit's, unpacked with `git archive`: so what runs on that
-side (`base_calls`) uses only what both versions have, and each side imports the ROS modules by
-its own paths (the base commit's `bridge/formats/ros.py` and `ros_tf.py` are `bridge/formats/ros/`
-here), in the function that uses them.
+side (`base_calls`) uses only what both versions have, and each side imports the format modules
+by its own paths (the base commit's `bridge/formats/ros.py` and `ros_tf.py` are `bridge/formats/ros/`
+here, its `drake.py` is `bridge/formats/drake/`), in the function that uses them.
 """
 
 from __future__ import annotations
@@ -17,10 +17,8 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from common import best_of
-from draw_codec import frame
+from common import best_of, frame
 
-from bridge.formats.drake import DrawDecoder, DrawEncoder
 from bridge.scene import Box, Capsule, Cylinder, Ellipsoid, Geometry, Link, LinkPoses, Scene, Sphere
 from bridge.scene import Pose as ScenePose
 
@@ -35,8 +33,12 @@ def scene(links: int) -> Scene:
     return Scene(tuple(Link(name, index % 7, (geometry[index % 5],)) for index, name in enumerate(names)))
 
 
-def inputs(links: int) -> tuple[Scene, LinkPoses]:
-    """The load (with a frame's poses) and a draw as the decoder hands it over (float32 views)."""
+def inputs(side: str, links: int) -> tuple[Scene, LinkPoses]:
+    """The load (with a frame's poses) and a draw as the side's decoder hands it over (float32 views)."""
+    if side == "base":
+        from bridge.formats.drake import DrawDecoder, DrawEncoder  # the base commit's one module
+    else:
+        from bridge.formats.drake.draw import DrawDecoder, DrawEncoder  # a package here
     load = scene(links).with_poses(frame(links))
     draw = DrawDecoder().decode(DrawEncoder().encode(frame(links, seed=1)))
     return load, draw
@@ -106,7 +108,7 @@ def times(side: str, links: int, repeat: int) -> dict[str, float]:
 
 
 def _time(side: str, links: str, repeat: str) -> dict[str, float]:
-    load, draw = inputs(int(links))
+    load, draw = inputs(side, int(links))
     calls = base_calls(load, draw) if side == "base" else our_calls(load, draw)
     for call in calls.values():
         call()  # warm: tables loaded, caches filled, as in a running bridge

@@ -27,7 +27,7 @@ from draw_codec import seconds_per_call
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import PointCloud2, PointField
 
-from bridge.formats.drake_point_cloud import cloud_from_lcm, cloud_to_lcm
+from bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
 from bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
 from bridge.scene import PointCloud, StampedPointCloud
 

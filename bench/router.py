@@ -40,7 +40,8 @@ from pathlib import Path
 import numpy as np
 from common import Measure
 
-from bridge.formats.drake import DrawEncoder, load_from_scene
+from bridge.formats.drake.draw import DrawEncoder
+from bridge.formats.drake.load import load_from_scene
 from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
 from bridge.transports.lcm import LcmBus
 
@@ -211,7 +212,7 @@ def pose_array_sequence(data: bytes) -> int:
 def passthrough_sequence(data: bytes) -> int:
     (length,) = struct.unpack_from("<I", data, 12)
     draw = data[16 : 16 + length]
-    from bridge.formats.drake import DrawDecoder
+    from bridge.formats.drake.draw import DrawDecoder
 
     return int(DrawDecoder().decode(draw).positions[0, 0])
 

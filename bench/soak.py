@@ -40,7 +40,8 @@ from unittest import mock
 import numpy as np
 
 from bridge.config import DEFAULT_CONFIG
-from bridge.formats.drake import DrawEncoder, load_from_scene
+from bridge.formats.drake.draw import DrawEncoder
+from bridge.formats.drake.load import load_from_scene
 from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
 from bridge.transports.lcm import LcmBus
 

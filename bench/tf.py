@@ -14,13 +14,14 @@ from __future__ import annotations
 
 import argparse
 
-from draw_codec import frame, seconds_per_call  # bench/ is on sys.path when run as a script
+from common import frame  # bench/ is on sys.path when run as a script
+from draw_codec import seconds_per_call
 from geometry_msgs.msg import Quaternion, TransformStamped, Vector3
 from rclpy.serialization import deserialize_message, serialize_message
 from tf2_msgs.msg import TFMessage
 from translators import scene
 
-from bridge.formats.drake import DrawDecoder, DrawEncoder
+from bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from bridge.formats.ros.markers import MarkerStream, marker_array_in_link_frames_cdr
 from bridge.formats.ros.tf import FrameNames, TransformsEncoder
 from bridge.scene import LinkPoses

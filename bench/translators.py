@@ -21,13 +21,13 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import Measure  # bench/ is on sys.path when run as a script
-from draw_codec import frame, paired, seconds_per_call
+from common import Measure, frame  # bench/ is on sys.path when run as a script
+from draw_codec import paired, seconds_per_call
 from geometry_msgs.msg import Point, Pose, PoseArray, PoseStamped, Quaternion
 from load_targets import scene, times
 from rclpy.serialization import serialize_message
 
-from bridge.formats.drake import DrawDecoder, DrawEncoder
+from bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from bridge.formats.ros.markers import MarkerSpec, MarkerStream, marker_array_cdr, marker_specs
 from bridge.formats.ros.poses import PoseArrayEncoder
 from bridge.scene import LinkPoses

@@ -1,6 +1,6 @@
 """Contact results as neutral types, and how they are drawn: arrows and pressure-coloured surfaces.
 
-Drake publishes `lcmt_contact_results_for_viz` on `CONTACT_RESULTS`; `bridge.formats.drake_contact`
+Drake publishes `lcmt_contact_results_for_viz` on `CONTACT_RESULTS`; `bridge.formats.drake.contact`
 reads it into `ContactResults`. Every target draws contacts through one mechanism:
 `contact_scene` lowers them to ordinary scene shapes (a `Line` with an end head per force and
 moment, a `TriangleMesh` with per-vertex colours per hydroelastic surface), which each format's

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bridge.formats.drake import DrawEncoder, load_from_scene
+from bridge.formats.drake.draw import DrawEncoder
+from bridge.formats.drake.load import load_from_scene
 from bridge.scene import (
     Box,
     Capsule,

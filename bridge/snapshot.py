@@ -22,8 +22,9 @@ import numpy as np
 from PIL import Image
 
 from bridge.contact import ContactDrawOptions, ContactResults, contact_scene, pressure_colors
-from bridge.formats.drake import DrawDecoder, decode_load
-from bridge.formats.drake_contact import decode_contact_results
+from bridge.formats.drake.contact import decode_contact_results
+from bridge.formats.drake.draw import DrawDecoder
+from bridge.formats.drake.load import decode_load
 from bridge.formats.gltf import read_gltf, write_gltf
 from bridge.lcmcodec import CONTACT_RESULTS, DRAW, LOAD_ROBOT
 from bridge.lowering import arrow_mesh

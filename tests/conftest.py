@@ -17,7 +17,8 @@ from types import ModuleType
 import lcm
 import pytest
 
-from bridge.formats.drake import decode_load, poses_from_draw
+from bridge.formats.drake.draw import poses_from_draw
+from bridge.formats.drake.load import decode_load
 from bridge.lcmcodec import DRAW, LOAD_ROBOT, SCHEMA_DIR, LcmMessage
 from bridge.scene import LinkPoses, Scene
 from bridge.transports.lcm import LcmEvent, read_log

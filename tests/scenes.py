@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bridge.formats.drake import DrawEncoder
+from bridge.formats.drake.draw import DrawEncoder
 from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere
 
 

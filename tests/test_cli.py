@@ -148,7 +148,8 @@ def test_run_without_the_ros_extra_names_the_install_that_fixes_it() -> None:
 def demo_log(path: Path, draws: int) -> Path:
     """A log of the demo scene: its load, then `draws` draws at 60 Hz."""
     from bridge.demo import demo_poses, demo_scene
-    from bridge.formats.drake import DrawEncoder, load_from_scene
+    from bridge.formats.drake.draw import DrawEncoder
+    from bridge.formats.drake.load import load_from_scene
 
     scene = demo_scene()
     encoder = DrawEncoder()

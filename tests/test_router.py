@@ -15,12 +15,11 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from bridge.config import DEFAULT_CONFIG, Route, destination_name, load_config
+from bridge.config import DEFAULT_CONFIG, destination_name, load_config
 from bridge.errors import ConfigError
-from bridge.formats.drake import DrawEncoder
-from bridge.router import Mailbox, Message
+from bridge.formats.drake.draw import DrawEncoder
 from bridge.scene import LinkPoses
-from bridge.transports.base import CallPublisher, Received
+from bridge.transports.base import Received
 from bridge.transports.lcm import LcmBus
 from tests.conftest import DRAKE_SCENE_SCRIPT, SYNC_CHANNEL, lcm_url, publish_until
 from tests.formats import oracle
@@ -390,7 +389,7 @@ def test_a_broken_config_exits_2_naming_file_line_and_field(
 def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_path: Path) -> None:
     """The default config's TF and marker routes are lazy: nothing is translated for them until a
     subscriber appears, which then gets the model and the latest transforms at once."""
-    from bridge.formats.drake import load_from_scene
+    from bridge.formats.drake.load import load_from_scene
     from tests.scenes import draw_of, small_scene
 
     url = lcm_url(10)
@@ -529,53 +528,6 @@ def test_destination_templates(channel: str, template: str, name: str) -> None:
     assert match is not None and destination_name(template, match) == name
 
 
-def test_mailbox_keeps_the_newest_per_channel_and_never_grows() -> None:
-    import re
-
-    match = re.fullmatch("x", "x")
-    assert match is not None
-    latest = Mailbox("latest", 10)
-    for index in range(1000):
-        latest.put(Message(Received("DRAW", bytes([index % 256]), index), match))
-    latest.put(Message(Received("LOAD", b"load", 0), match))
-    latest.put(Message(Received("DRAW", b"newest", 0), match))
-    assert len(latest) == 2 and latest.dropped == 1000
-    assert [latest.take().received.data, latest.take().received.data] == [b"load", b"newest"]  # type: ignore[union-attr]
-    fifo = Mailbox("all", 3)
-    for index in range(5):
-        fifo.put(Message(Received("DRAW", bytes([index]), index), match))
-    assert fifo.dropped == 2 and [fifo.take().received.data for _ in range(3)] == [b"\x02", b"\x03", b"\x04"]  # type: ignore[union-attr]
-    assert fifo.take() is None and not fifo.wait(0.01)
-
-
-def test_a_translator_crash_skips_that_message_only() -> None:
-    import re
-
-    from bridge.config import Route
-    from bridge.router import RouteRunner
-    from bridge.translators import LoadCache, Translator
-
-    class Flaky(Translator):
-        reads = ()
-        outputs = ()
-
-        def translate(self, message: Received) -> Any:
-            if message.data == b"boom":
-                raise ZeroDivisionError("a bug")
-            return []
-
-    route = Route.model_validate(
-        {"name": "r", "source": {"transport": "lcm", "name": "X"}, "translator": "drake_to_pose_array",
-         "destination": {"transport": "ros", "name": "/x"}}
-    )  # fmt: skip
-    runner = RouteRunner(route, lambda: Flaky({}, LoadCache()), lambda name, output: CallPublisher(print))
-    match = re.fullmatch("X", "X")
-    assert match is not None
-    for data in (b"ok", b"boom", b"ok"):
-        runner.handle(Message(Received("X", data, 0), match))
-    assert runner.stats.errors == {"crash:ZeroDivisionError": 1} and len(runner.stats.translate_ms) == 2
-
-
 # --- 6. convert to MCAP ------------------------------------------------------------------------------------
 
 
@@ -651,62 +603,3 @@ def test_a_log_replays_through_the_routes_and_the_bridge_stops_at_its_end(
     route = json.loads(stats.read_text())["poses"]
     draws = len(list(read_log(drake_log, "DRAKE_VIEWER_DRAW_ILLUSTRATION")))
     assert route["messages_in"] == route["messages_out"] == draws and route["errors"] == {}
-
-
-def lazy_pose_route(**rate: Any) -> Route:
-    return Route.model_validate(
-        {"name": "r", "source": {"transport": "lcm", "name": "DRAKE_VIEWER_DRAW"}, "translator": "drake_to_pose_array",
-         "destination": {"transport": "ros", "name": "/x"}, "lazy": True, "rate": rate or {"policy": "latest"}}
-    )  # fmt: skip
-
-
-def test_a_lazy_route_that_wakes_does_not_count_the_wait_as_latency() -> None:
-    from bridge.router import RouteRunner
-    from bridge.translators import TRANSLATORS, LoadCache
-    from tests.scenes import draw_of, small_scene
-
-    listeners = 0
-    published: list[bytes] = []
-    route = lazy_pose_route()
-    runner = RouteRunner(
-        route,
-        lambda: TRANSLATORS.get("drake_to_pose_array")({}, LoadCache()),
-        lambda name, output: CallPublisher(published.append, lambda: listeners),
-    )
-    match = re.fullmatch("DRAKE_VIEWER_DRAW", "DRAKE_VIEWER_DRAW")
-    assert match is not None
-    scene = small_scene()
-    five_seconds_ago = time.time_ns() // 1000 - 5_000_000
-    runner.handle(Message(Received("DRAKE_VIEWER_DRAW", draw_of(scene, 1.0), five_seconds_ago), match))
-    assert runner.stats.idle_skipped == 1 and not published
-    listeners = 1
-    deadline = time.monotonic() + 30
-    while not published and time.monotonic() < deadline:  # the subscriber is noticed within 0.25 s
-        runner.catch_up()
-        time.sleep(0.01)
-    assert len(published) == 1  # the message kept while nobody listened, translated on waking
-    assert not runner.stats.latency_ms  # its five seconds of waiting are no latency
-    runner.handle(Message(Received("DRAKE_VIEWER_DRAW", draw_of(scene, 2.0)), match))
-    assert len(published) == 2 and len(runner.stats.latency_ms) == 1
-    assert runner.stats.latency_ms[0] < 5_000
-
-
-def test_messages_a_rate_limit_skips_are_counted_as_skipped_not_dropped() -> None:
-    from bridge.router import RouteRunner
-    from bridge.translators import TRANSLATORS, LoadCache
-
-    def runner(**rate: Any) -> RouteRunner:
-        return RouteRunner(
-            lazy_pose_route(**rate),
-            lambda: TRANSLATORS.get("drake_to_pose_array")({}, LoadCache()),
-            lambda name, output: CallPublisher(print),
-        )
-
-    for rate, dropped, skipped in (({"policy": "latest", "max_hz": 5}, 0, 2), ({"policy": "latest"}, 2, 0)):
-        route = runner(**rate)
-        match = re.fullmatch("D", "D")
-        assert match is not None
-        for index in range(3):  # queued, not taken: the worker is not started
-            route.mailbox.put(Message(Received("DRAKE_VIEWER_DRAW", bytes([index])), match))
-        stats = route.snapshot()
-        assert (stats["dropped"], stats["max_hz_skipped"], stats["queued"]) == (dropped, skipped, 1), rate

@@ -15,7 +15,8 @@ import numpy as np
 from PIL import Image
 
 from bridge.demo import demo_poses, demo_scene
-from bridge.formats.drake import DrawEncoder, load_from_scene
+from bridge.formats.drake.draw import DrawEncoder
+from bridge.formats.drake.load import load_from_scene
 from bridge.scene import Geometry, Link, MeshFile, Scene
 from bridge.skipped import collecting, per_geometry
 from bridge.transports.lcm import LcmEvent, read_log, write_log

@@ -14,7 +14,7 @@ from typing import Any, Literal
 
 from bridge.contact import ContactDrawOptions, ContactResults, contact_scene
 from bridge.formats import ros
-from bridge.formats.drake_contact import decode_contact_results
+from bridge.formats.drake.contact import decode_contact_results
 from bridge.formats.ign import schema as ign
 from bridge.formats.ign.contact import contacts_message
 from bridge.formats.ros import WRENCH_STAMPED

@@ -7,7 +7,7 @@ from typing import Any, ClassVar
 
 from pydantic import Field
 
-from bridge.formats.drake import DrawEncoder
+from bridge.formats.drake.draw import DrawEncoder
 from bridge.formats.ign.model import model_bytes, model_v_bytes
 from bridge.formats.ign.poses import PosesEncoder, poses_from_pose_v
 from bridge.formats.ign.schema import IGNITION

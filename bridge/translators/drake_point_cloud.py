@@ -13,7 +13,7 @@ from typing import Any
 from pydantic import Field
 
 from bridge.formats import ros
-from bridge.formats.drake_point_cloud import cloud_from_lcm, cloud_to_lcm
+from bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
 from bridge.formats.ros import POINT_CLOUD2
 from bridge.formats.ros.markers import marker_array_cdr
 from bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr

@@ -6,7 +6,8 @@ import struct
 from typing import Any
 
 from bridge.formats import ros
-from bridge.formats.drake import DrawEncoder, link_from_lcm
+from bridge.formats.drake.draw import DrawEncoder
+from bridge.formats.drake.load import link_from_lcm
 from bridge.formats.ros.cdr import CDR_LE, CDR_TIME, time_parts
 from bridge.formats.ros.markers import MarkerStream, marker_array_cdr
 from bridge.formats.ros.poses import PoseArrayEncoder, pose_array_arrays, poses_from_pose_array_cdr

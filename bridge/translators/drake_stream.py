@@ -14,7 +14,8 @@ from collections.abc import Callable
 from typing import Any
 
 from bridge.errors import DecodeError
-from bridge.formats.drake import DrawDecoder, decode_load
+from bridge.formats.drake.draw import DrawDecoder
+from bridge.formats.drake.load import decode_load
 from bridge.lcmcodec import DRAW, LOAD_ROBOT
 from bridge.scene import LinkPoses, Scene
 from bridge.translators.base import Outputs, Translator

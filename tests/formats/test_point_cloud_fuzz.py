@@ -15,10 +15,11 @@ import numpy as np
 import pytest
 
 from bridge.errors import DecodeError
-from bridge.formats.drake_point_cloud import cloud_from_lcm
+from bridge.formats.drake.point_cloud import cloud_from_lcm
 from bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
 from bridge.scene import StampedPointCloud
-from tests.formats.test_point_cloud import pydrake_message, sample_cloud
+from tests.formats.drake.test_point_cloud import pydrake_message
+from tests.formats.test_point_cloud import sample_cloud
 from tests.lcmcodec.test_fuzz import BUFFERS_PER_DECODER, mutate
 
 

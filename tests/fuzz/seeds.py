@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from bridge.config import BUILTIN_CONFIGS
-from bridge.formats.drake import decode_load, poses_from_draw
+from bridge.formats.drake.draw import poses_from_draw
+from bridge.formats.drake.load import decode_load
 from bridge.formats.gltf import write_gltf
 from bridge.formats.ign.model import model
 from bridge.formats.tree_viewer import envelope
@@ -145,10 +146,10 @@ def zenoh_seeds() -> Seeds:
 def meldis_seeds() -> Seeds:
     """Contact results and point clouds (what meldis shows), as the bridge writes them."""
     from bridge.contact import demo_contact_results
-    from bridge.formats.drake_contact import contact_results_to_lcm
-    from bridge.formats.drake_point_cloud import cloud_to_lcm
+    from bridge.formats.drake.point_cloud import cloud_to_lcm
     from bridge.formats.ros.point_cloud import cloud_to_cdr
     from bridge.scene import PointCloud, StampedPointCloud
+    from tests.formats.drake.oracle import contact_results_to_lcm
 
     points = np.arange(30, dtype=np.float64).reshape(10, 3) / 10
     clouds = [StampedPointCloud(PointCloud(points), "world", 1000),

@@ -25,9 +25,10 @@ import numpy as np
 
 from bridge.config import load_config
 from bridge.errors import ConfigError, DecodeError, EncodeError, GltfError, RequestRejected, SceneError
-from bridge.formats.drake import DrawDecoder, decode_load
-from bridge.formats.drake_contact import decode_contact_results
-from bridge.formats.drake_point_cloud import cloud_from_lcm, cloud_to_lcm
+from bridge.formats.drake.contact import decode_contact_results
+from bridge.formats.drake.draw import DrawDecoder
+from bridge.formats.drake.load import decode_load
+from bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
 from bridge.formats.gltf import read_gltf
 from bridge.formats.ign.model import scene_from_model
 from bridge.formats.ign.schema import IGNITION

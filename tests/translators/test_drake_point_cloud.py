@@ -12,15 +12,15 @@ from visualization_msgs.msg import MarkerArray
 from bridge.config import load_config
 from bridge.convert import convert
 from bridge.errors import DecodeError
-from bridge.formats.drake import DrawEncoder
-from bridge.formats.drake_point_cloud import cloud_from_lcm
+from bridge.formats.drake.draw import DrawEncoder
+from bridge.formats.drake.point_cloud import cloud_from_lcm
 from bridge.formats.tree_viewer import envelope
 from bridge.formats.tree_viewer.tree import TreeState
 from bridge.scene import LinkPoses, PointCloud
 from bridge.translators import TRANSLATORS
 from bridge.transports.base import Received
 from bridge.transports.lcm import LcmEvent, write_log
-from tests.formats.test_point_cloud import pydrake_message
+from tests.formats.drake.test_point_cloud import pydrake_message
 
 
 def test_a_drake_cloud_becomes_a_tree_viewer_pointcloud_our_server_reads_back() -> None:

@@ -6,7 +6,8 @@ from typing import Any
 
 import pytest
 
-from bridge.formats.drake import DrawDecoder, load_from_scene
+from bridge.formats.drake.draw import DrawDecoder
+from bridge.formats.drake.load import load_from_scene
 from bridge.translators import TRANSLATORS, LoadCache
 from bridge.translators.types import LOAD_TYPE
 from bridge.transports.base import Received

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from bridge.errors import EncodeError
-from bridge.formats.drake import load_from_scene
+from bridge.formats.drake.load import load_from_scene
 from bridge.formats.ros.messages import from_cdr
 from bridge.scene import Box, Geometry, Link, Pose, Scene
 from bridge.translators import TRANSLATORS, LoadCache

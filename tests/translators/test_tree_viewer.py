@@ -21,7 +21,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from bridge.demo import DEMO_MESH
 from bridge.errors import BridgeError
-from bridge.formats.drake import decode_load, load_from_scene
+from bridge.formats.drake.load import decode_load, load_from_scene
 from bridge.formats.tree_viewer import envelope
 from bridge.lcmcodec import VIEWER2_COMMS
 from bridge.scene import Pose

@@ -18,7 +18,7 @@ from mcap_ros2.decoder import DecoderFactory
 
 from bridge.config import BridgeConfig
 from bridge.errors import ConfigError, TransportUnavailable
-from bridge.formats.drake import load_from_scene
+from bridge.formats.drake.load import load_from_scene
 from bridge.router import Router
 from bridge.scene import Scene
 from bridge.transports.base import Received

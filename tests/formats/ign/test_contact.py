@@ -7,7 +7,7 @@ from types import ModuleType
 
 from bridge.translators import TRANSLATORS, LoadCache
 from bridge.transports.base import Received
-from tests.translators.test_drake_contact import pydrake_results
+from tests.formats.drake.test_contact import pydrake_results
 
 
 def test_ign_contacts_read_by_debians_protos(debian_ign_msgs: ModuleType) -> None:

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bridge.formats.drake import DrawDecoder, DrawEncoder
+from bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from bridge.formats.ign.poses import PosesEncoder, poses_from_pose_v
 from bridge.formats.ign.schema import GZ, IGNITION
 from bridge.scene import LinkPoses

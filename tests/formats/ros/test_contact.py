@@ -6,14 +6,15 @@ from __future__ import annotations
 import numpy as np
 
 from bridge.contact import ContactDrawOptions, pressure_colors
-from bridge.formats.drake_contact import decode_contact_results
+from bridge.formats.drake.contact import decode_contact_results
 from bridge.formats.ros import MARKER_ARRAY, WRENCH_STAMPED
 from bridge.formats.ros.contact import WrenchEncoder, contact_marker_array_cdr
 from bridge.formats.ros.messages import from_cdr, to_cdr
 from bridge.translators import TRANSLATORS, LoadCache
 from bridge.transports.base import Received
+from tests.formats.drake.test_contact import pydrake_results
 from tests.formats.ros import oracle as ros_oracle
-from tests.translators.test_drake_contact import ARROW, DELETEALL, TRIANGLE_LIST, pydrake_results
+from tests.translators.test_drake_contact import ARROW, DELETEALL, TRIANGLE_LIST
 
 
 def test_markers_arrows_and_pressure_coloured_surface() -> None:

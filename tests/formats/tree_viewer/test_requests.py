@@ -17,7 +17,7 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from bridge.formats.drake import DrawDecoder, DrawEncoder
+from bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from bridge.formats.tree_viewer.envelope import decode, encode
 from bridge.formats.tree_viewer.requests import (
     DEFAULT_PREFIX,

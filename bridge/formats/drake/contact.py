@@ -1,10 +1,11 @@
-"""Drake's `lcmt_contact_results_for_viz` (channel `CONTACT_RESULTS`) to and from `ContactResults`.
+"""Drake's `lcmt_contact_results_for_viz` (channel `CONTACT_RESULTS`) read as `ContactResults`.
 
 The generic codec (`bridge.lcmcodec`) checks the bytes: counts against the buffer, strings, and
 non-finite doubles, each a `DecodeError` naming the field and offset. Here the rest is checked:
 a surface's polygon stream (counts of at least 3, indices within the vertices, the stream used
 up exactly). Polygons are fanned into triangles; Drake sends triangles already, which take a
-vectorised path.
+vectorised path. (Writing the message back, for tests and benchmarks:
+tests/formats/drake/oracle.py.)
 """
 
 from __future__ import annotations
@@ -15,13 +16,10 @@ import numpy as np
 
 from bridge.contact import ContactBody, ContactResults, ContactSurface, HydroelasticContact, PointContacts
 from bridge.errors import DecodeError
-from bridge.lcmcodec import CODECS, CONTACT_RESULTS, Buffer, LcmMessage
+from bridge.lcmcodec import CONTACT_RESULTS, Buffer, LcmMessage
 from bridge.scene import FloatArray, IntArray
 
 _TYPE = CONTACT_RESULTS.type_name
-POINT_PAIR = CODECS["drake.lcmt_point_pair_contact_info_for_viz"]
-SURFACE = CODECS["drake.lcmt_hydroelastic_contact_surface_for_viz"]
-POINT = CODECS["drake.lcmt_point"]
 
 
 def decode_contact_results(data: Buffer) -> ContactResults:
@@ -114,64 +112,3 @@ def _fan(values: list[int], field: str) -> tuple[IntArray, IntArray]:
     corner_offsets = np.array(offsets, dtype=np.int64).reshape(-1, 3)
     triangles: IntArray = np.asarray(values, dtype=np.int64)[corner_offsets] if offsets else corner_offsets
     return triangles, corner_offsets
-
-
-# --- back to Drake's message (tests, benchmarks, the demo) ------------------------------------------
-
-
-def contact_results_to_lcm(results: ContactResults) -> LcmMessage:
-    """`ContactResults` as `lcmt_contact_results_for_viz` (triangles as 3-vertex polygons)."""
-    pairs = [
-        POINT_PAIR.message_class(
-            timestamp=results.timestamp_us,
-            body1_name=body1,
-            body2_name=body2,
-            contact_point=point,
-            contact_force=force,
-            normal=normal,
-        )
-        for (body1, body2), point, force, normal in zip(
-            results.point.body_pairs,
-            results.point.points.tolist(),
-            results.point.forces.tolist(),
-            results.point.normals.tolist(),
-            strict=True,
-        )
-    ]
-    surfaces = [_surface_message(contact) for contact in results.hydroelastic]
-    return CONTACT_RESULTS.message_class(
-        timestamp=results.timestamp_us,
-        num_point_pair_contacts=len(pairs),
-        point_pair_contact_info=pairs,
-        num_hydroelastic_contacts=len(surfaces),
-        hydroelastic_contacts=surfaces,
-    )
-
-
-def _surface_message(contact: HydroelasticContact) -> LcmMessage:
-    surface = contact.surface
-    triangles = surface.triangles
-    poly = np.concatenate((np.full((len(triangles), 1), 3), triangles), axis=1).reshape(-1).tolist()
-    one, two = contact.body1, contact.body2
-    return SURFACE.message_class(
-        geometry1_name=one.geometry,
-        body1_name=one.body,
-        model1_name=one.model,
-        body1_unique=one.body_unique,
-        collision_count1=one.collision_count,
-        geometry2_name=two.geometry,
-        body2_name=two.body,
-        model2_name=two.model,
-        body2_unique=two.body_unique,
-        collision_count2=two.collision_count,
-        centroid_W=contact.centroid.tolist(),
-        force_C_W=contact.force.tolist(),
-        moment_C_W=contact.moment.tolist(),
-        num_quadrature_points=0,
-        quadrature_point_data=[],
-        num_vertices=len(surface.vertices),
-        p_WV=[POINT.message_class(x=x, y=y, z=z) for x, y, z in surface.vertices.tolist()],
-        pressure=surface.pressure.tolist(),
-        poly_data_int_count=len(poly),
-        poly_data=poly,
-    )

@@ -1,30 +1,19 @@
-"""Drake's LCM viewer messages, checked against real Drake: its traffic and its own classes."""
+"""Drake's `lcmt_viewer_load_robot` (bridge/formats/drake/load.py), checked against real Drake's
+traffic, and hand-made scenes through it both ways."""
 
 from __future__ import annotations
 
 import base64
 import json
-import warnings
-from collections import Counter
 from pathlib import Path
 from typing import Any
 
-import drake as drake_lcmtypes  # Drake's own lcm-gen classes, shipped with pydrake
 import numpy as np
 import pytest
 
 from bridge.errors import DecodeError
-from bridge.formats.drake import (
-    DrawDecoder,
-    DrawEncoder,
-    decode_load,
-    draw_from_poses,
-    link_from_lcm,
-    load_from_scene,
-    poses_from_draw,
-    scene_from_load,
-)
-from bridge.lcmcodec import DRAW, GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, codec_for
+from bridge.formats.drake.load import decode_load, link_from_lcm, load_from_scene, scene_from_load
+from bridge.lcmcodec import GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, codec_for
 from bridge.scene import (
     Box,
     Capsule,
@@ -40,39 +29,8 @@ from bridge.scene import (
     Scene,
     Sphere,
     TriangleMesh,
-    frame_name,
 )
 from bridge.transports.lcm import LcmEvent
-
-
-def values(message: Any) -> Any:
-    """Every field of an lcm-gen (or our) message as plain lists, for comparing the two."""
-    if hasattr(message, "__slots__") and not isinstance(message, (str, bytes)):
-        return {name: values(getattr(message, name)) for name in message.__slots__}
-    if isinstance(message, (list, tuple)):
-        return [values(item) for item in message]
-    return message
-
-
-def test_drake_publishes_on_every_role_channel(drake_events: list[LcmEvent]) -> None:
-    channels = Counter(event.channel for event in drake_events)
-    for role in ("ILLUSTRATION", "PROXIMITY"):
-        assert channels[f"DRAKE_VIEWER_LOAD_ROBOT_{role}"] >= 1
-        assert channels[f"DRAKE_VIEWER_DRAW_{role}"] >= 3
-        assert channels[f"DRAKE_VIEWER_DEFORMABLE_{role}"] >= 1
-
-
-def test_every_message_decodes_like_drakes_classes_and_reencodes_to_the_same_bytes(
-    drake_events: list[LcmEvent],
-) -> None:
-    assert len(drake_events) > 10
-    for event in drake_events:
-        codec = codec_for(event.data)
-        assert codec is not None, event.channel
-        ours = codec.decode(event.data)
-        theirs = getattr(drake_lcmtypes, codec.definition.name).decode(event.data)
-        assert values(ours) == values(theirs), event.channel
-        assert codec.encode(ours) == event.data
 
 
 def load_of(drake_events: list[LcmEvent], role: str) -> tuple[bytes, Scene]:
@@ -129,25 +87,6 @@ def test_geometry_pose_is_w_first(drake_events: list[LcmEvent]) -> None:
     w, x, y, z = geometry.pose.quaternion_wxyz
     assert geometry.pose.quaternion_xyzw == (x, y, z, w)
     assert w == pytest.approx(np.cos(0.5 * np.linalg.norm([0.2, 0.2, 1.3])), abs=0.2)  # not tiny: w leads
-
-
-def test_draw_fast_path_matches_drake(drake_events: list[LcmEvent]) -> None:
-    decoder = DrawDecoder()
-    encoder = DrawEncoder()
-    draws = [e for e in drake_events if e.channel == "DRAKE_VIEWER_DRAW_ILLUSTRATION"]
-    assert len({e.data for e in draws}) > 1  # the bodies fall: frames differ
-    for event in draws:
-        theirs = drake_lcmtypes.lcmt_viewer_draw.decode(event.data)
-        poses = decoder.decode(event.data)
-        assert poses.names == tuple(theirs.link_name)
-        assert poses.robot_nums.tolist() == list(theirs.robot_num)
-        assert poses.positions.tolist() == [list(p) for p in theirs.position]
-        assert poses.quaternions_wxyz.tolist() == [list(q) for q in theirs.quaternion]
-        assert not poses.positions.flags.owndata  # a view into the buffer, not a copy
-        assert encoder.encode(poses) == event.data
-        assert draw_from_poses(poses_from_draw(DRAW.decode(event.data))).encode() == event.data
-    assert all("::" in name for name in poses.names)
-    assert frame_name(poses.names[0]).startswith("plant/robot0/")
 
 
 def test_deformable_channel_decodes_as_link_data(drake_events: list[LcmEvent]) -> None:
@@ -298,48 +237,3 @@ def test_in_memory_mesh_json_matches_drakes_writing() -> None:
     )
     data = load_with(geometry)
     assert load_from_scene(decode_load(data)).encode() == data
-
-
-def _drake_draw(quaternion_value: float, position_value: float = 0.5) -> bytes:
-    """Three links encoded by Drake's own class, one quaternion and one position value chosen."""
-    message = drake_lcmtypes.lcmt_viewer_draw()
-    message.timestamp, message.num_links = 17, 3
-    message.link_name = ["plant::a", "plant::b::c", "plant::d"]
-    message.robot_num = [0, 1, 2]
-    message.position = [[0.0, 1.0, 2.0], [3.0, 4.0, position_value], [6.0, 7.0, 8.0]]
-    message.quaternion = [[1.0, 0.0, 0.0, 0.0], [0.0, quaternion_value, 0.0, 0.0], [0.5, 0.5, 0.5, 0.5]]
-    return bytes(message.encode())
-
-
-@pytest.mark.parametrize(
-    ("value", "other"),
-    [(float("nan"), 0.5), (float("inf"), 0.5), (float("-inf"), 0.5), (float("inf"), float("-inf"))],
-)
-def test_draw_fast_path_refuses_what_is_not_finite_like_the_generic_decoder(
-    value: float, other: float
-) -> None:
-    decoder = DrawDecoder()
-    decoder.decode(_drake_draw(1.0))  # the names are known: the next draw takes the fast path
-    bad = _drake_draw(value, other)
-    with pytest.raises(DecodeError) as expected:
-        DRAW.decode(bad)
-    with warnings.catch_warnings(record=True) as shown:
-        for data in (bad, bytearray(bad), memoryview(bad)):
-            with pytest.raises(DecodeError) as caught:
-                decoder.decode(data)
-            assert str(caught.value) == str(expected.value)
-    assert not shown  # no numpy warning on the way
-
-
-def test_draw_fast_path_takes_the_largest_finite_floats() -> None:
-    largest = float(np.finfo(np.float32).max)
-    decoder = DrawDecoder()
-    decoder.decode(_drake_draw(1.0))
-    data = _drake_draw(-largest, largest)
-    with warnings.catch_warnings(record=True) as shown:
-        poses = decoder.decode(data)
-    assert not shown
-    theirs = drake_lcmtypes.lcmt_viewer_draw.decode(data)
-    assert poses.positions.tolist() == [list(p) for p in theirs.position]
-    assert poses.quaternions_wxyz.tolist() == [list(q) for q in theirs.quaternion]
-    assert not poses.positions.flags.owndata  # views of the one copy the decoder made

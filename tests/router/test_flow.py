@@ -1,0 +1,25 @@
+"""The mailbox between a transport's thread and a route's worker (bridge/router/flow.py)."""
+
+from __future__ import annotations
+
+from bridge.router.flow import Mailbox, Message
+from bridge.transports.base import Received
+
+
+def test_mailbox_keeps_the_newest_per_channel_and_never_grows() -> None:
+    import re
+
+    match = re.fullmatch("x", "x")
+    assert match is not None
+    latest = Mailbox("latest", 10)
+    for index in range(1000):
+        latest.put(Message(Received("DRAW", bytes([index % 256]), index), match))
+    latest.put(Message(Received("LOAD", b"load", 0), match))
+    latest.put(Message(Received("DRAW", b"newest", 0), match))
+    assert len(latest) == 2 and latest.dropped == 1000
+    assert [latest.take().received.data, latest.take().received.data] == [b"load", b"newest"]  # type: ignore[union-attr]
+    fifo = Mailbox("all", 3)
+    for index in range(5):
+        fifo.put(Message(Received("DRAW", bytes([index]), index), match))
+    assert fifo.dropped == 2 and [fifo.take().received.data for _ in range(3)] == [b"\x02", b"\x03", b"\x04"]  # type: ignore[union-attr]
+    assert fifo.take() is None and not fifo.wait(0.01)
