@@ -22,7 +22,8 @@ import yaml
 from rosbags.typesys import Stores, get_typestore
 
 from bridge.config import load_config
-from bridge.formats.drake import DrawEncoder, load_from_scene
+from bridge.formats.drake.draw import DrawEncoder
+from bridge.formats.drake.load import load_from_scene
 from bridge.scene import Box, Geometry, Link, LinkPoses, Scene
 from bridge.transports.lcm import LcmBus
 from tests.peers import BridgeProcess, wait_for, write_config
