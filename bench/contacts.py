@@ -29,12 +29,12 @@ from bridge.contact import (
     FORCE_COLOR,
     MOMENT_COLOR,
     ContactDrawOptions,
-    demo_contact_results,
     pressure_colors,
 )
 from bridge.formats.drake.contact import decode_contact_results
 from bridge.formats.ros.contact import contact_marker_array_cdr
 from tests.formats.drake.oracle import contact_results_to_lcm
+from tests.scenes import demo_contact_results
 
 
 def _arrow(

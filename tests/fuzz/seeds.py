@@ -145,11 +145,11 @@ def zenoh_seeds() -> Seeds:
 
 def meldis_seeds() -> Seeds:
     """Contact results and point clouds (what meldis shows), as the bridge writes them."""
-    from bridge.contact import demo_contact_results
     from bridge.formats.drake.point_cloud import cloud_to_lcm
     from bridge.formats.ros.point_cloud import cloud_to_cdr
     from bridge.scene import PointCloud, StampedPointCloud
     from tests.formats.drake.oracle import contact_results_to_lcm
+    from tests.scenes import demo_contact_results
 
     points = np.arange(30, dtype=np.float64).reshape(10, 3) / 10
     clouds = [StampedPointCloud(PointCloud(points), "world", 1000),

@@ -14,7 +14,7 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from bridge.contact import FORCE_COLOR, demo_contact_results, pressure_colors
+from bridge.contact import FORCE_COLOR, pressure_colors
 from bridge.formats import ros
 from bridge.formats.ros.messages import from_cdr
 from bridge.formats.tree_viewer import envelope
@@ -25,6 +25,7 @@ from bridge.transports.base import Received
 from tests.conftest import lcm_url
 from tests.formats.drake.test_contact import pydrake_results
 from tests.peers import BridgeProcess, RosProbe
+from tests.scenes import demo_contact_results
 from tests.test_router import LcmRecorder
 
 CONTACT_SCENE_SCRIPT = Path(__file__).parents[1] / "drake_contact_scene.py"
