@@ -29,7 +29,7 @@ from bridge.formats.drake_contact import decode_contact_results
 from bridge.formats.drake_point_cloud import cloud_from_lcm, cloud_to_lcm
 from bridge.formats.gltf import read_gltf
 from bridge.formats.ign.model import scene_from_model
-from bridge.formats.ign.schema import IGNITION
+from bridge.formats.ign.schema import MESSAGES
 from bridge.formats.ros.point_cloud import cloud_from_cdr
 from bridge.lcmcodec import CODECS, LOAD_ROBOT, VIEWER2_COMMS, StructCodec
 from bridge.render import Camera
@@ -103,7 +103,7 @@ def ign_pose_v(data: bytes) -> object:
 
 
 def ign_model(data: bytes) -> object:
-    return scene_from_model(IGNITION.parse("Model", data))
+    return scene_from_model(MESSAGES.parse("Model", data))
 
 
 register(Target("ign_pose_v", ign_pose_v, (DecodeError, SceneError, EncodeError), ("ign.Pose_V",)))
