@@ -2,7 +2,7 @@
 
 No Python binding of ign-transport or gz-transport exists, so this node speaks their wire
 protocol, which Fortress (ign-transport 11) and Harmonic and later (gz-transport 13) share
-(docs/PROTOCOLS.md sections 4 and 12, checked against Debian's `ign-transport-topic` and a
+(docs/PROTOCOLS.md sections 4 and 10, checked against Debian's `ign-transport-topic` and a
 gz-transport 13 `gz topic`):
 
 * Discovery: `bridge/transports/ign_discovery.py` says what to send and answer; this node owns

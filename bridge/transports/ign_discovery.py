@@ -1,6 +1,6 @@
 """ign/gz-transport discovery without sockets: what a node reads in a datagram and what it answers.
 
-docs/PROTOCOLS.md sections 4 and 12. A datagram is `[uint16 length, little-endian][Discovery]`,
+docs/PROTOCOLS.md sections 4 and 10. A datagram is `[uint16 length, little-endian][Discovery]`,
 sent to the discovery group (239.255.0.7:10317; a heartbeat to 10318 as well) and to every
 unicast relay (`GZ_RELAY`, with the RELAY flag), wire version 10, or 110 when topic statistics
 are on; the bridge reads both versions. `Discovery` is one node's side of it: every second a
@@ -81,7 +81,7 @@ class Discovery:
         self.advertised: dict[str, str] = {}  # full topic -> type
         self.subscriptions: dict[str, Subscription] = {}
         self.remotes: dict[tuple[str, str], Remote] = {}  # (process uuid, topic) -> publisher
-        self.relays = set(environment.relays)
+        self.relays = environment.relays  # a tuple, replaced when one is added: other threads send
         self._send_datagram, self._connect, self._report = send, connect, report
         self._connected: set[str] = set()  # addresses connected to
         self._last_seen: dict[str, float] = {}
@@ -139,7 +139,7 @@ class Discovery:
         if self.relays:
             message.flags.relay = True
             data = datagram(message)
-            for relay in sorted(self.relays):
+            for relay in self.relays:
                 self._send_datagram(data, (relay, port))
 
     def _publisher_record(self, kind: int, full: str, msg_type: str) -> Any:
@@ -191,12 +191,14 @@ class Discovery:
         if message.flags.relay:  # from a relay: to this host's group (where it is read), not to relays
             message.flags.relay, message.flags.no_relay = False, True
             self._send_datagram(datagram(message), (self.environment.group, self.environment.message_port))
-            self.relays.add(sender)
+            if sender not in self.relays:
+                self.relays = (*self.relays, sender)
             return
         if self.relays and not message.flags.no_relay:  # from the group: on to the relays
             message.flags.relay = True
-            for relay in sorted(self.relays):
-                self._send_datagram(datagram(message), (relay, self.environment.message_port))
+            data = datagram(message)
+            for relay in self.relays:
+                self._send_datagram(data, (relay, self.environment.message_port))
         self._last_seen[message.process_uuid] = now
         handler = self._handlers.get(message.type)
         if handler is None:

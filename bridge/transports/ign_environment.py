@@ -2,7 +2,7 @@
 
 gz-transport 13 (Gazebo Harmonic and later) reads only `GZ_*`; ign-transport 11 (Fortress) only
 `IGN_*`. The bridge reads both as gz-transport 12 does: the `GZ_` name first, else the `IGN_`
-one with a warning, so one environment serves either generation (docs/PROTOCOLS.md section 12).
+one with a warning, so one environment serves either generation (docs/PROTOCOLS.md section 10).
 Values that cannot be used (a port that is no port, a relay that is no IPv4 address) are logged
 and replaced by the default, as gz-transport does.
 """

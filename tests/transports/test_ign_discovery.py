@@ -1,7 +1,7 @@
 """Discovery without sockets: what a node answers, what it connects to, what it counts.
 
 The datagrams are built with our schema, laid out as gz-transport 13.5's `Discovery::SendMsg`
-and `MessagePublisher::FillDiscovery` write them (docs/PROTOCOLS.md section 12).
+and `MessagePublisher::FillDiscovery` write them (docs/PROTOCOLS.md section 10).
 """
 
 from __future__ import annotations
@@ -236,7 +236,7 @@ def test_relays_get_our_datagrams_and_the_groups_and_give_theirs_to_the_group() 
     ((forwarded, where),) = peer.sent
     assert where == GROUP and forwarded.flags.no_relay and not forwarded.flags.relay
     assert not peer.connected  # read when it comes back from the group
-    assert peer.discovery.relays == {"10.0.0.2", "10.0.0.9"}
+    assert peer.discovery.relays == ("10.0.0.2", "10.0.0.9")
     peer.sent.clear()
     peer.discovery.on_datagram(datagram(forwarded), "127.0.0.1", 0.0)
     assert peer.connected == [PEER]

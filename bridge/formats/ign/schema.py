@@ -1,7 +1,7 @@
 """The one protobuf schema of ign-msgs 8 / gz-msgs that the bridge speaks, and the names of its types.
 
 `_SCHEMA` below (field numbers from ign-msgs 8, unchanged in gz-msgs 10, see docs/PROTOCOLS.md
-sections 4 and 12) is built at import into a protobuf descriptor pool: `MESSAGES`. The wire
+sections 4 and 10) is built at import into a protobuf descriptor pool: `MESSAGES`. The wire
 format is the `protobuf` package's; only the fields the bridge uses are declared, and a receiver
 with the full `.proto` files reads them (unknown fields are skipped both ways). The ign
 transport uses it for its discovery datagrams; the format modules beside it for poses, models
