@@ -36,8 +36,8 @@ from bridge.transports.ign import IgnNode  # noqa: E402
 from bridge.transports.lcm import LcmBus  # noqa: E402
 from tests.formats.ign.oracle import pose_v  # noqa: E402
 
-os.environ.setdefault("IGN_PARTITION", f"bench{os.getpid()}")
-os.environ.setdefault("IGN_IP", "127.0.0.1")
+os.environ.setdefault("GZ_PARTITION", f"bench{os.getpid()}")
+os.environ.setdefault("GZ_IP", "127.0.0.1")
 
 CONFIG = """\
 routes:
@@ -81,7 +81,7 @@ def live(seconds: float) -> dict[str, float]:
         received = []
         node = IgnNode()
         node.subscribe(
-            "/bench/pose_v", "ignition.msgs.Pose_V", lambda topic, data, us: received.append(len(data))
+            "/bench/pose_v", "gz.msgs.Pose_V", lambda topic, data, us: received.append(len(data))
         )
         node.start()
         bus = LcmBus(bench_router.URL)

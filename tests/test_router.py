@@ -337,7 +337,7 @@ BROKEN_CONFIGS = [
      "translator drake_to_pose_array reads drake.lcmt_viewer_draw (lcm), which the ros transport does not carry"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_ign_pose_v\n"
      "    destination: {transport: ros, name: /y}\n", 5, "routes.0.destination.transport",
-     "writes ignition.msgs.Pose_V (protobuf), which the ros transport does not carry"),
+     "writes Pose_V (protobuf), which the ros transport does not carry"),
     # Transport sections are checked by the transport's own settings model.
     ("lcm: {uri: 'udpm://x'}\nroutes: []\n", 1, "lcm.uri", "unknown key 'uri' (did you mean 'url'?); known keys: url"),
     # A misspelt key is named as unknown, not only as the key it leaves missing.

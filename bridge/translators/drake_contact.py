@@ -3,7 +3,7 @@
 `drake_contacts_to_marker_array`: a MarkerArray per message (arrows, pressure-coloured
 surfaces; see `bridge.contact` for the drawing options), latched like the scene's markers.
 `drake_contacts_to_wrenches`: a `geometry_msgs/WrenchStamped` per contact pair, all on the one
-destination topic. `drake_contacts_to_ign_contacts`: `ignition.msgs.Contacts`.
+destination topic. `drake_contacts_to_ign_contacts`: ign/gz `Contacts`.
 `drake_contacts_to_tree_viewer`: requests for Director's tree viewer (arrows as `line`s with a
 head). All decode a message once between them (`contact_results`).
 """
@@ -15,7 +15,6 @@ from typing import Any, Literal
 from bridge.contact import ContactDrawOptions, ContactResults, contact_scene
 from bridge.formats import ros
 from bridge.formats.drake.contact import decode_contact_results
-from bridge.formats.ign import schema as ign
 from bridge.formats.ign.contact import contacts_message
 from bridge.formats.ros import WRENCH_STAMPED
 from bridge.formats.ros.contact import WrenchEncoder, contact_marker_array_cdr
@@ -87,20 +86,19 @@ class IgnContactOptions(IgnOptions):
 
 
 class DrakeContactsToIgnContacts(Translator):
-    """contact results -> `ignition.msgs.Contacts` (or `gz.msgs.Contacts`): a Contact per pair."""
+    """contact results -> ign/gz `Contacts`: a Contact per pair."""
 
     Options = IgnContactOptions
     options: IgnContactOptions
     reads = (CONTACT_TYPE,)
-    outputs = (Output("", ign_type(ign.IGNITION, "Contacts")),)
+    outputs = (Output("", ign_type("Contacts")),)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.msgs = self.options.messages()
-        self.outputs = (Output("", ign_type(self.msgs, "Contacts")),)
+        self.outputs = (Output("", self.options.message_type("Contacts")),)
 
     def translate(self, message: Received) -> Outputs:
-        contacts = contacts_message(contact_results(message), self.msgs, self.options.world)
+        contacts = contacts_message(contact_results(message), self.options.world)
         return [(0, contacts.SerializeToString())]
 
 

@@ -1,4 +1,8 @@
-"""Drake's LCM scene to ign-transport (ign-msgs 8 / gz-msgs protobuf), and Pose_V back."""
+"""Drake's LCM scene to ign/gz-transport (ign-msgs 8 / gz-msgs protobuf), and Pose_V back.
+
+Each translator names its messages once, by their short names (`Pose_V`): the ign transport
+spells them in its package, unless a route's `package` option picks one (`IgnOptions`).
+"""
 
 from __future__ import annotations
 
@@ -10,7 +14,7 @@ from pydantic import Field
 from bridge.formats.drake.draw import DrawEncoder
 from bridge.formats.ign.model import model_bytes, model_v_bytes
 from bridge.formats.ign.poses import PosesEncoder, poses_from_pose_v
-from bridge.formats.ign.schema import IGNITION
+from bridge.formats.ign.schema import MESSAGES
 from bridge.scene import Scene
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from bridge.translators.drake_stream import DrakeTranslator, draw_poses
@@ -20,7 +24,7 @@ from bridge.transports.base import MessageType, Received
 
 
 class _DrakeToIgn(Translator):
-    """Base of Drake -> ign-transport: the package option picks the message names."""
+    """Base of Drake -> ign-transport: one output, the message `message_name`."""
 
     Options: ClassVar[type[TranslatorOptions]] = IgnOptions
     options: IgnOptions
@@ -29,14 +33,13 @@ class _DrakeToIgn(Translator):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         # What the class declares (checked against the route's transports when the config loads);
-        # an instance names the package its options pick.
+        # an instance names the package its options pick, if they pick one.
         super().__init_subclass__(**kwargs)
-        cls.outputs = (Output("", ign_type(IGNITION, cls.message_name), latched=True),)
+        cls.outputs = (Output("", ign_type(cls.message_name), latched=True),)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.msgs = self.options.messages()
-        self.outputs = (Output("", ign_type(self.msgs, self.message_name), latched=True),)
+        self.outputs = (Output("", self.options.message_type(self.message_name), latched=True),)
 
 
 class ModelOptions(IgnOptions):
@@ -58,7 +61,7 @@ class DrakeToIgnModel(_DrakeToIgn, DrakeTranslator):
         self._published_at = float("-inf")
 
     def build(self, scene: Scene) -> bytes:
-        return model_bytes(scene, msgs=self.msgs)
+        return model_bytes(scene)
 
     def translate(self, message: Received) -> Outputs:
         scene, poses = self.drake.read(message)
@@ -78,7 +81,7 @@ class DrakeToIgnModelV(DrakeToIgnModel):
     message_name = "Model_V"
 
     def build(self, scene: Scene) -> bytes:
-        return model_v_bytes(scene, msgs=self.msgs)
+        return model_v_bytes(scene)
 
 
 class DrakeToIgnPoseV(_DrakeToIgn):
@@ -112,16 +115,15 @@ class IgnPoseVToDrakeDraw(Translator):
 
     Options = PoseVToDrawOptions
     options: PoseVToDrawOptions
-    reads = (ign_type(IGNITION, "Pose_V"),)
+    reads = (ign_type("Pose_V"),)  # in either package: the ign transport takes both spellings
     outputs = (Output("", DRAW_TYPE),)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.msgs = self.options.messages()
-        self.reads = (ign_type(self.msgs, "Pose_V"),)
+        self.reads = (self.options.message_type("Pose_V"),)
         self.encoder = DrawEncoder()
 
     def translate(self, message: Received) -> Outputs:
-        parsed = self.msgs.parse("Pose_V", message.data)
+        parsed = MESSAGES.parse("Pose_V", message.data)
         poses = poses_from_pose_v(parsed, self.options.robot_nums)
         return [(0, self.encoder.encode(poses))]

@@ -6,14 +6,16 @@ own options class combines these (e.g. contact markers: `ContactDrawOptions` + `
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any
 
 from pydantic import Field
 
-from bridge.formats.ign.schema import GZ, IGNITION, MessageSet
+from bridge.formats.ign.schema import Package
 from bridge.formats.ros.tf import WORLD, FrameNames
 from bridge.translators.base import TranslatorOptions
 from bridge.translators.drake_stream import role_of
+from bridge.translators.types import ign_type
+from bridge.transports.base import MessageType
 
 
 class MarkerOptions(TranslatorOptions):
@@ -40,9 +42,10 @@ class FrameOptions(TranslatorOptions):
 
 
 class IgnOptions(TranslatorOptions):
-    """`ignition` (ign-msgs 8, as Debian's tools speak) or `gz` (newer Gazebo) message names."""
+    """The package of the route's ign/gz type names: unset, the ign transport's own (its `package`
+    setting); `ignition` (Fortress, Debian's tools) or `gz` (Garden and later) for this route only."""
 
-    package: Literal["ignition", "gz"] = "ignition"
+    package: Package | None = None
 
-    def messages(self) -> MessageSet:
-        return IGNITION if self.package == "ignition" else GZ
+    def message_type(self, name: str) -> MessageType:
+        return ign_type(name, self.package)

@@ -8,7 +8,7 @@ through each other's.
 from __future__ import annotations
 
 from bridge.formats.foxglove.schema import FRAME_TRANSFORMS, SCENE_UPDATE
-from bridge.formats.ign.schema import MessageSet
+from bridge.formats.ign.schema import Package, type_name
 from bridge.lcmcodec import CONTACT_RESULTS, DRAW, LINK_DATA, LOAD_ROBOT, POINT_CLOUD, VIEWER2_COMMS
 from bridge.transports.base import CDR, LCM, PROTOBUF, MessageType
 
@@ -30,6 +30,7 @@ def ros_type(name: str) -> MessageType:
     return MessageType(name, CDR)
 
 
-def ign_type(msgs: MessageSet, name: str) -> MessageType:
-    """An ign/gz protobuf message (`Pose_V`) under a package's names (`ignition.msgs.Pose_V`)."""
-    return MessageType(msgs.full_name(name), PROTOBUF)
+def ign_type(name: str, package: Package | None = None) -> MessageType:
+    """An ign/gz protobuf message by its short name (`Pose_V`), which the ign transport spells in
+    its package; or, with `package`, by its full name in that one (`ignition.msgs.Pose_V`)."""
+    return MessageType(name if package is None else type_name(name, package), PROTOBUF)

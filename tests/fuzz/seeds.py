@@ -5,8 +5,8 @@ on an in-process LCM; every message it sends is a seed for its type's codec (fou
 fingerprint), and each nested struct one for its own type. The other formats' seeds are the
 bridge's own encodings of that captured scene: tree viewer envelopes, ign Pose_V and Model, glTF
 and a render form with RenderEngineGltfClient's fields; contact results and point clouds (LCM
-and PointCloud2) are the bridge's own encodings of small examples. The config seeds are the
-built-in configs.
+and PointCloud2) are the bridge's own encodings of small examples; ign discovery datagrams are
+built here, one per message type and wire version. The config seeds are the built-in configs.
 """
 
 from __future__ import annotations
@@ -29,8 +29,10 @@ from bridge.formats.tree_viewer import envelope
 from bridge.formats.tree_viewer.requests import draw_request, load_requests
 from bridge.lcmcodec import DRAW, LOAD_ROBOT, VIEWER2_COMMS, LcmMessage, codec_for
 from bridge.scene import Scene
+from bridge.transports.ign_discovery import STATISTICS_VERSION, WIRE_VERSION, Record, datagram
 from tests.drake_scene import build_simulator
 from tests.formats.ign.oracle import pose_v
+from tests.fuzz.targets import DISCOVERY_ADVERTISED, DISCOVERY_ANY, DISCOVERY_SUBSCRIBED
 
 Seeds = dict[str, list[bytes]]
 
@@ -42,6 +44,7 @@ def write_seeds(folder: Path) -> dict[str, int]:
         for kind, inputs in bridge_encoded_seeds(seeds).items():
             seeds[kind] += inputs
         seeds["render_form"] = [render_form(decode_load(seeds[LOAD_ROBOT.type_name][0]))]
+    seeds["ign.discovery"] = discovery_seeds()
     for kind, inputs in meldis_seeds().items():
         seeds[kind] += inputs
         for data in inputs:
@@ -141,6 +144,30 @@ def zenoh_seeds() -> Seeds:
         "rmw_zenoh.token": [token.encode() for token in tokens],
         "rmw_zenoh.attachment": [keys.attachment(12, 1_700_000_000_000_000_000, keys.gid(tokens[1]))],
     }
+
+
+def discovery_seeds() -> list[bytes]:
+    """Discovery datagrams of every message type (and one no peer knows) in both wire versions,
+    naming what the fuzzed node subscribes to and advertises, plain, relayed and not to relay."""
+    seeds = []
+    for version in (WIRE_VERSION, STATISTICS_VERSION):
+        for kind in [*range(10), 12]:
+            for relay, no_relay in ((False, False), (True, False), (False, True)):
+                message = Record(version=version, process_uuid="fuzz-peer", type=kind)
+                message.flags.relay, message.flags.no_relay = relay, no_relay
+                if kind == Record.SUBSCRIBE:
+                    message.sub.topic = DISCOVERY_ADVERTISED
+                elif kind != Record.HEARTBEAT:
+                    publisher = message.pub
+                    publisher.topic, publisher.address = DISCOVERY_SUBSCRIBED, "tcp://127.0.0.1:40001"
+                    publisher.process_uuid, publisher.node_uuid = "fuzz-peer", "fuzz-node"
+                    publisher.scope = Record.Publisher.ALL
+                    publisher.msg_pub.msg_type = "ignition.msgs.Pose_V" if version == WIRE_VERSION else "gz.msgs.Pose_V"
+                seeds.append(datagram(message))
+    anything = Record(version=WIRE_VERSION, process_uuid="fuzz-peer", type=Record.ADVERTISE)
+    anything.pub.topic, anything.pub.address = DISCOVERY_ANY, "tcp://[::1]:40002"
+    anything.pub.msg_pub.msg_type = "my.msgs.Thing"
+    return [*seeds, datagram(anything)]
 
 
 def meldis_seeds() -> Seeds:

@@ -7,8 +7,8 @@ types; anything else, a hang or unbounded memory is a finding (see bench/fuzz.py
 Adding a target is one line: `register(Target("name", function, (DocumentedError,), ("seed kind",)))`.
 Seed kinds are what tests/fuzz/seeds.py writes: every LCM type by its full name (from a real Drake
 capture, so a new schema Drake publishes gets seeds and a target with no code here), plus
-"ign.Pose_V", "ign.Model", "gltf", "render_form", "sensor_msgs/PointCloud2", "config" and the
-rmw_zenoh kinds "rmw_zenoh.data_key", "rmw_zenoh.token" and "rmw_zenoh.attachment".
+"ign.Pose_V", "ign.Model", "ign.discovery", "gltf", "render_form", "sensor_msgs/PointCloud2", "config"
+and the rmw_zenoh kinds "rmw_zenoh.data_key", "rmw_zenoh.token" and "rmw_zenoh.attachment".
 
 This module imports `bridge` at its top on purpose: the fuzz runner imports it inside
 `atheris.instrument_imports()`, so that every bridge module is instrumented for coverage.
@@ -16,6 +16,7 @@ This module imports `bridge` at its top on purpose: the fuzz runner imports it i
 
 from __future__ import annotations
 
+import struct
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -31,7 +32,7 @@ from bridge.formats.drake.load import decode_load
 from bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
 from bridge.formats.gltf import read_gltf
 from bridge.formats.ign.model import scene_from_model
-from bridge.formats.ign.schema import IGNITION
+from bridge.formats.ign.schema import MESSAGES
 from bridge.formats.ros.point_cloud import cloud_from_cdr
 from bridge.lcmcodec import CODECS, LOAD_ROBOT, VIEWER2_COMMS, StructCodec
 from bridge.render import Camera
@@ -39,6 +40,8 @@ from bridge.render_server import BadRequest, parse_form, render_request
 from bridge.translators.drake_ign import IgnPoseVToDrakeDraw
 from bridge.translators.tree_viewer import TreeViewerServer
 from bridge.transports.base import Received
+from bridge.transports.ign_discovery import ANY_TYPE, Discovery, Record, is_tcp_address
+from bridge.transports.ign_environment import NodeEnvironment
 from bridge.transports.zenoh import keys as zenoh_keys
 
 
@@ -106,11 +109,52 @@ def ign_pose_v(data: bytes) -> object:
 
 
 def ign_model(data: bytes) -> object:
-    return scene_from_model(IGNITION.parse("Model", data))
+    return scene_from_model(MESSAGES.parse("Model", data))
 
 
 register(Target("ign_pose_v", ign_pose_v, (DecodeError, SceneError, EncodeError), ("ign.Pose_V",)))
 register(Target("ign_model", ign_model, (DecodeError, SceneError), ("ign.Model",)))
+
+
+# --- ign/gz-transport discovery datagrams ---------------------------------------------------------------
+
+# What the fuzzed node wants and offers, so that seeds (tests/fuzz/seeds.py) reach every answer.
+DISCOVERY_SUBSCRIBED = "@/fuzz@/drake_in/pose_v"  # gz.msgs.Pose_V
+DISCOVERY_ANY = "@/fuzz@/anything"  # any type
+DISCOVERY_ADVERTISED = "@/fuzz@/drake/pose_v"
+DISCOVERY_RELAY = "10.0.0.2"
+
+
+def ign_discovery(data: bytes) -> object:
+    """One datagram as an ign node reads it, from the group, with a relay set: every message type of
+    both wire versions is answered, forwarded or counted. Nothing is sent or dialled: what the node
+    would send must be a datagram it can read back, and an address it would connect to must have
+    passed the tcp://host:port check."""
+    sent: list[tuple[bytes, tuple[str, int]]] = []
+    dialled: list[str] = []
+
+    def send(datagram: bytes, destination: tuple[str, int]) -> None:
+        if struct.unpack_from("<H", datagram)[0] != len(datagram) - 2:
+            raise AssertionError(f"a datagram to {destination} whose length prefix disagrees")
+        Record.FromString(datagram[2:])
+        sent.append((datagram, destination))
+
+    def connect(address: str) -> None:
+        if not is_tcp_address(address):
+            raise AssertionError(f"asked to connect to {address!r}")
+        dialled.append(address)
+
+    node = Discovery(NodeEnvironment(relays=(DISCOVERY_RELAY,)), "tcp://127.0.0.1:1", send, connect,
+                     lambda kind, text: None)  # fmt: skip
+    node.subscribe(DISCOVERY_SUBSCRIBED, "gz.msgs.Pose_V")
+    node.subscribe(DISCOVERY_ANY, ANY_TYPE)
+    node.advertise(DISCOVERY_ADVERTISED, "gz.msgs.Pose_V")
+    node.on_datagram(data, "127.0.0.1", 0.0)
+    node.beat(10.0)  # and a heartbeat later, when every peer it heard is silent
+    return sent, dialled
+
+
+register(Target("ign_discovery", ign_discovery, (), ("ign.discovery",)))
 
 
 # --- glTF and the render server's form ------------------------------------------------------------------

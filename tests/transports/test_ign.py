@@ -1,4 +1,5 @@
-"""The ign-transport node against the real peer, Debian's `ign-transport-topic` (transport 11)."""
+"""The ign-transport node against the real peer, Debian's `ign-transport-topic` (transport 11), and
+against itself: the package of type names, a publisher with topic statistics (version 110)."""
 
 from __future__ import annotations
 
@@ -17,9 +18,12 @@ import numpy as np
 import pytest
 import zmq
 
-from bridge.formats.ign.schema import IGNITION
+from bridge.formats.ign.schema import MESSAGES
 from bridge.scene import LinkPoses
-from bridge.transports.ign import DISCOVERY_GROUP, MESSAGE_PORT, WIRE_VERSION, IgnNode
+from bridge.transports.base import PROTOBUF, MessageType, Qos
+from bridge.transports.ign import IgnNode, IgnSettings, IgnTransport
+from bridge.transports.ign_discovery import WIRE_VERSION
+from bridge.transports.ign_environment import DISCOVERY_GROUP, MESSAGE_PORT, NodeEnvironment
 from tests.conftest import DRAKE_SCENE_SCRIPT, lcm_url
 from tests.formats.ign.oracle import pose_v
 from tests.peers import BridgeProcess
@@ -96,10 +100,11 @@ def test_the_cli_lists_and_echoes_what_a_drake_simulation_becomes(tmp_path: Path
 # --- 2. the CLI publishes Pose_V -> LCM draw -------------------------------------------------------------
 
 
-def test_a_pose_v_from_the_cli_arrives_as_a_drake_draw() -> None:
+@pytest.mark.parametrize("config", ["builtin:ign", "builtin:gz"])  # Fortress's names, read by either
+def test_a_pose_v_from_the_cli_arrives_as_a_drake_draw(config: str) -> None:
     url = lcm_url(8)
     recorder = LcmRecorder(url)
-    bridge = BridgeProcess("-c", "builtin:ign", "--lcm-url", url)
+    bridge = BridgeProcess("-c", config, "--lcm-url", url)
     # The second pose has no orientation, as in the README's example: it means the identity.
     text = 'header { stamp { sec: 3 nsec: 250000000 } } pose { name: "plant::arm" position { x: 1 y: 2 z: 3 } ' \
            'orientation { x: 0 y: 0 z: 0.6 w: 0.8 } } pose { name: "plant::hand" position { x: 1 } }'  # fmt: skip
@@ -172,7 +177,7 @@ def test_malformed_datagrams_and_frames_are_counted_and_skipped(ign_environment:
         # the node goes on (a ZMQError here once ended the node's thread, and all discovery with it).
         # Sent first, while the node's socket is empty: behind the flood below, UDP may drop them.
         for bad_address in ("garbage", "tcp://", "tcp://127.0.0.1", "tcp://127.0.0.1:99999", "inproc://x"):
-            bad_advertise = IGNITION.Discovery(version=WIRE_VERSION, process_uuid=str(uuid.uuid4()), type=1)
+            bad_advertise = MESSAGES.Discovery(version=WIRE_VERSION, process_uuid=str(uuid.uuid4()), type=1)
             bad_advertise.pub.topic, bad_advertise.pub.address = full, bad_address
             bad_advertise.pub.msg_pub.msg_type = "ignition.msgs.Pose_V"
             udp.sendto(datagram(bad_advertise), (DISCOVERY_GROUP, MESSAGE_PORT))
@@ -180,7 +185,7 @@ def test_malformed_datagrams_and_frames_are_counted_and_skipped(ign_environment:
         while node.errors["advertise_address"] < 5 and time.monotonic() < deadline:
             time.sleep(0.02)
         rng = np.random.default_rng(3)
-        good_header = IGNITION.Discovery(version=WIRE_VERSION, process_uuid="fuzzer", type=4)
+        good_header = MESSAGES.Discovery(version=WIRE_VERSION, process_uuid="fuzzer", type=4)
         for _ in range(300):
             kind = rng.integers(4)
             if kind == 0:  # a length prefix that disagrees with the datagram
@@ -190,13 +195,13 @@ def test_malformed_datagrams_and_frames_are_counted_and_skipped(ign_environment:
                 data = struct.pack("<H", 40) + rng.bytes(40)
             elif kind == 2:  # the wrong wire version
                 data = datagram(
-                    IGNITION.Discovery(version=int(rng.integers(0, 9)), process_uuid="x", type=1)
+                    MESSAGES.Discovery(version=int(rng.integers(0, 9)), process_uuid="x", type=1)
                 )
             else:  # random bytes of any length
                 data = rng.bytes(int(rng.integers(0, 300)))
             udp.sendto(data, (DISCOVERY_GROUP, MESSAGE_PORT))
         # A publisher that advertises properly, then sends good and bad ZMQ messages.
-        advertise = IGNITION.Discovery(version=WIRE_VERSION, process_uuid=str(uuid.uuid4()), type=1)
+        advertise = MESSAGES.Discovery(version=WIRE_VERSION, process_uuid=str(uuid.uuid4()), type=1)
         advertise.pub.topic, advertise.pub.address = full, address
         advertise.pub.process_uuid, advertise.pub.node_uuid = advertise.process_uuid, "node"
         advertise.pub.msg_pub.msg_type = "ignition.msgs.Pose_V"
@@ -235,3 +240,59 @@ def test_malformed_datagrams_and_frames_are_counted_and_skipped(ign_environment:
         publisher.close()
         context.term()
         udp.close()
+
+
+# --- 5. names per Gazebo generation ----------------------------------------------------------------------
+
+
+def test_builtin_gz_lists_its_publishers_with_gz_names() -> None:
+    bridge = BridgeProcess("-c", "builtin:gz", "--lcm-url", lcm_url(10), "--demo")
+    info = ""
+    try:
+        bridge.wait_for_line("routes running")
+        deadline = time.monotonic() + 60
+        while "gz.msgs.Pose_V" not in info and time.monotonic() < deadline:
+            info = cli("-i", "-t", "/drake/pose_v")
+    finally:
+        assert bridge.stop() == 0
+    assert "gz.msgs.Pose_V" in info and "ignition.msgs" not in info, info
+
+
+def test_the_transport_spells_short_names_in_its_package_and_full_names_as_they_are() -> None:
+    for package, short, full in (("gz", "gz.msgs.Pose_V", "ignition.msgs.Model"),
+                                 ("ignition", "ignition.msgs.Pose_V", "ignition.msgs.Model")):  # fmt: skip
+        transport = IgnTransport(IgnSettings(package=package))  # type: ignore[arg-type]
+        try:
+            transport.publisher("/short", MessageType("Pose_V", PROTOBUF), Qos())
+            transport.publisher("/full", MessageType("ignition.msgs.Model", PROTOBUF), Qos())
+            transport.subscribe("/in", MessageType("Pose_V", PROTOBUF), Qos(), lambda message: None)
+            advertised = transport.node.discovery.advertised
+            assert advertised == {transport.node.full_name("/short"): short, transport.node.full_name("/full"): full}
+            assert transport.node.discovery.subscriptions[transport.node.full_name("/in")].msg_type == short
+        finally:
+            transport.close()
+
+
+def test_a_node_takes_either_spelling_and_a_publisher_with_topic_statistics(ign_environment: str) -> None:
+    """Version 110 discovery and its fifth data frame (stamp, sequence) are read like version 10."""
+    got: list[bytes] = []
+    subscriber = IgnNode()
+    subscriber.subscribe("/spelled", "gz.msgs.Pose_V", lambda topic, data, us: got.append(data))
+    subscriber.start()
+    publishers = [IgnNode(environment=NodeEnvironment(ign_environment, "127.0.0.1", topic_statistics=True)),
+                  IgnNode(environment=NodeEnvironment(ign_environment, "127.0.0.1"))]  # fmt: skip
+    for publisher in publishers:
+        publisher.start()
+    payloads = {b"statistics, ignition": (publishers[0], "ignition.msgs.Pose_V"),
+                b"plain, gz": (publishers[1], "gz.msgs.Pose_V")}  # fmt: skip
+    try:
+        deadline = time.monotonic() + 60
+        while set(payloads) - set(got) and time.monotonic() < deadline:
+            for payload, (publisher, msg_type) in payloads.items():
+                publisher.publish("/spelled", payload, msg_type)
+            time.sleep(0.1)
+    finally:
+        for node in (subscriber, *publishers):
+            node.close()
+    assert set(got) == set(payloads) and not subscriber.errors, (got, subscriber.errors)
+    assert publishers[0].discovery.version == 110

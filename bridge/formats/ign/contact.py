@@ -1,4 +1,4 @@
-"""Contact results to `ignition.msgs.Contacts` (or `gz.msgs.Contacts`): one `Contact` per contact pair.
+"""Contact results to ign/gz `Contacts`: one `Contact` per contact pair.
 
 Field numbers from Debian's ign-msgs 8 protos (contacts.proto, contact.proto, joint_wrench.proto,
 wrench.proto, entity.proto), declared in `bridge.formats.ign.schema`. Each Contact names its two
@@ -17,15 +17,15 @@ from typing import Any
 import numpy as np
 
 from bridge.contact import ContactResults
-from bridge.formats.ign.schema import IGNITION, MessageSet
+from bridge.formats.ign.schema import MESSAGES
 from bridge.scene import FloatArray
 
 _LINK = 3  # Entity.Type.LINK
 
 
-def contacts_message(results: ContactResults, msgs: MessageSet = IGNITION, world: str = "world") -> Any:
+def contacts_message(results: ContactResults, world: str = "world") -> Any:
     """The results as a `Contacts` message, stamped with Drake's sim time."""
-    message = msgs.Contacts()
+    message = MESSAGES.Contacts()
     seconds, microseconds = divmod(int(results.timestamp_us), 1_000_000)
     message.header.stamp.sec, message.header.stamp.nsec = seconds, microseconds * 1000
     point = results.point

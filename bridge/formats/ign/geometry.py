@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from bridge.errors import SceneError
-from bridge.formats.ign.schema import MessageSet
+from bridge.formats.ign.schema import MESSAGES
 from bridge.mappings import FormatTables, ShapeRule
 from bridge.scene import FileContents, InMemoryMesh, Line, Shape, TriangleMesh
 
@@ -68,9 +68,9 @@ def _get_field(message: Any, path: str, rule: ShapeRule) -> Any:
     return value
 
 
-def geometry_message(shape: Shape, msgs: MessageSet) -> Any:
+def geometry_message(shape: Shape) -> Any:
     """One shape as a `Geometry` (a half-space becomes a PLANE; see mappings/ign.yaml)."""
-    message = msgs.Geometry()
+    message = MESSAGES.Geometry()
     fill_geometry(message, shape)
     return message
 

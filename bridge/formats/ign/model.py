@@ -18,7 +18,7 @@ import numpy as np
 from bridge.errors import SceneError
 from bridge.formats import protowire as wire
 from bridge.formats.ign.geometry import fill_geometry, geometry_message, shape_from_geometry
-from bridge.formats.ign.schema import IGNITION, MessageSet
+from bridge.formats.ign.schema import MESSAGES
 from bridge.scene import Geometry, Link, Pose, Scene, Shape, pose_from_xyzw, xyzw_from_wxyz
 from bridge.skipped import per_geometry
 
@@ -50,21 +50,21 @@ def _fill_link(message: Any, link: Link, pose: Pose) -> None:
         message.MergeFrom(part)
 
 
-def model(scene: Scene, name: str = "drake", msgs: MessageSet = IGNITION) -> Any:
+def model(scene: Scene, name: str = "drake") -> Any:
     """A load as one `Model` with a `Link` per Drake link and a `Visual` per geometry.
 
     Link poses are the scene's world poses (identity before the first draw); visual poses are
     in the link frame, as Drake's are.
     """
-    message = msgs.Model(name=name)
+    message = MESSAGES.Model(name=name)
     _set_pose(message.pose, Pose())
     for link in scene.links:
         _fill_link(message.link.add(), link, scene.link_pose(link))
     return message
 
 
-def model_bytes(scene: Scene, name: str = "drake", msgs: MessageSet = IGNITION) -> bytes:
-    """`model(scene, name, msgs).SerializeToString()`, written from pieces instead of objects.
+def model_bytes(scene: Scene, name: str = "drake") -> bytes:
+    """`model(scene, name).SerializeToString()`, written from pieces instead of objects.
 
     A Model is its fields' encodings in field-number order, so it is written by concatenation:
     each distinct shape's `Geometry` is serialised once by protobuf, and poses and colours are
@@ -72,26 +72,26 @@ def model_bytes(scene: Scene, name: str = "drake", msgs: MessageSet = IGNITION) 
     `Model` object field by field was most of a load's time.
     """
     try:
-        return _model_payload(_ModelWriter(msgs), scene, scene.links, name, 0)
+        return _model_payload(_ModelWriter(), scene, scene.links, name, 0)
     except OverflowError:  # a colour beyond float32: the object path writes it as protobuf does
-        return bytes(model(scene, name, msgs).SerializeToString())
+        return bytes(model(scene, name).SerializeToString())
 
 
-def model_v_bytes(scene: Scene, msgs: MessageSet = IGNITION) -> bytes:
-    """`model_v(scene, msgs).SerializeToString()`, written as `model_bytes` writes a Model."""
+def model_v_bytes(scene: Scene) -> bytes:
+    """`model_v(scene).SerializeToString()`, written as `model_bytes` writes a Model."""
     groups: dict[int, list[Link]] = {}
     for link in scene.links:
         groups.setdefault(link.robot_num, []).append(link)
     if any(not 0 <= robot_num < 2**32 for robot_num in groups):  # no uint32 id: as the object path refuses it
-        return bytes(model_v(scene, msgs).SerializeToString())
+        return bytes(model_v(scene).SerializeToString())
     try:
-        writer = _ModelWriter(msgs)
+        writer = _ModelWriter()
         return b"".join(
             wire.submessage(_MODELS, _model_payload(writer, scene, links, _model_name(links[0]), robot_num))
             for robot_num, links in groups.items()
         )
     except OverflowError:
-        return bytes(model_v(scene, msgs).SerializeToString())
+        return bytes(model_v(scene).SerializeToString())
 
 
 def _model_payload(
@@ -170,8 +170,7 @@ def _material(color: Sequence[float]) -> bytes:
 class _ModelWriter:
     """The pieces of one Model: Geometry bytes per distinct shape, header bytes per robot_num."""
 
-    def __init__(self, msgs: MessageSet) -> None:
-        self.msgs = msgs
+    def __init__(self) -> None:
         self.geometries: dict[int, tuple[Shape, bytes]] = {}  # by id: the scene's shapes, held here
         self.headers: dict[int, bytes] = {}
         # By `wire.exact_key`: 0.0 and -0.0 are equal floats but written differently.
@@ -218,13 +217,13 @@ class _ModelWriter:
     def geometry(self, shape: Shape) -> bytes:
         known = self.geometries.get(id(shape))
         if known is None:
-            known = self.geometries[id(shape)] = (shape, bytes(geometry_message(shape, self.msgs).SerializeToString()))
+            known = self.geometries[id(shape)] = (shape, bytes(geometry_message(shape).SerializeToString()))
         return known[1]
 
 
-def model_v(scene: Scene, msgs: MessageSet = IGNITION) -> Any:
+def model_v(scene: Scene) -> Any:
     """A load as `Model_V`: one `Model` per robot_num (model instance), id = robot_num."""
-    message = msgs.Model_V()
+    message = MESSAGES.Model_V()
     by_robot: dict[int, Any] = {}
     for link in scene.links:
         if link.robot_num not in by_robot:

@@ -1,11 +1,16 @@
-"""The one protobuf schema of ign-msgs 8 / gz-msgs that the bridge speaks, as message classes.
+"""The one protobuf schema of ign-msgs 8 / gz-msgs that the bridge speaks, and the names of its types.
 
-`_SCHEMA` below (field numbers from ign-msgs 8, see docs/PROTOCOLS.md section 4) is built at
-import into a protobuf descriptor pool, once per package: `IGNITION` (`ignition.msgs`, as
-Debian's ign-transport 11 speaks) and `GZ` (`gz.msgs`, newer Gazebo). The wire format is the
-`protobuf` package's; only the fields the bridge uses are declared, and a receiver with the full
-`.proto` files reads them (unknown fields are skipped both ways). The ign transport uses it for
-its discovery datagrams; the format modules beside it for poses, models and contacts.
+`_SCHEMA` below (field numbers from ign-msgs 8, unchanged in gz-msgs 10, see docs/PROTOCOLS.md
+sections 4 and 10) is built at import into a protobuf descriptor pool: `MESSAGES`. The wire
+format is the `protobuf` package's; only the fields the bridge uses are declared, and a receiver
+with the full `.proto` files reads them (unknown fields are skipped both ways). The ign
+transport uses it for its discovery datagrams; the format modules beside it for poses, models
+and contacts.
+
+The package (`gz.msgs` from Gazebo Garden on, `ignition.msgs` for Fortress and before) is in no
+payload byte, only in the type names peers exchange, where a typed subscriber compares it
+exactly. So a message is named once, by its short name (`Pose_V`), and `type_name` spells it in
+a package: the ign transport with its `package` setting, a route with its own `package` option.
 
 The `Geometry.Type` codes are the geometry table's (`mappings/ign.yaml`): written once, there.
 """
@@ -14,7 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from google.protobuf.message import DecodeError as ProtobufDecodeError
@@ -93,7 +98,8 @@ _SCHEMA: dict[str, list[tuple[str, int, str, bool]]] = {
 
 _ENUMS: dict[str, dict[str, int]] = {
     "Discovery.Type": {"UNINITIALIZED": 0, "ADVERTISE": 1, "SUBSCRIBE": 2, "UNADVERTISE": 3, "HEARTBEAT": 4,
-                       "BYE": 5, "NEW_CONNECTION": 6, "END_CONNECTION": 7},
+                       "BYE": 5, "NEW_CONNECTION": 6, "END_CONNECTION": 7, "SUBSCRIBERS_REQ": 8,
+                       "SUBSCRIBERS_REP": 9},
     "Discovery.Publisher.Scope": {"PROCESS": 0, "HOST": 1, "ALL": 2},
     "Entity.Type": {"NONE": 0, "LIGHT": 1, "MODEL": 2, "LINK": 3, "VISUAL": 4, "COLLISION": 5, "SENSOR": 6,
                     "JOINT": 7},
@@ -113,7 +119,7 @@ _SCALARS = {
 
 @dataclass(frozen=True)
 class MessageSet:
-    """The message classes of one package (`ignition.msgs` or `gz.msgs`), by short name."""
+    """The message classes, by short name, in the package their descriptors name."""
 
     package: str
     classes: Mapping[str, Any]  # generated at run time, so typed loosely
@@ -166,7 +172,7 @@ def _file_descriptor(package: str, geometry_types: Mapping[str, int]) -> descrip
     return file
 
 
-def message_set(package: str) -> MessageSet:
+def _message_set(package: str) -> MessageSet:
     """Build the message classes for `package` in a pool of their own."""
     pool = descriptor_pool.DescriptorPool()
     pool.Add(_file_descriptor(package, tables("ign")["geometry"].types))
@@ -183,5 +189,27 @@ def field_number(message: str, name: str) -> int:
     return next(number for field, number, _, _ in _SCHEMA[message] if field == name)
 
 
-IGNITION = message_set("ignition.msgs")
-GZ = message_set("gz.msgs")
+MESSAGES = _message_set("gz.msgs")
+
+Package = Literal["ignition", "gz"]
+PACKAGES: tuple[Package, ...] = ("gz", "ignition")  # Gazebo Garden and later; Fortress and before
+
+
+def type_name(name: str, package: Package) -> str:
+    """A message's type name in a package, as peers exchange it: `Pose_V` -> `gz.msgs.Pose_V`."""
+    return f"{package}.msgs.{name}"
+
+
+def wire_type_name(name: str, package: Package) -> str:
+    """A declared type name as it goes on the wire: a short name (`Pose_V`) in `package`; a full
+    name (`ignition.msgs.Pose_V`, a route's own choice, or another package's type) as it is."""
+    return name if "." in name else type_name(name, package)
+
+
+def spellings(full_name: str) -> frozenset[str]:
+    """The names one message has across the packages: `gz.msgs.Pose_V` and `ignition.msgs.Pose_V`
+    are the same protobuf on the wire. Another package's type has only its own name."""
+    package, _, name = full_name.rpartition(".msgs.")
+    if package not in PACKAGES:
+        return frozenset({full_name})
+    return frozenset(type_name(name, other) for other in PACKAGES)

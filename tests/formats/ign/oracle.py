@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from bridge.formats.ign.schema import IGNITION, MessageSet
+from bridge.formats.ign.schema import MESSAGES
 from bridge.scene import LinkPoses, xyzw_from_wxyz
 from bridge.sim_time import sec_nsec_from_ms
 
@@ -18,17 +18,17 @@ def _set_stamp(time: Any, timestamp_ms: int) -> None:
     time.sec, time.nsec = sec_nsec_from_ms(timestamp_ms)
 
 
-def pose_v(poses: LinkPoses, msgs: MessageSet = IGNITION) -> Any:
+def pose_v(poses: LinkPoses) -> Any:
     """A draw as `Pose_V`: one `Pose` per link, named with the link's Drake name, header stamped."""
-    message = msgs.Pose_V()
+    message = MESSAGES.Pose_V()
     _set_stamp(message.header.stamp, poses.timestamp_ms)
     _fill_poses(message.pose, poses)
     return message
 
 
-def poses_stamped(poses: LinkPoses, msgs: MessageSet = IGNITION) -> Any:
+def poses_stamped(poses: LinkPoses) -> Any:
     """The legacy `PosesStamped`: like `Pose_V`, with the sim time in `time` as well."""
-    message = msgs.PosesStamped()
+    message = MESSAGES.PosesStamped()
     _set_stamp(message.header.stamp, poses.timestamp_ms)
     _set_stamp(message.time, poses.timestamp_ms)
     _fill_poses(message.pose, poses)

@@ -12,7 +12,7 @@ from tests.formats.drake.test_contact import pydrake_results
 
 def test_ign_contacts_read_by_debians_protos(debian_ign_msgs: ModuleType) -> None:
     translator = TRANSLATORS.get("drake_contacts_to_ign_contacts")({}, LoadCache())
-    assert translator.outputs[0].type.name == "ignition.msgs.Contacts"
+    assert translator.outputs[0].type.name == "Contacts"  # in the ign transport's package
     ((_, data),) = translator.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
     theirs = debian_ign_msgs.Contacts.FromString(data)
     assert (theirs.header.stamp.sec, theirs.header.stamp.nsec) == (1, 234_567_000)

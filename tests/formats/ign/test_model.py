@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from bridge.errors import DecodeError, SceneError
 from bridge.formats.ign.model import model, model_v, scene_from_model
 from bridge.formats.ign.poses import poses_from_pose_v
-from bridge.formats.ign.schema import GZ, IGNITION
+from bridge.formats.ign.schema import MESSAGES
 from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
 from tests.conftest import Capture
 from tests.formats import oracle
@@ -66,7 +66,7 @@ def test_every_drake_shape_in_a_model_read_by_debians_protos(
                 assert close(xyz(shape.mesh.scale), data)
             else:
                 assert shape.type == Type.MESH and shape.mesh.filename.startswith("data:model/obj")
-    assert scene_from_model(IGNITION.parse("Model_V", theirs.SerializeToString())) == Scene(
+    assert scene_from_model(MESSAGES.parse("Model_V", theirs.SerializeToString())) == Scene(
         capture.scene.links
     )
 
@@ -80,7 +80,7 @@ def test_debians_messages_read_by_ours(debian_ign_msgs: ModuleType) -> None:
     visual.pose.orientation.w = 1.0
     visual.material.diffuse.r = 1.0
     visual.transparency = 0.25  # a field we do not declare: skipped
-    scene = scene_from_model(IGNITION.parse("Model", theirs.SerializeToString()))
+    scene = scene_from_model(MESSAGES.parse("Model", theirs.SerializeToString()))
     (geometry,) = scene.links[0].geometries
     assert geometry.shape.__class__.__name__ == "Cylinder" and (
         geometry.shape.radius,
@@ -92,10 +92,10 @@ def test_debians_messages_read_by_ours(debian_ign_msgs: ModuleType) -> None:
 @settings(max_examples=60, deadline=None)
 @given(scenes())
 def test_load_to_model_to_load_round_trips(scene: Scene) -> None:
-    for msgs, build in ((IGNITION, model_v), (GZ, model_v), (IGNITION, model)):
-        message = build(scene, msgs=msgs)
+    for build in (model_v, model):
+        message = build(scene)
         name = type(message).DESCRIPTOR.name
-        back = scene_from_model(msgs.parse(name, message.SerializeToString()))
+        back = scene_from_model(MESSAGES.parse(name, message.SerializeToString()))
         assert _rounded(back) == _rounded(scene)
 
 
@@ -130,8 +130,8 @@ def test_bad_models_raise_scene_errors() -> None:
     visual.geometry.mesh.filename = "data:model/obj;base64,!!!"
     with pytest.raises(SceneError, match="not base64"):
         scene_from_model(message)
-    with pytest.raises(DecodeError, match="ignition.msgs.Model"):
-        IGNITION.parse("Model", b"\xff\xff\xff")
+    with pytest.raises(DecodeError, match="gz.msgs.Model"):
+        MESSAGES.parse("Model", b"\xff\xff\xff")
     poses = pose_v(
         LinkPoses(0, ("a",), np.zeros(1, np.int32), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]]))
     )

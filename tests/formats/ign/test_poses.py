@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from bridge.formats.ign.poses import PosesEncoder, poses_from_pose_v
-from bridge.formats.ign.schema import GZ, IGNITION
+from bridge.formats.ign.schema import MESSAGES
 from bridge.scene import LinkPoses
 from tests.conftest import Capture
 from tests.formats.ign.oracle import pose_v, poses_stamped, xyz
@@ -41,7 +41,7 @@ def test_pose_v_read_by_debians_protos(
         ]
     robot_nums = dict(zip(poses.names, poses.robot_nums.tolist(), strict=True))
     assert poses_from_pose_v(
-        IGNITION.parse("Pose_V", theirs.SerializeToString()), robot_nums
+        MESSAGES.parse("Pose_V", theirs.SerializeToString()), robot_nums
     ) == LinkPoses(poses.timestamp_ms, poses.names, poses.robot_nums, poses.positions, poses.quaternions_wxyz)
 
 
@@ -50,9 +50,9 @@ def test_pose_v_read_by_debians_protos(
 def test_draw_to_pose_v_to_draw_round_trips(poses: LinkPoses) -> None:
     robot_nums = dict(zip(poses.names, poses.robot_nums.tolist(), strict=True))
     for build in (pose_v, poses_stamped):
-        message = build(poses, GZ)
+        message = build(poses)
         back = poses_from_pose_v(
-            GZ.parse(type(message).DESCRIPTOR.name, message.SerializeToString()), robot_nums
+            MESSAGES.parse(type(message).DESCRIPTOR.name, message.SerializeToString()), robot_nums
         )
         assert back.names == poses.names and back.timestamp_ms == poses.timestamp_ms
         np.testing.assert_array_equal(back.positions, poses.positions)

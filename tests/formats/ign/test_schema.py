@@ -1,4 +1,4 @@
-"""The ign/gz message schema: our fields are Debian's ign-msgs 8 fields, in both packages."""
+"""The ign/gz message schema: our fields are Debian's ign-msgs 8 fields; type names in both packages."""
 
 from __future__ import annotations
 
@@ -6,14 +6,14 @@ from types import ModuleType
 
 import numpy as np
 
-from bridge.formats.ign.schema import GZ, IGNITION
+from bridge.formats.ign.schema import MESSAGES, spellings, type_name, wire_type_name
 from bridge.scene import LinkPoses
 from tests.formats.ign.oracle import poses_stamped
 
 
 def test_our_fields_are_debians_fields(debian_ign_msgs: ModuleType) -> None:
     """Every field we declare has the number and type Debian's .proto files give it."""
-    for name, cls in IGNITION.classes.items():
+    for name, cls in MESSAGES.classes.items():
         if name == "PosesStamped":  # removed from the .proto files in 2017; Debian has none
             continue
         theirs = getattr(debian_ign_msgs, name).DESCRIPTOR
@@ -28,8 +28,18 @@ def test_our_fields_are_debians_fields(debian_ign_msgs: ModuleType) -> None:
 
 
 def test_gz_and_ignition_packages() -> None:
-    assert GZ.Pose_V.DESCRIPTOR.full_name == "gz.msgs.Pose_V"
-    assert IGNITION.Model_V.DESCRIPTOR.full_name == "ignition.msgs.Model_V"
+    assert MESSAGES.Pose_V.DESCRIPTOR.full_name == "gz.msgs.Pose_V"
+    assert type_name("Model_V", "ignition") == "ignition.msgs.Model_V"
+    assert type_name("Model_V", "gz") == "gz.msgs.Model_V"
+    # A short name takes the transport's package; a full one (a route's own choice) stays.
+    assert wire_type_name("Pose_V", "gz") == "gz.msgs.Pose_V"
+    assert wire_type_name("Pose_V", "ignition") == "ignition.msgs.Pose_V"
+    assert wire_type_name("ignition.msgs.Pose_V", "gz") == "ignition.msgs.Pose_V"
+    assert wire_type_name("gz.msgs.Pose_V", "ignition") == "gz.msgs.Pose_V"
+    both = {"gz.msgs.Pose_V", "ignition.msgs.Pose_V"}
+    assert spellings("gz.msgs.Pose_V") == spellings("ignition.msgs.Pose_V") == both
+    assert spellings("foxglove.SceneUpdate") == {"foxglove.SceneUpdate"}
+    assert spellings("my.msgs.Pose_V") == {"my.msgs.Pose_V"}
     stamped = poses_stamped(
         LinkPoses(1500, ("a",), np.zeros(1, np.int32), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]]))
     )
