@@ -8,7 +8,15 @@ through each other's.
 from __future__ import annotations
 
 from bridge.formats import foxglove, ign
-from bridge.lcmcodec import CONTACT_RESULTS, DRAW, LINK_DATA, LOAD_ROBOT, POINT_CLOUD, VIEWER2_COMMS
+from bridge.lcmcodec import (
+    CONTACT_RESULTS,
+    DRAW,
+    IMAGE_ARRAY,
+    LINK_DATA,
+    LOAD_ROBOT,
+    POINT_CLOUD,
+    VIEWER2_COMMS,
+)
 from bridge.transports.base import CDR, LCM, PROTOBUF, MessageType
 
 # Drake's LCM messages.
@@ -17,6 +25,7 @@ DRAW_TYPE = MessageType(DRAW.type_name, LCM)
 LINK_DATA_TYPE = MessageType(LINK_DATA.type_name, LCM)  # DRAKE_VIEWER_DEFORMABLE
 CONTACT_TYPE = MessageType(CONTACT_RESULTS.type_name, LCM)
 POINT_CLOUD_TYPE = MessageType(POINT_CLOUD.type_name, LCM)
+IMAGE_ARRAY_TYPE = MessageType(IMAGE_ARRAY.type_name, LCM)  # DRAKE_RGBD_CAMERA_IMAGES*
 # Director's tree viewer envelope (requests and responses alike).
 ENVELOPE_TYPE = MessageType(VIEWER2_COMMS.type_name, LCM)
 # Foxglove's protobuf schemas.
