@@ -172,25 +172,20 @@ def test_camera_info_options_are_checked_when_the_config_loads(tmp_path: Any) ->
         load_config(path)
 
 
-@pytest.mark.parametrize("encoding", sorted(LAYOUTS))
-def test_a_ros_image_becomes_an_array_drake_reads(encoding: str) -> None:
-    """Drake's LcmImageArrayToImages reads colour (as RGBA), depth (as metres) and labels; grey and
-    Bayer images, which it has no output for, are read with Drake's lcmt_image_array class and zlib."""
+def ros_test_image(encoding: str) -> np.ndarray:
+    """Pixels for an encoding; 32FC1 with REP 117's too close, too far and no return."""
     layout, dtype = LAYOUTS[encoding]
     pixels = sample_pixels(dtype, (5, 4, layout.channels))
     if encoding == "32FC1":
         pixels[0, 0], pixels[0, 1], pixels[0, 2] = -np.inf, np.inf, np.nan
-    translator = TRANSLATORS.get("ros_image_to_drake")({})
-    received = Received("/drake_in/camera/image", rclpy_image(encoding, pixels, 3, True))
-    if encoding in ("rgb16", "rgba16", "bgr16", "bgra16"):
-        with pytest.raises(EncodeError, match="16-bit colour"):
-            translator.translate(received)
-        return
-    ((_, data),) = translator.translate(received)
-    message = drake_lcmtypes.lcmt_image_array.decode(data)
-    assert message.header.frame_name == "cam" and message.header.utime == 3_500_000
-    (image,) = message.images
-    rows = np.frombuffer(zlib.decompress(image.data), dtype.newbyteorder("<"))
+    return pixels
+
+
+def assert_drake_reads(encoding: str, pixels: np.ndarray, data: bytes) -> None:
+    """Drake's LcmImageArrayToImages reads colour (as RGBA), depth (as metres) and labels; grey and
+    Bayer images, which it has no output for, are read with Drake's lcmt_image_array class and zlib."""
+    layout, dtype = LAYOUTS[encoding]
+    (image,) = drake_lcmtypes.lcmt_image_array.decode(data).images
     drake = read_with_drake(data)
     if encoding in ("rgb8", "rgba8", "bgr8", "bgra8"):
         rgb = pixels[:, :, [2, 1, 0, 3][: layout.channels]] if encoding.startswith("bgr") else pixels
@@ -207,8 +202,34 @@ def test_a_ros_image_becomes_an_array_drake_reads(encoding: str) -> None:
     elif encoding == "16SC1":
         np.testing.assert_array_equal(drake["label_image"], pixels)
     else:
+        rows = np.frombuffer(zlib.decompress(image.data), dtype.newbyteorder("<"))
         np.testing.assert_array_equal(rows.reshape(pixels.shape), pixels)
         assert image.header.frame_name == layout.value
+
+
+@pytest.mark.parametrize("encoding", sorted(LAYOUTS))
+def test_a_ros_image_becomes_an_array_drake_reads(encoding: str) -> None:
+    pixels = ros_test_image(encoding)
+    translator = TRANSLATORS.get("ros_image_to_drake")({})
+    received = Received("/drake_in/camera/image", rclpy_image(encoding, pixels, 3, True))
+    if encoding in ("rgb16", "rgba16", "bgr16", "bgra16"):
+        with pytest.raises(EncodeError, match="16-bit colour"):
+            translator.translate(received)
+        return
+    ((_, data),) = translator.translate(received)
+    message = drake_lcmtypes.lcmt_image_array.decode(data)
+    assert message.header.frame_name == "cam" and message.header.utime == 3_500_000
+    assert message.images[0].compression_method == drake_lcmtypes.lcmt_image.COMPRESSION_METHOD_ZLIB
+    assert_drake_reads(encoding, pixels, data)
+
+
+def test_uncompressed_on_request_as_drakes_class_reads_it() -> None:
+    pixels = ros_test_image("16UC1")
+    translator = TRANSLATORS.get("ros_image_to_drake")({"compress": False, "name": "range"})
+    ((_, data),) = translator.translate(Received("/x", rclpy_image("16UC1", pixels)))
+    (image,) = drake_lcmtypes.lcmt_image_array.decode(data).images
+    assert image.compression_method == 0 and image.header.frame_name == "range"
+    np.testing.assert_array_equal(np.frombuffer(image.data, "<u2").reshape(pixels.shape), pixels)
 
 
 def test_bad_ros_image_bytes_are_a_decode_error() -> None:
