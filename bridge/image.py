@@ -151,6 +151,19 @@ class Intrinsics:
         assert fx is not None and fy is not None
         return cls(width, height, fx, fy, width / 2 - 0.5, height / 2 - 0.5)
 
+    def k(self) -> list[float]:
+        """The camera matrix K, row by row (3 x 3)."""
+        return [self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0]
+
+    def p(self) -> list[float]:
+        """The projection matrix P = [K | 0] of a camera that is not rectified (3 x 4)."""
+        return [self.fx, 0.0, self.cx, 0.0, 0.0, self.fy, self.cy, 0.0, 0.0, 0.0, 1.0, 0.0]
+
+
+# What ROS's CameraInfo and Foxglove's CameraCalibration say of a camera without distortion.
+NO_DISTORTION = ("plumb_bob", [0.0] * 5)
+NO_ROTATION = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]  # R: no rectification
+
 
 JPEG_QUALITY = 90
 
@@ -158,7 +171,7 @@ JPEG_QUALITY = 90
 def encode_file(image: Image, file_format: FileFormat) -> EncodedImage:
     """The image as a PNG (lossless: 8-bit grey, RGB, RGBA; 16-bit grey, int16 labels as their
     bits) or a JPEG (8-bit grey or colour, alpha left out), colours in RGB order as both formats
-    keep them. Raises `EncodeError` for an image the format cannot hold (float depth)."""
+    keep them. Raises `EncodeError` for an image the format cannot hold (float depth, no pixels)."""
     pixels = image.rgb_order().pixels
     channels = pixels.shape[2]
     if file_format == "jpeg" and channels == 4:
@@ -167,6 +180,10 @@ def encode_file(image: Image, file_format: FileFormat) -> EncodedImage:
     two_bytes = (
         pixels.dtype.itemsize == 2 and pixels.dtype.kind in "iu" and channels == 1 and file_format == "png"
     )
+    if not image.width or not image.height:  # found by bench/fuzz.py: Pillow cannot write one
+        raise EncodeError(
+            "image", "pixels", f"image {image.name!r}: {file_format} cannot hold an empty image"
+        )
     if not (one_byte and channels in (1, 3, 4) or two_bytes):
         raise EncodeError(
             "image", "pixels", f"image {image.name!r}: {file_format} cannot hold {channels} x {pixels.dtype}"

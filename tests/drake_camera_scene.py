@@ -27,7 +27,10 @@ FOV_Y_DEGREES = 45.0  # CameraConfig's default
 FPS = 10.0
 
 
-def build_simulator(lcm: DrakeLcm) -> Simulator:
+def build_simulator(
+    lcm: DrakeLcm, cameras: dict[str, tuple[int, int, bool]] = CAMERAS, label: bool = True
+) -> Simulator:
+    """The scene and its cameras (name -> width, height, do_compress), publishing on `lcm`."""
     builder = DiagramBuilder()
     plant, _ = AddMultibodyPlantSceneGraph(builder, 0.0)
     shapes = [Box(0.2, 0.2, 0.2), Sphere(0.1), Cylinder(0.08, 0.25), Capsule(0.06, 0.2)]
@@ -41,8 +44,8 @@ def build_simulator(lcm: DrakeLcm) -> Simulator:
         plant.world_body(), RigidTransform(), HalfSpace(), "ground", [0.5, 0.5, 0.5, 1.0]
     )
     plant.Finalize()
-    for offset, (name, (width, height, compress)) in enumerate(CAMERAS.items()):
-        config = CameraConfig(name=name, width=width, height=height, rgb=True, depth=True, label=True,
+    for offset, (name, (width, height, compress)) in enumerate(cameras.items()):
+        config = CameraConfig(name=name, width=width, height=height, rgb=True, depth=True, label=label,
                               do_compress=compress, renderer_class="RenderEngineVtk", fps=FPS)  # fmt: skip
         config.focal = CameraConfig.FovDegrees(y=FOV_Y_DEGREES)
         # Looking down at the shapes from the front, the right camera a little to the side.

@@ -167,3 +167,39 @@ def test_rclpy_images_reach_drakes_image_reader(probe: RosProbe) -> None:
     for encoding, data in arrived.items():
         assert drake_lcmtypes.lcmt_image_array.decode(data).header.frame_name == "ros_camera"
         assert_drake_reads(encoding, sent[encoding], data)
+
+
+def test_drake_cameras_reach_a_foxglove_client_as_raw_images() -> None:
+    """builtin:foxglove, the protocol client of tests/transports/test_foxglove.py: RawImage with
+    the pixels Drake's reader reads, stamped with the sim time of an image Drake sent."""
+    from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+
+    from tests.transports.test_foxglove import foxglove_port, python_client
+
+    url = lcm_url(25)
+    recorder = LcmRecorder(url)
+    bridge = BridgeProcess("-c", "builtin:foxglove", "--lcm-url", url)
+    simulation = client = None
+    topics = [f"/drake/cameras/left/{port}/image" for port in PORTS]
+    try:
+        port = foxglove_port(bridge)
+        simulation = subprocess.Popen([sys.executable, str(SCENE), url, "120"])
+        client = python_client(port, *topics)  # channels are advertised with their first image
+        assert client.pump(90, lambda: all(client.messages.get(topic) for topic in topics)), client.log()  # type: ignore[union-attr]
+    finally:
+        if client is not None:
+            client.close()
+        if simulation is not None:
+            simulation.terminate()
+            simulation.wait(timeout=30)
+        assert bridge.stop() == 0
+        recorder.close()
+    sent = recorder.messages["DRAKE_RGBD_CAMERA_IMAGES_left"]
+    sent_us = {drake_lcmtypes.lcmt_image_array.decode(data).header.utime for data in sent}
+    for port, topic in zip(PORTS, topics, strict=True):
+        message = RawImage.FromString(client.messages[topic][-1])
+        assert (message.width, message.height, message.frame_id) == (WIDTH, HEIGHT, "left")
+        assert message.encoding == {"rgb": "rgba8", "depth": "16UC1", "label": "16UC1"}[port]
+        assert message.timestamp.seconds * 1_000_000 + message.timestamp.nanos // 1000 in sent_us  # sim time
+        got = as_drake_reads(message, port, compressed=True)
+        assert any(np.array_equal(got, drake_pixels(data, port)) for data in sent[-20:]), port

@@ -74,3 +74,5 @@ def test_jpeg_leaves_alpha_out_and_float_depth_fits_no_file() -> None:
         encode_file(Image("depth", 0, Layout.DEPTH, np.zeros((2, 2, 1), np.float32)), "png")
     with pytest.raises(EncodeError, match="jpeg cannot hold 1 x uint16"):
         encode_file(Image("depth", 0, Layout.DEPTH, np.zeros((2, 2, 1), np.uint16)), "jpeg")
+    with pytest.raises(EncodeError, match="png cannot hold an empty image"):
+        encode_file(Image("rgb", 0, Layout.RGBA, np.zeros((0, 3, 4), np.uint8)), "png")

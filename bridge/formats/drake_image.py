@@ -5,7 +5,7 @@ and a lazy route with no subscriber pays only for the first: `read_image_array` 
 message and keeps each image's header fields and a view of its bytes (`PackedImage`, no copy);
 `unpack` turns one into pixels. Every `pixel_format`, `channel_type`, `row_stride` (padding is
 kept as a strided view) and `bigendian` is read; compression none, zlib (Drake's default, level 1
-as `ImageToLcmImageArrayT` writes it), JPEG and PNG (Pillow). A zlib stream is never expanded
+as `ImageToLcmImageArrayT` writes it), JPEG and PNG (Pillow). A zlib stream (`bridge.formats.inflate`) is never expanded
 past the size the header declares (row_stride x height): a bomb is refused, not inflated.
 Every mismatch is a `DecodeError` for `drake.lcmt_image_array` naming the image's index and
 field, its reason naming the image (`image 'depth': ...`).
@@ -24,9 +24,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from PIL import Image as PilImage
 
 from bridge.errors import DecodeError, EncodeError
+from bridge.formats.inflate import InflateError, inflate
 from bridge.image import EncodedImage, FileFormat, Image, Layout, Pixels
 from bridge.lcmcodec import HEADER, IMAGE, IMAGE_ARRAY, Buffer
 
@@ -224,7 +226,14 @@ def unpack(packed: PackedImage) -> Image:
     if packed.compression in _FILE_FORMATS:
         return Image(packed.name, packed.time_us, layout, _decode_file(packed, layout, dtype))
     expected = packed.row_stride * packed.height
-    rows = _inflate(packed, expected) if packed.compression == ZLIB else packed.data
+    rows: Buffer | npt.NDArray[np.uint8] = packed.data
+    if packed.compression == ZLIB:
+        try:
+            rows = inflate(packed.data, expected)
+        except InflateError as error:
+            raise packed.error(
+                "data", f"{error} (row_stride x height = {expected})", packed.data_offset
+            ) from None
     if len(rows) != expected:
         raise packed.error(
             "size",
@@ -235,27 +244,6 @@ def unpack(packed: PackedImage) -> Image:
     strides = (packed.row_stride, pixel_size, dtype.itemsize)
     pixels: Pixels = np.ndarray(shape, dtype, rows, 0, strides)
     return Image(packed.name, packed.time_us, layout, pixels)
-
-
-def _inflate(packed: PackedImage, expected: int) -> bytes:
-    """The zlib stream's bytes, never more than `expected` of them: a longer stream is refused."""
-    inflater = zlib.decompressobj()
-    try:
-        rows = inflater.decompress(packed.data, expected)
-        # Out of room (or cut short): one more byte of room says which, and reads the checksum.
-        if not inflater.eof and inflater.decompress(inflater.unconsumed_tail, 1):
-            raise packed.error(
-                "data", f"zlib data expands past row_stride x height = {expected} bytes", packed.data_offset
-            )
-    except zlib.error as error:
-        raise packed.error("data", f"not a zlib stream: {error}", packed.data_offset) from None
-    if not inflater.eof:
-        raise packed.error("data", f"zlib stream ends early, after {len(rows)} bytes", packed.data_offset)
-    if inflater.unused_data:
-        raise packed.error(
-            "data", f"{len(inflater.unused_data)} bytes after the zlib stream", packed.data_offset
-        )
-    return rows
 
 
 def _decode_file(packed: PackedImage, layout: Layout, dtype: np.dtype[Any]) -> Pixels:

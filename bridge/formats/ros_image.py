@@ -21,7 +21,7 @@ import numpy as np
 
 from bridge.errors import DecodeError, EncodeError
 from bridge.formats.ros_messages import CDR_TIME, U32, CdrReader, CdrWriter, make, to_cdr
-from bridge.image import EncodedImage, Image, Intrinsics, Layout, Pixels
+from bridge.image import NO_DISTORTION, NO_ROTATION, EncodedImage, Image, Intrinsics, Layout, Pixels
 from bridge.sim_time import us_from_sec_nsec
 
 IMAGE = "sensor_msgs/msg/Image"
@@ -74,7 +74,7 @@ def image_to_cdr(image: Image, frame_id: str, stamp: tuple[int, int]) -> bytes:
     writer.pack(
         _TWO_U32, image.width * image.layout.channels * rows.dtype.itemsize, rows.nbytes
     )  # step, size
-    return b"".join([*writer.chunks, rows.data.cast("B")])
+    return b"".join([*writer.chunks, rows.reshape(-1).view(np.uint8).data])
 
 
 def compressed_image_to_cdr(image: EncodedImage, frame_id: str, stamp: tuple[int, int]) -> bytes:
@@ -103,7 +103,7 @@ class CameraInfoEncoder:
 
 def camera_info_cdr(intrinsics: Intrinsics, frame_id: str, stamp: tuple[int, int]) -> bytes:
     """A `CameraInfo` (plumb_bob with zero distortion) by rosbags: the reference, and the template."""
-    i = intrinsics
+    model, coefficients = NO_DISTORTION
     return to_cdr(
         make(
             CAMERA_INFO,
@@ -112,13 +112,13 @@ def camera_info_cdr(intrinsics: Intrinsics, frame_id: str, stamp: tuple[int, int
                 stamp=make("builtin_interfaces/msg/Time", sec=stamp[0], nanosec=stamp[1]),
                 frame_id=frame_id,
             ),
-            height=i.height,
-            width=i.width,
-            distortion_model="plumb_bob",
-            d=[0.0] * 5,
-            k=[i.fx, 0.0, i.cx, 0.0, i.fy, i.cy, 0.0, 0.0, 1.0],
-            r=[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-            p=[i.fx, 0.0, i.cx, 0.0, 0.0, i.fy, i.cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+            height=intrinsics.height,
+            width=intrinsics.width,
+            distortion_model=model,
+            d=coefficients,
+            k=intrinsics.k(),
+            r=NO_ROTATION,
+            p=intrinsics.p(),
         )
     )
 

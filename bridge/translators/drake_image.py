@@ -1,4 +1,4 @@
-"""Drake's camera images (`lcmt_image_array`, DRAKE_RGBD_CAMERA_IMAGES*) to ROS 2, and ROS images back.
+"""Drake's camera images (`lcmt_image_array`, DRAKE_RGBD_CAMERA_IMAGES*) to ROS 2 and Foxglove, and back.
 
 `drake_images_to_ros`: each image of an array (one per port of Drake's publisher: rgb, depth,
 label) becomes a `sensor_msgs/Image` on `<destination>/<port>/image`; by option a
@@ -9,21 +9,27 @@ appear (the router looks an output up by its index, and asks each for subscriber
 that does not decode is counted as the route's error (`bridge.skipped.part_failed`); the other
 images of the array still go out.
 
+`drake_images_to_foxglove`: the same as `foxglove.RawImage` on `<destination>/<port>/image`, by
+option `foxglove.CompressedImage` on `<port>/compressed` and `foxglove.CameraCalibration` on
+`<port>/calibration`, for Foxglove's Image panel (stamped with sim time by default, as the scene).
+
 `ros_image_to_drake`: a `sensor_msgs/Image` -> an `lcmt_image_array` of that one image, which
 Drake's `LcmImageArrayToImages` reads (bgr8 and bgra8 reordered to RGB, float depth in Drake's
-conventions, zlib by option).
+conventions, zlib unless told not to).
 
-Both decode a message once for every route that reads it (`image_array`, `unpacked_images`).
+An array is read and its images unpacked once for every route that reads it (`image_array`,
+`unpacked_images`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from bridge.errors import BridgeError, DecodeError, EncodeError
+from bridge.formats import foxglove_image
 from bridge.formats.drake_image import ImageArray, images_to_lcm, read_image_array, unpack
 from bridge.formats.ros_image import (
     CAMERA_INFO,
@@ -36,6 +42,7 @@ from bridge.formats.ros_image import (
 )
 from bridge.formats.ros_messages import time_parts_from_us
 from bridge.image import (
+    EncodedImage,
     FileFormat,
     Image,
     Intrinsics,
@@ -46,8 +53,14 @@ from bridge.image import (
 )
 from bridge.skipped import part_failed
 from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from bridge.translators.types import IMAGE_ARRAY_TYPE, ros_type
-from bridge.transports.base import Received
+from bridge.translators.types import (
+    CAMERA_CALIBRATION_TYPE,
+    COMPRESSED_IMAGE_TYPE,
+    IMAGE_ARRAY_TYPE,
+    RAW_IMAGE_TYPE,
+    ros_type,
+)
+from bridge.transports.base import MessageType, Received
 from bridge.transports.ros_names import name_token
 
 CAMERA_CHANNEL = "DRAKE_RGBD_CAMERA_IMAGES"  # ApplyCameraConfig appends _<camera name>
@@ -118,15 +131,18 @@ class CameraInfoOptions(BaseModel):
         return Intrinsics(base.width, base.height, base.fx, base.fy, cx, cy)
 
 
-class ImagesToRosOptions(TranslatorOptions):
+class ImagesOptions(TranslatorOptions):
     frame_id: str | None = None  # None: the camera's name (the channel's suffix; "camera" for none)
     stamp: Literal["receive", "sim"] = "receive"  # sim: the image's utime (for use_sim_time nodes)
     drop_alpha: bool = False  # rgba8 -> rgb8, bgra8 -> bgr8
     depth: Literal["16UC1", "32FC1"] = "16UC1"  # 32FC1: metres, REP 117 (a float depth image always is)
-    compressed: FileFormat | None = (
-        None  # also a CompressedImage: Drake's JPEG/PNG as sent, others in this format
-    )
-    camera_info: CameraInfoOptions | None = None  # also a CameraInfo beside each image of this size
+    # Also a compressed image: Drake's JPEG or PNG as they came, the others encoded in this format.
+    compressed: FileFormat | None = None
+    camera_info: CameraInfoOptions | None = None  # also the intrinsics beside each image of this size
+
+
+class FoxgloveImagesOptions(ImagesOptions):
+    stamp: Literal["receive", "sim"] = "sim"  # as the scene's transforms: the images sync with them
 
 
 @dataclass(slots=True)
@@ -138,25 +154,32 @@ class _Port:
     info: int | None
 
 
-class DrakeImagesToRos(Translator):
-    """`lcmt_image_array` -> per image a `sensor_msgs/Image` (+ CompressedImage, CameraInfo)."""
+class _DrakeImages(Translator):
+    """The camera translators' common part: ports become outputs as they appear, each image is
+    written by the target's `write_*` (the subclass's), one that fails is counted alone."""
 
-    Options = ImagesToRosOptions
-    options: ImagesToRosOptions
+    Options = ImagesOptions
+    options: ImagesOptions
     reads = (IMAGE_ARRAY_TYPE,)
-    # What it may write (the config check); an instance's outputs are its ports', added as they appear.
-    outputs: tuple[Output, ...] = (
-        Output("/<port>/image", ros_type(IMAGE)),
-        Output("/<port>/image/compressed", ros_type(COMPRESSED_IMAGE)),
-        Output("/<port>/camera_info", ros_type(CAMERA_INFO)),
-    )
+    # The suffixes (after /<port>) and types of what each port publishes.
+    IMAGE: ClassVar[tuple[str, MessageType]]
+    COMPRESSED: ClassVar[tuple[str, MessageType]]
+    INFO: ClassVar[tuple[str, MessageType]]
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.outputs = ()
         self._ports: dict[str, _Port] = {}
-        self._info: CameraInfoEncoder | None = None
         self._intrinsics = self.options.camera_info.intrinsics() if self.options.camera_info else None
+
+    def write_image(self, image: Image, frame_id: str, stamp: tuple[int, int]) -> bytes:
+        raise NotImplementedError
+
+    def write_compressed(self, image: EncodedImage, frame_id: str, stamp: tuple[int, int]) -> bytes:
+        raise NotImplementedError
+
+    def write_info(self, intrinsics: Intrinsics, frame_id: str, stamp: tuple[int, int]) -> bytes:
+        raise NotImplementedError
 
     def observe(self, message: Received) -> None:
         try:
@@ -169,16 +192,15 @@ class DrakeImagesToRos(Translator):
         port = self._ports.get(name)
         if port is None:
             port = self._ports[name] = _Port(
-                self._add(f"/{name_token(name)}/image", IMAGE),
-                self._add(f"/{name_token(name)}/image/compressed", COMPRESSED_IMAGE)
-                if self.options.compressed
-                else None,
-                self._add(f"/{name_token(name)}/camera_info", CAMERA_INFO) if self._intrinsics else None,
+                self._add(name, self.IMAGE),
+                self._add(name, self.COMPRESSED) if self.options.compressed else None,
+                self._add(name, self.INFO) if self._intrinsics else None,
             )
         return port
 
-    def _add(self, suffix: str, type_name: str) -> int:
-        self.outputs = (*self.outputs, Output(suffix, ros_type(type_name)))
+    def _add(self, port: str, output: tuple[str, MessageType]) -> int:
+        suffix, message_type = output
+        self.outputs = (*self.outputs, Output(f"/{name_token(port)}/{suffix}", message_type))
         return len(self.outputs) - 1
 
     def translate(self, message: Received) -> Outputs:
@@ -192,37 +214,81 @@ class DrakeImagesToRos(Translator):
                 time_us = image.time_us if self.options.stamp == "sim" else message.received_us
                 stamp = time_parts_from_us(time_us)
                 port = self._port(packed.name)
-                out.append((port.image, image_to_cdr(self._ros_form(image), frame_id, stamp)))
+                out.append((port.image, self.write_image(self._as_options_say(image), frame_id, stamp)))
                 if port.compressed is not None and self.options.compressed is not None:
                     encoded = packed.encoded() or encode_file(image, self.options.compressed)
-                    out.append((port.compressed, compressed_image_to_cdr(encoded, frame_id, stamp)))
+                    out.append((port.compressed, self.write_compressed(encoded, frame_id, stamp)))
                 if port.info is not None:
-                    out.append((port.info, self._camera_info(image, frame_id).encode(stamp)))
+                    out.append((port.info, self.write_info(self._intrinsics_of(image), frame_id, stamp)))
             except BridgeError as error:
                 part_failed(error)  # counted on the route; the other images still go out
         return out
 
-    def _ros_form(self, image: Image) -> Image:
-        """The image as the options want it on ROS: alpha dropped, depth in metres."""
+    def _as_options_say(self, image: Image) -> Image:
+        """Alpha dropped, depth in metres, as the options say."""
         if self.options.drop_alpha:
             image = image.without_alpha()
         if image.layout is Layout.DEPTH and (self.options.depth == "32FC1" or image.pixels.dtype.kind == "f"):
             image = depth_rep117(image)
         return image
 
-    def _camera_info(self, image: Image, frame_id: str) -> CameraInfoEncoder:
+    def _intrinsics_of(self, image: Image) -> Intrinsics:
         intrinsics = self._intrinsics
         assert intrinsics is not None
         if (image.width, image.height) != (intrinsics.width, intrinsics.height):
             raise EncodeError(
-                CAMERA_INFO,
+                self.INFO[1].name,
                 "width",
                 f"image {image.name!r} is {image.width} x {image.height}, camera_info is for "
                 f"{intrinsics.width} x {intrinsics.height}",
             )
-        if self._info is None or self._info.frame_id != frame_id:
+        return intrinsics
+
+
+class DrakeImagesToRos(_DrakeImages):
+    """`lcmt_image_array` -> per image a `sensor_msgs/Image` (+ CompressedImage, CameraInfo)."""
+
+    IMAGE = ("image", ros_type(IMAGE))
+    COMPRESSED = ("image/compressed", ros_type(COMPRESSED_IMAGE))  # image_transport's names
+    INFO = ("camera_info", ros_type(CAMERA_INFO))
+    # What it may write (the config check); an instance's outputs are its ports', added as they appear.
+    outputs: tuple[Output, ...] = tuple(Output(f"/<port>/{s}", t) for s, t in (IMAGE, COMPRESSED, INFO))
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._info: CameraInfoEncoder | None = None
+
+    def write_image(self, image: Image, frame_id: str, stamp: tuple[int, int]) -> bytes:
+        return image_to_cdr(image, frame_id, stamp)
+
+    def write_compressed(self, image: EncodedImage, frame_id: str, stamp: tuple[int, int]) -> bytes:
+        return compressed_image_to_cdr(image, frame_id, stamp)
+
+    def write_info(self, intrinsics: Intrinsics, frame_id: str, stamp: tuple[int, int]) -> bytes:
+        if self._info is None or self._info.frame_id != frame_id:  # made once, stamped per image
             self._info = CameraInfoEncoder(intrinsics, frame_id)
-        return self._info
+        return self._info.encode(stamp)
+
+
+class DrakeImagesToFoxglove(_DrakeImages):
+    """`lcmt_image_array` -> per image a `foxglove.RawImage` (+ CompressedImage, CameraCalibration)
+    for Foxglove's Image panel; stamped with Drake's sim time by default, as the scene's frames."""
+
+    Options = FoxgloveImagesOptions
+    options: FoxgloveImagesOptions
+    IMAGE = ("image", RAW_IMAGE_TYPE)
+    COMPRESSED = ("compressed", COMPRESSED_IMAGE_TYPE)
+    INFO = ("calibration", CAMERA_CALIBRATION_TYPE)
+    outputs: tuple[Output, ...] = tuple(Output(f"/<port>/{s}", t) for s, t in (IMAGE, COMPRESSED, INFO))
+
+    def write_image(self, image: Image, frame_id: str, stamp: tuple[int, int]) -> bytes:
+        return foxglove_image.raw_image(image, frame_id, stamp)
+
+    def write_compressed(self, image: EncodedImage, frame_id: str, stamp: tuple[int, int]) -> bytes:
+        return foxglove_image.compressed_image(image, frame_id, stamp)
+
+    def write_info(self, intrinsics: Intrinsics, frame_id: str, stamp: tuple[int, int]) -> bytes:
+        return foxglove_image.camera_calibration(intrinsics, frame_id, stamp)
 
 
 class RosImageToDrakeOptions(TranslatorOptions):

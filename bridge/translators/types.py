@@ -7,7 +7,7 @@ through each other's.
 
 from __future__ import annotations
 
-from bridge.formats import foxglove, ign
+from bridge.formats import foxglove, foxglove_image, ign
 from bridge.lcmcodec import (
     CONTACT_RESULTS,
     DRAW,
@@ -31,6 +31,9 @@ ENVELOPE_TYPE = MessageType(VIEWER2_COMMS.type_name, LCM)
 # Foxglove's protobuf schemas.
 SCENE_UPDATE_TYPE = MessageType(foxglove.SCENE_UPDATE, PROTOBUF)
 FRAME_TRANSFORMS_TYPE = MessageType(foxglove.FRAME_TRANSFORMS, PROTOBUF)
+RAW_IMAGE_TYPE = MessageType(foxglove_image.RAW_IMAGE, PROTOBUF)
+COMPRESSED_IMAGE_TYPE = MessageType(foxglove_image.COMPRESSED_IMAGE, PROTOBUF)
+CAMERA_CALIBRATION_TYPE = MessageType(foxglove_image.CAMERA_CALIBRATION, PROTOBUF)
 
 
 def ros_type(name: str) -> MessageType:

@@ -170,3 +170,11 @@ def test_a_step_shorter_than_a_row_is_refused() -> None:
     message = RclpyImage(height=2, width=4, encoding="mono16", step=6, data=bytes(12))
     with pytest.raises(DecodeError, match="step 6 is shorter than a row"):
         image_from_cdr(bytes(serialize_message(message)))
+
+
+def test_an_empty_image_is_written() -> None:
+    """bench/fuzz.py's first image finding (drake_images_to_ros): a 0 x 4 image raised TypeError
+    (a memoryview of an empty array cannot be cast)."""
+    empty = Image("rgb", 0, Layout.RGBA, np.zeros((0, 4, 4), np.uint8))
+    message = deserialize_message(image_to_cdr(empty, "cam", STAMP), RclpyImage)
+    assert (message.height, message.width, message.step, len(message.data)) == (0, 4, 16, 0)

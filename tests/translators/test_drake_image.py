@@ -237,3 +237,35 @@ def test_bad_ros_image_bytes_are_a_decode_error() -> None:
         TRANSLATORS.get("ros_image_to_drake")({}).translate(
             Received("/x", rclpy_image("yuv422", np.zeros((2, 2, 2), np.uint8)))
         )
+
+
+def test_foxglove_gets_raw_images_stamped_with_sim_time_and_calibrations() -> None:
+    from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
+    from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+
+    translator = TRANSLATORS.get("drake_images_to_foxglove")(
+        {"camera_info": {"width": 8, "height": 6, "fov_y": 45}}
+    )
+    out = translator.translate(
+        Received("DRAKE_RGBD_CAMERA_IMAGES_top", publish_with_drake(CAMERA, 2.5, compress=True))
+    )
+    suffixes = [translator.outputs[index].suffix for index, _ in out]
+    assert suffixes == [
+        f"/{port}/{kind}" for port in ("rgb", "depth", "label") for kind in ("image", "calibration")
+    ]
+    assert {output.type.name for output in translator.outputs} == {
+        "foxglove.RawImage",
+        "foxglove.CameraCalibration",
+    }
+    images = [
+        RawImage.FromString(data) for index, data in out if translator.outputs[index].suffix.endswith("image")
+    ]
+    for message, expected, dtype in zip(images, (RGBA, DEPTH, LABEL), ("u1", "<u2", "<i2"), strict=True):
+        assert message.frame_id == "top" and (message.timestamp.seconds, message.timestamp.nanos) == (
+            2,
+            500_000_000,
+        )
+        np.testing.assert_array_equal(np.frombuffer(message.data, dtype).reshape(expected.shape), expected)
+    assert [message.encoding for message in images] == ["rgba8", "16UC1", "16UC1"]
+    calibration = CameraCalibration.FromString(out[1][1])
+    assert (calibration.width, calibration.height, calibration.K[2]) == (8, 6, 3.5)
