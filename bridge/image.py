@@ -204,6 +204,34 @@ def encode_file(image: Image, file_format: FileFormat) -> EncodedImage:
     )
 
 
+def preview(image: Image) -> npt.NDArray[np.uint8]:
+    """The image as height x width x 3 RGB bytes for a person to look at: colour as it is; depth
+    as grey, the nearest white and the farthest dark, too close and too far black; labels a
+    colour each (the same label, the same colour, in every picture)."""
+    pixels = image.rgb_order().pixels
+    if image.layout is Layout.DEPTH:
+        metres = depth_rep117(image).pixels[:, :, 0]
+        seen = np.isfinite(metres)
+        # By rank among the distances seen (histogram equalisation): every step of depth shows.
+        distances = np.sort(metres[seen])
+        rank = np.searchsorted(distances, np.where(seen, metres, 0.0)) / max(len(distances), 1)
+        shade = np.where(seen, 255 - 200 * rank, 0.0)
+        return np.repeat(shade[:, :, None], 3, axis=2).astype(np.uint8)
+    if image.layout is Layout.LABEL:
+        # Hues a golden angle apart: neighbouring labels far apart on the colour wheel.
+        hue = (pixels[:, :, 0].astype(np.float64) * 0.618034) % 1.0
+        sector = hue * 6
+        ramp = np.clip(np.abs((sector[:, :, None] - np.array([3, 1, 5])) % 6 - 3) - 1, 0, 1)  # hue -> RGB
+        colours: npt.NDArray[np.uint8] = (40 + 200 * ramp).astype(np.uint8)
+        return colours
+    if pixels.dtype != np.uint8:  # 16-bit or float colour, grey: scaled to their range
+        values = pixels.astype(np.float64)
+        low, high = float(values.min(initial=0)), float(values.max(initial=1))
+        pixels = (255 * (values - low) / max(high - low, 1e-9)).astype(np.uint8)
+    rgb: npt.NDArray[np.uint8] = np.ascontiguousarray(np.broadcast_to(pixels[:, :, :3], (*pixels.shape[:2], 3)))
+    return rgb
+
+
 def depth_rep117(image: Image) -> Image:
     """A DEPTH image in float32 metres with REP 117's sentinels: too close -inf, too far +inf.
 

@@ -76,3 +76,18 @@ def test_jpeg_leaves_alpha_out_and_float_depth_fits_no_file() -> None:
         encode_file(Image("depth", 0, Layout.DEPTH, np.zeros((2, 2, 1), np.uint16)), "jpeg")
     with pytest.raises(EncodeError, match="png cannot hold an empty image"):
         encode_file(Image("rgb", 0, Layout.RGBA, np.zeros((0, 3, 4), np.uint8)), "png")
+
+
+def test_a_preview_is_rgb_bytes_with_sentinels_black_and_a_colour_per_label() -> None:
+    from bridge.image import preview
+
+    depth = np.array([[[0], [500], [1000], [65535]]], np.uint16)
+    shades = preview(Image("depth", 0, Layout.DEPTH, depth))
+    assert shades.shape == (1, 4, 3) and shades.dtype == np.uint8
+    assert list(shades[0, :, 0]) == [0, 255, 155, 0]  # too close and too far black, the nearest white
+    labels = preview(Image("label", 0, Layout.LABEL, np.array([[[1], [2], [1]]], np.int16)))
+    assert (labels[0, 0] == labels[0, 2]).all() and (labels[0, 0] != labels[0, 1]).any()
+    bgra = sample_pixels(np.uint8, (2, 2, 4))
+    np.testing.assert_array_equal(preview(Image("rgb", 0, Layout.BGRA, bgra)), bgra[:, :, [2, 1, 0]])
+    grey = preview(Image("ir", 0, Layout.GRAY, np.array([[[0], [1000]]], np.uint16)))
+    assert list(grey[0, :, 1]) == [0, 255]
