@@ -38,6 +38,7 @@ from bridge.resources import data_dir
 from bridge.translators import TRANSLATORS, Translator, TranslatorOptions
 from bridge.transports import TRANSPORTS
 from bridge.transports.base import MessageType, Transport, TransportSettings
+from bridge.transports.ros_names import name_token
 from bridge.yamldoc import KeyPath, YamlDocument
 
 
@@ -237,8 +238,7 @@ class _Template(string.Formatter):
         if format_spec == "path":  # "_PROXIMITY" -> "/proximity"; "" stays ""
             return "/" + text.lstrip("_").lower() if text else ""
         if format_spec == "topic":  # any text as one valid ROS name token: "my client!" -> "my_client_"
-            token = re.sub(r"[^A-Za-z0-9_]", "_", text)
-            return token if token[:1].isalpha() else f"n{token}"
+            return name_token(text)
         if format_spec:
             raise ValueError(f"unknown format spec {format_spec!r}")
         return text

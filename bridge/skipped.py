@@ -1,12 +1,17 @@
-"""One bad geometry never hides the rest: a geometry a target cannot write is skipped alone.
+"""One bad part never hides the rest: a geometry a target cannot write, or one image of a camera's
+array that does not decode, is skipped alone.
 
 A load that names one mesh file which is not on this machine (or one a target cannot express)
 must still show every other geometry. So every format that writes a scene's geometries does it
 through `per_geometry`: a `SceneError` for one geometry skips that geometry only, and becomes a
 `SkippedGeometry` warning that names the link, the geometry's index and the reason.
 
-Warnings go to whoever collects them (`collecting`: the router counts them per route, `convert`
-and `snapshot` print them); with no collector they are logged. A context variable carries the
+A part of a message that is broken rather than unwritable (an image whose bytes do not decode:
+`bridge.translators.drake_image`) goes through `part_failed`: the collector gets its error, which
+the router counts as an error of the route (by the error's type), and the other parts go out.
+
+Warnings and errors go to whoever collects them (`collecting`: the router counts them per route,
+`convert` and `snapshot` print them); with no collector they are logged. A context variable carries the
 collector, so that threads (a route's worker, a transport's thread) each count their own.
 """
 
@@ -19,7 +24,7 @@ from contextvars import ContextVar
 from dataclasses import dataclass
 from typing import TypeVar
 
-from bridge.errors import SceneError
+from bridge.errors import BridgeError, SceneError
 from bridge.scene import Geometry, Link
 
 log = logging.getLogger("viewer_bridge")
@@ -38,13 +43,14 @@ class SkippedGeometry:
         return f"{self.link} geometry {self.index} skipped: {self.reason}"
 
 
-_collector: ContextVar[list[SkippedGeometry] | None] = ContextVar("skipped_geometries", default=None)
+Skipped = SkippedGeometry | BridgeError  # a geometry left out (a warning), a part that failed (an error)
+_collector: ContextVar[list[Skipped] | None] = ContextVar("skipped_geometries", default=None)
 
 
 @contextmanager
-def collecting() -> Iterator[list[SkippedGeometry]]:
-    """Collect the geometries skipped in this block (in this thread) into the list it yields."""
-    skipped: list[SkippedGeometry] = []
+def collecting() -> Iterator[list[Skipped]]:
+    """Collect the parts skipped in this block (in this thread) into the list it yields."""
+    skipped: list[Skipped] = []
     token = _collector.set(skipped)
     try:
         yield skipped
@@ -64,7 +70,12 @@ def per_geometry(link: Link, write: Callable[[int, Geometry], T]) -> list[T]:
     return written
 
 
-def _skip(skipped: SkippedGeometry) -> None:
+def part_failed(error: BridgeError) -> None:
+    """One part of a message that cannot be translated: the caller goes on with the others."""
+    _skip(error)
+
+
+def _skip(skipped: Skipped) -> None:
     collector = _collector.get()
     if collector is None:
         log.warning("%s", skipped)

@@ -21,7 +21,7 @@ LAYERS: dict[str, int] = {
     "bridge.lru": 1, "bridge.status": 1,
     "bridge.scene": 2, "bridge.lcmcodec": 2, "bridge.yamldoc": 2, "bridge.arguments": 2,
     "bridge.ros_interfaces": 2,
-    "bridge.lowering": 3, "bridge.contact": 3, "bridge.skipped": 3,
+    "bridge.lowering": 3, "bridge.contact": 3, "bridge.image": 3, "bridge.skipped": 3,
     "bridge.mappings": 4,
     "bridge.formats": 5,
     "bridge.transports": 6, "bridge.render": 6,

@@ -502,11 +502,16 @@ def test_default_config_is_printed_and_valid() -> None:
         "point_cloud",
         "draw_frames",
         "point_cloud_from_ros",
+        "camera_images",
+        "camera_images_unnamed",
+        "camera_image_from_ros",
         "contact_markers",
         "contact_wrenches",
         "tree_viewer",
         "foxglove_scene",
         "foxglove_transforms",
+        "foxglove_camera_images",
+        "foxglove_camera_images_unnamed",
     ]
 
 

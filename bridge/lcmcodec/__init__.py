@@ -24,6 +24,9 @@ VIEWER2_COMMS = CODECS["robotlocomotion.viewer2_comms_t"]
 POINT_CLOUD = CODECS["drake.lcmt_point_cloud"]
 POINT_CLOUD_FIELD = CODECS["drake.lcmt_point_cloud_field"]
 CONTACT_RESULTS = CODECS["drake.lcmt_contact_results_for_viz"]
+HEADER = CODECS["drake.lcmt_header"]
+IMAGE = CODECS["drake.lcmt_image"]
+IMAGE_ARRAY = CODECS["drake.lcmt_image_array"]
 
 _BY_FINGERPRINT = {codec.packed_fingerprint: codec for codec in CODECS.values()}
 
@@ -38,6 +41,9 @@ __all__ = [
     "CONTACT_RESULTS",
     "DRAW",
     "GEOMETRY_DATA",
+    "HEADER",
+    "IMAGE",
+    "IMAGE_ARRAY",
     "LINK_DATA",
     "LOAD_ROBOT",
     "POINT_CLOUD",

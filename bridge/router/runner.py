@@ -214,8 +214,11 @@ class RouteRunner:
             self._error(f"crash:{type(error).__name__}", f"{message.channel}: {traceback.format_exc()}")
             return
         self.stats.translate_ms.append((time.perf_counter() - started) * 1e3)
-        for geometry in skipped:  # the rest of the scene is translated: a warning, not an error
-            self._count(self.stats.warnings, "skipped_geometry", f"{message.channel}: {geometry}")
+        for part in skipped:  # the rest of the message is translated
+            if isinstance(part, BridgeError):  # a part that failed (one image of an array): an error
+                self._error(type(part).__name__, f"{message.channel}: {part}")
+            else:  # a geometry a target cannot write: a warning
+                self._count(self.stats.warnings, "skipped_geometry", f"{message.channel}: {part}")
         self._message_time.received_us = message.received.received_us  # what a file stamps its outputs with
         for index, payload in outputs:
             try:

@@ -4,8 +4,8 @@ Grouped by family: `drake_ros` (Drake's LCM scene <-> ROS 2), `drake_tf` (a TF t
 markers in link frames, the way ROS consumes motion), `drake_foxglove` (Foxglove's SceneUpdate
 and FrameTransforms), `drake_point_cloud` (point clouds both ways, DRAKE_DRAW_FRAMES as
 triads), `drake_ign` (<-> ign/gz protobuf), `drake_contact` (contact results to all three),
-`tree_viewer` (Director's remote tree viewer, both sides), `relay` (raw LCM onto another
-transport, unchanged). Families share only these: `base`
+`drake_image` (camera images <-> ROS 2, and to Foxglove), `tree_viewer` (Director's remote tree
+viewer, both sides), `relay` (raw LCM onto another transport, unchanged). Families share only these: `base`
 (what a translator is), `types` (the message types, each named once), `options` (options to
 inherit: markers, frames, ign names), `drake_stream` (the decode-once draw, and
 `DrakeTranslator`, the base that follows Drake's load/draw stream) and `load_cache` (the last
@@ -48,6 +48,9 @@ _BUILTINS = {
     "drake_contacts_to_wrenches": "drake_contact:DrakeContactsToWrenches",
     "drake_contacts_to_ign_contacts": "drake_contact:DrakeContactsToIgnContacts",
     "drake_contacts_to_tree_viewer": "drake_contact:DrakeContactsToTreeViewer",
+    "drake_images_to_ros": "drake_image:DrakeImagesToRos",
+    "drake_images_to_foxglove": "drake_image:DrakeImagesToFoxglove",
+    "ros_image_to_drake": "drake_image:RosImageToDrake",
 }
 
 TRANSLATORS: Registry[Translator] = Registry(

@@ -7,9 +7,23 @@ through each other's.
 
 from __future__ import annotations
 
-from bridge.formats.foxglove.schema import FRAME_TRANSFORMS, SCENE_UPDATE
+from bridge.formats.foxglove.schema import (
+    CAMERA_CALIBRATION,
+    COMPRESSED_IMAGE,
+    FRAME_TRANSFORMS,
+    RAW_IMAGE,
+    SCENE_UPDATE,
+)
 from bridge.formats.ign.schema import Package, type_name
-from bridge.lcmcodec import CONTACT_RESULTS, DRAW, LINK_DATA, LOAD_ROBOT, POINT_CLOUD, VIEWER2_COMMS
+from bridge.lcmcodec import (
+    CONTACT_RESULTS,
+    DRAW,
+    IMAGE_ARRAY,
+    LINK_DATA,
+    LOAD_ROBOT,
+    POINT_CLOUD,
+    VIEWER2_COMMS,
+)
 from bridge.transports.base import CDR, LCM, PROTOBUF, MessageType
 
 # Drake's LCM messages.
@@ -18,11 +32,15 @@ DRAW_TYPE = MessageType(DRAW.type_name, LCM)
 LINK_DATA_TYPE = MessageType(LINK_DATA.type_name, LCM)  # DRAKE_VIEWER_DEFORMABLE
 CONTACT_TYPE = MessageType(CONTACT_RESULTS.type_name, LCM)
 POINT_CLOUD_TYPE = MessageType(POINT_CLOUD.type_name, LCM)
+IMAGE_ARRAY_TYPE = MessageType(IMAGE_ARRAY.type_name, LCM)  # DRAKE_RGBD_CAMERA_IMAGES*
 # Director's tree viewer envelope (requests and responses alike).
 ENVELOPE_TYPE = MessageType(VIEWER2_COMMS.type_name, LCM)
 # Foxglove's protobuf schemas.
 SCENE_UPDATE_TYPE = MessageType(SCENE_UPDATE, PROTOBUF)
 FRAME_TRANSFORMS_TYPE = MessageType(FRAME_TRANSFORMS, PROTOBUF)
+RAW_IMAGE_TYPE = MessageType(RAW_IMAGE, PROTOBUF)
+COMPRESSED_IMAGE_TYPE = MessageType(COMPRESSED_IMAGE, PROTOBUF)
+CAMERA_CALIBRATION_TYPE = MessageType(CAMERA_CALIBRATION, PROTOBUF)
 
 
 def ros_type(name: str) -> MessageType:

@@ -19,6 +19,13 @@ MAX_NAMESPACE_LENGTH = 255 - 2 - 8  # rmw: what DDS allows, less room for the to
 MAX_NODE_NAME_LENGTH = 255
 
 
+def name_token(text: str) -> str:
+    """Any text as one valid ROS name token (letters, digits, _; not starting with a digit):
+    `my client!` -> `my_client_`, `0` -> `n0`."""
+    token = re.sub(r"[^A-Za-z0-9_]", "_", text)
+    return token if token[:1].isalpha() else f"n{token}"
+
+
 def topic_problem(name: str) -> str | None:
     """What makes `name` no valid ROS 2 topic name (relative, absolute or private), or None."""
     if not name:

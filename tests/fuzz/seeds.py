@@ -5,8 +5,9 @@ on an in-process LCM; every message it sends is a seed for its type's codec (fou
 fingerprint), and each nested struct one for its own type. The other formats' seeds are the
 bridge's own encodings of that captured scene: tree viewer envelopes, ign Pose_V and Model, glTF
 and a render form with RenderEngineGltfClient's fields; contact results and point clouds (LCM
-and PointCloud2) are the bridge's own encodings of small examples; ign discovery datagrams are
-built here, one per message type and wire version. The config seeds are the built-in configs.
+and PointCloud2) and camera images (lcmt_image_array in every compression, sensor_msgs/Image)
+are the bridge's own encodings of small examples; ign discovery datagrams are built here, one per
+message type and wire version. The config seeds are the built-in configs.
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ def write_seeds(folder: Path) -> dict[str, int]:
             seeds[kind] += inputs
         seeds["render_form"] = [render_form(decode_load(seeds[LOAD_ROBOT.type_name][0]))]
     seeds["ign.discovery"] = discovery_seeds()
-    for kind, inputs in meldis_seeds().items():
+    for kind, inputs in {**meldis_seeds(), **image_seeds()}.items():
         seeds[kind] += inputs
         for data in inputs:
             codec = codec_for(data)
@@ -186,3 +187,32 @@ def meldis_seeds() -> Seeds:
         "drake.lcmt_point_cloud": [cloud_to_lcm(cloud) for cloud in clouds],
         "sensor_msgs/PointCloud2": [cloud_to_cdr(cloud) for cloud in clouds],
     }
+
+
+def image_seeds() -> Seeds:
+    """Small camera images as the bridge writes them: Drake's rgb, depth and label ports (raw and
+    zlib), a PNG and a JPEG image, and sensor_msgs/Image of each encoding the way back reads."""
+    import io
+
+    from PIL import Image as PilImage
+
+    from bridge.formats.drake.image import images_to_lcm
+    from bridge.formats.ros.image import LAYOUTS, image_to_cdr
+    from bridge.image import Image, Layout
+    from bridge.lcmcodec import IMAGE_ARRAY
+
+    rgba = np.arange(48, dtype=np.uint8).reshape(3, 4, 4)
+    camera = [Image("rgb", 1000, Layout.RGBA, rgba),
+              Image("depth", 1000, Layout.DEPTH, np.arange(12, dtype=np.uint16).reshape(3, 4, 1) * 500),
+              Image("label", 1000, Layout.LABEL, np.arange(12, dtype=np.int16).reshape(3, 4, 1) % 3)]  # fmt: skip
+    arrays = [images_to_lcm(camera, 1000), images_to_lcm(camera, 1000, compress=True)]
+    for file_format, compression in (("PNG", 3), ("JPEG", 2)):
+        out = io.BytesIO()
+        PilImage.fromarray(rgba[:, :, :3]).save(out, file_format)
+        message = IMAGE_ARRAY.decode(images_to_lcm([Image("rgb", 0, Layout.RGB, rgba[:, :, :3])], 0))
+        message.images[0].data, message.images[0].size = out.getvalue(), len(out.getvalue())
+        message.images[0].compression_method = compression
+        arrays.append(IMAGE_ARRAY.encode(message))
+    ros = [image_to_cdr(Image(name, 0, layout, np.zeros((2, 3, layout.channels), dtype)), "cam", (1, 0))
+           for name, (layout, dtype) in LAYOUTS.items()]  # fmt: skip
+    return {"drake.lcmt_image_array": arrays, "sensor_msgs/Image": ros}

@@ -28,6 +28,7 @@ from bridge.config import load_config
 from bridge.errors import ConfigError, DecodeError, EncodeError, GltfError, RequestRejected, SceneError
 from bridge.formats.drake.contact import decode_contact_results
 from bridge.formats.drake.draw import DrawDecoder
+from bridge.formats.drake.image import read_image_array, unpack
 from bridge.formats.drake.load import decode_load
 from bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
 from bridge.formats.gltf import read_gltf
@@ -37,7 +38,9 @@ from bridge.formats.ros.point_cloud import cloud_from_cdr
 from bridge.lcmcodec import CODECS, LOAD_ROBOT, VIEWER2_COMMS, StructCodec
 from bridge.render import Camera
 from bridge.render_server import BadRequest, parse_form, render_request
+from bridge.skipped import collecting
 from bridge.translators.drake_ign import IgnPoseVToDrakeDraw
+from bridge.translators.drake_image import DrakeImagesToFoxglove, DrakeImagesToRos, RosImageToDrake
 from bridge.translators.tree_viewer import TreeViewerServer
 from bridge.transports.base import Received
 from bridge.transports.ign_discovery import ANY_TYPE, Discovery, Record, is_tcp_address
@@ -205,6 +208,54 @@ register(Target("zenoh_data_key", lambda data: zenoh_keys.parse_data_key(data.de
 register(Target("zenoh_token", lambda data: zenoh_keys.parse_token(data.decode("latin-1")), (DecodeError,),
                 ("rmw_zenoh.token",)))  # fmt: skip
 register(Target("zenoh_attachment", zenoh_keys.parse_attachment, (DecodeError,), ("rmw_zenoh.attachment",)))
+
+
+# --- camera images, both ways ---------------------------------------------------------------------------
+
+
+def drake_images(data: bytes) -> object:
+    """Every image of an `lcmt_image_array` to pixels, as the camera routes unpack them."""
+    return [unpack(packed) for packed in read_image_array(data).images]
+
+
+_EVERY_OUTPUT = {
+    "compressed": "png",
+    "depth": "32FC1",
+    "drop_alpha": True,
+    "camera_info": {"width": 4, "height": 3, "fov_y": 45},
+}
+_IMAGES_TO_ROS = DrakeImagesToRos(_EVERY_OUTPUT)
+_IMAGES_TO_FOXGLOVE = DrakeImagesToFoxglove(_EVERY_OUTPUT)
+_ROS_TO_DRAKE = RosImageToDrake()
+
+
+def drake_images_to_ros(data: bytes) -> object:
+    """The `camera_images` route with every output on: a bad image is collected, the rest written."""
+    received = Received("DRAKE_RGBD_CAMERA_IMAGES_fuzz", data, 0)
+    _IMAGES_TO_ROS.observe(received)
+    with collecting():
+        return _IMAGES_TO_ROS.translate(received)
+
+
+def drake_images_to_foxglove(data: bytes) -> object:
+    """The `foxglove_camera_images` route with every output on."""
+    received = Received("DRAKE_RGBD_CAMERA_IMAGES_fuzz", data, 0)
+    _IMAGES_TO_FOXGLOVE.observe(received)
+    with collecting():
+        return _IMAGES_TO_FOXGLOVE.translate(received)
+
+
+def ros_image_to_drake(data: bytes) -> object:
+    """What the `camera_image_from_ros` route does with a sensor_msgs/Image: read, lcmt_image_array."""
+    return _ROS_TO_DRAKE.translate(Received("/drake_in/camera/image", data, 0))
+
+
+register(Target("drake_images", drake_images, (DecodeError,), ("drake.lcmt_image_array",)))
+register(Target("drake_images_to_ros", drake_images_to_ros, (DecodeError,), ("drake.lcmt_image_array",)))
+register(
+    Target("drake_images_to_foxglove", drake_images_to_foxglove, (DecodeError,), ("drake.lcmt_image_array",))
+)
+register(Target("ros_image_to_drake", ros_image_to_drake, (DecodeError, EncodeError), ("sensor_msgs/Image",)))
 
 
 # --- the config loader ----------------------------------------------------------------------------------

@@ -27,6 +27,10 @@ KNOWN_FINGERPRINTS = {
     "drake.lcmt_hydroelastic_contact_surface_for_viz": 0xFD46C8E07468606E,
     "drake.lcmt_hydroelastic_quadrature_per_point_data_for_viz": 0x81278726783D83B3,
     "drake.lcmt_point": 0xAE7E5FBA5EECA11E,
+    # Camera images (docs/PROTOCOLS.md section 12): printed by pydrake 1.51's classes.
+    "drake.lcmt_image_array": 0x1572A7D08D9022E6,
+    "drake.lcmt_image": 0xBD7080D565EC47D1,
+    "drake.lcmt_header": 0x124E586663318E54,
 }
 # The types Drake's own Python package (pip drake) has classes for: their fingerprints must agree.
 PYDRAKE_TYPES = sorted(name for name in KNOWN_FINGERPRINTS if name.startswith("drake."))

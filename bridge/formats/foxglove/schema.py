@@ -8,6 +8,9 @@ from functools import cache
 
 SCENE_UPDATE = "foxglove.SceneUpdate"
 FRAME_TRANSFORMS = "foxglove.FrameTransforms"
+RAW_IMAGE = "foxglove.RawImage"
+COMPRESSED_IMAGE = "foxglove.CompressedImage"
+CAMERA_CALIBRATION = "foxglove.CameraCalibration"
 
 
 @cache
