@@ -6,6 +6,7 @@ import io
 import re
 import time
 import zlib
+from pathlib import Path
 from typing import Any
 
 import drake as drake_lcmtypes
@@ -17,11 +18,13 @@ from sensor_msgs.msg import CameraInfo, CompressedImage
 from sensor_msgs.msg import Image as RosImage
 
 from bridge.config import Route, destination_name, load_config
+from bridge.convert import convert
 from bridge.errors import ConfigError, DecodeError, EncodeError
 from bridge.formats.ros.image import LAYOUTS
 from bridge.skipped import collecting
 from bridge.translators import TRANSLATORS, LoadCache
 from bridge.transports.base import CallPublisher, Received
+from bridge.transports.lcm import LcmEvent, write_log
 from tests.drake_images import publish_with_drake, read_with_drake
 from tests.formats.drake.test_image import lcm_array, lcm_image, sample_pixels
 from tests.formats.ros.test_image import rclpy_image
@@ -269,3 +272,32 @@ def test_foxglove_gets_raw_images_stamped_with_sim_time_and_calibrations() -> No
     assert [message.encoding for message in images] == ["rgba8", "16UC1", "16UC1"]
     calibration = CameraCalibration.FromString(out[1][1])
     assert (calibration.width, calibration.height, calibration.K[2]) == (8, 6, 3.5)
+
+
+@pytest.mark.parametrize("schema", ["ros2", "foxglove"])
+def test_convert_writes_every_port_of_a_logged_camera_with_its_pixels(schema: str, tmp_path: Path) -> None:
+    from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    log, out = tmp_path / "cameras.lcmlog", tmp_path / "cameras.mcap"
+    array = publish_with_drake(CAMERA, 2.5, compress=True)
+    write_log(log, [LcmEvent("DRAKE_RGBD_CAMERA_IMAGES_wrist", array, 1_000_000)])
+    topics = [f"/drake/cameras/wrist/{port}/image" for port, _, _ in CAMERA]
+    assert convert(log, out, load_config(None), progress=False, schema=schema) == dict.fromkeys(topics, 1)  # type: ignore[arg-type]
+    with out.open("rb") as file:
+        reader = make_reader(file, decoder_factories=[DecoderFactory()])
+        if schema == "ros2":
+            written = {channel.topic: (message.width, message.height, bytes(message.data))
+                       for _, channel, _, message in reader.iter_decoded_messages()}  # fmt: skip
+        else:
+            written = {}
+            for schema_record, channel, message in reader.iter_messages():
+                assert schema_record is not None and schema_record.name == "foxglove.RawImage"
+                image = RawImage()
+                image.ParseFromString(message.data)
+                written[channel.topic] = (image.width, image.height, bytes(image.data))
+    for topic, (_, _, pixels) in zip(topics, CAMERA, strict=True):
+        width, height, data = written[topic]
+        assert (width, height) == (pixels.shape[1], pixels.shape[0])
+        np.testing.assert_array_equal(np.frombuffer(data, pixels.dtype).reshape(pixels.shape), pixels)
