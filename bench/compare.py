@@ -5,9 +5,9 @@ Run: .venv/bin/python bench/compare.py OTHER_CHECKOUT [--quick] [--only NAME ...
 
 Each script of bench/all.py runs in a child process per checkout (its own `bridge` on
 PYTHONPATH), `--rounds` times each, the two sides taking turns. The table gives each row's ratio
-to its own baseline (measured in the same process; `x`), or its figure where it has no baseline,
-for both checkouts, with half their spread over the rounds, and the change: a restructure whose
-changes stay within the spread changed nothing measurable.
+to its own baseline (measured in the same process; `x`) and its own figure, for both checkouts,
+with half their spread over the rounds, and the change: a restructure whose changes stay within
+the spread changed nothing measurable.
 """
 
 from __future__ import annotations
@@ -50,14 +50,15 @@ def measure(checkout: Path, script: str, quick: bool) -> list[dict[str, object]]
     raise SystemExit(f"{checkout}: bench/{script}.py failed:\n{result.stderr[-2000:]}")
 
 
-def figure(row: dict[str, object]) -> tuple[str, float] | None:
-    """A row's ratio to its own baseline, or its figure itself (with its unit) where it has none."""
+def figures(row: dict[str, object]) -> list[tuple[str, str, float]]:
+    """A row's ratio to its own baseline (where it has one) and its own figure, each with its unit."""
     ours, baseline = row.get("ours"), row.get("baseline")
     if not isinstance(ours, (int, float)) or not ours:
-        return None
+        return []
+    found = [("", f" {row.get('unit', '')}", float(ours))]
     if isinstance(baseline, (int, float)) and baseline:
-        return "x", float(baseline) / float(ours)
-    return f" {row.get('unit', '')}", float(ours)
+        found.insert(0, (" (ratio)", "x", float(baseline) / float(ours)))
+    return found
 
 
 def _cell(values: list[float], unit: str) -> str:
@@ -76,7 +77,7 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=2)
     args = parser.parse_args()
     here, other = HERE.parent, args.other.resolve()
-    figures: dict[tuple[str, str, str], dict[str, list[float]]] = {}
+    found: dict[tuple[str, str, str], dict[str, list[float]]] = {}
     for script in scripts(here):
         if args.only and script not in args.only:
             continue
@@ -85,13 +86,12 @@ def main() -> None:
             for side, checkout in reversed(sides):
                 print(f"--- {side}: bench/{script}.py", file=sys.stderr, flush=True)
                 for row in measure(checkout, script, args.quick):
-                    found = figure(row)
-                    if found is not None:
-                        unit, value = found
-                        figures.setdefault((script, str(row["name"]), unit), {}).setdefault(side, []).append(value)
+                    for label, unit, value in figures(row):
+                        key = (script, f"{row['name']}{label}", unit)
+                        found.setdefault(key, {}).setdefault(side, []).append(value)
     print(f"| script | measure | {other.name} | this checkout | change |")
     print("|---|---|---:|---:|---:|")
-    for (script, name, unit), values in figures.items():
+    for (script, name, unit), values in found.items():
         before, after = values.get("other", []), values.get("this", [])
         change = "-"
         if before and after:
