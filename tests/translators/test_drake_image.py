@@ -105,7 +105,8 @@ def test_compressed_passes_drakes_png_through_and_encodes_the_rest() -> None:
 
 
 def test_a_bad_image_is_counted_on_the_route_and_the_others_go_out() -> None:
-    from bridge.router import Message, RouteRunner
+    from bridge.router.flow import Message
+    from bridge.router.runner import RouteRunner
 
     route = Route.model_validate(
         {"name": "cameras", "source": {"transport": "lcm", "name": "DRAKE_RGBD_CAMERA_IMAGES_(.+)"},
