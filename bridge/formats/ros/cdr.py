@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from bridge.errors import DecodeError, EncodeError
-from bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us
+from bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us, us_from_sec_nsec
 
 CDR_LE = b"\x00\x01\x00\x00"  # the encapsulation header: little-endian plain CDR
 U32 = struct.Struct("<I")
@@ -152,6 +152,14 @@ class CdrReader:
             return str(raw[:-1], "utf-8")
         except UnicodeDecodeError as error:
             raise DecodeError(self.type_name, field, start + error.start, "string is not UTF-8") from None
+
+    def header(self) -> tuple[int, str]:
+        """A `std_msgs/Header`: its stamp in microseconds and its frame id."""
+        seconds = self.scalar("i", "header.stamp.sec")
+        nanoseconds = self.scalar("I", "header.stamp.nanosec")
+        if nanoseconds >= 1_000_000_000:
+            raise DecodeError(self.type_name, "header.stamp.nanosec", self.offset - 4, f"{nanoseconds} >= 1e9")
+        return us_from_sec_nsec(seconds, nanoseconds), self.string("header.frame_id")
 
     def count(self, field: str, item_size: int) -> int:
         """A sequence length, refused before anything is allocated if its items cannot fit."""

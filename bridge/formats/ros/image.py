@@ -23,7 +23,6 @@ from bridge.errors import DecodeError, EncodeError
 from bridge.formats.ros.cdr import CDR_TIME, U32, CdrReader, CdrWriter
 from bridge.formats.ros.messages import make, to_cdr
 from bridge.image import NO_DISTORTION, NO_ROTATION, EncodedImage, Image, Intrinsics, Layout, Pixels
-from bridge.sim_time import us_from_sec_nsec
 
 IMAGE = "sensor_msgs/msg/Image"
 COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"
@@ -144,11 +143,7 @@ def image_from_cdr(data: bytes | memoryview) -> StampedImage:
     Drake pixel format, a step shorter than a row, or data that is not step x height bytes.
     """
     reader = CdrReader(data, IMAGE)
-    seconds = reader.scalar("i", "header.stamp.sec")
-    nanoseconds = reader.scalar("I", "header.stamp.nanosec")
-    if nanoseconds >= 1_000_000_000:
-        raise DecodeError(IMAGE, "header.stamp.nanosec", reader.offset - 4, f"{nanoseconds} >= 1e9")
-    frame_id = reader.string("header.frame_id")
+    time_us, frame_id = reader.header()
     height = reader.scalar("I", "height")
     width = reader.scalar("I", "width")
     at = reader.offset
@@ -173,5 +168,4 @@ def image_from_cdr(data: bytes | memoryview) -> StampedImage:
     channel = dtype.newbyteorder(">" if big_endian else "<")
     strides = (step, pixel_size, dtype.itemsize)
     pixels: Pixels = np.ndarray((height, width, layout.channels), channel, rows, 0, strides)
-    time_us = us_from_sec_nsec(seconds, nanoseconds)
     return StampedImage(frame_id, time_us, Image(layout.value, time_us, layout, pixels))

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import struct
 
-from bridge.errors import DecodeError
 from bridge.formats.point_fields import (
     FLOAT32,
     PCL_RGB_BIG,
@@ -24,7 +23,6 @@ from bridge.formats.point_fields import (
 from bridge.formats.ros import POINT_CLOUD2
 from bridge.formats.ros.cdr import CDR_TIME, U32, CdrReader, CdrWriter, time_parts_from_us
 from bridge.scene import StampedPointCloud
-from bridge.sim_time import us_from_sec_nsec
 
 _TWO_U32 = struct.Struct("<II")
 _SMALLEST_POINT_FIELD = 13  # name (length + NUL), offset, datatype, count: never fewer bytes
@@ -57,11 +55,7 @@ def cloud_from_cdr(data: bytes | memoryview) -> StampedPointCloud:
     fit its data, unknown datatypes, or a cloud without x, y and z.
     """
     reader = CdrReader(data, POINT_CLOUD2)
-    seconds = reader.scalar("i", "header.stamp.sec")
-    nanoseconds = reader.scalar("I", "header.stamp.nanosec")
-    if nanoseconds >= 1_000_000_000:
-        raise DecodeError(POINT_CLOUD2, "header.stamp.nanosec", reader.offset - 4, f"{nanoseconds} >= 1e9")
-    frame = reader.string("header.frame_id")
+    time_us, frame = reader.header()
     height = reader.scalar("I", "height")
     width = reader.scalar("I", "width")
     fields = tuple(
@@ -81,4 +75,4 @@ def cloud_from_cdr(data: bytes | memoryview) -> StampedPointCloud:
     layout = Layout(fields, width, height, point_step, row_step, big_endian)
     rgb_order = PCL_RGB_BIG if big_endian else PCL_RGB_LITTLE
     cloud = read_points(points, layout, type_name=POINT_CLOUD2, rgb_order=rgb_order)
-    return StampedPointCloud(cloud, frame, us_from_sec_nsec(seconds, nanoseconds))
+    return StampedPointCloud(cloud, frame, time_us)
