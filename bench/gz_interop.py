@@ -26,7 +26,6 @@ import argparse
 import codecs
 import os
 import re
-import signal
 import subprocess
 import sys
 import threading
@@ -45,6 +44,7 @@ import lcm  # noqa: E402
 import numpy as np  # noqa: E402
 
 from tests.conftest import lcm_url  # noqa: E402
+from tests.peers import BridgeProcess  # noqa: E402
 
 DEFAULT_ENV = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "viewer-bridge/gz13/env.sh"
 DEFAULT_LCM_URL = "udpm://239.255.76.67:7667?ttl=0"
@@ -165,59 +165,6 @@ class Gz:
         return result.stdout + result.stderr
 
 
-class Bridge:
-    """`viewer-bridge run` as a process of its own, in one partition; its log lines are kept."""
-
-    def __init__(self, config: str, url: str, partition: str, ign_env: bool, extra: list[str]) -> None:
-        env = {**os.environ, "GZ_PARTITION": partition, "GZ_IP": "127.0.0.1"}
-        for name in ("IGN_PARTITION", "IGN_IP"):
-            env.pop(name, None)
-        if ign_env:
-            env.update(IGN_PARTITION=partition, IGN_IP="127.0.0.1")
-        command = [
-            sys.executable,
-            "-m",
-            "bridge.cli",
-            "run",
-            "-c",
-            config,
-            "--lcm-url",
-            url,
-            "--stats-period",
-            "2",
-            *extra,
-        ]
-        self.process = subprocess.Popen(
-            command, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
-        )
-        self.lines: list[str] = []
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
-
-    def _read(self) -> None:
-        assert self.process.stderr is not None
-        for line in self.process.stderr:
-            self.lines.append(line.rstrip())
-
-    def wait_for_line(self, text: str, timeout: float = 60.0) -> None:
-        if not until(
-            lambda: any(text in line for line in self.lines) or self.process.poll() is not None, timeout
-        ):
-            raise RuntimeError(f"the bridge never logged {text!r}")
-        if self.process.poll() is not None:
-            raise RuntimeError("the bridge exited:\n" + "\n".join(self.lines[-30:]))
-
-    def stop(self) -> None:
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGINT)
-        try:
-            self.process.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait()
-        self._reader.join(timeout=2)
-
-
 class LcmListener:
     """Every message on an LCM URL, by channel, received by the lcm package in a thread."""
 
@@ -284,8 +231,14 @@ def scene(url: str, links: int, prefix: str, seconds: float) -> Iterator[subproc
 
 
 @contextmanager
-def bridge(config: str, url: str, partition: str, ign_env: bool, extra: list[str]) -> Iterator[Bridge]:
-    running = Bridge(config, url, partition, ign_env, extra)
+def bridge(config: str, url: str, partition: str, ign_env: bool, extra: list[str]) -> Iterator[BridgeProcess]:
+    """The bridge on `config` in one partition, with only the `GZ_*` names set unless `ign_env`."""
+    env = {**os.environ, "GZ_PARTITION": partition, "GZ_IP": "127.0.0.1"}
+    for name in ("IGN_PARTITION", "IGN_IP"):
+        env.pop(name, None)
+    if ign_env:
+        env.update(IGN_PARTITION=partition, IGN_IP="127.0.0.1")
+    running = BridgeProcess("-c", config, "--lcm-url", url, "--stats-period", "2", *extra, env=env)
     try:
         running.wait_for_line("routes running")
         yield running

@@ -10,7 +10,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -80,12 +80,13 @@ class RosProbe:
 
 
 class BridgeProcess:
-    """`viewer-bridge run` in a process of its own; its log lines are collected."""
+    """`viewer-bridge run` in a process of its own (in `env`, by default this one's); its log lines
+    are collected."""
 
-    def __init__(self, *args: str) -> None:
+    def __init__(self, *args: str, env: Mapping[str, str] | None = None) -> None:
         # Never a fixed port: bridges may run side by side, and beside a user's own.
         command = [sys.executable, "-m", "bridge.cli", "run", "--set", "foxglove.port=0", *args]
-        self.process = subprocess.Popen(command, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self.process = subprocess.Popen(command, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
         self.lines: list[str] = []
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
