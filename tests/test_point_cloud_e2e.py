@@ -14,6 +14,7 @@ import pytest
 
 from bridge.config import destination_name, load_config
 from tests.conftest import lcm_url
+from tests.formats.drake.test_point_cloud import pydrake_publisher
 from tests.peers import BridgeProcess, RosProbe
 from tests.test_router import LcmRecorder
 
@@ -41,34 +42,13 @@ def drake_cloud(seed: int) -> tuple[np.ndarray, np.ndarray]:
 
 def publish_with_pydrake(url: str, channel: str, xyz: np.ndarray, rgb: np.ndarray, time_s: float) -> Any:
     """A diagram of PointCloudToLcm and LcmPublisherSystem (C++ serializer); returns a publish()."""
-    from pydrake.common.value import AbstractValue
     from pydrake.lcm import DrakeLcm
-    from pydrake.perception import BaseField, Fields, PointCloud, PointCloudToLcm
-    from pydrake.systems.framework import DiagramBuilder
-    from pydrake.systems.lcm import LcmPublisherSystem
+    from pydrake.perception import BaseField, Fields, PointCloud
 
     cloud = PointCloud(len(xyz), Fields(BaseField.kXYZs | BaseField.kRGBs))
     cloud.mutable_xyzs()[:] = xyz.T
     cloud.mutable_rgbs()[:] = rgb.T
-    lcm = DrakeLcm(url)
-    builder = DiagramBuilder()
-    to_lcm = builder.AddSystem(PointCloudToLcm(frame_name="camera_optical"))
-    publisher = builder.AddSystem(
-        LcmPublisherSystem.Make(
-            channel=channel,
-            lcm_type=drake_lcmtypes.lcmt_point_cloud,
-            lcm=lcm,
-            publish_period=0.0,
-            use_cpp_serializer=True,
-        )
-    )
-    builder.Connect(to_lcm.get_output_port(), publisher.get_input_port())
-    builder.ExportInput(to_lcm.get_input_port())
-    diagram = builder.Build()
-    context = diagram.CreateDefaultContext()
-    context.SetTime(time_s)
-    diagram.get_input_port().FixValue(context, AbstractValue.Make(cloud))
-    return lambda: diagram.ForcedPublish(context)
+    return pydrake_publisher(DrakeLcm(url), channel, cloud, "camera_optical", time_s)
 
 
 def read_point_cloud2(message: Any) -> tuple[np.ndarray, np.ndarray]:

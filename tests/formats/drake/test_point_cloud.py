@@ -8,6 +8,7 @@ import os
 import struct
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -30,12 +31,9 @@ FIELDS = {
 
 def pydrake_message(kinds: tuple[str, ...], count: int = 40, seed: int = 0, time_s: float = 0.5) -> bytes:
     """What pydrake's PointCloudToLcm publishes (through the C++ serializer) for a random cloud."""
-    from pydrake.common.value import AbstractValue
     from pydrake.lcm import DrakeLcm
-    from pydrake.perception import BaseField, Fields, PointCloudToLcm
+    from pydrake.perception import BaseField, Fields
     from pydrake.perception import PointCloud as DrakePointCloud
-    from pydrake.systems.framework import DiagramBuilder
-    from pydrake.systems.lcm import LcmPublisherSystem
 
     rng = np.random.default_rng(seed)
     bits = 0
@@ -51,11 +49,24 @@ def pydrake_message(kinds: tuple[str, ...], count: int = 40, seed: int = 0, time
     lcm = DrakeLcm("memq://")
     received: list[bytes] = []
     lcm.Subscribe("CLOUD", received.append)
+    pydrake_publisher(lcm, "CLOUD", cloud, "plant::camera", time_s)()
+    lcm.HandleSubscriptions(0)
+    return received[0]
+
+
+def pydrake_publisher(lcm: Any, channel: str, cloud: Any, frame_name: str, time_s: float) -> Callable[[], None]:
+    """A diagram of pydrake's PointCloudToLcm and LcmPublisherSystem (C++ serializer) holding
+    `cloud` at `time_s`; returns what publishes it once on `channel`."""
+    from pydrake.common.value import AbstractValue
+    from pydrake.perception import PointCloudToLcm
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.lcm import LcmPublisherSystem
+
     builder = DiagramBuilder()
-    to_lcm = builder.AddSystem(PointCloudToLcm(frame_name="plant::camera"))
+    to_lcm = builder.AddSystem(PointCloudToLcm(frame_name=frame_name))
     publisher = builder.AddSystem(
         LcmPublisherSystem.Make(
-            channel="CLOUD",
+            channel=channel,
             lcm_type=drake_lcmtypes.lcmt_point_cloud,
             lcm=lcm,
             publish_period=0.0,
@@ -68,9 +79,7 @@ def pydrake_message(kinds: tuple[str, ...], count: int = 40, seed: int = 0, time
     context = diagram.CreateDefaultContext()
     context.SetTime(time_s)
     diagram.get_input_port().FixValue(context, AbstractValue.Make(cloud))
-    diagram.ForcedPublish(context)
-    lcm.HandleSubscriptions(0)
-    return received[0]
+    return lambda: diagram.ForcedPublish(context)
 
 
 @pytest.mark.parametrize("kinds", FIELDS.values(), ids=list(FIELDS))
