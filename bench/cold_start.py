@@ -18,12 +18,12 @@ import time
 
 from router import frame, scene
 
-from bridge.formats.drake.draw import DrawEncoder
-from bridge.formats.drake.load import load_from_scene
-from bridge.translators import TRANSLATORS, LoadCache
-from bridge.translators.base import Translator
-from bridge.translators.types import LOAD_TYPE
-from bridge.transports.base import Received
+from viewer_bridge.formats.drake.draw import DrawEncoder
+from viewer_bridge.formats.drake.load import load_from_scene
+from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.translators.base import Translator
+from viewer_bridge.translators.types import LOAD_TYPE
+from viewer_bridge.transports.base import Received
 
 TRANSLATORS_PER_DRAW = ("drake_to_marker_array", "drake_to_tf", "drake_to_pose_array")
 

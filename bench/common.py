@@ -1,7 +1,7 @@
 """What every bench script returns, so that `bench/all.py` can gather them into one table, and what
 they share: timing (`best_of`) and a frame of link poses to draw (`frame`).
 
-Only `bridge.scene` from the bridge: bench/load_targets.py imports this beside an older commit's
+Only `viewer_bridge.scene` from the bridge: bench/load_targets.py imports this beside an older commit's
 `bridge` too.
 """
 
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bridge.scene import LinkPoses
+from viewer_bridge.scene import LinkPoses
 
 
 @dataclass

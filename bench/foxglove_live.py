@@ -10,7 +10,7 @@ once-per-load SceneUpdate of a 1000-geometry scene.
 
 Then the live server: from `publish` of those bytes to a WebSocket client's receipt, a client
 connected straight to the SDK's server (the baseline: what the SDK costs alone) beside clients
-connected through our front (bridge/transports/foxglove_front.py) with either subprotocol name.
+connected through our front (viewer_bridge/transports/foxglove_front.py) with either subprotocol name.
 Two figures each: one message at a time (publish, wait for it: the latency), and a burst of
 messages back to back (the time per message when the relay is kept busy).
 """
@@ -28,13 +28,13 @@ from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms as Fra
 from translators import scene
 from websockets.sync.client import ClientConnection, connect
 
-from bridge.formats.drake.draw import DrawDecoder, DrawEncoder
-from bridge.formats.foxglove.scene import scene_update
-from bridge.formats.foxglove.transforms import FrameTransformsEncoder
-from bridge.formats.ros.tf import FrameNames
-from bridge.scene import LinkPoses
-from bridge.transports.base import PROTOBUF, MessageType, Publisher, Qos
-from bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
+from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
+from viewer_bridge.formats.foxglove.scene import scene_update
+from viewer_bridge.formats.foxglove.transforms import FrameTransformsEncoder
+from viewer_bridge.formats.ros.tf import FrameNames
+from viewer_bridge.scene import LinkPoses
+from viewer_bridge.transports.base import PROTOBUF, MessageType, Publisher, Qos
+from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
 
 
 def sdk_frame_transforms(poses: LinkPoses, stamp: tuple[int, int], frames: FrameNames) -> bytes:

@@ -53,7 +53,7 @@ def child(target_name: str, runs: int, timeout: int, rss_mb: int, corpus: Path, 
     """In the fuzzing process: instrument the bridge, then hand the target to libFuzzer."""
     import atheris
 
-    with atheris.instrument_imports(include=["bridge"]):
+    with atheris.instrument_imports(include=["viewer_bridge"]):
         from tests.fuzz.targets import TARGETS
     target = TARGETS[target_name]
 

@@ -28,13 +28,13 @@ from common import Measure, frame  # noqa: E402
 from draw_codec import paired, print_measures, seconds_per_call  # noqa: E402
 from router import Bridge, publish_at  # noqa: E402
 
-from bridge.formats.drake.draw import DrawDecoder, DrawEncoder  # noqa: E402
-from bridge.formats.ign.poses import PosesEncoder  # noqa: E402
-from bridge.translators import TRANSLATORS, LoadCache  # noqa: E402
-from bridge.transports.base import Received  # noqa: E402
-from bridge.transports.ign import IgnNode  # noqa: E402
-from bridge.transports.lcm import LcmBus  # noqa: E402
 from tests.formats.ign.oracle import pose_v  # noqa: E402
+from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder  # noqa: E402
+from viewer_bridge.formats.ign.poses import PosesEncoder  # noqa: E402
+from viewer_bridge.translators import TRANSLATORS, LoadCache  # noqa: E402
+from viewer_bridge.transports.base import Received  # noqa: E402
+from viewer_bridge.transports.ign import IgnNode  # noqa: E402
+from viewer_bridge.transports.lcm import LcmBus  # noqa: E402
 
 os.environ.setdefault("GZ_PARTITION", f"bench{os.getpid()}")
 os.environ.setdefault("GZ_IP", "127.0.0.1")

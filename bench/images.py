@@ -31,10 +31,10 @@ from typing import Any
 
 from common import Measure, best_of  # bench/ is on sys.path when run as a script
 
-from bridge.config import DEFAULT_CONFIG
-from bridge.formats.drake.image import images_to_lcm, read_image_array, unpack
-from bridge.formats.ros.image import image_to_cdr
-from bridge.transports.lcm import LcmBus
+from viewer_bridge.config import DEFAULT_CONFIG
+from viewer_bridge.formats.drake.image import images_to_lcm, read_image_array, unpack
+from viewer_bridge.formats.ros.image import image_to_cdr
+from viewer_bridge.transports.lcm import LcmBus
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests/ (the camera scene)
 WIDTH, HEIGHT = 1280, 720
@@ -88,7 +88,7 @@ class Counter:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
 
-        from bridge.transports.ros2 import message_class, qos_profile
+        from viewer_bridge.transports.ros2 import message_class, qos_profile
 
         self.context = Context()
         rclpy.init(context=self.context)

@@ -3,8 +3,8 @@ checkout write them, each in a child process (`times`), for `bench/translators.p
 
 The base side's `bridge` is the base commit's, unpacked with `git archive`: so what runs on that
 side (`base_calls`) uses only what both versions have, and each side imports the format modules
-by its own paths (the base commit's `bridge/formats/ros.py` and `ros_tf.py` are `bridge/formats/ros/`
-here, its `drake.py` is `bridge/formats/drake/`), in the function that uses them.
+by its own paths (the base commit's `viewer_bridge/formats/ros.py` and `ros_tf.py` are `viewer_bridge/formats/ros/`
+here, its `drake.py` is `viewer_bridge/formats/drake/`), in the function that uses them.
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ from pathlib import Path
 
 from common import best_of, frame
 
-from bridge.scene import Box, Capsule, Cylinder, Ellipsoid, Geometry, Link, LinkPoses, Scene, Sphere
-from bridge.scene import Pose as ScenePose
+from viewer_bridge.scene import Box, Capsule, Cylinder, Ellipsoid, Geometry, Link, LinkPoses, Scene, Sphere
+from viewer_bridge.scene import Pose as ScenePose
 
 BASE_COMMIT = "65407f5"
 
@@ -36,9 +36,9 @@ def scene(links: int) -> Scene:
 def inputs(side: str, links: int) -> tuple[Scene, LinkPoses]:
     """The load (with a frame's poses) and a draw as the side's decoder hands it over (float32 views)."""
     if side == "base":
-        from bridge.formats.drake import DrawDecoder, DrawEncoder  # the base commit's one module
+        from viewer_bridge.formats.drake import DrawDecoder, DrawEncoder  # the base commit's one module
     else:
-        from bridge.formats.drake.draw import DrawDecoder, DrawEncoder  # a package here
+        from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder  # a package here
     load = scene(links).with_poses(frame(links))
     draw = DrawDecoder().decode(DrawEncoder().encode(frame(links, seed=1)))
     return load, draw
@@ -46,8 +46,13 @@ def inputs(side: str, links: int) -> tuple[Scene, LinkPoses]:
 
 def base_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
     """Each measured path as the base commit writes it."""
-    from bridge.formats import foxglove, ign, ros, ros_tf  # the base commit's modules: one file each then
-    from bridge.formats import tree_viewer as tv  # the base commit's one module (a package since)
+    from viewer_bridge.formats import (  # the base commit's modules: one file each then
+        foxglove,
+        ign,
+        ros,
+        ros_tf,
+    )
+    from viewer_bridge.formats import tree_viewer as tv  # the base commit's one module (a package since)
 
     frames = ros_tf.FrameNames()
     return {
@@ -62,15 +67,15 @@ def base_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
 
 def our_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
     """Each path of `base_calls` as this checkout writes it (the same bytes; only called here)."""
-    from bridge.formats.foxglove.scene import (
+    from viewer_bridge.formats.foxglove.scene import (
         scene_update,  # packages here, one module each in the base commit
     )
-    from bridge.formats.ign.model import model_bytes
-    from bridge.formats.ros.markers import marker_array_cdr
-    from bridge.formats.ros.shapes import shapes_cdr
-    from bridge.formats.ros.tf import FrameNames
-    from bridge.formats.tree_viewer import envelope
-    from bridge.formats.tree_viewer.requests import SettransformEncoder, load_requests
+    from viewer_bridge.formats.ign.model import model_bytes
+    from viewer_bridge.formats.ros.markers import marker_array_cdr
+    from viewer_bridge.formats.ros.shapes import shapes_cdr
+    from viewer_bridge.formats.ros.tf import FrameNames
+    from viewer_bridge.formats.tree_viewer import envelope
+    from viewer_bridge.formats.tree_viewer.requests import SettransformEncoder, load_requests
 
     frames = FrameNames()
     settransform = SettransformEncoder()

@@ -2,7 +2,7 @@
 
 Run: .venv/bin/python bench/point_cloud.py [--points 100000] [--budget 0.5]
 
-Ours: numpy end to end (`bridge.formats.ros.point_cloud`): one float32 table, the rgb bytes
+Ours: numpy end to end (`viewer_bridge.formats.ros.point_cloud`): one float32 table, the rgb bytes
 written through a view, the CDR header by struct. Baseline: what a Python user writes: a
 `PointCloud2` whose data is packed point by point with `struct.pack_into` (as sensor_msgs_py's
 `create_cloud` did before it used numpy), then `rclpy.serialization.serialize_message`.
@@ -27,9 +27,9 @@ from draw_codec import seconds_per_call
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import PointCloud2, PointField
 
-from bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
-from bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
-from bridge.scene import PointCloud, StampedPointCloud
+from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
+from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
+from viewer_bridge.scene import PointCloud, StampedPointCloud
 
 XYZ_RGB = struct.Struct("<fffI")  # PCL's PointXYZRGB word: 0x00RRGGBB
 XYZ_RGB_DRAKE = struct.Struct("<fff4B")  # PointCloudToLcm: r, g, b, 0

@@ -40,10 +40,10 @@ from pathlib import Path
 import numpy as np
 from common import Measure
 
-from bridge.formats.drake.draw import DrawEncoder
-from bridge.formats.drake.load import load_from_scene
-from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
-from bridge.transports.lcm import LcmBus
+from viewer_bridge.formats.drake.draw import DrawEncoder
+from viewer_bridge.formats.drake.load import load_from_scene
+from viewer_bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
+from viewer_bridge.transports.lcm import LcmBus
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 os.environ.setdefault("ROS_DOMAIN_ID", str(101 - os.getpid() % 20))
@@ -138,7 +138,7 @@ class Bridge:
         path.write_text(config)
         self.stats = folder / "stats.json"
         self.stats.unlink(missing_ok=True)
-        command = [sys.executable, "-m", "bridge.cli", "run", "-c", str(path), "--lcm-url", URL,
+        command = [sys.executable, "-m", "viewer_bridge.cli", "run", "-c", str(path), "--lcm-url", URL,
                    "--stats-json", str(self.stats), "--stats-period", "1"]  # fmt: skip
         preexec = (lambda: os.sched_setaffinity(0, {core})) if core is not None else None
         environment = dict(os.environ)
@@ -181,7 +181,7 @@ class Subscriber:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
 
-        from bridge.transports.ros2 import message_class, qos_profile
+        from viewer_bridge.transports.ros2 import message_class, qos_profile
 
         self.context = Context()
         rclpy.init(context=self.context)
@@ -204,7 +204,7 @@ class Subscriber:
 
 
 def pose_array_sequence(data: bytes) -> int:
-    from bridge.formats.ros.poses import pose_array_arrays
+    from viewer_bridge.formats.ros.poses import pose_array_arrays
 
     return int(pose_array_arrays(data)[2][0, 0])
 
@@ -212,7 +212,7 @@ def pose_array_sequence(data: bytes) -> int:
 def passthrough_sequence(data: bytes) -> int:
     (length,) = struct.unpack_from("<I", data, 12)
     draw = data[16 : 16 + length]
-    from bridge.formats.drake.draw import DrawDecoder
+    from viewer_bridge.formats.drake.draw import DrawDecoder
 
     return int(DrawDecoder().decode(draw).positions[0, 0])
 
@@ -246,7 +246,7 @@ _PER_DRAW_ROUTES = ("tf", "markers", "poses")
 
 def default_per_draw(policy: str) -> str:
     """The built-in default config's per-draw routes (TF, world-frame markers, poses), one policy."""
-    from bridge.config import load_config
+    from viewer_bridge.config import load_config
 
     routes = [route for route in load_config("builtin:default").routes if route.name in _PER_DRAW_ROUTES]
     lines = ["routes:"]
@@ -330,9 +330,9 @@ def throughput_run(
 
 def output_sizes(links: int = 1000) -> dict[str, int]:
     """Bytes of each per-draw route's message for one `links`-link draw, from the bridge's encoders."""
-    from bridge.formats.ros.markers import MarkerStream
-    from bridge.formats.ros.poses import PoseArrayEncoder
-    from bridge.formats.ros.tf import FrameNames, TransformsEncoder
+    from viewer_bridge.formats.ros.markers import MarkerStream
+    from viewer_bridge.formats.ros.poses import PoseArrayEncoder
+    from viewer_bridge.formats.ros.tf import FrameNames, TransformsEncoder
 
     the_scene = scene(links)
     poses = frame(tuple(link.name for link in the_scene.links), 1)
@@ -376,7 +376,7 @@ def _floor_child(sizes: tuple[int, ...], rate_hz: float, seconds: float) -> None
     """`publish_floor`'s publisher: prints the CPU seconds it spent publishing for `seconds`."""
     import rclpy
 
-    from bridge.transports.ros2 import message_class, qos_profile
+    from viewer_bridge.transports.ros2 import message_class, qos_profile
 
     rclpy.init()
     node = rclpy.create_node("bench_floor")

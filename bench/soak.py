@@ -39,11 +39,11 @@ from unittest import mock
 
 import numpy as np
 
-from bridge.config import DEFAULT_CONFIG
-from bridge.formats.drake.draw import DrawEncoder
-from bridge.formats.drake.load import load_from_scene
-from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
-from bridge.transports.lcm import LcmBus
+from viewer_bridge.config import DEFAULT_CONFIG
+from viewer_bridge.formats.drake.draw import DrawEncoder
+from viewer_bridge.formats.drake.load import load_from_scene
+from viewer_bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
+from viewer_bridge.transports.lcm import LcmBus
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
 os.environ.setdefault("ROS_DOMAIN_ID", str(120 + os.getpid() % 40))
@@ -78,7 +78,7 @@ class Bridge:
 
     def __init__(self, folder: Path, config: str = "builtin:default", *args: str) -> None:
         self.stats = folder / f"stats-{time.monotonic_ns()}.json"
-        command = [sys.executable, "-m", "bridge.cli", "run", "-c", config, "--lcm-url", URL,
+        command = [sys.executable, "-m", "viewer_bridge.cli", "run", "-c", config, "--lcm-url", URL,
                    "--set", "foxglove.port=0", "--stats-json", str(self.stats), "--stats-period", "1", *args]  # fmt: skip
         self.process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
         self.lines: list[str] = []
@@ -188,7 +188,7 @@ class RosSubscriber:
         threading.Thread(target=self.executor.spin, daemon=True).start()
 
     def subscribe(self, name: str, typename: str, latched: bool = False) -> Any:
-        from bridge.transports.ros2 import message_class, qos_profile
+        from viewer_bridge.transports.ros2 import message_class, qos_profile
 
         topic = self.topics[name] = Topic()
 
@@ -220,7 +220,7 @@ def wait_until(condition: Callable[[], bool], timeout: float = 20.0) -> float | 
 
 
 def pose_array_epoch(data: bytes) -> int:
-    from bridge.formats.ros.poses import pose_array_arrays
+    from viewer_bridge.formats.ros.poses import pose_array_arrays
 
     return int(pose_array_arrays(data)[2][0, 1])
 
@@ -411,7 +411,7 @@ routes:
 
 def fault_director_viewer_restart(folder: Path) -> float | None:
     """The viewer (the bridge's tree viewer server, as a process) SIGKILLed and restarted empty."""
-    from bridge.formats.tree_viewer import envelope
+    from viewer_bridge.formats.tree_viewer import envelope
 
     (folder / "client.yaml").write_text(DIRECTOR_CLIENT)
     (folder / "viewer.yaml").write_text(DIRECTOR_VIEWER)
@@ -456,7 +456,7 @@ def fault_render_client_leaves(folder: Path) -> float | None:
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    server = subprocess.Popen([sys.executable, "-m", "bridge.cli", "serve-render", "--port", str(port)],
+    server = subprocess.Popen([sys.executable, "-m", "viewer_bridge.cli", "serve-render", "--port", str(port)],
                               stderr=subprocess.DEVNULL)  # fmt: skip
     recovery = None
     try:
@@ -487,7 +487,7 @@ def _connects(port: int) -> bool:
 def _render_form() -> tuple[bytes, str]:
     import hashlib
 
-    from bridge.formats.gltf import write_gltf
+    from viewer_bridge.formats.gltf import write_gltf
 
     the_scene = Scene((Link("box", 0, (Geometry(Box((1.0, 1.0, 1.0)), Pose((0, 0, -3)), (1 / 255, 0, 0, 1)),)),))
     document = json.loads(write_gltf(the_scene))

@@ -21,10 +21,10 @@ from rclpy.serialization import deserialize_message, serialize_message
 from tf2_msgs.msg import TFMessage
 from translators import scene
 
-from bridge.formats.drake.draw import DrawDecoder, DrawEncoder
-from bridge.formats.ros.markers import MarkerStream, marker_array_in_link_frames_cdr
-from bridge.formats.ros.tf import FrameNames, TransformsEncoder
-from bridge.scene import LinkPoses
+from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
+from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_in_link_frames_cdr
+from viewer_bridge.formats.ros.tf import FrameNames, TransformsEncoder
+from viewer_bridge.scene import LinkPoses
 
 
 def rclpy_tf(poses: LinkPoses, stamp: tuple[int, int], frames: FrameNames) -> bytes:

@@ -27,12 +27,12 @@ from geometry_msgs.msg import Point, Pose, PoseArray, PoseStamped, Quaternion
 from load_targets import scene, times
 from rclpy.serialization import serialize_message
 
-from bridge.formats.drake.draw import DrawDecoder, DrawEncoder
-from bridge.formats.ros.markers import MarkerSpec, MarkerStream, marker_array_cdr, marker_specs
-from bridge.formats.ros.poses import PoseArrayEncoder
-from bridge.scene import LinkPoses
 from tests.formats.ign.oracle import pose_v as pose_v_message
 from tests.formats.ros.oracle import PoseStampedEncoder
+from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
+from viewer_bridge.formats.ros.markers import MarkerSpec, MarkerStream, marker_array_cdr, marker_specs
+from viewer_bridge.formats.ros.poses import PoseArrayEncoder
+from viewer_bridge.scene import LinkPoses
 
 
 def reference_compose(

@@ -19,11 +19,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parent))
 from draw_codec import seconds_per_call  # noqa: E402
 
-from bridge.formats.tree_viewer.envelope import FORMAT  # noqa: E402
-from bridge.lcmcodec import VIEWER2_COMMS  # noqa: E402
-from bridge.translators import LoadCache  # noqa: E402
-from bridge.translators.tree_viewer import TreeViewerServer  # noqa: E402
-from bridge.transports.base import Received  # noqa: E402
+from viewer_bridge.formats.tree_viewer.envelope import FORMAT  # noqa: E402
+from viewer_bridge.lcmcodec import VIEWER2_COMMS  # noqa: E402
+from viewer_bridge.translators import LoadCache  # noqa: E402
+from viewer_bridge.translators.tree_viewer import TreeViewerServer  # noqa: E402
+from viewer_bridge.transports.base import Received  # noqa: E402
 
 
 def payloads() -> dict[str, bytes]:

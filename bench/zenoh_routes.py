@@ -32,9 +32,9 @@ import zenoh
 from common import Measure
 from router import URL, Bridge, Subscriber, _draws_in, pose_array_sequence, publish_at, scene
 
-from bridge.formats.drake.load import load_from_scene
-from bridge.transports.lcm import LcmBus
-from bridge.transports.zenoh import keys
+from viewer_bridge.formats.drake.load import load_from_scene
+from viewer_bridge.transports.lcm import LcmBus
+from viewer_bridge.transports.zenoh import keys
 
 ROUTES = """\
 routes:

@@ -4,8 +4,8 @@ Run: .venv/bin/python docs/camera_images.py
 
 Drake renders tests/drake_camera_scene.py (RenderEngineVtk) and ApplyCameraConfig publishes the
 three images as one zlib-compressed lcmt_image_array, on an in-process LCM; the bridge's own code
-reads it (`bridge.formats.drake.image`) and draws each image for a person to look at
-(`bridge.image.preview`: depth as grey, near is light; labels a colour each).
+reads it (`viewer_bridge.formats.drake.image`) and draws each image for a person to look at
+(`viewer_bridge.image.preview`: depth as grey, near is light; labels a colour each).
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ from PIL import Image as PilImage
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))  # tests/ (the camera scene)
 
-from bridge.formats.drake.image import read_image_array, unpack  # noqa: E402
-from bridge.image import preview  # noqa: E402
+from viewer_bridge.formats.drake.image import read_image_array, unpack  # noqa: E402
+from viewer_bridge.image import preview  # noqa: E402
 
 GAP = 6  # white pixels between the pictures
 

@@ -17,11 +17,11 @@ from types import ModuleType
 import lcm
 import pytest
 
-from bridge.formats.drake.draw import poses_from_draw
-from bridge.formats.drake.load import decode_load
-from bridge.lcmcodec import DRAW, LOAD_ROBOT, SCHEMA_DIR, LcmMessage
-from bridge.scene import LinkPoses, Scene
-from bridge.transports.lcm import LcmEvent, read_log
+from viewer_bridge.formats.drake.draw import poses_from_draw
+from viewer_bridge.formats.drake.load import decode_load
+from viewer_bridge.lcmcodec import DRAW, LOAD_ROBOT, SCHEMA_DIR, LcmMessage
+from viewer_bridge.scene import LinkPoses, Scene
+from viewer_bridge.transports.lcm import LcmEvent, read_log
 
 SCRIPTS = Path(sysconfig.get_paths()["purelib"]) / "bin"  # the lcm wheel's real binaries
 

@@ -34,7 +34,7 @@ from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from bridge.demo import TETRAHEDRON_OBJ
+from viewer_bridge.demo import TETRAHEDRON_OBJ
 
 
 def main(url: str, folder: Path, seconds: float | None = None) -> None:

@@ -5,9 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from bridge.contact import ContactBody, ContactResults, ContactSurface, HydroelasticContact, PointContacts
-from bridge.formats.drake.draw import DrawEncoder
-from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere
+from viewer_bridge.contact import (
+    ContactBody,
+    ContactResults,
+    ContactSurface,
+    HydroelasticContact,
+    PointContacts,
+)
+from viewer_bridge.formats.drake.draw import DrawEncoder
+from viewer_bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere
 
 
 def small_scene() -> Scene:

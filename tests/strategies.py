@@ -11,9 +11,9 @@ from typing import Any
 import numpy as np
 from hypothesis import strategies as st
 
-from bridge.lcmcodec import CODECS, LcmMessage
-from bridge.lcmcodec.schema import Member, StructDef
-from bridge.scene import (
+from viewer_bridge.lcmcodec import CODECS, LcmMessage
+from viewer_bridge.lcmcodec.schema import Member, StructDef
+from viewer_bridge.scene import (
     Box,
     Capsule,
     Cylinder,

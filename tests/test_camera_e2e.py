@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 import yaml
 
-from bridge.config import DEFAULT_CONFIG
 from tests.conftest import lcm_url
 from tests.drake_camera_scene import CAMERAS, FOV_Y_DEGREES
 from tests.drake_images import read_with_drake
 from tests.peers import BridgeProcess, RosProbe
 from tests.test_router import LcmRecorder
 from tests.translators.test_drake_image import assert_drake_reads, ros_test_image
+from viewer_bridge.config import DEFAULT_CONFIG
 
 pytestmark = pytest.mark.slow
 

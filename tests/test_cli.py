@@ -15,11 +15,11 @@ from pathlib import Path
 
 import pytest
 
-from bridge.lcmcodec import DRAW
-from bridge.transports.lcm import LcmEvent, read_log, write_log
 from tests.conftest import lcm_url
+from viewer_bridge.lcmcodec import DRAW
+from viewer_bridge.transports.lcm import LcmEvent, read_log, write_log
 
-CLI = [sys.executable, "-m", "bridge.cli"]
+CLI = [sys.executable, "-m", "viewer_bridge.cli"]
 
 
 def run(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
@@ -130,7 +130,7 @@ def test_a_log_cut_short_is_read_to_its_last_whole_event_with_a_warning(drake_lo
 
 def test_run_without_the_ros_extra_names_the_install_that_fixes_it() -> None:
     # As `pip install viewer-bridge` without `[ros]`: rclpy cannot be imported.
-    code = "import sys; sys.modules['rclpy'] = None; from bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = "import sys; sys.modules['rclpy'] = None; from viewer_bridge.cli import main; sys.exit(main(sys.argv[1:]))"
     result = subprocess.run(
         [sys.executable, "-c", code, "run", "--duration", "1", "--set", "foxglove.port=0"],
         capture_output=True,
@@ -147,9 +147,9 @@ def test_run_without_the_ros_extra_names_the_install_that_fixes_it() -> None:
 
 def demo_log(path: Path, draws: int) -> Path:
     """A log of the demo scene: its load, then `draws` draws at 60 Hz."""
-    from bridge.demo import demo_poses, demo_scene
-    from bridge.formats.drake.draw import DrawEncoder
-    from bridge.formats.drake.load import load_from_scene
+    from viewer_bridge.demo import demo_poses, demo_scene
+    from viewer_bridge.formats.drake.draw import DrawEncoder
+    from viewer_bridge.formats.drake.load import load_from_scene
 
     scene = demo_scene()
     encoder = DrawEncoder()

@@ -12,25 +12,25 @@ from pathlib import Path
 
 import pytest
 
-PACKAGE = Path(__file__).resolve().parent.parent / "bridge"
+PACKAGE = Path(__file__).resolve().parent.parent / "viewer_bridge"
 
 # The floors of docs/ARCHITECTURE.md, from the ground up: the longest matching prefix decides.
 LAYERS: dict[str, int] = {
-    "bridge": 1,  # the package's __init__ (a docstring and the version)
-    "bridge.errors": 1, "bridge.registry": 1, "bridge.resources": 1, "bridge.sim_time": 1,
-    "bridge.lru": 1, "bridge.status": 1,
-    "bridge.scene": 2, "bridge.lcmcodec": 2, "bridge.yamldoc": 2, "bridge.arguments": 2,
-    "bridge.ros_interfaces": 2,
-    "bridge.lowering": 3, "bridge.contact": 3, "bridge.image": 3, "bridge.skipped": 3,
-    "bridge.mappings": 4,
-    "bridge.formats": 5,
-    "bridge.transports": 6, "bridge.render": 6,
-    "bridge.translators": 7, "bridge.dump": 7, "bridge.snapshot": 7, "bridge.demo": 7,
-    "bridge.render_server": 7,
-    "bridge.config": 8,
-    "bridge.router": 9,
-    "bridge.convert": 10,
-    "bridge.cli": 11, "bridge.__main__": 11,
+    "viewer_bridge": 1,  # the package's __init__ (a docstring and the version)
+    "viewer_bridge.errors": 1, "viewer_bridge.registry": 1, "viewer_bridge.resources": 1, "viewer_bridge.sim_time": 1,
+    "viewer_bridge.lru": 1, "viewer_bridge.status": 1,
+    "viewer_bridge.scene": 2, "viewer_bridge.lcmcodec": 2, "viewer_bridge.yamldoc": 2, "viewer_bridge.arguments": 2,
+    "viewer_bridge.ros_interfaces": 2,
+    "viewer_bridge.lowering": 3, "viewer_bridge.contact": 3, "viewer_bridge.image": 3, "viewer_bridge.skipped": 3,
+    "viewer_bridge.mappings": 4,
+    "viewer_bridge.formats": 5,
+    "viewer_bridge.transports": 6, "viewer_bridge.render": 6,
+    "viewer_bridge.translators": 7, "viewer_bridge.dump": 7, "viewer_bridge.snapshot": 7, "viewer_bridge.demo": 7,
+    "viewer_bridge.render_server": 7,
+    "viewer_bridge.config": 8,
+    "viewer_bridge.router": 9,
+    "viewer_bridge.convert": 10,
+    "viewer_bridge.cli": 11, "viewer_bridge.__main__": 11,
 }  # fmt: skip
 
 # What every translator family may share (translators/ modules that are no family).
@@ -54,10 +54,10 @@ def imports(path: Path) -> set[str]:
         if isinstance(node, ast.Import):
             found |= {alias.name for alias in node.names}
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            # `from bridge.formats import ros` names a module; `from bridge.scene import Scene` a name.
+            # `from viewer_bridge.formats import ros` names a module; `from viewer_bridge.scene import Scene` a name.
             found |= {f"{node.module}.{alias.name}" if _is_module(f"{node.module}.{alias.name}") else node.module
                       for alias in node.names}  # fmt: skip
-    return {name for name in found if name == "bridge" or name.startswith("bridge.")}
+    return {name for name in found if name == "viewer_bridge" or name.startswith("viewer_bridge.")}
 
 
 def _is_module(name: str) -> bool:
@@ -91,22 +91,22 @@ def test_no_import_circle() -> None:
 
 
 def test_transports_use_format_code_only_through_schema_modules() -> None:
-    used = {(module, name) for module, names in GRAPH.items() if module.startswith("bridge.transports")
-            for name in names if name.startswith("bridge.formats")}  # fmt: skip
+    used = {(module, name) for module, names in GRAPH.items() if module.startswith("viewer_bridge.transports")
+            for name in names if name.startswith("viewer_bridge.formats")}  # fmt: skip
     assert used, "no transport names a schema: the check would pass on anything"
     assert all(name.endswith(".schema") for _, name in used), sorted(used)
 
 
 def test_translator_families_do_not_import_each_other() -> None:
     for module, names in GRAPH.items():
-        if not module.startswith("bridge.translators."):
+        if not module.startswith("viewer_bridge.translators."):
             continue
-        families = {name for name in names if name.startswith("bridge.translators.")
+        families = {name for name in names if name.startswith("viewer_bridge.translators.")
                     and name.rpartition(".")[2] not in TRANSLATOR_COMMONS and name != module}  # fmt: skip
         assert not families, f"{module} imports the translator families {families}"
 
 
 def test_the_layer_table_knows_every_module() -> None:
     unknown = [module for module in GRAPH if not any(
-        module == name or module.startswith(name + ".") for name in LAYERS if name != "bridge")]  # fmt: skip
-    assert unknown in ([], ["bridge"]), f"modules without a layer in LAYERS: {unknown}"
+        module == name or module.startswith(name + ".") for name in LAYERS if name != "viewer_bridge")]  # fmt: skip
+    assert unknown in ([], ["viewer_bridge"]), f"modules without a layer in LAYERS: {unknown}"

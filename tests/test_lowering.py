@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bridge.errors import SceneError
-from bridge.lowering import LOWERINGS, capsule_parts, triangle_mesh
-from bridge.scene import (
+from viewer_bridge.errors import SceneError
+from viewer_bridge.lowering import LOWERINGS, capsule_parts, triangle_mesh
+from viewer_bridge.scene import (
     Box,
     Capsule,
     Cylinder,

@@ -7,13 +7,13 @@ from pathlib import Path
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
-from bridge.cli import main
-from bridge.errors import ConfigError
-from bridge.lcmcodec import GEOMETRY_DATA
-from bridge.mappings import format_names, load_tables, reference_markdown, tables
-from bridge.resources import data_dir
-from bridge.scene import SHAPE_KINDS, Box, Capsule, Cylinder, Ellipsoid, MeshFile, Sphere
-from bridge.yamldoc import YamlDocument
+from viewer_bridge.cli import main
+from viewer_bridge.errors import ConfigError
+from viewer_bridge.lcmcodec import GEOMETRY_DATA
+from viewer_bridge.mappings import format_names, load_tables, reference_markdown, tables
+from viewer_bridge.resources import data_dir
+from viewer_bridge.scene import SHAPE_KINDS, Box, Capsule, Cylinder, Ellipsoid, MeshFile, Sphere
+from viewer_bridge.yamldoc import YamlDocument
 
 
 def test_drake_codes_are_the_schemas() -> None:

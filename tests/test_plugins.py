@@ -19,11 +19,11 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from bridge.config import load_config
-from bridge.formats.ros.poses import pose_array_arrays
-from bridge.router import Router
-from bridge.translators import TRANSLATORS
-from bridge.transports import TRANSPORTS
+from viewer_bridge.config import load_config
+from viewer_bridge.formats.ros.poses import pose_array_arrays
+from viewer_bridge.router import Router
+from viewer_bridge.translators import TRANSLATORS
+from viewer_bridge.transports import TRANSPORTS
 
 PLUGIN = Path(__file__).parent / "plugin_package"
 
@@ -103,7 +103,7 @@ def test_a_plugin_transport_and_translator_carry_a_drake_draw(plugin_installed: 
 
 
 def test_plugin_options_are_checked_at_load(plugin_installed: None, tmp_path: Path) -> None:
-    from bridge.errors import ConfigError
+    from viewer_bridge.errors import ConfigError
 
     path = tmp_path / "plugin.yaml"
     path.write_text(CONFIG.replace("{digits: 5}", "{digits: five}"))

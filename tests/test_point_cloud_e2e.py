@@ -12,11 +12,11 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from bridge.config import destination_name, load_config
 from tests.conftest import lcm_url
 from tests.formats.drake.test_point_cloud import pydrake_publisher
 from tests.peers import BridgeProcess, RosProbe
 from tests.test_router import LcmRecorder
+from viewer_bridge.config import destination_name, load_config
 
 pytestmark = pytest.mark.slow
 
@@ -90,7 +90,7 @@ def test_default_routes_name_the_topics_as_the_viewer_routes_do() -> None:
 
 
 def test_pydrake_cloud_and_frames_reach_rclpy(probe: RosProbe, tmp_path: Path) -> None:
-    from bridge.transports.lcm import LcmBus
+    from viewer_bridge.transports.lcm import LcmBus
 
     url = lcm_url(18)
     xyz, rgb = drake_cloud(1)

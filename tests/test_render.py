@@ -41,7 +41,7 @@ def free_port() -> int:
 def start_server(*args: str) -> tuple[subprocess.Popen[str], str]:
     """`viewer-bridge serve-render` on a free port, once it accepts connections."""
     port = free_port()
-    server = subprocess.Popen([sys.executable, "-m", "bridge.cli", "serve-render", "--port", str(port), *args],
+    server = subprocess.Popen([sys.executable, "-m", "viewer_bridge.cli", "serve-render", "--port", str(port), *args],
                               stderr=subprocess.DEVNULL, text=True)  # fmt: skip
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
@@ -150,8 +150,8 @@ def form(scene: bytes, **overrides: Any) -> dict[str, bytes]:
 
 
 def sample_gltf() -> bytes:
-    from bridge.formats.gltf import write_gltf
-    from bridge.scene import Box, Geometry, Link, Pose, Scene
+    from viewer_bridge.formats.gltf import write_gltf
+    from viewer_bridge.scene import Box, Geometry, Link, Pose, Scene
 
     scene = Scene((Link("box", 0, (Geometry(Box((1.0, 1.0, 1.0)), Pose((0, 0, -3)), (1 / 255, 0, 0, 1)),)),))
     document = json.loads(write_gltf(scene))
@@ -163,7 +163,7 @@ def sample_gltf() -> bytes:
 
 @pytest.fixture(scope="module")
 def renderer() -> Any:
-    from bridge.render_server import RenderThread
+    from viewer_bridge.render_server import RenderThread
 
     return RenderThread()
 
@@ -171,7 +171,7 @@ def renderer() -> Any:
 def test_a_good_request_renders_the_label(renderer: Any) -> None:
     from PIL import Image
 
-    from bridge.render_server import render_request
+    from viewer_bridge.render_server import render_request
 
     png = render_request(form(sample_gltf()), renderer.render)
     pixels = np.array(Image.open(io.BytesIO(png)))
@@ -192,7 +192,7 @@ def test_a_good_request_renders_the_label(renderer: Any) -> None:
     ],
 )
 def test_bad_forms_get_a_400_reason(renderer: Any, overrides: dict[str, Any], reason: str) -> None:
-    from bridge.render_server import BadRequest, render_request
+    from viewer_bridge.render_server import BadRequest, render_request
 
     with pytest.raises(BadRequest, match=reason):
         render_request(form(sample_gltf(), **overrides), renderer.render)
@@ -233,7 +233,7 @@ def mutate(document: dict[str, Any], rng: random.Random) -> dict[str, Any]:
 def test_10000_mutated_documents_and_forms_get_only_400s(renderer: Any) -> None:
     import resource
 
-    from bridge.render_server import BadRequest, render_request
+    from viewer_bridge.render_server import BadRequest, render_request
 
     rng = random.Random(11)
     base = json.loads(sample_gltf())
@@ -260,14 +260,14 @@ def test_10000_mutated_documents_and_forms_get_only_400s(renderer: Any) -> None:
 def test_snapshot_of_a_drake_log_shows_the_scene(drake_log: Path, tmp_path: Path) -> None:
     from PIL import Image
 
-    from bridge.render import Camera
-    from bridge.snapshot import latest_scene, look_at
-    from bridge.transports.lcm import read_log
+    from viewer_bridge.render import Camera
+    from viewer_bridge.snapshot import latest_scene, look_at
+    from viewer_bridge.transports.lcm import read_log
 
     out = tmp_path / "snap.png"
     eye, target = "0.9,0.5,4", "0.9,0.5,0"  # from above the bodies
     result = subprocess.run(
-        [sys.executable, "-m", "bridge.cli", "snapshot", str(drake_log), str(out), "--role", "illustration",
+        [sys.executable, "-m", "viewer_bridge.cli", "snapshot", str(drake_log), str(out), "--role", "illustration",
          "--image", "label", "--camera", f"{eye},{target}", "--size", "320x240"],
         capture_output=True, text=True, timeout=60,
     )  # fmt: skip
@@ -316,7 +316,7 @@ def test_the_http_endpoint_answers_400_with_a_reason(render_url: str) -> None:
     assert caught.value.code == 400 and b"unsupported image_type 'normals'" in caught.value.read()
     document = json.loads(sample_gltf())
     document["buffers"][0]["uri"] = "file:///etc/passwd"
-    from bridge.render_server import BadRequest, parse_form, render_request
+    from viewer_bridge.render_server import BadRequest, parse_form, render_request
 
     with pytest.raises(BadRequest, match="only embedded data: URIs"):
         render_request(form(json.dumps(document).encode()), lambda *args: np.zeros((1, 1, 4)))

@@ -15,15 +15,15 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from bridge.config import DEFAULT_CONFIG, destination_name, load_config
-from bridge.errors import ConfigError
-from bridge.formats.drake.draw import DrawEncoder
-from bridge.scene import LinkPoses
-from bridge.transports.base import Received
-from bridge.transports.lcm import LcmBus
 from tests.conftest import DRAKE_SCENE_SCRIPT, SYNC_CHANNEL, lcm_url, publish_until
 from tests.formats import oracle
 from tests.peers import BridgeProcess, RosProbe, write_config
+from viewer_bridge.config import DEFAULT_CONFIG, destination_name, load_config
+from viewer_bridge.errors import ConfigError
+from viewer_bridge.formats.drake.draw import DrawEncoder
+from viewer_bridge.scene import LinkPoses
+from viewer_bridge.transports.base import Received
+from viewer_bridge.transports.lcm import LcmBus
 
 pytestmark = pytest.mark.slow
 
@@ -373,7 +373,7 @@ def test_a_broken_config_exits_2_naming_file_line_and_field(
 ) -> None:
     path = write_config(tmp_path, text)
     result = subprocess.run(
-        [sys.executable, "-m", "bridge.cli", "run", "-c", str(path)],
+        [sys.executable, "-m", "viewer_bridge.cli", "run", "-c", str(path)],
         capture_output=True,
         text=True,
         timeout=60,
@@ -389,8 +389,8 @@ def test_a_broken_config_exits_2_naming_file_line_and_field(
 def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_path: Path) -> None:
     """The default config's TF and marker routes are lazy: nothing is translated for them until a
     subscriber appears, which then gets the model and the latest transforms at once."""
-    from bridge.formats.drake.load import load_from_scene
     from tests.scenes import draw_of, small_scene
+    from viewer_bridge.formats.drake.load import load_from_scene
 
     url = lcm_url(10)
     stats_path = tmp_path / "stats.json"
@@ -488,7 +488,7 @@ def test_ros_args_are_passed_to_rclpy_like_any_node(probe: RosProbe, tmp_path: P
 
 def test_default_config_is_printed_and_valid() -> None:
     result = subprocess.run(
-        [sys.executable, "-m", "bridge.cli", "run", "--print-default-config"], capture_output=True, text=True
+        [sys.executable, "-m", "viewer_bridge.cli", "run", "--print-default-config"], capture_output=True, text=True
     )
     assert result.returncode == 0 and result.stdout == DEFAULT_CONFIG
     config = load_config(None)
@@ -540,11 +540,11 @@ def test_convert_writes_an_mcap_that_reads_back(drake_log: Path, tmp_path: Path)
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
-    from bridge.transports.lcm import read_log
+    from viewer_bridge.transports.lcm import read_log
 
     out = tmp_path / "drake.mcap"
     result = subprocess.run(
-        [sys.executable, "-m", "bridge.cli", "convert", str(drake_log), str(out)],
+        [sys.executable, "-m", "viewer_bridge.cli", "convert", str(drake_log), str(out)],
         capture_output=True,
         text=True,
     )
@@ -581,7 +581,7 @@ def test_clock_carries_drakes_sim_time() -> None:
     from rclpy.serialization import deserialize_message
     from rosgraph_msgs.msg import Clock
 
-    from bridge.translators import TRANSLATORS, LoadCache
+    from viewer_bridge.translators import TRANSLATORS, LoadCache
 
     names = ("plant::a",)
     draw = DrawEncoder().encode(
@@ -595,12 +595,12 @@ def test_clock_carries_drakes_sim_time() -> None:
 def test_a_log_replays_through_the_routes_and_the_bridge_stops_at_its_end(
     drake_log: Path, tmp_path: Path
 ) -> None:
-    from bridge.transports.lcm import read_log
+    from viewer_bridge.transports.lcm import read_log
 
     stats = tmp_path / "stats.json"
     config = write_config(tmp_path, EVERY_DRAW.replace("DRAKE_VIEWER_DRAW", "DRAKE_VIEWER_DRAW_ILLUSTRATION"))
     result = subprocess.run(
-        [sys.executable, "-m", "bridge.cli", "run", "-c", str(config), "--lcm-url", f"file://{drake_log}?speed=0",
+        [sys.executable, "-m", "viewer_bridge.cli", "run", "-c", str(config), "--lcm-url", f"file://{drake_log}?speed=0",
          "--stats-json", str(stats)],
         capture_output=True, text=True, timeout=60,
     )  # fmt: skip

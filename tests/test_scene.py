@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bridge.scene import LinkPoses, PartsOnLinks, Pose, frame_name, rotation_matrix
+from viewer_bridge.scene import LinkPoses, PartsOnLinks, Pose, frame_name, rotation_matrix
 
 
 def test_frame_names_follow_the_field_convention() -> None:

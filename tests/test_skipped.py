@@ -14,13 +14,13 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from bridge.demo import demo_poses, demo_scene
-from bridge.formats.drake.draw import DrawEncoder
-from bridge.formats.drake.load import load_from_scene
-from bridge.scene import Geometry, Link, MeshFile, Scene
-from bridge.skipped import collecting, per_geometry
-from bridge.transports.lcm import LcmEvent, read_log, write_log
 from tests.test_cli import run
+from viewer_bridge.demo import demo_poses, demo_scene
+from viewer_bridge.formats.drake.draw import DrawEncoder
+from viewer_bridge.formats.drake.load import load_from_scene
+from viewer_bridge.scene import Geometry, Link, MeshFile, Scene
+from viewer_bridge.skipped import collecting, per_geometry
+from viewer_bridge.transports.lcm import LcmEvent, read_log, write_log
 
 GONE = "/nonexistent/viewer-bridge/gone.obj"
 
@@ -53,7 +53,7 @@ def counts(stdout: str) -> dict[str, int]:
 
 
 def test_per_geometry_skips_the_one_that_fails_and_names_it() -> None:
-    from bridge.errors import SceneError
+    from viewer_bridge.errors import SceneError
 
     link = Link("plant::a", 0, tuple(Geometry(MeshFile(str(index))) for index in range(3)))
 
@@ -72,7 +72,7 @@ def test_per_geometry_skips_the_one_that_fails_and_names_it() -> None:
 def test_convert_to_ros2_writes_every_other_shape_and_warns(tmp_path: Path) -> None:
     from mcap.reader import make_reader
 
-    from bridge.formats.ros.shapes import shapes_cdr
+    from viewer_bridge.formats.ros.shapes import shapes_cdr
 
     out = tmp_path / "gone.mcap"
     result = run("convert", str(recording(tmp_path)), str(out))
@@ -91,7 +91,7 @@ def test_convert_to_foxglove_writes_the_scene_less_the_missing_mesh(tmp_path: Pa
     from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
     from mcap.reader import make_reader
 
-    from bridge.formats.foxglove.scene import scene_update
+    from viewer_bridge.formats.foxglove.scene import scene_update
 
     out = tmp_path / "gone.mcap"
     result = run("convert", str(recording(tmp_path)), str(out), "--schema", "foxglove")
@@ -112,7 +112,7 @@ def test_convert_to_foxglove_writes_the_scene_less_the_missing_mesh(tmp_path: Pa
 
 
 def test_snapshot_draws_every_other_geometry_and_names_the_missing_mesh(tmp_path: Path) -> None:
-    from bridge.snapshot import latest_scene, snapshot
+    from viewer_bridge.snapshot import latest_scene, snapshot
 
     out = tmp_path / "gone.png"
     log = recording(tmp_path)
@@ -144,11 +144,11 @@ def test_run_publishes_every_other_shape_and_counts_the_warning(tmp_path: Path) 
 def test_targets_that_cannot_draw_a_point_cloud_write_the_rest_of_the_scene(tmp_path: Path) -> None:
     """Foxglove and ign have no point cloud shape: the scene is written without it, the same
     bytes as the scene whose link has no geometry, and the skip is named."""
-    from bridge.formats.foxglove.scene import scene_update
-    from bridge.formats.ign.model import model_bytes, model_v_bytes
-    from bridge.formats.ros.tf import FrameNames
-    from bridge.scene import PointCloud
     from tests.formats.load_outputs import every_kind
+    from viewer_bridge.formats.foxglove.scene import scene_update
+    from viewer_bridge.formats.ign.model import model_bytes, model_v_bytes
+    from viewer_bridge.formats.ros.tf import FrameNames
+    from viewer_bridge.scene import PointCloud
 
     scene = every_kind(tmp_path)
     bare = Scene(

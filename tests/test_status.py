@@ -14,8 +14,8 @@ from typing import Any
 
 from rich.console import Console
 
-from bridge.status import LiveTable, LogLines
 from tests.conftest import lcm_url
+from viewer_bridge.status import LiveTable, LogLines
 
 
 def route(messages_in: int, messages_out: int, state: str = "active", **counts: Any) -> dict[str, Any]:
@@ -77,7 +77,7 @@ def test_log_lines_are_one_per_route_with_the_transports_last(caplog: Any) -> No
 
 def run_bridge(*args: str, terminal: bool) -> tuple[int, str, str]:
     """`viewer-bridge run --demo` for a few seconds; stdout through a pseudo-terminal if asked."""
-    command = [sys.executable, "-m", "bridge.cli", "run", "--demo", "--lcm-url", lcm_url(30), "--set",
+    command = [sys.executable, "-m", "viewer_bridge.cli", "run", "--demo", "--lcm-url", lcm_url(30), "--set",
                "foxglove.port=0", "--duration", "4", "--stats-period", "1", *args]  # fmt: skip
     if not terminal:
         done = subprocess.run(command, capture_output=True, text=True, timeout=180)

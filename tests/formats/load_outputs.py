@@ -27,13 +27,13 @@ from pathlib import Path
 
 import numpy as np
 
-from bridge.formats.foxglove.scene import scene_update
-from bridge.formats.ign.model import model_bytes, model_v_bytes
-from bridge.formats.ros.markers import MarkerStream, marker_array_cdr, marker_array_in_link_frames_cdr
-from bridge.formats.ros.tf import FrameNames
-from bridge.formats.tree_viewer import envelope
-from bridge.formats.tree_viewer.requests import load_requests
-from bridge.scene import (
+from viewer_bridge.formats.foxglove.scene import scene_update
+from viewer_bridge.formats.ign.model import model_bytes, model_v_bytes
+from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_cdr, marker_array_in_link_frames_cdr
+from viewer_bridge.formats.ros.tf import FrameNames
+from viewer_bridge.formats.tree_viewer import envelope
+from viewer_bridge.formats.tree_viewer.requests import load_requests
+from viewer_bridge.scene import (
     Box,
     Capsule,
     Cylinder,

@@ -12,7 +12,7 @@ import numpy as np
 from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RigidTransform
 
-from bridge.lcmcodec import LcmMessage
+from viewer_bridge.lcmcodec import LcmMessage
 
 BOX, SPHERE, CYLINDER, MESH, CAPSULE, ELLIPSOID = 1, 2, 3, 4, 5, 6
 F32 = 1e-6  # float32 round-off, relative

@@ -9,10 +9,10 @@ import struct
 import numpy as np
 import pytest
 
-from bridge.errors import GltfError
-from bridge.formats.gltf import read_gltf, write_gltf
-from bridge.lowering import triangle_mesh
-from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere, TriangleMesh
+from viewer_bridge.errors import GltfError
+from viewer_bridge.formats.gltf import read_gltf, write_gltf
+from viewer_bridge.lowering import triangle_mesh
+from viewer_bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere, TriangleMesh
 
 
 def scene() -> Scene:
@@ -88,7 +88,7 @@ def test_malformed_documents_raise_gltf_errors(change: object, reason: str) -> N
 
 
 def test_large_payloads_are_decoded_once_and_the_cache_stays_bounded() -> None:
-    from bridge.formats.gltf import _RecentPayloads
+    from viewer_bridge.formats.gltf import _RecentPayloads
 
     cache = _RecentPayloads(max_bytes=1_000_000)
     blobs = [bytes([index]) * 300_000 for index in range(4)]

@@ -16,16 +16,20 @@ from rclpy.serialization import deserialize_message
 from rosbags.typesys import Stores, get_typestore
 from shape_msgs.msg import Mesh, SolidPrimitive
 
-from bridge.demo import TETRAHEDRON_OBJ
-from bridge.errors import SceneError
-from bridge.formats import ros
-from bridge.formats.ign.model import model, model_bytes, model_v, model_v_bytes
-from bridge.formats.ros.markers import marker_array_cdr
-from bridge.formats.ros.messages import from_cdr, to_cdr
-from bridge.formats.ros.shapes import shapes_cdr
-from bridge.formats.tree_viewer.requests import DECIMALS
-from bridge.lowering import _tessellated, triangle_mesh
-from bridge.scene import (
+from tests.conftest import Capture
+from tests.formats import load_outputs, values
+from tests.formats.ros import oracle as ros_oracle
+from tests.strategies import link_poses, poses, scenes
+from viewer_bridge.demo import TETRAHEDRON_OBJ
+from viewer_bridge.errors import SceneError
+from viewer_bridge.formats import ros
+from viewer_bridge.formats.ign.model import model, model_bytes, model_v, model_v_bytes
+from viewer_bridge.formats.ros.markers import marker_array_cdr
+from viewer_bridge.formats.ros.messages import from_cdr, to_cdr
+from viewer_bridge.formats.ros.shapes import shapes_cdr
+from viewer_bridge.formats.tree_viewer.requests import DECIMALS
+from viewer_bridge.lowering import _tessellated, triangle_mesh
+from viewer_bridge.scene import (
     Box,
     Capsule,
     Cylinder,
@@ -42,10 +46,6 @@ from bridge.scene import (
     Sphere,
     TriangleMesh,
 )
-from tests.conftest import Capture
-from tests.formats import load_outputs, values
-from tests.formats.ros import oracle as ros_oracle
-from tests.strategies import link_poses, poses, scenes
 
 
 def every_kind(folder: Path) -> Scene:

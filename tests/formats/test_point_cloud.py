@@ -10,10 +10,10 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from bridge.errors import SceneError
-from bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
-from bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
-from bridge.scene import PointCloud, StampedPointCloud
+from viewer_bridge.errors import SceneError
+from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
+from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
+from viewer_bridge.scene import PointCloud, StampedPointCloud
 
 
 def sample_cloud(count: int = 30, colors: bool = True, normals: bool = False, seed: int = 3) -> PointCloud:

@@ -14,13 +14,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from bridge.errors import DecodeError
-from bridge.formats.drake.point_cloud import cloud_from_lcm
-from bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
-from bridge.scene import StampedPointCloud
 from tests.formats.drake.test_point_cloud import pydrake_message
 from tests.formats.test_point_cloud import sample_cloud
 from tests.lcmcodec.test_fuzz import BUFFERS_PER_DECODER, mutate
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm
+from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
+from viewer_bridge.scene import StampedPointCloud
 
 
 def seeds() -> dict[str, bytes]:

@@ -21,19 +21,19 @@ from pathlib import Path
 
 import numpy as np
 
-from bridge.config import BUILTIN_CONFIGS
-from bridge.formats.drake.draw import poses_from_draw
-from bridge.formats.drake.load import decode_load
-from bridge.formats.gltf import write_gltf
-from bridge.formats.ign.model import model
-from bridge.formats.tree_viewer import envelope
-from bridge.formats.tree_viewer.requests import draw_request, load_requests
-from bridge.lcmcodec import DRAW, LOAD_ROBOT, VIEWER2_COMMS, LcmMessage, codec_for
-from bridge.scene import Scene
-from bridge.transports.ign_discovery import STATISTICS_VERSION, WIRE_VERSION, Record, datagram
 from tests.drake_scene import build_simulator
 from tests.formats.ign.oracle import pose_v
 from tests.fuzz.targets import DISCOVERY_ADVERTISED, DISCOVERY_ANY, DISCOVERY_SUBSCRIBED
+from viewer_bridge.config import BUILTIN_CONFIGS
+from viewer_bridge.formats.drake.draw import poses_from_draw
+from viewer_bridge.formats.drake.load import decode_load
+from viewer_bridge.formats.gltf import write_gltf
+from viewer_bridge.formats.ign.model import model
+from viewer_bridge.formats.tree_viewer import envelope
+from viewer_bridge.formats.tree_viewer.requests import draw_request, load_requests
+from viewer_bridge.lcmcodec import DRAW, LOAD_ROBOT, VIEWER2_COMMS, LcmMessage, codec_for
+from viewer_bridge.scene import Scene
+from viewer_bridge.transports.ign_discovery import STATISTICS_VERSION, WIRE_VERSION, Record, datagram
 
 Seeds = dict[str, list[bytes]]
 
@@ -131,7 +131,7 @@ def render_form(scene: Scene) -> bytes:
 
 def zenoh_seeds() -> Seeds:
     """rmw_zenoh's data keys, liveliness tokens and attachments, as the Zenoh transport writes them."""
-    from bridge.transports.zenoh import keys
+    from viewer_bridge.transports.zenoh import keys
 
     node = keys.NodeName("viewer_bridge", "/sim1")
     tokens, data_keys = [keys.Token(0, "0f1e2d3c", 0, 0, keys.NODE, node).key()], []
@@ -173,11 +173,11 @@ def discovery_seeds() -> list[bytes]:
 
 def meldis_seeds() -> Seeds:
     """Contact results and point clouds (what meldis shows), as the bridge writes them."""
-    from bridge.formats.drake.point_cloud import cloud_to_lcm
-    from bridge.formats.ros.point_cloud import cloud_to_cdr
-    from bridge.scene import PointCloud, StampedPointCloud
     from tests.formats.drake.oracle import contact_results_to_lcm
     from tests.scenes import demo_contact_results
+    from viewer_bridge.formats.drake.point_cloud import cloud_to_lcm
+    from viewer_bridge.formats.ros.point_cloud import cloud_to_cdr
+    from viewer_bridge.scene import PointCloud, StampedPointCloud
 
     points = np.arange(30, dtype=np.float64).reshape(10, 3) / 10
     clouds = [StampedPointCloud(PointCloud(points), "world", 1000),
@@ -196,10 +196,10 @@ def image_seeds() -> Seeds:
 
     from PIL import Image as PilImage
 
-    from bridge.formats.drake.image import images_to_lcm
-    from bridge.formats.ros.image import LAYOUTS, image_to_cdr
-    from bridge.image import Image, Layout
-    from bridge.lcmcodec import IMAGE_ARRAY
+    from viewer_bridge.formats.drake.image import images_to_lcm
+    from viewer_bridge.formats.ros.image import LAYOUTS, image_to_cdr
+    from viewer_bridge.image import Image, Layout
+    from viewer_bridge.lcmcodec import IMAGE_ARRAY
 
     rgba = np.arange(48, dtype=np.uint8).reshape(3, 4, 4)
     camera = [Image("rgb", 1000, Layout.RGBA, rgba),

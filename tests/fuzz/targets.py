@@ -24,28 +24,28 @@ from pathlib import Path
 
 import numpy as np
 
-from bridge.config import load_config
-from bridge.errors import ConfigError, DecodeError, EncodeError, GltfError, RequestRejected, SceneError
-from bridge.formats.drake.contact import decode_contact_results
-from bridge.formats.drake.draw import DrawDecoder
-from bridge.formats.drake.image import read_image_array, unpack
-from bridge.formats.drake.load import decode_load
-from bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
-from bridge.formats.gltf import read_gltf
-from bridge.formats.ign.model import scene_from_model
-from bridge.formats.ign.schema import MESSAGES
-from bridge.formats.ros.point_cloud import cloud_from_cdr
-from bridge.lcmcodec import CODECS, LOAD_ROBOT, VIEWER2_COMMS, StructCodec
-from bridge.render import Camera
-from bridge.render_server import BadRequest, parse_form, render_request
-from bridge.skipped import collecting
-from bridge.translators.drake_ign import IgnPoseVToDrakeDraw
-from bridge.translators.drake_image import DrakeImagesToFoxglove, DrakeImagesToRos, RosImageToDrake
-from bridge.translators.tree_viewer import TreeViewerServer
-from bridge.transports.base import Received
-from bridge.transports.ign_discovery import ANY_TYPE, Discovery, Record, is_tcp_address
-from bridge.transports.ign_environment import NodeEnvironment
-from bridge.transports.zenoh import keys as zenoh_keys
+from viewer_bridge.config import load_config
+from viewer_bridge.errors import ConfigError, DecodeError, EncodeError, GltfError, RequestRejected, SceneError
+from viewer_bridge.formats.drake.contact import decode_contact_results
+from viewer_bridge.formats.drake.draw import DrawDecoder
+from viewer_bridge.formats.drake.image import read_image_array, unpack
+from viewer_bridge.formats.drake.load import decode_load
+from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
+from viewer_bridge.formats.gltf import read_gltf
+from viewer_bridge.formats.ign.model import scene_from_model
+from viewer_bridge.formats.ign.schema import MESSAGES
+from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr
+from viewer_bridge.lcmcodec import CODECS, LOAD_ROBOT, VIEWER2_COMMS, StructCodec
+from viewer_bridge.render import Camera
+from viewer_bridge.render_server import BadRequest, parse_form, render_request
+from viewer_bridge.skipped import collecting
+from viewer_bridge.translators.drake_ign import IgnPoseVToDrakeDraw
+from viewer_bridge.translators.drake_image import DrakeImagesToFoxglove, DrakeImagesToRos, RosImageToDrake
+from viewer_bridge.translators.tree_viewer import TreeViewerServer
+from viewer_bridge.transports.base import Received
+from viewer_bridge.transports.ign_discovery import ANY_TYPE, Discovery, Record, is_tcp_address
+from viewer_bridge.transports.ign_environment import NodeEnvironment
+from viewer_bridge.transports.zenoh import keys as zenoh_keys
 
 
 @dataclass(frozen=True)

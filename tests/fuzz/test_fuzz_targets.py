@@ -9,9 +9,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-from bridge.config import load_config
-from bridge.errors import ConfigError
 from tests.fuzz.targets import TARGETS
+from viewer_bridge.config import load_config
+from viewer_bridge.errors import ConfigError
 
 BENCH = Path(__file__).resolve().parents[2] / "bench" / "fuzz.py"
 
@@ -45,7 +45,7 @@ def test_a_point_cloud2_with_a_huge_point_step_is_a_decode_error() -> None:
 
     import pytest
 
-    from bridge.errors import DecodeError
+    from viewer_bridge.errors import DecodeError
 
     data = base64.b64decode(
         "AAEAAAAAAABAQg8ABgAAAHdvcmxkAAAAAQAAAAAAAAADAAAAAgAAAHgAAAAAAOkABwAAAAEAAAACAAAAeQAAAAQQAAAHAAAA"

@@ -9,8 +9,8 @@ from typing import Any
 
 import drake as drake_lcmtypes  # Drake's own lcm-gen classes, shipped with pydrake
 
-from bridge.lcmcodec import codec_for
-from bridge.transports.lcm import LcmEvent
+from viewer_bridge.lcmcodec import codec_for
+from viewer_bridge.transports.lcm import LcmEvent
 
 
 def values(message: Any) -> Any:

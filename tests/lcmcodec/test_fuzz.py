@@ -11,14 +11,22 @@ from typing import Any
 import numpy as np
 import pytest
 
-from bridge.demo import demo_poses, demo_scene
-from bridge.errors import DecodeError
-from bridge.formats.drake.contact import decode_contact_results
-from bridge.formats.drake.draw import DrawDecoder, DrawEncoder
-from bridge.formats.drake.load import decode_load, load_from_scene
-from bridge.lcmcodec import CODECS, CONTACT_RESULTS, DRAW, GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, VIEWER2_COMMS
 from tests.formats.drake.oracle import contact_results_to_lcm
 from tests.scenes import demo_contact_results
+from viewer_bridge.demo import demo_poses, demo_scene
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.formats.drake.contact import decode_contact_results
+from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
+from viewer_bridge.formats.drake.load import decode_load, load_from_scene
+from viewer_bridge.lcmcodec import (
+    CODECS,
+    CONTACT_RESULTS,
+    DRAW,
+    GEOMETRY_DATA,
+    LINK_DATA,
+    LOAD_ROBOT,
+    VIEWER2_COMMS,
+)
 
 BUFFERS_PER_DECODER = 100_000
 EXTREME_WORDS = [

@@ -7,9 +7,9 @@ import struct
 
 import pytest
 
-from bridge.errors import SchemaError
-from bridge.lcmcodec import CODECS, STRUCTS
-from bridge.lcmcodec.schema import fingerprint, parse_lcm
+from viewer_bridge.errors import SchemaError
+from viewer_bridge.lcmcodec import CODECS, STRUCTS
+from viewer_bridge.lcmcodec.schema import fingerprint, parse_lcm
 
 # Values printed by lcm-gen 1.5.3 (docs/PROTOCOLS.md section 1 and 2).
 KNOWN_FINGERPRINTS = {

@@ -9,9 +9,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from bridge.errors import DecodeError, EncodeError
-from bridge.lcmcodec import CODECS, DRAW, GEOMETRY_DATA, LOAD_ROBOT, VIEWER2_COMMS, LcmMessage
 from tests.strategies import message_pairs, use_lcmgen
+from viewer_bridge.errors import DecodeError, EncodeError
+from viewer_bridge.lcmcodec import CODECS, DRAW, GEOMETRY_DATA, LOAD_ROBOT, VIEWER2_COMMS, LcmMessage
 
 NAMES = sorted(CODECS)
 

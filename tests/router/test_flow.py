@@ -1,9 +1,9 @@
-"""The mailbox between a transport's thread and a route's worker (bridge/router/flow.py)."""
+"""The mailbox between a transport's thread and a route's worker (viewer_bridge/router/flow.py)."""
 
 from __future__ import annotations
 
-from bridge.router.flow import Mailbox, Message
-from bridge.transports.base import Received
+from viewer_bridge.router.flow import Mailbox, Message
+from viewer_bridge.transports.base import Received
 
 
 def test_mailbox_keeps_the_newest_per_channel_and_never_grows() -> None:

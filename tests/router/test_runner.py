@@ -1,4 +1,4 @@
-"""One route's runner (bridge/router/runner.py), driven by hand without a worker: a translator's
+"""One route's runner (viewer_bridge/router/runner.py), driven by hand without a worker: a translator's
 crash, a lazy route waking up, and what a rate limit skips."""
 
 from __future__ import annotations
@@ -7,17 +7,17 @@ import re
 import time
 from typing import Any
 
-from bridge.config import Route
-from bridge.router.flow import Message
-from bridge.transports.base import CallPublisher, Received
+from viewer_bridge.config import Route
+from viewer_bridge.router.flow import Message
+from viewer_bridge.transports.base import CallPublisher, Received
 
 
 def test_a_translator_crash_skips_that_message_only() -> None:
     import re
 
-    from bridge.config import Route
-    from bridge.router.runner import RouteRunner
-    from bridge.translators import LoadCache, Translator
+    from viewer_bridge.config import Route
+    from viewer_bridge.router.runner import RouteRunner
+    from viewer_bridge.translators import LoadCache, Translator
 
     class Flaky(Translator):
         reads = ()
@@ -48,9 +48,9 @@ def lazy_pose_route(**rate: Any) -> Route:
 
 
 def test_a_lazy_route_that_wakes_does_not_count_the_wait_as_latency() -> None:
-    from bridge.router.runner import RouteRunner
-    from bridge.translators import TRANSLATORS, LoadCache
     from tests.scenes import draw_of, small_scene
+    from viewer_bridge.router.runner import RouteRunner
+    from viewer_bridge.translators import TRANSLATORS, LoadCache
 
     listeners = 0
     published: list[bytes] = []
@@ -79,8 +79,8 @@ def test_a_lazy_route_that_wakes_does_not_count_the_wait_as_latency() -> None:
 
 
 def test_messages_a_rate_limit_skips_are_counted_as_skipped_not_dropped() -> None:
-    from bridge.router.runner import RouteRunner
-    from bridge.translators import TRANSLATORS, LoadCache
+    from viewer_bridge.router.runner import RouteRunner
+    from viewer_bridge.translators import TRANSLATORS, LoadCache
 
     def runner(**rate: Any) -> RouteRunner:
         return RouteRunner(

@@ -14,19 +14,19 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from bridge.contact import FORCE_COLOR, pressure_colors
-from bridge.formats import ros
-from bridge.formats.ros.messages import from_cdr
-from bridge.formats.tree_viewer import envelope
-from bridge.formats.tree_viewer.tree import TreeState
-from bridge.scene import Line, Scene, TriangleMesh
-from bridge.translators import TRANSLATORS, LoadCache
-from bridge.transports.base import Received
 from tests.conftest import lcm_url
 from tests.formats.drake.test_contact import pydrake_results
 from tests.peers import BridgeProcess, RosProbe
 from tests.scenes import demo_contact_results
 from tests.test_router import LcmRecorder
+from viewer_bridge.contact import FORCE_COLOR, pressure_colors
+from viewer_bridge.formats import ros
+from viewer_bridge.formats.ros.messages import from_cdr
+from viewer_bridge.formats.tree_viewer import envelope
+from viewer_bridge.formats.tree_viewer.tree import TreeState
+from viewer_bridge.scene import Line, Scene, TriangleMesh
+from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.transports.base import Received
 
 CONTACT_SCENE_SCRIPT = Path(__file__).parents[1] / "drake_contact_scene.py"
 ARROW, TRIANGLE_LIST, DELETEALL = 0, 11, 3
@@ -109,8 +109,8 @@ def test_a_drake_simulation_reaches_ros_as_contact_markers_and_wrenches() -> Non
 
 
 def test_dump_decodes_contact_results() -> None:
-    from bridge.dump import as_text, describe
-    from bridge.transports.lcm import LcmEvent
+    from viewer_bridge.dump import as_text, describe
+    from viewer_bridge.transports.lcm import LcmEvent
 
     event = LcmEvent("CONTACT_RESULTS", pydrake_results().encode(), 5)
     record = describe(event)
@@ -140,7 +140,7 @@ def test_tree_viewer_gets_arrows_as_lines_with_heads() -> None:
 def test_snapshot_draws_arrows_and_pressure_bands() -> None:
     from PIL import Image
 
-    from bridge.snapshot import snapshot, with_contacts
+    from viewer_bridge.snapshot import snapshot, with_contacts
 
     results = demo_contact_results(4, (20, 20))
     scene = with_contacts(Scene(), results)

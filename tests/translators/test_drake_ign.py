@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import pytest
 
-from bridge.config import load_config
-from bridge.translators import TRANSLATORS, LoadCache
-from bridge.transports.base import PROTOBUF, MessageType
-from bridge.transports.ign import IgnSettings, IgnTransport
+from viewer_bridge.config import load_config
+from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.transports.base import PROTOBUF, MessageType
+from viewer_bridge.transports.ign import IgnSettings, IgnTransport
 
 IGN_TRANSLATORS = {
     "drake_to_ign_model": "Model",

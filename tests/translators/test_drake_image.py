@@ -17,17 +17,17 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import CameraInfo, CompressedImage
 from sensor_msgs.msg import Image as RosImage
 
-from bridge.config import Route, destination_name, load_config
-from bridge.convert import convert
-from bridge.errors import ConfigError, DecodeError, EncodeError
-from bridge.formats.ros.image import LAYOUTS
-from bridge.skipped import collecting
-from bridge.translators import TRANSLATORS, LoadCache
-from bridge.transports.base import CallPublisher, Received
-from bridge.transports.lcm import LcmEvent, write_log
 from tests.drake_images import publish_with_drake, read_with_drake
 from tests.formats.drake.test_image import lcm_array, lcm_image, sample_pixels
 from tests.formats.ros.test_image import rclpy_image
+from viewer_bridge.config import Route, destination_name, load_config
+from viewer_bridge.convert import convert
+from viewer_bridge.errors import ConfigError, DecodeError, EncodeError
+from viewer_bridge.formats.ros.image import LAYOUTS
+from viewer_bridge.skipped import collecting
+from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.transports.base import CallPublisher, Received
+from viewer_bridge.transports.lcm import LcmEvent, write_log
 
 RGBA = sample_pixels(np.uint8, (6, 8, 4))
 DEPTH = sample_pixels(np.uint16, (6, 8, 1))
@@ -105,8 +105,8 @@ def test_compressed_passes_drakes_png_through_and_encodes_the_rest() -> None:
 
 
 def test_a_bad_image_is_counted_on_the_route_and_the_others_go_out() -> None:
-    from bridge.router.flow import Message
-    from bridge.router.runner import RouteRunner
+    from viewer_bridge.router.flow import Message
+    from viewer_bridge.router.runner import RouteRunner
 
     route = Route.model_validate(
         {"name": "cameras", "source": {"transport": "lcm", "name": "DRAKE_RGBD_CAMERA_IMAGES_(.+)"},

@@ -9,18 +9,18 @@ import pytest
 from rclpy.serialization import deserialize_message
 from visualization_msgs.msg import MarkerArray
 
-from bridge.config import load_config
-from bridge.convert import convert
-from bridge.errors import DecodeError
-from bridge.formats.drake.draw import DrawEncoder
-from bridge.formats.drake.point_cloud import cloud_from_lcm
-from bridge.formats.tree_viewer import envelope
-from bridge.formats.tree_viewer.tree import TreeState
-from bridge.scene import LinkPoses, PointCloud
-from bridge.translators import TRANSLATORS
-from bridge.transports.base import Received
-from bridge.transports.lcm import LcmEvent, write_log
 from tests.formats.drake.test_point_cloud import pydrake_message
+from viewer_bridge.config import load_config
+from viewer_bridge.convert import convert
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.formats.drake.draw import DrawEncoder
+from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm
+from viewer_bridge.formats.tree_viewer import envelope
+from viewer_bridge.formats.tree_viewer.tree import TreeState
+from viewer_bridge.scene import LinkPoses, PointCloud
+from viewer_bridge.translators import TRANSLATORS
+from viewer_bridge.transports.base import Received
+from viewer_bridge.transports.lcm import LcmEvent, write_log
 
 
 def test_a_drake_cloud_becomes_a_tree_viewer_pointcloud_our_server_reads_back() -> None:

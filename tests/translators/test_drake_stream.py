@@ -6,12 +6,12 @@ from typing import Any
 
 import pytest
 
-from bridge.formats.drake.draw import DrawDecoder
-from bridge.formats.drake.load import load_from_scene
-from bridge.translators import TRANSLATORS, LoadCache
-from bridge.translators.types import LOAD_TYPE
-from bridge.transports.base import Received
 from tests.scenes import draw_of, small_scene
+from viewer_bridge.formats.drake.draw import DrawDecoder
+from viewer_bridge.formats.drake.load import load_from_scene
+from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.translators.types import LOAD_TYPE
+from viewer_bridge.transports.base import Received
 
 
 def test_a_draw_read_by_several_translators_is_decoded_once(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -10,17 +10,17 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from bridge.errors import EncodeError
-from bridge.formats.drake.load import load_from_scene
-from bridge.formats.ros.messages import from_cdr
-from bridge.scene import Box, Geometry, Link, Pose, Scene
-from bridge.translators import TRANSLATORS, LoadCache
-from bridge.transports.base import Received
 from tests.conftest import lcm_url
 from tests.formats import oracle
 from tests.peers import BridgeProcess, RosProbe
 from tests.scenes import draw_of, small_scene
 from tests.test_router import LcmRecorder, start_drake
+from viewer_bridge.errors import EncodeError
+from viewer_bridge.formats.drake.load import load_from_scene
+from viewer_bridge.formats.ros.messages import from_cdr
+from viewer_bridge.scene import Box, Geometry, Link, Pose, Scene
+from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.transports.base import Received
 
 
 def translate_all(translator: Any, *messages: Received) -> list[tuple[int, bytes]]:

@@ -19,19 +19,19 @@ import pytest
 from rclpy.serialization import deserialize_message
 from visualization_msgs.msg import Marker, MarkerArray
 
-from bridge.demo import DEMO_MESH
-from bridge.errors import BridgeError
-from bridge.formats.drake.load import decode_load, load_from_scene
-from bridge.formats.tree_viewer import envelope
-from bridge.lcmcodec import VIEWER2_COMMS
-from bridge.scene import Pose
-from bridge.translators import LoadCache
-from bridge.translators.tree_viewer import DrakeToTreeViewer, TreeViewerServer
-from bridge.transports.base import Received
-from bridge.transports.lcm import LcmBus
 from tests.conftest import lcm_url
 from tests.peers import BridgeProcess, RosProbe, write_config
 from tests.scenes import draw_of, small_scene
+from viewer_bridge.demo import DEMO_MESH
+from viewer_bridge.errors import BridgeError
+from viewer_bridge.formats.drake.load import decode_load, load_from_scene
+from viewer_bridge.formats.tree_viewer import envelope
+from viewer_bridge.lcmcodec import VIEWER2_COMMS
+from viewer_bridge.scene import Pose
+from viewer_bridge.translators import LoadCache
+from viewer_bridge.translators.tree_viewer import DrakeToTreeViewer, TreeViewerServer
+from viewer_bridge.transports.base import Received
+from viewer_bridge.transports.lcm import LcmBus
 
 REQUEST = "DIRECTOR_TREE_VIEWER_REQUEST_<spec client>"
 RESPONSE = "DIRECTOR_TREE_VIEWER_RESPONSE_<spec client>"

@@ -270,9 +270,9 @@ def _stamp_ms(message: Any) -> int:
 
 
 def test_bad_clients_do_not_stop_the_bridge_or_other_clients(tmp_path: Path) -> None:
-    from bridge.formats.drake.load import load_from_scene
-    from bridge.transports.lcm import LcmBus
     from tests.scenes import draw_of, small_scene
+    from viewer_bridge.formats.drake.load import load_from_scene
+    from viewer_bridge.transports.lcm import LcmBus
 
     url = lcm_url(13)
     bridge = BridgeProcess("-c", "builtin:foxglove", "--lcm-url", url, "--stats-period", "0.5")
@@ -329,11 +329,11 @@ def test_convert_to_foxglove_mcap_carries_the_scene_and_the_transforms(drake_log
 
     from mcap.reader import make_reader
 
-    from bridge.transports.lcm import read_log
+    from viewer_bridge.transports.lcm import read_log
 
     out = tmp_path / "drake_foxglove.mcap"
     result = subprocess.run(
-        [sys.executable, "-m", "bridge.cli", "convert", str(drake_log), str(out), "--schema", "foxglove"],
+        [sys.executable, "-m", "viewer_bridge.cli", "convert", str(drake_log), str(out), "--schema", "foxglove"],
         capture_output=True,
         text=True,
     )
@@ -370,7 +370,7 @@ def test_convert_to_foxglove_mcap_carries_the_scene_and_the_transforms(drake_log
 def test_the_front_serves_each_name_what_it_asked_for() -> None:
     from websockets.exceptions import InvalidStatus
 
-    from bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
+    from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
 
     transport = FoxgloveTransport(FoxgloveSettings(port=0))
     url = f"ws://127.0.0.1:{transport.port}"
@@ -409,7 +409,7 @@ def test_the_front_serves_each_name_what_it_asked_for() -> None:
 def test_without_the_front_only_the_sdks_name_is_served() -> None:
     from websockets.exceptions import InvalidStatus
 
-    from bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
+    from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
 
     transport = FoxgloveTransport(FoxgloveSettings(port=0, accept_websocket_v1=False))
     url = f"ws://127.0.0.1:{transport.port}"
@@ -424,7 +424,7 @@ def test_without_the_front_only_the_sdks_name_is_served() -> None:
 
 
 def test_the_front_renames_the_subprotocol_header_only() -> None:
-    from bridge.transports.foxglove_front import naming, older_name_asked, subprotocols
+    from viewer_bridge.transports.foxglove_front import naming, older_name_asked, subprotocols
 
     request = (b"GET / HTTP/1.1\r\nHost: x\r\nsec-websocket-protocol: a, foxglove.websocket.v1\r\n"
                b"Sec-WebSocket-Protocol: b\r\nUpgrade: websocket\r\n\r\n")  # fmt: skip

@@ -18,16 +18,16 @@ import numpy as np
 import pytest
 import zmq
 
-from bridge.formats.ign.schema import MESSAGES
-from bridge.scene import LinkPoses
-from bridge.transports.base import PROTOBUF, MessageType, Qos
-from bridge.transports.ign import IgnNode, IgnSettings, IgnTransport
-from bridge.transports.ign_discovery import WIRE_VERSION
-from bridge.transports.ign_environment import DISCOVERY_GROUP, MESSAGE_PORT, NodeEnvironment
 from tests.conftest import DRAKE_SCENE_SCRIPT, lcm_url
 from tests.formats.ign.oracle import pose_v
 from tests.peers import BridgeProcess
 from tests.test_router import LcmRecorder
+from viewer_bridge.formats.ign.schema import MESSAGES
+from viewer_bridge.scene import LinkPoses
+from viewer_bridge.transports.base import PROTOBUF, MessageType, Qos
+from viewer_bridge.transports.ign import IgnNode, IgnSettings, IgnTransport
+from viewer_bridge.transports.ign_discovery import WIRE_VERSION
+from viewer_bridge.transports.ign_environment import DISCOVERY_GROUP, MESSAGE_PORT, NodeEnvironment
 
 pytestmark = pytest.mark.slow
 

@@ -12,8 +12,8 @@ from typing import Any
 
 import pytest
 
-from bridge.formats.ign.schema import MESSAGES
-from bridge.transports.ign_discovery import (
+from viewer_bridge.formats.ign.schema import MESSAGES
+from viewer_bridge.transports.ign_discovery import (
     ANY_TYPE,
     SILENCE_S,
     STATISTICS_VERSION,
@@ -22,7 +22,12 @@ from bridge.transports.ign_discovery import (
     Record,
     datagram,
 )
-from bridge.transports.ign_environment import DISCOVERY_GROUP, MESSAGE_PORT, SERVICE_PORT, NodeEnvironment
+from viewer_bridge.transports.ign_environment import (
+    DISCOVERY_GROUP,
+    MESSAGE_PORT,
+    SERVICE_PORT,
+    NodeEnvironment,
+)
 
 ADDRESS = "tcp://127.0.0.1:40000"
 PEER = "tcp://127.0.0.1:40001"

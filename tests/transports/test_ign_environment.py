@@ -6,8 +6,8 @@ import logging
 
 import pytest
 
-from bridge.transports.ign import IgnNode
-from bridge.transports.ign_environment import (
+from viewer_bridge.transports.ign import IgnNode
+from viewer_bridge.transports.ign_environment import (
     DISCOVERY_GROUP,
     MESSAGE_PORT,
     SERVICE_PORT,

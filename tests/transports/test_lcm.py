@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from bridge.transports import lcm as lcm_transport
-from bridge.transports.lcm import LcmSettings, LcmTransport, with_receive_buffer
 from tests.conftest import lcm_url
+from viewer_bridge.transports import lcm as lcm_transport
+from viewer_bridge.transports.lcm import LcmSettings, LcmTransport, with_receive_buffer
 
 
 def rmem_max() -> int:

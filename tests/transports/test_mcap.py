@@ -16,16 +16,16 @@ from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from bridge.config import BridgeConfig
-from bridge.errors import ConfigError, TransportUnavailable
-from bridge.formats.drake.load import load_from_scene
-from bridge.router import Router
-from bridge.scene import Scene
-from bridge.transports.base import Received
-from bridge.transports.foxglove import FoxgloveTransport
-from bridge.transports.mcap import McapTransport
 from tests.conftest import lcm_url
 from tests.scenes import draw_of, small_scene
+from viewer_bridge.config import BridgeConfig
+from viewer_bridge.errors import ConfigError, TransportUnavailable
+from viewer_bridge.formats.drake.load import load_from_scene
+from viewer_bridge.router import Router
+from viewer_bridge.scene import Scene
+from viewer_bridge.transports.base import Received
+from viewer_bridge.transports.foxglove import FoxgloveTransport
+from viewer_bridge.transports.mcap import McapTransport
 
 LOAD = load_from_scene(small_scene()).encode()
 DRAW_ROUTE = {"source": {"transport": "lcm", "name": "DRAKE_VIEWER_DRAW"}}

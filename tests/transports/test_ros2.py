@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from bridge.errors import TransportUnavailable
-from bridge.transports import TRANSPORTS
-from bridge.transports.base import CDR, MessageType
+from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.transports import TRANSPORTS
+from viewer_bridge.transports.base import CDR, MessageType
 
 
 def test_a_missing_interface_is_refused_at_start_naming_the_fix() -> None:

@@ -18,9 +18,9 @@ import pytest
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_typestore
 
-from bridge import ros_interfaces
-from bridge.cli import main
 from tests.peers import RosProbe
+from viewer_bridge import ros_interfaces
+from viewer_bridge.cli import main
 
 TFMESSAGE_HASH = "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087"
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)

@@ -17,7 +17,7 @@ from rclpy.validate_namespace import validate_namespace
 from rclpy.validate_node_name import validate_node_name
 from rclpy.validate_topic_name import validate_topic_name
 
-from bridge.transports.ros_names import namespace_problem, node_name_problem, topic_problem
+from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem, topic_problem
 
 TOPICS = [
     "/tf", "drake/markers", "/sim2/bad topic!", "a/", "/", "", "/a//b", "~", "~/a", "~a", "a/~", "1a", "a/1b",

@@ -1,4 +1,4 @@
-"""Drake's `lcmt_contact_results_for_viz` (bridge/formats/drake/contact.py), checked against pydrake's
+"""Drake's `lcmt_contact_results_for_viz` (viewer_bridge/formats/drake/contact.py), checked against pydrake's
 own class: values, polygons fanned into triangles, and bad input as `DecodeError`s."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ from typing import Any
 import drake as drake_lcmtypes
 import pytest
 
-from bridge.errors import DecodeError
-from bridge.formats.drake.contact import decode_contact_results
 from tests.formats.drake.oracle import contact_results_to_lcm
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.formats.drake.contact import decode_contact_results
 
 
 def pydrake_results(polygons: list[int] | None = None, force_z: float = 9.81) -> Any:

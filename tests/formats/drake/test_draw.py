@@ -1,4 +1,4 @@
-"""Drake's `lcmt_viewer_draw` (bridge/formats/drake/draw.py): the fast decoder and encoder against
+"""Drake's `lcmt_viewer_draw` (viewer_bridge/formats/drake/draw.py): the fast decoder and encoder against
 Drake's traffic, Drake's own class and the reference (tests/formats/drake/oracle.py)."""
 
 from __future__ import annotations
@@ -9,12 +9,12 @@ import drake as drake_lcmtypes  # Drake's own lcm-gen classes, shipped with pydr
 import numpy as np
 import pytest
 
-from bridge.errors import DecodeError
-from bridge.formats.drake.draw import DrawDecoder, DrawEncoder, poses_from_draw
-from bridge.lcmcodec import DRAW
-from bridge.scene import frame_name
-from bridge.transports.lcm import LcmEvent
 from tests.formats.drake.oracle import draw_from_poses
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder, poses_from_draw
+from viewer_bridge.lcmcodec import DRAW
+from viewer_bridge.scene import frame_name
+from viewer_bridge.transports.lcm import LcmEvent
 
 
 def test_draw_fast_path_matches_drake(drake_events: list[LcmEvent]) -> None:

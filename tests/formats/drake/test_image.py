@@ -13,17 +13,17 @@ import numpy as np
 import pytest
 from PIL import Image as PilImage
 
-from bridge.errors import DecodeError
-from bridge.formats.drake.image import (
+from tests.drake_images import publish_with_drake
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.formats.drake.image import (
     CHANNEL_DTYPES,
     LAYOUTS,
     images_to_lcm,
     read_image_array,
     unpack,
 )
-from bridge.image import Image, Layout
-from bridge.lcmcodec import IMAGE_ARRAY
-from tests.drake_images import publish_with_drake
+from viewer_bridge.image import Image, Layout
+from viewer_bridge.lcmcodec import IMAGE_ARRAY
 
 LCMT_IMAGE = drake_lcmtypes.lcmt_image
 RNG = np.random.default_rng(23)

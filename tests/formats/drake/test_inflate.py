@@ -9,7 +9,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from bridge.formats.drake.inflate import Bytes, InflateError, inflate, inflate_libz, inflate_python
+from viewer_bridge.formats.drake.inflate import Bytes, InflateError, inflate, inflate_libz, inflate_python
 
 ROWS = bytes(range(256)) * 40
 INFLATERS: list[Callable[[bytes | memoryview, int], Bytes]] = [inflate_python]
@@ -69,7 +69,7 @@ def test_a_bomb_is_refused_within_the_room(inflater: Callable[[bytes | memoryvie
 def test_a_pooled_buffer_is_handed_out_again_only_once_no_view_of_it_is_left() -> None:
     import gc
 
-    from bridge.formats.drake.inflate import BufferPool
+    from viewer_bridge.formats.drake.inflate import BufferPool
 
     pool = BufferPool(smallest=1000, idle=2)
     first = pool.take(4096)

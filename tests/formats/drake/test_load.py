@@ -1,4 +1,4 @@
-"""Drake's `lcmt_viewer_load_robot` (bridge/formats/drake/load.py), checked against real Drake's
+"""Drake's `lcmt_viewer_load_robot` (viewer_bridge/formats/drake/load.py), checked against real Drake's
 traffic, and hand-made scenes through it both ways."""
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from bridge.errors import DecodeError
-from bridge.formats.drake.load import decode_load, link_from_lcm, load_from_scene, scene_from_load
-from bridge.lcmcodec import GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, codec_for
-from bridge.scene import (
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.formats.drake.load import decode_load, link_from_lcm, load_from_scene, scene_from_load
+from viewer_bridge.lcmcodec import GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, codec_for
+from viewer_bridge.scene import (
     Box,
     Capsule,
     Cylinder,
@@ -30,7 +30,7 @@ from bridge.scene import (
     Sphere,
     TriangleMesh,
 )
-from bridge.transports.lcm import LcmEvent
+from viewer_bridge.transports.lcm import LcmEvent
 
 
 def load_of(drake_events: list[LcmEvent], role: str) -> tuple[bytes, Scene]:

@@ -1,4 +1,4 @@
-"""Drake's `lcmt_point_cloud` (bridge/formats/drake/point_cloud.py) against pydrake's
+"""Drake's `lcmt_point_cloud` (viewer_bridge/formats/drake/point_cloud.py) against pydrake's
 PointCloudToLcm: read, written back byte for byte, and the checks on bad input."""
 
 from __future__ import annotations
@@ -16,11 +16,11 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from bridge.errors import DecodeError
-from bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
-from bridge.lcmcodec import POINT_CLOUD
-from bridge.scene import StampedPointCloud
-from bridge.transports.lcm import LcmEvent, write_log
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
+from viewer_bridge.lcmcodec import POINT_CLOUD
+from viewer_bridge.scene import StampedPointCloud
+from viewer_bridge.transports.lcm import LcmEvent, write_log
 
 FIELDS = {
     "xyz": ("kXYZs",),
@@ -164,7 +164,7 @@ def test_dump_decodes_a_point_cloud(tmp_path: Path) -> None:
     log = tmp_path / "cloud.lcmlog"
     write_log(log, [LcmEvent("DRAKE_POINT_CLOUD", pydrake_message(("kXYZs", "kRGBs"), count=3), 1)])
     result = subprocess.run(
-        [sys.executable, "-m", "bridge.cli", "dump", str(log), "--json"],
+        [sys.executable, "-m", "viewer_bridge.cli", "dump", str(log), "--json"],
         capture_output=True,
         text=True,
         check=False,

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 
-from bridge.formats.ros.tf import FrameNames
-from bridge.scene import LinkPoses, xyzw_from_wxyz
+from viewer_bridge.formats.ros.tf import FrameNames
+from viewer_bridge.scene import LinkPoses, xyzw_from_wxyz
 
 
 def frame_transforms(poses: LinkPoses, stamp: tuple[int, int], frames: FrameNames) -> FrameTransforms:

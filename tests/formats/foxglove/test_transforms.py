@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 
-from bridge.formats.foxglove.transforms import FrameTransformsEncoder
-from bridge.formats.ros.tf import FrameNames
-from bridge.scene import LinkPoses
 from tests.formats.foxglove.oracle import frame_transforms
+from viewer_bridge.formats.foxglove.transforms import FrameTransformsEncoder
+from viewer_bridge.formats.ros.tf import FrameNames
+from viewer_bridge.scene import LinkPoses
 
 
 def _poses(names: tuple[str, ...], seed: int) -> LinkPoses:

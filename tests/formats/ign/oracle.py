@@ -1,5 +1,5 @@
 """The protobuf-object reference for ign/gz poses: `Pose_V` and `PosesStamped` messages built
-field by field. `bridge.formats.ign.poses.PosesEncoder` must write their bytes exactly; the
+field by field. `viewer_bridge.formats.ign.poses.PosesEncoder` must write their bytes exactly; the
 tests compare the two and bench/ign.py times them.
 """
 
@@ -9,9 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from bridge.formats.ign.schema import MESSAGES
-from bridge.scene import LinkPoses, xyzw_from_wxyz
-from bridge.sim_time import sec_nsec_from_ms
+from viewer_bridge.formats.ign.schema import MESSAGES
+from viewer_bridge.scene import LinkPoses, xyzw_from_wxyz
+from viewer_bridge.sim_time import sec_nsec_from_ms
 
 
 def _set_stamp(time: Any, timestamp_ms: int) -> None:

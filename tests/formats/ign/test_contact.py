@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from types import ModuleType
 
-from bridge.translators import TRANSLATORS, LoadCache
-from bridge.transports.base import Received
 from tests.formats.drake.test_contact import pydrake_results
+from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.transports.base import Received
 
 
 def test_ign_contacts_read_by_debians_protos(debian_ign_msgs: ModuleType) -> None:

@@ -6,11 +6,11 @@ from types import ModuleType
 
 import pytest
 
-from bridge.errors import SceneError
-from bridge.formats.ign.model import model, scene_from_model
-from bridge.mappings import tables
-from bridge.scene import Box, Geometry, HalfSpace, Link, Scene
 from tests.formats.ign.oracle import xyz
+from viewer_bridge.errors import SceneError
+from viewer_bridge.formats.ign.model import model, scene_from_model
+from viewer_bridge.mappings import tables
+from viewer_bridge.scene import Box, Geometry, HalfSpace, Link, Scene
 
 
 def test_geometry_type_codes_are_debians(debian_ign_msgs: ModuleType) -> None:

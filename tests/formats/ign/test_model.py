@@ -8,16 +8,16 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 
-from bridge.errors import DecodeError, SceneError
-from bridge.formats.ign.model import model, model_v, scene_from_model
-from bridge.formats.ign.poses import poses_from_pose_v
-from bridge.formats.ign.schema import MESSAGES
-from bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
 from tests.conftest import Capture
 from tests.formats import oracle
 from tests.formats.ign.oracle import pose_v, xyz
 from tests.formats.oracle import close
 from tests.strategies import scenes
+from viewer_bridge.errors import DecodeError, SceneError
+from viewer_bridge.formats.ign.model import model, model_v, scene_from_model
+from viewer_bridge.formats.ign.poses import poses_from_pose_v
+from viewer_bridge.formats.ign.schema import MESSAGES
+from viewer_bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
 

@@ -10,13 +10,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bridge.formats.drake.draw import DrawDecoder, DrawEncoder
-from bridge.formats.ign.poses import PosesEncoder, poses_from_pose_v
-from bridge.formats.ign.schema import MESSAGES
-from bridge.scene import LinkPoses
 from tests.conftest import Capture
 from tests.formats.ign.oracle import pose_v, poses_stamped, xyz
 from tests.strategies import link_poses
+from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
+from viewer_bridge.formats.ign.poses import PosesEncoder, poses_from_pose_v
+from viewer_bridge.formats.ign.schema import MESSAGES
+from viewer_bridge.scene import LinkPoses
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
 

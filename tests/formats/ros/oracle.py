@@ -1,5 +1,5 @@
 """The ROS 2 messages as rosbags objects, built field by field: the slow, readable reference the
-fast CDR paths of `bridge.formats.ros` are tested against (and benchmarked beside).
+fast CDR paths of `viewer_bridge.formats.ros` are tested against (and benchmarked beside).
 
 Also `PoseStampedEncoder`, a fast path no translator uses: bench/translators.py times it against
 rclpy.
@@ -13,23 +13,23 @@ from typing import Any
 
 import numpy as np
 
-from bridge.contact import ContactDrawOptions, ContactResults, contact_scene
-from bridge.formats.ros import MARKER_ARRAY, POSE_ARRAY, TF_MESSAGE
-from bridge.formats.ros.cdr import CDR_LE, CDR_TIME, cdr_string, time_parts
-from bridge.formats.ros.markers import (
+from viewer_bridge.contact import ContactDrawOptions, ContactResults, contact_scene
+from viewer_bridge.formats.ros import MARKER_ARRAY, POSE_ARRAY, TF_MESSAGE
+from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, cdr_string, time_parts
+from viewer_bridge.formats.ros.markers import (
     DELETE_ALL,
     MarkerSpec,
     marker_settings,
     marker_specs,
     world_poses,
 )
-from bridge.formats.ros.messages import make
-from bridge.formats.ros.tables import TABLES
-from bridge.formats.ros.tf import FrameNames
-from bridge.mappings import ShapeRule
-from bridge.scene import Geometry, LinkPoses, Pose, Scene, Shape, link_poses_from_xyzw, pose_rows_xyzw
-from bridge.sim_time import ms_from_sec_nsec
-from bridge.skipped import per_geometry
+from viewer_bridge.formats.ros.messages import make
+from viewer_bridge.formats.ros.tables import TABLES
+from viewer_bridge.formats.ros.tf import FrameNames
+from viewer_bridge.mappings import ShapeRule
+from viewer_bridge.scene import Geometry, LinkPoses, Pose, Scene, Shape, link_poses_from_xyzw, pose_rows_xyzw
+from viewer_bridge.sim_time import ms_from_sec_nsec
+from viewer_bridge.skipped import per_geometry
 
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 MARKER = "visualization_msgs/msg/Marker"

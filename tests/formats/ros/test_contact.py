@@ -5,16 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from bridge.contact import ContactDrawOptions, pressure_colors
-from bridge.formats.drake.contact import decode_contact_results
-from bridge.formats.ros import MARKER_ARRAY, WRENCH_STAMPED
-from bridge.formats.ros.contact import WrenchEncoder, contact_marker_array_cdr
-from bridge.formats.ros.messages import from_cdr, to_cdr
-from bridge.translators import TRANSLATORS, LoadCache
-from bridge.transports.base import Received
 from tests.formats.drake.test_contact import pydrake_results
 from tests.formats.ros import oracle as ros_oracle
 from tests.translators.test_drake_contact import ARROW, DELETEALL, TRIANGLE_LIST
+from viewer_bridge.contact import ContactDrawOptions, pressure_colors
+from viewer_bridge.formats.drake.contact import decode_contact_results
+from viewer_bridge.formats.ros import MARKER_ARRAY, WRENCH_STAMPED
+from viewer_bridge.formats.ros.contact import WrenchEncoder, contact_marker_array_cdr
+from viewer_bridge.formats.ros.messages import from_cdr, to_cdr
+from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.transports.base import Received
 
 
 def test_markers_arrows_and_pressure_coloured_surface() -> None:

@@ -12,8 +12,9 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import CameraInfo as RclpyCameraInfo
 from sensor_msgs.msg import Image as RclpyImage
 
-from bridge.errors import DecodeError, EncodeError
-from bridge.formats.ros.image import (
+from tests.formats.drake.test_image import sample_pixels
+from viewer_bridge.errors import DecodeError, EncodeError
+from viewer_bridge.formats.ros.image import (
     LAYOUTS,
     CameraInfoEncoder,
     camera_info_cdr,
@@ -22,9 +23,8 @@ from bridge.formats.ros.image import (
     image_from_cdr,
     image_to_cdr,
 )
-from bridge.formats.ros.messages import make, to_cdr
-from bridge.image import EncodedImage, Image, Intrinsics, Layout
-from tests.formats.drake.test_image import sample_pixels
+from viewer_bridge.formats.ros.messages import make, to_cdr
+from viewer_bridge.image import EncodedImage, Image, Intrinsics, Layout
 
 STAMP = (12, 345_000_000)
 

@@ -11,15 +11,15 @@ import pytest
 from rclpy.serialization import deserialize_message
 from visualization_msgs.msg import Marker, MarkerArray
 
-from bridge.demo import TETRAHEDRON_OBJ
-from bridge.formats import ros
-from bridge.formats.ros.markers import MarkerStream, marker_array_cdr
-from bridge.formats.ros.messages import from_cdr, to_rclpy
-from bridge.scene import Geometry, Link, LinkPoses, Pose, Scene, frame_name
 from tests.conftest import Capture
 from tests.formats import oracle
 from tests.formats.oracle import close
 from tests.formats.ros import oracle as ros_oracle
+from viewer_bridge.demo import TETRAHEDRON_OBJ
+from viewer_bridge.formats import ros
+from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_cdr
+from viewer_bridge.formats.ros.messages import from_cdr, to_rclpy
+from viewer_bridge.scene import Geometry, Link, LinkPoses, Pose, Scene, frame_name
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
 
@@ -142,7 +142,7 @@ def test_marker_ids_are_stable_across_loads(drake_capture: dict[str, Capture]) -
 
 
 def test_points_triads_and_lines_as_markers_both_paths_agree() -> None:
-    from bridge.scene import Line, PointCloud, Triad
+    from viewer_bridge.scene import Line, PointCloud, Triad
 
     cloud = PointCloud(np.array([[0.0, 0, 0], [1, 2, 3]]), np.array([[1.0, 0, 0], [0, 1, 0]]))
     line = Line(np.array([[0.0, 0, 0], [1, 0, 0]]), radius=0.0, closed=True)
@@ -153,7 +153,7 @@ def test_points_triads_and_lines_as_markers_both_paths_agree() -> None:
     assert (points.type, points.scale.x, [c.g for c in points.colors]) == (Marker.POINTS, 0.01, [0.0, 1.0])
     assert triad.type == Marker.LINE_LIST and [p.x for p in triad.points] == [0, 2, 0, 0, 0, 0]
     assert strip.type == Marker.LINE_STRIP and len(strip.points) == 3 and strip.scale.x == 0.002
-    from bridge.skipped import collecting
+    from viewer_bridge.skipped import collecting
 
     with collecting() as skipped:
         ros_oracle.shapes(scene)

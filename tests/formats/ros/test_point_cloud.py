@@ -9,12 +9,12 @@ from typing import Any
 import numpy as np
 import pytest
 
-from bridge.errors import DecodeError
-from bridge.formats.ros import POINT_CLOUD2
-from bridge.formats.ros.messages import from_cdr, make, to_cdr
-from bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
-from bridge.scene import StampedPointCloud
 from tests.formats.test_point_cloud import sample_cloud
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.formats.ros import POINT_CLOUD2
+from viewer_bridge.formats.ros.messages import from_cdr, make, to_cdr
+from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
+from viewer_bridge.scene import StampedPointCloud
 
 
 @pytest.mark.parametrize(("colors", "normals"), [(False, False), (True, False), (True, True)])

@@ -12,19 +12,19 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message
 
-from bridge.errors import DecodeError, EncodeError, SceneError
-from bridge.formats import ros
-from bridge.formats.ros.messages import from_cdr, from_rclpy, to_cdr, to_rclpy
-from bridge.formats.ros.poses import (
+from tests.conftest import Capture
+from tests.formats.ros import oracle as ros_oracle
+from tests.strategies import link_poses
+from viewer_bridge.errors import DecodeError, EncodeError, SceneError
+from viewer_bridge.formats import ros
+from viewer_bridge.formats.ros.messages import from_cdr, from_rclpy, to_cdr, to_rclpy
+from viewer_bridge.formats.ros.poses import (
     PoseArrayEncoder,
     pose_array_arrays,
     pose_from_message,
     poses_from_pose_array_cdr,
 )
-from bridge.scene import LinkPoses, Pose
-from tests.conftest import Capture
-from tests.formats.ros import oracle as ros_oracle
-from tests.strategies import link_poses
+from viewer_bridge.scene import LinkPoses, Pose
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bridge.formats.ros.messages import to_cdr
-from bridge.formats.ros.tf import FrameNames, TransformsEncoder
-from bridge.scene import LinkPoses
 from tests.formats.ros.oracle import transforms_message
+from viewer_bridge.formats.ros.messages import to_cdr
+from viewer_bridge.formats.ros.tf import FrameNames, TransformsEncoder
+from viewer_bridge.scene import LinkPoses
 
 
 def random_poses(count: int, seed: int) -> LinkPoses:

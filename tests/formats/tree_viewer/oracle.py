@@ -8,9 +8,9 @@ from typing import Any
 
 import orjson
 
-from bridge.formats.tree_viewer.envelope import encode, envelope
-from bridge.formats.tree_viewer.requests import DECIMALS, draw_request
-from bridge.scene import LinkPoses
+from viewer_bridge.formats.tree_viewer.envelope import encode, envelope
+from viewer_bridge.formats.tree_viewer.requests import DECIMALS, draw_request
+from viewer_bridge.scene import LinkPoses
 
 
 def to_decimals(values: Any) -> list[float]:

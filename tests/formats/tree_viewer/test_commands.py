@@ -7,9 +7,9 @@ from typing import Any
 
 import pytest
 
-from bridge.errors import SceneError
-from bridge.formats.tree_viewer.envelope import ERROR_HANDLING_REQUEST
-from bridge.formats.tree_viewer.tree import TreeState
+from viewer_bridge.errors import SceneError
+from viewer_bridge.formats.tree_viewer.envelope import ERROR_HANDLING_REQUEST
+from viewer_bridge.formats.tree_viewer.tree import TreeState
 
 
 @pytest.mark.parametrize(

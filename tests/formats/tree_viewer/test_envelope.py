@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from bridge.errors import DecodeError, RequestRejected
-from bridge.formats.tree_viewer.envelope import (
+from viewer_bridge.errors import DecodeError, RequestRejected
+from viewer_bridge.formats.tree_viewer.envelope import (
     ERROR_HANDLING_REQUEST,
     ERROR_UNKNOWN_FORMAT,
     ERROR_UNKNOWN_FORMAT_VERSION,
@@ -13,7 +13,7 @@ from bridge.formats.tree_viewer.envelope import (
     decode,
     request_channel,
 )
-from bridge.lcmcodec import VIEWER2_COMMS
+from viewer_bridge.lcmcodec import VIEWER2_COMMS
 
 
 def envelope(format_name: str = FORMAT, major: int = 1, data: bytes = b"{}") -> bytes:

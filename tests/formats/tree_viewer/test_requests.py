@@ -17,21 +17,21 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from bridge.formats.drake.draw import DrawDecoder, DrawEncoder
-from bridge.formats.tree_viewer.envelope import decode, encode
-from bridge.formats.tree_viewer.requests import (
-    DEFAULT_PREFIX,
-    SettransformEncoder,
-    load_requests,
-    settransform_values,
-)
-from bridge.lcmcodec import VIEWER2_COMMS
-from bridge.scene import LinkPoses
 from tests.conftest import Capture
 from tests.formats import oracle
 from tests.formats.oracle import close
 from tests.formats.tree_viewer.oracle import fixed_width_reference, reference, to_decimals
 from tests.strategies import link_poses
+from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
+from viewer_bridge.formats.tree_viewer.envelope import decode, encode
+from viewer_bridge.formats.tree_viewer.requests import (
+    DEFAULT_PREFIX,
+    SettransformEncoder,
+    load_requests,
+    settransform_values,
+)
+from viewer_bridge.lcmcodec import VIEWER2_COMMS
+from viewer_bridge.scene import LinkPoses
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
 

@@ -9,18 +9,18 @@ from pathlib import Path
 import pytest
 from hypothesis import given, settings
 
-from bridge.formats.tree_viewer.envelope import (
+from tests.conftest import Capture
+from tests.formats.tree_viewer.oracle import to_decimals
+from tests.strategies import scenes
+from viewer_bridge.formats.tree_viewer.envelope import (
     ERROR_HANDLING_REQUEST,
     ERROR_UNKNOWN_REQUEST_TYPE,
     MISSING_PATHS,
     OK,
 )
-from bridge.formats.tree_viewer.requests import load_requests
-from bridge.formats.tree_viewer.tree import TreeState, scene_from_requests
-from bridge.scene import Box, Geometry, Link, Pose, Scene
-from tests.conftest import Capture
-from tests.formats.tree_viewer.oracle import to_decimals
-from tests.strategies import scenes
+from viewer_bridge.formats.tree_viewer.requests import load_requests
+from viewer_bridge.formats.tree_viewer.tree import TreeState, scene_from_requests
+from viewer_bridge.scene import Box, Geometry, Link, Pose, Scene
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
 

@@ -13,10 +13,10 @@ import re
 import threading
 from typing import ClassVar
 
-from bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from bridge.translators.drake_stream import draw_poses
-from bridge.translators.types import DRAW_TYPE
-from bridge.transports.base import (
+from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
+from viewer_bridge.translators.drake_stream import draw_poses
+from viewer_bridge.translators.types import DRAW_TYPE
+from viewer_bridge.transports.base import (
     JSON,
     CallPublisher,
     Deliver,

@@ -1,4 +1,4 @@
-"""rmw_zenoh's names and stamps (bridge.transports.zenoh.keys) against examples written by hand
+"""rmw_zenoh's names and stamps (viewer_bridge.transports.zenoh.keys) against examples written by hand
 from rmw_zenoh's design document and sources (docs/PROTOCOLS.md section 10), and the session's
 configuration as rmw_zenoh composes it. Pure functions: no session, no router."""
 
@@ -13,9 +13,9 @@ import xxhash
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bridge.errors import DecodeError
-from bridge.transports.zenoh import keys
-from bridge.transports.zenoh.session import overrides_from_env, session_config
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.transports.zenoh import keys
+from viewer_bridge.transports.zenoh.session import overrides_from_env, session_config
 
 POSE_ARRAY_HASH = "RIHS01_af0cc36d190e104d546d168d6b39df04fa4b4ccecf59cb4c9ed328d3d5004aa0"
 
@@ -25,7 +25,7 @@ def test_type_hashes_are_rclpys() -> None:
     import rclpy
     from rclpy.node import Node
 
-    from bridge.transports.ros2 import message_class
+    from viewer_bridge.transports.ros2 import message_class
 
     rclpy.init()
     try:
@@ -203,7 +203,7 @@ def test_a_config_file_and_overrides_as_rmw_zenoh_reads_them() -> None:
 
 
 def test_a_key_zenoh_refuses_is_refused_when_the_transport_is_made() -> None:
-    from bridge.transports.zenoh.transport import ZenohSettings, ZenohTransport
+    from viewer_bridge.transports.zenoh.transport import ZenohSettings, ZenohTransport
 
     with pytest.raises(ValueError, match="no/such/key"):
         ZenohTransport(ZenohSettings(config={"no/such/key": 1}))

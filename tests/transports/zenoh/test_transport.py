@@ -21,11 +21,6 @@ import xxhash
 import yaml
 from rosbags.typesys import Stores, get_typestore
 
-from bridge.config import load_config
-from bridge.formats.drake.draw import DrawEncoder
-from bridge.formats.drake.load import load_from_scene
-from bridge.scene import Box, Geometry, Link, LinkPoses, Scene
-from bridge.transports.lcm import LcmBus
 from tests.peers import BridgeProcess, wait_for, write_config
 from tests.test_router import LcmRecorder, start_drake
 from tests.zenoh_peers import (
@@ -36,6 +31,11 @@ from tests.zenoh_peers import (
     decode,
     free_lcm_url,
 )
+from viewer_bridge.config import load_config
+from viewer_bridge.formats.drake.draw import DrawEncoder
+from viewer_bridge.formats.drake.load import load_from_scene
+from viewer_bridge.scene import Box, Geometry, Link, LinkPoses, Scene
+from viewer_bridge.transports.lcm import LcmBus
 
 pytestmark = pytest.mark.slow
 DOMAIN = int(os.environ["ROS_DOMAIN_ID"])  # this test process's own (tests/conftest.py)
@@ -461,7 +461,7 @@ def test_two_bridges_join_two_lcm_buses_and_a_late_viewer_gets_the_load(
 
 
 def test_lcm_channels_that_are_no_zenoh_keys_are_refused() -> None:
-    from bridge.transports.zenoh.transport import ZenohTransport
+    from viewer_bridge.transports.zenoh.transport import ZenohTransport
 
     for name in ("", "a//b", "a/*", "trailing/"):
         with pytest.raises(ValueError, match="cannot be a Zenoh key"):

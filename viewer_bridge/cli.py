@@ -1,0 +1,459 @@
+"""The `viewer-bridge` command line."""
+
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import logging
+import signal
+import sys
+import threading
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+
+import numpy as np
+import yaml
+from rich.console import Console
+from rich.logging import RichHandler
+
+from viewer_bridge.arguments import (
+    IMAGE_SUFFIXES,
+    Parser,
+    byte_count,
+    camera,
+    fail,
+    field_of_view,
+    image_size,
+    input_file,
+    lcm_source,
+    output_file,
+    port,
+    positive,
+    regex,
+    split_ros_args,
+)
+from viewer_bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
+from viewer_bridge.convert import convert
+from viewer_bridge.demo import run_demo
+from viewer_bridge.dump import as_json, as_text
+from viewer_bridge.errors import BridgeError, ConfigError, Interrupted, UsageError
+from viewer_bridge.mappings import format_names, reference_markdown
+from viewer_bridge.router import Router
+from viewer_bridge.skipped import collecting
+from viewer_bridge.status import LiveTable, LogLines, StatusView
+from viewer_bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = Parser(prog="viewer-bridge", description="Translate Drake's viewer scene between ecosystems.")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    commands = parser.add_subparsers(dest="command", required=True)
+
+    dump = commands.add_parser("dump", help="decode an LCM log (or a live LCM bus) to text or JSON")
+    dump.add_argument("log", nargs="?", type=input_file, help="an .lcmlog file (omit with --live)")
+    dump.add_argument(
+        "--live",
+        nargs="?",
+        const=DEFAULT_URL,
+        type=lcm_source,
+        metavar="URL",
+        help=f"listen on an LCM URL (default {DEFAULT_URL})",
+    )
+    dump.add_argument(
+        "--channel", default=".*", type=regex, metavar="REGEX", help="only channels that fully match REGEX"
+    )
+    dump.add_argument("--json", action="store_true", help="one JSON object per message")
+    dump.add_argument("--duration", type=positive, help="with --live: stop after this many seconds")
+    dump.add_argument(
+        "--demo", action="store_true", help="with --live: also publish the demo scene on the same URL"
+    )
+
+    demo = commands.add_parser("demo", help="publish a moving Drake-like scene with every shape over LCM")
+    demo.add_argument("--url", type=lcm_source, default=DEFAULT_URL, help="LCM URL to publish on")
+    demo.add_argument(
+        "--duration", type=positive, help="stop after this many seconds (default: until Ctrl-C)"
+    )
+    demo.add_argument("--rate", type=positive, default=60.0, help="draw messages per second")
+
+    commands.add_parser(
+        "mappings", help="print the mapping reference (mappings/REFERENCE.md) from the tables"
+    )
+
+    run = commands.add_parser(
+        "run",
+        help="run the router: bridge Drake's LCM scene to ROS 2 (and back); --ros-args ... [--] as any ROS 2 node",
+    )
+    run.add_argument(
+        "-c", "--config", help="a YAML config (default: the built-in one, see --print-default-config)"
+    )
+    run.add_argument("--print-default-config", action="store_true", help="print the built-in config and exit")
+    run.add_argument(
+        "--print-config",
+        metavar="NAME",
+        help=f"print a built-in config ({', '.join(BUILTIN_CONFIGS)}) and exit; use it as -c builtin:NAME",
+    )
+    run.add_argument(
+        "--lcm-url",
+        type=lcm_source,
+        help="override the config's LCM URL (a log file or file://LOG?speed=S replays it)",
+    )
+    run.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="TRANSPORT.KEY=VALUE",
+        help="override a transport setting, e.g. foxglove.port=9000 or ros.namespace=/sim1 (repeatable)",
+    )
+    run.add_argument(
+        "--stats-json",
+        type=output_file(),
+        metavar="PATH",
+        help="write per-route stats as JSON every period and at exit",
+    )
+    run.add_argument(
+        "--stats-period", type=positive, default=5.0, metavar="S", help="seconds between stats lines"
+    )
+    run.add_argument(
+        "--duration", type=positive, metavar="S", help="stop after S seconds (default: until Ctrl-C)"
+    )
+    run.add_argument("--demo", action="store_true", help="also publish the demo scene on the LCM URL")
+    run.add_argument(
+        "-q", "--quiet", action="store_true", help="print only warnings and errors (no route table or lines)"
+    )
+
+    serve = commands.add_parser("serve-render", help="serve Drake's glTF render API (RenderEngineGltfClient)")
+    serve.add_argument("--host", default="127.0.0.1", help="address to listen on (127.0.0.1: this host only)")
+    serve.add_argument("--port", type=port, default=8000, help="TCP port to listen on (0: any free port)")
+    serve.add_argument(
+        "--max-upload",
+        type=byte_count,
+        default=256 * 1024 * 1024,
+        metavar="BYTES",
+        help="largest request body accepted",
+    )
+
+    shot = commands.add_parser(
+        "snapshot", help="render the current scene of a log or a live LCM bus to a PNG or JPEG"
+    )
+    shot.add_argument("source", type=lcm_source, help="an .lcmlog file, or an LCM URL to listen on")
+    shot.add_argument(
+        "out", type=output_file(IMAGE_SUFFIXES), help="the image to write: .png, or .jpg/.jpeg for JPEG"
+    )
+    shot.add_argument("--role", default="", help="channel suffix, e.g. ILLUSTRATION (default: unsuffixed)")
+    shot.add_argument("--image", choices=["color", "label", "depth"], default="color")
+    shot.add_argument("--size", type=image_size, default="640x480", help="WIDTHxHEIGHT")
+    shot.add_argument("--fov", type=field_of_view, default=45.0, help="vertical field of view, degrees")
+    shot.add_argument(
+        "--camera",
+        type=camera,
+        metavar="EX,EY,EZ,TX,TY,TZ",
+        help="eye and target (default: frame the scene)",
+    )
+    shot.add_argument("--duration", type=positive, default=3.0, help="with an LCM URL: seconds to listen")
+    shot.add_argument("--contacts", action="store_true", help="draw the last CONTACT_RESULTS over the scene")
+    shot.add_argument(
+        "--hide",
+        type=regex,
+        metavar="REGEX",
+        help="leave out links whose names match (e.g. a body over a contact)",
+    )
+
+    convert = commands.add_parser(
+        "convert", help="translate an LCM log into an MCAP file (ROS 2 or Foxglove)"
+    )
+    convert.add_argument("log", type=input_file, help="an .lcmlog file")
+    convert.add_argument(
+        "mcap", type=output_file(), help="the .mcap file to write (written as MCAP.partial until complete)"
+    )
+    convert.add_argument("-c", "--config", help="a YAML config whose LCM routes are used (default: built-in)")
+    convert.add_argument(
+        "--schema",
+        choices=["ros2", "foxglove"],
+        default="ros2",
+        help="ros2: CDR with ros2msg schemas; foxglove: Foxglove's protobuf SceneUpdate and FrameTransforms",
+    )
+    convert.add_argument("--force", action="store_true", help="replace the output file if it exists")
+
+    interfaces = commands.add_parser(
+        "ros-interfaces", help="build ROS 2 interface packages PyPI has no wheel for (tf2_msgs) into the venv"
+    )
+    interfaces.add_argument("action", choices=["install", "status"])
+    interfaces.add_argument(
+        "names", nargs="*", metavar="NAME", help="optional: the packages to install or show (default: all of them)"
+    )
+    return parser
+
+
+def _version() -> str:
+    try:
+        return importlib.metadata.version("viewer-bridge")
+    except importlib.metadata.PackageNotFoundError:  # run from a checkout that is not installed
+        return "(not installed)"
+
+
+def _dump(args: argparse.Namespace) -> int:
+    if (args.log is None) == (args.live is None):
+        raise UsageError("give either a log file or --live [URL]")
+    stop = threading.Event()
+    demo: threading.Thread | None = None
+    events: Iterator[LcmEvent]
+    if args.live is not None:
+        subscription = Subscription(args.live, args.channel)  # before the demo's first message
+        if args.demo:
+            demo = threading.Thread(
+                target=run_demo, args=(args.live, args.duration), kwargs={"stop": stop}, daemon=True
+            )
+            demo.start()
+        events = subscription.events(args.duration)
+    else:
+        events = read_log(args.log, args.channel)
+    render = as_json if args.json else as_text
+    try:
+        for event in events:
+            print(render(event), flush=True)
+    except KeyboardInterrupt:
+        pass
+    except BrokenPipeError:
+        sys.stderr.close()  # e.g. piped into `head`: stop quietly
+    finally:
+        stop.set()
+        if demo is not None:
+            demo.join()
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    stop = threading.Event()  # Ctrl-C or SIGTERM: the summary line, then exit 0
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, lambda *_: stop.set())
+    until = f"for {args.duration:g} s" if args.duration else "until Ctrl-C"
+    print(f"publishing the demo scene on {args.url} at {args.rate:g} Hz, {until}", flush=True)
+    sent = run_demo(args.url, args.duration, args.rate, stop=stop)
+    print(f"published {sent} draw messages on {args.url}")
+    return 0
+
+
+def _mappings(args: argparse.Namespace) -> int:
+    print(reference_markdown(format_names()), end="")
+    return 0
+
+
+def _run(args: argparse.Namespace) -> int:
+    if args.print_default_config or args.print_config:
+        name = args.print_config or "default"
+        if name not in BUILTIN_CONFIGS:
+            raise UsageError(f"no built-in config {name!r} (known: {', '.join(BUILTIN_CONFIGS)})")
+        print(BUILTIN_CONFIGS[name], end="")
+        return 0
+    view = _status_view(args.quiet)
+    try:
+        config = load_config(args.config)
+        if args.lcm_url:
+            config = config.with_settings("lcm", url=args.lcm_url)
+        for setting in args.set:
+            config = _with_setting(config, setting, args.config)
+        if args.ros_args:
+            _uses(config, "ros", "--ros-args", args.config)
+            config = config.with_settings("ros", ros_args=args.ros_args)
+        router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period, view=view)
+    except BaseException as error:
+        view.close()  # a live table leaves the screen before the one-line error
+        if isinstance(error, (OSError, ValueError)):
+            raise UsageError(str(error)) from None
+        raise
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, lambda *_: router.stop())
+    stop_demo = threading.Event()
+    demo = None
+    router.start()  # subscribed before the demo's first message
+    if args.demo:
+        demo = threading.Thread(
+            target=run_demo, args=(_lcm_url(config), None), kwargs={"stop": stop_demo}, daemon=True
+        )
+        demo.start()
+    try:
+        router.run(args.duration)
+    finally:
+        stop_demo.set()
+        if demo is not None:
+            demo.join(timeout=2)
+    return 0
+
+
+def _status_view(quiet: bool) -> StatusView:
+    """A live route table when stdout is a terminal; plain log lines on stderr otherwise."""
+    level = logging.WARNING if quiet else logging.INFO
+    if quiet or not sys.stdout.isatty():
+        logging.basicConfig(level=level, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
+        return LogLines()
+    console = Console()
+    handler = RichHandler(console=console, show_path=False, log_time_format="%H:%M:%S")
+    logging.basicConfig(level=level, format="%(message)s", handlers=[handler])
+    return LiveTable(console)
+
+
+def _with_setting(config: BridgeConfig, setting: str, config_name: str | None) -> BridgeConfig:
+    """`TRANSPORT.KEY=VALUE` (the value read as YAML: 9000 is a number, true a bool) applied."""
+    name, _, value = setting.partition("=")
+    transport, _, key = name.partition(".")
+    if not (transport and key and _):
+        raise UsageError(f"--set {setting!r}: expected TRANSPORT.KEY=VALUE, e.g. foxglove.port=9000")
+    _uses(config, transport, f"--set {setting}", config_name)
+    try:
+        return config.with_settings(transport, **{key: yaml.safe_load(value)})
+    except ConfigError as error:
+        raise UsageError(f"--set {setting}: {error.key}: {error.reason}") from None
+
+
+def _uses(config: BridgeConfig, transport: str, option: str, config_name: str | None) -> None:
+    """Warn about an option for a transport that no route of the config uses: it does nothing.
+    (A warning, not a refusal: one command line may serve several configs, e.g. in scripts.)"""
+    used = config.transports()
+    if transport not in used:
+        print(
+            f"viewer-bridge run: warning: {option} does nothing: no route of "
+            f"{config_name or 'the built-in config'} uses the {transport} transport "
+            f"(its routes use: {', '.join(used) or 'none'})",
+            file=sys.stderr,
+        )
+
+
+def _lcm_url(config: BridgeConfig) -> str:
+    """Where the demo publishes: the config's LCM bus."""
+    return str(getattr(config.settings("lcm"), "url", DEFAULT_URL))
+
+
+def _convert(args: argparse.Namespace) -> int:
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    config = load_config(args.config)
+    # Ctrl-C (or a SIGTERM) stops after the message being converted: the MCAP is closed properly.
+    stop = threading.Event()
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, lambda *_: stop.set())
+    try:
+        written = convert(
+            args.log,
+            args.mcap,
+            config,
+            progress=sys.stderr.isatty(),
+            schema=args.schema,
+            force=args.force,
+            config_name=args.config or "the built-in config",
+            stop=stop,
+        )
+    except Interrupted as interrupted:
+        print(f"viewer-bridge convert: {interrupted}", file=sys.stderr)
+        return 130
+    for topic, count in sorted(written.items()):
+        print(f"{count:8d}  {topic}")
+    return 0
+
+
+def _snapshot(args: argparse.Namespace) -> int:
+    from viewer_bridge.snapshot import (  # OpenGL only for this command
+        events_from,
+        latest_contacts,
+        latest_scene,
+        snapshot,
+        with_contacts,
+        without_links,
+    )
+
+    width, height = args.size
+    eye = target = None
+    if args.camera:
+        eye, target = np.array(args.camera[:3]), np.array(args.camera[3:])
+    jpeg = Path(args.out).suffix.lower() != ".png"
+    if jpeg and args.image == "depth":
+        raise UsageError("a depth image is 16-bit: write it as .png (JPEG holds 8 bits)")
+    try:
+        events = events_from(args.source, args.duration)
+        scene = latest_scene(events, args.role.upper())
+        if args.hide:
+            scene = without_links(scene, args.hide)
+        if args.contacts:
+            results = latest_contacts(events)
+            if results is None:
+                raise ValueError("no CONTACT_RESULTS message in the source")
+            scene = with_contacts(scene, results)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    with collecting() as skipped:  # a geometry that cannot be drawn is left out, and named
+        picture = snapshot(scene, width, height, args.fov, eye, target, args.image, "JPEG" if jpeg else "PNG")
+    for geometry in skipped:
+        print(f"viewer-bridge snapshot: warning: {geometry}", file=sys.stderr)
+    Path(args.out).write_bytes(picture)
+    drawn = scene.geometry_count() - len(skipped)
+    print(f"wrote {args.out}: {len(scene.links)} links, {drawn} geometries ({len(skipped)} skipped)")
+    return 0
+
+
+def _serve_render(args: argparse.Namespace) -> int:
+    from viewer_bridge.render_server import make_server  # OpenGL only for this command
+
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
+    try:
+        server = make_server(args.host, args.port, args.max_upload)
+    except OSError as error:  # e.g. the port is taken, or the host is not an address of this machine
+        raise UsageError(f"cannot listen on {args.host}:{args.port}: {error.strerror or error}") from None
+    # Ctrl-C stops it cleanly from the moment it says it is ready.
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, lambda *_: threading.Thread(target=server.shutdown).start())
+    logging.getLogger("viewer_bridge").info(
+        "render server on http://%s:%d/render", *server.server_address[:2]
+    )
+    server.serve_forever()
+    server.server_close()
+    return 0
+
+
+def _ros_interfaces(args: argparse.Namespace) -> int:
+    from viewer_bridge import ros_interfaces
+
+    unknown = [name for name in args.names if name not in ros_interfaces.INTERFACES]
+    if unknown:
+        known = ", ".join(ros_interfaces.INTERFACES)
+        raise UsageError(f"unknown interface package {', '.join(unknown)} (known: {known})")
+    if args.action == "status":
+        absent = ros_interfaces.missing()
+        for name in args.names or ros_interfaces.INTERFACES:
+            print(f"{name}: {'missing' if name in absent else 'installed'} in {sys.prefix}")
+        return 0
+    ros_interfaces.install(args.names or None, log=lambda line: print(line, file=sys.stderr))
+    return 0
+
+
+_HANDLERS = {
+    "dump": _dump,
+    "demo": _demo,
+    "mappings": _mappings,
+    "run": _run,
+    "convert": _convert,
+    "serve-render": _serve_render,
+    "snapshot": _snapshot,
+    "ros-interfaces": _ros_interfaces,
+}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    words = list(sys.argv[1:] if argv is None else argv)
+    parser = _parser()
+    try:
+        words, ros_args = split_ros_args(words)  # everything in --ros-args ... [--] is rclpy's
+    except UsageError as error:
+        command = next((word for word in words if word in _HANDLERS), "")
+        parser.exit(2, f"{' '.join(filter(None, ('viewer-bridge', command)))}: {error}\n")
+    args = parser.parse_args(words)
+    args.ros_args = ros_args
+    if ros_args and args.command != "run":
+        parser.exit(2, f"viewer-bridge {args.command}: --ros-args: only `run` is a ROS 2 node\n")
+    try:
+        return _HANDLERS[args.command](args)
+    except (BridgeError, OSError) as error:  # mistakes in what was given: one line
+        return fail(args.command, str(error))
+    except KeyboardInterrupt:  # Ctrl-C before a command's own handling of it: no traceback
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,305 @@
+"""The router's configuration: transport settings, and a flat list of routes.
+
+A route names a source (a transport and a channel or topic, matched in full as a regular
+expression), a translator (`viewer_bridge.translators.TRANSLATORS`), a destination whose name is a
+template over the source's regex groups (`{1}`; `{1:lower}`; `{1:path}` turns `_PROXIMITY` into
+`/proximity` and `` into ``; `{1:topic}` makes any text a valid ROS name token), QoS, a rate
+policy, `lazy`, and the translator's options. Each transport's settings are the top-level
+section named after it (`lcm:`, `ros:`, `ign:`, or a plugin's name), checked by its own model.
+The built-in configs (`-c builtin:NAME`; `default` bridges Drake's default channels to ROS 2
+under `/drake`) are the YAML files in `configs/`, shipped with the package and read like a user's.
+
+Everything is checked when the config loads: the names of transports and translators, each
+translator's options, and whether each route's transports carry the message types its
+translator reads and writes. Mistakes are `ConfigError`s with file, line and key.
+"""
+
+from __future__ import annotations
+
+import re
+import string
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
+
+from viewer_bridge.errors import ConfigError
+from viewer_bridge.resources import data_dir
+from viewer_bridge.translators import TRANSLATORS, Translator, TranslatorOptions
+from viewer_bridge.transports import TRANSPORTS
+from viewer_bridge.transports.base import MessageType, Transport, TransportSettings
+from viewer_bridge.transports.ros_names import name_token
+from viewer_bridge.yamldoc import KeyPath, YamlDocument
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class Endpoint(_Strict):
+    transport: str  # a name in TRANSPORTS
+    name: str  # a channel or topic; a regex for sources, a template for destinations
+
+
+class Qos(_Strict):
+    depth: int = Field(10, ge=1, le=100_000)
+    reliability: Literal["reliable", "best_effort"] = "reliable"
+    durability: Literal["volatile", "transient_local"] | None = None  # None: the translator's choice
+
+
+class Rate(_Strict):
+    policy: Literal["all", "latest"] = "latest"
+    max_hz: float | None = Field(None, gt=0)
+
+
+class Route(_Strict):
+    name: str
+    source: Endpoint
+    translator: str
+    destination: Endpoint
+    qos: Qos = Qos()
+    rate: Rate = Rate()
+    lazy: bool = False  # translate only while the destination has a subscriber (where the transport can tell)
+    options: dict[str, Any] = {}
+    _options: TranslatorOptions | None = PrivateAttr(None)
+
+    @field_validator("source")
+    @classmethod
+    def _source_is_a_regex(cls, source: Endpoint) -> Endpoint:
+        try:
+            re.compile(source.name)
+        except re.error as error:
+            raise ValueError(f"name is not a regular expression: {error}") from None
+        return source
+
+    @model_validator(mode="after")
+    def _destination_fits_source(self) -> Route:
+        _check_template(self.destination.name, re.compile(self.source.name).groups)
+        return self
+
+    def translator_class(self) -> type[Translator]:
+        return TRANSLATORS.get(self.translator)
+
+    def translator_options(self) -> TranslatorOptions:
+        """The options as the translator's model (checked when the config loaded)."""
+        if self._options is None:
+            self._options = self.translator_class().Options.model_validate(self.options)
+        return self._options
+
+
+class BridgeConfig(BaseModel):
+    """The whole config; every top-level key besides these is a transport's settings section."""
+
+    model_config = ConfigDict(extra="allow")
+    load_cache: str | None = None  # a folder where the last load per channel is kept across runs
+    routes: list[Route]
+    _settings: dict[str, TransportSettings] = PrivateAttr(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _check(self, info: ValidationInfo) -> BridgeConfig:
+        document = (info.context or {}).get("document")
+        check = _Checker(document if isinstance(document, YamlDocument) else None)
+        for name, section in (self.model_extra or {}).items():
+            transport = check.transport(name, (name,), "a config key (load_cache, routes) nor a transport")
+            self._settings[name] = check.model(transport.Settings, section or {}, (name,))
+        names = [route.name for route in self.routes]
+        for index, route in enumerate(self.routes):
+            check.route(route, ("routes", index))
+            if route.name in names[:index]:
+                raise check.error(
+                    ("routes", index, "name"), f"route names must be unique: {route.name!r} again"
+                )
+        for name in self.transports():  # a used transport without a section: is a setting required?
+            if name not in self._settings:
+                self._settings[name] = check.model(TRANSPORTS.get(name).Settings, {}, (name,))
+        return self
+
+    def transports(self) -> list[str]:
+        """The transports the routes use, in order of first use."""
+        used = [
+            name for route in self.routes for name in (route.source.transport, route.destination.transport)
+        ]
+        return list(dict.fromkeys(used))
+
+    def settings(self, transport: str) -> TransportSettings:
+        """A transport's settings: its section, else its defaults."""
+        if transport not in self._settings:
+            self._settings[transport] = TRANSPORTS.get(transport).Settings()
+        return self._settings[transport]
+
+    def with_settings(self, transport: str, **values: Any) -> BridgeConfig:
+        """The same config with some of a transport's settings replaced (e.g. a command line's --lcm-url)."""
+        data = self.model_dump()
+        data[transport] = {**(data.get(transport) or {}), **values}
+        return BridgeConfig.model_validate(data)  # checked again: a bad value is a ConfigError
+
+
+class _Checker:
+    """The config's semantic checks; errors name the file, line and key when there is a file."""
+
+    def __init__(self, document: YamlDocument | None) -> None:
+        self.document = document or YamlDocument("<config>", "")  # no file: no lines to name
+
+    def error(self, key_path: KeyPath, reason: str) -> ConfigError:
+        return self.document.error(key_path, reason)
+
+    def model(self, model: type[Any], data: Any, at: KeyPath) -> Any:
+        try:
+            return model.model_validate(data)
+        except ValidationError as error:
+            raise self.document.validation_error(error, at, model) from None
+
+    def transport(self, name: str, at: KeyPath, what: str = "a transport") -> type[Transport]:
+        try:
+            return TRANSPORTS.get(name)
+        except KeyError:
+            known = ", ".join(TRANSPORTS.names())
+            raise self.error(at, f"{name!r} is not {what} (transports: {known})") from None
+
+    def route(self, route: Route, at: KeyPath) -> None:
+        try:
+            translator = TRANSLATORS.get(route.translator)
+        except KeyError as error:
+            raise self.error((*at, "translator"), str(error).strip("\"'")) from None
+        route._options = self.model(translator.Options, route.options, (*at, "options"))
+        source = self.transport(route.source.transport, (*at, "source", "transport"))
+        destination = self.transport(route.destination.transport, (*at, "destination", "transport"))
+        try:
+            source.check_source(route.source.name)
+        except ValueError as error:
+            raise self.error((*at, "source", "name"), str(error)) from None
+        try:
+            destination.check_destination(_sample_destination(route))
+        except ValueError as error:
+            raise self.error((*at, "destination", "name"), str(error)) from None
+        self._carried(
+            source, route.source.transport, translator.reads, (*at, "source", "transport"), route, "reads"
+        )
+        outputs = tuple(output.type for output in translator.outputs)
+        self._carried(
+            destination,
+            route.destination.transport,
+            outputs,
+            (*at, "destination", "transport"),
+            route,
+            "writes",
+        )
+        if translator.replies is not None:
+            self._carried(
+                source,
+                route.source.transport,
+                (translator.replies,),
+                (*at, "source", "transport"),
+                route,
+                "answers with",
+            )
+
+    def _carried(
+        self,
+        transport: type[Transport],
+        name: str,
+        types: tuple[MessageType, ...],
+        at: KeyPath,
+        route: Route,
+        verb: str,
+    ) -> None:
+        refused = [str(message_type) for message_type in types if not transport.carries(message_type)]
+        if refused:
+            raise self.error(
+                at,
+                f"translator {route.translator} {verb} {', '.join(refused)}, which the {name} transport does not carry",
+            )
+
+
+class _Template(string.Formatter):
+    """`{1}`, `{1:lower}`, `{1:path}` over a regex match's groups (a missing group is empty)."""
+
+    def get_field(self, field_name: str, args: Sequence[Any], kwargs: Mapping[str, Any]) -> Any:
+        # Only group numbers: `{1.path}` or `{1[a]}` would reach into the group's str (found by
+        # bench/fuzz.py as an AttributeError escaping the config check).
+        if not field_name.isdigit():
+            raise ValueError(f"{{{field_name}}} is not a group number")
+        return super().get_field(field_name, args, kwargs)
+
+    def format_field(self, value: Any, format_spec: str) -> str:
+        text = "" if value is None else str(value)
+        if format_spec == "lower":
+            return text.lower()
+        if format_spec == "path":  # "_PROXIMITY" -> "/proximity"; "" stays ""
+            return "/" + text.lstrip("_").lower() if text else ""
+        if format_spec == "topic":  # any text as one valid ROS name token: "my client!" -> "my_client_"
+            return name_token(text)
+        if format_spec:
+            raise ValueError(f"unknown format spec {format_spec!r}")
+        return text
+
+
+def _check_template(template: str, groups: int) -> None:
+    """Refuse a destination template that names a group the source does not have, or a bad spec."""
+    try:
+        _Template().format(template, "x", *(["x"] * groups))
+    except (IndexError, KeyError, ValueError) as error:
+        raise ValueError(
+            f"destination name {template!r} does not fit a source with {groups} groups "
+            f"(use {{0}}..{{{groups}}}, with :lower, :path or :topic): {error}"
+        ) from None
+
+
+def _sample_destination(route: Route) -> str:
+    """The route's destination name for a sample message (each group of its source: `x`)."""
+    groups = re.compile(route.source.name).groups
+    return _Template().format(route.destination.name, "x", *(["x"] * groups))
+
+
+def destination_name(template: str, match: re.Match[str]) -> str:
+    return _Template().format(template, match.group(0), *match.groups())
+
+
+def _builtin_configs() -> dict[str, str]:
+    """The configs shipped in `configs/` (`builtin:NAME`), by name, the default first."""
+    paths = sorted(data_dir("configs").glob("*.yaml"), key=lambda path: (path.stem != "default", path.stem))
+    return {path.stem: path.read_text() for path in paths}
+
+
+BUILTIN_CONFIGS = _builtin_configs()
+DEFAULT_CONFIG = BUILTIN_CONFIGS["default"]
+
+
+def load_config(path: str | Path | None) -> BridgeConfig:
+    """The config in `path` (`builtin:NAME` for a built-in one), or the built-in default.
+
+    Raises `ConfigError` with file:line:field.
+    """
+    if path is None or str(path).startswith("builtin:"):
+        name = "default" if path is None else str(path).removeprefix("builtin:")
+        if name not in BUILTIN_CONFIGS:
+            known = ", ".join(BUILTIN_CONFIGS)
+            raise ConfigError(str(path), None, "", f"no built-in config {name!r} (known: {known})")
+        document = YamlDocument(f"<built-in config {name}>", BUILTIN_CONFIGS[name])
+    else:
+        document = YamlDocument.read(path)
+    if not isinstance(document.data, dict):
+        raise ConfigError(document.path, 1, "", "the config must be a mapping with a 'routes' list")
+    return document.validate(BridgeConfig, context={"document": document})
+
+
+__all__ = [
+    "BUILTIN_CONFIGS",
+    "DEFAULT_CONFIG",
+    "BridgeConfig",
+    "ConfigError",
+    "Endpoint",
+    "Route",
+    "destination_name",
+    "load_config",
+]

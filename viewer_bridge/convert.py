@@ -1,0 +1,166 @@
+"""Offline: an LCM log through the router's translators into an MCAP file (Foxglove opens it).
+
+The config's routes whose translator reads LCM messages and writes the chosen schema family
+become a router whose every route ends in the `mcap` transport (viewer_bridge/transports/mcap.py), and
+every event of the log is fed to it in order (`Router.feed`), as the live router would take it:
+
+* `ros2`: CDR messages, each topic with the `ros2msg` schema rosbags generates for its type
+  (what ROS 2 tools and Foxglove read);
+* `foxglove`: Foxglove's protobuf messages (SceneUpdate, FrameTransforms), written by the
+  foxglove-sdk's own MCAP writer, so the 3D panel works with no ROS message definitions.
+
+Messages carry the log's receive time. Nothing is lost: the output is never the input, an
+existing file is replaced only when asked (`force`), and the MCAP is written as `OUT.partial`,
+renamed to `OUT` once complete. Stopped midway (`stop` set, e.g. by Ctrl-C), the MCAP is closed
+properly (readable, with what was written so far) and left as `OUT.partial`: `Interrupted` says
+how many messages it holds.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import logging
+import os
+import threading
+from collections import Counter
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+from viewer_bridge.config import BridgeConfig, Endpoint, Route
+from viewer_bridge.errors import ConvertError, Interrupted
+from viewer_bridge.router import Router
+from viewer_bridge.status import Snapshot, routes_of
+from viewer_bridge.translators import TRANSLATORS
+from viewer_bridge.transports.base import LCM, Received
+from viewer_bridge.transports.lcm import read_log
+from viewer_bridge.transports.mcap import McapTransport, Profile
+
+log = logging.getLogger("viewer_bridge")
+
+
+def convert(
+    log_path: str | Path,
+    mcap_path: str | Path,
+    config: BridgeConfig,
+    progress: bool = True,
+    schema: Profile = "ros2",
+    force: bool = False,
+    config_name: str = "the config",
+    stop: threading.Event | None = None,
+) -> dict[str, int]:
+    """Write the outputs of `config`'s LCM routes in the `schema` family for the log into an MCAP file.
+
+    Returns messages written per topic. Bad messages are counted per route and reported, as
+    the live router does; they do not stop the conversion. Raises `ConvertError` before
+    anything is written when `mcap_path` is the log itself, exists (unless `force`), or no route
+    writes `schema`; `Interrupted` when `stop` is set midway.
+    """
+    target = Path(mcap_path)
+    _check_target(Path(log_path), target, force)
+    events = read_log(log_path)
+    first = next(events, None)  # a file that is not an LCM log fails here, before anything is written
+    writes = [route for route in config.routes if _lcm_to(schema, route)]
+    if not writes:
+        raise ConvertError(f"no route of {config_name} reads LCM and writes the {schema} schema")
+    partial = target.with_name(target.name + ".partial")
+    router = Router(_into_mcap(writes, partial, schema), view=_RouteErrors())
+    mcap = router.transports["mcap"]
+    assert isinstance(mcap, McapTransport)
+    stop = stop or threading.Event()
+    try:
+        with _progress_bar(Path(log_path).stat().st_size, progress) as advance:
+            for event in itertools.chain([first] if first is not None else [], events):
+                if stop.is_set():
+                    break
+                router.feed("lcm", Received(event.channel, event.data, event.timestamp_us))
+                advance(len(event.data) + len(event.channel) + 36)  # roughly one event record
+    except BaseException:
+        router.close()
+        partial.unlink(missing_ok=True)  # a failure midway leaves no file that looks like output
+        raise
+    router.close()  # the MCAP file complete; each route's errors reported
+    if stop.is_set():
+        raise Interrupted(sum(mcap.messages.values()), partial)
+    os.replace(partial, target)
+    return dict(mcap.messages)
+
+
+def _lcm_to(schema: Profile, route: Route) -> bool:
+    """Whether a route reads LCM and writes only what an MCAP file of `schema` holds."""
+    translator = TRANSLATORS.get(route.translator)
+    return all(read.encoding == LCM for read in translator.reads) and all(
+        McapTransport.carries(output.type, schema) for output in translator.outputs
+    )
+
+
+def _into_mcap(routes: list[Route], path: Path, schema: Profile) -> BridgeConfig:
+    """A config of `routes`, read from LCM and written into the MCAP file `path`.
+
+    LCM is an in-process bus that is never started: the log's events are fed to the router by
+    hand. No load cache: a load comes from the log, never from an earlier run.
+    """
+    return BridgeConfig.model_validate(
+        {
+            "lcm": {"url": "memq://"},
+            "mcap": {"path": path, "profile": schema, "overwrite": True},  # a .partial left by an earlier run
+            "routes": [
+                route.model_copy(
+                    update={
+                        "source": route.source.model_copy(update={"transport": "lcm"}),
+                        "destination": Endpoint(transport="mcap", name=route.destination.name),
+                    }
+                )
+                for route in routes
+            ],
+        }
+    )
+
+
+class _RouteErrors:
+    """The router's status view for convert: per route, its errors and warnings, once at the end
+    (each was logged as it happened, the first few in full)."""
+
+    def show(self, snapshot: Snapshot) -> None:
+        for name, stats in routes_of(snapshot).items():
+            counts = Counter(stats["errors"]) + Counter(stats["warnings"])
+            if counts:
+                log.warning("route %s: %s", name, dict(counts))
+
+    def close(self) -> None:
+        pass
+
+
+def _check_target(log_path: Path, target: Path, force: bool) -> None:
+    """Refuse an output that is the input (also through a link) or, without `force`, any existing file."""
+    if not target.exists():
+        return
+    if log_path.exists() and os.path.samefile(log_path, target):
+        raise ConvertError(f"{target} is the input log {log_path}: give another output file")
+    if target.is_dir():
+        raise ConvertError(f"{target} is a folder, not a file")
+    if not force:
+        raise ConvertError(f"{target} exists: give another output file, or --force to replace it")
+
+
+@contextlib.contextmanager
+def _progress_bar(total: int, shown: bool) -> Iterator[Callable[[int], None]]:
+    """A progress bar over `total` bytes (when `shown`); yields the function that advances it."""
+    columns = (
+        TextColumn("converting"),
+        BarColumn(),
+        TextColumn("{task.percentage:>3.0f}%"),
+        TimeRemainingColumn(),
+    )
+    with Progress(*columns, disable=not shown, transient=True) as bar:
+        task = bar.add_task("convert", total=total)
+        done = 0
+
+        def advance(size: int) -> None:
+            nonlocal done
+            done += size
+            bar.update(task, completed=min(done, total))
+
+        yield advance

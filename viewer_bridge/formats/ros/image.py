@@ -1,0 +1,171 @@
+"""ROS 2's `sensor_msgs` images <-> neutral images (`viewer_bridge.image`), straight from and to CDR bytes.
+
+Written: `Image` (the pixels with their rows back to back, in their own byte order:
+`is_bigendian` says which, so nothing is swapped), `CompressedImage` (JPEG or PNG bytes passed on
+as they came, `format` "jpeg" or "png") and `CameraInfo` (a pinhole without distortion: K, R = I,
+P = [K | 0]). Read: `Image` in the encodings a Drake image has a pixel format for, strided rows
+and either byte order, for the way back to Drake.
+
+Encodings (`sensor_msgs/image_encodings.hpp`): colour and grey by name (rgb8, rgba8, bgr8, bgra8,
+their 16-bit forms, mono8, mono16, bayer_*8/16); depth as 16UC1 (millimetres, REP 118) or 32FC1
+(metres, REP 117), labels as 16SC1; anything else as `<bits><U|S|F>C<channels>`.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from viewer_bridge.errors import DecodeError, EncodeError
+from viewer_bridge.formats.ros.cdr import CDR_TIME, U32, CdrReader, CdrWriter
+from viewer_bridge.formats.ros.messages import make, to_cdr
+from viewer_bridge.image import NO_DISTORTION, NO_ROTATION, EncodedImage, Image, Intrinsics, Layout, Pixels
+
+IMAGE = "sensor_msgs/msg/Image"
+COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"
+CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
+_TWO_U32 = struct.Struct("<II")
+
+# Encodings by name: (encoding, layout, one channel's numpy type). Read and written alike.
+_NAMED = (
+    ("rgb8", Layout.RGB, "u1"), ("rgba8", Layout.RGBA, "u1"), ("bgr8", Layout.BGR, "u1"),
+    ("bgra8", Layout.BGRA, "u1"), ("rgb16", Layout.RGB, "u2"), ("rgba16", Layout.RGBA, "u2"),
+    ("bgr16", Layout.BGR, "u2"), ("bgra16", Layout.BGRA, "u2"), ("mono8", Layout.GRAY, "u1"),
+    ("mono16", Layout.GRAY, "u2"), ("16UC1", Layout.DEPTH, "u2"), ("32FC1", Layout.DEPTH, "f4"),
+    ("16SC1", Layout.LABEL, "i2"),
+    *((f"{layout.value}{bits}", layout, f"u{bits // 8}")
+      for layout in (Layout.BAYER_BGGR, Layout.BAYER_RGGB, Layout.BAYER_GBRG, Layout.BAYER_GRBG)
+      for bits in (8, 16)),
+)  # fmt: skip
+ENCODINGS: dict[tuple[Layout, str], str] = {(layout, code): name for name, layout, code in _NAMED}
+LAYOUTS: dict[str, tuple[Layout, np.dtype[Any]]] = {
+    name: (layout, np.dtype(code)) for name, layout, code in _NAMED
+}
+_GENERIC = {"u1": "8U", "i1": "8S", "u2": "16U", "i2": "16S", "i4": "32S", "f4": "32F", "f8": "64F"}
+
+
+def encoding(image: Image) -> str:
+    """The ROS encoding of an image's layout and channel type; `EncodeError` when ROS has none
+    (uint32 channels)."""
+    code = f"{image.pixels.dtype.kind}{image.pixels.dtype.itemsize}"
+    named = ENCODINGS.get((image.layout, code))
+    if named is not None:
+        return named
+    generic = _GENERIC.get(code)
+    if generic is None:
+        raise EncodeError(
+            IMAGE, "encoding", f"image {image.name!r}: ROS has no encoding for {image.pixels.dtype}"
+        )
+    return f"{generic}C{image.layout.channels}"
+
+
+def image_to_cdr(image: Image, frame_id: str, stamp: tuple[int, int]) -> bytes:
+    """`sensor_msgs/Image` CDR: the header, then the pixels in one copy (rows back to back)."""
+    rows = image.packed_rows()
+    writer = CdrWriter()
+    writer.pack(CDR_TIME, *stamp)
+    writer.string(frame_id, "header.frame_id")
+    writer.pack(_TWO_U32, image.height, image.width)
+    writer.string(encoding(image), "encoding")
+    writer.add(b"\1" if image.big_endian else b"\0")
+    writer.pack(
+        _TWO_U32, image.width * image.layout.channels * rows.dtype.itemsize, rows.nbytes
+    )  # step, size
+    return b"".join([*writer.chunks, rows.reshape(-1).view(np.uint8).data])
+
+
+def compressed_image_to_cdr(image: EncodedImage, frame_id: str, stamp: tuple[int, int]) -> bytes:
+    """`sensor_msgs/CompressedImage` CDR of the bytes as they came (`format` jpeg or png)."""
+    writer = CdrWriter()
+    writer.pack(CDR_TIME, *stamp)
+    writer.string(frame_id, "header.frame_id")
+    writer.string(image.format, "format")
+    writer.pack(U32, len(image.data))
+    return b"".join([*writer.chunks, image.data])
+
+
+class CameraInfoEncoder:
+    """`sensor_msgs/CameraInfo` CDR for one camera and frame: the message is made once, and each
+    image's stamp written into a copy of it (the stamp is the first field)."""
+
+    def __init__(self, intrinsics: Intrinsics, frame_id: str) -> None:
+        self.intrinsics = intrinsics
+        self.frame_id = frame_id
+        self._message = camera_info_cdr(intrinsics, frame_id, (0, 0))
+
+    def encode(self, stamp: tuple[int, int]) -> bytes:
+        head = 4  # the CDR encapsulation
+        return b"".join((self._message[:head], CDR_TIME.pack(*stamp), self._message[head + CDR_TIME.size :]))
+
+
+def camera_info_cdr(intrinsics: Intrinsics, frame_id: str, stamp: tuple[int, int]) -> bytes:
+    """A `CameraInfo` (plumb_bob with zero distortion) by rosbags: the reference, and the template."""
+    model, coefficients = NO_DISTORTION
+    return to_cdr(
+        make(
+            CAMERA_INFO,
+            header=make(
+                "std_msgs/msg/Header",
+                stamp=make("builtin_interfaces/msg/Time", sec=stamp[0], nanosec=stamp[1]),
+                frame_id=frame_id,
+            ),
+            height=intrinsics.height,
+            width=intrinsics.width,
+            distortion_model=model,
+            d=coefficients,
+            k=intrinsics.k(),
+            r=NO_ROTATION,
+            p=intrinsics.p(),
+        )
+    )
+
+
+# --- reading (the way back to Drake) ------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False, slots=True)
+class StampedImage:
+    """A ROS image: its header's frame and stamp (microseconds), and the image."""
+
+    frame_id: str
+    time_us: int
+    image: Image
+
+
+def image_from_cdr(data: bytes | memoryview) -> StampedImage:
+    """`sensor_msgs/Image` CDR as an image named after its layout (a view of `data`: strided
+    rows, either byte order).
+
+    Raises `DecodeError` naming the field for bytes that are not an Image, an encoding with no
+    Drake pixel format, a step shorter than a row, or data that is not step x height bytes.
+    """
+    reader = CdrReader(data, IMAGE)
+    time_us, frame_id = reader.header()
+    height = reader.scalar("I", "height")
+    width = reader.scalar("I", "width")
+    at = reader.offset
+    name_of_encoding = reader.string("encoding")
+    if name_of_encoding not in LAYOUTS:
+        known = ", ".join(LAYOUTS)
+        raise DecodeError(
+            IMAGE, "encoding", at, f"{name_of_encoding!r} has no Drake pixel format (known: {known})"
+        )
+    layout, dtype = LAYOUTS[name_of_encoding]
+    big_endian = reader.scalar("B", "is_bigendian") != 0
+    step = reader.scalar("I", "step")
+    at = reader.offset
+    rows = reader.octets("data")
+    pixel_size = layout.channels * dtype.itemsize
+    if step < width * pixel_size:
+        raise DecodeError(
+            IMAGE, "step", at - 4, f"step {step} is shorter than a row ({width} x {pixel_size} bytes)"
+        )
+    if len(rows) != step * height:
+        raise DecodeError(IMAGE, "data", at, f"{len(rows)} bytes are not step {step} x height {height}")
+    channel = dtype.newbyteorder(">" if big_endian else "<")
+    strides = (step, pixel_size, dtype.itemsize)
+    pixels: Pixels = np.ndarray((height, width, layout.channels), channel, rows, 0, strides)
+    return StampedImage(frame_id, time_us, Image(layout.value, time_us, layout, pixels))

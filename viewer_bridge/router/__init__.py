@@ -1,0 +1,217 @@
+"""The router: runs each configured route's translator between transports.
+
+The data path of one message:
+
+    transport thread                     route worker thread
+    ----------------                     -------------------
+    Received --offer--> Mailbox ------>  lane (per stream) -> observe -> [lazy?] -> translate
+    (one per message,   (per route,                                 -> publisher per output
+     shared by routes)   bounded)
+
+`Router` (here) makes the transports a config names, a `RouteRunner` per route
+(`viewer_bridge.router.runner`: lanes, lazy routes, its worker) and reports their stats
+(`viewer_bridge.router.stats`); how a message waits for a worker, or is translated at once on the
+transport's thread, is `viewer_bridge.router.flow`. The router knows transports and translators only
+through their interfaces (`viewer_bridge.transports.base.Transport`, `viewer_bridge.translators.base.Translator`)
+and their registries: no transport or format is named here.
+
+Offline, nothing runs on threads: `Router.feed` hands one message to every matching route of a
+source and translates and publishes it at once, on the caller's thread (`convert` feeds a log
+this way to routes that end in an MCAP file).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from viewer_bridge.config import BridgeConfig, Route
+from viewer_bridge.router.flow import InlineBudget
+from viewer_bridge.router.runner import PublisherFor, RouteRunner
+from viewer_bridge.status import LogLines, StatusView
+from viewer_bridge.translators import TRANSLATORS, LoadCache, Output, Translator
+from viewer_bridge.transports import TRANSPORTS
+from viewer_bridge.transports.base import Publisher, Qos, Received, Shared, Transport
+
+log = logging.getLogger("viewer_bridge")
+
+
+def output_qos(route: Route, latched_by_default: bool) -> Qos:
+    """A route's QoS for one output or its subscription: durability is the config's, else the translator's."""
+    durability = route.qos.durability
+    latched = latched_by_default if durability is None else durability == "transient_local"
+    return Qos(route.qos.depth, route.qos.reliability == "reliable", latched)
+
+
+class Router:
+    """Every route of a config, the transports they need, and the stats."""
+
+    def __init__(
+        self,
+        config: BridgeConfig,
+        stats_json: str | Path | None = None,
+        stats_period: float = 5.0,
+        view: StatusView | None = None,
+    ) -> None:
+        self.config = config
+        self.loads = LoadCache(config.load_cache)
+        self.stats_json = Path(stats_json) if stats_json else None
+        self.stats_period = stats_period
+        self.view = view or LogLines()
+        self.shared = Shared()  # what the transports share: one Foxglove context, the message time
+        self.transports: dict[str, Transport] = {}
+        self.routes: list[RouteRunner] = []
+        self._sourced: dict[str, list[RouteRunner]] = {}  # by source transport, for `feed`
+        self._inline = InlineBudget()
+        self._stop = threading.Event()
+        self._started = False
+        try:
+            for name in config.transports():
+                self.transports[name] = TRANSPORTS.get(name).create(config.settings(name), self.shared)
+            for route in config.routes:
+                runner = self._runner(route)
+                self.routes.append(runner)
+                self._sourced.setdefault(route.source.transport, []).append(runner)
+        except BaseException:
+            self._close_transports()
+            raise
+
+    def _runner(self, route: Route) -> RouteRunner:
+        source = self.transports[route.source.transport]
+        translator_class = TRANSLATORS.get(route.translator)
+        options = route.translator_options()
+        reply = self._replier(route) if translator_class.replies is not None else None
+
+        def make_translator() -> Translator:
+            translator = translator_class(options, self.loads)
+            if reply is not None:
+                translator.reply = reply
+            return translator
+
+        runner = RouteRunner(
+            route, make_translator, self._publisher_factory(route), self._inline, self.shared.message_time
+        )
+        translator = runner.prototype
+        assert translator is not None
+        # Before anything runs, each transport checks it has every type the route uses: a missing
+        # interface is one clear line at start, not an error per message.
+        source.require(translator.reads[:1] + ((translator.replies,) if translator.replies else ()))
+        self.transports[route.destination.transport].require(output.type for output in translator.outputs)
+        source.subscribe(route.source.name, translator.reads[0], output_qos(route, False), runner.offer)
+        return runner
+
+    def _publisher_factory(self, route: Route) -> PublisherFor:
+        transport = self.transports[route.destination.transport]
+
+        def make(name: str, output: Output) -> Publisher:
+            return transport.publisher(name, output.type, output_qos(route, output.latched))
+
+        return make
+
+    def _replier(self, route: Route) -> Callable[[str, bytes], None]:
+        """Publishing back on the route's source transport, a publisher per channel."""
+        transport = self.transports[route.source.transport]
+        message_type = TRANSLATORS.get(route.translator).replies
+        assert message_type is not None
+        publishers: dict[str, Publisher] = {}
+
+        def reply(channel: str, data: bytes) -> None:
+            publisher = publishers.get(channel)
+            if publisher is None:
+                publisher = publishers[channel] = transport.publisher(channel, message_type, Qos())
+            publisher.publish(data)
+
+        return reply
+
+    def start(self) -> None:
+        """Start the workers and the transports (`run` does it unless it was done already)."""
+        if self._started:
+            return
+        self._started = True
+        for runner in self.routes:
+            runner.start()
+        for transport in self.transports.values():
+            transport.start()
+        where = ", ".join(transport.describe() for transport in self.transports.values())
+        log.info("viewer-bridge: %d routes running (%s)", len(self.routes), where)
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def feed(self, transport: str, received: Received) -> None:
+        """Offline, instead of `start`: `received` as if the `transport` had received it, translated
+        and published at once, on this thread, by every route whose source is that transport and
+        matches it (in the config's order; nothing is queued, dropped or rate-limited)."""
+        for runner in self._sourced.get(transport, ()):
+            runner.feed(received)
+
+    def run(self, duration: float | None = None) -> None:
+        """Serve until `stop()` (a signal handler calls it), `duration` ends, or a finite source ends."""
+        self.start()
+        deadline = None if duration is None else time.monotonic() + duration
+        next_report = time.monotonic() + self.stats_period
+        try:
+            while not self._ending(deadline):
+                remaining = None if deadline is None else deadline - time.monotonic()
+                self._stop.wait(min(0.1, remaining) if remaining is not None else 0.1)
+                # The last report is close()'s: none just before it, so it is printed once.
+                if time.monotonic() >= next_report and not self._ending(deadline):
+                    next_report += self.stats_period
+                    self.report()
+        finally:
+            self.close()
+
+    def _ending(self, deadline: float | None) -> bool:
+        """Whether to stop: asked to, the duration is over, or a finite source ended (said once)."""
+        if self._stop.is_set() or (deadline is not None and time.monotonic() >= deadline):
+            return True
+        ended = self._source_ended()
+        if ended is not None and self._idle():
+            log.info("viewer-bridge: %s has ended: stopping", ended)
+            self._stop.set()
+            return True
+        return False
+
+    def _source_ended(self) -> str | None:
+        """The transport (described) whose finite source, a replayed log, has ended, or None."""
+        ended = (transport.describe() for transport in self.transports.values() if transport.finished())
+        return next(ended, None)
+
+    def _idle(self) -> bool:
+        return all(len(runner.mailbox) == 0 for runner in self.routes)
+
+    def close(self) -> None:
+        """Stop the workers, write the last stats, close the transports."""
+        for runner in self.routes:
+            runner.stop()
+        for runner in self.routes:
+            runner.join(timeout=2)
+        self.report()
+        self.view.close()
+        self._close_transports()
+
+    def _close_transports(self) -> None:
+        for transport in self.transports.values():
+            transport.close()
+
+    def snapshot(self) -> dict[str, Any]:
+        """Per route stats; transports' own error counts under `transports`."""
+        snapshot: dict[str, Any] = {runner.route.name: runner.snapshot() for runner in self.routes}
+        errors = {name: dict(t.errors()) for name, t in self.transports.items() if t.errors()}
+        if errors:
+            snapshot["transports"] = {name: {"errors": counts} for name, counts in errors.items()}
+        return snapshot
+
+    def report(self) -> None:
+        """The routes' stats to the status view, and to the JSON file when asked for."""
+        snapshot = self.snapshot()
+        self.view.show(snapshot)
+        if self.stats_json is not None:
+            temporary = self.stats_json.with_suffix(".tmp")
+            temporary.write_text(json.dumps(snapshot, indent=2))
+            temporary.replace(self.stats_json)

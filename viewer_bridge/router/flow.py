@@ -1,0 +1,111 @@
+"""How a message waits between a transport's thread and a route's worker, and when it does not.
+
+Each transport delivers on a thread of its own. A route that is idle translates the message
+right there, on the transport's thread (`InlineBudget`: no wake-up of another thread, no GIL
+hand-off), as long as that thread is not too busy; otherwise the message goes to the route's
+worker thread through a `Mailbox`, bounded: with the `latest` policy it keeps the newest message
+per channel (a slow consumer gets the newest draw, never a backlog; a draw never displaces a
+load, which is on another channel), with `all` a FIFO of `qos.depth` that drops its oldest.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import threading
+import time
+from collections import OrderedDict, deque
+from dataclasses import dataclass
+
+from viewer_bridge.transports.base import Received
+
+
+@dataclass(slots=True)
+class Message:
+    """A received message as one route saw it: with the match of the route's source pattern."""
+
+    received: Received
+    match: re.Match[str]
+
+    @property
+    def channel(self) -> str:
+        return self.received.channel
+
+
+class Mailbox:
+    """Messages between a transport thread and a route's worker; never grows without bound."""
+
+    def __init__(self, policy: str, depth: int, rate_limited: bool = False) -> None:
+        self.keep_latest = policy == "latest"
+        self._latest: OrderedDict[str, Message] = OrderedDict()
+        self._fifo: deque[Message] = deque()
+        self._depth = depth
+        self._ready = threading.Condition()
+        self.dropped = 0
+        # With max_hz, a message superseded while the worker waits out the rate is skipped by
+        # design: counted apart from drops (which say the bridge could not keep up).
+        self._rate_limited = rate_limited
+        self.rate_skipped = 0
+
+    def put(self, message: Message) -> None:
+        with self._ready:
+            if self.keep_latest:
+                if self._latest.pop(message.channel, None) is not None:
+                    # superseded before it was translated
+                    if self._rate_limited:
+                        self.rate_skipped += 1
+                    else:
+                        self.dropped += 1
+                self._latest[message.channel] = message
+            else:
+                if len(self._fifo) >= self._depth:
+                    self._fifo.popleft()
+                    self.dropped += 1
+                self._fifo.append(message)
+            self._ready.notify()
+
+    def wait(self, timeout: float) -> bool:
+        """Whether a message is waiting, within `timeout` seconds (without taking it)."""
+        with self._ready:
+            return bool(self._latest or self._fifo or self._ready.wait_for(self.__len__, timeout))
+
+    def take(self) -> Message | None:
+        """The next message, or None when there is none (never waits)."""
+        with self._ready:
+            if self._latest:
+                return self._latest.popitem(last=False)[1]
+            return self._fifo.popleft() if self._fifo else None
+
+    def __len__(self) -> int:
+        return len(self._latest) + len(self._fifo)
+
+
+class InlineBudget:
+    """Whether a transport's thread may translate a message itself instead of waking a worker.
+
+    Handing a message to a route's worker costs a wake-up and a GIL hand-off between two threads
+    per message, which on a loaded core costs more than a quick translation. So the thread that
+    received a message translates it at once when the route is idle, as long as that thread has
+    spent less than `share` of its recent time (decayed over `window_s`) translating inline.
+    Past that, the workers take over: the mailbox's policy (the newest wins) applies again instead
+    of a backlog building up in the transport's receive buffers.
+    """
+
+    def __init__(self, share: float = 0.5, window_s: float = 0.2) -> None:
+        self._share_s = share * window_s
+        self._window_s = window_s
+        self._threads = threading.local()  # each receiving thread's own decayed busy time
+
+    def _busy(self, now: float) -> float:
+        state = self._threads
+        busy: float = getattr(state, "busy", 0.0)
+        if busy:
+            busy *= math.exp((getattr(state, "at", now) - now) / self._window_s)
+        return busy
+
+    def allows(self) -> bool:
+        return self._busy(time.perf_counter()) < self._share_s
+
+    def spent(self, started: float, ended: float) -> None:
+        self._threads.busy = self._busy(ended) + (ended - started)
+        self._threads.at = ended

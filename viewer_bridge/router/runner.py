@@ -1,0 +1,252 @@
+"""One route at work: `RouteRunner` takes the messages its source matches, runs its translator
+per stream and publishes, on the transport's thread or on its own worker (`viewer_bridge.router.flow`).
+
+A route has one translator per stream (a "lane"): per set of groups its source regex captures,
+so the illustration and proximity streams a route matches never share a translator's state,
+even when they publish on one topic (`/tf`). A lazy route that skipped messages while nobody
+listened keeps the newest per channel and translates them the moment a subscriber appears, so
+the subscriber gets the model and the latest poses at once, not at the next draw. Every drop,
+error and crash is counted per route and kind (`viewer_bridge.router.stats`); a translator that raises
+skips that message only.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+import threading
+import time
+import traceback
+from collections import Counter
+from collections.abc import Callable
+from typing import Any
+
+from viewer_bridge.config import Route, destination_name
+from viewer_bridge.errors import BridgeError
+from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
+from viewer_bridge.router.stats import RouteStats
+from viewer_bridge.skipped import collecting
+from viewer_bridge.translators import Output, Translator
+from viewer_bridge.transports.base import MessageTime, Publisher, Received
+
+log = logging.getLogger("viewer_bridge")
+
+PublisherFor = Callable[[str, Output], Publisher]  # (full name, output) -> a publisher
+_LISTENERS_CHECK_S = 0.25  # how often a lazy route asks its publishers whether anyone listens
+
+
+class _Lane:
+    """One stream of a route: its translator, the names it publishes on, what it skipped."""
+
+    def __init__(
+        self, name: str, translator: Translator, publisher: Callable[[str, Output], Publisher]
+    ) -> None:
+        self.name = name
+        self.translator = translator
+        self._publisher = publisher
+        self.skipped: dict[str, Message] = {}  # newest per channel, while nobody listened (lazy)
+        self.listened_now = True
+        self._checked_at = float("-inf")
+
+    def publisher(self, index: int) -> Publisher:
+        output = self.translator.outputs[index]
+        return self._publisher(self.name + output.suffix, output)
+
+    def listened(self) -> bool:
+        """Whether any output has a subscriber, or its transport cannot tell (then: translate)."""
+        now = time.monotonic()
+        if now - self._checked_at >= _LISTENERS_CHECK_S:
+            self._checked_at = now
+            counts = [
+                self.publisher(index).subscriber_count() for index in range(len(self.translator.outputs))
+            ]
+            self.listened_now = any(count is None or count > 0 for count in counts)
+        return self.listened_now
+
+    def skip(self, message: Message) -> None:
+        self.skipped.pop(message.channel, None)  # re-inserted: the dict keeps arrival order
+        self.skipped[message.channel] = message
+
+
+class RouteRunner:
+    """One route: its mailbox, its lanes (a translator per stream), its publishers, its worker."""
+
+    def __init__(
+        self,
+        route: Route,
+        make_translator: Callable[[], Translator],
+        publisher_for: PublisherFor,
+        inline: InlineBudget | None = None,
+        message_time: MessageTime | None = None,
+    ) -> None:
+        self.route = route
+        self.pattern = re.compile(route.source.name)
+        self.mailbox = Mailbox(route.rate.policy, route.qos.depth, rate_limited=bool(route.rate.max_hz))
+        self.stats = RouteStats()
+        # A rate-limited route waits between messages: only its worker can do that.
+        self._inline = None if route.rate.max_hz else inline
+        self._turn = threading.Lock()  # held by whichever thread translates for this route
+        self._make_translator = make_translator
+        self._publisher_for = publisher_for
+        self._message_time = MessageTime() if message_time is None else message_time
+        self.prototype: Translator | None = make_translator()  # made now: errors show at start
+        self._lanes: dict[tuple[str | None, ...], _Lane] = {}  # by the source's captured groups
+        self._publishers: dict[str, Publisher] = {}  # by full name: lanes may share a topic
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"route {route.name}", daemon=True)
+        self._logged: Counter[str] = Counter()
+
+    def offer(self, received: Received) -> None:
+        """Called on the transport's thread: keep the message if this route's source matches."""
+        match = self.pattern.fullmatch(received.channel)
+        if match is not None:
+            self.stats.messages_in += 1
+            self.stats.bytes_in += len(received.data)
+            message = Message(received, match)
+            if not self._translated_inline(message):
+                self.mailbox.put(message)
+
+    def feed(self, received: Received) -> None:
+        """Offline (no worker running): translate and publish at once, on the caller's thread, if
+        this route's source matches; no mailbox and no rate limit, so every message is translated."""
+        match = self.pattern.fullmatch(received.channel)
+        if match is not None:
+            self.stats.messages_in += 1
+            self.stats.bytes_in += len(received.data)
+            self.handle(Message(received, match))
+
+    def _translated_inline(self, message: Message) -> bool:
+        """Translate on the caller's thread when the route is idle and the budget allows."""
+        inline = self._inline
+        if inline is None or len(self.mailbox) or not inline.allows() or not self._turn.acquire(False):
+            return False
+        started = time.perf_counter()
+        try:
+            self.handle(message)
+        finally:
+            self._turn.release()
+            inline.spent(started, time.perf_counter())
+        return True
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def join(self, timeout: float) -> None:
+        if self._thread.is_alive():
+            self._thread.join(timeout)
+
+    def _run(self) -> None:
+        period = 1.0 / self.route.rate.max_hz if self.route.rate.max_hz else 0.0
+        next_due = 0.0
+        while not self._stop.is_set():
+            if period:  # wait out the rate limit; what arrives meanwhile is conflated
+                delay = next_due - time.monotonic()
+                if delay > 0 and self._stop.wait(delay):
+                    break
+            if not self.mailbox.wait(timeout=0.1):
+                with self._turn:
+                    self.catch_up()
+                continue
+            # Taken under the turn: a message translated inline meanwhile is never overtaken.
+            with self._turn:
+                message = self.mailbox.take()
+                if message is not None:
+                    next_due = time.monotonic() + period
+                    self.handle(message)
+
+    def catch_up(self) -> None:
+        """A lazy route's lanes that skipped messages and now have a subscriber translate them."""
+        for lane in list(self._lanes.values()):
+            if lane.skipped and lane.listened():
+                self._replay(lane)
+
+    def _replay(self, lane: _Lane) -> None:
+        skipped, lane.skipped = lane.skipped, {}
+        for message in skipped.values():
+            # Kept while nobody listened: how long it waited is no latency of the bridge's.
+            self._translate(lane, message, latency=False)
+
+    def _publisher(self, name: str, output: Output) -> Publisher:
+        publisher = self._publishers.get(name)
+        if publisher is None:
+            publisher = self._publishers[name] = self._publisher_for(name, output)
+        return publisher
+
+    def _lane(self, message: Message) -> _Lane:
+        key = message.match.groups()
+        lane = self._lanes.get(key)
+        if lane is None:
+            translator, self.prototype = self.prototype or self._make_translator(), None
+            name = destination_name(self.route.destination.name, message.match)
+            lane = self._lanes[key] = _Lane(name, translator, self._publisher)
+        return lane
+
+    def handle(self, message: Message) -> None:
+        """Translate and publish one message; errors are counted and reported, never raised."""
+        try:
+            lane = self._lane(message)
+            lane.translator.observe(message.received)
+            if self.route.lazy:
+                if not lane.listened():
+                    lane.skip(message)
+                    self.stats.idle_skipped += 1
+                    return
+                if lane.skipped:  # a subscriber just appeared: what came before goes first
+                    lane.skipped.pop(message.channel, None)
+                    self._replay(lane)
+        except Exception as error:  # a bug in a translator's bookkeeping or a transport
+            self._error(f"crash:{type(error).__name__}", f"{message.channel}: {traceback.format_exc()}")
+            return
+        self._translate(lane, message)
+
+    def _translate(self, lane: _Lane, message: Message, latency: bool = True) -> None:
+        started = time.perf_counter()
+        try:
+            with collecting() as skipped:
+                outputs = lane.translator.translate(message.received)
+        except BridgeError as error:
+            self._error(type(error).__name__, f"{message.channel}: {error}")
+            return
+        except Exception as error:  # a bug in a translator: report it, keep serving
+            self._error(f"crash:{type(error).__name__}", f"{message.channel}: {traceback.format_exc()}")
+            return
+        self.stats.translate_ms.append((time.perf_counter() - started) * 1e3)
+        for part in skipped:  # the rest of the message is translated
+            if isinstance(part, BridgeError):  # a part that failed (one image of an array): an error
+                self._error(type(part).__name__, f"{message.channel}: {part}")
+            else:  # a geometry a target cannot write: a warning
+                self._count(self.stats.warnings, "skipped_geometry", f"{message.channel}: {part}")
+        self._message_time.received_us = message.received.received_us  # what a file stamps its outputs with
+        for index, payload in outputs:
+            try:
+                lane.publisher(index).publish(payload)
+            except Exception as error:  # the transport refused: count it, go on with the rest
+                self._error(f"publish:{type(error).__name__}", f"{lane.name}: {error}")
+                continue
+            self.stats.messages_out += 1
+            self.stats.bytes_out += len(payload)
+        if outputs and latency:
+            self.stats.latency_ms.append((time.time_ns() // 1000 - message.received.received_us) / 1e3)
+
+    def _error(self, kind: str, text: str) -> None:
+        self._count(self.stats.errors, kind, text)
+
+    def _count(self, counts: Counter[str], kind: str, text: str) -> None:
+        counts[kind] += 1
+        self._logged[kind] += 1
+        count = self._logged[kind]
+        if count <= 5 or count % 1000 == 0:  # the first few, then a reminder: never a flood
+            log.warning("route %s: %s (%s #%d)", self.route.name, text.rstrip(), kind, count)
+
+    def state(self) -> str:
+        if self.route.lazy and self._lanes and not any(lane.listened_now for lane in self._lanes.values()):
+            return "idle: no subscriber"
+        return "active"
+
+    def snapshot(self) -> dict[str, Any]:
+        return self.stats.snapshot(
+            self.mailbox.dropped, len(self.mailbox), self.state(), self.mailbox.rate_skipped
+        )

@@ -1,0 +1,50 @@
+"""What a route counts: messages and bytes in and out, errors and warnings by kind, and the
+translate time and latency of its recent messages (as percentiles in a snapshot)."""
+
+from __future__ import annotations
+
+from collections import Counter, deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+_SAMPLES = 4096  # latency and translate-time samples kept per route (a ring)
+
+
+@dataclass
+class RouteStats:
+    messages_in: int = 0
+    messages_out: int = 0
+    bytes_in: int = 0
+    bytes_out: int = 0
+    idle_skipped: int = 0  # messages a lazy route did not translate: nobody was listening
+    errors: Counter[str] = field(default_factory=Counter)
+    warnings: Counter[str] = field(default_factory=Counter)  # e.g. a geometry skipped (viewer_bridge.skipped)
+    translate_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
+    latency_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
+
+    def snapshot(self, dropped: int, queued: int, state: str, max_hz_skipped: int = 0) -> dict[str, Any]:
+        return {
+            "state": state,
+            "messages_in": self.messages_in,
+            "messages_out": self.messages_out,
+            "bytes_in": self.bytes_in,
+            "bytes_out": self.bytes_out,
+            "idle_skipped": self.idle_skipped,
+            "errors": dict(self.errors),
+            "warnings": dict(self.warnings),
+            "dropped": dropped,
+            "max_hz_skipped": max_hz_skipped,  # superseded while a rate-limited route waited
+            "queued": queued,
+            "translate_ms": _percentiles(self.translate_ms),
+            "latency_ms": _percentiles(self.latency_ms),
+        }
+
+
+def _percentiles(samples: deque[float]) -> dict[str, float | None]:
+    if not samples:
+        return {"p50": None, "p99": None, "max": None}
+    values = np.fromiter(samples, dtype=np.float64)
+    p50, p99 = np.percentile(values, [50, 99])
+    return {"p50": round(float(p50), 4), "p99": round(float(p99), 4), "max": round(float(values.max()), 4)}

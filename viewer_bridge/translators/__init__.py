@@ -1,0 +1,63 @@
+"""The router's translators: one class per (source message, target message) pair.
+
+Grouped by family: `drake_ros` (Drake's LCM scene <-> ROS 2), `drake_tf` (a TF tree and
+markers in link frames, the way ROS consumes motion), `drake_foxglove` (Foxglove's SceneUpdate
+and FrameTransforms), `drake_point_cloud` (point clouds both ways, DRAKE_DRAW_FRAMES as
+triads), `drake_ign` (<-> ign/gz protobuf), `drake_contact` (contact results to all three),
+`drake_image` (camera images <-> ROS 2, and to Foxglove), `tree_viewer` (Director's remote tree
+viewer, both sides), `relay` (raw LCM onto another transport, unchanged). Families share only these: `base`
+(what a translator is), `types` (the message types, each named once), `options` (options to
+inherit: markers, frames, ign names), `drake_stream` (the decode-once draw, and
+`DrakeTranslator`, the base that follows Drake's load/draw stream) and `load_cache` (the last
+load per channel, kept across restarts); no family imports another.
+`TRANSLATORS` is the registry a route's `translator:` word is looked up in; a plugin adds one
+with an entry point in the group `viewer_bridge.translators` naming a `Translator` subclass.
+"""
+
+from __future__ import annotations
+
+from viewer_bridge.registry import Registry
+from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
+from viewer_bridge.translators.load_cache import LoadCache
+
+_BUILTINS = {
+    "drake_to_marker_array": "drake_ros:DrakeToMarkerArray",
+    "drake_to_pose_array": "drake_ros:DrakeToPoseArray",
+    "drake_to_shapes": "drake_ros:DrakeToShapes",
+    "drake_to_clock": "drake_ros:DrakeToClock",
+    "drake_link_to_marker_array": "drake_ros:DrakeLinkToMarkerArray",
+    "ros_pose_array_to_drake_draw": "drake_ros:RosPoseArrayToDrakeDraw",
+    "lcm_bytes_to_ros": "drake_ros:LcmBytesToRos",
+    "lcm_relay": "relay:LcmRelay",
+    "drake_to_tf": "drake_tf:DrakeToTf",
+    "drake_to_link_markers": "drake_tf:DrakeToLinkMarkers",
+    "drake_to_scene_update": "drake_foxglove:DrakeToSceneUpdate",
+    "drake_to_frame_transforms": "drake_foxglove:DrakeToFrameTransforms",
+    "tree_viewer_server": "tree_viewer:TreeViewerServer",
+    "drake_to_tree_viewer": "tree_viewer:DrakeToTreeViewer",
+    "drake_to_ign_model": "drake_ign:DrakeToIgnModel",
+    "drake_to_ign_model_v": "drake_ign:DrakeToIgnModelV",
+    "drake_to_ign_pose_v": "drake_ign:DrakeToIgnPoseV",
+    "drake_to_ign_poses_stamped": "drake_ign:DrakeToIgnPosesStamped",
+    "ign_pose_v_to_drake_draw": "drake_ign:IgnPoseVToDrakeDraw",
+    "drake_point_cloud_to_ros": "drake_point_cloud:DrakePointCloudToRos",
+    "ros_point_cloud_to_drake": "drake_point_cloud:RosPointCloudToDrake",
+    "drake_point_cloud_to_tree_viewer": "drake_point_cloud:DrakePointCloudToTreeViewer",
+    "drake_draw_frames_to_markers": "drake_point_cloud:DrakeDrawFramesToMarkers",
+    "drake_contacts_to_marker_array": "drake_contact:DrakeContactsToMarkerArray",
+    "drake_contacts_to_wrenches": "drake_contact:DrakeContactsToWrenches",
+    "drake_contacts_to_ign_contacts": "drake_contact:DrakeContactsToIgnContacts",
+    "drake_contacts_to_tree_viewer": "drake_contact:DrakeContactsToTreeViewer",
+    "drake_images_to_ros": "drake_image:DrakeImagesToRos",
+    "drake_images_to_foxglove": "drake_image:DrakeImagesToFoxglove",
+    "ros_image_to_drake": "drake_image:RosImageToDrake",
+}
+
+TRANSLATORS: Registry[Translator] = Registry(
+    "translator",
+    "viewer_bridge.translators",
+    {name: f"viewer_bridge.translators.{target}" for name, target in _BUILTINS.items()},
+    Translator,
+)
+
+__all__ = ["TRANSLATORS", "LoadCache", "Output", "Outputs", "Translator", "TranslatorOptions"]

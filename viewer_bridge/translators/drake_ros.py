@@ -1,0 +1,150 @@
+"""Drake's LCM scene to ROS 2 (and a PoseArray back): one class per message pair."""
+
+from __future__ import annotations
+
+import struct
+from typing import Any
+
+from viewer_bridge.formats import ros
+from viewer_bridge.formats.drake.draw import DrawEncoder
+from viewer_bridge.formats.drake.load import link_from_lcm
+from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, time_parts
+from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_cdr
+from viewer_bridge.formats.ros.poses import PoseArrayEncoder, pose_array_arrays, poses_from_pose_array_cdr
+from viewer_bridge.formats.ros.shapes import shapes_cdr
+from viewer_bridge.lcmcodec import LINK_DATA
+from viewer_bridge.scene import Scene
+from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
+from viewer_bridge.translators.drake_stream import DrakeTranslator, PerLoadTranslator, draw_poses
+from viewer_bridge.translators.options import MarkerOptions
+from viewer_bridge.translators.types import DRAW_TYPE, LINK_DATA_TYPE, LOAD_TYPE, ros_type
+from viewer_bridge.transports.base import LCM, MessageType, Received
+
+
+class DrakeToMarkerArray(DrakeTranslator):
+    """load + draw -> `visualization_msgs/MarkerArray`: the load's array (DELETEALL first), then
+    each draw re-poses the markers (a CDR template, see `MarkerStream`). Latched, so a late
+    RViz gets the last full array."""
+
+    Options = MarkerOptions
+    options: MarkerOptions
+    outputs = (Output("", ros_type(ros.MARKER_ARRAY), latched=True),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.markers: MarkerStream | None = None
+
+    def translate(self, message: Received) -> Outputs:
+        scene, poses = self.drake.read(message)
+        out: Outputs = []
+        if scene is not None:
+            self.markers = MarkerStream(scene, self.options.table_overrides())
+            out.append((0, self.markers.load_cdr))
+        if poses is not None and self.markers is not None:
+            out.append((0, self.markers.update(poses)))
+        return out
+
+
+class PoseArrayOptions(TranslatorOptions):
+    frame_id: str = "world"
+
+
+class DrakeToPoseArray(Translator):
+    """draw -> `geometry_msgs/PoseArray` (in the draw's link order), from the arrays."""
+
+    Options = PoseArrayOptions
+    options: PoseArrayOptions
+    reads = (DRAW_TYPE,)
+    outputs = (Output("", ros_type(ros.POSE_ARRAY)),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.encoder = PoseArrayEncoder(self.options.frame_id)
+
+    def translate(self, message: Received) -> Outputs:
+        return [(0, self.encoder.encode(draw_poses(message)))]  # needs no load
+
+
+class DrakeToClock(Translator):
+    """draw -> `rosgraph_msgs/Clock` with Drake's sim time, for nodes with `use_sim_time`."""
+
+    reads = (DRAW_TYPE,)
+    outputs = (Output("", ros_type("rosgraph_msgs/msg/Clock")),)
+
+    def translate(self, message: Received) -> Outputs:
+        seconds, nanoseconds = time_parts(draw_poses(message).timestamp_ms)
+        return [(0, CDR_LE + CDR_TIME.pack(seconds, nanoseconds))]
+
+
+class DrakeToShapes(PerLoadTranslator):
+    """load -> one shape_msgs message per geometry: SolidPrimitive, Mesh or Plane on
+    `<name>/primitives`, `<name>/meshes`, `<name>/planes`. Latched (give the route a depth as
+    large as the scene's geometry count)."""
+
+    reads = (LOAD_TYPE,)
+    outputs = (
+        Output("/primitives", ros_type(ros.SOLID_PRIMITIVE), latched=True),
+        Output("/meshes", ros_type(ros.MESH), latched=True),
+        Output("/planes", ros_type(ros.PLANE), latched=True),
+    )
+    _INDEX = {ros.SOLID_PRIMITIVE: 0, ros.MESH: 1, ros.PLANE: 2}
+
+    def on_scene(self, scene: Scene, channel: str) -> Outputs:
+        return [(self._INDEX[typename], data) for typename, data in shapes_cdr(scene)]
+
+
+class DrakeLinkToMarkerArray(Translator):
+    """`lcmt_viewer_link_data` (DRAKE_VIEWER_DEFORMABLE: world-frame meshes, every frame) ->
+    MarkerArray, ids stable from frame to frame."""
+
+    Options = MarkerOptions
+    options: MarkerOptions
+    reads = (LINK_DATA_TYPE,)
+    outputs = (Output("", ros_type(ros.MARKER_ARRAY)),)
+
+    def translate(self, message: Received) -> Outputs:
+        link = link_from_lcm(LINK_DATA.decode(message.data))
+        scene = Scene((link,))
+        return [(0, marker_array_cdr(scene, self.options.table_overrides(), delete_all=False))]
+
+
+class PoseArrayToDrawOptions(TranslatorOptions):
+    """PoseArray has no names: they come from `link_names` (else `pose_0`, `pose_1`, ...)."""
+
+    link_names: list[str] | None = None
+    robot_nums: list[int] | None = None
+
+
+class RosPoseArrayToDrakeDraw(Translator):
+    """`geometry_msgs/PoseArray` -> `lcmt_viewer_draw`, names and robot_nums from the options."""
+
+    Options = PoseArrayToDrawOptions
+    options: PoseArrayToDrawOptions
+    reads = (ros_type(ros.POSE_ARRAY),)
+    outputs = (Output("", DRAW_TYPE),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.encoder = DrawEncoder()
+
+    def translate(self, message: Received) -> Outputs:
+        data = message.data
+        count = pose_array_arrays(data)[2].shape[0]
+        names = self.options.link_names or [f"pose_{index}" for index in range(count)]
+        poses = poses_from_pose_array_cdr(data, names, self.options.robot_nums)
+        return [(0, self.encoder.encode(poses))]
+
+
+_BYTES_PREFIX = struct.Struct("<4sIII")  # encapsulation, layout.dim (empty), layout.data_offset, data length
+
+
+class LcmBytesToRos(Translator):
+    """Any LCM message -> its bytes in a `std_msgs/UInt8MultiArray`: no translation at all,
+    the baseline the benchmarks measure the translators against."""
+
+    reads = (MessageType("*", LCM),)
+    outputs = (Output("", ros_type("std_msgs/msg/UInt8MultiArray")),)
+
+    def translate(self, message: Received) -> Outputs:
+        data = message.data
+        return [(0, _BYTES_PREFIX.pack(CDR_LE, 0, 0, len(data)) + data)]

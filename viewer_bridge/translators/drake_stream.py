@@ -1,0 +1,134 @@
+"""Drake's scene as a stream: a load now and then, a draw every frame, shared by every route.
+
+Told apart by the message's fingerprint, not its channel. `LoadCache` (its own module) keeps
+the last load per load channel for every route (and, with a folder, across runs). `draw_poses`
+decodes a draw once however many routes read it. `DrakeStream` is one translator's view: it
+says when there is a scene to (re)publish, taking the load from the cache when the route has
+not seen it (a late start, a lazy route that was idle when the load came).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from typing import Any
+
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.formats.drake.draw import DrawDecoder
+from viewer_bridge.formats.drake.load import decode_load
+from viewer_bridge.lcmcodec import DRAW, LOAD_ROBOT
+from viewer_bridge.scene import LinkPoses, Scene
+from viewer_bridge.translators.base import Outputs, Translator
+from viewer_bridge.translators.load_cache import LoadCache
+from viewer_bridge.translators.types import DRAW_TYPE, LOAD_TYPE
+from viewer_bridge.transports.base import MessageType, Received
+
+_ROLE = re.compile(r"_(ILLUSTRATION|PROXIMITY|PERCEPTION)$")
+
+
+def role_of(channel: str) -> str:
+    """The role suffix of a Drake viewer channel, lower case: `proximity`; "" when it has none."""
+    match = _ROLE.search(channel)
+    return match.group(1).lower() if match else ""
+
+
+def load_channel_for(draw_channel: str) -> str:
+    """`DRAKE_VIEWER_DRAW_PROXIMITY` -> `DRAKE_VIEWER_LOAD_ROBOT_PROXIMITY` (same prefix and suffix)."""
+    return draw_channel.replace("DRAKE_VIEWER_DRAW", "DRAKE_VIEWER_LOAD_ROBOT", 1)
+
+
+class _DrawPoses:
+    """Decodes a received draw; one `DrawDecoder` per channel, so each keeps its name block."""
+
+    def __init__(self) -> None:
+        self._decoders: dict[str, DrawDecoder] = {}
+
+    def __call__(self, message: Received) -> LinkPoses:
+        decoder = self._decoders.get(message.channel)
+        if decoder is None:
+            decoder = self._decoders.setdefault(message.channel, DrawDecoder())
+        return decoder.decode(message.data)
+
+
+_DRAW_POSES = _DrawPoses()
+
+
+def draw_poses(message: Received) -> LinkPoses:
+    """A received `lcmt_viewer_draw` as link poses, decoded once for every route that reads it."""
+    return message.decoded(_DRAW_POSES)
+
+
+def _load_scene(message: Received) -> Scene:
+    return decode_load(message.data)
+
+
+def is_load(message: Received) -> bool:
+    return message.data[:8] == LOAD_ROBOT.packed_fingerprint
+
+
+class DrakeStream:
+    """One translator's view of one Drake stream (a load channel and its draw channel)."""
+
+    def __init__(self, loads: LoadCache) -> None:
+        self.loads = loads
+        self.scene: Scene | None = None
+        self._load_bytes = b""
+
+    def observe(self, message: Received) -> None:
+        """Keep every load in the shared cache, whether this route translates it or not."""
+        if is_load(message):
+            self.loads.put(message.channel, message.data)
+
+    def read(self, message: Received) -> tuple[Scene | None, LinkPoses | None]:
+        """(a scene to publish, or None), (the draw's poses, or None), for one load or draw.
+
+        A load identical to the last one is no new scene. A draw for a scene this translator
+        has not published yet (the cache holds a newer load of its channel) brings that scene.
+        """
+        fingerprint = message.data[:8]
+        if fingerprint == LOAD_ROBOT.packed_fingerprint:
+            return self._take(message.data, lambda: message.decoded(_load_scene)), None
+        if fingerprint == DRAW.packed_fingerprint:
+            poses = draw_poses(message)
+            cached = self.loads.get(load_channel_for(message.channel))
+            scene = None
+            if cached is not None and cached is not self._load_bytes:
+                scene = self._take(cached, lambda: decode_load(cached))
+            return scene, poses
+        raise DecodeError(
+            "drake viewer message", "", 0, f"fingerprint {fingerprint.hex()} is not a load or a draw"
+        )
+
+    def _take(self, data: bytes, decode: Callable[[], Scene]) -> Scene | None:
+        if data == self._load_bytes:  # re-sent unchanged (e.g. for late listeners): nothing new
+            self._load_bytes = data  # the same bytes: compare by identity next time
+            return None
+        scene = decode()
+        self.scene, self._load_bytes = scene, data
+        return scene
+
+
+class DrakeTranslator(Translator):
+    """A translator of Drake's scene stream (loads and draws): it owns its `DrakeStream`, which
+    sees every message, translated or not, so that no load is missed while a route idles."""
+
+    reads: tuple[MessageType, ...] = (LOAD_TYPE, DRAW_TYPE)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.drake = DrakeStream(self.loads)
+
+    def observe(self, message: Received) -> None:
+        self.drake.observe(message)
+
+
+class PerLoadTranslator(DrakeTranslator):
+    """A translator that publishes once per scene: each new load, and the cached load when a draw
+    comes for a scene it has not published (a late start, a lazy route that was idle)."""
+
+    def translate(self, message: Received) -> Outputs:
+        scene, _ = self.drake.read(message)
+        return [] if scene is None else self.on_scene(scene, message.channel)
+
+    def on_scene(self, scene: Scene, channel: str) -> Outputs:
+        raise NotImplementedError

@@ -1,0 +1,214 @@
+"""What every transport offers the router: bytes in, bytes out, and nothing of formats.
+
+A transport moves payloads named by a channel or topic. The router knows transports only
+through `Transport`; which one a route uses is a word in the config, looked up in
+`viewer_bridge.transports.TRANSPORTS`. A transport says which message types it can carry
+(`carries`), so a config that routes PoseArray CDR over LCM is refused when it loads.
+
+A message received once is one `Received`, handed to every subscription it matches, so a
+decoded form of it (`Received.decoded`) is computed once however many routes read it.
+
+A router makes its transports with `Transport.create(settings, shared)`: `Shared` holds what the
+transports of one router share (one Foxglove context for the live server and an MCAP file), and
+the receive time of the message being published (`MessageTime`), which a file stamps.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar, Protocol, Self, TypeVar, cast
+
+from pydantic import BaseModel, ConfigDict
+
+# Payload encodings, named as MCAP names message encodings where it has a name for them.
+LCM = "lcm"
+CDR = "cdr"
+PROTOBUF = "protobuf"
+JSON = "json"
+
+
+@dataclass(frozen=True, slots=True)
+class MessageType:
+    """A message type on the wire: its full name and how its bytes are encoded.
+
+    `drake.lcmt_viewer_draw` / lcm, `geometry_msgs/msg/PoseArray` / cdr,
+    `ignition.msgs.Pose_V` / protobuf. The name `*` stands for any type of that encoding.
+    """
+
+    name: str
+    encoding: str
+
+    def __str__(self) -> str:
+        return f"{self.name} ({self.encoding})"
+
+
+Decoded = TypeVar("Decoded")
+
+
+class Received:
+    """One message as a transport received it, shared by every route it is offered to.
+
+    `decoded(decoder)` runs `decoder(self)` the first time and returns the same result after:
+    a draw that the markers and the poses routes both read is decoded once. Routes run on
+    threads of their own; two may race to decode the same message, which costs a second
+    decode and nothing else (decoders are pure, and a dict store is atomic).
+    """
+
+    __slots__ = ("channel", "data", "received_us", "_decoded")
+
+    def __init__(self, channel: str, data: bytes, received_us: int | None = None) -> None:
+        self.channel = channel
+        self.data = data
+        self.received_us = time.time_ns() // 1000 if received_us is None else received_us
+        self._decoded: dict[object, Any] = {}
+
+    def decoded(self, decoder: Callable[[Received], Decoded]) -> Decoded:
+        try:
+            return self._decoded[decoder]  # type: ignore[no-any-return]
+        except KeyError:
+            value = self._decoded[decoder] = decoder(self)
+            return value
+
+
+Deliver = Callable[[Received], None]  # called on the transport's thread: hand over and return
+
+
+class MessageTime(threading.local):
+    """The receive time (microseconds) of the message whose outputs this thread publishes.
+
+    The router sets it before it publishes a translation's outputs, so a transport that stamps
+    what it writes (an MCAP file's log time) gives every output its message's receive time: the
+    log's own time offline, the bus's receive time live. One per router; each thread sees its own.
+    """
+
+    received_us: int = 0
+
+
+Made = TypeVar("Made")
+
+
+class Shared:
+    """What the transports of one router share: the `MessageTime`, and whatever is made once per
+    router on first ask (`get(FoxgloveContext)`: the live server and an MCAP file log to one)."""
+
+    def __init__(self) -> None:
+        self.message_time = MessageTime()
+        self._made: dict[Callable[[], object], object] = {}
+
+    def get(self, make: Callable[[], Made]) -> Made:
+        """This router's one `make()`, made on the first ask."""
+        if make not in self._made:
+            self._made[make] = make()
+        return cast(Made, self._made[make])
+
+
+@dataclass(frozen=True, slots=True)
+class Qos:
+    """What a route asks of a publisher or subscription; transports use what they have of it."""
+
+    depth: int = 10
+    reliable: bool = True
+    latched: bool = False  # late subscribers get the last messages (ROS 2 TRANSIENT_LOCAL)
+
+
+class Publisher(Protocol):
+    """Publishes on one name; says how many subscribers it has, or None when it cannot know."""
+
+    def publish(self, data: bytes) -> None: ...
+
+    def subscriber_count(self) -> int | None: ...
+
+
+class TransportSettings(BaseModel):
+    """Base of a transport's settings: the config section named after the transport."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+class Transport(ABC):
+    """A message bus the router can read from and publish to.
+
+    Subclasses set `Settings` (their config section) and `encodings` (what they carry), and
+    implement the abstract methods. Callbacks run on the transport's own thread(s).
+    """
+
+    Settings: ClassVar[type[TransportSettings]] = TransportSettings
+    encodings: ClassVar[frozenset[str]]
+
+    def __init__(self, settings: TransportSettings) -> None:
+        self.settings = settings
+
+    @classmethod
+    def create(cls, settings: TransportSettings, shared: Shared) -> Self:
+        """How a router makes this transport: from its settings, with what the router's transports
+        share; a transport that uses some of it overrides this (the default takes none of it)."""
+        return cls(settings)
+
+    @classmethod
+    def carries(cls, message_type: MessageType) -> bool:
+        """Whether messages of this type can travel over this transport."""
+        return message_type.encoding in cls.encodings
+
+    @classmethod
+    def check_source(cls, name: str) -> None:
+        """Raise `ValueError` when `name` cannot be subscribed to (checked at config load)."""
+        return None
+
+    @classmethod
+    def check_destination(cls, name: str) -> None:
+        """Raise `ValueError` when `name` cannot be published on (checked at config load, on the
+        destination template filled in with sample groups)."""
+        return None
+
+    def require(self, message_types: Iterable[MessageType]) -> None:
+        """Raise `TransportUnavailable`, saying what to install, for a type this process cannot
+        send or receive here (called once at start for every type the routes use)."""
+        return None
+
+    @abstractmethod
+    def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
+        """Deliver every message whose channel fully matches the regex `pattern`.
+
+        A message that matches several subscriptions is one `Received` handed to each.
+        """
+
+    @abstractmethod
+    def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
+        """A publisher on `name` (made once per name by the router)."""
+
+    def start(self) -> None:
+        """Begin delivering (subscriptions are made before)."""
+        return None
+
+    def describe(self) -> str:
+        """Where it is, for the start-up line."""
+        return type(self).__name__
+
+    def errors(self) -> Mapping[str, int]:
+        """The transport's own error counts (bad frames, refused datagrams), by kind."""
+        return {}
+
+    def finished(self) -> bool:
+        """True once a source that ends (a replayed log) has delivered everything."""
+        return False
+
+    @abstractmethod
+    def close(self) -> None:
+        """Stop delivering and release everything."""
+
+
+class CallPublisher:
+    """A `Publisher` from a function; the count is unknown unless `count` is given."""
+
+    __slots__ = ("publish", "_count")
+
+    def __init__(self, publish: Callable[[bytes], None], count: Callable[[], int] | None = None) -> None:
+        self.publish = publish
+        self._count = count
+
+    def subscriber_count(self) -> int | None:
+        return None if self._count is None else self._count()

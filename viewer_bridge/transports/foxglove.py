@@ -1,0 +1,234 @@
+"""Foxglove's live WebSocket protocol as a transport, through the official foxglove-sdk.
+
+Publish only: each name a route publishes on is a Foxglove channel (protobuf, with the schema of
+its `foxglove.*` type), served to browsers on `host:port` (127.0.0.1:8765 unless configured). A
+Foxglove client that subscribes is counted (so lazy routes wake up), and a latched output's last
+message is logged again when a client subscribes, so a client that connects after the load still
+gets the scene (SceneUpdates are idempotent). Everything about the protocol is the SDK's; unless
+`accept_websocket_v1` is false, a front of ours (viewer_bridge/transports/foxglove_front.py) holds the
+public port so that clients asking for the protocol's older name, `foxglove.websocket.v1`, are
+served as well as those asking for `foxglove.sdk.v1`, the only name the SDK's server accepts.
+
+Where a config also writes an MCAP file of Foxglove messages (viewer_bridge/transports/mcap.py), the
+server and the file log to one `FoxgloveContext`, as in the SDK: a message logged on a channel,
+by a route to either, is written once to each, and a topic is one channel. Route a topic to one
+of them (to both, each message would be written twice: the bridge warns). A latched output's
+message logged again for a late client then reaches the file again too (a SceneUpdate is
+idempotent: the file plays back the same).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Iterable, Mapping
+from urllib.parse import urlencode
+
+import foxglove
+from foxglove.websocket import ChannelView, Client, ServerListener
+from pydantic import Field
+
+from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.formats.foxglove.schema import schema
+from viewer_bridge.transports.base import (
+    PROTOBUF,
+    Deliver,
+    MessageType,
+    Publisher,
+    Qos,
+    Shared,
+    Transport,
+    TransportSettings,
+)
+from viewer_bridge.transports.foxglove_front import SubprotocolFront
+
+
+def require_schemas(message_types: Iterable[MessageType]) -> None:
+    """Raise `TransportUnavailable` for a `foxglove.*` type whose protobuf schema is not installed."""
+    for message_type in message_types:
+        try:
+            schema(message_type.name)
+        except (ImportError, KeyError) as error:
+            raise TransportUnavailable(
+                f"foxglove-schemas-protobuf has no {message_type.name} ({error})"
+            ) from None
+
+
+class FoxgloveContext:
+    """A router's one Foxglove context: its sinks (the live server, an MCAP file) and channels.
+
+    The SDK makes one channel per topic and schema in a context (asked again, it returns the same
+    one) and writes each message logged on it to every sink. `channel` says so when two
+    transports ask for one topic: each message of it would reach every sink twice.
+    """
+
+    def __init__(self) -> None:
+        self.context = foxglove.Context()
+        self._asked_by: dict[str, str] = {}  # topic -> the transport that first asked for it
+        self._lock = threading.Lock()
+
+    def channel(self, topic: str, message_type: MessageType, transport: str) -> foxglove.Channel:
+        """The channel of a `foxglove.*` protobuf type on `topic`, for the `transport` named."""
+        with self._lock:
+            first = self._asked_by.setdefault(topic, transport)
+        if first != transport:
+            log.warning(
+                "%s is routed to both the %s and the %s transport, which log to one Foxglove context: "
+                "each of its messages reaches the server and the file twice (route it to one of them)",
+                topic,
+                first,
+                transport,
+            )
+        return foxglove.Channel(
+            topic,
+            schema=foxglove.Schema(
+                name=message_type.name, encoding="protobuf", data=schema(message_type.name)
+            ),
+            message_encoding="protobuf",
+            context=self.context,
+        )
+
+
+class _WithoutSdkAddress(logging.Filter):
+    """Drops the SDK's own "Started server on HOST:PORT": behind the front that is an internal
+    port no client should use, and the bridge's start-up line names the one to use."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not record.getMessage().startswith("Started server on")
+
+
+logging.getLogger("foxglove.websocket.server").addFilter(_WithoutSdkAddress())  # the SDK's Rust log
+log = logging.getLogger("viewer_bridge")
+
+
+class FoxgloveSettings(TransportSettings):
+    host: str = "127.0.0.1"  # this machine only, unless you mean to serve other hosts
+    port: int = Field(8765, ge=0, le=65535)  # 0: any free port (the start-up line says which)
+    name: str = "viewer-bridge"
+    # Also serve clients that ask for the protocol's older name, foxglove.websocket.v1, through a
+    # relay of ours on the port (it costs every client a loopback hop per message). false: the
+    # SDK's server alone on the port, for foxglove.sdk.v1 clients only.
+    accept_websocket_v1: bool = True
+
+
+class _Channel:
+    """A publisher on one Foxglove channel: its subscribers, and its last message when latched."""
+
+    def __init__(self, channel: foxglove.Channel, latched: bool) -> None:
+        self.channel = channel
+        self.latched = latched
+        self.last: bytes | None = None
+        self.clients: set[int] = set()
+        self._lock = threading.Lock()
+
+    def publish(self, data: bytes) -> None:
+        if self.latched:
+            self.last = data
+        self.channel.log(data)
+
+    def subscriber_count(self) -> int:
+        return len(self.clients)
+
+    def subscribed(self, client: int) -> None:
+        with self._lock:
+            self.clients.add(client)
+        if self.last is not None:  # the late client gets the current state; others see it again
+            self.channel.log(self.last)
+
+    def unsubscribed(self, client: int) -> None:
+        with self._lock:
+            self.clients.discard(client)
+
+
+class _Listener(ServerListener):
+    """Clients subscribing to and unsubscribing from channels (the SDK calls it on its threads)."""
+
+    def __init__(self, channels: dict[int, _Channel]) -> None:
+        self._channels = channels
+
+    def on_subscribe(self, client: Client, channel: ChannelView) -> None:
+        found = self._channels.get(channel.id)
+        if found is not None:
+            found.subscribed(client.id)
+
+    def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
+        found = self._channels.get(channel.id)
+        if found is not None:
+            found.unsubscribed(client.id)
+
+
+class FoxgloveTransport(Transport):
+    """A Foxglove WebSocket server on a context of its own, or of its router's (`create`)."""
+
+    Settings = FoxgloveSettings
+    encodings = frozenset({PROTOBUF})
+    settings: FoxgloveSettings
+
+    def __init__(self, settings: FoxgloveSettings, context: FoxgloveContext | None = None) -> None:
+        super().__init__(settings)
+        self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
+        self.context = FoxgloveContext() if context is None else context
+        relayed = settings.accept_websocket_v1  # then the front holds the public port
+        try:
+            self.server = foxglove.start_server(
+                name=settings.name,
+                host="127.0.0.1" if relayed else settings.host,
+                port=0 if relayed else settings.port,
+                context=self.context.context,
+                server_listener=_Listener(self._channels),
+            )
+        except Exception as error:  # the SDK raises its own error types, e.g. for a port in use
+            raise self._cannot_listen(error) from None
+        self.front: SubprotocolFront | None = None
+        if relayed:
+            try:
+                self.front = SubprotocolFront(settings.host, settings.port, self.server.port)
+            except OSError as error:  # a port in use, an address not of this machine
+                self.server.stop()
+                raise self._cannot_listen(error) from None
+
+    @classmethod
+    def create(cls, settings: TransportSettings, shared: Shared) -> FoxgloveTransport:
+        assert isinstance(settings, FoxgloveSettings)
+        return cls(settings, shared.get(FoxgloveContext))  # an MCAP file of this router logs to it too
+
+    def _cannot_listen(self, error: Exception) -> TransportUnavailable:
+        where = f"{self.settings.host}:{self.settings.port}"
+        return TransportUnavailable(f"the foxglove server cannot listen on {where} (foxglove.port): {error}")
+
+    @property
+    def port(self) -> int:
+        """The port clients connect to."""
+        return self.server.port if self.front is None else self.front.port
+
+    @classmethod
+    def carries(cls, message_type: MessageType) -> bool:
+        return super().carries(message_type) and message_type.name.startswith("foxglove.")
+
+    @classmethod
+    def check_source(cls, name: str) -> None:
+        raise ValueError("the foxglove transport only publishes; it cannot be a route's source")
+
+    def require(self, message_types: Iterable[MessageType]) -> None:
+        require_schemas(message_types)
+
+    def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
+        raise TransportUnavailable("the foxglove transport only publishes")
+
+    def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
+        channel = self.context.channel(name, message_type, "foxglove")
+        publisher = self._channels[channel.id()] = _Channel(channel, qos.latched)
+        return publisher
+
+    def describe(self) -> str:
+        url = f"ws://{self.settings.host}:{self.port}"
+        app = "https://app.foxglove.dev?" + urlencode({"ds": "foxglove-websocket", "ds.url": url})
+        return f"Foxglove WebSocket server {url} (open {app})"
+
+    def errors(self) -> Mapping[str, int]:
+        return {} if self.front is None else self.front.errors()
+
+    def close(self) -> None:
+        if self.front is not None:
+            self.front.close()
+        self.server.stop()

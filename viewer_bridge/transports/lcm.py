@@ -1,0 +1,347 @@
+"""LCM as a transport: live buses (any LCM URL) and log files. Bytes in, bytes out.
+
+Nothing here knows a message format; callers get `(channel, data, timestamp)` events.
+`LcmTransport` is the router's view of it: a bus or a replayed log behind the `Transport`
+interface, with one LCM subscription for every route (LCM channels carry any type).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import logging
+import os
+import re
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import lcm
+
+from viewer_bridge.errors import LogError
+from viewer_bridge.transports import base
+
+_log = logging.getLogger("viewer_bridge")
+DEFAULT_URL = "udpm://239.255.76.67:7667?ttl=0"  # LCM's default; ttl=0 never leaves the host
+
+
+@dataclass(frozen=True, slots=True)
+class LcmEvent:
+    channel: str
+    data: bytes
+    timestamp_us: int  # the log's receive time, or the local receive time when live
+
+
+_SYNC = bytes.fromhex("eda1da01")  # every LCM log event starts with this word
+
+
+def read_log(path: str | Path, channel: str = ".*") -> Iterator[LcmEvent]:
+    """Every event of an LCM log file whose channel fully matches the regex `channel`.
+
+    Raises `LogError` for a file that does not start like an LCM log. A log that ends in a partial
+    event (a logger killed mid-write) yields every whole event and warns with the byte offset.
+    """
+    pattern = re.compile(channel)
+    with open(path, "rb") as file:
+        start = file.read(len(_SYNC))
+    if start and start != _SYNC:
+        raise LogError(
+            f"{path} is not an LCM log: it starts with {start.hex()}, not the event sync word {_SYNC.hex()}"
+        )
+    log = lcm.EventLog(str(path), "r")
+    whole = 0  # where the last whole event ends
+    try:
+        while (event := log.read_next_event()) is not None:
+            whole = log.tell()
+            if pattern.fullmatch(event.channel):
+                yield LcmEvent(event.channel, bytes(event.data), event.timestamp)
+        if whole < log.size():
+            _log.warning(
+                "%s ends in a partial event: the %d bytes after byte %d are not a whole event and were skipped",
+                path,
+                log.size() - whole,
+                whole,
+            )
+    finally:
+        log.close()
+
+
+def write_log(path: str | Path, events: Iterator[LcmEvent] | list[LcmEvent]) -> int:
+    """Write events to a new LCM log file; returns how many were written."""
+    log = lcm.EventLog(str(path), "w", overwrite=True)
+    count = 0
+    try:
+        for event in events:
+            log.write_event(event.timestamp_us, event.channel, event.data)
+            count += 1
+    finally:
+        log.close()
+    return count
+
+
+def _open(url: str) -> lcm.LCM:
+    """An LCM instance on `url`; a URL LCM cannot open is an `OSError` that names it."""
+    try:
+        return lcm.LCM(url)
+    except RuntimeError as error:  # LCM says only "Couldn't create LCM"
+        raise OSError(f"LCM cannot open {url} ({error}): is it an LCM URL, e.g. {DEFAULT_URL}?") from None
+
+
+class Subscription:
+    """Events received live on `url` whose channel matches the regex `channel`.
+
+    Subscribed as soon as it is made (so nothing published after that is missed); iterate it to
+    receive, until `duration` seconds after the iteration starts, or forever when it is None.
+    """
+
+    def __init__(self, url: str, channel: str = ".*") -> None:
+        self._bus = _open(url)
+        self._received: deque[LcmEvent] = deque()
+        self._subscription = self._bus.subscribe(channel, self._on_message)
+
+    def _on_message(self, channel: str, data: bytes) -> None:
+        self._received.append(LcmEvent(channel, bytes(data), time.time_ns() // 1000))
+
+    def events(self, duration: float | None = None) -> Iterator[LcmEvent]:
+        deadline = None if duration is None else time.monotonic() + duration
+        try:
+            while deadline is None or time.monotonic() < deadline:
+                wait_s = 0.1 if deadline is None else min(0.1, deadline - time.monotonic())
+                self._bus.handle_timeout(max(0, int(wait_s * 1000)))
+                while self._received:
+                    yield self._received.popleft()
+        finally:
+            self._bus.unsubscribe(self._subscription)
+
+
+class Publisher:
+    """Publishes bytes on an LCM URL."""
+
+    def __init__(self, url: str = DEFAULT_URL) -> None:
+        self._bus = _open(url)
+
+    def publish(self, channel: str, data: bytes) -> None:
+        self._bus.publish(channel, data)
+
+
+Callback = Callable[[str, bytes, int], None]  # channel, data, receive time (time.time_ns() // 1000)
+
+
+RECEIVE_BUFFER = 16 * 1024 * 1024  # ~0.25 s of 1000-link draws at 1 kHz, held while the bridge is busy
+_RMEM_MAX = Path("/proc/sys/net/core/rmem_max")
+
+
+def with_receive_buffer(url: str, wanted: int = RECEIVE_BUFFER) -> str:
+    """A udpm URL that asks for a large socket receive buffer, unless it names its own.
+
+    The kernel's default (about 200 kB) holds three 1000-link draws: a burst, or a moment of a
+    busy core, and the kernel drops datagrams before LCM sees them. The request is capped at
+    `net.core.rmem_max`, the most the kernel grants (LCM would warn on every start otherwise);
+    when that is less than `wanted`, this says once how to raise it.
+    """
+    if not url.startswith("udpm://") or "recv_buf_size=" in url:
+        return url
+    return f"{url}{'&' if '?' in url else '?'}recv_buf_size={_granted(wanted)}"
+
+
+@functools.cache  # once per process: the advice is logged once
+def _granted(wanted: int) -> int:
+    try:
+        allowed = int(_RMEM_MAX.read_text())
+    except (OSError, ValueError):
+        return wanted
+    if allowed < wanted:
+        _log.info(
+            "LCM receive buffer: %d kB asked, the kernel allows %d kB (net.core.rmem_max); for fewer "
+            "drops under load: sudo sysctl -w net.core.rmem_max=%d",
+            wanted // 1024,
+            allowed // 1024,
+            wanted,
+        )
+    return min(allowed, wanted)
+
+
+def kernel_drops(port: int) -> int:
+    """Datagrams the kernel dropped for this process's UDP sockets on `port` (full buffers).
+
+    Read from /proc/net/udp (its last column), for the sockets among this process's files.
+    """
+    inodes = set()
+    for link in Path("/proc/self/fd").iterdir():
+        with contextlib.suppress(OSError):
+            target = os.readlink(link)
+            if target.startswith("socket:["):
+                inodes.add(target[8:-1])
+    drops = 0
+    with contextlib.suppress(OSError):
+        for line in Path("/proc/net/udp").read_text().splitlines()[1:]:
+            fields = line.split()
+            if int(fields[1].rsplit(":", 1)[1], 16) == port and fields[9] in inodes:
+                drops += int(fields[-1])
+    return drops
+
+
+def _udpm_port(url: str) -> int | None:
+    match = re.match(r"udpm://[^:/?]+:(\d+)", url)
+    return int(match.group(1)) if match else None
+
+
+class LcmBus:
+    """A live LCM bus (any URL: udpm, memq, ...) driven by a thread of its own.
+
+    `subscribe(regex, callback)` calls back on that thread, with the receive time in
+    microseconds; callbacks must be quick (hand the bytes over and return). A udpm bus asks for
+    a large receive buffer (`with_receive_buffer`) and counts what the kernel dropped anyway.
+    """
+
+    def __init__(self, url: str = DEFAULT_URL) -> None:
+        self.url = url
+        self._lcm = _open(with_receive_buffer(url))
+        self._port = _udpm_port(url)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"lcm {url}", daemon=True)
+
+    def kernel_drops(self) -> int:
+        """Datagrams the kernel dropped before LCM read them (0 for other providers)."""
+        return 0 if self._port is None else kernel_drops(self._port)
+
+    def subscribe(self, channel: str, callback: Callback) -> None:
+        subscription = self._lcm.subscribe(channel, lambda name, data: callback(name, data, time.time_ns() // 1000))
+        # LCM queues at most 30 messages per subscription while a callback runs, and discards the
+        # rest without a word. Unbounded here: loss happens only where it is counted (the kernel's
+        # socket buffer, a route's mailbox); the router keeps the callback quick (`InlineBudget`).
+        subscription.set_queue_capacity(0)
+
+    def publish(self, channel: str, data: bytes) -> None:
+        self._lcm.publish(channel, data)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            self._lcm.handle_timeout(100)
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2)
+
+
+class LogReplay:
+    """An LCM log played back as if live: same interface as `LcmBus` for subscribers.
+
+    `speed` 1.0 keeps the recorded timing, 2.0 plays twice as fast, 0 as fast as possible.
+    Publishing goes nowhere (a log is read-only). `finished` is set at the end of the log.
+    """
+
+    def __init__(self, path: str | Path, speed: float = 1.0) -> None:
+        self.url = f"file://{path}"
+        self.path = Path(path)
+        self.speed = speed
+        self.finished = threading.Event()
+        self._subscribers: list[tuple[re.Pattern[str], Callback]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name=f"replay {path}", daemon=True)
+
+    def subscribe(self, channel: str, callback: Callback) -> None:
+        self._subscribers.append((re.compile(channel), callback))
+
+    def publish(self, channel: str, data: bytes) -> None:
+        raise OSError(f"cannot publish on {channel}: {self.url} is a log being replayed")
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def _run(self) -> None:
+        started = time.monotonic()
+        first: int | None = None
+        try:
+            for event in read_log(self.path):
+                if self._stop.is_set():
+                    return
+                first = event.timestamp_us if first is None else first
+                if self.speed > 0:
+                    due = started + (event.timestamp_us - first) / 1e6 / self.speed
+                    if self._stop.wait(max(0.0, due - time.monotonic())):
+                        return
+                for pattern, callback in self._subscribers:
+                    if pattern.fullmatch(event.channel):
+                        callback(event.channel, event.data, time.time_ns() // 1000)
+        finally:
+            self.finished.set()
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=2)
+
+
+def open_bus(url: str) -> LcmBus | LogReplay:
+    """A live bus for an LCM URL; a replay for `file://PATH[?speed=S]` or a path to a log file."""
+    if url.startswith("file://") or (("://" not in url) and Path(url.split("?")[0]).is_file()):
+        path, _, query = url.removeprefix("file://").partition("?")
+        speed = 1.0
+        for part in filter(None, query.split("&")):
+            key, _, value = part.partition("=")
+            if key != "speed":
+                raise ValueError(f"{url}: unknown log option {key!r} (known: speed)")
+            speed = float(value)
+        if not Path(path).is_file():
+            raise FileNotFoundError(f"{url}: no such log file")
+        return LogReplay(path, speed)
+    return LcmBus(url)
+
+
+class LcmSettings(base.TransportSettings):
+    url: str = DEFAULT_URL  # a live bus, or a log to replay: file://LOG?speed=S
+
+
+class LcmTransport(base.Transport):
+    """LCM for the router: every route's pattern is served by one subscription to everything,
+    so a message several routes read is received (and decoded) once."""
+
+    Settings = LcmSettings
+    encodings = frozenset({base.LCM})
+    settings: LcmSettings
+
+    def __init__(self, settings: LcmSettings) -> None:
+        super().__init__(settings)
+        self.bus = open_bus(settings.url)
+        self._routes: list[tuple[re.Pattern[str], base.Deliver]] = []
+
+    def subscribe(
+        self, pattern: str, message_type: base.MessageType, qos: base.Qos, deliver: base.Deliver
+    ) -> None:
+        self._routes.append((re.compile(pattern), deliver))
+
+    def publisher(self, name: str, message_type: base.MessageType, qos: base.Qos) -> base.Publisher:
+        bus = self.bus
+        return base.CallPublisher(lambda data: bus.publish(name, data))
+
+    def start(self) -> None:
+        self.bus.subscribe(".*", self._dispatch)
+        self.bus.start()
+
+    def _dispatch(self, channel: str, data: bytes, received_us: int) -> None:
+        message = None
+        for pattern, deliver in self._routes:
+            if pattern.fullmatch(channel):
+                message = message or base.Received(channel, data, received_us)
+                deliver(message)
+
+    def describe(self) -> str:
+        return f"LCM {self.bus.url}"
+
+    def errors(self) -> dict[str, int]:
+        drops = self.bus.kernel_drops() if isinstance(self.bus, LcmBus) else 0
+        return {"dropped_by_kernel": drops} if drops else {}
+
+    def finished(self) -> bool:
+        return isinstance(self.bus, LogReplay) and self.bus.finished.is_set()
+
+    def close(self) -> None:
+        self.bus.close()

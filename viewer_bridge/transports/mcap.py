@@ -1,0 +1,220 @@
+"""An MCAP file as a transport: write-only, each name a route publishes on is a channel of the file.
+
+Two profiles (`mcap: {profile: ...}`, what `viewer-bridge convert --schema` chooses):
+
+* `ros2`: CDR messages, each topic with the `ros2msg` schema rosbags generates for its type
+  (what ROS 2 tools and Foxglove read), topic names rooted with `/` as a node in the root
+  namespace names them;
+* `foxglove`: Foxglove's protobuf messages (SceneUpdate, FrameTransforms), written by the
+  foxglove-sdk's own MCAP writer from the router's one Foxglove context: where the config also
+  runs the Foxglove server, the server and the file get every message logged to either
+  (viewer_bridge/transports/foxglove.py).
+
+Channels and schemas are registered as topics appear. Each message is stamped with the receive
+time of the message it was translated from (`MessageTime`): the log's time when `convert` feeds
+the router a log, the bus's receive time live. So a route whose destination is this transport
+records a live session, and `convert` is a router whose routes all end here.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import Counter
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Literal, Protocol
+
+import foxglove
+from mcap.writer import Writer
+from rosbags.typesys import Stores, get_typestore
+
+from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.transports.base import (
+    CDR,
+    PROTOBUF,
+    CallPublisher,
+    Deliver,
+    MessageTime,
+    MessageType,
+    Publisher,
+    Qos,
+    Shared,
+    Transport,
+    TransportSettings,
+)
+from viewer_bridge.transports.foxglove import FoxgloveContext, require_schemas
+
+Profile = Literal["ros2", "foxglove"]
+
+
+class McapSettings(TransportSettings):
+    path: Path  # the file written
+    profile: Profile = "ros2"  # ros2: CDR with ros2msg schemas; foxglove: Foxglove's protobuf messages
+    overwrite: bool = False  # replace the file if it exists (otherwise refused at start)
+
+
+class _File(Protocol):
+    """One profile's file: what it holds, its channels, the messages written per topic."""
+
+    messages: Counter[str]
+
+    def require(self, message_types: Iterable[MessageType]) -> None: ...
+
+    def publisher(self, topic: str, message_type: MessageType, time: MessageTime) -> Publisher: ...
+
+    def close(self) -> None: ...
+
+
+class _Ros2File:
+    """ROS 2 CDR messages through the mcap library's writer (routes on several threads share it:
+    one lock around it)."""
+
+    def __init__(self, path: Path) -> None:
+        self._file = path.open("wb")
+        self._writer = Writer(self._file)
+        self._writer.start(profile="ros2", library="viewer-bridge")
+        self._store = get_typestore(Stores.ROS2_JAZZY)
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._lock = threading.Lock()
+        self.messages: Counter[str] = Counter()
+
+    @staticmethod
+    def carries(message_type: MessageType) -> bool:
+        return message_type.encoding == CDR
+
+    def require(self, message_types: Iterable[MessageType]) -> None:
+        for message_type in message_types:
+            if message_type.name not in self._store.fielddefs:
+                raise TransportUnavailable(f"rosbags has no ROS 2 message definition of {message_type.name}")
+
+    def publisher(self, topic: str, message_type: MessageType, time: MessageTime) -> Publisher:
+        topic = topic if topic.startswith("/") else f"/{topic}"  # as a node in the root namespace names it
+        with self._lock:
+            channel_id = self._channel(topic, message_type.name)
+        writer, lock, messages = self._writer, self._lock, self.messages
+
+        def write(data: bytes) -> None:
+            time_ns = time.received_us * 1000
+            with lock:
+                messages[topic] += 1
+                writer.add_message(channel_id, time_ns, data, time_ns)
+
+        return CallPublisher(write)
+
+    def _channel(self, topic: str, typename: str) -> int:
+        if topic not in self._channels:
+            if typename not in self._schemas:
+                text, _ = self._store.generate_msgdef(typename, ros_version=2)
+                self._schemas[typename] = self._writer.register_schema(typename, "ros2msg", text.encode())
+            self._channels[topic] = self._writer.register_channel(topic, CDR, self._schemas[typename])
+        return self._channels[topic]
+
+    def close(self) -> None:
+        with self._lock:
+            self._writer.finish()  # type: ignore[no-untyped-call]
+            self._file.close()
+
+
+class _FoxgloveFile:
+    """Foxglove protobuf messages through the foxglove-sdk's MCAP writer, a sink of `context`."""
+
+    def __init__(self, path: Path, context: FoxgloveContext) -> None:
+        self._context = context
+        self._writer = foxglove.open_mcap(path, allow_overwrite=True, context=context.context)
+        self._lock = threading.Lock()  # for the counts: the SDK's log is thread-safe
+        self.messages: Counter[str] = Counter()
+
+    @staticmethod
+    def carries(message_type: MessageType) -> bool:
+        return message_type.encoding == PROTOBUF and message_type.name.startswith("foxglove.")
+
+    def require(self, message_types: Iterable[MessageType]) -> None:
+        require_schemas(message_types)
+
+    def publisher(self, topic: str, message_type: MessageType, time: MessageTime) -> Publisher:
+        channel = self._context.channel(topic, message_type, "mcap")
+        lock, messages = self._lock, self.messages
+
+        def write(data: bytes) -> None:
+            with lock:
+                messages[topic] += 1
+            channel.log(data, log_time=time.received_us * 1000)
+
+        return CallPublisher(write)
+
+    def close(self) -> None:
+        self._writer.close()
+
+
+_PROFILES: dict[Profile, type[_Ros2File] | type[_FoxgloveFile]] = {
+    "ros2": _Ros2File,
+    "foxglove": _FoxgloveFile,
+}
+
+
+class McapTransport(Transport):
+    """An MCAP file of one profile; publish only."""
+
+    Settings = McapSettings
+    encodings = frozenset({CDR, PROTOBUF})
+    settings: McapSettings
+
+    def __init__(
+        self, settings: McapSettings, context: FoxgloveContext | None = None, time: MessageTime | None = None
+    ) -> None:
+        super().__init__(settings)
+        if settings.path.exists() and not settings.overwrite:
+            raise TransportUnavailable(
+                f"{settings.path} exists (mcap.path): give another file, or mcap.overwrite: true to replace it"
+            )
+        self._time = MessageTime() if time is None else time
+        self.file: _File
+        if settings.profile == "ros2":
+            self.file = _Ros2File(settings.path)
+        else:
+            self.file = _FoxgloveFile(settings.path, FoxgloveContext() if context is None else context)
+
+    @classmethod
+    def create(cls, settings: TransportSettings, shared: Shared) -> McapTransport:
+        assert isinstance(settings, McapSettings)
+        # The Foxglove server of this router, if any, logs to the same context (made only when used).
+        context = shared.get(FoxgloveContext) if settings.profile == "foxglove" else None
+        return cls(settings, context, shared.message_time)
+
+    @classmethod
+    def carries(cls, message_type: MessageType, profile: Profile | None = None) -> bool:
+        """Whether a file of `profile` (of either profile, when None) holds messages of this type."""
+        profiles = _PROFILES.values() if profile is None else (_PROFILES[profile],)
+        return any(file.carries(message_type) for file in profiles)
+
+    @classmethod
+    def check_source(cls, name: str) -> None:
+        raise ValueError("the mcap transport only writes a file; it cannot be a route's source")
+
+    def require(self, message_types: Iterable[MessageType]) -> None:
+        message_types = list(message_types)
+        profile = self.settings.profile
+        for message_type in message_types:
+            if not self.carries(message_type, profile):
+                raise TransportUnavailable(
+                    f"an MCAP file of the {profile} profile (mcap.profile) cannot hold {message_type}"
+                )
+        self.file.require(message_types)
+
+    def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
+        raise TransportUnavailable("the mcap transport only writes a file")
+
+    def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
+        return self.file.publisher(name, message_type, self._time)
+
+    @property
+    def messages(self) -> Counter[str]:
+        """Messages written per topic."""
+        return self.file.messages
+
+    def describe(self) -> str:
+        return f"MCAP file {self.settings.path} ({self.settings.profile})"
+
+    def close(self) -> None:
+        self.file.close()

@@ -1,0 +1,308 @@
+"""Zenoh as a transport: ROS 2 in rmw_zenoh's wire format, and raw LCM channels across networks.
+
+One Zenoh session carries two kinds of route:
+- CDR types are ROS 2 topics as rmw_zenoh (Jazzy) writes them: a node `node` in `namespace` on
+  domain `ROS_DOMAIN_ID`, its publishers and subscribers announced by liveliness tokens, so
+  `ros2 topic list` under rmw_zenoh shows them. Names resolve as ROS resolves them (relative
+  under the namespace, `~` under the node). A source that is a regular expression is matched
+  against the topics the graph's publishers announce, once a second.
+- LCM types are raw LCM messages under `<lcm_prefix>/<channel>`: a source regex is matched
+  against the channel, so two bridges join two LCM buses through a router.
+The session is `viewer_bridge.transports.zenoh.session`'s; eclipse-zenoh is imported when the
+transport is made, not when a config naming it is checked.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import re
+import threading
+from collections import Counter
+from collections.abc import Callable, Iterable
+from typing import TYPE_CHECKING, Any, Literal
+
+from pydantic import Field, ValidationInfo, field_validator
+
+from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.transports.base import (
+    CDR,
+    LCM,
+    Deliver,
+    MessageType,
+    Publisher,
+    Qos,
+    Received,
+    Transport,
+    TransportSettings,
+)
+from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem
+from viewer_bridge.transports.zenoh import keys
+
+if TYPE_CHECKING:
+    import zenoh
+
+    from viewer_bridge.transports.zenoh.entities import Graph, LastValues, LcmPublisher, RosPublisher
+    from viewer_bridge.transports.zenoh.session import Link
+
+INSTALL_HINT = "pip install 'viewer-bridge[zenoh]' (eclipse-zenoh)"
+_PLAIN_TOPIC = re.compile(r"^[A-Za-z0-9_/~{}]+$")  # one topic, not a pattern
+_NOT_IN_KEYS = re.compile(r"[*$?#]")  # Zenoh's wildcards and reserved characters
+
+
+class ZenohSettings(TransportSettings):
+    mode: Literal["client", "peer", "router"] | None = None  # None: client, or the config file's
+    connect: list[str] | None = None  # None: tcp/localhost:7447 (rmw_zenohd), or the config file's
+    listen: list[str] | None = None  # None: no listening port, or the config file's
+    config_file: str | None = None  # a Zenoh JSON5 config; None: ZENOH_SESSION_CONFIG_URI, if set
+    config: dict[
+        str, Any
+    ] = {}  # Zenoh config keys, set last: {"transport/link/tls/root_ca_certificate": PATH}
+    domain_id: int | None = Field(None, ge=0, le=232)  # None: ROS_DOMAIN_ID, else 0
+    node: str = "viewer_bridge"
+    namespace: str = ""
+    enclave: str = "/"
+    lcm_prefix: str = "lcm"  # LCM channels travel under <lcm_prefix>/<channel>
+
+    @field_validator("node", "namespace")
+    @classmethod
+    def _valid_ros_name(cls, name: str, info: ValidationInfo) -> str:
+        problem = node_name_problem(name) if info.field_name == "node" else namespace_problem(name)
+        if problem is not None:
+            raise ValueError(f"{name!r} is not a valid ROS 2 {info.field_name}: {problem}")
+        return name
+
+    @field_validator("lcm_prefix")
+    @classmethod
+    def _valid_prefix(cls, prefix: str) -> str:
+        if problem := key_problem(prefix):
+            raise ValueError(f"{prefix!r} cannot start a Zenoh key: {problem}")
+        return prefix
+
+
+def key_problem(name: str) -> str | None:
+    """What keeps `name` (a topic, its leading `/` dropped, or a channel) from being a Zenoh key."""
+    key = name.removeprefix("/")
+    if not key:
+        return "it is empty"
+    if found := _NOT_IN_KEYS.search(key):
+        return f"{found.group()!r} is a Zenoh wildcard or reserved character"
+    if "" in key.split("/"):
+        return "it has an empty part (// or a trailing /)"
+    return None
+
+
+class ZenohTransport(Transport):
+    """One Zenoh session; ROS 2 entities of one node, and LCM channels under a prefix."""
+
+    Settings = ZenohSettings
+    encodings = frozenset({CDR, LCM})
+    settings: ZenohSettings
+
+    @classmethod
+    def check_source(cls, name: str) -> None:
+        if _PLAIN_TOPIC.match(name) and (problem := key_problem(name)):
+            raise ValueError(f"{name!r} cannot be a Zenoh key: {problem}")
+
+    @classmethod
+    def check_destination(cls, name: str) -> None:
+        if problem := key_problem(name):
+            raise ValueError(f"{name!r} cannot be a Zenoh key: {problem}")
+
+    def __init__(self, settings: ZenohSettings) -> None:
+        super().__init__(settings)
+        try:
+            from viewer_bridge.transports.zenoh import entities, session
+        except ImportError as error:
+            raise TransportUnavailable(
+                f"the zenoh transport needs eclipse-zenoh ({error}): {INSTALL_HINT}"
+            ) from None
+        wanted = {"mode": settings.mode, "connect": settings.connect, "listen": settings.listen}
+        file, pairs = session.session_config(settings.config_file, wanted, settings.config, os.environ)
+        session.make_config(file, pairs)  # a bad file or key: refused now, not at every attempt
+        mode = settings.mode or ("client" if file is None else f"as {file} says")
+        endpoints = settings.connect or ([] if file else [session.ROUTER_ENDPOINT])
+        self._where = f"{mode}, connecting to {', '.join(endpoints) or 'no endpoint'}"
+        self.link: Link = session.Link(lambda: session.make_config(file, pairs), self._where)
+        self.domain = (
+            settings.domain_id
+            if settings.domain_id is not None
+            else int(os.environ.get("ROS_DOMAIN_ID") or 0)
+        )
+        namespace = "/" + settings.namespace.strip("/")
+        self.node = keys.NodeName(settings.node, namespace, settings.enclave)
+        self._errors: Counter[str] = Counter()
+        self.graph: Graph = entities.Graph(self._errors)
+        self._publishers: list[RosPublisher | LcmPublisher] = []
+        self._topics: dict[str, list[Deliver]] = {}  # topic -> every route reading it
+        self._patterns: list[tuple[re.Pattern[str], MessageType, Qos, Deliver]] = []
+        self._channels: list[tuple[re.Pattern[str], Deliver]] = []
+        self._channels_latched = False  # a route asked for each channel's last message on joining
+        self._last_values: LastValues | None = None  # made with the first latched LCM publisher
+        self._next_id = 1  # the node is entity 0; its publishers and subscribers follow
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._discovery = threading.Thread(target=self._discover, name="zenoh discovery", daemon=True)
+
+    # --- names -------------------------------------------------------------------------------------
+
+    def resolve(self, name: str) -> str:
+        """A topic name as ROS resolves it: absolute as is, `~` under the node, else under the namespace."""
+        namespace = self.node.namespace.rstrip("/")
+        if name.startswith("/"):
+            return name
+        if name.startswith("~"):
+            return f"{namespace}/{self.node.name}{name[1:]}"
+        return f"{namespace}/{name}"
+
+    def _entity_id(self) -> int:
+        with self._lock:
+            self._next_id += 1
+            return self._next_id - 1
+
+    def _token(
+        self, kind: str, topic: str, topic_type: keys.TopicType, qos: Qos
+    ) -> Callable[[str], keys.Token]:
+        """The token of one publisher or subscriber, once the session's id is known."""
+        entity_id = self._entity_id()
+        token_qos = keys.TokenQos(qos.reliable, qos.latched, False, qos.depth)
+        entity = keys.TopicEntity(topic, topic_type.dds_name, topic_type.hash, token_qos)
+
+        def token(zid: str) -> keys.Token:
+            return keys.Token(self.domain, zid, 0, entity_id, kind, self.node, entity)
+
+        return token
+
+    def require(self, message_types: Iterable[MessageType]) -> None:
+        for message_type in message_types:
+            if message_type.encoding == CDR:
+                try:
+                    keys.topic_type(message_type.name)
+                except (KeyError, ValueError):
+                    raise TransportUnavailable(
+                        f"the zenoh transport has no definition of {message_type.name} (its RIHS01 hash comes "
+                        "from rosbags' Jazzy types)"
+                    ) from None
+
+    # --- publishing ----------------------------------------------------------------------------------
+
+    def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
+        from viewer_bridge.transports.zenoh.entities import LastValues, LcmPublisher, RosPublisher
+
+        publisher: RosPublisher | LcmPublisher
+        if message_type.encoding == LCM:
+            with self._lock:
+                if qos.latched and self._last_values is None:
+                    self._last_values = LastValues(self.link, self.settings.lcm_prefix)
+            publisher = LcmPublisher(
+                self.link, self._lcm_key(name), qos, self._last_values if qos.latched else None
+            )
+        else:
+            topic, topic_type = self.resolve(name), keys.topic_type(message_type.name)
+            token = self._token(keys.PUBLISHER, topic, topic_type, qos)
+            publisher = RosPublisher(
+                self.link, self.graph, keys.data_key(self.domain, topic, topic_type), token, qos
+            )
+        self._publishers.append(publisher)
+        return publisher
+
+    def _lcm_key(self, channel: str) -> str:
+        if problem := key_problem(channel):
+            raise ValueError(f"LCM channel {channel!r} cannot be a Zenoh key: {problem}")
+        return f"{self.settings.lcm_prefix}/{channel}"
+
+    # --- subscribing ---------------------------------------------------------------------------------
+
+    def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
+        """LCM: channels under the prefix that fully match `pattern`. CDR: a topic, or a regex matched
+        against the topics the graph's publishers announce."""
+        if message_type.encoding == LCM:
+            self._channels.append((re.compile(pattern), deliver))
+            self._channels_latched = self._channels_latched or qos.latched
+        elif _PLAIN_TOPIC.match(pattern):
+            self._subscribe_topic(pattern, message_type, qos, deliver)
+        else:
+            self._patterns.append((re.compile(pattern), message_type, qos, deliver))
+
+    def _subscribe_topic(self, topic: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
+        from viewer_bridge.transports.zenoh import entities
+
+        with self._lock:
+            delivers = self._topics.get(topic)
+            if delivers is not None:  # another route reads it already: share the subscription
+                if deliver not in delivers:
+                    delivers.append(deliver)
+                return
+            delivers = self._topics[topic] = [deliver]
+        resolved, topic_type = self.resolve(topic), keys.topic_type(message_type.name)
+        key = keys.data_key(self.domain, resolved, topic_type)
+        token = self._token(keys.SUBSCRIBER, resolved, topic_type, qos)
+        on_sample = entities.ros_receiver(topic, delivers, self._errors)
+
+        def declare(session: zenoh.Session) -> None:
+            self.link.hold(entities.declare_subscriber(session, key, qos, on_sample))
+            self.link.hold(session.liveliness().declare_token(token(str(session.zid())).key()))
+
+        self.link.when_open(declare)
+
+    def _discover(self) -> None:
+        """Once a second: topics the graph's publishers announce that a source regex matches."""
+        while not self._stop.wait(1.0):
+            for topic, dds_type in self.graph.publishers():
+                for pattern, message_type, qos, deliver in self._patterns:
+                    if pattern.fullmatch(topic) and keys.ros_type_name(dds_type) == message_type.name:
+                        self._subscribe_topic(topic, message_type, qos, deliver)
+
+    def _on_lcm(self, sample: zenoh.Sample) -> None:
+        channel = str(sample.key_expr)[len(self.settings.lcm_prefix) + 1 :]
+        if not channel:
+            self._errors["bad_key"] += 1
+            return
+        message = None
+        for pattern, deliver in self._channels:
+            if pattern.fullmatch(channel):
+                message = message or Received(channel, sample.payload.to_bytes())
+                deliver(message)
+
+    # --- running -------------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        from viewer_bridge.transports.zenoh import entities
+
+        node_token = keys.Token(self.domain, "", 0, 0, keys.NODE, self.node)
+        graph_key = f"{keys.ADMIN_SPACE}/{self.domain}/**"
+        prefix = self.settings.lcm_prefix
+        latched = self._channels_latched
+
+        def declare(session: zenoh.Session) -> None:
+            token = dataclasses.replace(node_token, zid=str(session.zid()))
+            self.link.hold(session.liveliness().declare_token(token.key()))
+            self.link.hold(
+                session.liveliness().declare_subscriber(graph_key, self.graph.on_sample, history=True)
+            )
+            if self._channels:
+                self.link.hold(session.declare_subscriber(f"{prefix}/**", self._on_lcm))
+                if latched:  # what was sent before this bridge joined: each channel's last message
+                    entities.ask_last_values(session, prefix, self._on_lcm)
+
+        self.link.when_open(declare)
+        self.link.start()
+        if self._patterns:
+            self._discovery.start()
+
+    def describe(self) -> str:
+        node = f"{self.node.namespace.rstrip('/')}/{self.node.name}"
+        return f"Zenoh {self._where}: ROS domain {self.domain}, node {node}; LCM under {self.settings.lcm_prefix}/"
+
+    def errors(self) -> dict[str, int]:
+        counts = dict(self._errors)
+        unsent = sum(publisher.unsent for publisher in self._publishers)
+        if unsent:
+            counts["unsent_no_router"] = unsent
+        return counts
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._discovery.is_alive():
+            self._discovery.join(timeout=2)
+        self.link.close()
