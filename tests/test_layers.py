@@ -29,7 +29,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.render_server": 7,
     "viewer_bridge.config": 8,
     "viewer_bridge.router": 9,
-    "viewer_bridge.convert": 10,
+    "viewer_bridge.log_convert": 10,
     "viewer_bridge.cli": 11, "viewer_bridge.__main__": 11,
 }  # fmt: skip
 
