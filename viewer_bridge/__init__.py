@@ -1,0 +1,36 @@
+"""viewer-bridge: Drake's LCM viewer messages to ROS 2, ign/gz, Director's tree viewer, Foxglove
+and glTF, and back.
+
+- `viewer_bridge.convert`: pure converters, one message per call
+  (`convert.draw_to_pose_array(draw_bytes)`).
+- `viewer_bridge.streams`: the same conversions for streams of messages, faster per message.
+- `viewer_bridge.errors`: every error raised on purpose, under `BridgeError`.
+
+Importing this package imports nothing else: each of those modules is imported when named.
+"""
+
+from __future__ import annotations
+
+import importlib
+from importlib.metadata import PackageNotFoundError, version
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from viewer_bridge import convert, errors, streams
+
+try:
+    __version__ = version("viewer-bridge")
+except PackageNotFoundError:  # run from a checkout that is not installed
+    __version__ = "0+unknown"
+
+_SUBMODULES = ("convert", "errors", "streams")
+
+
+def __getattr__(name: str) -> Any:
+    """`viewer_bridge.convert` and its siblings, imported on first use (PEP 562)."""
+    if name in _SUBMODULES:
+        return importlib.import_module(f"viewer_bridge.{name}")
+    raise AttributeError(f"module 'viewer_bridge' has no attribute {name!r}")
+
+
+__all__ = ["__version__", "convert", "errors", "streams"]

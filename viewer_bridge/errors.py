@@ -105,6 +105,16 @@ class TransportUnavailable(BridgeError):
     """A transport that cannot start here (a missing package, a port in use); says what to do."""
 
 
+class MissingExtra(BridgeError):
+    """An optional dependency that is not installed; names the extra to install it with."""
+
+    def __init__(self, needed_by: str, module: str, extra: str) -> None:
+        self.needed_by = needed_by
+        self.module = module
+        self.extra = extra
+        super().__init__(f"{needed_by} needs {module}, not installed: pip install 'viewer-bridge[{extra}]'")
+
+
 class HandshakeError(BridgeError):
     """A client connection whose opening handshake cannot be relayed (cut off, too long, too slow)."""
 
@@ -131,3 +141,23 @@ class Interrupted(BridgeError):
         self.messages = messages
         self.path = path
         super().__init__(f"interrupted: {messages} messages written to {path}")
+
+
+__all__ = [
+    "BridgeError",
+    "ConfigError",
+    "ConvertError",
+    "DecodeError",
+    "EncodeError",
+    "GltfError",
+    "HandshakeError",
+    "Interrupted",
+    "LogError",
+    "MissingExtra",
+    "RequestRejected",
+    "RosInterfaceError",
+    "SceneError",
+    "SchemaError",
+    "TransportUnavailable",
+    "UsageError",
+]

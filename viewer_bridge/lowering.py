@@ -13,10 +13,9 @@ import io
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import trimesh
 
 from viewer_bridge.errors import SceneError
 from viewer_bridge.scene import (
@@ -35,6 +34,9 @@ from viewer_bridge.scene import (
     TriangleMesh,
     Vector3,
 )
+
+if TYPE_CHECKING:
+    import trimesh
 
 Parts = list[tuple[Shape, Pose]]
 
@@ -105,6 +107,8 @@ def _primitive_mesh(shape: Box | Sphere | Ellipsoid | Cylinder | Capsule | HalfS
 
 
 def _tessellated(shape: Box | Sphere | Ellipsoid | Cylinder | Capsule | HalfSpace) -> TriangleMesh:
+    import trimesh  # here, not at the top: importing a converter must stay cheap (about 0.5 s with scipy)
+
     match shape:
         case Box(size):
             return _from_trimesh(trimesh.creation.box(extents=size))
@@ -123,6 +127,8 @@ def _tessellated(shape: Box | Sphere | Ellipsoid | Cylinder | Capsule | HalfSpac
 
 
 def _load(source: Any, extension: str | None, name: str) -> TriangleMesh:
+    import trimesh
+
     file_type = extension.lstrip(".").lower() if extension else None
     try:
         loaded = trimesh.load(source, file_type=file_type, force="mesh", process=False)
@@ -144,6 +150,8 @@ def _scaled(mesh: TriangleMesh, scale: Vector3) -> TriangleMesh:
 def arrow_mesh(line: Line) -> TriangleMesh:
     """A two-point line with an end head as a solid arrow (a shaft and a cone), for renderers that
     draw only triangles. The head never outgrows the arrow: at most half its length."""
+    import trimesh
+
     start, end = np.asarray(line.points[0], dtype=np.float64), np.asarray(line.points[-1], dtype=np.float64)
     length = float(np.linalg.norm(end - start))
     if length == 0.0:
@@ -173,3 +181,16 @@ LOWERINGS: dict[str, Lowering] = {
     "capsule_parts": Lowering(capsule_parts, ("cylinder", "sphere")),
     "triangle_mesh": Lowering(triangle_mesh_parts, ("triangle_mesh",)),
 }
+
+
+__all__ = [
+    "HALF_SPACE_BOX",
+    "HALF_SPACE_OFFSET",
+    "LOWERINGS",
+    "Lowering",
+    "arrow_mesh",
+    "capsule_parts",
+    "half_space_box",
+    "triangle_mesh",
+    "triangle_mesh_parts",
+]

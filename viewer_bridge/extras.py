@@ -1,0 +1,48 @@
+"""The optional parts of viewer-bridge, and the one error a missing one raises.
+
+The core install (`pip install viewer-bridge`) is what the pure converters of
+`viewer_bridge.convert` need. Transports, the render server and a few converters need more;
+each such dependency belongs to one extra of `pyproject.toml`, listed in `EXTRAS`. Code that
+needs one imports it through `require` (or turns its `ImportError` into `missing`), so that a
+user without it reads one line naming the pip command, as a `MissingExtra`.
+"""
+
+from __future__ import annotations
+
+import importlib
+from types import ModuleType
+
+from viewer_bridge.errors import MissingExtra
+
+# Top-level module -> the extra that installs it.
+EXTRAS: dict[str, str] = {
+    "rclpy": "ros",
+    "geometry_msgs": "ros",
+    "sensor_msgs": "ros",
+    "shape_msgs": "ros",
+    "visualization_msgs": "ros",
+    "foxglove": "foxglove",
+    "foxglove_schemas_protobuf": "foxglove",
+    "mcap": "foxglove",
+    "zmq": "ign",
+    "zenoh": "zenoh",
+    "xxhash": "zenoh",
+    "moderngl": "render",
+}
+
+
+def missing(error: ImportError, needed_by: str) -> MissingExtra:
+    """The `MissingExtra` for an `ImportError` of a module in `EXTRAS` (`all` for any other)."""
+    module = (error.name or "").partition(".")[0] or "an optional module"
+    return MissingExtra(needed_by, module, EXTRAS.get(module, "all"))
+
+
+def require(module: str, needed_by: str) -> ModuleType:
+    """`import module`, or `MissingExtra` naming its extra when it is not installed."""
+    try:
+        return importlib.import_module(module)
+    except ImportError as error:
+        raise missing(error, needed_by) from None
+
+
+__all__ = ["EXTRAS", "missing", "require"]
