@@ -16,7 +16,8 @@ PACKAGE = Path(__file__).resolve().parent.parent / "viewer_bridge"
 
 # The floors of docs/ARCHITECTURE.md, from the ground up: the longest matching prefix decides.
 LAYERS: dict[str, int] = {
-    "viewer_bridge": 1,  # the package's __init__ (a docstring and the version)
+    "viewer_bridge": 1,  # the package's __init__ (a docstring, the version, lazy submodules)
+    "viewer_bridge.extras": 1,
     "viewer_bridge.errors": 1, "viewer_bridge.registry": 1, "viewer_bridge.resources": 1, "viewer_bridge.sim_time": 1,
     "viewer_bridge.lru": 1, "viewer_bridge.status": 1,
     "viewer_bridge.scene": 2, "viewer_bridge.lcmcodec": 2, "viewer_bridge.yamldoc": 2, "viewer_bridge.arguments": 2,
@@ -25,6 +26,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.mappings": 4,
     "viewer_bridge.formats": 5,
     "viewer_bridge.transports": 6, "viewer_bridge.render": 6,
+    "viewer_bridge.convert": 6, "viewer_bridge.streams": 6,  # the facades over the formats
     "viewer_bridge.translators": 7, "viewer_bridge.dump": 7, "viewer_bridge.snapshot": 7, "viewer_bridge.demo": 7,
     "viewer_bridge.render_server": 7,
     "viewer_bridge.config": 8,

@@ -13,10 +13,7 @@ from __future__ import annotations
 
 import importlib
 from importlib.metadata import PackageNotFoundError, version
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:
-    from viewer_bridge import convert, errors, streams
+from typing import Any
 
 try:
     __version__ = version("viewer-bridge")

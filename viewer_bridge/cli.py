@@ -33,7 +33,6 @@ from viewer_bridge.arguments import (
     split_ros_args,
 )
 from viewer_bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
-from viewer_bridge.log_convert import convert
 from viewer_bridge.demo import run_demo
 from viewer_bridge.dump import as_json, as_text
 from viewer_bridge.errors import BridgeError, ConfigError, Interrupted, UsageError
@@ -324,6 +323,8 @@ def _lcm_url(config: BridgeConfig) -> str:
 
 
 def _convert(args: argparse.Namespace) -> int:
+    from viewer_bridge.log_convert import convert  # MCAP files: the foxglove extra, only for this command
+
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     config = load_config(args.config)
     # Ctrl-C (or a SIGTERM) stops after the message being converted: the MCAP is closed properly.

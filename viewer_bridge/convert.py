@@ -46,7 +46,7 @@ from viewer_bridge.formats.ign.poses import PosesEncoder
 from viewer_bridge.formats.ros.cdr import time_parts, time_parts_from_us
 from viewer_bridge.formats.ros.contact import contact_marker_array_cdr
 from viewer_bridge.formats.ros.image import image_to_cdr
-from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_cdr
+from viewer_bridge.formats.ros.markers import marker_array_cdr
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
 from viewer_bridge.formats.ros.poses import PoseArrayEncoder, pose_array_arrays, poses_from_pose_array_cdr
 from viewer_bridge.formats.ros.shapes import shapes_cdr
@@ -126,10 +126,7 @@ def load_to_marker_array(
     `draw`. `embed_mesh_files`: mesh files as triangle lists, for an RViz that cannot read
     them; `point_size`: metres, for point clouds."""
     options = _given(frame_id=frame_id, embed_mesh_files=embed_mesh_files, point_size=point_size)
-    scene = decode_load(data)
-    if draw is None:
-        return marker_array_cdr(scene, options)
-    return MarkerStream(scene, options).update(draw_to_link_poses(draw))
+    return marker_array_cdr(load_to_scene(data, draw=draw), options)
 
 
 def load_to_shapes(data: bytes) -> list[tuple[str, bytes]]:

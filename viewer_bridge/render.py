@@ -20,12 +20,17 @@ import hashlib
 from dataclasses import dataclass
 from typing import Any
 
-import moderngl
 import numpy as np
 
+from viewer_bridge.extras import missing
 from viewer_bridge.formats.gltf import GltfScene
 from viewer_bridge.lru import SizedLru
 from viewer_bridge.scene import FloatArray
+
+try:
+    import moderngl
+except ImportError as error:
+    raise missing(error, "rendering (snapshot, serve-render)") from None
 
 BACKGROUND = (204 / 255, 229 / 255, 1.0)
 

@@ -24,11 +24,10 @@ import threading
 from collections.abc import Iterable, Mapping
 from urllib.parse import urlencode
 
-import foxglove
-from foxglove.websocket import ChannelView, Client, ServerListener
 from pydantic import Field
 
 from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.extras import missing
 from viewer_bridge.formats.foxglove.schema import schema
 from viewer_bridge.transports.base import (
     PROTOBUF,
@@ -41,6 +40,12 @@ from viewer_bridge.transports.base import (
     TransportSettings,
 )
 from viewer_bridge.transports.foxglove_front import SubprotocolFront
+
+try:
+    import foxglove
+    from foxglove.websocket import ChannelView, Client, ServerListener
+except ImportError as error:
+    raise missing(error, "the foxglove transport") from None
 
 
 def require_schemas(message_types: Iterable[MessageType]) -> None:

@@ -32,8 +32,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Mapping
 
-import zmq
-
+from viewer_bridge.extras import missing
 from viewer_bridge.formats.ign.schema import PACKAGES, Package, type_name, wire_type_name
 from viewer_bridge.transports.base import (
     PROTOBUF,
@@ -48,6 +47,11 @@ from viewer_bridge.transports.base import (
 )
 from viewer_bridge.transports.ign_discovery import HEARTBEAT_S, Callback, Discovery
 from viewer_bridge.transports.ign_environment import NodeEnvironment, read_environment
+
+try:
+    import zmq
+except ImportError as error:
+    raise missing(error, "the ign transport") from None
 
 log = logging.getLogger("viewer_bridge")
 

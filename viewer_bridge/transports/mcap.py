@@ -24,11 +24,10 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Literal, Protocol
 
-import foxglove
-from mcap.writer import Writer
 from rosbags.typesys import Stores, get_typestore
 
 from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.extras import missing
 from viewer_bridge.transports.base import (
     CDR,
     PROTOBUF,
@@ -43,6 +42,12 @@ from viewer_bridge.transports.base import (
     TransportSettings,
 )
 from viewer_bridge.transports.foxglove import FoxgloveContext, require_schemas
+
+try:
+    import foxglove
+    from mcap.writer import Writer
+except ImportError as error:
+    raise missing(error, "the mcap transport (viewer-bridge convert)") from None
 
 Profile = Literal["ros2", "foxglove"]
 
