@@ -623,3 +623,35 @@ class Scene:
 
     def geometry_count(self) -> int:
         return sum(len(link.geometries) for link in self.links)
+
+
+__all__ = [
+    "Box",
+    "Capsule",
+    "Cylinder",
+    "Ellipsoid",
+    "FileContents",
+    "FloatArray",
+    "Geometry",
+    "HalfSpace",
+    "InMemoryMesh",
+    "IntArray",
+    "Line",
+    "Link",
+    "LinkPoses",
+    "MeshFile",
+    "PointCloud",
+    "Pose",
+    "Rgba",
+    "SHAPE_KINDS",
+    "Scene",
+    "Shape",
+    "Sphere",
+    "StampedPointCloud",
+    "Triad",
+    "TriangleMesh",
+    "Vector3",
+    "WHITE",
+    "frame_name",
+    "shape_kind",
+]

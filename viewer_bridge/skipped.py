@@ -81,3 +81,14 @@ def _skip(skipped: Skipped) -> None:
         log.warning("%s", skipped)
     else:
         collector.append(skipped)
+
+
+__all__ = [
+    "Skipped",
+    "SkippedGeometry",
+    "T",
+    "collecting",
+    "log",
+    "part_failed",
+    "per_geometry",
+]

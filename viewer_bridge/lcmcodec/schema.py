@@ -310,3 +310,18 @@ def load_schema_dir(folder: Path) -> dict[str, StructDef]:
                     struct.source, 1, f"{struct.full_name}.{member.name}: unknown type {member.type_name!r}"
                 )
     return structs
+
+
+__all__ = [
+    "Constant",
+    "Dimension",
+    "INTEGER_TYPES",
+    "Member",
+    "PRIMITIVE_FORMATS",
+    "PRIMITIVE_TYPES",
+    "STRING_MIN_SIZE",
+    "StructDef",
+    "fingerprint",
+    "load_schema_dir",
+    "parse_lcm",
+]

@@ -648,3 +648,12 @@ def compile_codecs(structs: Mapping[str, StructDef]) -> dict[str, StructCodec]:
         message_class._codec = codec
         codecs[name] = codec
     return codecs
+
+
+__all__ = [
+    "Buffer",
+    "LcmMessage",
+    "StructCodec",
+    "compile_codecs",
+    "generate_source",
+]

@@ -75,3 +75,12 @@ class Translator:
 
     def translate(self, message: Received) -> Outputs:
         raise NotImplementedError
+
+
+__all__ = [
+    "Output",
+    "Outputs",
+    "Reply",
+    "Translator",
+    "TranslatorOptions",
+]

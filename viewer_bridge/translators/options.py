@@ -49,3 +49,10 @@ class IgnOptions(TranslatorOptions):
 
     def message_type(self, name: str) -> MessageType:
         return ign_type(name, self.package)
+
+
+__all__ = [
+    "FrameOptions",
+    "IgnOptions",
+    "MarkerOptions",
+]

@@ -212,3 +212,23 @@ class CallPublisher:
 
     def subscriber_count(self) -> int | None:
         return None if self._count is None else self._count()
+
+
+__all__ = [
+    "CDR",
+    "CallPublisher",
+    "Decoded",
+    "Deliver",
+    "JSON",
+    "LCM",
+    "Made",
+    "MessageTime",
+    "MessageType",
+    "PROTOBUF",
+    "Publisher",
+    "Qos",
+    "Received",
+    "Shared",
+    "Transport",
+    "TransportSettings",
+]

@@ -118,3 +118,10 @@ def _fan(values: list[int], field: str) -> tuple[IntArray, IntArray]:
     corner_offsets = np.array(offsets, dtype=np.int64).reshape(-1, 3)
     triangles: IntArray = np.asarray(values, dtype=np.int64)[corner_offsets] if offsets else corner_offsets
     return triangles, corner_offsets
+
+
+__all__ = [
+    "contact_results_from_lcm",
+    "decode_contact_results",
+    "triangles_from_polygons",
+]

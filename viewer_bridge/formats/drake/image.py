@@ -326,3 +326,23 @@ def _lcm_image(image: Image, compress: bool) -> Any:
         channel_type=channel_type,
         compression_method=ZLIB if compress else NOT_COMPRESSED,
     )
+
+
+__all__ = [
+    "CHANNEL_DTYPES",
+    "CHANNEL_TYPES",
+    "ImageArray",
+    "JPEG",
+    "LAYOUTS",
+    "MAX_COMPRESSION_RATIO",
+    "NOT_COMPRESSED",
+    "PIXEL_FORMATS",
+    "PNG",
+    "PackedImage",
+    "TYPE_NAME",
+    "ZLIB",
+    "ZLIB_LEVEL",
+    "images_to_lcm",
+    "read_image_array",
+    "unpack",
+]

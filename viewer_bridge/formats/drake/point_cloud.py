@@ -78,3 +78,12 @@ def cloud_to_lcm(stamped: StampedPointCloud) -> bytes:
     message.filler_size, message.filler = filler, b"\0" * filler
     message.data_size, message.data = len(data), data
     return POINT_CLOUD.encode(message)
+
+
+__all__ = [
+    "IS_BIGENDIAN",
+    "IS_STRICTLY_FINITE",
+    "TYPE_NAME",
+    "cloud_from_lcm",
+    "cloud_to_lcm",
+]

@@ -143,3 +143,10 @@ def _parse_obj(text: str) -> TriangleMesh:
         raise SceneError("Geometry: mesh array OBJ refers to a vertex it does not have")
     return TriangleMesh(vertex_array, face_array)
 
+
+__all__ = [
+    "TABLES",
+    "fill_geometry",
+    "geometry_message",
+    "shape_from_geometry",
+]

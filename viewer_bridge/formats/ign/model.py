@@ -276,3 +276,11 @@ def _pose_from(message: Any, what: str) -> Pose:
     p, q = message.position, message.orientation
     return pose_from_xyzw([p.x, p.y, p.z], [q.x, q.y, q.z, q.w], what)
 
+
+__all__ = [
+    "model",
+    "model_bytes",
+    "model_v",
+    "model_v_bytes",
+    "scene_from_model",
+]

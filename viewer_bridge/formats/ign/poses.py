@@ -159,3 +159,8 @@ def poses_from_pose_v(message: Any, robot_nums: Mapping[str, int] | None = None)
     timestamp_ms = ms_from_sec_nsec(stamp.sec, stamp.nsec)
     return link_poses_from_xyzw(timestamp_ms, names, numbers, positions, xyzw, "pose")
 
+
+__all__ = [
+    "PosesEncoder",
+    "poses_from_pose_v",
+]

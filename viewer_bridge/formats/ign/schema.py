@@ -213,3 +213,15 @@ def spellings(full_name: str) -> frozenset[str]:
     if package not in PACKAGES:
         return frozenset({full_name})
     return frozenset(type_name(name, other) for other in PACKAGES)
+
+
+__all__ = [
+    "MESSAGES",
+    "MessageSet",
+    "PACKAGES",
+    "Package",
+    "field_number",
+    "spellings",
+    "type_name",
+    "wire_type_name",
+]

@@ -16,3 +16,15 @@ PLANE = "shape_msgs/msg/Plane"
 TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
 POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
+
+
+__all__ = [
+    "MARKER_ARRAY",
+    "MESH",
+    "PLANE",
+    "POINT_CLOUD2",
+    "POSE_ARRAY",
+    "SOLID_PRIMITIVE",
+    "TF_MESSAGE",
+    "WRENCH_STAMPED",
+]

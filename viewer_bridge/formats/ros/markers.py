@@ -310,3 +310,15 @@ class MarkerStream:
         with self._lock:
             self._poses[self._pose_at] = np.ascontiguousarray(rows).view(POSE_ITEM).reshape(-1)
             return self._buffer[FRONT_PADDING:].tobytes()
+
+
+__all__ = [
+    "DELETE_ALL",
+    "MarkerSpec",
+    "MarkerStream",
+    "marker_array_cdr",
+    "marker_array_in_link_frames_cdr",
+    "marker_settings",
+    "marker_specs",
+    "world_poses",
+]

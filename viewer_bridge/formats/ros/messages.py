@@ -118,3 +118,13 @@ def from_rclpy(message: Any) -> Any:
             value = from_rclpy(value)
         values[field_name] = value
     return make(typename, **values)
+
+
+__all__ = [
+    "STORE",
+    "from_cdr",
+    "from_rclpy",
+    "make",
+    "to_cdr",
+    "to_rclpy",
+]

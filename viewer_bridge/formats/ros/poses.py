@@ -114,3 +114,11 @@ def poses_from_pose_array_cdr(
     """
     timestamp_ms, _, positions, xyzw = pose_array_arrays(data)
     return link_poses_from_xyzw(timestamp_ms, names, robot_nums, positions, xyzw, "poses")
+
+
+__all__ = [
+    "PoseArrayEncoder",
+    "pose_array_arrays",
+    "pose_from_message",
+    "poses_from_pose_array_cdr",
+]

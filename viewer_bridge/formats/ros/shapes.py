@@ -111,3 +111,9 @@ def _decoded(decode: Callable[[], Shape], typename: str) -> Shape:
         return decode()
     except ValueError as error:
         raise SceneError(f"{typename}: {error}") from None
+
+
+__all__ = [
+    "shape_from_message",
+    "shapes_cdr",
+]

@@ -97,3 +97,8 @@ TABLES = FormatTables(
         "line_strip": _line_strip,
     },
 )
+
+
+__all__ = [
+    "TABLES",
+]

@@ -6,3 +6,6 @@ in a `robotlocomotion.viewer2_comms_t` on `DIRECTOR_TREE_VIEWER_REQUEST_<client_
 as requests (a load, a draw); `tree`: requests applied to a tree, answered as Director does and
 read back as a scene, with `commands` reading the geometry and transform objects in them.
 """
+
+
+__all__: list[str] = []
