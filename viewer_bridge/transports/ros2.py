@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 from pydantic import field_validator
 
 from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.extras import missing
 from viewer_bridge.transports.base import (
     CDR,
     CallPublisher,
@@ -39,7 +40,6 @@ if TYPE_CHECKING:
 
 _PLAIN_TOPIC = re.compile(r"^[A-Za-z0-9_/~{}]+$")
 BUILDABLE_INTERFACES = ("tf2_msgs",)  # no wheel on PyPI: `viewer-bridge ros-interfaces install` builds them
-INSTALL_HINT = "pip install 'viewer-bridge[ros]' (ROS 2 Jazzy's rclpy wheels)"
 
 
 def message_class(typename: str) -> Any:
@@ -108,7 +108,7 @@ class RosTransport(Transport):
             from rclpy.node import Node
             from rclpy.parameter import Parameter
         except ImportError as error:
-            raise TransportUnavailable(f"the ros transport needs rclpy ({error}): {INSTALL_HINT}") from None
+            raise missing(error, "the ros transport") from None
         self._context = Context()
         # Global arguments, as any ROS 2 node takes them: `-r __ns:=/sim1`, `-p use_sim_time:=true`.
         rclpy.init(context=self._context, args=["viewer-bridge", "--ros-args", *settings.ros_args])

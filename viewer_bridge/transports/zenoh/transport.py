@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from pydantic import Field, ValidationInfo, field_validator
 
 from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.extras import missing
 from viewer_bridge.transports.base import (
     CDR,
     LCM,
@@ -45,7 +46,6 @@ if TYPE_CHECKING:
     from viewer_bridge.transports.zenoh.entities import Graph, LastValues, LcmPublisher, RosPublisher
     from viewer_bridge.transports.zenoh.session import Link
 
-INSTALL_HINT = "pip install 'viewer-bridge[zenoh]' (eclipse-zenoh)"
 _PLAIN_TOPIC = re.compile(r"^[A-Za-z0-9_/~{}]+$")  # one topic, not a pattern
 _NOT_IN_KEYS = re.compile(r"[*$?#]")  # Zenoh's wildcards and reserved characters
 
@@ -114,9 +114,7 @@ class ZenohTransport(Transport):
         try:
             from viewer_bridge.transports.zenoh import entities, session
         except ImportError as error:
-            raise TransportUnavailable(
-                f"the zenoh transport needs eclipse-zenoh ({error}): {INSTALL_HINT}"
-            ) from None
+            raise missing(error, "the zenoh transport") from None
         wanted = {"mode": settings.mode, "connect": settings.connect, "listen": settings.listen}
         file, pairs = session.session_config(settings.config_file, wanted, settings.config, os.environ)
         session.make_config(file, pairs)  # a bad file or key: refused now, not at every attempt

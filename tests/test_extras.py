@@ -1,0 +1,63 @@
+"""A missing extra is one line naming the pip command that installs it, whichever part needs it:
+a transport when the router starts, the renderer, a converter. Each case runs in a process where
+the extra's module cannot be imported (`sys.modules[name] = None`, as if never installed)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from tests.conftest import lcm_url
+from viewer_bridge import convert
+from viewer_bridge.errors import BridgeError, MissingExtra
+from viewer_bridge.extras import EXTRAS, missing, require
+
+# (the module made missing, the command line's arguments, the extra the message must name)
+COMMANDS = [
+    ("rclpy", ["run", "--duration", "1", "--set", "foxglove.port=0"], "ros"),
+    ("zmq", ["run", "-c", "builtin:ign", "--duration", "1"], "ign"),
+    ("foxglove", ["run", "-c", "builtin:foxglove", "--duration", "1", "--set", "foxglove.port=0"], "foxglove"),
+    ("zenoh", ["run", "-c", "builtin:zenoh", "--duration", "1"], "zenoh"),
+    ("moderngl", ["serve-render", "--port", "0"], "render"),
+]
+
+
+@pytest.mark.parametrize(("module", "arguments", "extra"), COMMANDS, ids=[case[0] for case in COMMANDS])
+def test_a_command_without_its_extra_says_which_to_install(module: str, arguments: list[str], extra: str) -> None:
+    code = f"import sys; sys.modules[{module!r}] = None; from viewer_bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+    result = subprocess.run(
+        [sys.executable, "-c", code, *arguments, *(["--lcm-url", lcm_url(42)] if arguments[0] == "run" else [])],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 2, result.stderr
+    last = result.stderr.strip().splitlines()[-1]  # after any log line (e.g. LCM's buffer size warning)
+    assert last.startswith(f"viewer-bridge {arguments[0]}: "), result.stderr
+    assert last.endswith(f"needs {module}, not installed: pip install 'viewer-bridge[{extra}]'"), result.stderr
+    assert "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize(
+    ("module", "call"),
+    [
+        ("foxglove_schemas_protobuf", "convert.load_to_scene_update(b'')"),
+        ("rclpy", "convert.cdr_to_rclpy(b'', 'geometry_msgs/msg/PoseArray')"),
+    ],
+)
+def test_a_converter_without_its_extra_says_which_to_install(module: str, call: str) -> None:
+    code = f"import sys; sys.modules[{module!r}] = None\nfrom viewer_bridge import convert\n{call}"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert "viewer_bridge.errors.MissingExtra: " in result.stderr, result.stderr
+    assert f"needs {module}, not installed: pip install 'viewer-bridge[{EXTRAS[module]}]'" in result.stderr
+
+
+def test_require_imports_or_names_the_extra() -> None:
+    assert require("json", "a test").__name__ == "json"
+    with pytest.raises(MissingExtra, match=r"^a test needs moderngl_x, not installed: pip install 'viewer-bridge\[all\]'$"):
+        require("moderngl_x", "a test")
+    error = missing(ModuleNotFoundError("no zmq", name="zmq.backend"), "the ign transport")
+    assert isinstance(error, BridgeError) and error.extra == "ign" and error.module == "zmq"
+    assert convert.__name__ == "viewer_bridge.convert"
