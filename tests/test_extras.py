@@ -61,3 +61,15 @@ def test_require_imports_or_names_the_extra() -> None:
     error = missing(ModuleNotFoundError("no zmq", name="zmq.backend"), "the ign transport")
     assert isinstance(error, BridgeError) and error.extra == "ign" and error.module == "zmq"
     assert convert.__name__ == "viewer_bridge.convert"
+
+
+def test_the_built_in_config_runs_with_the_ros_and_foxglove_extras_alone() -> None:
+    """`viewer-bridge run` on its default config: ROS 2 and Foxglove routes, no ign, zenoh or renderer."""
+    code = (
+        "import sys\nfor name in ('zmq', 'zenoh', 'xxhash', 'moderngl'): sys.modules[name] = None\n"
+        "from viewer_bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+    )
+    arguments = ["run", "--demo", "--duration", "2", "--lcm-url", lcm_url(43), "--set", "foxglove.port=0"]
+    result = subprocess.run([sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert " route poses: in " in result.stderr and "Traceback" not in result.stderr, result.stderr

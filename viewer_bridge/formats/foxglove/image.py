@@ -13,8 +13,6 @@ from __future__ import annotations
 import struct
 
 import numpy as np
-from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
-from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 
 from viewer_bridge.formats.protowire import key, length_delimited, varint, varint_field
 from viewer_bridge.formats.ros.image import encoding
@@ -48,6 +46,8 @@ def raw_image(image: Image, frame_id: str, stamp: tuple[int, int]) -> bytes:
 
 def compressed_image(image: EncodedImage, frame_id: str, stamp: tuple[int, int]) -> bytes:
     """`foxglove.CompressedImage` of the bytes as they came (`format` jpeg or png)."""
+    from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage  # the foxglove extra's
+
     message = CompressedImage(frame_id=frame_id, data=bytes(image.data), format=image.format)
     message.timestamp.seconds, message.timestamp.nanos = stamp
     return message.SerializeToString()
@@ -55,6 +55,8 @@ def compressed_image(image: EncodedImage, frame_id: str, stamp: tuple[int, int])
 
 def camera_calibration(intrinsics: Intrinsics, frame_id: str, stamp: tuple[int, int]) -> bytes:
     """`foxglove.CameraCalibration`: a pinhole without distortion, as the ROS CameraInfo."""
+    from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration  # the foxglove extra's
+
     model, coefficients = NO_DISTORTION
     message = CameraCalibration(frame_id=frame_id, width=intrinsics.width, height=intrinsics.height,
                                 distortion_model=model, D=coefficients, K=intrinsics.k(), R=NO_ROTATION,
