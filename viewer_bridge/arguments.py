@@ -220,3 +220,22 @@ def split_ros_args(words: Sequence[str]) -> tuple[list[str], list[str]]:
                 )
         index += 1  # past the `--`
     return own, ros
+
+
+__all__ = [
+    "IMAGE_SUFFIXES",
+    "MAX_IMAGE_SIDE",
+    "Parser",
+    "byte_count",
+    "camera",
+    "fail",
+    "field_of_view",
+    "image_size",
+    "input_file",
+    "lcm_source",
+    "output_file",
+    "port",
+    "positive",
+    "regex",
+    "split_ros_args",
+]

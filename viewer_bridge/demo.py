@@ -108,3 +108,12 @@ def run_demo(
         sent += 1
         stop.wait(1.0 / rate_hz)
     return sent
+
+
+__all__ = [
+    "DEMO_MESH",
+    "TETRAHEDRON_OBJ",
+    "demo_poses",
+    "demo_scene",
+    "run_demo",
+]

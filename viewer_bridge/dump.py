@@ -91,3 +91,10 @@ def _short(value: Any) -> str:
     if isinstance(value, float) and math.isfinite(value) and float(np.float32(value)) == value:
         return str(np.float32(value))
     return repr(value)
+
+
+__all__ = [
+    "as_json",
+    "as_text",
+    "describe",
+]

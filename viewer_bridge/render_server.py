@@ -223,3 +223,14 @@ def make_server(
             log.debug("render server: " + format, *args)
 
     return http.server.ThreadingHTTPServer((host, port), Handler)
+
+
+__all__ = [
+    "BadRequest",
+    "DEFAULT_MAX_UPLOAD",
+    "RenderThread",
+    "log",
+    "make_server",
+    "parse_form",
+    "render_request",
+]

@@ -347,3 +347,18 @@ def uninstall(names: Iterable[str] | None = None, prefix: str | Path = sys.prefi
         for egg in _site_packages(root).glob(f"{name}-*.egg-info"):
             shutil.rmtree(egg, ignore_errors=True)
     return removed
+
+
+__all__ = [
+    "APT_PACKAGES",
+    "BUILD_WHEELS",
+    "INTERFACES",
+    "Interface",
+    "RUNTIME_WHEELS",
+    "cmake_lists",
+    "install",
+    "message_text",
+    "missing",
+    "package_xml",
+    "uninstall",
+]

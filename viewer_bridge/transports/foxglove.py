@@ -237,3 +237,12 @@ class FoxgloveTransport(Transport):
         if self.front is not None:
             self.front.close()
         self.server.stop()
+
+
+__all__ = [
+    "FoxgloveContext",
+    "FoxgloveSettings",
+    "FoxgloveTransport",
+    "log",
+    "require_schemas",
+]

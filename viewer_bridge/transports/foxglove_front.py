@@ -215,3 +215,18 @@ class SubprotocolFront:
             relays = list(self._relays)
         for relay in relays:
             relay.abort()
+
+
+__all__ = [
+    "CHUNK",
+    "HANDSHAKE_SECONDS",
+    "MAX_HEAD",
+    "OLDER_NAMES",
+    "SDK_SUBPROTOCOL",
+    "SubprotocolFront",
+    "log",
+    "naming",
+    "older_name_asked",
+    "read_head",
+    "subprotocols",
+]

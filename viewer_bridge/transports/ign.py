@@ -294,3 +294,11 @@ class IgnTransport(Transport):
 
     def close(self) -> None:
         self.node.close()
+
+
+__all__ = [
+    "IgnNode",
+    "IgnSettings",
+    "IgnTransport",
+    "log",
+]

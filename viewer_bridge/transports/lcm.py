@@ -345,3 +345,22 @@ class LcmTransport(base.Transport):
 
     def close(self) -> None:
         self.bus.close()
+
+
+__all__ = [
+    "Callback",
+    "DEFAULT_URL",
+    "LcmBus",
+    "LcmEvent",
+    "LcmSettings",
+    "LcmTransport",
+    "LogReplay",
+    "Publisher",
+    "RECEIVE_BUFFER",
+    "Subscription",
+    "kernel_drops",
+    "open_bus",
+    "read_log",
+    "with_receive_buffer",
+    "write_log",
+]

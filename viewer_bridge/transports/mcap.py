@@ -223,3 +223,10 @@ class McapTransport(Transport):
 
     def close(self) -> None:
         self.file.close()
+
+
+__all__ = [
+    "McapSettings",
+    "McapTransport",
+    "Profile",
+]

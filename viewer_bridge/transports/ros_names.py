@@ -93,3 +93,13 @@ def _tokens(name: str) -> str | None:
         if token[:1].isdigit():
             return f"a part of it starts with a digit: {token!r}"
     return None
+
+
+__all__ = [
+    "MAX_NAMESPACE_LENGTH",
+    "MAX_NODE_NAME_LENGTH",
+    "name_token",
+    "namespace_problem",
+    "node_name_problem",
+    "topic_problem",
+]

@@ -245,3 +245,18 @@ class Graph:
         with self._lock:
             tokens = list(self._tokens.values())
         return {(t.topic.topic, t.topic.dds_type) for t in tokens if t.kind == keys.PUBLISHER and t.topic}
+
+
+__all__ = [
+    "Errors",
+    "Graph",
+    "LastValues",
+    "LcmPublisher",
+    "Matching",
+    "RosPublisher",
+    "ask_last_values",
+    "declare_put",
+    "declare_subscriber",
+    "is_cdr",
+    "ros_receiver",
+]

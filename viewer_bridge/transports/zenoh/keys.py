@@ -298,3 +298,31 @@ def parse_attachment(data: bytes) -> Attachment:
     if length != 16:
         raise DecodeError("rmw_zenoh.attachment", "gid.length", 16, f"{length}, not 16")
     return Attachment(sequence, timestamp_ns, source_gid)
+
+
+__all__ = [
+    "ADMIN_SPACE",
+    "ATTACHMENT",
+    "ATTACHMENT_SIZE",
+    "Attachment",
+    "DataKey",
+    "ENTITY_KINDS",
+    "NodeName",
+    "Token",
+    "TokenQos",
+    "TopicEntity",
+    "TopicType",
+    "attachment",
+    "data_key",
+    "dds_type_name",
+    "demangle",
+    "gid",
+    "mangle",
+    "parse_attachment",
+    "parse_data_key",
+    "parse_qos_part",
+    "parse_token",
+    "qos_part",
+    "ros_type_name",
+    "topic_type",
+]

@@ -175,3 +175,13 @@ class Link:
             self._held.clear()
         if session is not None:
             session.close()  # type: ignore[no-untyped-call]
+
+
+__all__ = [
+    "Declare",
+    "Link",
+    "ROUTER_ENDPOINT",
+    "make_config",
+    "overrides_from_env",
+    "session_config",
+]
