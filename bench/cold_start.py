@@ -20,7 +20,7 @@ from router import frame, scene
 
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
-from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.translators.base import Translator
 from viewer_bridge.translators.types import LOAD_TYPE
 from viewer_bridge.transports.base import Received
@@ -30,7 +30,7 @@ TRANSLATORS_PER_DRAW = ("drake_to_marker_array", "drake_to_tf", "drake_to_pose_a
 
 def loaded(name: str, load: bytes) -> Translator:
     """The translator with the scene loaded, as a route has it before the draws come."""
-    translator = TRANSLATORS.get(name)({}, LoadCache())
+    translator = TRANSLATORS.get(name)({})
     if LOAD_TYPE in translator.reads:
         message = Received("DRAKE_VIEWER_LOAD_ROBOT", load)
         translator.observe(message)

@@ -31,7 +31,7 @@ from router import Bridge, publish_at  # noqa: E402
 from tests.formats.ign.oracle import pose_v  # noqa: E402
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder  # noqa: E402
 from viewer_bridge.formats.ign.poses import PosesEncoder  # noqa: E402
-from viewer_bridge.translators import TRANSLATORS, LoadCache  # noqa: E402
+from viewer_bridge.translators import TRANSLATORS  # noqa: E402
 from viewer_bridge.transports.base import Received  # noqa: E402
 from viewer_bridge.transports.ign import IgnNode  # noqa: E402
 from viewer_bridge.transports.lcm import LcmBus  # noqa: E402
@@ -132,7 +132,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="only the in-process ratio")
     args = parser.parse_args()
     rows = [encode_measure(args.quick)]
-    translator = TRANSLATORS["drake_to_ign_pose_v"]({}, LoadCache())
+    translator = TRANSLATORS["drake_to_ign_pose_v"]({})
     draw = DrawEncoder().encode(frame(1000))
     translator.translate(Received("DRAKE_VIEWER_DRAW", draw))
     own = seconds_per_call(lambda: translator.translate(Received("DRAKE_VIEWER_DRAW", draw)), 0.5)

@@ -21,7 +21,6 @@ from draw_codec import seconds_per_call  # noqa: E402
 
 from viewer_bridge.formats.tree_viewer.envelope import FORMAT  # noqa: E402
 from viewer_bridge.lcmcodec import VIEWER2_COMMS  # noqa: E402
-from viewer_bridge.translators import LoadCache  # noqa: E402
 from viewer_bridge.translators.tree_viewer import TreeViewerServer  # noqa: E402
 from viewer_bridge.transports.base import Received  # noqa: E402
 
@@ -44,8 +43,7 @@ def payloads() -> dict[str, bytes]:
 
 
 def main() -> None:
-    server = TreeViewerServer({}, LoadCache())
-    server.reply = lambda channel, data: None
+    server = TreeViewerServer({}, reply=lambda channel, data: None)
     print(f"{'request':<36} {'bytes':>10} | {'json.loads':>10} | {'bridge -> markers':>17} | {'ratio':>5}")
     for index, (label, data) in enumerate(payloads().items()):
         channel = f"DIRECTOR_TREE_VIEWER_REQUEST_<bench{index}>"  # a client (a tree) per request

@@ -384,6 +384,59 @@ def test_a_broken_config_exits_2_naming_file_line_and_field(
         load_config(path)
 
 
+CAMERA_ROUTE = """
+lcm: {{url: "{url}"}}
+foxglove: {{port: 0}}
+routes:
+  - name: camera
+    source: {{transport: lcm, name: "DRAKE_RGBD_CAMERA_IMAGES(_.*)?"}}
+    translator: {translator}
+    destination: {{transport: {destination}, name: "/camera{{1:path}}"}}
+    options: {options}
+"""
+
+
+@pytest.mark.parametrize(
+    ("translator", "destination", "options", "missing"),
+    [
+        ("drake_images_to_foxglove", "foxglove", "{}", "foxglove.RawImage"),
+        ("drake_images_to_ros", "ros", "{camera_info: {width: 64, height: 48, fov_y: 45}}", "sensor_msgs/msg/CameraInfo"),
+    ],
+)  # fmt: skip
+def test_a_camera_route_whose_interface_is_missing_is_refused_at_start_in_one_line(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    translator: str,
+    destination: str,
+    options: str,
+    missing: str,
+) -> None:
+    """A camera's outputs are its ports', known from its images; what it may write is declared
+    from its options, so the start-up check refuses before the first image (here: CameraInfo,
+    written only because the options ask for it)."""
+    from viewer_bridge import cli
+    from viewer_bridge.transports import foxglove, ros2
+
+    schema, message_class = foxglove.schema, ros2.message_class
+
+    def without(name: str, lookup: Any) -> Any:
+        def look(type_name: str) -> Any:
+            if type_name == name:
+                raise (KeyError if lookup is schema else ImportError)(f"{name} made unavailable by the test")
+            return lookup(type_name)
+
+        return look
+
+    monkeypatch.setattr(foxglove, "schema", without(missing, schema))
+    monkeypatch.setattr(ros2, "message_class", without(missing, message_class))
+    text = CAMERA_ROUTE.format(url=lcm_url(), translator=translator, destination=destination, options=options)
+    path = write_config(tmp_path, text)
+    assert cli.main(["run", "-c", str(path), "--duration", "0.1"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("viewer-bridge run: ") and missing in error and "\n" not in error, error
+
+
 # --- lazy routes ------------------------------------------------------------------------------------------
 
 def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_path: Path) -> None:
@@ -581,13 +634,13 @@ def test_clock_carries_drakes_sim_time() -> None:
     from rclpy.serialization import deserialize_message
     from rosgraph_msgs.msg import Clock
 
-    from viewer_bridge.translators import TRANSLATORS, LoadCache
+    from viewer_bridge.translators import TRANSLATORS
 
     names = ("plant::a",)
     draw = DrawEncoder().encode(
         LinkPoses(61_250, names, np.ones(1, np.int32), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]]))
     )
-    ((_, data),) = TRANSLATORS["drake_to_clock"]({}, LoadCache()).translate(Received("DRAKE_VIEWER_DRAW", draw))
+    ((_, data),) = TRANSLATORS["drake_to_clock"]({}).translate(Received("DRAKE_VIEWER_DRAW", draw))
     clock = deserialize_message(data, Clock).clock
     assert (clock.sec, clock.nanosec) == (61, 250_000_000)
 

@@ -185,11 +185,10 @@ class _Checker:
         self._carried(
             source, route.source.transport, translator.reads, (*at, "source", "transport"), route, "reads"
         )
-        outputs = tuple(output.type for output in translator.outputs)
         self._carried(
             destination,
             route.destination.transport,
-            outputs,
+            translator.writes(route._options),
             (*at, "destination", "transport"),
             route,
             "writes",

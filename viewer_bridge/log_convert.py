@@ -92,7 +92,7 @@ def _lcm_to(schema: Profile, route: Route) -> bool:
     """Whether a route reads LCM and writes only what an MCAP file of `schema` holds."""
     translator = TRANSLATORS.get(route.translator)
     return all(read.encoding == LCM for read in translator.reads) and all(
-        McapTransport.carries(output.type, schema) for output in translator.outputs
+        McapTransport.carries(written, schema) for written in translator.writes(route.translator_options())
     )
 
 

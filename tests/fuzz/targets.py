@@ -86,9 +86,8 @@ _MESH_ROOT = tempfile.mkdtemp(prefix="fuzz-meshes-")
 
 def tree_viewer_request(data: bytes) -> object:
     """One envelope from a new client: decode, apply to its tree, reply, and the MarkerArray."""
-    server = TreeViewerServer({"mesh_roots": [_MESH_ROOT]})
     replies: list[bytes] = []
-    server.reply = lambda channel, payload: replies.append(payload)
+    server = TreeViewerServer({"mesh_roots": [_MESH_ROOT]}, reply=lambda channel, payload: replies.append(payload))
     try:
         return server.translate(Received("DIRECTOR_TREE_VIEWER_REQUEST_<fuzz>", data, 0))
     finally:

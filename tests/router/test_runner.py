@@ -17,7 +17,7 @@ def test_a_translator_crash_skips_that_message_only() -> None:
 
     from viewer_bridge.config import Route
     from viewer_bridge.router.runner import RouteRunner
-    from viewer_bridge.translators import LoadCache, Translator
+    from viewer_bridge.translators import Translator
 
     class Flaky(Translator):
         reads = ()
@@ -32,7 +32,7 @@ def test_a_translator_crash_skips_that_message_only() -> None:
         {"name": "r", "source": {"transport": "lcm", "name": "X"}, "translator": "drake_to_pose_array",
          "destination": {"transport": "ros", "name": "/x"}}
     )  # fmt: skip
-    runner = RouteRunner(route, lambda: Flaky({}, LoadCache()), lambda name, output: CallPublisher(print))
+    runner = RouteRunner(route, lambda: Flaky({}), lambda name, output: CallPublisher(print))
     match = re.fullmatch("X", "X")
     assert match is not None
     for data in (b"ok", b"boom", b"ok"):
@@ -50,14 +50,14 @@ def lazy_pose_route(**rate: Any) -> Route:
 def test_a_lazy_route_that_wakes_does_not_count_the_wait_as_latency() -> None:
     from tests.scenes import draw_of, small_scene
     from viewer_bridge.router.runner import RouteRunner
-    from viewer_bridge.translators import TRANSLATORS, LoadCache
+    from viewer_bridge.translators import TRANSLATORS
 
     listeners = 0
     published: list[bytes] = []
     route = lazy_pose_route()
     runner = RouteRunner(
         route,
-        lambda: TRANSLATORS.get("drake_to_pose_array")({}, LoadCache()),
+        lambda: TRANSLATORS.get("drake_to_pose_array")({}),
         lambda name, output: CallPublisher(published.append, lambda: listeners),
     )
     match = re.fullmatch("DRAKE_VIEWER_DRAW", "DRAKE_VIEWER_DRAW")
@@ -80,12 +80,12 @@ def test_a_lazy_route_that_wakes_does_not_count_the_wait_as_latency() -> None:
 
 def test_messages_a_rate_limit_skips_are_counted_as_skipped_not_dropped() -> None:
     from viewer_bridge.router.runner import RouteRunner
-    from viewer_bridge.translators import TRANSLATORS, LoadCache
+    from viewer_bridge.translators import TRANSLATORS
 
     def runner(**rate: Any) -> RouteRunner:
         return RouteRunner(
             lazy_pose_route(**rate),
-            lambda: TRANSLATORS.get("drake_to_pose_array")({}, LoadCache()),
+            lambda: TRANSLATORS.get("drake_to_pose_array")({}),
             lambda name, output: CallPublisher(print),
         )
 

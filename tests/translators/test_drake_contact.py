@@ -25,7 +25,7 @@ from viewer_bridge.formats.ros.messages import from_cdr
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.tree import TreeState
 from viewer_bridge.scene import Line, Scene, TriangleMesh
-from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import Received
 
 CONTACT_SCENE_SCRIPT = Path(__file__).parents[1] / "drake_contact_scene.py"
@@ -121,7 +121,7 @@ def test_dump_decodes_contact_results() -> None:
 
 
 def test_tree_viewer_gets_arrows_as_lines_with_heads() -> None:
-    translator = TRANSLATORS.get("drake_contacts_to_tree_viewer")({"force_scale": 0.1}, LoadCache())
+    translator = TRANSLATORS.get("drake_contacts_to_tree_viewer")({"force_scale": 0.1})
     out = translator.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
     requests = [envelope.decode(data) for _, data in out]
     assert requests[0]["delete"] == [{"path": ["contacts"]}]
@@ -155,7 +155,7 @@ def test_snapshot_draws_arrows_and_pressure_bands() -> None:
 
 def test_marker_options_reach_the_table_and_unknown_ones_are_refused() -> None:
     options = {"frame_id": "map", "force_scale": 0.5, "pressure_range": [0, 1e6], "surfaces": False}
-    translator = TRANSLATORS.get("drake_contacts_to_marker_array")(options, LoadCache())
+    translator = TRANSLATORS.get("drake_contacts_to_marker_array")(options)
     ((_, data),) = translator.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
     markers = from_cdr(data, ros.MARKER_ARRAY).markers
     assert {m.header.frame_id for m in markers[1:]} == {"map"}
@@ -163,4 +163,4 @@ def test_marker_options_reach_the_table_and_unknown_ones_are_refused() -> None:
     force = markers[1]
     assert force.points[1].z - force.points[0].z == pytest.approx(0.5 * 9.81)
     with pytest.raises(ValueError, match="force_scael"):
-        TRANSLATORS.get("drake_contacts_to_marker_array")({"force_scael": 1}, LoadCache())
+        TRANSLATORS.get("drake_contacts_to_marker_array")({"force_scael": 1})

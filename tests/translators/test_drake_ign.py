@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from viewer_bridge.config import load_config
-from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import PROTOBUF, MessageType
 from viewer_bridge.transports.ign import IgnSettings, IgnTransport
 
@@ -23,16 +23,16 @@ IGN_TRANSLATORS = {
 def test_a_translator_names_its_message_once_and_a_route_may_pick_the_package(name: str, message: str) -> None:
     translator = TRANSLATORS.get(name)
     assert [output.type for output in translator.outputs] == [MessageType(message, PROTOBUF)]
-    assert [output.type.name for output in translator({}, LoadCache()).outputs] == [message]
+    assert [output.type.name for output in translator({}).outputs] == [message]
     for package in ("gz", "ignition"):
-        chosen = translator({"package": package}, LoadCache())
+        chosen = translator({"package": package})
         assert [output.type.name for output in chosen.outputs] == [f"{package}.msgs.{message}"]
 
 
 def test_the_pose_v_reader_names_its_message_once_too() -> None:
     reader = TRANSLATORS.get("ign_pose_v_to_drake_draw")
     assert reader.reads == (MessageType("Pose_V", PROTOBUF),)
-    assert reader({"package": "ignition"}, LoadCache()).reads == (MessageType("ignition.msgs.Pose_V", PROTOBUF),)
+    assert reader({"package": "ignition"}).reads == (MessageType("ignition.msgs.Pose_V", PROTOBUF),)
 
 
 def test_the_transport_carries_short_names_and_both_packages_only() -> None:

@@ -21,11 +21,11 @@ from tests.drake_images import publish_with_drake, read_with_drake
 from tests.formats.drake.test_image import lcm_array, lcm_image, sample_pixels
 from tests.formats.ros.test_image import rclpy_image
 from viewer_bridge.config import Route, destination_name, load_config
-from viewer_bridge.log_convert import convert
 from viewer_bridge.errors import ConfigError, DecodeError, EncodeError
 from viewer_bridge.formats.ros.image import LAYOUTS
+from viewer_bridge.log_convert import convert
 from viewer_bridge.skipped import collecting
-from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import CallPublisher, Received
 from viewer_bridge.transports.lcm import LcmEvent, write_log
 
@@ -119,7 +119,7 @@ def test_a_bad_image_is_counted_on_the_route_and_the_others_go_out() -> None:
     def publisher(name: str, output: Any) -> CallPublisher:
         return CallPublisher(published.setdefault(name, []).append, lambda: listeners)
 
-    runner = RouteRunner(route, lambda: TRANSLATORS.get("drake_images_to_ros")({}, LoadCache()), publisher)
+    runner = RouteRunner(route, lambda: TRANSLATORS.get("drake_images_to_ros")({}), publisher)
     broken = lcm_image("depth", DEPTH, pixel_format=5, channel_type=3, data=b"short")
     data = lcm_array(
         lcm_image("rgb", RGBA), broken, lcm_image("label", LABEL, pixel_format=6, channel_type=2)

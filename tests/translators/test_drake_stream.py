@@ -11,7 +11,7 @@ from viewer_bridge.formats.drake.draw import DrawDecoder
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.translators import TRANSLATORS, LoadCache
 from viewer_bridge.translators.types import LOAD_TYPE
-from viewer_bridge.transports.base import Received
+from viewer_bridge.transports.base import Received, Shared
 
 
 def test_a_draw_read_by_several_translators_is_decoded_once(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -24,9 +24,9 @@ def test_a_draw_read_by_several_translators_is_decoded_once(monkeypatch: pytest.
 
     monkeypatch.setattr(DrawDecoder, "decode", counting)
     scene = small_scene()
-    loads = LoadCache()
+    shared = Shared()  # one router's
     names = ["drake_to_marker_array", "drake_to_pose_array", "drake_to_clock", "drake_to_ign_pose_v"]
-    translators = [TRANSLATORS.get(name)({}, loads) for name in names]
+    translators = [TRANSLATORS.get(name)({}, shared=shared) for name in names]
     load = Received("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(scene).encode())
     for translator in translators:
         translator.observe(load)
@@ -39,3 +39,20 @@ def test_a_draw_read_by_several_translators_is_decoded_once(monkeypatch: pytest.
     again = Received("DRAKE_VIEWER_DRAW", draw_of(scene, 2.0))  # the next message is decoded anew
     translators[1].translate(again)
     assert len(calls) == 2
+
+
+def test_two_routers_share_no_load_and_no_decode() -> None:
+    scene = small_scene()
+    load = Received("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(scene).encode())
+    draw = Received("DRAKE_VIEWER_DRAW", draw_of(scene, 1.0))
+    first, second = Shared(), Shared()  # two routers in one process
+    a = TRANSLATORS.get("drake_to_marker_array")({}, shared=first)
+    b = TRANSLATORS.get("drake_to_marker_array")({}, shared=second)
+    same_router = TRANSLATORS.get("drake_to_shapes")({}, shared=first)
+    a.observe(load)
+    assert first.get(LoadCache).get("DRAKE_VIEWER_LOAD_ROBOT") == load.data
+    assert second.get(LoadCache).get("DRAKE_VIEWER_LOAD_ROBOT") is None
+    assert b.translate(draw) == []  # its router never saw the load: no scene to publish
+    assert same_router.translate(draw) != []  # its router's cache brings the scene
+    assert a.draw_poses is same_router.draw_poses and a.draw_poses is not b.draw_poses
+    assert b.draw_poses(draw) is not a.draw_poses(draw)  # each router decodes for itself

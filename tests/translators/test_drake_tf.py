@@ -19,7 +19,7 @@ from viewer_bridge.errors import EncodeError
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.formats.ros.messages import from_cdr
 from viewer_bridge.scene import Box, Geometry, Link, Pose, Scene
-from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import Received
 
 
@@ -37,7 +37,7 @@ def test_roles_get_their_own_frames_and_static_links_are_sent_once() -> None:
     draw = draw_of(small_scene(), 1.0)  # poses base and tip; "fixed" is never drawn
     out: dict[str, list[tuple[int, bytes]]] = {}
     for suffix in ("", "_PROXIMITY"):
-        tf = TRANSLATORS.get("drake_to_tf")({}, LoadCache())
+        tf = TRANSLATORS.get("drake_to_tf")({})
         out[suffix] = translate_all(
             tf,
             Received(f"DRAKE_VIEWER_LOAD_ROBOT{suffix}", load),
@@ -53,7 +53,7 @@ def test_roles_get_their_own_frames_and_static_links_are_sent_once() -> None:
     assert (first[0].header.stamp.sec, first[0].header.stamp.nanosec) == (1_700_000_000, 250_000_000)
     proximity = from_cdr(out["_PROXIMITY"][1][1], "tf2_msgs/msg/TFMessage").transforms
     assert [t.child_frame_id for t in proximity] == ["proximity/plant/robot/base", "proximity/plant/robot/tip"]
-    sim = TRANSLATORS.get("drake_to_tf")({"stamp": "sim"}, LoadCache())
+    sim = TRANSLATORS.get("drake_to_tf")({"stamp": "sim"})
     ((_, data),) = translate_all(sim, Received("DRAKE_VIEWER_DRAW", draw_of(small_scene(), 61.25)))
     stamp = from_cdr(data, "tf2_msgs/msg/TFMessage").transforms[0].header.stamp
     assert (stamp.sec, stamp.nanosec) == (61, 250_000_000)
@@ -65,7 +65,7 @@ def test_roles_get_their_own_frames_and_static_links_are_sent_once() -> None:
 def test_link_markers_are_in_link_frames_once_per_load() -> None:
     scene = Scene((Link("plant::robot::base", 1, (Geometry(Box((0.1, 0.2, 0.3)), Pose((1.0, 2.0, 3.0))),)),
                    Link("world", 0, (Geometry(Box((5, 5, 0.1))),))))  # fmt: skip
-    markers = TRANSLATORS.get("drake_to_link_markers")({}, LoadCache())
+    markers = TRANSLATORS.get("drake_to_link_markers")({})
     load = Received("DRAKE_VIEWER_LOAD_ROBOT_PROXIMITY", load_from_scene(scene).encode())
     draw = Received("DRAKE_VIEWER_DRAW_PROXIMITY", draw_of(small_scene(), 1.0))
     ((_, data),) = translate_all(markers, load, draw, load)  # the draw and the re-sent load: nothing

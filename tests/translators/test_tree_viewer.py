@@ -28,7 +28,6 @@ from viewer_bridge.formats.drake.load import decode_load, load_from_scene
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.lcmcodec import VIEWER2_COMMS
 from viewer_bridge.scene import Pose
-from viewer_bridge.translators import LoadCache
 from viewer_bridge.translators.tree_viewer import DrakeToTreeViewer, TreeViewerServer
 from viewer_bridge.transports.base import Received
 from viewer_bridge.transports.lcm import LcmBus
@@ -116,8 +115,8 @@ def test_every_geometry_type_and_command(lcmgen: dict[str, type], tmp_path: Path
     client = SpecClient(lcmgen)
     mesh = tmp_path / "m.obj"
     mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
-    server = TreeViewerServer({"mesh_roots": [str(tmp_path)]}, LoadCache())
-    server.reply = replies = Collected()
+    replies = Collected()
+    server = TreeViewerServer({"mesh_roots": [str(tmp_path)]}, reply=replies)
     for index, (geometry, marker_type, count) in enumerate(every_geometry(str(mesh))):
         path = ["robot", f"part{index}", "shape"]
         (array,), error = serve(
@@ -159,8 +158,8 @@ def test_every_geometry_type_and_command(lcmgen: dict[str, type], tmp_path: Path
 
 def test_missing_paths_are_reported(lcmgen: dict[str, type]) -> None:
     client = SpecClient(lcmgen)
-    server = TreeViewerServer({}, LoadCache())
-    server.reply = replies = Collected()
+    replies = Collected()
+    server = TreeViewerServer({}, reply=replies)
     move = request(settransform=[{"path": ["nothing", "here"], "transform": {}}])
     serve(server, client.wrap(move))
     assert client.read(replies.sent[-1][1])["missing_paths"] == [["nothing", "here"]]
@@ -185,8 +184,8 @@ def test_error_replies(
     lcmgen: dict[str, type], payload: Any, format_name: str, major: int, status: int, text: str
 ) -> None:
     client = SpecClient(lcmgen)
-    server = TreeViewerServer({}, LoadCache())
-    server.reply = replies = Collected()
+    replies = Collected()
+    server = TreeViewerServer({}, reply=replies)
     markers, error = serve(server, client.wrap(payload, format_name, major))
     assert markers == [] and error is not None  # counted by the router as an error
     ((channel, reply),) = replies.sent
@@ -247,8 +246,8 @@ def fuzzed_requests(count: int, seed: int = 7) -> list[bytes]:
 
 @pytest.mark.slow
 def test_100000_fuzzed_requests_get_a_reply_each_and_never_crash(tmp_path: Path) -> None:
-    server = TreeViewerServer({"mesh_roots": [str(tmp_path)]}, LoadCache())
-    server.reply = replies = Collected()
+    replies = Collected()
+    server = TreeViewerServer({"mesh_roots": [str(tmp_path)]}, reply=replies)
     statuses: dict[int, int] = {}
     for data in fuzzed_requests(100_000):
         before = len(replies.sent)
@@ -266,9 +265,9 @@ def test_100000_fuzzed_requests_get_a_reply_each_and_never_crash(tmp_path: Path)
 
 def test_client_resends_on_missing_paths_and_the_viewer_tree_is_complete() -> None:
     scene = small_scene()
-    client = DrakeToTreeViewer({}, LoadCache())
-    viewer = TreeViewerServer({}, LoadCache())
-    viewer.reply = to_client = Collected()
+    client = DrakeToTreeViewer({})
+    to_client = Collected()
+    viewer = TreeViewerServer({}, reply=to_client)
 
     def deliver(outputs: list[tuple[int, bytes]]) -> None:
         for _, data in outputs:
@@ -291,7 +290,7 @@ def test_client_resends_on_missing_paths_and_the_viewer_tree_is_complete() -> No
 
 
 def test_client_stops_when_the_viewer_does_not_speak_its_format() -> None:
-    client = DrakeToTreeViewer({}, LoadCache())
+    client = DrakeToTreeViewer({})
     refusal = envelope.encode(
         {"status": envelope.ERROR_UNKNOWN_FORMAT_VERSION, "error": "unknown version 1.0"}
     )

@@ -59,11 +59,13 @@ class Router:
         view: StatusView | None = None,
     ) -> None:
         self.config = config
-        self.loads = LoadCache(config.load_cache)
         self.stats_json = Path(stats_json) if stats_json else None
         self.stats_period = stats_period
         self.view = view or LogLines()
-        self.shared = Shared()  # what the transports share: one Foxglove context, the message time
+        # What the transports and translators share: one Foxglove context, the message time, the
+        # last Drake load per channel (kept in the config's folder, if it names one).
+        self.shared = Shared()
+        self.shared.provide(LoadCache, LoadCache(config.load_cache))
         self.transports: dict[str, Transport] = {}
         self.routes: list[RouteRunner] = []
         self._sourced: dict[str, list[RouteRunner]] = {}  # by source transport, for `feed`
@@ -88,20 +90,18 @@ class Router:
         reply = self._replier(route) if translator_class.replies is not None else None
 
         def make_translator() -> Translator:
-            translator = translator_class(options, self.loads)
-            if reply is not None:
-                translator.reply = reply
-            return translator
+            return translator_class(options, shared=self.shared, reply=reply)
 
         runner = RouteRunner(
             route, make_translator, self._publisher_factory(route), self._inline, self.shared.message_time
         )
         translator = runner.prototype
         assert translator is not None
-        # Before anything runs, each transport checks it has every type the route uses: a missing
-        # interface is one clear line at start, not an error per message.
+        # Before anything runs, each transport checks it has every type the route uses (what the
+        # translator declares it writes, whatever outputs it adds later): a missing interface is
+        # one clear line at start, not an error per message.
         source.require(translator.reads[:1] + ((translator.replies,) if translator.replies else ()))
-        self.transports[route.destination.transport].require(output.type for output in translator.outputs)
+        self.transports[route.destination.transport].require(translator_class.writes(options))
         source.subscribe(route.source.name, translator.reads[0], output_qos(route, False), runner.offer)
         return runner
 

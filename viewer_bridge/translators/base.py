@@ -18,8 +18,7 @@ from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict
 
-from viewer_bridge.translators.load_cache import LoadCache
-from viewer_bridge.transports.base import MessageType, Received
+from viewer_bridge.transports.base import MessageType, Received, Shared
 
 
 class TranslatorOptions(BaseModel):
@@ -42,16 +41,27 @@ Reply = Callable[[str, bytes], None]  # publish on the source's transport: (chan
 
 
 def _no_reply(channel: str, data: bytes) -> None:
-    raise OSError(f"this route cannot answer on {channel}")
+    raise RuntimeError(f"a translator that declares no `replies` answered on {channel}")
 
 
 class Translator:
     """Base of every translator.
 
     `reads` and `outputs` are class attributes; an instance may narrow them from its options
-    (e.g. gz instead of ignition message names) within the same encodings. `reply` publishes
-    back on the source's transport (the router sets it when `replies` names a type): how a
-    protocol with requests and responses, like the tree viewer's, answers.
+    (e.g. gz instead of ignition message names) within the same encodings, and may add outputs
+    as it runs (a camera's ports, as its images arrive): `outputs` is what `translate`'s indices
+    point into. `writes(options)` declares, before any message, every type a translator with
+    those options may publish: the config check and the router's start-up check (is each
+    interface installed?) use it, never `outputs`.
+
+    Made as `Translator(options)`, with two keyword arguments the router gives:
+    - `shared`: what the translators (and transports) of one router share, made once per router
+      on first ask (`shared.get(LoadCache)`, the draw decoders of `drake_stream`); a translator
+      made alone gets a `Shared` of its own. Nothing is shared between routers or kept in a module.
+    - `reply`: publishes back on the source's transport, `reply(channel, bytes)`: how a protocol
+      with requests and responses, like the tree viewer's, answers. Required when the class
+      declares `replies`; fixed for the translator's life (never set after it is made).
+    A subclass with its own `__init__` takes `*args, **kwargs` and passes them on.
     """
 
     Options: ClassVar[type[TranslatorOptions]] = TranslatorOptions
@@ -60,15 +70,26 @@ class Translator:
     replies: ClassVar[MessageType | None] = None
 
     def __init__(
-        self, options: Mapping[str, Any] | TranslatorOptions | None = None, loads: LoadCache | None = None
+        self,
+        options: Mapping[str, Any] | TranslatorOptions | None = None,
+        *,
+        shared: Shared | None = None,
+        reply: Reply | None = None,
     ) -> None:
         self.options = (
             options
             if isinstance(options, TranslatorOptions)
             else self.Options.model_validate(dict(options or {}))
         )
-        self.loads = LoadCache() if loads is None else loads
-        self.reply: Reply = _no_reply
+        self.shared = Shared() if shared is None else shared
+        if reply is None and self.replies is not None:
+            raise TypeError(f"{type(self).__name__} answers with {self.replies}: give it reply=")
+        self.reply: Reply = _no_reply if reply is None else reply
+
+    @classmethod
+    def writes(cls, options: TranslatorOptions) -> tuple[MessageType, ...]:
+        """Every type a translator with these options may publish (by default, its `outputs`')."""
+        return tuple(dict.fromkeys(output.type for output in cls.outputs))
 
     def observe(self, message: Received) -> None:
         """Bookkeeping every message gets, translated or not (a lazy route with no subscriber)."""

@@ -15,8 +15,8 @@ from viewer_bridge.formats.foxglove.scene import scene_update
 from viewer_bridge.formats.foxglove.transforms import FrameTransformsEncoder
 from viewer_bridge.scene import Scene
 from viewer_bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us
-from viewer_bridge.translators.base import Output, Outputs, Translator
-from viewer_bridge.translators.drake_stream import PerLoadTranslator, draw_poses
+from viewer_bridge.translators.base import Output, Outputs
+from viewer_bridge.translators.drake_stream import DrawReader, PerLoadTranslator
 from viewer_bridge.translators.options import FrameOptions
 from viewer_bridge.translators.types import DRAW_TYPE, FRAME_TRANSFORMS_TYPE, SCENE_UPDATE_TYPE
 from viewer_bridge.transports.base import Received
@@ -37,7 +37,7 @@ class FrameTransformsOptions(FrameOptions):
     stamp: Literal["sim", "receive"] = "sim"
 
 
-class DrakeToFrameTransforms(Translator):
+class DrakeToFrameTransforms(DrawReader):
     """draw -> `foxglove.FrameTransforms`: world -> every link, from the draw arrays."""
 
     Options = FrameTransformsOptions
@@ -50,7 +50,7 @@ class DrakeToFrameTransforms(Translator):
         self.encoder: FrameTransformsEncoder | None = None
 
     def translate(self, message: Received) -> Outputs:
-        poses = draw_poses(message)
+        poses = self.draw_poses(message)
         if self.encoder is None:  # one stream per translator: its role is its first channel's
             self.encoder = FrameTransformsEncoder(self.options.frames(message.channel))
         if self.options.stamp == "sim":

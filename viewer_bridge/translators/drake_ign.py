@@ -17,7 +17,7 @@ from viewer_bridge.formats.ign.poses import PosesEncoder, poses_from_pose_v
 from viewer_bridge.formats.ign.schema import MESSAGES
 from viewer_bridge.scene import Scene
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from viewer_bridge.translators.drake_stream import DrakeTranslator, draw_poses
+from viewer_bridge.translators.drake_stream import DrakeTranslator, DrawReader
 from viewer_bridge.translators.options import IgnOptions
 from viewer_bridge.translators.types import DRAW_TYPE, LOAD_TYPE, ign_type
 from viewer_bridge.transports.base import MessageType, Received
@@ -84,7 +84,7 @@ class DrakeToIgnModelV(DrakeToIgnModel):
         return model_v_bytes(scene)
 
 
-class DrakeToIgnPoseV(_DrakeToIgn):
+class DrakeToIgnPoseV(_DrakeToIgn, DrawReader):
     """draw -> `Pose_V`: a Pose per link, named with the link's Drake name.
 
     Written by `PosesEncoder` (the bytes protobuf writes for the same message, without objects).
@@ -97,7 +97,7 @@ class DrakeToIgnPoseV(_DrakeToIgn):
         self.encoder = PosesEncoder(self.message_name)
 
     def translate(self, message: Received) -> Outputs:
-        return [(0, self.encoder.encode(draw_poses(message)))]
+        return [(0, self.encoder.encode(self.draw_poses(message)))]
 
 
 class DrakeToIgnPosesStamped(DrakeToIgnPoseV):

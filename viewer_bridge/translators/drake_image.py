@@ -5,7 +5,8 @@ label) becomes a `sensor_msgs/Image` on `<destination>/<port>/image`; by option 
 `CompressedImage` on `<port>/image/compressed` (JPEG or PNG bytes Drake sent pass as they are,
 others are encoded) and a `CameraInfo` on `<port>/camera_info`, named as image_transport names
 them. A camera's ports are known only from its messages, so the outputs are added as ports
-appear (the router looks an output up by its index, and asks each for subscribers). An image
+appear (the router looks an output up by its index, and asks each for subscribers); the types
+they may have are declared from the options (`writes`), for the checks at load and start. An image
 that does not decode is counted as the route's error (`viewer_bridge.skipped.part_failed`); the other
 images of the array still go out.
 
@@ -166,9 +167,17 @@ class _DrakeImages(Translator):
     COMPRESSED: ClassVar[tuple[str, MessageType]]
     INFO: ClassVar[tuple[str, MessageType]]
 
+    outputs: tuple[Output, ...] = ()  # per instance: its ports', added as they appear
+
+    @classmethod
+    def writes(cls, options: TranslatorOptions) -> tuple[MessageType, ...]:
+        """Each port's image, and its compressed image and intrinsics when the options ask for them."""
+        assert isinstance(options, ImagesOptions)
+        asked = (cls.IMAGE, cls.COMPRESSED if options.compressed else None, cls.INFO if options.camera_info else None)
+        return tuple(message_type for _, message_type in filter(None, asked))
+
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.outputs = ()
         self._ports: dict[str, _Port] = {}
         self._intrinsics = self.options.camera_info.intrinsics() if self.options.camera_info else None
 
@@ -251,8 +260,6 @@ class DrakeImagesToRos(_DrakeImages):
     IMAGE = ("image", ros_type(IMAGE))
     COMPRESSED = ("image/compressed", ros_type(COMPRESSED_IMAGE))  # image_transport's names
     INFO = ("camera_info", ros_type(CAMERA_INFO))
-    # What it may write (the config check); an instance's outputs are its ports', added as they appear.
-    outputs: tuple[Output, ...] = tuple(Output(f"/<port>/{s}", t) for s, t in (IMAGE, COMPRESSED, INFO))
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -279,7 +286,6 @@ class DrakeImagesToFoxglove(_DrakeImages):
     IMAGE = ("image", RAW_IMAGE_TYPE)
     COMPRESSED = ("compressed", COMPRESSED_IMAGE_TYPE)
     INFO = ("calibration", CAMERA_CALIBRATION_TYPE)
-    outputs: tuple[Output, ...] = tuple(Output(f"/<port>/{s}", t) for s, t in (IMAGE, COMPRESSED, INFO))
 
     def write_image(self, image: Image, frame_id: str, stamp: tuple[int, int]) -> bytes:
         return foxglove_image.raw_image(image, frame_id, stamp)

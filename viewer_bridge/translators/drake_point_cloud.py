@@ -21,7 +21,7 @@ from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.requests import geometry_command
 from viewer_bridge.scene import Geometry, Link, Pose, Scene, StampedPointCloud, Triad
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from viewer_bridge.translators.drake_stream import draw_poses
+from viewer_bridge.translators.drake_stream import DrawReader
 from viewer_bridge.translators.options import MarkerOptions
 from viewer_bridge.translators.types import DRAW_TYPE, ENVELOPE_TYPE, POINT_CLOUD_TYPE, ros_type
 from viewer_bridge.transports.base import Received
@@ -96,7 +96,7 @@ class DrawFramesOptions(MarkerOptions):
     length: float = Field(MELDIS_TRIAD_LENGTH, gt=0)  # of each axis, in metres
 
 
-class DrakeDrawFramesToMarkers(Translator):
+class DrakeDrawFramesToMarkers(DrawReader):
     """`lcmt_viewer_draw` of frames (DRAKE_DRAW_FRAMES) -> a MarkerArray of triads in the world
     frame, one per frame, every draw; DELETEALL first when the set of frames changes (as meldis
     deletes its old triads). Latched, so a late RViz gets the last frames."""
@@ -112,7 +112,7 @@ class DrakeDrawFramesToMarkers(Translator):
         self.triad = (Geometry(Triad(self.options.length, tube=True)),)
 
     def translate(self, message: Received) -> Outputs:
-        poses = draw_poses(message)
+        poses = self.draw_poses(message)
         links = tuple(
             Link(name, int(robot_num), self.triad)
             for name, robot_num in zip(poses.names, poses.robot_nums, strict=True)

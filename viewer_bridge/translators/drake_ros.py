@@ -15,7 +15,7 @@ from viewer_bridge.formats.ros.shapes import shapes_cdr
 from viewer_bridge.lcmcodec import LINK_DATA
 from viewer_bridge.scene import Scene
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from viewer_bridge.translators.drake_stream import DrakeTranslator, PerLoadTranslator, draw_poses
+from viewer_bridge.translators.drake_stream import DrakeTranslator, DrawReader, PerLoadTranslator
 from viewer_bridge.translators.options import MarkerOptions
 from viewer_bridge.translators.types import DRAW_TYPE, LINK_DATA_TYPE, LOAD_TYPE, ros_type
 from viewer_bridge.transports.base import LCM, MessageType, Received
@@ -49,7 +49,7 @@ class PoseArrayOptions(TranslatorOptions):
     frame_id: str = "world"
 
 
-class DrakeToPoseArray(Translator):
+class DrakeToPoseArray(DrawReader):
     """draw -> `geometry_msgs/PoseArray` (in the draw's link order), from the arrays."""
 
     Options = PoseArrayOptions
@@ -62,17 +62,17 @@ class DrakeToPoseArray(Translator):
         self.encoder = PoseArrayEncoder(self.options.frame_id)
 
     def translate(self, message: Received) -> Outputs:
-        return [(0, self.encoder.encode(draw_poses(message)))]  # needs no load
+        return [(0, self.encoder.encode(self.draw_poses(message)))]  # needs no load
 
 
-class DrakeToClock(Translator):
+class DrakeToClock(DrawReader):
     """draw -> `rosgraph_msgs/Clock` with Drake's sim time, for nodes with `use_sim_time`."""
 
     reads = (DRAW_TYPE,)
     outputs = (Output("", ros_type("rosgraph_msgs/msg/Clock")),)
 
     def translate(self, message: Received) -> Outputs:
-        seconds, nanoseconds = time_parts(draw_poses(message).timestamp_ms)
+        seconds, nanoseconds = time_parts(self.draw_poses(message).timestamp_ms)
         return [(0, CDR_LE + CDR_TIME.pack(seconds, nanoseconds))]
 
 

@@ -1,8 +1,9 @@
 """Drake's scene as a stream: a load now and then, a draw every frame, shared by every route.
 
 Told apart by the message's fingerprint, not its channel. `LoadCache` (its own module) keeps
-the last load per load channel for every route (and, with a folder, across runs). `draw_poses`
-decodes a draw once however many routes read it. `DrakeStream` is one translator's view: it
+the last load per load channel for every route (and, with a folder, across runs). `DrawPoses`
+decodes a draw once however many routes read it. Both are per router, got from the router's
+`Shared` (`Translator.shared`), never kept in this module. `DrakeStream` is one translator's view: it
 says when there is a scene to (re)publish, taking the load from the cache when the route has
 not seen it (a late start, a lazy route that was idle when the load came).
 """
@@ -37,25 +38,23 @@ def load_channel_for(draw_channel: str) -> str:
     return draw_channel.replace("DRAKE_VIEWER_DRAW", "DRAKE_VIEWER_LOAD_ROBOT", 1)
 
 
-class _DrawPoses:
-    """Decodes a received draw; one `DrawDecoder` per channel, so each keeps its name block."""
+class DrawPoses:
+    """A router's draw decoding (`shared.get(DrawPoses)`): one `DrawDecoder` per channel, so each
+    keeps its name block, and each received draw decoded once for every route that reads it."""
 
     def __init__(self) -> None:
         self._decoders: dict[str, DrawDecoder] = {}
+        self._decode_once = self._decode  # one bound method: the key of `Received.decoded`
 
     def __call__(self, message: Received) -> LinkPoses:
+        """A received `lcmt_viewer_draw` as link poses."""
+        return message.decoded(self._decode_once)
+
+    def _decode(self, message: Received) -> LinkPoses:
         decoder = self._decoders.get(message.channel)
         if decoder is None:
             decoder = self._decoders.setdefault(message.channel, DrawDecoder())
         return decoder.decode(message.data)
-
-
-_DRAW_POSES = _DrawPoses()
-
-
-def draw_poses(message: Received) -> LinkPoses:
-    """A received `lcmt_viewer_draw` as link poses, decoded once for every route that reads it."""
-    return message.decoded(_DRAW_POSES)
 
 
 def _load_scene(message: Received) -> Scene:
@@ -67,10 +66,12 @@ def is_load(message: Received) -> bool:
 
 
 class DrakeStream:
-    """One translator's view of one Drake stream (a load channel and its draw channel)."""
+    """One translator's view of one Drake stream (a load channel and its draw channel), over its
+    router's `LoadCache` and `DrawPoses`."""
 
-    def __init__(self, loads: LoadCache) -> None:
+    def __init__(self, loads: LoadCache, draw_poses: DrawPoses) -> None:
         self.loads = loads
+        self.draw_poses = draw_poses
         self.scene: Scene | None = None
         self._load_bytes = b""
 
@@ -89,7 +90,7 @@ class DrakeStream:
         if fingerprint == LOAD_ROBOT.packed_fingerprint:
             return self._take(message.data, lambda: message.decoded(_load_scene)), None
         if fingerprint == DRAW.packed_fingerprint:
-            poses = draw_poses(message)
+            poses = self.draw_poses(message)
             cached = self.loads.get(load_channel_for(message.channel))
             scene = None
             if cached is not None and cached is not self._load_bytes:
@@ -108,7 +109,16 @@ class DrakeStream:
         return scene
 
 
-class DrakeTranslator(Translator):
+class DrawReader(Translator):
+    """A translator that reads Drake's draws: `self.draw_poses(message)` decodes each once for
+    every route of its router."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.draw_poses = self.shared.get(DrawPoses)
+
+
+class DrakeTranslator(DrawReader):
     """A translator of Drake's scene stream (loads and draws): it owns its `DrakeStream`, which
     sees every message, translated or not, so that no load is missed while a route idles."""
 
@@ -116,7 +126,7 @@ class DrakeTranslator(Translator):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.drake = DrakeStream(self.loads)
+        self.drake = DrakeStream(self.shared.get(LoadCache), self.draw_poses)
 
     def observe(self, message: Received) -> None:
         self.drake.observe(message)

@@ -1,7 +1,7 @@
-"""The last Drake load seen per load channel, shared by every route (and, with a folder, runs).
+"""The last Drake load seen per load channel, shared by the routes of a router (and, with a folder, runs).
 
-A module of its own because every translator takes one (`base.Translator`), while reading the
-loads it holds is `drake_stream`'s business.
+A module of its own because the router makes it (with the config's `load_cache` folder) and gives it
+to its translators through `Shared`, while reading the loads it holds is `drake_stream`'s business.
 """
 
 from __future__ import annotations

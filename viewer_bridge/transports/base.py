@@ -92,18 +92,26 @@ Made = TypeVar("Made")
 
 
 class Shared:
-    """What the transports of one router share: the `MessageTime`, and whatever is made once per
-    router on first ask (`get(FoxgloveContext)`: the live server and an MCAP file log to one)."""
+    """What the transports and translators of one router share: the `MessageTime`, and whatever is
+    made once per router on first ask (`get(FoxgloveContext)`: the live server and an MCAP file log
+    to one; `get(LoadCache)`: every route's last Drake load). Two routers share nothing."""
 
     def __init__(self) -> None:
         self.message_time = MessageTime()
         self._made: dict[Callable[[], object], object] = {}
+        self._lock = threading.Lock()  # translators are made on the routes' threads
 
     def get(self, make: Callable[[], Made]) -> Made:
         """This router's one `make()`, made on the first ask."""
-        if make not in self._made:
-            self._made[make] = make()
-        return cast(Made, self._made[make])
+        with self._lock:
+            if make not in self._made:
+                self._made[make] = make()
+            return cast(Made, self._made[make])
+
+    def provide(self, make: Callable[[], Made], made: Made) -> None:
+        """Have `get(make)` return `made` (e.g. a cache with the config's folder), before anyone asks."""
+        with self._lock:
+            self._made[make] = made
 
 
 @dataclass(frozen=True, slots=True)

@@ -6,12 +6,12 @@ from __future__ import annotations
 from types import ModuleType
 
 from tests.formats.drake.test_contact import pydrake_results
-from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import Received
 
 
 def test_ign_contacts_read_by_debians_protos(debian_ign_msgs: ModuleType) -> None:
-    translator = TRANSLATORS.get("drake_contacts_to_ign_contacts")({}, LoadCache())
+    translator = TRANSLATORS.get("drake_contacts_to_ign_contacts")({})
     assert translator.outputs[0].type.name == "Contacts"  # in the ign transport's package
     ((_, data),) = translator.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
     theirs = debian_ign_msgs.Contacts.FromString(data)
@@ -33,5 +33,5 @@ def test_ign_contacts_read_by_debians_protos(debian_ign_msgs: ModuleType) -> Non
     (surface_wrench,) = surface.wrench
     assert surface.position[0].x == 0.5 and surface_wrench.body_1_wrench.force.z == -9.4
     assert surface_wrench.body_1_wrench.torque.x == 0.01 and surface_wrench.body_2_wrench.torque.y == -0.02
-    gz = TRANSLATORS.get("drake_contacts_to_ign_contacts")({"package": "gz"}, LoadCache())
+    gz = TRANSLATORS.get("drake_contacts_to_ign_contacts")({"package": "gz"})
     assert gz.outputs[0].type.name == "gz.msgs.Contacts"

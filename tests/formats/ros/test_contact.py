@@ -13,7 +13,7 @@ from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.ros import MARKER_ARRAY, WRENCH_STAMPED
 from viewer_bridge.formats.ros.contact import WrenchEncoder, contact_marker_array_cdr
 from viewer_bridge.formats.ros.messages import from_cdr, to_cdr
-from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import Received
 
 
@@ -48,7 +48,7 @@ def test_wrenches_one_per_pair() -> None:
     assert [[w.wrench.force.x, w.wrench.force.y, w.wrench.force.z] for w in wrenches] == [
         [0.5, -0.25, 9.81], [0.5, -0.25, 9.81], [0.0, 0.0, -9.4]]  # fmt: skip
     assert [w.wrench.torque.x for w in wrenches] == [0.0, 0.0, 0.01]
-    sim = TRANSLATORS.get("drake_contacts_to_wrenches")({"stamp": "sim"}, LoadCache())
+    sim = TRANSLATORS.get("drake_contacts_to_wrenches")({"stamp": "sim"})
     out = sim.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
     stamp = from_cdr(out[0][1], WRENCH_STAMPED).header.stamp
     assert (stamp.sec, stamp.nanosec) == (1, 234_567_000)

@@ -13,8 +13,8 @@ import re
 import threading
 from typing import ClassVar
 
-from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from viewer_bridge.translators.drake_stream import draw_poses
+from viewer_bridge.translators.base import Output, Outputs, TranslatorOptions
+from viewer_bridge.translators.drake_stream import DrawReader
 from viewer_bridge.translators.types import DRAW_TYPE
 from viewer_bridge.transports.base import (
     JSON,
@@ -81,7 +81,7 @@ class JsonOptions(TranslatorOptions):
     digits: int = 6
 
 
-class DrakeDrawToJson(Translator):
+class DrakeDrawToJson(DrawReader):
     """lcmt_viewer_draw -> {"timestamp_ms": T, "links": {name: [x, y, z, qw, qx, qy, qz]}}."""
 
     Options = JsonOptions
@@ -90,7 +90,7 @@ class DrakeDrawToJson(Translator):
     outputs = (Output("", MessageType("viewer_bridge_example/DrawJson", JSON)),)
 
     def translate(self, message: Received) -> Outputs:
-        poses = draw_poses(message)
+        poses = self.draw_poses(message)
         links = {
             name: [round(float(value), self.options.digits) for value in (*position, *quaternion)]
             for name, position, quaternion in zip(
