@@ -102,6 +102,10 @@ class BridgeConfig(BaseModel):
 
     model_config = ConfigDict(extra="allow")
     load_cache: str | None = None  # a folder where the last load per channel is kept across runs
+    # LCM types the routes know besides the project's own: .lcm files, folders of them (searched
+    # recursively) and lcm-gen'd Python modules by import name (`--lcm-types` adds to these).
+    lcm_types: list[str] = []
+    drake_lcm_types: bool = True  # also Drake's own types (pydrake's `drake` module), when pydrake is installed
     routes: list[Route]
     _settings: dict[str, TransportSettings] = PrivateAttr(default_factory=dict)
 
@@ -110,7 +114,7 @@ class BridgeConfig(BaseModel):
         document = (info.context or {}).get("document")
         check = _Checker(document if isinstance(document, YamlDocument) else None)
         for name, section in (self.model_extra or {}).items():
-            transport = check.transport(name, (name,), "a config key (load_cache, routes) nor a transport")
+            transport = check.transport(name, (name,), "a config key (load_cache, lcm_types, drake_lcm_types, routes) nor a transport")
             self._settings[name] = check.model(transport.Settings, section or {}, (name,))
         names = [route.name for route in self.routes]
         for index, route in enumerate(self.routes):

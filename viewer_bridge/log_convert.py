@@ -22,6 +22,7 @@ import contextlib
 import itertools
 import logging
 import os
+import re
 import threading
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -50,19 +51,21 @@ def convert(
     force: bool = False,
     config_name: str = "the config",
     stop: threading.Event | None = None,
+    lcm_channels: str | None = None,
 ) -> dict[str, int]:
     """Write the outputs of `config`'s LCM routes in the `schema` family for the log into an MCAP file.
 
     Returns messages written per topic. Bad messages are counted per route and reported, as
     the live router does; they do not stop the conversion. Raises `ConvertError` before
     anything is written when `mcap_path` is the log itself, exists (unless `force`), or no route
-    writes `schema`; `Interrupted` when `stop` is set midway.
+    writes `schema`; `Interrupted` when `stop` is set midway. `lcm_channels`, a regex, narrows the
+    routes of any LCM type (`lcm_to_ros`: `/lcm/<channel>`) to the channels it fully matches.
     """
     target = Path(mcap_path)
     _check_target(Path(log_path), target, force)
     events = read_log(log_path)
     first = next(events, None)  # a file that is not an LCM log fails here, before anything is written
-    writes = [route for route in config.routes if _lcm_to(schema, route)]
+    writes = [_narrowed(route, lcm_channels) for route in config.routes if _lcm_to(schema, route)]
     if not writes:
         raise ConvertError(f"no route of {config_name} reads LCM and writes the {schema} schema")
     partial = target.with_name(target.name + ".partial")
@@ -93,6 +96,26 @@ def _lcm_to(schema: Profile, route: Route) -> bool:
     translator = TRANSLATORS.get(route.translator)
     return all(read.encoding == LCM for read in translator.reads) and all(
         McapTransport.carries(output.type, schema) for output in translator.outputs
+    )
+
+
+def _narrowed(route: Route, channels: str | None) -> Route:
+    """A route of any LCM type (its outputs carry their definitions) that reads only the channels
+    `channels` fully matches, besides its own pattern; other routes as they are.
+
+    The source becomes `(?=(?:CHANNELS)\\Z)(?:SOURCE)`: CHANNELS' groups come first, so the
+    destination's group numbers move past them."""
+    generic = any(output.type.definition is not None for output in TRANSLATORS.get(route.translator).outputs)
+    if channels is None or not generic:
+        return route
+    shift = re.compile(channels).groups
+    destination = re.sub(r"\{([1-9][0-9]*)", lambda group: "{" + str(int(group[1]) + shift), route.destination.name)
+    name = f"(?=(?:{channels})\\Z)(?:{route.source.name})"
+    return route.model_copy(
+        update={
+            "source": route.source.model_copy(update={"name": name}),
+            "destination": route.destination.model_copy(update={"name": destination}),
+        }
     )
 
 

@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 from pydantic import BaseModel, ConfigDict
 
 from viewer_bridge.translators.load_cache import LoadCache
-from viewer_bridge.transports.base import MessageType, Received
+from viewer_bridge.transports.base import MessageType, Received, Shared
 
 
 class TranslatorOptions(BaseModel):
@@ -69,6 +69,9 @@ class Translator:
         )
         self.loads = LoadCache() if loads is None else loads
         self.reply: Reply = _no_reply
+        # What the router's transports and translators share (its known LCM types): the router
+        # sets its own, as it sets `reply`; a translator made alone gets one of its own.
+        self.shared = Shared()
 
     def observe(self, message: Received) -> None:
         """Bookkeeping every message gets, translated or not (a lazy route with no subscriber)."""
