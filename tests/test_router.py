@@ -357,7 +357,8 @@ BROKEN_CONFIGS = [
      "'/sim2/2d' is not a valid ROS 2 namespace: a part of it starts with a digit: '2d'"),
     ("ros:\n  node: viewer-bridge\nroutes: []\n", 2, "ros.node",
      "'viewer-bridge' is not a valid ROS 2 node name: it has characters a ROS name cannot hold: '-'"),
-    ("routes: []\nzmq: {port: 1}\n", 2, "zmq", "'zmq' is not a config key (load_cache, routes) nor a transport"),
+    ("routes: []\nzmq: {port: 1}\n", 2, "zmq",
+     "'zmq' is not a config key (load_cache, lcm_types, drake_lcm_types, routes) nor a transport"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n  - name: a\n    source: {transport: lcm, name: X}\n"
      "    translator: drake_to_clock\n    destination: {transport: ros, name: /c}\n", 6, "routes.1.name",
@@ -512,6 +513,8 @@ def test_default_config_is_printed_and_valid() -> None:
         "foxglove_transforms",
         "foxglove_camera_images",
         "foxglove_camera_images_unnamed",
+        "lcm_bus",
+        "foxglove_lcm_bus",
     ]
 
 

@@ -114,7 +114,8 @@ class BridgeConfig(BaseModel):
         document = (info.context or {}).get("document")
         check = _Checker(document if isinstance(document, YamlDocument) else None)
         for name, section in (self.model_extra or {}).items():
-            transport = check.transport(name, (name,), "a config key (load_cache, lcm_types, drake_lcm_types, routes) nor a transport")
+            known = "a config key (load_cache, lcm_types, drake_lcm_types, routes) nor a transport"
+            transport = check.transport(name, (name,), known)
             self._settings[name] = check.model(transport.Settings, section or {}, (name,))
         names = [route.name for route in self.routes]
         for index, route in enumerate(self.routes):

@@ -11,16 +11,17 @@ project's own `lcmtypes/`, and pydrake's `drake` module. `to_cdr` goes through r
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import re
 import threading
-from functools import cached_property
 from collections.abc import Iterable, Sequence
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from viewer_bridge.errors import DecodeError, SchemaError
 from viewer_bridge.lcmcodec import STRUCTS
@@ -130,6 +131,7 @@ class TypeLibrary:
         self.structs = structs
         self.warnings: list[str] = []
         self.store = get_typestore(Stores.ROS2_JAZZY)
+        self._msg: dict[str, str] = {}  # ROS type -> its .msg text
         codecs = compile_codecs(structs)
         self._register({n: c for n, c in codecs.items() if not _recursive(c.definition, structs)})
         self._types: dict[str, LcmType] = {name: LcmType(codec, self) for name, codec in codecs.items()}
@@ -142,10 +144,8 @@ class TypeLibrary:
         structs = dict(STRUCTS)
         found: list[StructDef] = []
         if drake:
-            try:
+            with contextlib.suppress(ImportError):  # no pydrake here
                 found.extend(_module_structs("drake"))
-            except ImportError:
-                pass
         for source in sources:
             path = Path(source)
             if path.is_dir():
@@ -173,7 +173,8 @@ class TypeLibrary:
                 fixed = len(member.dims) == 1 and not member.dims[0].is_variable
                 suffix = f"[{member.dims[0].size}]" if fixed else "[]" if member.dims else ""
                 lines.append(f"{base}{suffix} {_snake(member.name)}")
-            texts.update(get_types_from_msg("\n".join(lines), _ros_name(codec.type_name)))
+            self._msg[_ros_name(codec.type_name)] = "\n".join(lines) + "\n"
+            texts.update(get_types_from_msg(self._msg[_ros_name(codec.type_name)], _ros_name(codec.type_name)))
         self.store.register(texts)
 
     def rosbags_message(self, struct: StructDef, message: LcmMessage) -> Any:
@@ -204,7 +205,7 @@ class TypeLibrary:
         return list(self._types.values())
 
     def ros_definitions(self) -> dict[str, str]:
-        return {t.ros_type: t.ros2msg for t in self._types.values() if t.ros_type}
+        return dict(self._msg)
 
 
 def _flat(value: Any, depth: int) -> list[Any]:

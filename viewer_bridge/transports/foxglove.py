@@ -2,13 +2,14 @@
 
 Publish only: each name a route publishes on is a Foxglove channel (protobuf, with the schema of
 its `foxglove.*` type; or CDR with the `ros2msg` schema a type's definition carries, as any LCM
-type's mapping does: viewer_bridge/translators/lcm_generic.py), served to browsers on `host:port` (127.0.0.1:8765 unless configured). A
-Foxglove client that subscribes is counted (so lazy routes wake up), and a latched output's last
-message is logged again when a client subscribes, so a client that connects after the load still
-gets the scene (SceneUpdates are idempotent). Everything about the protocol is the SDK's; unless
-`accept_websocket_v1` is false, a front of ours (viewer_bridge/transports/foxglove_front.py) holds the
-public port so that clients asking for the protocol's older name, `foxglove.websocket.v1`, are
-served as well as those asking for `foxglove.sdk.v1`, the only name the SDK's server accepts.
+type's mapping does: viewer_bridge/translators/lcm_generic.py), served to browsers on
+`host:port` (127.0.0.1:8765 unless configured). A Foxglove client that subscribes is counted
+(so lazy routes wake up), and a latched output's last message is logged again when a client
+subscribes, so a client that connects after the load still gets the scene (SceneUpdates are
+idempotent). Everything about the protocol is the SDK's; unless `accept_websocket_v1` is false,
+a front of ours (viewer_bridge/transports/foxglove_front.py) holds the public port so that
+clients asking for the protocol's older name, `foxglove.websocket.v1`, are served as well as
+those asking for `foxglove.sdk.v1`, the only name the SDK's server accepts.
 
 Where a config also writes an MCAP file of Foxglove messages (viewer_bridge/transports/mcap.py), the
 server and the file log to one `FoxgloveContext`, as in the SDK: a message logged on a channel,
