@@ -323,7 +323,9 @@ def test_convert_lcm_channels_chooses_the_channels_of_any_type(tmp_path: Path) -
     assert "/drake/poses" in topics  # the viewer's routes are not narrowed
 
 
-def test_convert_lcm_types_adds_a_labs_own_folder(tmp_path: Path, lcmgen_corpus: dict[str, type]) -> None:
+def test_convert_lcm_types_adds_a_labs_own_folder(
+    tmp_path: Path, lcmgen_corpus: dict[str, type]  # noqa: F811 (the fixture, imported)
+) -> None:
     from mcap_ros2._dynamic import generate_dynamic
 
     from viewer_bridge.transports.lcm import LcmEvent
