@@ -18,9 +18,7 @@ out) and the bridge's CPU time per message it received (user + system, /proc/PID
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import socket
 import tempfile
 import threading
 import time
@@ -29,9 +27,9 @@ from typing import Any
 
 import drake as drake_lcmtypes
 import yaml
-import zenoh
 from common import Measure
 from router import URL, Bridge
+from zenoh_routes import _free_port, zenoh_session
 
 from viewer_bridge.config import BUILTIN_CONFIGS
 from viewer_bridge.transports.lcm import LcmBus
@@ -54,15 +52,6 @@ def bus_config(endpoint: str, route: str) -> str:
         return f"zenoh: {{connect: [{endpoint}]}}\nroutes:\n{RELAY}"
     [bus] = [r for r in yaml.safe_load(BUILTIN_CONFIGS["zenoh"])["routes"] if r["name"] == "lcm_bus"]
     return yaml.safe_dump({"zenoh": {"connect": [endpoint]}, "routes": [bus]})
-
-
-def zenoh_session(mode: str, endpoints: dict[str, list[str]]) -> zenoh.Session:
-    config = zenoh.Config()
-    config.insert_json5("mode", f'"{mode}"')
-    config.insert_json5("scouting/multicast/enabled", "false")
-    for key, value in endpoints.items():
-        config.insert_json5(f"{key}/endpoints", json.dumps(value))
-    return zenoh.open(config)
 
 
 class Counting:
@@ -158,12 +147,6 @@ def compare(seconds: float, rounds: int = 2) -> dict[str, dict[str, float]]:
         router.close()  # type: ignore[no-untyped-call]
         os.sched_setaffinity(0, everywhere)
     return best
-
-
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
 
 
 def measures(quick: bool = False) -> list[Measure]:
