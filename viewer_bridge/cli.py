@@ -184,7 +184,8 @@ def _parser() -> argparse.ArgumentParser:
         "--schema",
         choices=["ros2", "foxglove"],
         default="ros2",
-        help="ros2: CDR with ros2msg schemas; foxglove: Foxglove's protobuf SceneUpdate and FrameTransforms",
+        help="ros2: CDR with ros2msg schemas; foxglove: Foxglove's protobuf SceneUpdate and FrameTransforms "
+        "(in both, channels of any known LCM type as /lcm/<channel>, ros2msg and CDR)",
     )
     convert.add_argument("--force", action="store_true", help="replace the output file if it exists")
     _lcm_types_option(convert)

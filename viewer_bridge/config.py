@@ -6,6 +6,8 @@ template over the source's regex groups (`{1}`; `{1:lower}`; `{1:path}` turns `_
 `/proximity` and `` into ``; `{1:topic}` makes any text a valid ROS name token), QoS, a rate
 policy, `lazy`, and the translator's options. Each transport's settings are the top-level
 section named after it (`lcm:`, `ros:`, `ign:`, or a plugin's name), checked by its own model.
+`lcm_types:` names the LCM types the routes know besides the project's and Drake's (`.lcm` files,
+folders, lcm-gen'd modules; loaded once per router, `viewer_bridge.lcmcodec.library`).
 The built-in configs (`-c builtin:NAME`; `default` bridges Drake's default channels to ROS 2
 under `/drake`) are the YAML files in `configs/`, shipped with the package and read like a user's.
 
