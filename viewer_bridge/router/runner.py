@@ -53,19 +53,16 @@ class _Lane:
         return self._publisher(self.name + output.suffix, output)
 
     def listened(self) -> bool:
-        """Whether any output has a subscriber, or its transport cannot tell (then: translate)."""
+        """Whether any output has a subscriber, or its transport cannot tell (then: translate).
+
+        Raises `Held` when an output cannot have a publisher yet (its interface is being built):
+        nothing to translate for, nobody to ask."""
         now = time.monotonic()
         if now - self._checked_at >= _LISTENERS_CHECK_S:
             self._checked_at = now
-            counts = [self._subscribers(index) for index in range(len(self.translator.outputs))]
+            counts = [self.publisher(index).subscriber_count() for index in range(len(self.translator.outputs))]
             self.listened_now = any(count is None or count > 0 for count in counts)
         return self.listened_now
-
-    def _subscribers(self, index: int) -> int | None:
-        try:
-            return self.publisher(index).subscriber_count()
-        except Held:  # no publisher yet (its type is being built): cannot tell, so translate (and count it)
-            return None
 
     def skip(self, message: Message) -> None:
         self.skipped.pop(message.channel, None)  # re-inserted: the dict keeps arrival order
@@ -166,8 +163,11 @@ class RouteRunner:
     def catch_up(self) -> None:
         """A lazy route's lanes that skipped messages and now have a subscriber translate them."""
         for lane in list(self._lanes.values()):
-            if lane.skipped and lane.listened():
-                self._replay(lane)
+            try:
+                if lane.skipped and lane.listened():
+                    self._replay(lane)
+            except Held:  # its publisher cannot be made yet: its next message is counted
+                continue
 
     def _replay(self, lane: _Lane) -> None:
         skipped, lane.skipped = lane.skipped, {}
@@ -203,7 +203,7 @@ class RouteRunner:
                 if lane.skipped:  # a subscriber just appeared: what came before goes first
                     lane.skipped.pop(message.channel, None)
                     self._replay(lane)
-        except Held as held:  # a type unknown here, or refused: counted on its channel
+        except Held as held:  # a type unknown or refused here, an interface being built: counted on its channel
             self._held(message.channel, held)
             return
         except Exception as error:  # a bug in a translator's bookkeeping or a transport
