@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import lcm_url
+from tests.translators.test_lcm_generic import CORPUS, arm_status, lcmgen_corpus  # noqa: F401 (a fixture)
 from viewer_bridge.lcmcodec import DRAW
 from viewer_bridge.transports.lcm import LcmEvent, read_log, write_log
 
@@ -395,3 +396,49 @@ def test_a_replayed_log_says_it_ended_and_the_stats_come_once_at_shutdown(tmp_pa
                "--demo", "--duration", "4", "--stats-period", "2")  # fmt: skip
     assert live.returncode == 0, live.stderr
     assert sum(" route foxglove_scene: " in line for line in live.stderr.splitlines()) == 2, live.stderr
+
+
+# --- --lcm-types: a lab's own types -----------------------------------------------------------------------
+
+
+def test_a_bad_lcm_type_source_is_one_line_naming_it_and_exit_2(tmp_path: Path) -> None:
+    broken = tmp_path / "types" / "broken.lcm"
+    broken.parent.mkdir()
+    broken.write_text("package lab;\n\nstruct broken_t {\n  int32_t a\n}\n")  # no ';' after a
+    log = tmp_path / "empty.lcmlog"
+    write_log(log, [LcmEvent("X", b"12345678", 0)])
+    for command in (
+        ("run", "--duration", "1", "--lcm-url", "memq://", "--lcm-types", str(broken.parent)),
+        ("convert", str(log), str(tmp_path / "out.mcap"), "--lcm-types", str(broken)),
+        ("dump", str(log), "--lcm-types", str(broken)),
+        ("dump", str(log), "--lcm-types", "no_such_lcm_module_anywhere"),
+    ):
+        result = run(*command)
+        assert result.returncode == 2, (command, result)
+        lines = [line for line in result.stderr.splitlines() if "viewer-bridge" in line]
+        assert len(lines) == 1 and "Traceback" not in result.stderr, (command, result.stderr)
+        where = f"{broken}:" if command[-1] != "no_such_lcm_module_anywhere" else "no_such_lcm_module_anywhere"
+        assert where in lines[0], (command, lines)
+    assert not (tmp_path / "out.mcap").exists()
+
+
+def test_dump_lcm_types_decodes_a_labs_own_type(
+    tmp_path: Path, lcmgen_corpus: dict[str, type]  # noqa: F811 (the fixture, imported)
+) -> None:
+    import drake as drake_lcmtypes
+
+    status = drake_lcmtypes.lcmt_iiwa_status()
+    status.num_joints = 2
+    for field in status.__slots__[2:]:
+        setattr(status, field, [0.5, -0.25])
+    log = tmp_path / "lab.lcmlog"
+    write_log(log, [LcmEvent("IIWA_STATUS", status.encode(), 1),
+                    LcmEvent("ARM_STATUS", arm_status(lcmgen_corpus).encode(), 2)])  # fmt: skip
+    result = run("dump", str(log), "--json", "--lcm-types", str(CORPUS))
+    assert result.returncode == 0, result.stderr
+    drake, lab = [json.loads(line) for line in result.stdout.splitlines()]
+    assert drake["type"] == "drake.lcmt_iiwa_status"  # Drake's types with no flag, beside the corpus
+    assert drake["message"]["joint_position_measured"] == [0.5, -0.25]
+    assert lab["type"] == "vbtest_lab.arm_status_t"
+    assert lab["message"]["jointNames"] == ["shoulder", "elbow", "wrist ü"]
+    assert lab["message"]["toolTip"] == {"x": 0.5, "y": 0.25, "z": -0.125}

@@ -34,7 +34,8 @@ pytestmark = pytest.mark.slow
 README = Path(__file__).parents[1] / "README.md"
 CONTACT_SCENE = Path(__file__).parent / "drake_contact_scene.py"
 SCENE = Path(__file__).parent / "drake_scene.py"
-SECTIONS = ("Command line", "glTF: export, snapshots, and a render server for Drake's cameras")  # `## ` headings
+SECTIONS = ("Command line", "glTF: export, snapshots, and a render server for Drake's cameras",
+            "Any LCM type")  # `## ` headings
 LCM = lcm_url(31)  # this test's own LCM port: the README's default one is shared by the machine
 
 
@@ -67,6 +68,7 @@ SUBSTITUTIONS: list[tuple[str, str, str]] = [
     (r"^(viewer-bridge ros-interfaces) install\|status$", "\\1 install\n\\1 status", "each action"),
     (r"\[--host 127\.0\.0\.1\] \[--port 8000\] \[--max-upload BYTES\]",
      "--host 127.0.0.1 --port {port} --max-upload 1000000", "the optional arguments, given; a free port"),
+    (r"\./my_lcmtypes", str(Path(__file__).parent / "translators" / "lcm_corpus"), "a lab's types: the tests' corpus"),
     (r"\[--size 640x480\] \[--fov 45\] \[--camera EX,EY,EZ,TX,TY,TZ\]",
      "--size 640x480 --fov 45 --camera 2,2,1.5,0,0,0", "the optional arguments, given"),
     (r"^(viewer-bridge snapshot \S+) out\.png (.*)\[--image color\|label\|depth\](.*)$",

@@ -357,7 +357,8 @@ BROKEN_CONFIGS = [
      "'/sim2/2d' is not a valid ROS 2 namespace: a part of it starts with a digit: '2d'"),
     ("ros:\n  node: viewer-bridge\nroutes: []\n", 2, "ros.node",
      "'viewer-bridge' is not a valid ROS 2 node name: it has characters a ROS name cannot hold: '-'"),
-    ("routes: []\nzmq: {port: 1}\n", 2, "zmq", "'zmq' is not a config key (load_cache, routes) nor a transport"),
+    ("routes: []\nzmq: {port: 1}\n", 2, "zmq",
+     "'zmq' is not a config key (load_cache, lcm_types, drake_lcm_types, routes) nor a transport"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n  - name: a\n    source: {transport: lcm, name: X}\n"
      "    translator: drake_to_clock\n    destination: {transport: ros, name: /c}\n", 6, "routes.1.name",
@@ -565,6 +566,8 @@ def test_default_config_is_printed_and_valid() -> None:
         "foxglove_transforms",
         "foxglove_camera_images",
         "foxglove_camera_images_unnamed",
+        "lcm_bus",
+        "foxglove_lcm_bus",
     ]
 
 
@@ -661,3 +664,30 @@ def test_a_log_replays_through_the_routes_and_the_bridge_stops_at_its_end(
     route = json.loads(stats.read_text())["poses"]
     draws = len(list(read_log(drake_log, "DRAKE_VIEWER_DRAW_ILLUSTRATION")))
     assert route["messages_in"] == route["messages_out"] == draws and route["errors"] == {}
+
+
+def test_a_router_loads_its_lcm_types_once_naming_a_refused_type(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The config's lcm_types are loaded when the router is made (one library for its transports and
+    translators); a recursive type is named once; a bad source stops the start with a BridgeError."""
+    from tests.translators.test_lcm_generic import CORPUS
+    from viewer_bridge.config import BridgeConfig
+    from viewer_bridge.errors import BridgeError
+    from viewer_bridge.router import Router
+
+    routes = [{"name": "bus", "source": {"transport": "lcm", "name": "(.*)"}, "translator": "lcm_to_ros",
+               "destination": {"transport": "mcap", "name": "/lcm/{1:topic}"}}]  # fmt: skip
+    config = BridgeConfig.model_validate({"lcm": {"url": "memq://"}, "mcap": {"path": str(tmp_path / "out.mcap")},
+                                          "lcm_types": [str(CORPUS)], "routes": routes})  # fmt: skip
+    with caplog.at_level("WARNING", logger="viewer_bridge"):
+        router = Router(config)
+    router.close()
+    named = [record.getMessage() for record in caplog.records if "vbtest_lab.tree_node_t" in record.getMessage()]
+    assert len(named) == 1 and "recursive" in named[0]
+    assert router.shared.lcm_types.get("vbtest_lab.arm_status_t").ros_type == "vbtest_lab_lcm_msgs/msg/ArmStatusT"
+    assert router.routes[0].prototype is not None and router.routes[0].prototype.shared is router.shared
+    broken = tmp_path / "broken.lcm"
+    broken.write_text("struct broken_t { int32_t a }\n")
+    with pytest.raises(BridgeError, match="broken.lcm"):  # before any transport is made
+        Router(config.model_copy(update={"lcm_types": [str(broken)]}))

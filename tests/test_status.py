@@ -117,3 +117,21 @@ def test_run_without_a_terminal_prints_lines_and_quiet_prints_nothing_but_proble
     code, out, quiet = run_bridge("--quiet", terminal=False)
     assert code == 0 and out == ""
     assert "route " not in quiet and "routes running" not in quiet
+
+
+def test_held_messages_show_once_per_kind_with_their_channels(caplog: Any) -> None:
+    """What a route held back on purpose (types unknown here, interfaces being built): a suffix of its
+    log line, and a line under the table, by kind with the channels."""
+    held = {"MYSTERY": {"unknown_type": 4}, "OTHER": {"unknown_type": 1}, "IIWA_STATUS": {"waiting_for_build": 7}}
+    bus = {**route(12, 0), "held": held}
+    with caplog.at_level("INFO", logger="viewer_bridge"):
+        LogLines().show({"bus": bus})
+    assert [record.getMessage() for record in caplog.records] == [
+        "route bus: in 12 out 0 errors 0 dropped 0 latency p50 - p99 - ms "
+        "held: unknown_type 5 (MYSTERY, OTHER), waiting_for_build 7 (IIWA_STATUS)"
+    ]
+    out = io.StringIO()
+    table = LiveTable(Console(file=out, force_terminal=True, width=200, color_system=None))
+    table.show({"bus": bus})
+    table.close()
+    assert "bus held back: unknown_type 5 (MYSTERY, OTHER), waiting_for_build 7 (IIWA_STATUS)" in out.getvalue()

@@ -36,11 +36,24 @@ from viewer_bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
 from viewer_bridge.demo import run_demo
 from viewer_bridge.dump import as_json, as_text
 from viewer_bridge.errors import BridgeError, ConfigError, Interrupted, UsageError
+from viewer_bridge.lcmcodec.library import TypeLibrary
+from viewer_bridge.log_convert import convert
 from viewer_bridge.mappings import format_names, reference_markdown
 from viewer_bridge.router import Router
 from viewer_bridge.skipped import collecting
 from viewer_bridge.status import LiveTable, LogLines, StatusView
 from viewer_bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
+
+
+def _lcm_types_option(command: argparse.ArgumentParser) -> None:
+    command.add_argument(
+        "--lcm-types",
+        action="append",
+        default=[],
+        metavar="PATH_OR_MODULE",
+        help="LCM types to know besides the project's and Drake's: a .lcm file, a folder of them "
+        "(searched recursively) or an lcm-gen'd Python module by import name (repeatable)",
+    )
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -62,6 +75,7 @@ def _parser() -> argparse.ArgumentParser:
         "--channel", default=".*", type=regex, metavar="REGEX", help="only channels that fully match REGEX"
     )
     dump.add_argument("--json", action="store_true", help="one JSON object per message")
+    _lcm_types_option(dump)
     dump.add_argument("--duration", type=positive, help="with --live: stop after this many seconds")
     dump.add_argument(
         "--demo", action="store_true", help="with --live: also publish the demo scene on the same URL"
@@ -103,6 +117,7 @@ def _parser() -> argparse.ArgumentParser:
         metavar="TRANSPORT.KEY=VALUE",
         help="override a transport setting, e.g. foxglove.port=9000 or ros.namespace=/sim1 (repeatable)",
     )
+    _lcm_types_option(run)
     run.add_argument(
         "--stats-json",
         type=output_file(),
@@ -169,9 +184,17 @@ def _parser() -> argparse.ArgumentParser:
         "--schema",
         choices=["ros2", "foxglove"],
         default="ros2",
-        help="ros2: CDR with ros2msg schemas; foxglove: Foxglove's protobuf SceneUpdate and FrameTransforms",
+        help="ros2: CDR with ros2msg schemas; foxglove: Foxglove's protobuf SceneUpdate and FrameTransforms "
+        "(in both, channels of any known LCM type as /lcm/<channel>, ros2msg and CDR)",
     )
     convert.add_argument("--force", action="store_true", help="replace the output file if it exists")
+    _lcm_types_option(convert)
+    convert.add_argument(
+        "--lcm-channels",
+        type=regex,
+        metavar="REGEX",
+        help="the channels written as /lcm/<channel> in their own type (any known LCM type); default: all",
+    )
 
     interfaces = commands.add_parser(
         "ros-interfaces", help="build ROS 2 interface packages PyPI has no wheel for (tf2_msgs) into the venv"
@@ -207,9 +230,10 @@ def _dump(args: argparse.Namespace) -> int:
     else:
         events = read_log(args.log, args.channel)
     render = as_json if args.json else as_text
+    types = TypeLibrary.load(args.lcm_types)
     try:
         for event in events:
-            print(render(event), flush=True)
+            print(render(event, types), flush=True)
     except KeyboardInterrupt:
         pass
     except BrokenPipeError:
@@ -246,7 +270,7 @@ def _run(args: argparse.Namespace) -> int:
         return 0
     view = _status_view(args.quiet)
     try:
-        config = load_config(args.config)
+        config = _with_lcm_types(load_config(args.config), args.lcm_types)
         if args.lcm_url:
             config = config.with_settings("lcm", url=args.lcm_url)
         for setting in args.set:
@@ -277,6 +301,11 @@ def _run(args: argparse.Namespace) -> int:
         if demo is not None:
             demo.join(timeout=2)
     return 0
+
+
+def _with_lcm_types(config: BridgeConfig, sources: list[str]) -> BridgeConfig:
+    """The config with `--lcm-types` added to its `lcm_types`."""
+    return config.model_copy(update={"lcm_types": [*config.lcm_types, *sources]}) if sources else config
 
 
 def _status_view(quiet: bool) -> StatusView:
@@ -326,7 +355,7 @@ def _convert(args: argparse.Namespace) -> int:
     from viewer_bridge.log_convert import convert  # MCAP files: the foxglove extra, only for this command
 
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    config = load_config(args.config)
+    config = _with_lcm_types(load_config(args.config), args.lcm_types)
     # Ctrl-C (or a SIGTERM) stops after the message being converted: the MCAP is closed properly.
     stop = threading.Event()
     for signal_number in (signal.SIGINT, signal.SIGTERM):
@@ -341,6 +370,7 @@ def _convert(args: argparse.Namespace) -> int:
             force=args.force,
             config_name=args.config or "the built-in config",
             stop=stop,
+            lcm_channels=args.lcm_channels,
         )
     except Interrupted as interrupted:
         print(f"viewer-bridge convert: {interrupted}", file=sys.stderr)

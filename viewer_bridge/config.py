@@ -6,6 +6,8 @@ template over the source's regex groups (`{1}`; `{1:lower}`; `{1:path}` turns `_
 `/proximity` and `` into ``; `{1:topic}` makes any text a valid ROS name token), QoS, a rate
 policy, `lazy`, and the translator's options. Each transport's settings are the top-level
 section named after it (`lcm:`, `ros:`, `ign:`, or a plugin's name), checked by its own model.
+`lcm_types:` names the LCM types the routes know besides the project's and Drake's (`.lcm` files,
+folders, lcm-gen'd modules; loaded once per router, `viewer_bridge.lcmcodec.library`).
 The built-in configs (`-c builtin:NAME`; `default` bridges Drake's default channels to ROS 2
 under `/drake`) are the YAML files in `configs/`, shipped with the package and read like a user's.
 
@@ -102,6 +104,10 @@ class BridgeConfig(BaseModel):
 
     model_config = ConfigDict(extra="allow")
     load_cache: str | None = None  # a folder where the last load per channel is kept across runs
+    # LCM types the routes know besides the project's own: .lcm files, folders of them (searched
+    # recursively) and lcm-gen'd Python modules by import name (`--lcm-types` adds to these).
+    lcm_types: list[str] = []
+    drake_lcm_types: bool = True  # also Drake's own types (pydrake's `drake` module), when pydrake is installed
     routes: list[Route]
     _settings: dict[str, TransportSettings] = PrivateAttr(default_factory=dict)
 
@@ -110,7 +116,8 @@ class BridgeConfig(BaseModel):
         document = (info.context or {}).get("document")
         check = _Checker(document if isinstance(document, YamlDocument) else None)
         for name, section in (self.model_extra or {}).items():
-            transport = check.transport(name, (name,), "a config key (load_cache, routes) nor a transport")
+            known = "a config key (load_cache, lcm_types, drake_lcm_types, routes) nor a transport"
+            transport = check.transport(name, (name,), known)
             self._settings[name] = check.model(transport.Settings, section or {}, (name,))
         names = [route.name for route in self.routes]
         for index, route in enumerate(self.routes):

@@ -5,31 +5,39 @@ from __future__ import annotations
 import base64
 import json
 import math
+from functools import cache
 from typing import Any
 
 import numpy as np
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.lcmcodec import codec_for
+from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.transports.lcm import LcmEvent
 
 
-def describe(event: LcmEvent) -> dict[str, Any]:
-    """A JSON-ready description of one event: its type and every decoded field, or the error."""
+@cache
+def _project_types() -> TypeLibrary:
+    return TypeLibrary.load(drake=False)
+
+
+def describe(event: LcmEvent, types: TypeLibrary | None = None) -> dict[str, Any]:
+    """A JSON-ready description of one event: its type (any of `types`; by default the
+    project's own) and every decoded field, or the error."""
+    types = _project_types() if types is None else types
     record: dict[str, Any] = {
         "channel": event.channel,
         "timestamp_us": event.timestamp_us,
         "size": len(event.data),
         "fingerprint": event.data[:8].hex(),
     }
-    codec = codec_for(event.data)
-    if codec is None:
+    lcm_type = types.for_data(event.data)
+    if lcm_type is None:
         record["type"] = None
-        record["error"] = "no schema in lcmtypes/ has this fingerprint"
+        record["error"] = "no known LCM type has this fingerprint (--lcm-types adds types)"
         return record
-    record["type"] = codec.type_name
+    record["type"] = lcm_type.full_name
     try:
-        record["message"] = _json_ready(codec.decode(event.data).to_dict())
+        record["message"] = _json_ready(lcm_type.to_json(event.data, bytes_summary=False))
     except DecodeError as error:
         record["error"] = str(error)
     return record
@@ -49,12 +57,12 @@ def _json_ready(value: Any) -> Any:
     return value
 
 
-def as_json(event: LcmEvent) -> str:
-    return json.dumps(describe(event), separators=(",", ":"))
+def as_json(event: LcmEvent, types: TypeLibrary | None = None) -> str:
+    return json.dumps(describe(event, types), separators=(",", ":"))
 
 
-def as_text(event: LcmEvent) -> str:
-    record = describe(event)
+def as_text(event: LcmEvent, types: TypeLibrary | None = None) -> str:
+    record = describe(event, types)
     seconds = record["timestamp_us"] / 1e6
     header = (
         f"[{seconds:.6f}] {record['channel']} {record['type'] or '(unknown type)'} ({record['size']} bytes)"

@@ -115,6 +115,18 @@ class MissingExtra(BridgeError):
         super().__init__(f"{needed_by} needs {module}, not installed: pip install 'viewer-bridge[{extra}]'")
 
 
+class Held(BridgeError):
+    """A message held back on purpose, not broken: its type is unknown here (`unknown_type`),
+    cannot be said in the target (`refused_type`), or its interface is still being built
+    (`waiting_for_build`). The router counts it per channel and kind, logs the first of each
+    once, and goes on; raised by a translator (`observe`, `translate`) or a publisher."""
+
+    def __init__(self, kind: str, reason: str) -> None:
+        self.kind = kind
+        self.reason = reason
+        super().__init__(reason)
+
+
 class HandshakeError(BridgeError):
     """A client connection whose opening handshake cannot be relayed (cut off, too long, too slow)."""
 

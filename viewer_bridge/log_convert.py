@@ -20,8 +20,10 @@ from __future__ import annotations
 
 import contextlib
 import itertools
+import json
 import logging
 import os
+import re
 import threading
 from collections import Counter
 from collections.abc import Callable, Iterator
@@ -32,7 +34,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from viewer_bridge.config import BridgeConfig, Endpoint, Route
 from viewer_bridge.errors import ConvertError, Interrupted
 from viewer_bridge.router import Router
-from viewer_bridge.status import Snapshot, routes_of
+from viewer_bridge.status import Snapshot, held_of, routes_of
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import LCM, Received
 from viewer_bridge.transports.lcm import read_log
@@ -50,23 +52,25 @@ def convert(
     force: bool = False,
     config_name: str = "the config",
     stop: threading.Event | None = None,
+    lcm_channels: str | None = None,
 ) -> dict[str, int]:
     """Write the outputs of `config`'s LCM routes in the `schema` family for the log into an MCAP file.
 
     Returns messages written per topic. Bad messages are counted per route and reported, as
     the live router does; they do not stop the conversion. Raises `ConvertError` before
     anything is written when `mcap_path` is the log itself, exists (unless `force`), or no route
-    writes `schema`; `Interrupted` when `stop` is set midway.
+    writes `schema`; `Interrupted` when `stop` is set midway. `lcm_channels`, a regex, narrows the
+    routes of any LCM type (`lcm_to_ros`: `/lcm/<channel>`) to the channels it fully matches.
     """
     target = Path(mcap_path)
     _check_target(Path(log_path), target, force)
     events = read_log(log_path)
     first = next(events, None)  # a file that is not an LCM log fails here, before anything is written
-    writes = [route for route in config.routes if _lcm_to(schema, route)]
+    writes = _distinct([_narrowed(route, lcm_channels) for route in config.routes if _lcm_to(schema, route)])
     if not writes:
         raise ConvertError(f"no route of {config_name} reads LCM and writes the {schema} schema")
     partial = target.with_name(target.name + ".partial")
-    router = Router(_into_mcap(writes, partial, schema), view=_RouteErrors())
+    router = Router(_into_mcap(config, writes, partial, schema), view=_RouteErrors())
     mcap = router.transports["mcap"]
     assert isinstance(mcap, McapTransport)
     stop = stop or threading.Event()
@@ -96,8 +100,42 @@ def _lcm_to(schema: Profile, route: Route) -> bool:
     )
 
 
-def _into_mcap(routes: list[Route], path: Path, schema: Profile) -> BridgeConfig:
-    """A config of `routes`, read from LCM and written into the MCAP file `path`.
+def _distinct(routes: list[Route]) -> list[Route]:
+    """The routes less those that would write what an earlier one writes into the file: the same
+    source, translator, options and destination name, only to another transport live (the
+    default config's /lcm/<channel> routes, one to ROS 2 and one to Foxglove, are one file's)."""
+    seen: set[str] = set()
+    distinct = []
+    for route in routes:
+        key = json.dumps([route.source.name, route.translator, route.destination.name, route.options], sort_keys=True)
+        if key not in seen:
+            seen.add(key)
+            distinct.append(route)
+    return distinct
+
+
+def _narrowed(route: Route, channels: str | None) -> Route:
+    """A route of any LCM type (its outputs carry their definitions) that reads only the channels
+    `channels` fully matches, besides its own pattern; other routes as they are.
+
+    The source becomes `(?=(?:CHANNELS)\\Z)(?:SOURCE)`: CHANNELS' groups come first, so the
+    destination's group numbers move past them."""
+    generic = any(output.type.definition is not None for output in TRANSLATORS.get(route.translator).outputs)
+    if channels is None or not generic:
+        return route
+    shift = re.compile(channels).groups
+    destination = re.sub(r"\{([1-9][0-9]*)", lambda group: "{" + str(int(group[1]) + shift), route.destination.name)
+    name = f"(?=(?:{channels})\\Z)(?:{route.source.name})"
+    return route.model_copy(
+        update={
+            "source": route.source.model_copy(update={"name": name}),
+            "destination": route.destination.model_copy(update={"name": destination}),
+        }
+    )
+
+
+def _into_mcap(config: BridgeConfig, routes: list[Route], path: Path, schema: Profile) -> BridgeConfig:
+    """A config of `routes` (with `config`'s LCM types), read from LCM and written into the MCAP file `path`.
 
     LCM is an in-process bus that is never started: the log's events are fed to the router by
     hand. No load cache: a load comes from the log, never from an earlier run.
@@ -106,6 +144,8 @@ def _into_mcap(routes: list[Route], path: Path, schema: Profile) -> BridgeConfig
         {
             "lcm": {"url": "memq://"},
             "mcap": {"path": path, "profile": schema, "overwrite": True},  # a .partial left by an earlier run
+            "lcm_types": config.lcm_types,
+            "drake_lcm_types": config.drake_lcm_types,
             "routes": [
                 route.model_copy(
                     update={
@@ -120,14 +160,17 @@ def _into_mcap(routes: list[Route], path: Path, schema: Profile) -> BridgeConfig
 
 
 class _RouteErrors:
-    """The router's status view for convert: per route, its errors and warnings, once at the end
-    (each was logged as it happened, the first few in full)."""
+    """The router's status view for convert: per route, its errors and warnings, and what it held
+    back (channels of no known type), once at the end (each was logged as it happened, the first
+    few in full)."""
 
     def show(self, snapshot: Snapshot) -> None:
         for name, stats in routes_of(snapshot).items():
             counts = Counter(stats["errors"]) + Counter(stats["warnings"])
             if counts:
                 log.warning("route %s: %s", name, dict(counts))
+            if held := held_of(stats):  # e.g. channels of no known type: not written
+                log.warning("route %s: not written: %s", name, held)
 
     def close(self) -> None:
         pass

@@ -44,6 +44,16 @@ def warnings_of(stats: dict[str, Any]) -> int:
     return sum(stats["warnings"].values())
 
 
+def held_of(stats: dict[str, Any]) -> str:
+    """Messages held back on purpose, by kind with their channels: `unknown_type 12 (FOO, BAR)`."""
+    kinds: dict[str, tuple[int, list[str]]] = {}
+    for channel, counts in stats.get("held", {}).items():
+        for kind, count in counts.items():
+            total, channels = kinds.get(kind, (0, []))
+            kinds[kind] = (total + count, [*channels, channel])
+    return ", ".join(f"{kind} {total} ({', '.join(channels)})" for kind, (total, channels) in kinds.items())
+
+
 def _ms(value: float | None) -> str:
     return "-" if value is None else f"{value:.2f}"
 
@@ -55,7 +65,7 @@ class LogLines:
         for name, stats in routes_of(snapshot).items():
             latency = stats["latency_ms"]
             log.info(
-                "route %s: in %d out %d errors %d%s dropped %d%s latency p50 %s p99 %s ms%s",
+                "route %s: in %d out %d errors %d%s dropped %d%s latency p50 %s p99 %s ms%s%s",
                 name,
                 stats["messages_in"],
                 stats["messages_out"],
@@ -66,6 +76,7 @@ class LogLines:
                 _ms(latency["p50"]),
                 _ms(latency["p99"]),
                 f" ({stats['state']}, {stats['idle_skipped']} not translated)" if stats["state"] != "active" else "",
+                f" held: {held}" if (held := held_of(stats)) else "",
             )
         if "transports" in snapshot:
             log.info("transports: %s", snapshot["transports"])
@@ -105,6 +116,9 @@ class LiveTable:
             idle = sum(1 for name in quiet if routes[name]["state"] != "active")
             parts.append(Text(f"{len(quiet)} more routes quiet ({idle} idle: no subscriber; "
                               f"{len(quiet) - idle} without traffic): {', '.join(quiet)}", style="dim"))  # fmt: skip
+        for name, stats in routes.items():
+            if held := held_of(stats):
+                parts.append(Text(f"{name} held back: {held}", style="yellow"))
         if "transports" in snapshot:
             parts.append(Text(f"transport errors: {snapshot['transports']}", style="red"))
         self._live.update(Group(*parts), refresh=True)

@@ -27,7 +27,10 @@ client.on("serverInfo", (info) => print({ event: "serverInfo", name: info.name }
 client.on("unadvertise", (ids) => print({ event: "unadvertise", channelIds: ids }));
 client.on("advertise", (channels) => {
   for (const channel of channels) {
-    print({ event: "advertise", id: channel.id, topic: channel.topic, encoding: channel.encoding, schemaName: channel.schemaName });
+    print({
+      event: "advertise", id: channel.id, topic: channel.topic, encoding: channel.encoding,
+      schemaName: channel.schemaName, schemaEncoding: channel.schemaEncoding, schema: channel.schema,
+    });
     if (topics.includes(channel.topic)) {
       wanted.set(channel.id, channel.topic);
       subscribeTo(channel.id);

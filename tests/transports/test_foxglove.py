@@ -13,6 +13,7 @@ import re
 import socket
 import struct
 import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -91,6 +92,7 @@ class WsProtocolClient:
         self.process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         self.subprotocol: str | None = None
         self.events: list[dict[str, Any]] = []  # every line, errors included (shown when a wait fails)
+        self.channels: dict[str, dict[str, Any]] = {}  # topic -> advertised channel
         self.messages: dict[str, list[bytes]] = {}  # topic -> payloads, in arrival order
         self._arrived = threading.Condition()
         self._reader = threading.Thread(target=self._read, daemon=True)
@@ -104,6 +106,8 @@ class WsProtocolClient:
                 self.events.append(event)
                 if event["event"] == "open":
                     self.subprotocol = event["subprotocol"]
+                elif event["event"] == "advertise":
+                    self.channels[event["topic"]] = event
                 elif event["event"] == "message":
                     self.messages.setdefault(event["topic"], []).append(base64.b64decode(event["data"]))
                 self._arrived.notify_all()
@@ -132,6 +136,7 @@ def _counts(messages: dict[str, list[bytes]]) -> dict[str, int]:
 
 class Client(Protocol):
     subprotocol: str | None
+    channels: dict[str, dict[str, Any]]  # topic -> advertised channel (encoding, schemaName, schema ...)
     messages: dict[str, list[bytes]]
 
     def pump(self, seconds: float, until: Callable[[], bool]) -> bool: ...
@@ -436,3 +441,46 @@ def test_the_front_renames_the_subprotocol_header_only() -> None:
     assert older_name_asked(renamed) is None  # the SDK's own name: nothing to rename
     refusal = b"HTTP/1.1 400 Bad Request\r\ncontent-length: 0\r\n\r\n"
     assert naming(refusal, "foxglove.websocket.v1") == refusal  # no header to rename
+
+
+@pytest.mark.parametrize("client_kind", list(CLIENTS))
+def test_any_lcm_type_from_a_pydrake_diagram_reaches_a_foxglove_client_as_ros2msg(
+    client_kind: str, tmp_path: Path
+) -> None:
+    """Drake's driver messages (an LcmPublisherSystem each) on /lcm/<channel>: a `ros2msg` schema
+    and CDR, decoded by mcap-ros2-support from the schema the client was advertised."""
+    from mcap_ros2._dynamic import generate_dynamic
+
+    from tests.drake_robot_status import PLAN_CHANNEL, STATUS_CHANNEL
+    from tests.translators.test_lcm_generic import assert_same
+
+    connect_client, _ = CLIENTS[client_kind]
+    url = lcm_url(13)
+    recorder = LcmRecorder(url)
+    bridge = BridgeProcess("-c", "builtin:foxglove", "--lcm-url", url, "--stats-period", "1")
+    topics = {STATUS_CHANNEL: "/lcm/IIWA_STATUS", PLAN_CHANNEL: "/lcm/ROBOT_PLAN"}
+    script = Path(__file__).parents[1] / "drake_robot_status.py"
+    client = None
+    try:
+        port = foxglove_port(bridge)
+        drake = subprocess.Popen([sys.executable, str(script), url, "4.0"])
+        client = connect_client(port, *topics.values())  # each channel is advertised as it appears
+        assert drake.wait(timeout=120) == 0
+        recorder.sync()
+        assert client.pump(60, lambda: all(len(client.messages.get(t, [])) >= 10 for t in topics.values())), client.log()  # type: ignore[union-attr]
+    finally:
+        if client is not None:
+            client.close()
+        assert bridge.stop() == 0
+        recorder.close()
+    for channel, lcm_class in ((STATUS_CHANNEL, drake_lcmtypes.lcmt_iiwa_status),
+                               (PLAN_CHANNEL, drake_lcmtypes.lcmt_robot_plan)):  # fmt: skip
+        advertised = client.channels[topics[channel]]
+        name = f"drake_lcm_msgs/msg/{'LcmtIiwaStatus' if channel == STATUS_CHANNEL else 'LcmtRobotPlan'}"
+        assert (advertised["encoding"], advertised["schemaName"], advertised["schemaEncoding"]) == (
+            "cdr", name, "ros2msg")  # fmt: skip
+        decode = generate_dynamic(name, advertised["schema"])[name]
+        sent = {lcm_class.decode(data).utime: lcm_class.decode(data) for data in recorder.messages[channel]}
+        for payload in client.messages[topics[channel]]:
+            message = decode(payload)
+            assert_same(sent[message.utime], message)

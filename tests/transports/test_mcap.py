@@ -232,3 +232,113 @@ def test_one_topic_routed_to_both_the_server_and_the_file_is_warned_about(
         feed(router, "DRAKE_VIEWER_DRAW", draw_of(small_scene(), 0.0), 1)
     router.close()
     assert "/drake/transforms is routed to both the foxglove and the mcap transport" in caplog.text
+
+
+# --- any LCM type: `viewer-bridge convert` writes /lcm/<channel> in both profiles ----------------------
+
+from tests.translators.test_lcm_generic import CORPUS, arm_status, assert_same, lcmgen_corpus  # noqa: E402, F401
+
+
+def any_types_log(path: Path, extra: list[Any] = ()) -> Path:  # type: ignore[assignment]
+    """Drake's driver messages, the viewer's scene, a channel of no known type, and `extra` events."""
+    import drake as drake_lcmtypes
+
+    from tests.drake_robot_status import iiwa_status, robot_plan
+    from viewer_bridge.transports.lcm import LcmEvent, write_log
+
+    events = [LcmEvent("DRAKE_VIEWER_LOAD_ROBOT", LOAD, 1_000)]
+    for step in range(5):
+        time_us = 10_000 * (step + 1)
+        events.append(LcmEvent("IIWA_STATUS", iiwa_status(step / 100).encode(), time_us))
+        events.append(LcmEvent("DRAKE_VIEWER_DRAW", draw_of(small_scene(), step / 100), time_us + 1))
+        events.append(LcmEvent("MYSTERY", b"\x01\x02\x03\x04\x05\x06\x07\x08?", time_us + 2))
+    events.append(LcmEvent("ROBOT_PLAN", robot_plan(0.5).encode(), 90_000))
+    events.append(LcmEvent("left-arm.command", drake_lcmtypes.lcmt_iiwa_command().encode(), 91_000))
+    write_log(path, [*events, *extra])
+    return path
+
+
+def cli(*args: str) -> Any:
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "viewer_bridge.cli", *args], capture_output=True, text=True, timeout=300)
+
+
+def read_mcap(path: Path) -> dict[str, list[Any]]:
+    """topic -> (schema name, schema encoding, message encoding, log time, message, schema, channel)."""
+    found: dict[str, list[Any]] = {}
+    with path.open("rb") as file:
+        reader = make_reader(file)
+        for schema, channel, message in reader.iter_messages():
+            entry = (schema.name if schema else None, schema.encoding if schema else None,
+                     channel.message_encoding, message.log_time)  # fmt: skip
+            found.setdefault(channel.topic, []).append((*entry, message, schema, channel))
+    return found
+
+
+@pytest.mark.parametrize("profile", ["ros2", "foxglove"])
+def test_convert_writes_every_channel_of_a_known_type_with_no_flag(profile: str, tmp_path: Path) -> None:
+    import drake as drake_lcmtypes
+    from mcap_ros2._dynamic import generate_dynamic
+
+    log = any_types_log(tmp_path / "robot.lcmlog")
+    out = tmp_path / "robot.mcap"
+    result = cli("convert", str(log), str(out), "--schema", profile)
+    assert result.returncode == 0, result.stderr
+    topics = read_mcap(out)
+    assert {"/lcm/IIWA_STATUS", "/lcm/ROBOT_PLAN", "/lcm/left_arm_command"} <= set(topics)
+    assert not [topic for topic in topics if topic.startswith("/lcm/DRAKE_") or "MYSTERY" in topic]
+    viewer = {"/drake/poses", "/tf"} if profile == "ros2" else {"/drake/scene", "/drake/transforms"}
+    assert viewer <= set(topics), set(topics)  # beside the translated viewer topics
+    assert "MYSTERY" in result.stderr and "unknown_type 5" in result.stderr  # said, not written
+    from viewer_bridge.transports.lcm import read_log
+
+    sent: dict[str, list[Any]] = {}
+    for event in read_log(log):
+        sent.setdefault(event.channel, []).append(event)
+    for topic, channel, lcm_class, name in (
+        ("/lcm/IIWA_STATUS", "IIWA_STATUS", drake_lcmtypes.lcmt_iiwa_status, "LcmtIiwaStatus"),
+        ("/lcm/ROBOT_PLAN", "ROBOT_PLAN", drake_lcmtypes.lcmt_robot_plan, "LcmtRobotPlan"),
+    ):
+        written = topics[topic]
+        assert len(written) == len(sent[channel])
+        for (schema_name, schema_encoding, encoding, log_time, message, schema, _), event in zip(
+            written, sent[channel], strict=True
+        ):
+            assert (schema_name, schema_encoding, encoding) == (f"drake_lcm_msgs/msg/{name}", "ros2msg", "cdr")
+            assert log_time == event.timestamp_us * 1000  # the log's own time
+            decoded = generate_dynamic(schema_name, schema.data.decode())[schema_name](message.data)
+            assert_same(lcm_class.decode(event.data), decoded)
+
+
+def test_convert_lcm_channels_chooses_the_channels_of_any_type(tmp_path: Path) -> None:
+    log = any_types_log(tmp_path / "robot.lcmlog")
+    out = tmp_path / "robot.mcap"
+    # Groups of its own shift the route's: the topic is still the channel's.
+    result = cli("convert", str(log), str(out), "--lcm-channels", "(IIWA)_STATUS|ROBOT_(PLAN)")
+    assert result.returncode == 0, result.stderr
+    topics = set(read_mcap(out))
+    assert {"/lcm/IIWA_STATUS", "/lcm/ROBOT_PLAN"} <= topics and "/lcm/left_arm_command" not in topics
+    assert "/drake/poses" in topics  # the viewer's routes are not narrowed
+
+
+def test_convert_lcm_types_adds_a_labs_own_folder(
+    tmp_path: Path, lcmgen_corpus: dict[str, type]  # noqa: F811 (the fixture, imported)
+) -> None:
+    from mcap_ros2._dynamic import generate_dynamic
+
+    from viewer_bridge.transports.lcm import LcmEvent
+
+    data = arm_status(lcmgen_corpus).encode()
+    log = any_types_log(tmp_path / "lab.lcmlog", [LcmEvent("ARM_STATUS", data, 95_000)])
+    without = cli("convert", str(log), str(tmp_path / "without.mcap"))
+    assert without.returncode == 0 and "ARM_STATUS" in without.stderr and "unknown_type" in without.stderr
+    assert "/lcm/ARM_STATUS" not in read_mcap(tmp_path / "without.mcap")
+    out = tmp_path / "with.mcap"
+    result = cli("convert", str(log), str(out), "--lcm-types", str(CORPUS))
+    assert result.returncode == 0, result.stderr
+    [(name, _, _, _, message, schema, _)] = read_mcap(out)["/lcm/ARM_STATUS"]
+    assert name == "vbtest_lab_lcm_msgs/msg/ArmStatusT"
+    decoded = generate_dynamic(name, schema.data.decode())[name](message.data)
+    assert_same(lcmgen_corpus["vbtest_lab.arm_status_t"].decode(data), decoded)

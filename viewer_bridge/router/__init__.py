@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from viewer_bridge.config import BridgeConfig, Route
+from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.router.flow import InlineBudget
 from viewer_bridge.router.runner import PublisherFor, RouteRunner
 from viewer_bridge.status import LogLines, StatusView
@@ -62,10 +63,13 @@ class Router:
         self.stats_json = Path(stats_json) if stats_json else None
         self.stats_period = stats_period
         self.view = view or LogLines()
-        # What the transports and translators share: one Foxglove context, the message time, the
-        # last Drake load per channel (kept in the config's folder, if it names one).
-        self.shared = Shared()
+        # What the transports and translators share: the known LCM types (loaded once, here: a
+        # bad source stops the start), one Foxglove context, the message time, the last Drake load
+        # per channel (kept in the config's folder, if it names one).
+        self.shared = Shared(TypeLibrary.load(config.lcm_types, drake=config.drake_lcm_types))
         self.shared.provide(LoadCache, LoadCache(config.load_cache))
+        for warning in self.shared.lcm_types.warnings:
+            log.warning("viewer-bridge: %s", warning)
         self.transports: dict[str, Transport] = {}
         self.routes: list[RouteRunner] = []
         self._sourced: dict[str, list[RouteRunner]] = {}  # by source transport, for `feed`

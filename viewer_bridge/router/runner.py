@@ -22,12 +22,12 @@ from collections.abc import Callable
 from typing import Any
 
 from viewer_bridge.config import Route, destination_name
-from viewer_bridge.errors import BridgeError
+from viewer_bridge.errors import BridgeError, Held
 from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
 from viewer_bridge.router.stats import RouteStats
 from viewer_bridge.skipped import collecting
 from viewer_bridge.translators import Output, Translator
-from viewer_bridge.transports.base import MessageTime, Publisher, Received
+from viewer_bridge.transports.base import MessageTime, MessageType, Publisher, Received
 
 log = logging.getLogger("viewer_bridge")
 
@@ -53,13 +53,14 @@ class _Lane:
         return self._publisher(self.name + output.suffix, output)
 
     def listened(self) -> bool:
-        """Whether any output has a subscriber, or its transport cannot tell (then: translate)."""
+        """Whether any output has a subscriber, or its transport cannot tell (then: translate).
+
+        Raises `Held` when an output cannot have a publisher yet (its interface is being built):
+        nothing to translate for, nobody to ask."""
         now = time.monotonic()
         if now - self._checked_at >= _LISTENERS_CHECK_S:
             self._checked_at = now
-            counts = [
-                self.publisher(index).subscriber_count() for index in range(len(self.translator.outputs))
-            ]
+            counts = [self.publisher(index).subscriber_count() for index in range(len(self.translator.outputs))]
             self.listened_now = any(count is None or count > 0 for count in counts)
         return self.listened_now
 
@@ -91,7 +92,9 @@ class RouteRunner:
         self._message_time = MessageTime() if message_time is None else message_time
         self.prototype: Translator | None = make_translator()  # made now: errors show at start
         self._lanes: dict[tuple[str | None, ...], _Lane] = {}  # by the source's captured groups
-        self._publishers: dict[str, Publisher] = {}  # by full name: lanes may share a topic
+        # By full name and type: lanes may share a topic, a channel's type may change (any LCM type).
+        self._publishers: dict[tuple[str, MessageType], Publisher] = {}
+        self._held_logged: set[tuple[str, str]] = set()  # (channel, kind) said once
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"route {route.name}", daemon=True)
         self._logged: Counter[str] = Counter()
@@ -160,8 +163,11 @@ class RouteRunner:
     def catch_up(self) -> None:
         """A lazy route's lanes that skipped messages and now have a subscriber translate them."""
         for lane in list(self._lanes.values()):
-            if lane.skipped and lane.listened():
-                self._replay(lane)
+            try:
+                if lane.skipped and lane.listened():
+                    self._replay(lane)
+            except Held:  # its publisher cannot be made yet: its next message is counted
+                continue
 
     def _replay(self, lane: _Lane) -> None:
         skipped, lane.skipped = lane.skipped, {}
@@ -170,9 +176,9 @@ class RouteRunner:
             self._translate(lane, message, latency=False)
 
     def _publisher(self, name: str, output: Output) -> Publisher:
-        publisher = self._publishers.get(name)
+        publisher = self._publishers.get((name, output.type))
         if publisher is None:
-            publisher = self._publishers[name] = self._publisher_for(name, output)
+            publisher = self._publishers[(name, output.type)] = self._publisher_for(name, output)
         return publisher
 
     def _lane(self, message: Message) -> _Lane:
@@ -197,6 +203,9 @@ class RouteRunner:
                 if lane.skipped:  # a subscriber just appeared: what came before goes first
                     lane.skipped.pop(message.channel, None)
                     self._replay(lane)
+        except Held as held:  # a type unknown or refused here, an interface being built: counted on its channel
+            self._held(message.channel, held)
+            return
         except Exception as error:  # a bug in a translator's bookkeeping or a transport
             self._error(f"crash:{type(error).__name__}", f"{message.channel}: {traceback.format_exc()}")
             return
@@ -207,6 +216,9 @@ class RouteRunner:
         try:
             with collecting() as skipped:
                 outputs = lane.translator.translate(message.received)
+        except Held as held:
+            self._held(message.channel, held)
+            return
         except BridgeError as error:
             self._error(type(error).__name__, f"{message.channel}: {error}")
             return
@@ -223,6 +235,9 @@ class RouteRunner:
         for index, payload in outputs:
             try:
                 lane.publisher(index).publish(payload)
+            except Held as held:  # its interface is being built: counted on the channel, the rest goes on
+                self._held(message.channel, held)
+                continue
             except Exception as error:  # the transport refused: count it, go on with the rest
                 self._error(f"publish:{type(error).__name__}", f"{lane.name}: {error}")
                 continue
@@ -230,6 +245,13 @@ class RouteRunner:
             self.stats.bytes_out += len(payload)
         if outputs and latency:
             self.stats.latency_ms.append((time.time_ns() // 1000 - message.received.received_us) / 1e3)
+
+    def _held(self, channel: str, held: Held) -> None:
+        """A message held back on purpose: counted per channel and kind, said once per both."""
+        self.stats.held.setdefault(channel, Counter())[held.kind] += 1
+        if (channel, held.kind) not in self._held_logged:
+            self._held_logged.add((channel, held.kind))
+            log.warning("route %s: %s: %s (%s; counted, not said again)", self.route.name, channel, held.reason, held.kind)
 
     def _error(self, kind: str, text: str) -> None:
         self._count(self.stats.errors, kind, text)

@@ -21,6 +21,8 @@ class RouteStats:
     idle_skipped: int = 0  # messages a lazy route did not translate: nobody was listening
     errors: Counter[str] = field(default_factory=Counter)
     warnings: Counter[str] = field(default_factory=Counter)  # e.g. a geometry skipped (viewer_bridge.skipped)
+    # Messages held back on purpose, by channel and kind (unknown_type, refused_type, waiting_for_build).
+    held: dict[str, Counter[str]] = field(default_factory=dict)
     translate_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
     latency_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
 
@@ -34,6 +36,7 @@ class RouteStats:
             "idle_skipped": self.idle_skipped,
             "errors": dict(self.errors),
             "warnings": dict(self.warnings),
+            "held": {channel: dict(kinds) for channel, kinds in sorted(self.held.items())},
             "dropped": dropped,
             "max_hz_skipped": max_hz_skipped,  # superseded while a rate-limited route waited
             "queued": queued,

@@ -24,7 +24,7 @@ from viewer_bridge.lcmcodec import (
     POINT_CLOUD,
     VIEWER2_COMMS,
 )
-from viewer_bridge.transports.base import CDR, LCM, PROTOBUF, MessageType
+from viewer_bridge.transports.base import CARRIED_DEFINITION, CDR, LCM, PROTOBUF, MessageType
 
 # Drake's LCM messages.
 LOAD_TYPE = MessageType(LOAD_ROBOT.type_name, LCM)
@@ -33,6 +33,10 @@ LINK_DATA_TYPE = MessageType(LINK_DATA.type_name, LCM)  # DRAKE_VIEWER_DEFORMABL
 CONTACT_TYPE = MessageType(CONTACT_RESULTS.type_name, LCM)
 POINT_CLOUD_TYPE = MessageType(POINT_CLOUD.type_name, LCM)
 IMAGE_ARRAY_TYPE = MessageType(IMAGE_ARRAY.type_name, LCM)  # DRAKE_RGBD_CAMERA_IMAGES*
+# Any LCM type (`lcm_to_ros`: the channel's fingerprint says which), and the ROS 2 message it
+# maps to: CDR of a type whose definition each instance's output carries (no installed package).
+ANY_LCM_TYPE = MessageType("*", LCM)
+LCM_AS_ROS_TYPE = MessageType("*", CDR, CARRIED_DEFINITION)
 # Director's tree viewer envelope (requests and responses alike).
 ENVELOPE_TYPE = MessageType(VIEWER2_COMMS.type_name, LCM)
 # Foxglove's protobuf schemas.

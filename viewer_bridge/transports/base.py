@@ -9,8 +9,9 @@ A message received once is one `Received`, handed to every subscription it match
 decoded form of it (`Received.decoded`) is computed once however many routes read it.
 
 A router makes its transports with `Transport.create(settings, shared)`: `Shared` holds what the
-transports of one router share (one Foxglove context for the live server and an MCAP file), and
-the receive time of the message being published (`MessageTime`), which a file stamps.
+transports (and translators) of one router share: its known LCM types, one Foxglove context for
+the live server and an MCAP file, and the receive time of the message being published
+(`MessageTime`), which a file stamps.
 """
 
 from __future__ import annotations
@@ -19,10 +20,13 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol, Self, TypeVar, cast
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, Self, TypeVar, cast
 
 from pydantic import BaseModel, ConfigDict
+
+if TYPE_CHECKING:
+    from viewer_bridge.lcmcodec.library import TypeLibrary
 
 # Payload encodings, named as MCAP names message encodings where it has a name for them.
 LCM = "lcm"
@@ -32,15 +36,31 @@ JSON = "json"
 
 
 @dataclass(frozen=True, slots=True)
+class Definition:
+    """A ROS 2 type's definition that travels with the type, for types no installed package
+    describes (an LCM type's mapping): MCAP's `ros2msg` schema text and the RIHS01 hash."""
+
+    ros2msg: str
+    rihs01: str
+
+
+# In a translator's declared outputs: CDR of types whose definitions their instances carry.
+CARRIED_DEFINITION = Definition("", "")
+
+
+@dataclass(frozen=True, slots=True)
 class MessageType:
     """A message type on the wire: its full name and how its bytes are encoded.
 
     `drake.lcmt_viewer_draw` / lcm, `geometry_msgs/msg/PoseArray` / cdr,
     `ignition.msgs.Pose_V` / protobuf. The name `*` stands for any type of that encoding.
+    `definition`, when set, is the type's own (a transport needs no installed package to name
+    it); it is no part of the type's identity.
     """
 
     name: str
     encoding: str
+    definition: Definition | None = field(default=None, compare=False, repr=False)
 
     def __str__(self) -> str:
         return f"{self.name} ({self.encoding})"
@@ -92,14 +112,25 @@ Made = TypeVar("Made")
 
 
 class Shared:
-    """What the transports and translators of one router share: the `MessageTime`, and whatever is
-    made once per router on first ask (`get(FoxgloveContext)`: the live server and an MCAP file log
-    to one; `get(LoadCache)`: every route's last Drake load). Two routers share nothing."""
+    """What the transports and translators of one router share: the `MessageTime`, the LCM types
+    it knows (`lcm_types`, loaded once at start from the config's `lcm_types`), and whatever is
+    made once per router on first ask (`get(FoxgloveContext)`: the live server and an MCAP file
+    log to one; `get(LoadCache)`: every route's last Drake load). Two routers share nothing."""
 
-    def __init__(self) -> None:
+    def __init__(self, lcm_types: TypeLibrary | None = None) -> None:
         self.message_time = MessageTime()
+        self._lcm_types = lcm_types
         self._made: dict[Callable[[], object], object] = {}
         self._lock = threading.Lock()  # translators are made on the routes' threads
+
+    @property
+    def lcm_types(self) -> TypeLibrary:
+        """The router's known LCM types (without a router: the project's and Drake's, loaded on first ask)."""
+        if self._lcm_types is None:
+            from viewer_bridge.lcmcodec.library import TypeLibrary  # numpy and rosbags: only when asked
+
+            self._lcm_types = TypeLibrary.load()
+        return self._lcm_types
 
     def get(self, make: Callable[[], Made]) -> Made:
         """This router's one `make()`, made on the first ask."""

@@ -1,13 +1,15 @@
 """Foxglove's live WebSocket protocol as a transport, through the official foxglove-sdk.
 
 Publish only: each name a route publishes on is a Foxglove channel (protobuf, with the schema of
-its `foxglove.*` type), served to browsers on `host:port` (127.0.0.1:8765 unless configured). A
-Foxglove client that subscribes is counted (so lazy routes wake up), and a latched output's last
-message is logged again when a client subscribes, so a client that connects after the load still
-gets the scene (SceneUpdates are idempotent). Everything about the protocol is the SDK's; unless
-`accept_websocket_v1` is false, a front of ours (viewer_bridge/transports/foxglove_front.py) holds the
-public port so that clients asking for the protocol's older name, `foxglove.websocket.v1`, are
-served as well as those asking for `foxglove.sdk.v1`, the only name the SDK's server accepts.
+its `foxglove.*` type; or CDR with the `ros2msg` schema a type's definition carries, as any LCM
+type's mapping does: viewer_bridge/translators/lcm_generic.py), served to browsers on
+`host:port` (127.0.0.1:8765 unless configured). A Foxglove client that subscribes is counted
+(so lazy routes wake up), and a latched output's last message is logged again when a client
+subscribes, so a client that connects after the load still gets the scene (SceneUpdates are
+idempotent). Everything about the protocol is the SDK's; unless `accept_websocket_v1` is false,
+a front of ours (viewer_bridge/transports/foxglove_front.py) holds the public port so that
+clients asking for the protocol's older name, `foxglove.websocket.v1`, are served as well as
+those asking for `foxglove.sdk.v1`, the only name the SDK's server accepts.
 
 Where a config also writes an MCAP file of Foxglove messages (viewer_bridge/transports/mcap.py), the
 server and the file log to one `FoxgloveContext`, as in the SDK: a message logged on a channel,
@@ -30,6 +32,7 @@ from viewer_bridge.errors import TransportUnavailable
 from viewer_bridge.extras import missing
 from viewer_bridge.formats.foxglove.schema import schema
 from viewer_bridge.transports.base import (
+    CDR,
     PROTOBUF,
     Deliver,
     MessageType,
@@ -48,9 +51,19 @@ except ImportError as error:
     raise missing(error, "the foxglove transport") from None
 
 
+def carried(message_type: MessageType) -> bool:
+    """Whether a Foxglove channel (live or in a file) can hold this type: Foxglove's own protobuf
+    messages, or CDR of a ROS 2 type that carries its definition (an LCM type's mapping)."""
+    if message_type.encoding == PROTOBUF:
+        return message_type.name.startswith("foxglove.")
+    return message_type.encoding == CDR and message_type.definition is not None
+
+
 def require_schemas(message_types: Iterable[MessageType]) -> None:
     """Raise `TransportUnavailable` for a `foxglove.*` type whose protobuf schema is not installed."""
     for message_type in message_types:
+        if message_type.definition is not None:  # its schema comes with it
+            continue
         try:
             schema(message_type.name)
         except (ImportError, KeyError) as error:
@@ -73,7 +86,8 @@ class FoxgloveContext:
         self._lock = threading.Lock()
 
     def channel(self, topic: str, message_type: MessageType, transport: str) -> foxglove.Channel:
-        """The channel of a `foxglove.*` protobuf type on `topic`, for the `transport` named."""
+        """The channel of a `foxglove.*` protobuf type on `topic`, or of a CDR type with the
+        `ros2msg` schema its definition carries, for the `transport` named."""
         with self._lock:
             first = self._asked_by.setdefault(topic, transport)
         if first != transport:
@@ -83,6 +97,14 @@ class FoxgloveContext:
                 topic,
                 first,
                 transport,
+            )
+        if message_type.definition is not None:
+            text = message_type.definition.ros2msg.encode()
+            return foxglove.Channel(
+                topic,
+                schema=foxglove.Schema(name=message_type.name, encoding="ros2msg", data=text),
+                message_encoding=CDR,
+                context=self.context,
             )
         return foxglove.Channel(
             topic,
@@ -166,7 +188,7 @@ class FoxgloveTransport(Transport):
     """A Foxglove WebSocket server on a context of its own, or of its router's (`create`)."""
 
     Settings = FoxgloveSettings
-    encodings = frozenset({PROTOBUF})
+    encodings = frozenset({PROTOBUF, CDR})
     settings: FoxgloveSettings
 
     def __init__(self, settings: FoxgloveSettings, context: FoxgloveContext | None = None) -> None:
@@ -208,7 +230,7 @@ class FoxgloveTransport(Transport):
 
     @classmethod
     def carries(cls, message_type: MessageType) -> bool:
-        return super().carries(message_type) and message_type.name.startswith("foxglove.")
+        return carried(message_type)
 
     @classmethod
     def check_source(cls, name: str) -> None:

@@ -10,6 +10,9 @@ Two profiles (`mcap: {profile: ...}`, what `viewer-bridge convert --schema` choo
   runs the Foxglove server, the server and the file get every message logged to either
   (viewer_bridge/transports/foxglove.py).
 
+In both, a CDR type that carries its definition (any LCM type's ROS 2 mapping) is written with
+that definition as its `ros2msg` schema.
+
 Channels and schemas are registered as topics appear. Each message is stamped with the receive
 time of the message it was translated from (`MessageTime`): the log's time when `convert` feeds
 the router a log, the bus's receive time live. So a route whose destination is this transport
@@ -41,7 +44,7 @@ from viewer_bridge.transports.base import (
     Transport,
     TransportSettings,
 )
-from viewer_bridge.transports.foxglove import FoxgloveContext, require_schemas
+from viewer_bridge.transports.foxglove import FoxgloveContext, carried, require_schemas
 
 try:
     import foxglove
@@ -80,7 +83,7 @@ class _Ros2File:
         self._writer.start(profile="ros2", library="viewer-bridge")
         self._store = get_typestore(Stores.ROS2_JAZZY)
         self._schemas: dict[str, int] = {}
-        self._channels: dict[str, int] = {}
+        self._channels: dict[tuple[str, str], int] = {}  # by topic and type
         self._lock = threading.Lock()
         self.messages: Counter[str] = Counter()
 
@@ -90,13 +93,13 @@ class _Ros2File:
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         for message_type in message_types:
-            if message_type.name not in self._store.fielddefs:
+            if message_type.definition is None and message_type.name not in self._store.fielddefs:
                 raise TransportUnavailable(f"rosbags has no ROS 2 message definition of {message_type.name}")
 
     def publisher(self, topic: str, message_type: MessageType, time: MessageTime) -> Publisher:
         topic = topic if topic.startswith("/") else f"/{topic}"  # as a node in the root namespace names it
         with self._lock:
-            channel_id = self._channel(topic, message_type.name)
+            channel_id = self._channel(topic, message_type)
         writer, lock, messages = self._writer, self._lock, self.messages
 
         def write(data: bytes) -> None:
@@ -107,13 +110,18 @@ class _Ros2File:
 
         return CallPublisher(write)
 
-    def _channel(self, topic: str, typename: str) -> int:
-        if topic not in self._channels:
+    def _channel(self, topic: str, message_type: MessageType) -> int:
+        typename = message_type.name
+        if (topic, typename) not in self._channels:  # a topic of any LCM type may change type
             if typename not in self._schemas:
-                text, _ = self._store.generate_msgdef(typename, ros_version=2)
+                definition = message_type.definition
+                if definition is None:
+                    text, _ = self._store.generate_msgdef(typename, ros_version=2)
+                else:
+                    text = definition.ros2msg
                 self._schemas[typename] = self._writer.register_schema(typename, "ros2msg", text.encode())
-            self._channels[topic] = self._writer.register_channel(topic, CDR, self._schemas[typename])
-        return self._channels[topic]
+            self._channels[(topic, typename)] = self._writer.register_channel(topic, CDR, self._schemas[typename])
+        return self._channels[(topic, typename)]
 
     def close(self) -> None:
         with self._lock:
@@ -132,7 +140,7 @@ class _FoxgloveFile:
 
     @staticmethod
     def carries(message_type: MessageType) -> bool:
-        return message_type.encoding == PROTOBUF and message_type.name.startswith("foxglove.")
+        return carried(message_type)
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         require_schemas(message_types)

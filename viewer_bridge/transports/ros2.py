@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from pydantic import field_validator
 
-from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.errors import Held, TransportUnavailable
 from viewer_bridge.extras import missing
 from viewer_bridge.transports.base import (
     CDR,
@@ -151,7 +151,18 @@ class RosTransport(Transport):
 
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         profile = qos_profile(qos.depth, qos.reliable, qos.latched)
-        publisher = self.node.create_publisher(message_class(message_type.name), name, profile)
+        try:
+            cls = message_class(message_type.name)
+        except (ImportError, AttributeError):
+            if message_type.definition is None:
+                raise
+            # A generated interface (an LCM type's mapping) not built into this environment yet:
+            # its messages wait, counted on their channel, while the other routes flow.
+            raise Held(
+                "waiting_for_build",
+                f"{message_type.name} has no rclpy type support here yet (its interface is not built)",
+            ) from None
+        publisher = self.node.create_publisher(cls, name, profile)
         return CallPublisher(publisher.publish, publisher.get_subscription_count)
 
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:

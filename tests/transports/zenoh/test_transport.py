@@ -8,6 +8,8 @@ import contextlib
 import json
 import os
 import struct
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -470,3 +472,78 @@ def test_lcm_channels_that_are_no_zenoh_keys_are_refused() -> None:
     assert yaml.safe_load("[tcp/127.0.0.1:7447]") == [
         "tcp/127.0.0.1:7447"
     ]  # what --set zenoh.connect=[...] gives
+
+
+# --- any LCM type: Drake's driver messages from a pydrake diagram ------------------------------------------
+
+
+def independent_store() -> Any:
+    """A rosbags store of its own holding the mapped types' .msg definitions: the reader's view of
+    the types (their RIHS01 hashes and CDR layout), not the bridge's transcoder."""
+    from rosbags.typesys import get_types_from_msg
+
+    from viewer_bridge.lcmcodec.library import TypeLibrary
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for name, text in TypeLibrary.load().ros_definitions().items():
+        store.register(get_types_from_msg(text, name))
+    return store
+
+
+def test_any_lcm_type_from_a_pydrake_diagram_reaches_an_rmw_zenoh_subscriber(
+    router: Router, tmp_path: Path
+) -> None:
+    from tests.conftest import SYNC_CHANNEL
+    from tests.drake_robot_status import PLAN_CHANNEL, STATUS_CHANNEL
+    from tests.test_router import LcmRecorder
+    from tests.translators.test_lcm_generic import assert_same
+
+    url = free_lcm_url()
+    stats = tmp_path / "stats.json"
+    recorder = LcmRecorder(url)
+    process = bridge(router.endpoint, "-c", "builtin:zenoh", "--lcm-url", url, stats=stats)
+    peer = RmwZenohPeer(router.endpoint, DOMAIN, node="plotter")
+    arrived: dict[str, list[tuple[str, bytes]]] = {STATUS_CHANNEL: [], PLAN_CHANNEL: []}
+    lock = threading.Lock()
+
+    def keep(channel: str) -> Any:
+        def on_sample(sample: Any) -> None:
+            with lock:
+                arrived[channel].append((str(sample.key_expr), sample.payload.to_bytes()))
+
+        return on_sample
+
+    # Any type on the topic: the key's type and hash parts are checked below. A subscriber wakes the lazy route.
+    subscribers = [
+        peer.session.declare_subscriber(f"{DOMAIN}/lcm/{channel}/**", keep(channel)) for channel in arrived
+    ]
+    store = independent_store()
+    try:
+        process.wait_for_line("routes running")
+        script = Path(__file__).parents[2] / "drake_robot_status.py"
+        drake = subprocess.Popen([sys.executable, str(script), url, "3.0"])
+        assert drake.wait(timeout=120) == 0
+        recorder.sync()
+        assert wait_for(lambda: len(arrived[STATUS_CHANNEL]) >= 100 and len(arrived[PLAN_CHANNEL]) >= 10), (
+            {channel: len(samples) for channel, samples in arrived.items()}, process.lines)
+    finally:
+        assert process.stop() == 0
+        del subscribers
+        peer.close()
+        recorder.close()
+    sent = {
+        channel: {type(message).decode(data).utime: data for data in recorder.messages[channel]}
+        for channel, message in ((STATUS_CHANNEL, drake_lcmtypes.lcmt_iiwa_status()),
+                                 (PLAN_CHANNEL, drake_lcmtypes.lcmt_robot_plan()))
+    }  # fmt: skip
+    for channel, typename, lcm_class in (
+        (STATUS_CHANNEL, "drake_lcm_msgs/msg/LcmtIiwaStatus", drake_lcmtypes.lcmt_iiwa_status),
+        (PLAN_CHANNEL, "drake_lcm_msgs/msg/LcmtRobotPlan", drake_lcmtypes.lcmt_robot_plan),
+    ):
+        for key, payload in arrived[channel]:
+            assert key.split("/")[-2:] == [f"drake_lcm_msgs::msg::dds_::{typename.split('/')[-1]}_",
+                                           store.hash_rihs01(typename)]  # fmt: skip
+            message = store.deserialize_cdr(payload, typename)
+            assert_same(lcm_class.decode(sent[channel][message.utime]), message)
+    route = stats_of(stats)["lcm_bus"]
+    assert route["errors"] == {} and route["held"] == {SYNC_CHANNEL: {"unknown_type": 1}}  # the recorder's mark

@@ -50,6 +50,14 @@ _PLAIN_TOPIC = re.compile(r"^[A-Za-z0-9_/~{}]+$")  # one topic, not a pattern
 _NOT_IN_KEYS = re.compile(r"[*$?#]")  # Zenoh's wildcards and reserved characters
 
 
+def _topic_type(message_type: MessageType) -> keys.TopicType:
+    """A CDR type's rmw_zenoh names and hash: from the definition it carries, else rosbags'."""
+    definition = message_type.definition
+    if definition is None:
+        return keys.topic_type(message_type.name)
+    return keys.TopicType(message_type.name, keys.dds_type_name(message_type.name), definition.rihs01)
+
+
 class ZenohSettings(TransportSettings):
     mode: Literal["client", "peer", "router"] | None = None  # None: client, or the config file's
     connect: list[str] | None = None  # None: tcp/localhost:7447 (rmw_zenohd), or the config file's
@@ -173,7 +181,7 @@ class ZenohTransport(Transport):
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         for message_type in message_types:
-            if message_type.encoding == CDR:
+            if message_type.encoding == CDR and message_type.definition is None:
                 try:
                     keys.topic_type(message_type.name)
                 except (KeyError, ValueError):
@@ -196,7 +204,7 @@ class ZenohTransport(Transport):
                 self.link, self._lcm_key(name), qos, self._last_values if qos.latched else None
             )
         else:
-            topic, topic_type = self.resolve(name), keys.topic_type(message_type.name)
+            topic, topic_type = self.resolve(name), _topic_type(message_type)
             token = self._token(keys.PUBLISHER, topic, topic_type, qos)
             publisher = RosPublisher(
                 self.link, self.graph, keys.data_key(self.domain, topic, topic_type), token, qos

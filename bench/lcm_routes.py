@@ -1,0 +1,178 @@
+"""Benchmark: any LCM type through `run`, 20 channels of `lcmt_iiwa_status` at 500 Hz each.
+
+Run: .venv/bin/python bench/lcm_routes.py [--seconds 10]
+
+The bridge runs as a process pinned to one core (CPU 0) with the built-in zenoh config's
+`lcm_bus` route (`lcm_to_ros`: each channel to /lcm/<channel> as drake_lcm_msgs/msg/LcmtIiwaStatus
+CDR, in rmw_zenoh's format); this process runs on the other core: a Zenoh router (eclipse-zenoh in
+router mode on 127.0.0.1), the LCM publisher (20 channels IIWA_STATUS_00 ... _19, 10,000 messages
+a second in all, as pydrake's lcm-gen'd class encodes them) and one Zenoh subscriber on every
+topic. Zenoh, not DDS: DDS needs the types' interfaces built, which this branch does not do.
+
+Baseline, same run: the same channels through an `lcm_relay` route onto the same Zenoh session
+(the bytes as they are: no type lookup, no transcoding). Reported per route: delivered (messages
+that reached the subscriber, of those sent; the first second, while the lazy route wakes, left
+out) and the bridge's CPU time per message it received (user + system, /proc/PID/stat).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import drake as drake_lcmtypes
+import yaml
+from common import Measure
+from router import URL, Bridge
+from zenoh_routes import _free_port, zenoh_session
+
+from viewer_bridge.config import BUILTIN_CONFIGS
+from viewer_bridge.transports.lcm import LcmBus
+
+CHANNELS = tuple(f"IIWA_STATUS_{index:02d}" for index in range(20))
+RATE_HZ = 500.0  # per channel
+RELAY = """\
+  - name: relay
+    source: {transport: lcm, name: "(IIWA_STATUS_.*)"}
+    translator: lcm_relay
+    destination: {transport: zenoh, name: "{1}"}
+    qos: {depth: 100}
+    rate: {policy: all}
+"""
+
+
+def bus_config(endpoint: str, route: str) -> str:
+    """The built-in zenoh config's `lcm_bus` route as it ships (or the relay baseline), alone."""
+    if route == "relay":
+        return f"zenoh: {{connect: [{endpoint}]}}\nroutes:\n{RELAY}"
+    [bus] = [r for r in yaml.safe_load(BUILTIN_CONFIGS["zenoh"])["routes"] if r["name"] == "lcm_bus"]
+    return yaml.safe_dump({"zenoh": {"connect": [endpoint]}, "routes": [bus]})
+
+
+class Counting:
+    """One Zenoh subscriber on every key under `prefix`; counts arrivals while `counting` is set."""
+
+    def __init__(self, endpoint: str, prefix: str) -> None:
+        self.session = zenoh_session("client", {"connect": [endpoint]})
+        self.counting = threading.Event()
+        self.count = 0
+        self._held = self.session.declare_subscriber(f"{prefix}/**", self._arrived)
+
+    def _arrived(self, sample: Any) -> None:
+        if self.counting.is_set():
+            self.count += 1
+
+    def close(self) -> None:
+        del self._held
+        self.session.close()  # type: ignore[no-untyped-call]
+
+
+def status_bytes() -> bytes:
+    message = drake_lcmtypes.lcmt_iiwa_status()
+    message.num_joints = 7
+    for field in message.__slots__[2:]:
+        setattr(message, field, [0.1 * joint for joint in range(7)])
+    return message.encode()  # type: ignore[no-any-return]
+
+
+def publish(bus: LcmBus, seconds: float) -> int:
+    """Every channel at RATE_HZ for `seconds`, round-robin, paced by the clock; returns messages sent."""
+    data = status_bytes()
+    period = 1.0 / (RATE_HZ * len(CHANNELS))
+    start = time.perf_counter()
+    sent = 0
+    while time.perf_counter() - start < seconds:
+        due = start + sent * period
+        while time.perf_counter() < due:
+            pass
+        bus.publish(CHANNELS[sent % len(CHANNELS)], data)
+        sent += 1
+    return sent
+
+
+def run(route: str, folder: Path, seconds: float, endpoint: str) -> dict[str, float]:
+    domain = int(os.environ.get("ROS_DOMAIN_ID") or 0)
+    bridge = Bridge(bus_config(endpoint, route), folder, core=0)
+    subscriber = Counting(endpoint, "lcm" if route == "relay" else f"{domain}/lcm")
+    bus = LcmBus(URL)
+    time.sleep(1.0)
+    publish(bus, 1.0)  # the lazy route wakes, each channel's publisher appears
+    time.sleep(1.0)
+    subscriber.counting.set()
+    cpu_before = bridge.cpu_seconds()
+    in_before = _messages_in(bridge.snapshot())
+    sent = publish(bus, seconds)
+    time.sleep(2.0)  # what was queued drains (and the stats file is written again)
+    cpu = bridge.cpu_seconds() - cpu_before
+    received = _messages_in(bridge.snapshot()) - in_before
+    subscriber.counting.clear()
+    bridge.stop()
+    subscriber.close()
+    bus.close()
+    result = {
+        "delivered": 100.0 * subscriber.count / max(sent, 1),
+        "cpu_us_per_message": cpu / max(received, 1) * 1e6,
+        "sent": float(sent),
+    }
+    print(f"   {route:<8} delivered {result['delivered']:6.2f}% of {sent} messages, bridge CPU "
+          f"{result['cpu_us_per_message']:6.1f} us/message ({received} received)", flush=True)  # fmt: skip
+    return result
+
+
+def _messages_in(stats: dict[str, Any]) -> int:
+    return max((r["messages_in"] for name, r in stats.items() if name != "transports"), default=0)
+
+
+def compare(seconds: float, rounds: int = 2) -> dict[str, dict[str, float]]:
+    """Both routes, `rounds` times interleaved; per figure, the better round."""
+    everywhere = os.sched_getaffinity(0)
+    os.sched_setaffinity(0, {1})  # the publisher, the Zenoh router and the subscriber; the bridge gets CPU 0
+    endpoint = f"tcp/127.0.0.1:{_free_port()}"
+    router = zenoh_session("router", {"listen": [endpoint]})
+    best: dict[str, dict[str, float]] = {}
+    try:
+        with tempfile.TemporaryDirectory() as name:
+            for _ in range(rounds):
+                for route in ("lcm_bus", "relay"):
+                    result = run(route, Path(name), seconds, endpoint)
+                    kept = best.setdefault(route, result)
+                    for key, value in result.items():
+                        kept[key] = (max if key == "delivered" else min)(kept[key], value)
+    finally:
+        router.close()  # type: ignore[no-untyped-call]
+        os.sched_setaffinity(0, everywhere)
+    return best
+
+
+def measures(quick: bool = False) -> list[Measure]:
+    """Issue 31's throughput goal: >= 99% delivered through `run`, with the bridge's CPU per message."""
+    best = compare(4.0 if quick else 10.0, 1 if quick else 2)
+    ours, relay = best["lcm_bus"], best["relay"]
+    setup = "20 channels of lcmt_iiwa_status at 500 Hz, Zenoh, bridge pinned"
+    return [
+        Measure(f"lcm_routes: delivered, {setup} (baseline: raw relay)", ours["delivered"], relay["delivered"],
+                "%", ">= 99%", ours["delivered"] >= 99.0),
+        Measure(f"lcm_routes: bridge CPU per message, {setup} (baseline: raw relay)", ours["cpu_us_per_message"],
+                relay["cpu_us_per_message"], "us", "none (reported)", None),
+    ]  # fmt: skip
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument("--rounds", type=int, default=2)
+    args = parser.parse_args()
+    print(f"20 channels of lcmt_iiwa_status at {RATE_HZ:g} Hz for {args.seconds:.0f} s, bridge pinned to CPU 0")
+    best = compare(args.seconds, args.rounds)
+    print("\nbest of the rounds:")
+    for route, figures in best.items():
+        print(f"   {route:<8} " + ", ".join(f"{key} {value:.4g}" for key, value in figures.items()))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,74 @@
+"""Any LCM type, as its ROS 2 mapping: `lcm_to_ros`, with no translator written per type.
+
+A channel's type is the known type its message's first 8 bytes (the fingerprint) name, as
+lcm-spy finds it, and may change from one message to the next. The known types are the router's
+(`Shared.lcm_types`: the project's, Drake's, and the config's `lcm_types`); each maps to a ROS 2
+message (`drake.lcmt_iiwa_status` -> `drake_lcm_msgs/msg/LcmtIiwaStatus`), written as CDR by the
+type's own transcoder. The output's `MessageType` carries the mapped type's definition (its
+`ros2msg` text and RIHS01 hash), so Zenoh, Foxglove and MCAP name the type with no installed
+package; ROS 2 over DDS needs the interface built.
+
+Outputs: the class declares one, "CDR of any type whose definition it carries", which the config
+check matches against the destination. An instance adds an output per type as its channel
+shows it (all on the route's destination name), as the camera translators add one per port:
+the router finds an output by index and asks each for subscribers, so a lazy route's topic is
+announced as soon as its channel's first message is seen, and translated once someone listens.
+
+A fingerprint no known type has is held back (`unknown_type`), a type ROS 2 cannot say (a
+recursive one) too (`refused_type`): counted on the channel, said once; the route's other
+channels go on.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from viewer_bridge.errors import Held
+from viewer_bridge.lcmcodec.library import LcmType
+from viewer_bridge.translators.base import Output, Outputs, Translator
+from viewer_bridge.translators.types import ANY_LCM_TYPE, LCM_AS_ROS_TYPE
+from viewer_bridge.transports.base import CDR, Definition, MessageType, Received
+
+
+def ros_message_type(lcm_type: LcmType) -> MessageType:
+    """The ROS 2 message type an LCM type maps to, carrying its definition."""
+    assert lcm_type.ros_type is not None, lcm_type.refused
+    return MessageType(lcm_type.ros_type, CDR, Definition(lcm_type.ros2msg, lcm_type.rihs01))
+
+
+class LcmToRos(Translator):
+    """Any known LCM type -> CDR of its ROS 2 mapping, one output per type the channel shows."""
+
+    reads = (ANY_LCM_TYPE,)
+    # What it may write (the config check); an instance's outputs are its channel's types, added as they appear.
+    outputs: tuple[Output, ...] = (Output("", LCM_AS_ROS_TYPE),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.outputs = ()
+        self._by_fingerprint: dict[bytes, tuple[int, LcmType]] = {}
+
+    def observe(self, message: Received) -> None:
+        self._output(message)  # the topic appears with the channel, before anyone subscribes
+
+    def translate(self, message: Received) -> Outputs:
+        index, lcm_type = self._output(message)
+        return [(index, lcm_type.to_cdr(message.data))]
+
+    def _output(self, message: Received) -> tuple[int, LcmType]:
+        """The output of this message's type (added the first time the type is seen), and the type."""
+        fingerprint = bytes(message.data[:8])
+        found = self._by_fingerprint.get(fingerprint)
+        if found is None:
+            lcm_type = self.shared.lcm_types.for_data(message.data)
+            if lcm_type is None:
+                raise Held(
+                    "unknown_type",
+                    f"fingerprint {fingerprint.hex()} names no known LCM type (add its .lcm files or "
+                    "module with --lcm-types or the config's lcm_types)",
+                )
+            if lcm_type.ros_type is None:
+                raise Held("refused_type", f"{lcm_type.full_name} cannot be a ROS 2 message: {lcm_type.refused}")
+            self.outputs = (*self.outputs, Output("", ros_message_type(lcm_type)))
+            found = self._by_fingerprint[fingerprint] = (len(self.outputs) - 1, lcm_type)
+        return found
