@@ -37,7 +37,6 @@ from viewer_bridge.demo import run_demo
 from viewer_bridge.dump import as_json, as_text
 from viewer_bridge.errors import BridgeError, ConfigError, Interrupted, UsageError
 from viewer_bridge.lcmcodec.library import TypeLibrary
-from viewer_bridge.log_convert import convert
 from viewer_bridge.mappings import format_names, reference_markdown
 from viewer_bridge.router import Router
 from viewer_bridge.skipped import collecting

@@ -113,7 +113,7 @@ def test_held_messages_are_counted_per_channel_said_once_and_the_other_channels_
 
     from viewer_bridge.errors import Held
     from viewer_bridge.router.runner import RouteRunner
-    from viewer_bridge.translators import TRANSLATORS, LoadCache, Output
+    from viewer_bridge.translators import TRANSLATORS, Output
     from viewer_bridge.transports.base import Shared
 
     shared = Shared()  # the project's types and Drake's
@@ -134,9 +134,7 @@ def test_held_messages_are_counted_per_channel_said_once_and_the_other_channels_
         return CallPublisher(publish, lambda: 1)
 
     def make() -> Any:
-        translator = TRANSLATORS.get("lcm_to_ros")({}, LoadCache())
-        translator.shared = shared
-        return translator
+        return TRANSLATORS.get("lcm_to_ros")({}, shared=shared)
 
     runner = RouteRunner(generic_route(lazy=True), make, publisher_for)
     status = drake_lcmtypes.lcmt_iiwa_status().encode()
@@ -165,7 +163,7 @@ def test_a_lazy_generic_route_announces_each_channels_topic_before_anyone_listen
     import drake as drake_lcmtypes
 
     from viewer_bridge.router.runner import RouteRunner
-    from viewer_bridge.translators import TRANSLATORS, LoadCache, Output
+    from viewer_bridge.translators import TRANSLATORS, Output
 
     made: list[tuple[str, str]] = []
     published: list[bytes] = []
@@ -174,7 +172,7 @@ def test_a_lazy_generic_route_announces_each_channels_topic_before_anyone_listen
         made.append((name, output.type.name))
         return CallPublisher(published.append, lambda: 0)  # nobody listens
 
-    runner = RouteRunner(generic_route(lazy=True), lambda: TRANSLATORS.get("lcm_to_ros")({}, LoadCache()), publisher_for)
+    runner = RouteRunner(generic_route(lazy=True), lambda: TRANSLATORS.get("lcm_to_ros")({}), publisher_for)
     for channel in ("left-arm.status", "IIWA_STATUS"):
         match = re.fullmatch("(.*)", channel)
         assert match is not None

@@ -92,8 +92,7 @@ def _plain(value: Any) -> Any:
 
 
 def translate(library: TypeLibrary, data: bytes, channel: str = "CHANNEL") -> tuple[MessageType, bytes]:
-    translator = LcmToRos()
-    translator.shared = Shared(library)
+    translator = LcmToRos(shared=Shared(library))
     message = Received(channel, data)
     translator.observe(message)
     [(index, payload)] = translator.translate(message)
@@ -161,8 +160,7 @@ def test_drakes_own_types_need_no_flag(drake_types: TypeLibrary) -> None:
 
 
 def test_a_channel_whose_type_changes_gets_an_output_per_type(drake_types: TypeLibrary) -> None:
-    translator = TRANSLATORS.get("lcm_to_ros")()
-    translator.shared = Shared(drake_types)
+    translator = TRANSLATORS.get("lcm_to_ros")(shared=Shared(drake_types))
     status, command = drake_lcmtypes.lcmt_iiwa_status(), drake_lcmtypes.lcmt_iiwa_command()
     indices = []
     for message in (status, command, status):
@@ -181,8 +179,7 @@ def test_a_channel_whose_type_changes_gets_an_output_per_type(drake_types: TypeL
 def test_unknown_and_recursive_types_are_held_by_kind_and_named(
     corpus: TypeLibrary, lcmgen_corpus: dict[str, type]
 ) -> None:
-    translator = LcmToRos()
-    translator.shared = Shared(corpus)
+    translator = LcmToRos(shared=Shared(corpus))
     node = lcmgen_corpus["vbtest_lab.tree_node_t"]()
     with pytest.raises(Held) as refused:
         translator.observe(Received("TREE", node.encode()))
