@@ -12,21 +12,23 @@ Importing this package imports nothing else: each of those modules is imported w
 from __future__ import annotations
 
 import importlib
-from importlib.metadata import PackageNotFoundError, version
 from typing import Any
-
-try:
-    __version__ = version("viewer-bridge")
-except PackageNotFoundError:  # run from a checkout that is not installed
-    __version__ = "0+unknown"
 
 _SUBMODULES = ("convert", "errors", "streams")
 
 
 def __getattr__(name: str) -> Any:
-    """`viewer_bridge.convert` and its siblings, imported on first use (PEP 562)."""
+    """`viewer_bridge.convert` and its siblings imported on first use, and `__version__` read from
+    the installed distribution's metadata then (PEP 562): importing the package costs nothing."""
     if name in _SUBMODULES:
         return importlib.import_module(f"viewer_bridge.{name}")
+    if name == "__version__":
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            return version("viewer-bridge")
+        except PackageNotFoundError:  # run from a checkout that is not installed
+            return "0+unknown"
     raise AttributeError(f"module 'viewer_bridge' has no attribute {name!r}")
 
 

@@ -21,7 +21,6 @@ import numpy as np
 
 from viewer_bridge.errors import DecodeError, EncodeError
 from viewer_bridge.formats.ros.cdr import CDR_TIME, U32, CdrReader, CdrWriter
-from viewer_bridge.formats.ros.messages import make, to_cdr
 from viewer_bridge.image import NO_DISTORTION, NO_ROTATION, EncodedImage, Image, Intrinsics, Layout, Pixels
 
 IMAGE = "sensor_msgs/msg/Image"
@@ -103,6 +102,8 @@ class CameraInfoEncoder:
 
 def camera_info_cdr(intrinsics: Intrinsics, frame_id: str, stamp: tuple[int, int]) -> bytes:
     """A `CameraInfo` (plumb_bob with zero distortion) by rosbags: the reference, and the template."""
+    from viewer_bridge.formats.ros.messages import make, to_cdr  # rosbags, loaded when first needed
+
     model, coefficients = NO_DISTORTION
     return to_cdr(
         make(

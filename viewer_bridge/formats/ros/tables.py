@@ -13,12 +13,13 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import SceneError
-from viewer_bridge.formats.ros.messages import make
 from viewer_bridge.mappings import FormatTables
 from viewer_bridge.scene import InMemoryMesh, Line, MeshFile, PointCloud, Triad, TriangleMesh
 
 
 def _mesh_message(shape: TriangleMesh, options: dict[str, Any]) -> dict[str, Any]:
+    from viewer_bridge.formats.ros.messages import make  # rosbags' type store: loaded when first needed
+
     vertices = [make("geometry_msgs/msg/Point", x=x, y=y, z=z) for x, y, z in shape.vertices.tolist()]
     triangles = [
         make("shape_msgs/msg/MeshTriangle", vertex_indices=np.asarray(row, dtype=np.uint32))
