@@ -127,6 +127,8 @@ class RosTransport(Transport):
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         for message_type in message_types:
+            if message_type.definition is not None:
+                continue  # a type that carries its definition (any LCM type) waits for its build instead
             try:
                 message_class(message_type.name)
             except (ImportError, AttributeError, ValueError):
