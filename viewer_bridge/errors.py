@@ -113,6 +113,20 @@ class RosInterfaceError(BridgeError):
     """An interface package could not be built or installed; says which step and why."""
 
 
+class NotPublished(BridgeError):
+    """A message a publisher held back on purpose, for a reason said once elsewhere: the router
+    counts it under `kind` (an error when `error`, else a warning) and logs nothing per message.
+
+    E.g. `waiting_for_build` while the ROS 2 interface package of its type is being built, then
+    `interface_build_failed` if that build failed.
+    """
+
+    def __init__(self, kind: str, reason: str, error: bool = False) -> None:
+        self.kind = kind
+        self.error = error
+        super().__init__(reason)
+
+
 # The command line.
 
 

@@ -36,7 +36,7 @@ from viewer_bridge.router.runner import PublisherFor, RouteRunner
 from viewer_bridge.status import LogLines, StatusView
 from viewer_bridge.translators import TRANSLATORS, LoadCache, Output, Translator
 from viewer_bridge.transports import TRANSPORTS
-from viewer_bridge.transports.base import Publisher, Qos, Received, Shared, Transport
+from viewer_bridge.transports.base import Publisher, Qos, Received, RosDefinitions, Shared, Transport
 
 log = logging.getLogger("viewer_bridge")
 
@@ -57,13 +57,16 @@ class Router:
         stats_json: str | Path | None = None,
         stats_period: float = 5.0,
         view: StatusView | None = None,
+        ros_definitions: RosDefinitions | None = None,
     ) -> None:
+        """`ros_definitions`: where the ros transport finds the `.msg` definitions of an interface
+        package it lacks, to build it while the other routes run (see `RosDefinitions`)."""
         self.config = config
         self.loads = LoadCache(config.load_cache)
         self.stats_json = Path(stats_json) if stats_json else None
         self.stats_period = stats_period
         self.view = view or LogLines()
-        self.shared = Shared()  # what the transports share: one Foxglove context, the message time
+        self.shared = Shared(ros_definitions)  # one Foxglove context, the message time, ROS types to build
         self.transports: dict[str, Transport] = {}
         self.routes: list[RouteRunner] = []
         self._sourced: dict[str, list[RouteRunner]] = {}  # by source transport, for `feed`

@@ -22,7 +22,7 @@ from collections.abc import Callable
 from typing import Any
 
 from viewer_bridge.config import Route, destination_name
-from viewer_bridge.errors import BridgeError
+from viewer_bridge.errors import BridgeError, NotPublished
 from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
 from viewer_bridge.router.stats import RouteStats
 from viewer_bridge.skipped import collecting
@@ -223,6 +223,9 @@ class RouteRunner:
         for index, payload in outputs:
             try:
                 lane.publisher(index).publish(payload)
+            except NotPublished as held:  # e.g. its type is being built: counted, said once by the transport
+                (self.stats.errors if held.error else self.stats.warnings)[held.kind] += 1
+                continue
             except Exception as error:  # the transport refused: count it, go on with the rest
                 self._error(f"publish:{type(error).__name__}", f"{lane.name}: {error}")
                 continue

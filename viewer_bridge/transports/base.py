@@ -91,12 +91,21 @@ class MessageTime(threading.local):
 Made = TypeVar("Made")
 
 
-class Shared:
-    """What the transports of one router share: the `MessageTime`, and whatever is made once per
-    router on first ask (`get(FoxgloveContext)`: the live server and an MCAP file log to one)."""
+RosDefinitions = Callable[[str], Mapping[str, str]]
+"""`ros_definitions(package)`: the ROS 2 `.msg` definitions ("pkg/msg/Name" -> text) of the interface
+package `package` and of every package its types use (more is fine), or an empty mapping when it
+knows no such package. The ros transport builds a package it lacks from them (the LCM type
+library's `TypeLibrary.ros_definitions()` is one)."""
 
-    def __init__(self) -> None:
+
+class Shared:
+    """What the transports of one router share: the `MessageTime`, whatever is made once per
+    router on first ask (`get(FoxgloveContext)`: the live server and an MCAP file log to one), and
+    the definitions of the ROS 2 interface packages that may be built while it runs (or None)."""
+
+    def __init__(self, ros_definitions: RosDefinitions | None = None) -> None:
         self.message_time = MessageTime()
+        self.ros_definitions = ros_definitions
         self._made: dict[Callable[[], object], object] = {}
 
     def get(self, make: Callable[[], Made]) -> Made:

@@ -1,7 +1,11 @@
 """ROS 2 as a transport, through real rclpy: one node, raw CDR bytes in and out.
 
 Publishers take CDR bytes (rclpy publishes them as they are) and subscriptions deliver raw
-bytes, so nothing here builds or reads a message: the formats do that. A source name that is
+bytes, so nothing here builds or reads a message: the formats do that. rclpy still needs a type's
+generated type support to publish it: a type whose interface package is missing, but whose
+definitions the router was given (`Shared.ros_definitions`), is built in the background
+(`viewer_bridge.ros_builds`); until it is importable its route's messages are dropped and counted
+as `waiting_for_build`, then published. A source name that is
 a regular expression is matched against the graph once a second and subscribed as topics of
 the wanted type appear. rclpy is imported when the transport starts, not when a config that
 names it is checked, so the ROS 2 wheels are needed only by bridges that use them.
@@ -16,11 +20,12 @@ import importlib
 import re
 import threading
 from collections.abc import Iterable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Self
 
 from pydantic import field_validator
 
-from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.errors import NotPublished, TransportUnavailable
+from viewer_bridge.ros_builds import BuildState, InterfaceBuilder
 from viewer_bridge.transports.base import (
     CDR,
     CallPublisher,
@@ -29,12 +34,14 @@ from viewer_bridge.transports.base import (
     Publisher,
     Qos,
     Received,
+    Shared,
     Transport,
     TransportSettings,
 )
 from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem, topic_problem
 
 if TYPE_CHECKING:
+    from rclpy.node import Node
     from rclpy.qos import QoSProfile
 
 _PLAIN_TOPIC = re.compile(r"^[A-Za-z0-9_/~{}]+$")
@@ -83,6 +90,43 @@ def _valid(name: str, problem: str | None, what: str) -> str:
     return name
 
 
+class PublisherOnceBuilt:
+    """A publisher of a type whose interface package is being built: until it is ready, each
+    message is refused with `NotPublished` (`waiting_for_build`, or `interface_build_failed` after
+    a failed build, which the builder said once); the rclpy publisher is made once it is ready.
+
+    Dropped rather than queued: a route carries state that its next message supersedes, and a
+    message held through a build (tens of seconds) would arrive stale and out of its time.
+    """
+
+    def __init__(self, node: Node, builder: InterfaceBuilder, topic: str, typename: str, profile: QoSProfile) -> None:
+        self._node, self._builder, self._topic, self._typename, self._profile = node, builder, topic, typename, profile
+        self._package = typename.split("/")[0]
+        self._publisher: Any = None
+        self._lock = threading.Lock()
+        builder.request(self._package)
+
+    def _ready(self) -> Any:
+        """The rclpy publisher, made on the first call after the build, or None before."""
+        with self._lock:
+            if self._publisher is None and self._builder.status(self._package).state is BuildState.READY:
+                self._publisher = self._node.create_publisher(message_class(self._typename), self._topic, self._profile)
+            return self._publisher
+
+    def publish(self, data: bytes) -> None:
+        publisher = self._ready()
+        if publisher is None:
+            status = self._builder.status(self._package)
+            if status.state is BuildState.FAILED:
+                raise NotPublished("interface_build_failed", status.reason, error=True)
+            raise NotPublished("waiting_for_build", f"{self._package} is being built")
+        publisher.publish(data)
+
+    def subscriber_count(self) -> int:
+        publisher = self._ready()
+        return 0 if publisher is None else int(publisher.get_subscription_count())
+
+
 class RosTransport(Transport):
     """One rclpy node in a context of its own, spun by a thread of its own."""
 
@@ -124,6 +168,14 @@ class RosTransport(Transport):
         self._lock = threading.Lock()
         self._thread = threading.Thread(target=self._spin, name="rclpy", daemon=True)
         self._discovery = self.node.create_timer(1.0, self._discover)
+        self.builder: InterfaceBuilder | None = None  # builds the packages of types it lacks (`create`)
+
+    @classmethod
+    def create(cls, settings: TransportSettings, shared: Shared) -> Self:
+        transport = cls(settings)  # type: ignore[arg-type]  # the router passes this class's Settings
+        if shared.ros_definitions is not None:
+            transport.builder = InterfaceBuilder(shared.ros_definitions)
+        return transport
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         for message_type in message_types:
@@ -131,6 +183,9 @@ class RosTransport(Transport):
                 message_class(message_type.name)
             except (ImportError, AttributeError, ValueError):
                 package = message_type.name.split("/")[0]
+                if self.builder is not None and self.builder.knows(package):
+                    self.builder.request(package)  # started now, waited for by nobody
+                    continue
                 hint = (
                     f"viewer-bridge ros-interfaces install {package}"
                     if package in BUILDABLE_INTERFACES
@@ -151,7 +206,14 @@ class RosTransport(Transport):
 
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         profile = qos_profile(qos.depth, qos.reliable, qos.latched)
-        publisher = self.node.create_publisher(message_class(message_type.name), name, profile)
+        try:
+            message = message_class(message_type.name)
+        except (ImportError, AttributeError):
+            package = message_type.name.split("/")[0]
+            if self.builder is None or not self.builder.knows(package):
+                raise
+            return PublisherOnceBuilt(self.node, self.builder, name, message_type.name, profile)
+        publisher = self.node.create_publisher(message, name, profile)
         return CallPublisher(publisher.publish, publisher.get_subscription_count)
 
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
