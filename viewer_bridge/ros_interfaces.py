@@ -157,7 +157,8 @@ def packages(definitions: Mapping[str, str]) -> list[Package]:
         try:
             fields = get_types_from_msg(text, typename)[typename][1]
         except Exception as error:  # rosbags' parser raises its own exception types
-            raise RosInterfaceError(f"{typename}: not a valid .msg definition: {error}") from None
+            said = " ".join(str(error).split())  # rosbags quotes the text over several lines
+            raise RosInterfaceError(f"{typename}: not a valid .msg definition: {said}") from None
         messages.setdefault(package, {})[message] = text if text.endswith("\n") or not text else text + "\n"
         used = depends.setdefault(package, set())
         for _, desc in fields:
