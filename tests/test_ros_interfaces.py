@@ -143,7 +143,8 @@ def test_each_package_is_complete_and_names_the_packages_it_nests(tmp_path: Path
     assert "<depend>" not in (base / "package.xml").read_text()
     cmake = (main / "CMakeLists.txt").read_text()
     assert f"find_package({BASE} REQUIRED)" in cmake
-    assert f'rosidl_generate_interfaces(${{PROJECT_NAME}} "msg/Empty.msg" "msg/JointSample.msg" DEPENDENCIES {BASE})' in cmake
+    files = '"msg/Empty.msg" "msg/JointSample.msg"'
+    assert f"rosidl_generate_interfaces(${{PROJECT_NAME}} {files} DEPENDENCIES {BASE})" in cmake
     assert sorted(path.name for path in (base / "msg").iterdir()) == ["Blob.msg", "Point.msg"]
     assert (main / "msg" / "JointSample.msg").read_text() == DEFINITIONS[f"{MAIN}/msg/JointSample"]
 
@@ -242,10 +243,10 @@ def test_each_type_round_trips_between_rclpy_nodes_with_rosbags_type_hash(
         topic = f"/vb_test/corpus_{index}"
         received = peer.subscribe(topic, typename)
         publisher = source.publisher(topic, typename)
-        assert source.wait_for(lambda: publisher.get_subscription_count() == 1), typename
+        assert source.wait_for(lambda publisher=publisher: publisher.get_subscription_count() == 1), typename
         sent = _rclpy_message(typename, _values(typename))
         publisher.publish(sent)
-        assert peer.wait_for(lambda: len(received) == 1), f"{typename} never arrived"
+        assert peer.wait_for(lambda received=received: len(received) == 1), f"{typename} never arrived"
         assert _plain(received[0]) == _plain(sent)
         info = peer.node.get_publishers_info_by_topic(topic)[0]
         # What rmw_zenoh peers match by: rosidl's hash of the built type is rosbags' of the text.
