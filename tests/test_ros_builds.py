@@ -31,6 +31,7 @@ from viewer_bridge.router import Router
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.translators.base import Output, Outputs, Translator
 from viewer_bridge.transports.base import CDR, LCM, MessageType, Received
+from viewer_bridge.transports.ros2 import message_class
 
 COUNTER = f"{ROUTER}/msg/Counter"
 BAD = "vbtest_bad_router_lcm_msgs"
@@ -80,6 +81,16 @@ class StringCdr(Translator):
         return [(0, bytes(STORE.serialize_cdr(text, "std_msgs/msg/String")))]
 
 
+class CounterText(Translator):
+    """A Counter from ROS 2 (a type built late) -> its count as LCM text."""
+
+    reads = (MessageType(COUNTER, CDR),)
+    outputs: ClassVar[tuple[Output, ...]] = (Output("", MessageType("*", LCM)),)
+
+    def translate(self, message: Received) -> Outputs:
+        return [(0, str(STORE.deserialize_cdr(message.data, COUNTER).count).encode())]
+
+
 def _values(count: int) -> Any:
     import numpy as np
 
@@ -100,6 +111,11 @@ routes:
     translator: vbtest_bad_cdr
     destination: {{transport: ros, name: /vb_test/broken}}
     rate: {{policy: all}}
+  - name: back
+    source: {{transport: ros, name: /vb_test/late_in}}
+    translator: vbtest_counter_text
+    destination: {{transport: lcm, name: VB_BACK}}
+    rate: {{policy: all}}
   - name: text
     source: {{transport: lcm, name: VB_TEXT}}
     translator: vbtest_string_cdr
@@ -115,6 +131,7 @@ def translators(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(loaded, "vbtest_counter_cdr", CounterCdr)
     monkeypatch.setitem(loaded, "vbtest_bad_cdr", BadCdr)
     monkeypatch.setitem(loaded, "vbtest_string_cdr", StringCdr)
+    monkeypatch.setitem(loaded, "vbtest_counter_text", CounterText)
 
 
 @pytest.fixture
@@ -162,6 +179,13 @@ def test_a_route_waits_for_its_build_while_the_others_flow_then_publishes(
         counters = probe.subscribe("/vb_test/late", COUNTER)
         assert probe.wait_for(lambda: len(counters) >= 3, timeout=60), "the built type was never published"
         assert wait_for(lambda: router.snapshot()["broken"]["errors"].get("interface_build_failed", 0) > 0)
+        # The other way: the route from ROS 2 subscribed once the type was built.
+        back: list[bytes] = []
+        bus.subscribe("VB_BACK", lambda _, data: back.append(data))
+        publisher = probe.publisher("/vb_test/late_in", COUNTER)
+        assert probe.wait_for(lambda: publisher.get_subscription_count() == 1, timeout=60)
+        publisher.publish(message_class(COUNTER)(count=-42, label="x"))
+        assert wait_for(lambda: bus.handle_timeout(50) is not None and b"-42" in back, timeout=60)
     finally:
         stop.set()
         router.close()

@@ -19,7 +19,7 @@ import contextlib
 import importlib
 import re
 import threading
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any, Self
 
 from pydantic import field_validator
@@ -169,6 +169,7 @@ class RosTransport(Transport):
         self._thread = threading.Thread(target=self._spin, name="rclpy", daemon=True)
         self._discovery = self.node.create_timer(1.0, self._discover)
         self.builder: InterfaceBuilder | None = None  # builds the packages of types it lacks (`create`)
+        self._unbuilt: list[tuple[str, str, Callable[[bytes], None], QoSProfile]] = []  # type being built
 
     @classmethod
     def create(cls, settings: TransportSettings, shared: Shared) -> Self:
@@ -238,9 +239,33 @@ class RosTransport(Transport):
                 each(message)
 
         profile = qos_profile(qos.depth, qos.reliable, qos.latched)
-        self.node.create_subscription(message_class(typename), topic, on_message, profile, raw=True)
+        try:
+            message = message_class(typename)
+        except (ImportError, AttributeError):
+            package = typename.split("/")[0]
+            if self.builder is None or not self.builder.knows(package):
+                raise
+            self.builder.request(package)  # subscribed once built (`_discover` looks each second)
+            with self._lock:
+                self._unbuilt.append((topic, typename, on_message, profile))
+            return
+        self.node.create_subscription(message, topic, on_message, profile, raw=True)
+
+    def _subscribe_built(self) -> None:
+        """Make the subscriptions whose type was being built, now that it is ready."""
+        assert self.builder is not None
+        with self._lock:
+            unbuilt, self._unbuilt = self._unbuilt, []
+        for topic, typename, on_message, profile in unbuilt:
+            if self.builder.status(typename.split("/")[0]).state is BuildState.READY:
+                self.node.create_subscription(message_class(typename), topic, on_message, profile, raw=True)
+            else:  # building, or failed (the builder said so once): nothing arrives on it
+                with self._lock:
+                    self._unbuilt.append((topic, typename, on_message, profile))
 
     def _discover(self) -> None:
+        if self._unbuilt:
+            self._subscribe_built()
         if not self._patterns:
             return
         for topic, types in self.node.get_topic_names_and_types():
