@@ -314,9 +314,13 @@ def _stamp(prefix: Path, name: str) -> Path:
     return prefix / "share" / name / "viewer-bridge-sources.sha256"
 
 
+def _log_folder(prefix: Path) -> Path:
+    return prefix / "var" / "log" / "viewer-bridge" / "ros-interfaces"
+
+
 def log_path(prefix: str | Path, name: str) -> Path:
     """The log of the last build of interface package `name` into `prefix` (kept after a failure)."""
-    return Path(prefix) / "var" / "log" / "viewer-bridge" / "ros-interfaces" / f"{name}.log"
+    return _log_folder(Path(prefix)) / f"{name}.log"
 
 
 def current(package: Package, digest: str, prefix: str | Path = sys.prefix) -> bool:
@@ -329,7 +333,7 @@ def current(package: Package, digest: str, prefix: str | Path = sys.prefix) -> b
 
 def _writable(prefix: Path) -> None:
     """Raise RosInterfaceError, in one line, when the package, stamp and log folders cannot be written."""
-    for folder in (prefix / "share", log_path(prefix, "x").parent):
+    for folder in (prefix / "share", _log_folder(prefix)):
         try:
             folder.mkdir(parents=True, exist_ok=True)
             with tempfile.TemporaryFile(dir=folder):
