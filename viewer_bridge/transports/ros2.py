@@ -5,10 +5,10 @@ bytes, so nothing here builds or reads a message: the formats do that. rclpy sti
 generated type support to publish it: a type whose interface package is missing, but whose
 definitions the router was given (`Shared.ros_definitions`), is built in the background
 (`viewer_bridge.ros_builds`); until it is importable its route's messages are dropped and counted
-as `waiting_for_build`, then published. A source name that is
-a regular expression is matched against the graph once a second and subscribed as topics of
-the wanted type appear. rclpy is imported when the transport starts, not when a config that
-names it is checked, so the ROS 2 wheels are needed only by bridges that use them.
+as `waiting_for_build`, then published. A source name that is a regular expression is matched
+against the graph once a second and subscribed as topics of the wanted type appear. rclpy is
+imported when the transport starts, not when a config that names it is checked, so the ROS 2
+wheels are needed only by bridges that use them.
 """
 
 # rclpy's own annotations are incomplete; its untyped calls are accepted in this module only.
@@ -20,7 +20,7 @@ import importlib
 import re
 import threading
 from collections.abc import Callable, Iterable
-from typing import TYPE_CHECKING, Any, Self
+from typing import TYPE_CHECKING, Any
 
 from pydantic import field_validator
 
@@ -143,7 +143,7 @@ class RosTransport(Transport):
         _valid(name, topic_problem(name), "topic name")
     settings: RosSettings
 
-    def __init__(self, settings: RosSettings) -> None:
+    def __init__(self, settings: RosSettings, builder: InterfaceBuilder | None = None) -> None:
         super().__init__(settings)
         try:
             import rclpy
@@ -168,25 +168,23 @@ class RosTransport(Transport):
         self._lock = threading.Lock()
         self._thread = threading.Thread(target=self._spin, name="rclpy", daemon=True)
         self._discovery = self.node.create_timer(1.0, self._discover)
-        self.builder: InterfaceBuilder | None = None  # builds the packages of types it lacks (`create`)
+        self.builder = builder  # builds the interface packages of types it lacks, or None
         self._unbuilt: list[tuple[str, str, Callable[[bytes], None], QoSProfile]] = []  # type being built
 
     @classmethod
-    def create(cls, settings: TransportSettings, shared: Shared) -> Self:
-        transport = cls(settings)  # type: ignore[arg-type]  # the router passes this class's Settings
-        if shared.ros_definitions is not None:
-            transport.builder = InterfaceBuilder(shared.ros_definitions)
-        return transport
+    def create(cls, settings: TransportSettings, shared: Shared) -> RosTransport:
+        assert isinstance(settings, RosSettings)
+        definitions = shared.ros_definitions  # what it may build of the interfaces it lacks
+        return cls(settings, None if definitions is None else InterfaceBuilder(definitions))
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         for message_type in message_types:
             try:
                 message_class(message_type.name)
             except (ImportError, AttributeError, ValueError):
-                package = message_type.name.split("/")[0]
-                if self.builder is not None and self.builder.knows(package):
-                    self.builder.request(package)  # started now, waited for by nobody
+                if self._building(message_type.name):  # started now, waited for by nobody
                     continue
+                package = message_type.name.split("/")[0]
                 hint = (
                     f"viewer-bridge ros-interfaces install {package}"
                     if package in BUILDABLE_INTERFACES
@@ -205,14 +203,23 @@ class RosTransport(Transport):
         with contextlib.suppress(ExternalShutdownException):
             self._executor.spin()
 
+    def _building(self, typename: str) -> bool:
+        """Whether the package of `typename` (which does not import) is being built, or now asked
+        for; False when this transport cannot build it."""
+        package = typename.split("/")[0]
+        if self.builder is None or not self.builder.knows(package):
+            return False
+        self.builder.request(package)
+        return True
+
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         profile = qos_profile(qos.depth, qos.reliable, qos.latched)
         try:
             message = message_class(message_type.name)
         except (ImportError, AttributeError):
-            package = message_type.name.split("/")[0]
-            if self.builder is None or not self.builder.knows(package):
+            if not self._building(message_type.name):
                 raise
+            assert self.builder is not None
             return PublisherOnceBuilt(self.node, self.builder, name, message_type.name, profile)
         publisher = self.node.create_publisher(message, name, profile)
         return CallPublisher(publisher.publish, publisher.get_subscription_count)
@@ -242,11 +249,9 @@ class RosTransport(Transport):
         try:
             message = message_class(typename)
         except (ImportError, AttributeError):
-            package = typename.split("/")[0]
-            if self.builder is None or not self.builder.knows(package):
+            if not self._building(typename):
                 raise
-            self.builder.request(package)  # subscribed once built (`_discover` looks each second)
-            with self._lock:
+            with self._lock:  # subscribed once built (`_discover` looks each second)
                 self._unbuilt.append((topic, typename, on_message, profile))
             return
         self.node.create_subscription(message, topic, on_message, profile, raw=True)
