@@ -223,3 +223,20 @@ def test_a_failed_build_is_failed_with_the_reason(caplog: pytest.LogCaptureFixtu
         ros_interfaces.build(BAD_DEFINITIONS)
     assert status.reason == f"ROS 2 interface package {BAD} not built: {raised.value}"
     assert builder.request(BAD) == status  # asked again: not built again
+
+
+def test_changed_definitions_rebuild_the_package_and_leave_nothing_of_the_old_one(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    ros_interfaces.build(ROUTER_DEFINITIONS)  # as the router test leaves it (built when it ran first)
+    share = Path(sys.prefix) / "share" / ROUTER
+    assert (share / "msg" / "Counter.msg").exists()
+    changed = {f"{ROUTER}/msg/Tally": "int64 count\n"}
+    try:
+        assert ros_interfaces.build(changed, log=print) == [ROUTER]
+        assert f"building {ROUTER} (1 types) into {sys.prefix}" in capsys.readouterr().out
+        assert (share / "msg" / "Tally.msg").exists() and not (share / "msg" / "Counter.msg").exists()
+        assert ros_interfaces.build(changed) == []
+    finally:
+        ros_interfaces.build(ROUTER_DEFINITIONS)
+    assert (share / "msg" / "Counter.msg").exists() and not (share / "msg" / "Tally.msg").exists()
