@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import importlib.metadata
 import logging
 import signal
@@ -196,11 +197,24 @@ def _parser() -> argparse.ArgumentParser:
     )
 
     interfaces = commands.add_parser(
-        "ros-interfaces", help="build ROS 2 interface packages PyPI has no wheel for (tf2_msgs) into the venv"
+        "ros-interfaces",
+        help="build ROS 2 interface packages PyPI has no wheel for (tf2_msgs, LCM types) into the venv, "
+        "or write them for a colcon workspace",
     )
-    interfaces.add_argument("action", choices=["install", "status"])
+    interfaces.add_argument("action", choices=["install", "status", "generate"])
     interfaces.add_argument(
         "names", nargs="*", metavar="NAME", help="optional: the packages to install or show (default: all of them)"
+    )
+    interfaces.add_argument(
+        "--lcm-types",
+        action="append",
+        default=[],
+        metavar="SRC",
+        help="LCM types (.lcm files, folders, lcm-gen'd modules): install builds their *_lcm_msgs packages "
+        "instead of tf2_msgs, generate writes them (repeatable)",
+    )
+    interfaces.add_argument(
+        "-o", "--output", type=Path, metavar="DIR", help="generate: the folder to write the packages to (a workspace's src/)"
     )
     return parser
 
@@ -440,6 +454,25 @@ def _serve_render(args: argparse.Namespace) -> int:
 def _ros_interfaces(args: argparse.Namespace) -> int:
     from viewer_bridge import ros_interfaces
 
+    say = lambda line: print(line, file=sys.stderr)  # noqa: E731
+    if args.action == "generate" or args.lcm_types:
+        if not args.lcm_types:
+            raise UsageError("generate needs --lcm-types SRC")
+        definitions = _lcm_ros_definitions(args.lcm_types)
+        if args.action == "generate":
+            if args.output is None:
+                raise UsageError("generate needs -o DIR")
+            for folder in ros_interfaces.generate_packages(definitions, args.output):
+                print(folder)
+        elif args.action == "install":
+            ros_interfaces.build(definitions, log=say, only=args.names or None)
+        else:
+            chosen = ros_interfaces.packages(definitions)
+            digests = ros_interfaces.digests(chosen)
+            for package in chosen:
+                built = ros_interfaces.current(package, digests[package.name])
+                print(f"{package.name}: {'installed' if built else 'missing or outdated'} in {sys.prefix}")
+        return 0
     unknown = [name for name in args.names if name not in ros_interfaces.INTERFACES]
     if unknown:
         known = ", ".join(ros_interfaces.INTERFACES)
@@ -449,8 +482,15 @@ def _ros_interfaces(args: argparse.Namespace) -> int:
         for name in args.names or ros_interfaces.INTERFACES:
             print(f"{name}: {'missing' if name in absent else 'installed'} in {sys.prefix}")
         return 0
-    ros_interfaces.install(args.names or None, log=lambda line: print(line, file=sys.stderr))
+    ros_interfaces.install(args.names or None, log=say)
     return 0
+
+
+def _lcm_ros_definitions(sources: Sequence[str]) -> dict[str, str]:
+    """The ROS 2 `.msg` definitions of the LCM types of `sources` (and the project's own)."""
+    from viewer_bridge.lcmcodec.library import TypeLibrary  # rosbags: only for this command
+
+    return dict(TypeLibrary.load(sources).ros_definitions())
 
 
 _HANDLERS = {

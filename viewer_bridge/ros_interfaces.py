@@ -7,11 +7,17 @@ So the package is generated here, as any ROS 2 interface package: its `.msg` fil
 `CMakeLists.txt`, then rosidl's generators (the `ros-build` extra's wheels) compile it with CMake
 and install it into the venv prefix, where it sits beside the wheels' packages and imports with no
 environment variables. See shared/ROS_INTERFACES.md for the facts behind each setting.
+
+The same mechanism builds packages from any `.msg` definitions ("pkg/msg/Name" -> text, as the LCM
+type library makes them): `generate_packages` writes them for a user's colcon workspace, `build`
+compiles them into the venv, each package rebuilt only when its sources (or a package it uses)
+change: a stamp with their hash sits next to the installed package, in `share/<name>/`.
 """
 
 from __future__ import annotations
 
 import fcntl
+import hashlib
 import importlib.metadata
 import os
 import re
@@ -21,7 +27,7 @@ import sys
 import sysconfig
 import tempfile
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,6 +41,11 @@ from viewer_bridge.errors import RosInterfaceError
 if TYPE_CHECKING:
     from rosbags.interfaces.typing import Typesdict
 
+__all__ = [
+    "INTERFACES", "BUILD_WHEELS", "RUNTIME_WHEELS", "Interface", "Package", "build", "current", "digests",
+    "generate_packages", "install", "interface_package", "log_path", "message_text", "missing", "packages",
+    "uninstall", "write_package",
+]  # fmt: skip
 
 @dataclass(frozen=True)
 class Interface:
@@ -102,14 +113,93 @@ def _nested_types(fielddefs: Typesdict, typename: str) -> set[str]:
     return found
 
 
-def package_xml(name: str) -> str:
+@dataclass(frozen=True)
+class Package:
+    """One interface package to generate: its messages' `.msg` texts and the packages they use."""
+
+    name: str
+    messages: tuple[tuple[str, str], ...]  # (message name, .msg text), in name order
+    depends: tuple[str, ...]  # the other interface packages its fields name
+    description: str
+
+    def files(self) -> tuple[str, ...]:
+        return tuple(f"msg/{message}.msg" for message, _ in self.messages)
+
+
+# rosidl_adapter's name rules (shared/PROTOCOLS.md section 13): checked here so that a bad name is
+# one line naming the type, before CMake is run.
+_PACKAGE_NAME = re.compile(r"^(?!.*__)(?!.*_$)[a-z][a-z0-9_]*$")
+_MESSAGE_NAME = re.compile(r"^[A-Z][A-Za-z0-9]*$")
+
+
+def interface_package(name: str) -> Package:
+    """The `Package` of a Jazzy interface package of INTERFACES (tf2_msgs), from rosbags' definitions."""
     interface = INTERFACES[name]
-    depends = "".join(f"  <depend>{depend}</depend>\n" for depend in interface.depends)
+    return Package(
+        name=name,
+        messages=tuple((message, message_text(f"{name}/msg/{message}")) for message in interface.messages),
+        depends=interface.depends,
+        description=f"{name} ({', '.join(interface.messages)}), built by viewer-bridge from ROS 2 Jazzy's definitions",
+    )
+
+
+def packages(definitions: Mapping[str, str]) -> list[Package]:
+    """The interface packages of `definitions` ("pkg/msg/Name" -> `.msg` text), each after the
+    packages it uses (a package may use ROS packages that are not in `definitions`: the installed
+    wheels' std_msgs, say). Raises RosInterfaceError naming a type whose name or text is invalid,
+    or the packages that use each other (ROS 2 packages cannot)."""
+    messages: dict[str, dict[str, str]] = {}
+    depends: dict[str, set[str]] = {}
+    for typename, text in sorted(definitions.items()):
+        package, kind, message = (typename.split("/") + ["", ""])[:3]
+        if kind != "msg" or not _PACKAGE_NAME.match(package) or not _MESSAGE_NAME.match(message):
+            raise RosInterfaceError(f"{typename!r} is not a ROS 2 message name (package/msg/Name)")
+        try:
+            fields = get_types_from_msg(text, typename)[typename][1]
+        except Exception as error:  # rosbags' parser raises its own exception types
+            said = " ".join(str(error).split())  # rosbags quotes the text over several lines
+            raise RosInterfaceError(f"{typename}: not a valid .msg definition: {said}") from None
+        messages.setdefault(package, {})[message] = text if text.endswith("\n") or not text else text + "\n"
+        used = depends.setdefault(package, set())
+        for _, desc in fields:
+            node, arg = desc[1][0] if desc[0] in (Nodetype.ARRAY, Nodetype.SEQUENCE) else desc
+            if node == Nodetype.NAME and isinstance(arg, str) and arg.split("/")[0] != package:
+                used.add(arg.split("/")[0])
+    ordered: list[str] = []
+    visiting: list[str] = []
+
+    def visit(name: str) -> None:
+        if name in ordered or name not in messages:
+            return
+        if name in visiting:
+            cycle = " -> ".join([*visiting[visiting.index(name) :], name])
+            raise RosInterfaceError(f"interface packages that use each other cannot be built: {cycle}")
+        visiting.append(name)
+        for depend in sorted(depends[name]):
+            visit(depend)
+        visiting.pop()
+        ordered.append(name)
+
+    for name in sorted(messages):
+        visit(name)
+    return [
+        Package(
+            name=name,
+            messages=tuple(sorted(messages[name].items())),
+            depends=tuple(sorted(depends[name])),
+            description=f"{name}: {len(messages[name])} message types, generated by viewer-bridge",
+        )
+        for name in ordered
+    ]
+
+
+def package_xml(package: Package) -> str:
+    depends = "".join(f"  <depend>{depend}</depend>\n" for depend in package.depends)
     return f"""<?xml version="1.0"?>
 <package format="3">
-  <name>{name}</name>
+  <name>{package.name}</name>
   <version>0.0.0</version>
-  <description>{name} ({", ".join(interface.messages)}), built by viewer-bridge from ROS 2 Jazzy's definitions</description>
+  <description>{package.description}</description>
   <maintainer email="viewer-bridge@example.invalid">viewer-bridge</maintainer>
   <license>BSD-3-Clause</license>
   <buildtool_depend>ament_cmake</buildtool_depend>
@@ -124,13 +214,12 @@ def package_xml(name: str) -> str:
 """
 
 
-def cmake_lists(name: str) -> str:
-    interface = INTERFACES[name]
-    find = "".join(f"find_package({depend} REQUIRED)\n" for depend in interface.depends)
-    files = " ".join(f'"{file}"' for file in interface.files())
-    depends = " ".join(interface.depends)
+def cmake_lists(package: Package) -> str:
+    find = "".join(f"find_package({depend} REQUIRED)\n" for depend in package.depends)
+    files = " ".join(f'"{file}"' for file in package.files())
+    depends = f" DEPENDENCIES {' '.join(package.depends)}" if package.depends else ""
     return f"""cmake_minimum_required(VERSION 3.21)
-project({name})
+project({package.name})
 
 find_package(ament_cmake REQUIRED)
 {find}find_package(rosidl_default_generators REQUIRED)
@@ -147,10 +236,30 @@ foreach(target IN LISTS imported)
   endif()
 endforeach()
 
-rosidl_generate_interfaces(${{PROJECT_NAME}} {files} DEPENDENCIES {depends})
+rosidl_generate_interfaces(${{PROJECT_NAME}} {files}{depends})
 ament_export_dependencies(rosidl_default_runtime)
 ament_package()
 """
+
+
+def write_package(package: Package, folder: Path) -> Path:
+    """`package`'s sources in `folder`: package.xml, CMakeLists.txt and msg/*.msg."""
+    (folder / "msg").mkdir(parents=True, exist_ok=True)
+    (folder / "package.xml").write_text(package_xml(package))
+    (folder / "CMakeLists.txt").write_text(cmake_lists(package))
+    for message, text in package.messages:
+        (folder / "msg" / f"{message}.msg").write_text(text)
+    return folder
+
+
+def generate_packages(definitions: Mapping[str, str], out_dir: str | Path) -> list[Path]:
+    """One complete ROS 2 interface package per package of `definitions`, each in `out_dir/<name>`
+    (what a colcon workspace's `src/` holds); returns their folders, each after those it uses."""
+    root = Path(out_dir)
+    try:
+        return [write_package(package, root / package.name) for package in packages(definitions)]
+    except OSError as error:
+        raise RosInterfaceError(f"cannot write the interface packages to {root}: {error.strerror}") from None
 
 
 def _site_packages(prefix: Path) -> Path:
@@ -163,24 +272,76 @@ def _module_name(message: str) -> str:
     return "_" + re.sub("([a-z0-9])([A-Z])", r"\1_\2", name).lower()
 
 
-def _installed_files(name: str, prefix: Path) -> list[Path]:
+def _installed_files(name: str, messages: Iterable[str], prefix: Path) -> list[Path]:
     """Files whose presence means `name` is installed at `prefix` with every message it should have."""
-    package = _site_packages(prefix) / name
-    interface = INTERFACES[name]
+    module = _site_packages(prefix) / name
     return [
         prefix / "share" / name / "package.xml",
         prefix / "share" / "ament_index" / "resource_index" / "packages" / name,
         prefix / "lib" / f"lib{name}__rosidl_typesupport_c.so",
-        package / "__init__.py",
-        *(prefix / "share" / name / file for file in interface.files()),
-        *(package / "msg" / f"{_module_name(message)}.py" for message in interface.messages),
+        module / "__init__.py",
+        *(prefix / "share" / name / "msg" / f"{message}.msg" for message in messages),
+        *(module / "msg" / f"{_module_name(message)}.py" for message in messages),
     ]
+
+
+def _installed(name: str, messages: Iterable[str], prefix: Path) -> bool:
+    return all(path.exists() for path in _installed_files(name, messages, prefix))
 
 
 def missing(prefix: str | Path = sys.prefix) -> list[str]:
     """The interface packages of INTERFACES that are not installed in the environment at `prefix`."""
     root = Path(prefix)
-    return [name for name in INTERFACES if not all(path.exists() for path in _installed_files(name, root))]
+    return [name for name, interface in INTERFACES.items() if not _installed(name, interface.messages, root)]
+
+
+def digests(chosen: Sequence[Package]) -> dict[str, str]:
+    """Each package's hash: of its generated sources and of the hashes of the packages of `chosen`
+    it uses (a nested type that changes changes the code generated for the types that hold it)."""
+    found: dict[str, str] = {}
+    for package in chosen:  # in dependency order: a package's depends come first
+        digest = hashlib.sha256(package_xml(package).encode() + cmake_lists(package).encode())
+        for message, text in package.messages:
+            digest.update(f"\0{message}\0{text}".encode())
+        for depend in package.depends:
+            digest.update(f"\0{depend}\0{found.get(depend, '')}".encode())
+        found[package.name] = digest.hexdigest()
+    return found
+
+
+def _stamp(prefix: Path, name: str) -> Path:
+    """Where the hash of an installed package's sources is kept: beside its package.xml."""
+    return prefix / "share" / name / "viewer-bridge-sources.sha256"
+
+
+def _log_folder(prefix: Path) -> Path:
+    return prefix / "var" / "log" / "viewer-bridge" / "ros-interfaces"
+
+
+def log_path(prefix: str | Path, name: str) -> Path:
+    """The log of the last build of interface package `name` into `prefix` (kept after a failure)."""
+    return _log_folder(Path(prefix)) / f"{name}.log"
+
+
+def current(package: Package, digest: str, prefix: str | Path = sys.prefix) -> bool:
+    """Whether `package` is installed at `prefix` from the sources whose hash is `digest`."""
+    root = Path(prefix)
+    stamp = _stamp(root, package.name)
+    messages = [message for message, _ in package.messages]
+    return _installed(package.name, messages, root) and stamp.exists() and stamp.read_text().strip() == digest
+
+
+def _writable(prefix: Path) -> None:
+    """Raise RosInterfaceError, in one line, when the package, stamp and log folders cannot be written."""
+    for folder in (prefix / "share", _log_folder(prefix)):
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            with tempfile.TemporaryFile(dir=folder):
+                pass
+        except OSError as error:
+            raise RosInterfaceError(
+                f"cannot build ROS 2 interface packages into {prefix}: {folder} is not writable ({error.strerror})"
+            ) from None
 
 
 def _python(prefix: Path) -> str:
@@ -249,13 +410,13 @@ def _locked(prefix: Path) -> Iterator[None]:
 
 
 def _run(command: Sequence[str], step: str, log_path: Path, env: dict[str, str] | None = None) -> None:
+    """Run one step, its output appended to `log_path`; a failure is one line naming the log."""
     with log_path.open("a") as log:
         log.write(f"$ {' '.join(command)}\n")
         log.flush()
         result = subprocess.run(command, stdout=log, stderr=subprocess.STDOUT, env=env)
     if result.returncode != 0:
-        tail = "\n".join(log_path.read_text(errors="replace").splitlines()[-40:])
-        raise RosInterfaceError(f"{step} failed (exit {result.returncode}); the end of its log:\n{tail}")
+        raise RosInterfaceError(f"{step} failed (exit {result.returncode}); its log: {log_path}")
 
 
 def install(
@@ -267,10 +428,9 @@ def install(
     """Build and install the interface packages `names` (default: all) that `prefix` lacks.
 
     Returns the names built; nothing is done when all are installed already. pip installs the
-    `ros-build` wheels first when some are missing. Raises RosInterfaceError, with the tail of the
-    failing step's output, when a tool is missing or a step fails.
+    `ros-build` wheels first when some are missing. Raises RosInterfaceError, naming the failing
+    step and its log, when a tool is missing or a step fails.
     """
-    say = log or (lambda _: None)
     root = Path(prefix)
     wanted = list(INTERFACES) if names is None else list(dict.fromkeys(names))
     unknown = [name for name in wanted if name not in INTERFACES]
@@ -280,39 +440,99 @@ def install(
         )
     if not set(wanted) & set(missing(root)):
         return []
-    python = _python(root)
+    _writable(root)
     with _locked(root):
         absent = missing(root)  # again: another process may have built them meanwhile
-        todo = [name for name in wanted if name in absent]
-        if not todo:
-            return []
-        _check_tools(python)
-        with tempfile.TemporaryDirectory(prefix="viewer-bridge-ros-") as temp:
-            folder = Path(temp)
-            log_path = folder / "build.log"
-            wheels = _missing_wheels(root, (depend for name in todo for depend in INTERFACES[name].depends))
-            if wheels:
-                say(f"pip installing {' '.join(wheels)}")
-                pip = [python, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", *wheels]
-                _run(pip, "pip install", log_path)
-            for name in todo:
-                say(f"building {name} into {root}")
-                start = time.monotonic()
-                _build(name, root, python, folder / name, jobs, log_path)
-                say(f"built {name} in {time.monotonic() - start:.1f} s")
-        still = sorted(set(todo) & set(missing(root)))
+        todo = [interface_package(name) for name in wanted if name in absent]
+        _build_all(todo, digests(todo), root, jobs, log)
+        still = sorted({package.name for package in todo} & set(missing(root)))
         if still:
             raise RosInterfaceError(f"{', '.join(still)} built but not found installed in {root}")
-    return todo
+    return [package.name for package in todo]
 
 
-def _build(name: str, prefix: Path, python: str, folder: Path, jobs: int, log_path: Path) -> None:
+def build(
+    definitions: Mapping[str, str],
+    prefix: str | Path = sys.prefix,
+    jobs: int = 2,
+    log: Callable[[str], None] | None = None,
+    only: Iterable[str] | None = None,
+) -> list[str]:
+    """Build the interface packages of `definitions` into `prefix`, each that is not installed
+    from the same sources already (see `digests`), each after the packages it uses.
+
+    `only` restricts it to those packages and the ones of `definitions` they use. Returns the
+    names built. Raises RosInterfaceError in one line naming the package and its build log when
+    a build fails, or naming the folder when `prefix` cannot be written.
+    """
+    root = Path(prefix)
+    chosen = _closure(packages(definitions), only)
+    wanted = digests(chosen)
+    if all(current(package, wanted[package.name], root) for package in chosen):
+        return []
+    _writable(root)
+    with _locked(root):  # again once locked: another process may have built them meanwhile
+        todo = [package for package in chosen if not current(package, wanted[package.name], root)]
+        _build_all(todo, wanted, root, jobs, log)
+    return [package.name for package in todo]
+
+
+def _closure(chosen: list[Package], only: Iterable[str] | None) -> list[Package]:
+    """The packages named by `only` and those of `chosen` they use, in `chosen`'s order."""
+    if only is None:
+        return chosen
+    by_name = {package.name: package for package in chosen}
+    keep: set[str] = set()
+    pending = list(only)
+    while pending:
+        name = pending.pop()
+        if name in by_name and name not in keep:
+            keep.add(name)
+            pending.extend(by_name[name].depends)
+    return [package for package in chosen if package.name in keep]
+
+
+def _build_all(
+    todo: Sequence[Package], wanted: Mapping[str, str], root: Path, jobs: int, log: Callable[[str], None] | None
+) -> None:
+    """Build `todo` in order into `root` (the caller holds the lock), pip installing what is missing."""
+    if not todo:
+        return
+    say = log or (lambda _: None)
+    python = _python(root)
+    _check_tools(python)
+    generated = {package.name for package in todo}
+    external = {depend for package in todo for depend in package.depends if depend not in generated}
+    wheels = [wheel for wheel in _missing_wheels(root, external) if not _is_interface(wheel, root)]
+    first_log = log_path(root, todo[0].name)
+    if wheels:
+        say(f"pip installing {' '.join(wheels)}")
+        pip = [python, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", *wheels]
+        first_log.write_text("")
+        _run(pip, f"pip install for {todo[0].name}", first_log)
+    with tempfile.TemporaryDirectory(prefix="viewer-bridge-ros-") as temp:
+        for package in todo:
+            say(f"building {package.name} ({len(package.messages)} types) into {root}")
+            start = time.monotonic()
+            path = log_path(root, package.name)
+            path.write_text("")
+            uninstall([package.name], root)  # built before from other sources: none of it stays
+            _build(package, root, python, Path(temp) / package.name, jobs, path)
+            _stamp(root, package.name).write_text(wanted[package.name] + "\n")
+            say(f"built {package.name} in {time.monotonic() - start:.1f} s")
+
+
+def _is_interface(wheel: str, prefix: Path) -> bool:
+    """Whether the wheel a depend names is an interface package installed at `prefix` already
+    (an earlier build of ours: no wheel of that name exists)."""
+    name = wheel.removeprefix("ros-jazzy-").replace("-", "_")
+    return (prefix / "share" / "ament_index" / "resource_index" / "packages" / name).exists()
+
+
+def _build(package: Package, prefix: Path, python: str, folder: Path, jobs: int, log_path: Path) -> None:
+    name = package.name
     source, build = folder / "source", folder / "build"
-    (source / "msg").mkdir(parents=True)
-    (source / "package.xml").write_text(package_xml(name))
-    (source / "CMakeLists.txt").write_text(cmake_lists(name))
-    for message in INTERFACES[name].messages:
-        (source / "msg" / f"{message}.msg").write_text(message_text(f"{name}/msg/{message}"))
+    write_package(package, source)
     env = dict(os.environ, AMENT_PREFIX_PATH=str(prefix))  # without it: "No 'rosidl_typesupport_c' found"
     env.pop("CMAKE_PREFIX_PATH", None)  # a sourced ROS install's, if any: only this prefix's packages
     generator = [] if shutil.which("make") else ["-G", "Ninja"]

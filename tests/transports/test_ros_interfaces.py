@@ -121,7 +121,8 @@ def test_the_generated_sources_match_rosbags_definitions() -> None:
             package for message in interface.messages for package in _packages_used(f"{name}/msg/{message}")
         }
         assert set(interface.depends) == used - {name}
-        xml, cmake = ros_interfaces.package_xml(name), ros_interfaces.cmake_lists(name)
+        package = ros_interfaces.interface_package(name)
+        xml, cmake = ros_interfaces.package_xml(package), ros_interfaces.cmake_lists(package)
         assert all(f"<depend>{depend}</depend>" in xml for depend in interface.depends)
         assert all(f'"{file}"' in cmake for file in interface.files())
         assert f"DEPENDENCIES {' '.join(interface.depends)}" in cmake

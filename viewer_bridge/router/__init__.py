@@ -37,7 +37,15 @@ from viewer_bridge.router.runner import PublisherFor, RouteRunner
 from viewer_bridge.status import LogLines, StatusView
 from viewer_bridge.translators import TRANSLATORS, LoadCache, Output, Translator
 from viewer_bridge.transports import TRANSPORTS
-from viewer_bridge.transports.base import Publisher, Qos, Received, Shared, Transport
+from viewer_bridge.transports.base import (
+    Publisher,
+    Qos,
+    Received,
+    RosDefinitions,
+    Shared,
+    Transport,
+    definitions_of,
+)
 
 log = logging.getLogger("viewer_bridge")
 
@@ -58,17 +66,22 @@ class Router:
         stats_json: str | Path | None = None,
         stats_period: float = 5.0,
         view: StatusView | None = None,
+        ros_definitions: RosDefinitions | None = None,
     ) -> None:
+        """`ros_definitions`: where the ros transport finds the `.msg` definitions of an interface
+        package it lacks, to build it while the other routes run (see `RosDefinitions`)."""
         self.config = config
         self.stats_json = Path(stats_json) if stats_json else None
         self.stats_period = stats_period
         self.view = view or LogLines()
         # What the transports and translators share: the known LCM types (loaded once, here: a
-        # bad source stops the start), one Foxglove context, the message time, the last Drake load
-        # per channel (kept in the config's folder, if it names one).
-        self.shared = Shared(TypeLibrary.load(config.lcm_types, drake=config.drake_lcm_types))
+        # bad source stops the start) and the ROS 2 definitions of their interface packages (for
+        # building one the ros transport lacks), one Foxglove context, the message time, the last
+        # Drake load per channel (kept in the config's folder, if it names one).
+        lcm_types = TypeLibrary.load(config.lcm_types, drake=config.drake_lcm_types)
+        self.shared = Shared(lcm_types, ros_definitions or definitions_of(lcm_types))
         self.shared.provide(LoadCache, LoadCache(config.load_cache))
-        for warning in self.shared.lcm_types.warnings:
+        for warning in lcm_types.warnings:
             log.warning("viewer-bridge: %s", warning)
         self.transports: dict[str, Transport] = {}
         self.routes: list[RouteRunner] = []

@@ -111,15 +111,37 @@ class MessageTime(threading.local):
 Made = TypeVar("Made")
 
 
+RosDefinitions = Callable[[str], Mapping[str, str]]
+"""`ros_definitions(package)`: the ROS 2 `.msg` definitions ("pkg/msg/Name" -> text) of the interface
+package `package` and of every package its types use (more is fine), or an empty mapping when it
+knows no such package. The ros transport builds a package it lacks from them (the router's LCM
+types give theirs: `definitions_of`)."""
+
+
+def definitions_of(lcm_types: TypeLibrary) -> RosDefinitions:
+    """The `RosDefinitions` of a type library: all of its definitions, worked out on the first ask."""
+    made: dict[str, str] = {}
+
+    def definitions(package: str) -> Mapping[str, str]:
+        if not made:
+            made.update(lcm_types.ros_definitions())
+        return made
+
+    return definitions
+
+
 class Shared:
     """What the transports and translators of one router share: the `MessageTime`, the LCM types
-    it knows (`lcm_types`, loaded once at start from the config's `lcm_types`), and whatever is
-    made once per router on first ask (`get(FoxgloveContext)`: the live server and an MCAP file
-    log to one; `get(LoadCache)`: every route's last Drake load). Two routers share nothing."""
+    it knows (`lcm_types`, loaded once at start from the config's `lcm_types`), the definitions of
+    the ROS 2 interface packages that may be built while it runs (`ros_definitions`, or None), and
+    whatever is made once per router on first ask (`get(FoxgloveContext)`: the live server and an
+    MCAP file log to one; `get(LoadCache)`: every route's last Drake load). Two routers share
+    nothing."""
 
-    def __init__(self, lcm_types: TypeLibrary | None = None) -> None:
+    def __init__(self, lcm_types: TypeLibrary | None = None, ros_definitions: RosDefinitions | None = None) -> None:
         self.message_time = MessageTime()
         self._lcm_types = lcm_types
+        self.ros_definitions = ros_definitions
         self._made: dict[Callable[[], object], object] = {}
         self._lock = threading.Lock()  # translators are made on the routes' threads
 

@@ -1,10 +1,14 @@
 """ROS 2 as a transport, through real rclpy: one node, raw CDR bytes in and out.
 
 Publishers take CDR bytes (rclpy publishes them as they are) and subscriptions deliver raw
-bytes, so nothing here builds or reads a message: the formats do that. A source name that is
-a regular expression is matched against the graph once a second and subscribed as topics of
-the wanted type appear. rclpy is imported when the transport starts, not when a config that
-names it is checked, so the ROS 2 wheels are needed only by bridges that use them.
+bytes, so nothing here builds or reads a message: the formats do that. rclpy still needs a type's
+generated type support to publish it: a type whose interface package is missing, but whose
+definitions the router was given (`Shared.ros_definitions`), is built in the background
+(`viewer_bridge.ros_builds`); until it is importable its route's messages are dropped and counted
+as `waiting_for_build`, then published. A source name that is a regular expression is matched
+against the graph once a second and subscribed as topics of the wanted type appear. rclpy is
+imported when the transport starts, not when a config that names it is checked, so the ROS 2
+wheels are needed only by bridges that use them.
 """
 
 # rclpy's own annotations are incomplete; its untyped calls are accepted in this module only.
@@ -15,13 +19,14 @@ import contextlib
 import importlib
 import re
 import threading
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING, Any
 
 from pydantic import field_validator
 
 from viewer_bridge.errors import Held, TransportUnavailable
 from viewer_bridge.extras import missing
+from viewer_bridge.ros_builds import BuildState, InterfaceBuilder
 from viewer_bridge.transports.base import (
     CDR,
     CallPublisher,
@@ -30,12 +35,14 @@ from viewer_bridge.transports.base import (
     Publisher,
     Qos,
     Received,
+    Shared,
     Transport,
     TransportSettings,
 )
 from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem, topic_problem
 
 if TYPE_CHECKING:
+    from rclpy.node import Node
     from rclpy.qos import QoSProfile
 
 _PLAIN_TOPIC = re.compile(r"^[A-Za-z0-9_/~{}]+$")
@@ -83,6 +90,44 @@ def _valid(name: str, problem: str | None, what: str) -> str:
     return name
 
 
+class PublisherOnceBuilt:
+    """A publisher of a type whose interface package is being built: until it is ready, each
+    message is held (`Held`: `waiting_for_build`, counted on its channel), or after a failed build
+    refused as an error (`TransportUnavailable`, which the builder also said once); the rclpy
+    publisher is made once it is ready.
+
+    Dropped rather than queued: a route carries state that its next message supersedes, and a
+    message held through a build (tens of seconds) would arrive stale and out of its time.
+    """
+
+    def __init__(self, node: Node, builder: InterfaceBuilder, topic: str, typename: str, profile: QoSProfile) -> None:
+        self._node, self._builder, self._topic, self._typename, self._profile = node, builder, topic, typename, profile
+        self._package = typename.split("/")[0]
+        self._publisher: Any = None
+        self._lock = threading.Lock()
+        builder.request(self._package)
+
+    def _ready(self) -> Any:
+        """The rclpy publisher, made on the first call after the build, or None before."""
+        with self._lock:
+            if self._publisher is None and self._builder.status(self._package).state is BuildState.READY:
+                self._publisher = self._node.create_publisher(message_class(self._typename), self._topic, self._profile)
+            return self._publisher
+
+    def publish(self, data: bytes) -> None:
+        publisher = self._ready()
+        if publisher is None:
+            status = self._builder.status(self._package)
+            if status.state is BuildState.FAILED:
+                raise TransportUnavailable(f"the interface package {self._package} failed to build: {status.reason}")
+            raise Held("waiting_for_build", f"{self._package} is being built (its messages wait, counted)")
+        publisher.publish(data)
+
+    def subscriber_count(self) -> int:
+        publisher = self._ready()
+        return 0 if publisher is None else int(publisher.get_subscription_count())
+
+
 class RosTransport(Transport):
     """One rclpy node in a context of its own, spun by a thread of its own."""
 
@@ -99,7 +144,7 @@ class RosTransport(Transport):
         _valid(name, topic_problem(name), "topic name")
     settings: RosSettings
 
-    def __init__(self, settings: RosSettings) -> None:
+    def __init__(self, settings: RosSettings, builder: InterfaceBuilder | None = None) -> None:
         super().__init__(settings)
         try:
             import rclpy
@@ -124,6 +169,14 @@ class RosTransport(Transport):
         self._lock = threading.Lock()
         self._thread = threading.Thread(target=self._spin, name="rclpy", daemon=True)
         self._discovery = self.node.create_timer(1.0, self._discover)
+        self.builder = builder  # builds the interface packages of types it lacks, or None
+        self._unbuilt: list[tuple[str, str, Callable[[bytes], None], QoSProfile]] = []  # type being built
+
+    @classmethod
+    def create(cls, settings: TransportSettings, shared: Shared) -> RosTransport:
+        assert isinstance(settings, RosSettings)
+        definitions = shared.ros_definitions  # what it may build of the interfaces it lacks
+        return cls(settings, None if definitions is None else InterfaceBuilder(definitions))
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         for message_type in message_types:
@@ -132,6 +185,8 @@ class RosTransport(Transport):
             try:
                 message_class(message_type.name)
             except (ImportError, AttributeError, ValueError):
+                if self._building(message_type.name):  # started now, waited for by nobody
+                    continue
                 package = message_type.name.split("/")[0]
                 hint = (
                     f"viewer-bridge ros-interfaces install {package}"
@@ -151,20 +206,25 @@ class RosTransport(Transport):
         with contextlib.suppress(ExternalShutdownException):
             self._executor.spin()
 
+    def _building(self, typename: str) -> bool:
+        """Whether the package of `typename` (which does not import) is being built, or now asked
+        for; False when this transport cannot build it."""
+        package = typename.split("/")[0]
+        if self.builder is None or not self.builder.knows(package):
+            return False
+        self.builder.request(package)
+        return True
+
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         profile = qos_profile(qos.depth, qos.reliable, qos.latched)
         try:
-            cls = message_class(message_type.name)
+            message = message_class(message_type.name)
         except (ImportError, AttributeError):
-            if message_type.definition is None:
+            if not self._building(message_type.name):
                 raise
-            # A generated interface (an LCM type's mapping) not built into this environment yet:
-            # its messages wait, counted on their channel, while the other routes flow.
-            raise Held(
-                "waiting_for_build",
-                f"{message_type.name} has no rclpy type support here yet (its interface is not built)",
-            ) from None
-        publisher = self.node.create_publisher(cls, name, profile)
+            assert self.builder is not None
+            return PublisherOnceBuilt(self.node, self.builder, name, message_type.name, profile)
+        publisher = self.node.create_publisher(message, name, profile)
         return CallPublisher(publisher.publish, publisher.get_subscription_count)
 
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
@@ -189,9 +249,31 @@ class RosTransport(Transport):
                 each(message)
 
         profile = qos_profile(qos.depth, qos.reliable, qos.latched)
-        self.node.create_subscription(message_class(typename), topic, on_message, profile, raw=True)
+        try:
+            message = message_class(typename)
+        except (ImportError, AttributeError):
+            if not self._building(typename):
+                raise
+            with self._lock:  # subscribed once built (`_discover` looks each second)
+                self._unbuilt.append((topic, typename, on_message, profile))
+            return
+        self.node.create_subscription(message, topic, on_message, profile, raw=True)
+
+    def _subscribe_built(self) -> None:
+        """Make the subscriptions whose type was being built, now that it is ready."""
+        assert self.builder is not None
+        with self._lock:
+            unbuilt, self._unbuilt = self._unbuilt, []
+        for topic, typename, on_message, profile in unbuilt:
+            if self.builder.status(typename.split("/")[0]).state is BuildState.READY:
+                self.node.create_subscription(message_class(typename), topic, on_message, profile, raw=True)
+            else:  # building, or failed (the builder said so once): nothing arrives on it
+                with self._lock:
+                    self._unbuilt.append((topic, typename, on_message, profile))
 
     def _discover(self) -> None:
+        if self._unbuilt:
+            self._subscribe_built()
         if not self._patterns:
             return
         for topic, types in self.node.get_topic_names_and_types():
