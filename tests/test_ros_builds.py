@@ -124,6 +124,9 @@ routes:
 """
 
 
+BUILD_FAILED = "publish:TransportUnavailable"  # a failed build refuses each message, counted as an error
+
+
 @pytest.fixture
 def translators(monkeypatch: pytest.MonkeyPatch) -> None:
     """The test translators, as a plugin's would be found by name."""
@@ -169,7 +172,7 @@ def test_a_route_waits_for_its_build_while_the_others_flow_then_publishes(
         sender.start()
         # The installed type flows while the other two packages are built (or fail to).
         assert probe.wait_for(lambda: len(texts) >= 5, timeout=60), "the installed type's route did not flow"
-        waiting = router.snapshot()["late"]["warnings"].get("waiting_for_build", 0)
+        waiting = router.snapshot()["late"]["held"].get("VB_LATE", {}).get("waiting_for_build", 0)
         assert waiting > 0 and router.snapshot()["late"]["messages_out"] == 0
         assert router.transports["ros"].builder is not None  # type: ignore[attr-defined]
         builder: InterfaceBuilder = router.transports["ros"].builder  # type: ignore[attr-defined]
@@ -178,7 +181,7 @@ def test_a_route_waits_for_its_build_while_the_others_flow_then_publishes(
         # Built after this process started, and importable in it: the subscriber needs its class.
         counters = probe.subscribe("/vb_test/late", COUNTER)
         assert probe.wait_for(lambda: len(counters) >= 3, timeout=60), "the built type was never published"
-        assert wait_for(lambda: router.snapshot()["broken"]["errors"].get("interface_build_failed", 0) > 0)
+        assert wait_for(lambda: router.snapshot()["broken"]["errors"].get(BUILD_FAILED, 0) > 0)
         # The other way: the route from ROS 2 subscribed once the type was built.
         back: list[bytes] = []
         bus.subscribe("VB_BACK", lambda _, data: back.append(data))
@@ -195,9 +198,9 @@ def test_a_route_waits_for_its_build_while_the_others_flow_then_publishes(
     stats = router.snapshot()
     late, broken, text = stats["late"], stats["broken"], stats["text"]
     assert late["messages_out"] >= 3 and late["errors"] == {}
-    assert late["warnings"]["waiting_for_build"] >= waiting  # dropped while waiting, counted
+    assert late["held"]["VB_LATE"]["waiting_for_build"] >= waiting  # dropped while waiting, counted
     assert text["errors"] == {} and text["warnings"] == {} and text["messages_out"] >= 5
-    assert set(broken["errors"]) == {"interface_build_failed"} and broken["messages_out"] == 0
+    assert set(broken["errors"]) == {BUILD_FAILED} and broken["messages_out"] == 0
     log = ros_interfaces.log_path(sys.prefix, BAD)
     failures = [record.getMessage() for record in caplog.records if record.levelno >= logging.ERROR]
     assert failures == [
