@@ -32,6 +32,7 @@ from pathlib import Path
 from urllib.parse import quote
 
 import rerun as rr
+import rerun.blueprint as rrb
 from rerun.chunk import Chunk
 
 from viewer_bridge.errors import BridgeError, TransportUnavailable
@@ -61,6 +62,10 @@ class RerunSettings(TransportSettings):
     grpc_port: int = 9877  # 0: a free port (9877: not the 9876 a native viewer listens on)
     web_port: int = 9090  # 0: a free port
     memory_limit: str = "1GiB"  # data the gRPC server keeps for late viewers (static data always)
+    # Where the 3D view's camera starts (Drake's z up), looking at `look_at`; None: the viewer frames
+    # everything (with a ground half-space, that is 50 m across).
+    eye: tuple[float, float, float] | None = (2.0, 2.0, 1.2)
+    look_at: tuple[float, float, float] = (0.0, 0.0, 0.3)
     path: Path | None = None  # an .rrd file
     overwrite: bool = False  # replace the .rrd file if it exists (otherwise refused at start)
 
@@ -76,6 +81,14 @@ def _free_port(host: str, port: int, setting: str) -> int:
             raise TransportUnavailable(f"{host}:{port} ({setting}): {reason}") from error
         bound: int = probe.getsockname()[1]
         return bound
+
+
+def _blueprint(settings: RerunSettings) -> rrb.Blueprint:
+    """One 3D view of everything, z up, its camera where the settings say."""
+    eye = None
+    if settings.eye is not None:
+        eye = rrb.EyeControls3D(position=settings.eye, look_target=settings.look_at, eye_up=(0.0, 0.0, 1.0))
+    return rrb.Blueprint(rrb.Spatial3DView(origin="/", name="Drake", eye_controls=eye), collapse_panels=True)
 
 
 class RerunTransport(Transport):
@@ -114,7 +127,7 @@ class RerunTransport(Transport):
             )
         if self.partial is not None:
             sinks.append(rr.FileSink(self.partial))
-        self.stream.set_sinks(*sinks)
+        self.stream.set_sinks(*sinks, default_blueprint=_blueprint(settings))
         if settings.serve:
             try:
                 rr.serve_web_viewer(web_port=self.web_port, open_browser=False, connect_to=self.grpc_url)
