@@ -33,10 +33,10 @@ from viewer_bridge.arguments import (
     split_ros_args,
 )
 from viewer_bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
-from viewer_bridge.log_convert import convert
 from viewer_bridge.demo import run_demo
 from viewer_bridge.dump import as_json, as_text
 from viewer_bridge.errors import BridgeError, ConfigError, Interrupted, UsageError
+from viewer_bridge.log_convert import convert, is_rrd
 from viewer_bridge.mappings import format_names, reference_markdown
 from viewer_bridge.router import Router
 from viewer_bridge.skipped import collecting
@@ -159,11 +159,11 @@ def _parser() -> argparse.ArgumentParser:
     )
 
     convert = commands.add_parser(
-        "convert", help="translate an LCM log into an MCAP file (ROS 2 or Foxglove)"
+        "convert", help="translate an LCM log into an MCAP file (ROS 2 or Foxglove) or a Rerun .rrd file"
     )
     convert.add_argument("log", type=input_file, help="an .lcmlog file")
     convert.add_argument(
-        "mcap", type=output_file(), help="the .mcap file to write (written as MCAP.partial until complete)"
+        "mcap", type=output_file(), help="the .mcap (or Rerun .rrd) file to write (written as NAME.partial until complete)"
     )
     convert.add_argument("-c", "--config", help="a YAML config whose LCM routes are used (default: built-in)")
     convert.add_argument(
@@ -325,7 +325,8 @@ def _lcm_url(config: BridgeConfig) -> str:
 
 def _convert(args: argparse.Namespace) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    config = load_config(args.config)
+    # An .rrd file is a Rerun recording: builtin:rerun's routes unless a config is given.
+    config = load_config(args.config or ("builtin:rerun" if is_rrd(args.mcap) else None))
     # Ctrl-C (or a SIGTERM) stops after the message being converted: the MCAP is closed properly.
     stop = threading.Event()
     for signal_number in (signal.SIGINT, signal.SIGTERM):

@@ -5,7 +5,8 @@ markers in link frames, the way ROS consumes motion), `drake_foxglove` (Foxglove
 and FrameTransforms), `drake_point_cloud` (point clouds both ways, DRAKE_DRAW_FRAMES as
 triads), `drake_ign` (<-> ign/gz protobuf), `drake_contact` (contact results to all three),
 `drake_image` (camera images <-> ROS 2, and to Foxglove), `tree_viewer` (Director's remote tree
-viewer, both sides), `drake_rerun` (Rerun's archetypes), `relay` (raw LCM onto another transport, unchanged). Families share only these: `base`
+viewer, both sides), `drake_rerun` (Rerun's archetypes), `relay` (raw LCM onto another transport,
+unchanged). Families share only these: `base`
 (what a translator is), `types` (the message types, each named once), `options` (options to
 inherit: markers, frames, ign names), `drake_stream` (the decode-once draw, and
 `DrakeTranslator`, the base that follows Drake's load/draw stream) and `load_cache` (the last

@@ -32,8 +32,8 @@ from viewer_bridge.scene import (
     Pose,
     Scene,
     Shape,
-    TriangleMesh,
     Triad,
+    TriangleMesh,
 )
 from viewer_bridge.skipped import per_geometry
 
@@ -101,7 +101,7 @@ def _values(rule: ShapeRule, shape: Shape) -> dict[str, Any]:
     return values if rule.encode is None else values | rule.encode(shape)
 
 
-def _media_type(extension: str, what: str) -> str:
+def _media_type(extension: str, what: str) -> rr.MediaType:
     media_type = MEDIA_TYPES.get(extension.lower())
     if media_type is None:
         known = ", ".join(MEDIA_TYPES)

@@ -31,7 +31,7 @@ __all__ = ["CHUNKS", "RECEIVE_TIME", "RERUN", "SIM_TIME", "decode_batches", "enc
 
 def encode_batches(batches: Iterable[pa.RecordBatch]) -> bytes:
     """Record batches (each with a schema of its own) as one message's bytes."""
-    parts = []
+    parts: list[bytes] = []
     for batch in batches:
         sink = pa.BufferOutputStream()
         with pa.ipc.new_stream(sink, batch.schema) as writer:

@@ -14,6 +14,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+import numpy.typing as npt
 import pyarrow as pa
 import rerun as rr
 from rerun.chunk import Chunk
@@ -87,7 +88,7 @@ class TransformsEncoder:
         }
         return pa.RecordBatch.from_arrays([columns[name] for name in self._schema.names], schema=self._schema)
 
-    def _rows(self, values: np.ndarray, width: int) -> pa.Array:  # type: ignore[type-arg]
+    def _rows(self, values: npt.NDArray[np.float32], width: int) -> pa.Array:
         """N x width floats as N rows of one fixed-size list each."""
         flat = pa.array(np.ascontiguousarray(values).reshape(-1))
         return pa.ListArray.from_arrays(self._offsets, pa.FixedSizeListArray.from_arrays(flat, width))
