@@ -53,6 +53,7 @@ _BUILTINS = {
     "drake_images_to_foxglove": "drake_image:DrakeImagesToFoxglove",
     "ros_image_to_drake": "drake_image:RosImageToDrake",
     "drake_to_rerun": "drake_rerun:DrakeToRerun",
+    "drake_images_to_rerun": "drake_rerun:DrakeImagesToRerun",
 }
 
 TRANSLATORS: Registry[Translator] = Registry(

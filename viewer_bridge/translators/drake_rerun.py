@@ -16,14 +16,18 @@ from __future__ import annotations
 
 from typing import Any
 
-from viewer_bridge.formats.rerun.chunks import Stamp
+from viewer_bridge.errors import BridgeError
+from viewer_bridge.formats.drake.image import read_image_array, unpack
+from viewer_bridge.formats.rerun.chunks import Stamp, entity_path, static_batch, timed_batch
+from viewer_bridge.formats.rerun.image import image_archetype, pinhole
 from viewer_bridge.formats.rerun.scene import scene_batches
 from viewer_bridge.formats.rerun.schema import encode_batches
 from viewer_bridge.formats.rerun.transforms import TransformsEncoder
-from viewer_bridge.translators.base import Output, Outputs
+from viewer_bridge.skipped import part_failed
+from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.drake_stream import DrakeTranslator, role_of
-from viewer_bridge.translators.options import FrameOptions
-from viewer_bridge.translators.types import RERUN_CHUNKS_TYPE
+from viewer_bridge.translators.options import CameraInfoOptions, FrameOptions
+from viewer_bridge.translators.types import IMAGE_ARRAY_TYPE, RERUN_CHUNKS_TYPE
 from viewer_bridge.transports.base import Received
 
 # The implicit frame of the root entity: the links' frames hang off the 3D view's own space.
@@ -55,4 +59,45 @@ class DrakeToRerun(DrakeTranslator):
                 path = "/" + "/".join((*root, "transforms")).lstrip("/")
                 self.encoder = TransformsEncoder(path, frames, frames.world_frame)
             batches.append(self.encoder.encode(poses, Stamp.of(poses.timestamp_ms * 1000, message.received_us)))
+        return [(0, encode_batches(batches))] if batches else []
+
+
+_CAMERA_CHANNEL = "DRAKE_RGBD_CAMERA_IMAGES"
+
+
+class RerunImagesOptions(TranslatorOptions):
+    camera: str | None = None  # the camera's entity name; None: the channel's suffix ("camera" for none)
+    camera_info: CameraInfoOptions | None = None  # a Pinhole above the images, from these intrinsics
+
+
+class DrakeImagesToRerun(Translator):
+    """`lcmt_image_array` -> each image under `/<camera>/<port>` (rgb, depth, label) at its sim time:
+    `Image`, `DepthImage` (metres) or `SegmentationImage`, under the camera's `Pinhole` (static,
+    once) when `camera_info` gives its intrinsics. An image that fails is counted alone."""
+
+    Options = RerunImagesOptions
+    options: RerunImagesOptions
+    reads = (IMAGE_ARRAY_TYPE,)
+    outputs = (Output("", RERUN_CHUNKS_TYPE),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._pinhole_sent = False
+
+    def translate(self, message: Received) -> Outputs:
+        suffix = message.channel.removeprefix(_CAMERA_CHANNEL).removeprefix("_")
+        camera = self.options.camera or suffix or "camera"
+        batches = []
+        if self.options.camera_info is not None and not self._pinhole_sent:
+            batches.append(static_batch(entity_path(camera), [pinhole(self.options.camera_info.intrinsics())]))
+            self._pinhole_sent = True
+        for packed in read_image_array(message.data).images:
+            try:
+                image = unpack(packed)
+                archetype = image_archetype(image)
+            except BridgeError as error:  # a bad image (DecodeError) or one Rerun cannot show (SceneError)
+                part_failed(error)
+                continue
+            stamp = Stamp.of(image.time_us, message.received_us)
+            batches.append(timed_batch(entity_path(camera, image.name), stamp, [archetype]))
         return [(0, encode_batches(batches))] if batches else []
