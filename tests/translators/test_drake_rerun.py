@@ -12,6 +12,9 @@ import pytest
 from rerun.chunk import RrdReader
 
 from tests.drake_images import publish_with_drake
+from viewer_bridge.formats.drake.draw import DrawEncoder
+from viewer_bridge.formats.drake.point_cloud import cloud_to_lcm
+from viewer_bridge.scene import LinkPoses, PointCloud, StampedPointCloud
 from viewer_bridge.translators import TRANSLATORS, LoadCache
 from viewer_bridge.translators.types import RERUN_CHUNKS_TYPE
 from viewer_bridge.transports.base import Qos, Received
@@ -52,3 +55,39 @@ def test_drakes_images_reach_rerun_with_drakes_pixels(tmp_path: Path, compress: 
     pinhole = rows["/drake/cameras/left"]
     assert pinhole["Pinhole:resolution"] == [[8.0, 6.0]]
     assert np.isclose(pinhole["Pinhole:image_from_camera"][0][0], 3.0)  # fx = height / 2 / tan(45 deg)
+
+
+def _through_file(tmp_path: Path, translator_name: str, channel: str, data: bytes, destination: str) -> dict[str, Any]:
+    translator = TRANSLATORS[translator_name]({}, LoadCache())
+    transport = RerunTransport(RerunSettings(path=tmp_path / "out.rrd"))
+    publisher = transport.publisher(destination, RERUN_CHUNKS_TYPE, Qos())
+    for _, payload in translator.translate(Received(channel, data)):
+        publisher.publish(payload)
+    transport.close()
+    return _rows(tmp_path / "out.rrd")
+
+
+def test_a_point_cloud_is_points_with_its_colours(tmp_path: Path) -> None:
+    points = np.array([[0.0, 1.0, 2.0], [3.0, 4.0, 5.0]])
+    colors = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    data = cloud_to_lcm(StampedPointCloud(PointCloud(points, colors), "world", 2_000_000))
+    rows = _through_file(tmp_path, "drake_point_cloud_to_rerun", "DRAKE_POINT_CLOUD_FOO", data, "/drake/point_cloud")
+    row = rows["/drake/point_cloud/foo"]
+    assert np.allclose(row["Points3D:positions"], points)
+    assert row["Points3D:colors"] == [0xFF0000FF, 0x00FF00FF]
+    assert row["CoordinateFrame:frame"] == ["tf#/"]
+    assert row["sim_time"].total_seconds() == 2.0
+
+
+def test_draw_frames_are_triads(tmp_path: Path) -> None:
+    poses = LinkPoses(
+        500, ("a", "b"), np.zeros(2, np.int32), np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 3.0]]),
+        np.array([[1.0, 0.0, 0.0, 0.0], [np.cos(np.pi / 4), 0.0, 0.0, np.sin(np.pi / 4)]]),
+    )  # fmt: skip
+    data = DrawEncoder().encode(poses)
+    rows = _through_file(tmp_path, "drake_draw_frames_to_rerun", "DRAKE_DRAW_FRAMES", data, "/drake/draw_frames")
+    row = rows["/drake/draw_frames"]
+    vectors = np.array(row["Arrows3D:vectors"])
+    assert np.allclose(row["Arrows3D:origins"], [[0, 0, 0]] * 3 + [[1, 2, 3]] * 3)
+    assert np.allclose(vectors[:3], np.eye(3) * 0.25, atol=1e-6)
+    assert np.allclose(vectors[3], [0.0, 0.25, 0.0], atol=1e-6)  # b turned 90 degrees about z: x along y

@@ -54,6 +54,8 @@ _BUILTINS = {
     "ros_image_to_drake": "drake_image:RosImageToDrake",
     "drake_to_rerun": "drake_rerun:DrakeToRerun",
     "drake_images_to_rerun": "drake_rerun:DrakeImagesToRerun",
+    "drake_point_cloud_to_rerun": "drake_rerun:DrakePointCloudToRerun",
+    "drake_draw_frames_to_rerun": "drake_rerun:DrakeDrawFramesToRerun",
 }
 
 TRANSLATORS: Registry[Translator] = Registry(

@@ -16,18 +16,22 @@ from __future__ import annotations
 
 from typing import Any
 
+from pydantic import Field
+
 from viewer_bridge.errors import BridgeError
 from viewer_bridge.formats.drake.image import read_image_array, unpack
+from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm
 from viewer_bridge.formats.rerun.chunks import Stamp, entity_path, static_batch, timed_batch
 from viewer_bridge.formats.rerun.image import image_archetype, pinhole
+from viewer_bridge.formats.rerun.point_cloud import cloud_archetypes, frame_arrows
 from viewer_bridge.formats.rerun.scene import scene_batches
 from viewer_bridge.formats.rerun.schema import encode_batches
 from viewer_bridge.formats.rerun.transforms import TransformsEncoder
 from viewer_bridge.skipped import part_failed
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from viewer_bridge.translators.drake_stream import DrakeTranslator, role_of
+from viewer_bridge.translators.drake_stream import DrakeTranslator, draw_poses, role_of
 from viewer_bridge.translators.options import CameraInfoOptions, FrameOptions
-from viewer_bridge.translators.types import IMAGE_ARRAY_TYPE, RERUN_CHUNKS_TYPE
+from viewer_bridge.translators.types import DRAW_TYPE, IMAGE_ARRAY_TYPE, POINT_CLOUD_TYPE, RERUN_CHUNKS_TYPE
 from viewer_bridge.transports.base import Received
 
 # The implicit frame of the root entity: the links' frames hang off the 3D view's own space.
@@ -101,3 +105,46 @@ class DrakeImagesToRerun(Translator):
             stamp = Stamp.of(image.time_us, message.received_us)
             batches.append(timed_batch(entity_path(camera, image.name), stamp, [archetype]))
         return [(0, encode_batches(batches))] if batches else []
+
+
+class PointCloudOptions(TranslatorOptions):
+    world_frame: str = ROOT_FRAME  # the frame of a cloud in Drake's world
+
+
+class DrakePointCloudToRerun(Translator):
+    """`lcmt_point_cloud` -> `Points3D` with its colours, in its frame, at its utime: the entity is
+    the channel's suffix, lower case (DRAKE_POINT_CLOUD_FOO -> foo; none: the destination itself)."""
+
+    Options = PointCloudOptions
+    options: PointCloudOptions
+    reads = (POINT_CLOUD_TYPE,)
+    outputs = (Output("", RERUN_CHUNKS_TYPE),)
+
+    def translate(self, message: Received) -> Outputs:
+        stamped = cloud_from_lcm(message.data)
+        name = message.channel.removeprefix("DRAKE_POINT_CLOUD").removeprefix("_").lower()
+        stamp = Stamp.of(stamped.time_us, message.received_us)
+        batch = timed_batch(entity_path(name), stamp, cloud_archetypes(stamped, self.options.world_frame))
+        return [(0, encode_batches([batch]))]
+
+
+class DrawFramesOptions(TranslatorOptions):
+    length: float = Field(0.25, gt=0)  # of each axis, in metres (meldis draws 0.25 m)
+    world_frame: str = ROOT_FRAME
+
+
+class DrakeDrawFramesToRerun(Translator):
+    """`lcmt_viewer_draw` of frames (DRAKE_DRAW_FRAMES) -> one `Arrows3D` of every frame's axes, at
+    the draw's time (red x, green y, blue z, as meldis draws them)."""
+
+    Options = DrawFramesOptions
+    options: DrawFramesOptions
+    reads = (DRAW_TYPE,)
+    outputs = (Output("", RERUN_CHUNKS_TYPE),)
+
+    def translate(self, message: Received) -> Outputs:
+        poses = draw_poses(message)
+        name = message.channel.removeprefix("DRAKE_DRAW_FRAMES").removeprefix("_").lower()
+        stamp = Stamp.of(poses.timestamp_ms * 1000, message.received_us)
+        archetypes = frame_arrows(poses, self.options.length, self.options.world_frame)
+        return [(0, encode_batches([timed_batch(entity_path(name), stamp, archetypes)]))]

@@ -165,7 +165,7 @@ class RerunTransport(Transport):
         def send(data: bytes) -> None:
             chunks = [chunk for batch in decode_batches(data) for chunk in Chunk.from_record_batch(batch)]
             if prefix:
-                chunks = [chunk.with_entity_path(prefix + chunk.entity_path) for chunk in chunks]
+                chunks = [chunk.with_entity_path(prefix + chunk.entity_path.rstrip("/")) for chunk in chunks]
             rr.send_chunks(chunks, recording=stream)
             with lock:
                 messages[name] += 1

@@ -83,12 +83,16 @@ class TransformsEncoder:
             "sim_time": _repeated(_DURATION, stamp.sim_ns, count),
             "Transform3D:child_frame": children,
             "Transform3D:parent_frame": parents,
-            "Transform3D:quaternion": self._rows(xyzw, 4),
-            "Transform3D:translation": self._rows(np.asarray(poses.positions, dtype=np.float32), 3),
+            "Transform3D:quaternion": self._rows(xyzw, "Transform3D:quaternion"),
+            "Transform3D:translation": self._rows(np.asarray(poses.positions, dtype=np.float32), "Transform3D:translation"),
         }
         return pa.RecordBatch.from_arrays([columns[name] for name in self._schema.names], schema=self._schema)
 
-    def _rows(self, values: npt.NDArray[np.float32], width: int) -> pa.Array:
-        """N x width floats as N rows of one fixed-size list each."""
+    def _rows(self, values: npt.NDArray[np.float32], column: str) -> pa.Array:
+        """N x width floats as N rows of one fixed-size list each, of the column's exact type (a
+        nullable float where the schema says not null would be cast: a copy per column)."""
+        kind = self._schema.field(column).type
         flat = pa.array(np.ascontiguousarray(values).reshape(-1))
-        return pa.ListArray.from_arrays(self._offsets, pa.FixedSizeListArray.from_arrays(flat, width))
+        return pa.ListArray.from_arrays(
+            self._offsets, pa.FixedSizeListArray.from_arrays(flat, type=kind.value_type), type=kind
+        )
