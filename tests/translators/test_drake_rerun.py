@@ -4,13 +4,16 @@ the pixels Drake sent, depth in metres, labels as classes, under the camera's Pi
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Any
 
+import drake as drake_lcmtypes
 import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
+from tests.conftest import lcm_url, record_log
 from tests.drake_images import publish_with_drake
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.point_cloud import cloud_to_lcm
@@ -18,7 +21,10 @@ from viewer_bridge.scene import LinkPoses, PointCloud, StampedPointCloud
 from viewer_bridge.translators import TRANSLATORS, LoadCache
 from viewer_bridge.translators.types import RERUN_CHUNKS_TYPE
 from viewer_bridge.transports.base import Qos, Received
+from viewer_bridge.transports.lcm import read_log
 from viewer_bridge.transports.rerun import RerunSettings, RerunTransport
+
+CONTACT_SCENE = Path(__file__).parents[1] / "drake_contact_scene.py"
 
 
 def _rows(path: Path) -> dict[str, dict[str, Any]]:
@@ -91,3 +97,28 @@ def test_draw_frames_are_triads(tmp_path: Path) -> None:
     assert np.allclose(row["Arrows3D:origins"], [[0, 0, 0]] * 3 + [[1, 2, 3]] * 3)
     assert np.allclose(vectors[:3], np.eye(3) * 0.25, atol=1e-6)
     assert np.allclose(vectors[3], [0.0, 0.25, 0.0], atol=1e-6)  # b turned 90 degrees about z: x along y
+
+
+@pytest.fixture(scope="module")
+def contact_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A pydrake simulation with point and hydroelastic contact, recorded by lcm-logger."""
+    folder = tmp_path_factory.mktemp("contacts")
+    url = lcm_url(33)
+    return record_log(folder / "contacts.lcmlog", url, [sys.executable, str(CONTACT_SCENE), url, "0.3", "0"])
+
+
+def test_drakes_contacts_are_arrows_and_pressure_coloured_surfaces(tmp_path: Path, contact_log: Path) -> None:
+    data = [event.data for event in read_log(contact_log, "CONTACT_RESULTS")][-1]
+    last = drake_lcmtypes.lcmt_contact_results_for_viz.decode(data)
+    assert last.num_point_pair_contacts and last.num_hydroelastic_contacts  # both kinds, from Drake
+    rows = _through_file(tmp_path, "drake_contacts_to_rerun", "CONTACT_RESULTS", data, "/drake/contacts")
+    forces = [list(p.contact_force) for p in last.point_pair_contact_info] + [
+        list(h.force_C_W) for h in last.hydroelastic_contacts
+    ]
+    vectors = np.array(rows["/drake/contacts/forces"]["Arrows3D:vectors"])
+    assert np.allclose(vectors, np.array(forces) * 0.01, atol=1e-5)  # force_scale: 0.01 m/N
+    surface = last.hydroelastic_contacts[0]
+    mesh = rows["/drake/contacts/surfaces/0"]
+    assert len(mesh["Mesh3D:vertex_positions"]) == surface.num_vertices
+    assert len(mesh["Mesh3D:vertex_colors"]) == surface.num_vertices
+    assert len(set(mesh["Mesh3D:vertex_colors"])) > 1  # coloured by pressure, not one colour

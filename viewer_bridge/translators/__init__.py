@@ -56,6 +56,7 @@ _BUILTINS = {
     "drake_images_to_rerun": "drake_rerun:DrakeImagesToRerun",
     "drake_point_cloud_to_rerun": "drake_rerun:DrakePointCloudToRerun",
     "drake_draw_frames_to_rerun": "drake_rerun:DrakeDrawFramesToRerun",
+    "drake_contacts_to_rerun": "drake_rerun:DrakeContactsToRerun",
 }
 
 TRANSLATORS: Registry[Translator] = Registry(

@@ -16,12 +16,16 @@ from __future__ import annotations
 
 from typing import Any
 
+import rerun as rr
 from pydantic import Field
 
+from viewer_bridge.contact import ContactDrawOptions
 from viewer_bridge.errors import BridgeError
+from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.drake.image import read_image_array, unpack
 from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm
 from viewer_bridge.formats.rerun.chunks import Stamp, entity_path, static_batch, timed_batch
+from viewer_bridge.formats.rerun.contact import contact_archetypes
 from viewer_bridge.formats.rerun.image import image_archetype, pinhole
 from viewer_bridge.formats.rerun.point_cloud import cloud_archetypes, frame_arrows
 from viewer_bridge.formats.rerun.scene import scene_batches
@@ -31,7 +35,13 @@ from viewer_bridge.skipped import part_failed
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.drake_stream import DrakeTranslator, draw_poses, role_of
 from viewer_bridge.translators.options import CameraInfoOptions, FrameOptions
-from viewer_bridge.translators.types import DRAW_TYPE, IMAGE_ARRAY_TYPE, POINT_CLOUD_TYPE, RERUN_CHUNKS_TYPE
+from viewer_bridge.translators.types import (
+    CONTACT_TYPE,
+    DRAW_TYPE,
+    IMAGE_ARRAY_TYPE,
+    POINT_CLOUD_TYPE,
+    RERUN_CHUNKS_TYPE,
+)
 from viewer_bridge.transports.base import Received
 
 # The implicit frame of the root entity: the links' frames hang off the 3D view's own space.
@@ -148,3 +158,36 @@ class DrakeDrawFramesToRerun(Translator):
         stamp = Stamp.of(poses.timestamp_ms * 1000, message.received_us)
         archetypes = frame_arrows(poses, self.options.length, self.options.world_frame)
         return [(0, encode_batches([timed_batch(entity_path(name), stamp, archetypes)]))]
+
+
+class ContactOptions(TranslatorOptions, ContactDrawOptions):
+    world_frame: str = ROOT_FRAME
+
+
+class DrakeContactsToRerun(Translator):
+    """`lcmt_contact_results_for_viz` -> `forces` and `moments` (Arrows3D) and `surfaces/<i>`
+    (Mesh3D, pressure-coloured) at the results' time; a surface that ends is cleared."""
+
+    Options = ContactOptions
+    options: ContactOptions
+    reads = (CONTACT_TYPE,)
+    outputs = (Output("", RERUN_CHUNKS_TYPE),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._surfaces = 0
+
+    def translate(self, message: Received) -> Outputs:
+        results = decode_contact_results(message.data)
+        stamp = Stamp.of(results.timestamp_us, message.received_us)
+        frame = rr.CoordinateFrame(self.options.world_frame)
+        entities = contact_archetypes(results, self.options)
+        batches = [
+            timed_batch(entity_path(*name.split("/")), stamp, [frame, *archetypes])
+            for name, archetypes in entities.items()
+        ]
+        surfaces = sum(name.startswith("surfaces/") for name in entities)
+        batches += [timed_batch(entity_path("surfaces", str(index)), stamp, [rr.Clear(recursive=False)])
+                    for index in range(surfaces, self._surfaces)]  # fmt: skip
+        self._surfaces = surfaces
+        return [(0, encode_batches(batches))]
