@@ -8,6 +8,11 @@ draw's time on the `sim_time` timeline and its receive time on `receive_time`
 included, so the illustration and proximity streams never share a frame; entities are rooted
 at the role (`proximity/plant/iiwa/iiwa_link_0`) under the route's destination (`/drake`).
 
+Beside it, what meldis shows besides the scene, each at its message's sim time:
+`drake_images_to_rerun` (cameras: Image, DepthImage, SegmentationImage under a Pinhole),
+`drake_point_cloud_to_rerun` (Points3D), `drake_draw_frames_to_rerun` (triads as Arrows3D),
+`drake_contacts_to_rerun` (force and moment arrows, pressure-coloured surfaces).
+
 Generic LCM channels (each numeric field as `Scalars` under `/lcm/<channel>/<field path>`) are
 to come as a translator of their own beside this one, reading the generic LCM message type.
 """
@@ -70,8 +75,7 @@ class DrakeToRerun(DrakeTranslator):
         batches = [] if scene is None else scene_batches(scene, root, frames)
         if poses is not None:
             if self.encoder is None:  # one stream per translator: its role is its first channel's
-                path = "/" + "/".join((*root, "transforms")).lstrip("/")
-                self.encoder = TransformsEncoder(path, frames, frames.world_frame)
+                self.encoder = TransformsEncoder(entity_path(*root, "transforms"), frames, frames.world_frame)
             batches.append(self.encoder.encode(poses, Stamp.of(poses.timestamp_ms * 1000, message.received_us)))
         return [(0, encode_batches(batches))] if batches else []
 
