@@ -34,7 +34,7 @@ def test_ros_codes_are_jazzys() -> None:
 
 
 def test_every_table_covers_every_shape() -> None:
-    assert format_names() == ["drake", "foxglove", "ign", "ros", "tree_viewer"]
+    assert format_names() == ["drake", "foxglove", "ign", "rerun", "ros", "tree_viewer"]
     for format_name in format_names():
         for table in tables(format_name).values():
             assert set(table.rules) == set(SHAPE_KINDS)

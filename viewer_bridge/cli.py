@@ -173,11 +173,11 @@ def _parser() -> argparse.ArgumentParser:
     )
 
     convert = commands.add_parser(
-        "convert", help="translate an LCM log into an MCAP file (ROS 2 or Foxglove)"
+        "convert", help="translate an LCM log into an MCAP file (ROS 2 or Foxglove) or a Rerun .rrd file"
     )
     convert.add_argument("log", type=input_file, help="an .lcmlog file")
     convert.add_argument(
-        "mcap", type=output_file(), help="the .mcap file to write (written as MCAP.partial until complete)"
+        "mcap", type=output_file(), help="the .mcap (or Rerun .rrd) file to write (written as NAME.partial until complete)"
     )
     convert.add_argument("-c", "--config", help="a YAML config whose LCM routes are used (default: built-in)")
     convert.add_argument(
@@ -365,10 +365,11 @@ def _lcm_url(config: BridgeConfig) -> str:
 
 
 def _convert(args: argparse.Namespace) -> int:
-    from viewer_bridge.log_convert import convert  # MCAP files: the foxglove extra, only for this command
+    from viewer_bridge.log_convert import convert, is_rrd  # MCAP: the foxglove extra; .rrd: rerun
 
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    config = _with_lcm_types(load_config(args.config), args.lcm_types)
+    # An .rrd file is a Rerun recording: builtin:rerun's routes unless a config is given.
+    config = _with_lcm_types(load_config(args.config or ("builtin:rerun" if is_rrd(args.mcap) else None)), args.lcm_types)
     # Ctrl-C (or a SIGTERM) stops after the message being converted: the MCAP is closed properly.
     stop = threading.Event()
     for signal_number in (signal.SIGINT, signal.SIGTERM):

@@ -28,6 +28,8 @@ EXTRAS: dict[str, str] = {
     "zenoh": "zenoh",
     "xxhash": "zenoh",
     "moderngl": "render",
+    "rerun": "rerun",
+    "pyarrow": "rerun",
 }
 
 

@@ -1,4 +1,5 @@
-"""Offline: an LCM log through the router's translators into an MCAP file (Foxglove opens it).
+"""Offline: an LCM log through the router's translators into an MCAP file (Foxglove opens it), or
+into a Rerun `.rrd` file (the output's extension says which).
 
 The config's routes whose translator reads LCM messages and writes the chosen schema family
 become a router whose every route ends in the `mcap` transport (viewer_bridge/transports/mcap.py), and
@@ -9,7 +10,9 @@ every event of the log is fed to it in order (`Router.feed`), as the live router
 * `foxglove`: Foxglove's protobuf messages (SceneUpdate, FrameTransforms), written by the
   foxglove-sdk's own MCAP writer, so the 3D panel works with no ROS message definitions.
 
-Messages carry the log's receive time. Nothing is lost: the output is never the input, an
+An output named `*.rrd` is a Rerun recording instead, written by the `rerun` transport
+(viewer_bridge/transports/rerun.py) from the routes that write Rerun chunks; `schema` is then
+not used. Messages carry the log's receive time. Nothing is lost: the output is never the input, an
 existing file is replaced only when asked (`force`), and the MCAP is written as `OUT.partial`,
 renamed to `OUT` once complete. Stopped midway (`stop` set, e.g. by Ctrl-C), the MCAP is closed
 properly (readable, with what was written so far) and left as `OUT.partial`: `Interrupted` says
@@ -27,7 +30,9 @@ import re
 import threading
 from collections import Counter
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -36,7 +41,8 @@ from viewer_bridge.errors import ConvertError, Interrupted
 from viewer_bridge.router import Router
 from viewer_bridge.status import Snapshot, held_of, routes_of
 from viewer_bridge.translators import TRANSLATORS
-from viewer_bridge.transports.base import LCM, Received
+from viewer_bridge.transports import TRANSPORTS
+from viewer_bridge.transports.base import LCM, MessageType, Received
 from viewer_bridge.transports.lcm import read_log
 from viewer_bridge.transports.mcap import McapTransport, Profile
 
@@ -54,7 +60,8 @@ def convert(
     stop: threading.Event | None = None,
     lcm_channels: str | None = None,
 ) -> dict[str, int]:
-    """Write the outputs of `config`'s LCM routes in the `schema` family for the log into an MCAP file.
+    """Write the outputs of `config`'s LCM routes in the `schema` family for the log into an MCAP file
+    (or, for an `.rrd` output, the routes that write Rerun chunks into a Rerun recording).
 
     Returns messages written per topic. Bad messages are counted per route and reported, as
     the live router does; they do not stop the conversion. Raises `ConvertError` before
@@ -66,13 +73,15 @@ def convert(
     _check_target(Path(log_path), target, force)
     events = read_log(log_path)
     first = next(events, None)  # a file that is not an LCM log fails here, before anything is written
-    writes = _distinct([_narrowed(route, lcm_channels) for route in config.routes if _lcm_to(schema, route)])
+    sink = _Sink.rerun(target) if is_rrd(target) else _Sink.mcap(target, schema)
+    held = [route for route in config.routes if _reads_lcm(route) and sink.holds(route)]
+    writes = _distinct([_narrowed(route, lcm_channels) for route in held])
     if not writes:
-        raise ConvertError(f"no route of {config_name} reads LCM and writes the {schema} schema")
+        raise ConvertError(f"no route of {config_name} reads LCM and writes {sink.what}")
     partial = target.with_name(target.name + ".partial")
-    router = Router(_into_mcap(config, writes, partial, schema), view=_RouteErrors())
-    mcap = router.transports["mcap"]
-    assert isinstance(mcap, McapTransport)
+    router = Router(_into(config, writes, sink, partial), view=_RouteErrors())
+    written = router.transports[sink.transport]
+    messages: Counter[str] = written.messages  # type: ignore[attr-defined]  # both file transports count
     stop = stop or threading.Event()
     try:
         with _progress_bar(Path(log_path).stat().st_size, progress) as advance:
@@ -85,19 +94,44 @@ def convert(
         router.close()
         partial.unlink(missing_ok=True)  # a failure midway leaves no file that looks like output
         raise
-    router.close()  # the MCAP file complete; each route's errors reported
+    router.close()  # the file complete; each route's errors reported
     if stop.is_set():
-        raise Interrupted(sum(mcap.messages.values()), partial)
+        raise Interrupted(sum(messages.values()), partial)
     os.replace(partial, target)
-    return dict(mcap.messages)
+    return dict(messages)
 
 
-def _lcm_to(schema: Profile, route: Route) -> bool:
-    """Whether a route reads LCM and writes only what an MCAP file of `schema` holds."""
-    translator = TRANSLATORS.get(route.translator)
-    return all(read.encoding == LCM for read in translator.reads) and all(
-        McapTransport.carries(written, schema) for written in translator.writes(route.translator_options())
-    )
+def is_rrd(path: str | Path) -> bool:
+    """Whether an output file is a Rerun recording (by its extension)."""
+    return Path(path).suffix.lower() == ".rrd"
+
+
+@dataclass(frozen=True, slots=True)
+class _Sink:
+    """The write-only transport a conversion ends in: its name, its settings, what it holds."""
+
+    transport: str
+    settings: dict[str, Any]
+    holds_type: Callable[[MessageType], bool]
+    what: str
+
+    @classmethod
+    def mcap(cls, target: Path, schema: Profile) -> _Sink:
+        return cls("mcap", {"profile": schema}, lambda kind: McapTransport.carries(kind, schema), f"the {schema} schema")
+
+    @classmethod
+    def rerun(cls, target: Path) -> _Sink:
+        rerun = TRANSPORTS.get("rerun")  # rerun-sdk: the rerun extra, only for .rrd files
+        return cls("rerun", {"connect": None, "serve": False}, rerun.carries, "Rerun chunks")
+
+    def holds(self, route: Route) -> bool:
+        """Whether the file holds everything the route writes."""
+        translator = TRANSLATORS.get(route.translator)
+        return all(self.holds_type(written) for written in translator.writes(route.translator_options()))
+
+
+def _reads_lcm(route: Route) -> bool:
+    return all(read.encoding == LCM for read in TRANSLATORS.get(route.translator).reads)
 
 
 def _distinct(routes: list[Route]) -> list[Route]:
@@ -134,8 +168,8 @@ def _narrowed(route: Route, channels: str | None) -> Route:
     )
 
 
-def _into_mcap(config: BridgeConfig, routes: list[Route], path: Path, schema: Profile) -> BridgeConfig:
-    """A config of `routes` (with `config`'s LCM types), read from LCM and written into the MCAP file `path`.
+def _into(config: BridgeConfig, routes: list[Route], sink: _Sink, path: Path) -> BridgeConfig:
+    """A config of `routes` (with `config`'s LCM types), read from LCM and written into `sink`'s file `path`.
 
     LCM is an in-process bus that is never started: the log's events are fed to the router by
     hand. No load cache: a load comes from the log, never from an earlier run.
@@ -143,14 +177,15 @@ def _into_mcap(config: BridgeConfig, routes: list[Route], path: Path, schema: Pr
     return BridgeConfig.model_validate(
         {
             "lcm": {"url": "memq://"},
-            "mcap": {"path": path, "profile": schema, "overwrite": True},  # a .partial left by an earlier run
+            # overwrite: a .partial left by an earlier run
+            sink.transport: {**sink.settings, "path": path, "overwrite": True},
             "lcm_types": config.lcm_types,
             "drake_lcm_types": config.drake_lcm_types,
             "routes": [
                 route.model_copy(
                     update={
                         "source": route.source.model_copy(update={"transport": "lcm"}),
-                        "destination": Endpoint(transport="mcap", name=route.destination.name),
+                        "destination": Endpoint(transport=sink.transport, name=route.destination.name),
                     }
                 )
                 for route in routes

@@ -18,6 +18,8 @@ from collections.abc import Mapping
 from importlib.metadata import entry_points
 from typing import Generic, TypeVar, cast
 
+from viewer_bridge.extras import missing
+
 Entry = TypeVar("Entry")
 
 
@@ -49,7 +51,10 @@ class Registry(Generic[Entry]):
     def _load(self, name: str) -> type[Entry]:
         if name in self._builtins:
             module, _, attribute = self._builtins[name].partition(":")
-            loaded = getattr(importlib.import_module(module), attribute)
+            try:
+                loaded = getattr(importlib.import_module(module), attribute)
+            except ImportError as error:  # a built-in whose optional dependency is not installed
+                raise missing(error, f"the {self.kind} {name}") from None
         else:
             points = [point for point in entry_points(group=self.group) if point.name == name]
             if not points:

@@ -5,8 +5,8 @@ markers in link frames, the way ROS consumes motion), `drake_foxglove` (Foxglove
 and FrameTransforms), `drake_point_cloud` (point clouds both ways, DRAKE_DRAW_FRAMES as
 triads), `drake_ign` (<-> ign/gz protobuf), `drake_contact` (contact results to all three),
 `drake_image` (camera images <-> ROS 2, and to Foxglove), `tree_viewer` (Director's remote tree
-viewer, both sides), `relay` (raw LCM onto another transport, unchanged), `lcm_generic` (any
-LCM type as its ROS 2 mapping). Families share only these: `base`
+viewer, both sides), `drake_rerun` (Rerun's archetypes), `relay` (raw LCM onto another transport,
+unchanged), `lcm_generic` (any LCM type as its ROS 2 mapping). Families share only these: `base`
 (what a translator is), `types` (the message types, each named once), `options` (options to
 inherit: markers, frames, ign names), `drake_stream` (the decode-once draw, and
 `DrakeTranslator`, the base that follows Drake's load/draw stream) and `load_cache` (the last
@@ -53,6 +53,11 @@ _BUILTINS = {
     "drake_images_to_ros": "drake_image:DrakeImagesToRos",
     "drake_images_to_foxglove": "drake_image:DrakeImagesToFoxglove",
     "ros_image_to_drake": "drake_image:RosImageToDrake",
+    "drake_to_rerun": "drake_rerun:DrakeToRerun",
+    "drake_images_to_rerun": "drake_rerun:DrakeImagesToRerun",
+    "drake_point_cloud_to_rerun": "drake_rerun:DrakePointCloudToRerun",
+    "drake_draw_frames_to_rerun": "drake_rerun:DrakeDrawFramesToRerun",
+    "drake_contacts_to_rerun": "drake_rerun:DrakeContactsToRerun",
 }
 
 TRANSLATORS: Registry[Translator] = Registry(

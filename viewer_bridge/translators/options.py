@@ -8,10 +8,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from pydantic import Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from viewer_bridge.formats.ign.schema import Package
 from viewer_bridge.formats.ros.tf import WORLD, FrameNames
+from viewer_bridge.image import Intrinsics
 from viewer_bridge.translators.base import TranslatorOptions
 from viewer_bridge.translators.drake_stream import role_of
 from viewer_bridge.translators.types import ign_type
@@ -51,7 +52,43 @@ class IgnOptions(TranslatorOptions):
         return ign_type(name, self.package)
 
 
+class CameraInfoOptions(BaseModel):
+    """A camera's intrinsics: its size and a field of view in degrees (as Drake's `CameraConfig`
+    gives it: vertical, horizontal or both), or focal lengths and principal point in pixels."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    width: int = Field(gt=0)
+    height: int = Field(gt=0)
+    fov_y: float | None = Field(None, gt=0, lt=180)
+    fov_x: float | None = Field(None, gt=0, lt=180)
+    fx: float | None = Field(None, gt=0)
+    fy: float | None = Field(None, gt=0)
+    cx: float | None = None  # None: the image's centre (width / 2 - 0.5), as Drake's
+    cy: float | None = None
+
+    @model_validator(mode="after")
+    def _one_way(self) -> CameraInfoOptions:
+        by_fov = self.fov_x is not None or self.fov_y is not None
+        by_focal = self.fx is not None and self.fy is not None
+        if by_fov == by_focal:
+            raise ValueError("give either fov_y (and/or fov_x), or fx and fy")
+        return self
+
+    def intrinsics(self) -> Intrinsics:
+        if self.fx is not None and self.fy is not None:
+            base = Intrinsics(
+                self.width, self.height, self.fx, self.fy, self.width / 2 - 0.5, self.height / 2 - 0.5
+            )
+        else:
+            base = Intrinsics.from_fov(self.width, self.height, self.fov_y, self.fov_x)
+        cx = base.cx if self.cx is None else self.cx
+        cy = base.cy if self.cy is None else self.cy
+        return Intrinsics(base.width, base.height, base.fx, base.fy, cx, cy)
+
+
 __all__ = [
+    "CameraInfoOptions",
     "FrameOptions",
     "IgnOptions",
     "MarkerOptions",

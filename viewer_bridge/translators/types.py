@@ -15,6 +15,7 @@ from viewer_bridge.formats.foxglove.schema import (
     SCENE_UPDATE,
 )
 from viewer_bridge.formats.ign.schema import Package, type_name
+from viewer_bridge.formats.rerun.schema import CHUNKS, RERUN
 from viewer_bridge.lcmcodec import (
     CONTACT_RESULTS,
     DRAW,
@@ -45,6 +46,8 @@ FRAME_TRANSFORMS_TYPE = MessageType(FRAME_TRANSFORMS, PROTOBUF)
 RAW_IMAGE_TYPE = MessageType(RAW_IMAGE, PROTOBUF)
 COMPRESSED_IMAGE_TYPE = MessageType(COMPRESSED_IMAGE, PROTOBUF)
 CAMERA_CALIBRATION_TYPE = MessageType(CAMERA_CALIBRATION, PROTOBUF)
+# Rerun's chunks (Arrow record batches), whatever archetypes they hold.
+RERUN_CHUNKS_TYPE = MessageType(CHUNKS, RERUN)
 
 
 def ros_type(name: str) -> MessageType:

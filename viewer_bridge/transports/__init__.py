@@ -1,4 +1,4 @@
-"""Transports: bytes in and out of LCM, ROS 2, ign-transport, Foxglove, MCAP files, Zenoh, and plugins'.
+"""Transports: bytes in and out of LCM, ROS 2, ign-transport, Foxglove, MCAP files, Zenoh, Rerun, and plugins'.
 
 `TRANSPORTS` is the registry a config's `transport:` words are looked up in. A plugin adds a
 transport with an entry point in the group `viewer_bridge.transports` naming a `Transport`
@@ -20,6 +20,7 @@ TRANSPORTS: Registry[Transport] = Registry(
         "foxglove": "viewer_bridge.transports.foxglove:FoxgloveTransport",
         "mcap": "viewer_bridge.transports.mcap:McapTransport",
         "zenoh": "viewer_bridge.transports.zenoh.transport:ZenohTransport",
+        "rerun": "viewer_bridge.transports.rerun:RerunTransport",
     },
     Transport,
 )

@@ -1,0 +1,188 @@
+"""The rerun transport: `.rrd` files read back with Rerun's own reader (`rerun.chunk.RrdReader`)
+for a pydrake simulation's log converted by `viewer-bridge convert LOG OUT.rrd`, and its bad
+input: a viewer that is not there, a file that cannot be written, a port in use."""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import sys
+from collections import defaultdict
+from datetime import timedelta
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import rerun as rr
+from rerun.chunk import RrdReader
+
+from tests.scenes import draw_of, small_scene
+from viewer_bridge.config import load_config
+from viewer_bridge.errors import ConvertError, TransportUnavailable
+from viewer_bridge.formats.drake.draw import poses_from_draw
+from viewer_bridge.formats.drake.load import decode_load, load_from_scene
+from viewer_bridge.lcmcodec import DRAW
+from viewer_bridge.log_convert import convert
+from viewer_bridge.router import Router
+from viewer_bridge.scene import Box, Capsule, Cylinder, Ellipsoid, MeshFile, Sphere, TriangleMesh, frame_name
+from viewer_bridge.transports.base import Received
+from viewer_bridge.transports.lcm import LcmEvent
+from viewer_bridge.transports.rerun import RerunSettings, RerunTransport
+
+
+def rows_by_entity(path: Path) -> dict[str, list[dict[str, Any]]]:
+    """Every row of the recording's chunks, by entity path (Rerun's reader, no code of ours)."""
+    rows: dict[str, list[dict[str, Any]]] = defaultdict(list)
+    for chunk in RrdReader(path).stream():
+        table = chunk.to_record_batch().to_pylist()
+        rows[chunk.entity_path].extend(table)
+    return rows
+
+
+@pytest.fixture(scope="module")
+def drake_rrd(drake_log: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("rerun") / "drake.rrd"
+    written = convert(drake_log, out, load_config("builtin:rerun"), progress=False)
+    assert written and not out.with_name("drake.rrd.partial").exists()
+    return out
+
+
+ROLES = {"ILLUSTRATION": "illustration", "PROXIMITY": "proximity"}
+
+
+def test_every_link_and_geometry_is_an_entity_with_the_loads_sizes(
+    drake_rrd: Path, drake_events: list[LcmEvent]
+) -> None:
+    rows = rows_by_entity(drake_rrd)
+    checked = 0
+    for role, root in ROLES.items():
+        scene = decode_load(next(e.data for e in drake_events if e.channel == f"DRAKE_VIEWER_LOAD_ROBOT_{role}"))
+        prefix = "" if root == "illustration" else "proximity/"
+        for link in scene.links:
+            if not link.geometries:
+                continue
+            path = "/drake/" + root + "/" + "/".join(rr.escape_entity_path_part(p) for p in link.name.split("::"))
+            frame = "tf#/" if link.name == "world" else prefix + frame_name(link.name)
+            assert rows[path][0]["CoordinateFrame:frame"] == [frame]
+            for index, geometry in enumerate(link.geometries):
+                (row,) = rows[f"{path}/{index}"]
+                assert np.allclose(row["InstancePoses3D:translations"][0], geometry.pose.position, atol=1e-6)
+                shape = geometry.shape
+                if isinstance(shape, Box):
+                    assert np.allclose(row["Boxes3D:half_sizes"][0], np.array(shape.size) / 2, rtol=1e-6)
+                elif isinstance(shape, Sphere):
+                    assert np.allclose(row["Ellipsoids3D:half_sizes"][0], [shape.radius] * 3, rtol=1e-6)
+                elif isinstance(shape, Ellipsoid):
+                    assert np.allclose(row["Ellipsoids3D:half_sizes"][0], shape.radii, rtol=1e-6)
+                elif isinstance(shape, Cylinder | Capsule):
+                    kind = "Cylinders3D" if isinstance(shape, Cylinder) else "Capsules3D"
+                    assert np.isclose(row[f"{kind}:lengths"][0], shape.length, rtol=1e-6)
+                    assert np.isclose(row[f"{kind}:radii"][0], shape.radius, rtol=1e-6)
+                elif isinstance(shape, TriangleMesh):
+                    assert len(row["Mesh3D:vertex_positions"]) == len(shape.vertices)
+                    assert len(row["Mesh3D:triangle_indices"]) == len(shape.triangles)
+                elif isinstance(shape, MeshFile):
+                    assert bytes(row["Asset3D:blob"][0]) == Path(shape.path).read_bytes()
+                else:
+                    continue
+                checked += 1
+    assert checked >= 4
+
+
+def test_transforms_equal_the_draws_at_their_sim_time(drake_rrd: Path, drake_events: list[LcmEvent]) -> None:
+    rows = rows_by_entity(drake_rrd)
+    for role, root in ROLES.items():
+        by_time: dict[int, dict[str, Any]] = defaultdict(dict)
+        for row in rows[f"/drake/{root}/transforms"]:
+            by_time[row["sim_time"] // timedelta(milliseconds=1)][row["Transform3D:child_frame"][0]] = row
+        channel = f"DRAKE_VIEWER_DRAW_{role}"
+        draws = [poses_from_draw(DRAW.decode(e.data)) for e in drake_events if e.channel == channel]
+        assert len(by_time) == len({draw.timestamp_ms for draw in draws}) > 1  # every draw recorded
+        prefix = "" if root == "illustration" else "proximity/"
+        for draw in draws:
+            frames = by_time[draw.timestamp_ms]
+            assert len(frames) == len(draw.names)
+            for row_index, name in enumerate(draw.names):
+                row = frames[prefix + frame_name(name)]
+                assert row["Transform3D:parent_frame"] == ["tf#/"]
+                assert np.allclose(row["Transform3D:translation"][0], draw.positions[row_index], atol=1e-6)
+                w, x, y, z = draw.quaternions_wxyz[row_index]
+                assert np.allclose(row["Transform3D:quaternion"][0], [x, y, z, w], atol=1e-6)
+
+
+def test_convert_refuses_as_for_mcap(drake_log: Path, drake_rrd: Path, tmp_path: Path) -> None:
+    with pytest.raises(ConvertError, match="exists"):
+        convert(drake_log, drake_rrd, load_config("builtin:rerun"), progress=False)
+    with pytest.raises(ConvertError, match="no route of the config reads LCM and writes Rerun chunks"):
+        convert(drake_log, tmp_path / "out.rrd", load_config("builtin:foxglove"), progress=False)
+    assert not list(tmp_path.iterdir())
+
+
+def test_cli_convert_picks_rerun_by_extension(drake_log: Path, tmp_path: Path) -> None:
+    out = tmp_path / "sim.rrd"
+    done = subprocess.run(
+        [sys.executable, "-m", "viewer_bridge.cli", "convert", str(drake_log), str(out)],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "/drake" in done.stdout and RrdReader(out).recordings()
+
+
+def _transport(tmp_path: Path, **settings: Any) -> RerunTransport:
+    return RerunTransport(RerunSettings(**settings))
+
+
+def test_a_file_that_cannot_be_written_is_one_line(tmp_path: Path) -> None:
+    with pytest.raises(TransportUnavailable, match=r"rerun.path\): No such file or directory$"):
+        _transport(tmp_path, path=tmp_path / "missing" / "out.rrd")
+    (tmp_path / "out.rrd").write_bytes(b"")
+    with pytest.raises(TransportUnavailable, match="exists"):
+        _transport(tmp_path, path=tmp_path / "out.rrd")
+    with pytest.raises(TransportUnavailable, match="no sink"):
+        _transport(tmp_path)
+
+
+def test_a_port_in_use_is_one_line(tmp_path: Path) -> None:
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        with pytest.raises(TransportUnavailable, match=rf"127.0.0.1:{port} \(rerun.grpc_port\): in use"):
+            _transport(tmp_path, serve=True, grpc_port=port, web_port=0)
+
+
+def _free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+def test_a_viewer_that_is_not_there_stops_nothing(tmp_path: Path) -> None:
+    """The gRPC sink to a closed port: the scene and every draw still reach the file beside it."""
+    out = tmp_path / "out.rrd"
+    router = Router(
+        load_config("builtin:rerun").model_copy(deep=True).model_validate(
+            {
+                "lcm": {"url": "memq://"},
+                "rerun": {"connect": f"rerun+http://127.0.0.1:{_free_port()}/proxy", "path": out},
+                "routes": [
+                    {
+                        "name": "scene",
+                        "source": {"transport": "lcm", "name": "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)"},
+                        "translator": "drake_to_rerun",
+                        "destination": {"transport": "rerun", "name": "/drake"},
+                    }
+                ],
+            }
+        )
+    )
+    scene = small_scene()
+    router.feed("lcm", Received("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(scene).encode()))
+    for step in range(20):
+        router.feed("lcm", Received("DRAKE_VIEWER_DRAW", draw_of(scene, step)))
+    router.close()
+    rows = rows_by_entity(out)
+    assert len({row["sim_time"] for row in rows["/drake/transforms"]}) == 20
+    drawn = [link for link in scene.links if link.geometries]
+    assert all("/drake/" + link.name.replace("::", "/") in rows for link in drawn)
