@@ -81,7 +81,7 @@ def test_parses_multiple_declarators_and_comments() -> None:
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("struct s { int32_t a[n]; }", "array size 'n' is not an earlier member"),
+        ("struct s { int32_t a[n]; }", "array size 'n' is neither a constant nor an earlier member"),
         ("struct s { double n; int32_t a[n]; }", "must be an integer scalar member"),
         ("struct s { int32_t a }", "expected ','"),
         ("struct s { int32_t a[0]; }", "array size must be positive"),

@@ -222,7 +222,8 @@ _ENCODE_ERRORS = (struct.error, OverflowError, TypeError, ValueError, AttributeE
 
 
 def _ident(full_name: str) -> str:
-    return full_name.replace(".", "_")
+    """A Python identifier for a type name, distinct for distinct names (`a_b.c` is not `a.b_c`)."""
+    return full_name.replace("_", "__").replace(".", "_D")
 
 
 class _Writer:
@@ -259,7 +260,7 @@ def _min_sizes(structs: Mapping[str, StructDef]) -> dict[str, int]:
         for member in struct.members:
             if any(dim.is_variable for dim in member.dims):
                 continue
-            count = math.prod(int(dim.size) for dim in member.dims)
+            count = math.prod(dim.count for dim in member.dims)
             total += count * _element_min_size(member, structs, parents + (struct.full_name,), size_of)
         sizes[struct.full_name] = total
         return total
@@ -287,8 +288,9 @@ def _element_min_size(
 class _StructGenerator:
     """Writes the class, the decoder and the encoder of one struct."""
 
-    def __init__(self, struct: StructDef, min_sizes: Mapping[str, int], out: _Writer) -> None:
+    def __init__(self, struct: StructDef, min_sizes: Mapping[str, int], out: _Writer, finite: bool = True) -> None:
         self.struct = struct
+        self.finite = finite
         self.min_sizes = min_sizes
         self.out = out
         self.ident = _ident(struct.full_name)
@@ -331,7 +333,7 @@ class _StructGenerator:
             return leaf
         if any(dim.is_variable for dim in member.dims):
             return 'b""' if member.type_name == "byte" and len(member.dims) == 1 else "[]"
-        shape = [int(dim.size) for dim in member.dims]
+        shape = [dim.count for dim in member.dims]
         if member.type_name == "byte":
             inner = f"bytes({shape[-1]})"
             shape = shape[:-1]
@@ -394,7 +396,7 @@ class _StructGenerator:
         out.line(f"{targets}{',' if len(members) == 1 else ''} = {packer}.unpack_from(buf, off)")
         position = 0
         for member, size in zip(members, sizes, strict=True):
-            if member.type_name in ("float", "double"):
+            if member.type_name in ("float", "double") and self.finite:
                 out.line(f"if not _isfinite(msg.{member.name}):")
                 with out.indent():
                     out.line(
@@ -445,7 +447,7 @@ class _StructGenerator:
         out, t, name = self.out, self.type_literal, member.name
         code, size = PRIMITIVE_FORMATS[member.type_name]
         out.line(f"array = _frombuffer(buf, '>{code}', count, off)")
-        if member.type_name in ("float", "double"):
+        if member.type_name in ("float", "double") and self.finite:
             out.line("if not _isfinite_array(array).all():")
             with out.indent():
                 out.line(f"_check_finite({t}, {name!r}, off, {size}, array.tolist(), shape)")
@@ -459,7 +461,7 @@ class _StructGenerator:
             out.line("flat = bytes(buf[off:off + count])")
         else:
             out.line(f"flat = _unpack_from('>%d{code}' % count, buf, off)")
-        if member.type_name in ("float", "double"):
+        if member.type_name in ("float", "double") and self.finite:
             out.line(f"_check_finite({t}, {name!r}, off, {size}, flat, shape)")
         elif member.type_name == "boolean":
             out.line("flat = [bool(v) for v in flat]")
@@ -592,11 +594,11 @@ def _flatten_bytes(value: Any, shape: Sequence[int], type_name: str, field: str)
     return b"".join(_flatten_bytes(row, shape[1:], type_name, f"{field}[{i}]") for i, row in enumerate(value))
 
 
-def generate_source(structs: Mapping[str, StructDef], min_sizes: Mapping[str, int]) -> str:
+def generate_source(structs: Mapping[str, StructDef], min_sizes: Mapping[str, int], finite: bool = True) -> str:
     """The Python source of every class, decoder and encoder for `structs`."""
     out = _Writer()
     for definition in structs.values():
-        generator = _StructGenerator(definition, min_sizes, out)
+        generator = _StructGenerator(definition, min_sizes, out, finite)
         generator.write_class()
         generator.write_decoder()
         generator.write_encoder()
@@ -605,8 +607,14 @@ def generate_source(structs: Mapping[str, StructDef], min_sizes: Mapping[str, in
     return "\n".join(out.lines) + "\n"
 
 
-def compile_codecs(structs: Mapping[str, StructDef]) -> dict[str, StructCodec]:
-    """Generate, compile and wrap the codecs of every struct in `structs`."""
+def compile_codecs(
+    structs: Mapping[str, StructDef], *, finite: bool = True, fingerprints: Mapping[str, int] | None = None
+) -> dict[str, StructCodec]:
+    """Generate, compile and wrap the codecs of every struct in `structs`.
+
+    `finite` refuses NaN and infinite floats (the viewer's messages never carry them); a generic
+    type's decoder passes them through. `fingerprints` overrides computed ones (an lcm-gen'd
+    class's own, which is what its publisher writes)."""
     namespace: dict[str, Any] = {
         "LcmMessage": LcmMessage,
         "DecodeError": DecodeError,
@@ -631,8 +639,8 @@ def compile_codecs(structs: Mapping[str, StructDef]) -> dict[str, StructCodec]:
         "_ENCODE_ERRORS": _ENCODE_ERRORS,
     }
     min_sizes = _min_sizes(structs)
-    source = generate_source(structs, min_sizes)
-    exec(compile(source, "<lcm codecs generated from lcmtypes/>", "exec"), namespace)  # noqa: S102
+    source = generate_source(structs, min_sizes, finite)
+    exec(compile(source, "<lcm codecs generated from lcm types>", "exec"), namespace)  # noqa: S102
     codecs: dict[str, StructCodec] = {}
     for name, definition in structs.items():
         ident = _ident(name)
@@ -640,7 +648,7 @@ def compile_codecs(structs: Mapping[str, StructDef]) -> dict[str, StructCodec]:
         codec = StructCodec(
             definition=definition,
             message_class=message_class,
-            fingerprint=fingerprint(definition, structs),
+            fingerprint=(fingerprints or {}).get(name) or fingerprint(definition, structs),
             min_size=min_sizes[name],
             _encode_body=namespace[f"{ident}_encode"],
             _decode_body=namespace[f"{ident}_decode"],

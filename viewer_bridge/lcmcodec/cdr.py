@@ -1,0 +1,298 @@
+"""LCM bytes -> ROS 2 CDR bytes, with code generated per type and compiled once.
+
+The generated function of a struct reads LCM's big-endian wire format and appends the CDR of the
+mapped ROS 2 message (docs/PROTOCOLS.md, "Any LCM type") to a list of byte chunks, keeping the
+CDR position for alignment. Nothing is built per field: a run of scalars is one `struct` unpack
+and one pack (the pack's padding chosen by the position modulo 8), a primitive array is one
+byte-swapped copy (Python's `array` for short ones, numpy for long ones), a byte array a slice;
+the chunks are joined once at the end.
+
+CDR (XCDR1, little-endian, as ROS 2 writes it): a 4-byte encapsulation header, then each
+primitive aligned to its own size counted from the end of the header; a sequence is a uint32
+count then its elements (aligned only when there is at least one); a string a uint32 length
+including a NUL, the UTF-8 bytes and the NUL; a nested message inline; an empty message the one
+`uint8` ROS 2 gives it.
+
+Bad input raises `DecodeError` naming the type, the field path and the byte offset: a wrong
+fingerprint, too few or too many bytes, a negative length, a count whose elements could not fit
+in the bytes that remain (checked before anything is allocated), a string without its NUL or not
+UTF-8. The reverse direction (CDR -> LCM) would be a second generator beside `_Generator`.
+"""
+
+from __future__ import annotations
+
+import struct
+import sys
+from array import array
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, STRING_MIN_SIZE, Member, StructDef
+from viewer_bridge.lcmcodec.serde import _bad_count, _min_sizes, _string_error, _truncated, _Writer
+
+__all__ = ["CDR_HEADER", "CdrTranscoder", "compile_transcoders"]
+
+Buffer = bytes | bytearray | memoryview
+Chunks = list[Any]  # what b"".join takes: bytes, memoryviews, arrays, numpy arrays
+CDR_HEADER = b"\x00\x01\x00\x00"  # CDR_LE, no options
+_LE_CODES = {"int8_t": "b", "int16_t": "h", "int32_t": "i", "int64_t": "q", "float": "f", "double": "d",
+             "boolean": "?", "byte": "B"}  # fmt: skip
+_SWAP_CODES = {2: "H", 4: "I", 8: "Q"}  # an array typecode of each size: byteswap only needs the size
+_NUMPY_FROM = 256  # elements; below this Python's array module swaps faster than numpy's call overhead
+_BOOLS = bytes([0] + [1] * 255)  # LCM reads any non-zero byte as true; CDR wants 0 or 1
+_ZEROS = [bytes(n) for n in range(8)]
+_COUNT_AFTER_PAD = [struct.Struct(f"<{pad}xI") for pad in range(4)]  # a uint32 after `pad` zero bytes
+_U32_BE = struct.Struct(">I").unpack_from
+_FIELD_FINGERPRINT = "<fingerprint>"
+
+
+@dataclass(frozen=True)
+class CdrTranscoder:
+    """The compiled LCM -> CDR path of one type."""
+
+    type_name: str
+    packed_fingerprint: bytes
+    _body: Callable[[memoryview, int, int, Chunks, int], tuple[int, int]]
+
+    def transcode(self, data: Buffer) -> bytes:
+        """A whole LCM message (fingerprint first) as CDR with its encapsulation header."""
+        view = memoryview(data)
+        if view.ndim != 1 or view.itemsize != 1:
+            view = view.cast("B")
+        end = len(view)
+        if view[:8] != self.packed_fingerprint:
+            found = bytes(view[:8]).hex()
+            raise DecodeError(
+                self.type_name, _FIELD_FINGERPRINT, 0,
+                f"fingerprint {found} is not {self.packed_fingerprint.hex()}" if end >= 8 else f"truncated: {end} bytes",
+            )  # fmt: skip
+        out: Chunks = [CDR_HEADER]
+        offset, _ = self._body(view, 8, end, out, 0)
+        if offset != end:
+            raise DecodeError(self.type_name, "<end>", offset, f"{end - offset} trailing bytes")
+        return b"".join(out)
+
+
+def _swapped(size: int) -> Callable[[memoryview, int, int], object]:
+    """A function returning `count` elements of `size` bytes at `offset`, each byte-reversed."""
+    code = _SWAP_CODES[size]
+    dtype = np.dtype(f"u{size}")
+
+    def swap(buf: memoryview, offset: int, count: int) -> object:
+        if count < _NUMPY_FROM:
+            items = array(code)
+            items.frombytes(buf[offset : offset + count * size])
+            items.byteswap()
+            return items
+        return np.frombuffer(buf, dtype, count, offset).byteswap()
+
+    return swap
+
+
+def _string(buf: memoryview, off: int, end: int, out: Chunks, pos: int, type_name: str, field: str) -> tuple[int, int]:
+    """One string: LCM's big-endian length to CDR's little-endian one (both count the NUL)."""
+    if off + 4 > end:
+        raise _string_error(type_name, field, buf, off, end)
+    (length,) = _U32_BE(buf, off)
+    stop = off + 4 + length
+    if length == 0 or stop > end or buf[stop - 1] != 0:
+        raise _string_error(type_name, field, buf, off, end)
+    try:
+        str(buf[off + 4 : stop - 1], "utf-8")
+    except UnicodeDecodeError:
+        raise _string_error(type_name, field, buf, off, end) from None
+    pad = -pos & 3
+    out.append(_COUNT_AFTER_PAD[pad].pack(length))
+    out.append(buf[off + 4 : stop])
+    return stop, pos + pad + 4 + length
+
+
+def _check_count(type_name: str, field: str, off: int, end: int, shape: tuple[int, ...], element: int) -> int:
+    """The element count of an array of `shape`, refused when negative or more than the bytes left."""
+    count = 1
+    for size in shape:
+        if size < 0:
+            raise _bad_count(type_name, field, off, size, element, end)
+        count *= size
+    if count * element > end - off:
+        raise _bad_count(type_name, field, off, count, element, end)
+    return count
+
+
+class _Generator:
+    """Writes the LCM -> CDR function of one struct."""
+
+    def __init__(self, struct_: StructDef, idents: Mapping[str, str], min_sizes: Mapping[str, int], out: _Writer,
+                 formats: dict[str, object]) -> None:  # fmt: skip
+        self.struct = struct_
+        self.idents = idents
+        self.min_sizes = min_sizes
+        self.out = out
+        self.formats = formats  # names the generated code uses -> the struct.Structs behind them
+        self.ident = idents[struct_.full_name]
+        self.t = repr(struct_.full_name)
+
+    def write(self) -> None:
+        out = self.out
+        out.line(f"def {self.ident}(buf, off, end, out, pos):")
+        with out.indent():
+            if not self.struct.members:  # ROS 2 gives an empty message one uint8
+                out.line("out.append(b'\\0')")
+                out.line("pos += 1")
+            for group in self.groups():
+                if isinstance(group, list):
+                    self.scalars(group)
+                else:
+                    self.member(group)
+            out.line("return off, pos")
+
+    def groups(self) -> Iterator[list[tuple[int, Member]] | tuple[int, Member]]:
+        run: list[tuple[int, Member]] = []
+        for index, member in enumerate(self.struct.members):
+            if member.type_name in PRIMITIVE_FORMATS and not member.dims:
+                run.append((index, member))
+                continue
+            if run:
+                yield run
+                run = []
+            yield index, member
+        if run:
+            yield run
+
+    def scalars(self, run: list[tuple[int, Member]]) -> None:
+        """Fixed scalars: one big-endian unpack, one little-endian pack padded for `pos % 8`."""
+        out = self.out
+        sizes = [PRIMITIVE_FORMATS[m.type_name][1] for _, m in run]
+        total = sum(sizes)
+        name = f"{self.ident}_S{len(self.formats)}"
+        self.formats[name] = struct.Struct(">" + "".join(PRIMITIVE_FORMATS[m.type_name][0] for _, m in run))
+        packers = []
+        for phase in range(8):
+            fmt, position = "<", phase
+            for (_, member), size in zip(run, sizes, strict=True):
+                pad = -position & (size - 1)
+                fmt += "x" * pad + _LE_CODES[member.type_name]
+                position += pad + size
+            packers.append(struct.Struct(fmt))
+        self.formats[name + "_LE"] = packers
+        self.formats[name + "_N"] = [packer.size for packer in packers]
+        out.line(f"if off + {total} > end:")
+        with out.indent():
+            position = 0
+            for (_, member), size in zip(run, sizes, strict=True):
+                out.line(f"if off + {position + size} > end:")
+                with out.indent():
+                    out.line(f"raise _truncated({self.t}, {member.name!r}, off + {position}, {size}, end)")
+                position += size
+        values = ", ".join(f"v{index}" for index, _ in run)
+        out.line(f"{values}{',' if len(run) == 1 else ''} = {name}.unpack_from(buf, off)")
+        out.line(f"off += {total}")
+        out.line("k = pos & 7")
+        out.line(f"out.append({name}_LE[k].pack({values}))")
+        out.line(f"pos += {name}_N[k]")
+
+    def member(self, indexed: tuple[int, Member]) -> None:
+        _, member = indexed
+        if not member.dims:
+            self.element(member, repr(member.name))
+            return
+        out = self.out
+        shape = ", ".join(
+            f"v{self.index_of(dim.size)}" if dim.is_variable else str(dim.count) for dim in member.dims
+        )
+        fixed = len(member.dims) == 1 and not member.dims[0].is_variable
+        element = max(self.element_min_size(member), 1)
+        out.line(f"n = _check_count({self.t}, {member.name!r}, off, end, ({shape},), {element})")
+        if not fixed:
+            out.line("p = -pos & 3")
+            out.line("out.append(_COUNT_AFTER_PAD[p].pack(n))")
+            out.line("pos += p + 4")
+        if member.type_name in ("byte", "int8_t"):
+            out.line("out.append(buf[off:off + n])")
+            out.line("off += n")
+            out.line("pos += n")
+        elif member.type_name == "boolean":
+            out.line("out.append(buf[off:off + n].tobytes().translate(_BOOLS))")
+            out.line("off += n")
+            out.line("pos += n")
+        elif member.type_name in PRIMITIVE_FORMATS:
+            size = PRIMITIVE_FORMATS[member.type_name][1]
+            # After a count the position is 4-aligned: only 8-byte elements may need padding.
+            if size == 8 or fixed:
+                out.line(f"p = -pos & {size - 1}")
+                out.line("if p and n:")
+                with out.indent():
+                    out.line("out.append(_ZEROS[p])")
+                    out.line("pos += p")
+            out.line(f"out.append(_swap{size}(buf, off, n))")
+            out.line(f"off += n * {size}")
+            out.line(f"pos += n * {size}")
+        else:
+            out.line("for i in range(n):")
+            with out.indent():
+                self.element(member, f"'{member.name}[%d]' % i")
+
+    def index_of(self, name: str) -> int:
+        return next(index for index, member in enumerate(self.struct.members) if member.name == name)
+
+    def element_min_size(self, member: Member) -> int:
+        if member.type_name == "string":
+            return STRING_MIN_SIZE
+        if member.type_name in PRIMITIVE_FORMATS:
+            return PRIMITIVE_FORMATS[member.type_name][1]
+        return self.min_sizes[member.type_name]
+
+    def element(self, member: Member, field: str) -> None:
+        out = self.out
+        if member.type_name == "string":
+            out.line(f"off, pos = _string(buf, off, end, out, pos, {self.t}, {field})")
+            return
+        out.line("try:")
+        with out.indent():
+            out.line(f"off, pos = {self.idents[member.type_name]}(buf, off, end, out, pos)")
+        out.line("except DecodeError as error:")
+        with out.indent():
+            out.line(f"raise error.within({self.t}, {field}) from None")
+
+
+def compile_transcoders(
+    structs: Mapping[str, StructDef], fingerprints: Mapping[str, bytes], names: Iterable[str]
+) -> dict[str, CdrTranscoder]:
+    """The transcoders of types `names` (none may contain itself; every nested type is in `structs`)."""
+    wanted = list(names)
+    needed: dict[str, None] = {}
+    pending = list(wanted)
+    while pending:
+        name = pending.pop()
+        if name not in needed:
+            needed[name] = None
+            pending.extend(m.type_name for m in structs[name].members if not m.is_primitive)
+    idents = {name: f"T{index}" for index, name in enumerate(needed)}
+    min_sizes = _min_sizes({name: structs[name] for name in needed})
+    out = _Writer()
+    formats: dict[str, object] = {}
+    for name in needed:
+        _Generator(structs[name], idents, min_sizes, out, formats).write()
+    namespace: dict[str, object] = {
+        "DecodeError": DecodeError,
+        "_truncated": _truncated,
+        "_check_count": _check_count,
+        "_string": _string,
+        "_COUNT_AFTER_PAD": _COUNT_AFTER_PAD,
+        "_ZEROS": _ZEROS,
+        "_BOOLS": _BOOLS,
+        **{f"_swap{size}": _swapped(size) for size in _SWAP_CODES},
+        **formats,
+    }
+    exec(compile("\n".join(out.lines) + "\n", "<lcm -> cdr transcoders>", "exec"), namespace)  # noqa: S102
+    return {
+        name: CdrTranscoder(name, fingerprints[name], namespace[idents[name]])  # type: ignore[arg-type]
+        for name in wanted
+    }
+
+
+assert sys.byteorder == "little", "the swaps assume a little-endian host"  # noqa: S101

@@ -1,0 +1,192 @@
+"""Every LCM type the bridge knows, and each one's ROS 2 face: names, definitions, CDR, JSON.
+
+Usage::
+
+    library = TypeLibrary.load(["path/to/lab_types/", "exlcm"])   # + lcmtypes/ + Drake's `drake`
+    known = library.for_data(data)                                 # by the first 8 bytes
+    if known is not None and known.ros_type is not None:
+        cdr = known.to_cdr(data)                                   # for /lcm/<channel>
+
+Types come from `.lcm` files, folders of them (searched recursively) and lcm-gen'd Python
+modules by import name; the project's own `lcmtypes/` always, and pydrake's `drake` module when
+it can be imported. All of them become the same `StructDef`s (`schema`), and one mapping
+(`rosmsg`) gives each its ROS 2 message or the reason it has none. The codecs are generated
+when first used, for every type at once.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import threading
+from collections.abc import Mapping, Sequence
+from functools import cached_property
+from pathlib import Path
+
+from viewer_bridge.errors import DecodeError, SchemaError
+from viewer_bridge.lcmcodec import STRUCTS
+from viewer_bridge.lcmcodec.cdr import CdrTranscoder, compile_transcoders
+from viewer_bridge.lcmcodec.jsonview import message_json
+from viewer_bridge.lcmcodec.pymodule import structs_from_module
+from viewer_bridge.lcmcodec.rosmsg import RosMapping, map_to_ros
+from viewer_bridge.lcmcodec.rosnames import ros_topic_for_channel
+from viewer_bridge.lcmcodec.schema import StructDef, check_references, fingerprint, load_lcm_files
+from viewer_bridge.lcmcodec.serde import Buffer, StructCodec, compile_codecs
+
+__all__ = ["LcmType", "TypeLibrary", "ros_topic_for_channel"]
+
+DRAKE_MODULE = "drake"  # pydrake's wheel ships Drake's lcm-gen'd types as this module
+
+
+class LcmType:
+    """One known LCM struct, and its ROS 2 face."""
+
+    def __init__(self, library: TypeLibrary, definition: StructDef, packed_fingerprint: bytes) -> None:
+        self._library = library
+        self.definition = definition
+        self.full_name = definition.full_name
+        self.packed_fingerprint = packed_fingerprint
+        self.source = definition.where
+        message = library._mapping.messages.get(self.full_name)
+        self.ros_type: str | None = message.ros_type if message else None
+        self.refused: str | None = library._mapping.refused.get(self.full_name)
+
+    def __repr__(self) -> str:
+        return f"LcmType({self.full_name!r}, ros_type={self.ros_type!r})"
+
+    @cached_property
+    def ros2msg(self) -> str:
+        """The `ros2msg` schema (MCAP, Foxglove): the definition, then each nested type's."""
+        self._require_ros()
+        return self._library._mapping.ros2msg(self.full_name)
+
+    @cached_property
+    def rihs01(self) -> str:
+        """`RIHS01_<64 hex>`, the type hash rmw_zenoh announces."""
+        self._require_ros()
+        return self._library._mapping.rihs01(self.full_name)
+
+    @property
+    def msg_definition(self) -> str:
+        """The `.msg` text of this type alone."""
+        self._require_ros()
+        return self._library._mapping.messages[self.full_name].definition
+
+    def to_cdr(self, data: Buffer) -> bytes:
+        """The whole LCM message (fingerprint included) as CDR, header included; bad bytes: DecodeError."""
+        if self.refused is not None:
+            raise DecodeError(self.full_name, "<type>", 0, f"has no ROS 2 form: {self.refused}")
+        return self._transcoder.transcode(data)
+
+    def to_json(self, data: Buffer, *, bytes_summary: bool = True) -> dict[str, object]:
+        """Every field, JSON-ready; byte arrays as size and CRC-32 unless `bytes_summary` is False."""
+        codec = self._library._codecs[self.full_name]
+        try:
+            message = codec.decode(data)
+        except RecursionError:  # a recursive type nested deeper than Python's stack
+            raise DecodeError(self.full_name, "<message>", 0, "nested too deeply") from None
+        return message_json(message, bytes_summary=bytes_summary)
+
+    @cached_property
+    def _transcoder(self) -> CdrTranscoder:
+        return self._library._transcoders[self.full_name]
+
+    def _require_ros(self) -> None:
+        if self.refused is not None:
+            raise KeyError(f"{self.full_name} has no ROS 2 form: {self.refused}")
+
+
+class TypeLibrary:
+    """The known LCM types, by full name and by fingerprint."""
+
+    def __init__(self, structs: Mapping[str, StructDef], fingerprints: Mapping[str, bytes], warnings: list[str]) -> None:
+        self._structs = dict(structs)
+        self._mapping: RosMapping = map_to_ros(self._structs)
+        self._lock = threading.Lock()
+        self.warnings = warnings + [
+            f"{name} ({structs[name].where}) has no ROS 2 form: {reason}"
+            for name, reason in self._mapping.refused.items()
+        ]
+        self._types = {name: LcmType(self, self._structs[name], fingerprints[name]) for name in self._structs}
+        self._by_fingerprint = {known.packed_fingerprint: known for known in self._types.values()}
+
+    @classmethod
+    def load(cls, sources: Sequence[str] = (), *, drake: bool = True) -> TypeLibrary:
+        """The project's types, Drake's (when `drake` and pydrake is installed), and `sources`:
+        `.lcm` files, folders of them, or importable lcm-gen'd Python module names.
+
+        A parse error is a `SchemaError` with file:line; one name defined twice with different
+        contents is one naming both places."""
+        structs: dict[str, StructDef] = dict(STRUCTS)
+        declared: dict[str, bytes] = {}  # a class's own fingerprint, which its publisher writes
+        modules = [DRAKE_MODULE] if drake and importlib.util.find_spec(DRAKE_MODULE) is not None else []
+        for source in sources:
+            path = Path(source)
+            if path.is_dir():
+                _merge(structs, load_lcm_files(sorted(path.rglob("*.lcm"))))
+            elif path.is_file():
+                _merge(structs, load_lcm_files([path]))
+            elif _looks_like_module(source):
+                modules.append(source)
+            else:
+                raise SchemaError(source, 0, "no such .lcm file, folder or importable module")
+        for module in modules:
+            loaded = structs_from_module(module)
+            _merge(structs, {name: definition for name, (definition, _) in loaded.items()})
+            for name, (_, packed) in loaded.items():
+                declared.setdefault(name, packed)
+        check_references(structs)
+        warnings: list[str] = []
+        fingerprints: dict[str, bytes] = {}
+        for name, definition in structs.items():
+            computed = fingerprint(definition, structs).to_bytes(8, "big")
+            fingerprints[name] = declared.get(name, computed)
+            if fingerprints[name] != computed:
+                warnings.append(
+                    f"{name} ({definition.where}): its class's fingerprint {fingerprints[name].hex()} is not "
+                    f"the {computed.hex()} its description gives; using the class's"
+                )
+        return cls(structs, fingerprints, warnings)
+
+    def for_data(self, data: Buffer) -> LcmType | None:
+        """The type whose fingerprint starts `data`, or None."""
+        return self._by_fingerprint.get(bytes(data[:8]))
+
+    def get(self, full_name: str) -> LcmType:
+        """The type named `full_name` (`drake.lcmt_iiwa_status`); KeyError if unknown."""
+        return self._types[full_name]
+
+    def types(self) -> list[LcmType]:
+        """Every known type, sorted by full name."""
+        return [self._types[name] for name in sorted(self._types)]
+
+    def ros_definitions(self) -> dict[str, str]:
+        """`pkg/msg/Name` -> `.msg` text of every type that has a ROS 2 form."""
+        return {message.ros_type: message.definition for message in self._mapping.messages.values()}
+
+    @cached_property
+    def _transcoders(self) -> dict[str, CdrTranscoder]:
+        with self._lock:
+            fingerprints = {name: known.packed_fingerprint for name, known in self._types.items()}
+            return compile_transcoders(self._structs, fingerprints, list(self._mapping.messages))
+
+    @cached_property
+    def _codecs(self) -> dict[str, StructCodec]:
+        with self._lock:
+            fingerprints = {name: int.from_bytes(known.packed_fingerprint, "big") for name, known in self._types.items()}
+            return compile_codecs(self._structs, finite=False, fingerprints=fingerprints)
+
+
+def _merge(structs: dict[str, StructDef], new: Mapping[str, StructDef]) -> None:
+    """Add `new`; a name already known must have the same members (what its fingerprint covers)."""
+    for name, definition in new.items():
+        known = structs.get(name)
+        if known is None:
+            structs[name] = definition
+        elif known.base_hash() != definition.base_hash():
+            raise SchemaError(
+                definition.source, definition.line, f"type {name} differs from its definition at {known.where}"
+            )
+
+
+def _looks_like_module(source: str) -> bool:
+    return all(part.isidentifier() for part in source.split(".")) and not source.endswith(".lcm")
