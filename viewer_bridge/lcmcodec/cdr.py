@@ -26,6 +26,7 @@ import sys
 from array import array
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -93,7 +94,9 @@ def _swapped(size: int) -> Callable[[memoryview, int, int], object]:
     return swap
 
 
-def _string(buf: memoryview, off: int, end: int, out: Chunks, pos: int, type_name: str, field: str) -> tuple[int, int]:
+def _string(
+    buf: memoryview, off: int, end: int, out: Chunks, pos: int, type_name: str, field: str
+) -> tuple[int, int]:
     """One string: LCM's big-endian length to CDR's little-endian one (both count the NUL)."""
     if off + 4 > end:
         raise _string_error(type_name, field, buf, off, end)
@@ -109,6 +112,23 @@ def _string(buf: memoryview, off: int, end: int, out: Chunks, pos: int, type_nam
     out.append(_COUNT_AFTER_PAD[pad].pack(length))
     out.append(buf[off + 4 : stop])
     return stop, pos + pad + 4 + length
+
+
+@lru_cache(maxsize=4096)
+def _glue(phase: int, count: int, size: int, sequence: bool) -> tuple[bytes, int]:
+    """The bytes before an array of `count` elements of `size` bytes at a position of `phase`
+    modulo 8 (padding, and a sequence's uint32 count), and how far the position moves in all."""
+    glue = b""
+    position = phase
+    if sequence:
+        pad = -position & 3
+        glue = _COUNT_AFTER_PAD[pad].pack(count)
+        position += pad + 4
+    if count:  # an empty array is not aligned (as rosbags and Fast CDR write it)
+        pad = -position & (size - 1)
+        glue += bytes(pad)
+        position += pad + count * size
+    return glue, position - phase
 
 
 def _check_count(type_name: str, field: str, off: int, end: int, shape: tuple[int, ...], element: int) -> int:
@@ -143,25 +163,83 @@ class _Generator:
             if not self.struct.members:  # ROS 2 gives an empty message one uint8
                 out.line("out.append(b'\\0')")
                 out.line("pos += 1")
-            for group in self.groups():
-                if isinstance(group, list):
+            for kind, group in self.groups():
+                if kind == "scalars":
                     self.scalars(group)
+                elif kind == "arrays":
+                    self.swapped_arrays(group)
                 else:
-                    self.member(group)
+                    self.member(group[0])
             out.line("return off, pos")
 
-    def groups(self) -> Iterator[list[tuple[int, Member]] | tuple[int, Member]]:
+    def groups(self) -> Iterator[tuple[str, list[tuple[int, Member]]]]:
+        """Runs of scalars, runs of primitive arrays of one element size (swapped in one go), and
+        each other member alone."""
+        kind = ""
         run: list[tuple[int, Member]] = []
         for index, member in enumerate(self.struct.members):
             if member.type_name in PRIMITIVE_FORMATS and not member.dims:
-                run.append((index, member))
-                continue
-            if run:
-                yield run
+                this = "scalars"
+            elif member.type_name in PRIMITIVE_FORMATS and PRIMITIVE_FORMATS[member.type_name][1] > 1:
+                this = f"arrays{PRIMITIVE_FORMATS[member.type_name][1]}"
+            else:
+                this = "other"
+            if run and (this != kind or this == "other"):
+                yield kind.rstrip("248"), run
                 run = []
-            yield index, member
+            kind = this
+            run.append((index, member))
         if run:
-            yield run
+            yield kind.rstrip("248"), run
+
+    def swapped_arrays(self, run: list[tuple[int, Member]]) -> None:
+        """Consecutive arrays of one element size: lengths checked, one byte swap, then per array
+        its count (a sequence's) and padding, and its slice of the swapped elements."""
+        out = self.out
+        size = PRIMITIVE_FORMATS[run[0][1].type_name][1]
+        counts = []
+        for number, (_, member) in enumerate(run):
+            count = f"n{number}"
+            counts.append(count)
+            before = " + ".join(counts[:-1]) or "0"
+            variable = [dim for dim in member.dims if dim.is_variable]
+            if len(member.dims) == 1 and variable:
+                out.line(f"{count} = v{self.index_of(variable[0].size)}")
+                out.line(f"if {count} < 0 or ({before} + {count}) * {size} > end - off:")
+                with out.indent():
+                    out.line(f"raise _bad_count({self.t}, {member.name!r}, off + ({before}) * {size}, "
+                             f"{count}, {size}, end)")  # fmt: skip
+            else:
+                out.line(
+                    f"{count} = _check_count({self.t}, {member.name!r}, off + ({before}) * {size}, end, "
+                    f"({self.shape(member)},), {size})"
+                )
+        total = " + ".join(counts)
+        out.line(f"if ({total}) * {size} > end - off:")
+        with out.indent():
+            out.line(f"raise _bad_count({self.t}, {run[-1][1].name!r}, off, {total}, {size}, end)")
+        out.line(f"swapped = _swap{size}(buf, off, {total})")
+        if len(run) > 1:
+            out.line("swapped = _view(swapped)")
+        start = "0"
+        for number, (_, member) in enumerate(run):
+            count = counts[number]
+            sequence = not (len(member.dims) == 1 and not member.dims[0].is_variable)
+            # What goes before the elements (padding, a sequence's count) and the position after
+            # them depend on the position modulo 8 and the count only: cached per pair.
+            out.line(f"glue, step = _glue(pos & 7, {count}, {size}, {sequence})")
+            out.line("out.append(glue)")
+            out.line(
+                f"out.append(swapped[{start}:{start} + {count}])" if len(run) > 1 else "out.append(swapped)"
+            )
+            out.line("pos += step")
+            start = f"{start} + {count}" if start != "0" else count
+        out.line(f"off += ({total}) * {size}")
+
+    def shape(self, member: Member) -> str:
+        return ", ".join(
+            f"v{self.index_of(dim.size)}" if dim.is_variable else str(dim.count) for dim in member.dims
+        )
 
     def scalars(self, run: list[tuple[int, Member]]) -> None:
         """Fixed scalars: one big-endian unpack, one little-endian pack padded for `pos % 8`."""
@@ -201,9 +279,7 @@ class _Generator:
             self.element(member, repr(member.name))
             return
         out = self.out
-        shape = ", ".join(
-            f"v{self.index_of(dim.size)}" if dim.is_variable else str(dim.count) for dim in member.dims
-        )
+        shape = self.shape(member)
         fixed = len(member.dims) == 1 and not member.dims[0].is_variable
         element = max(self.element_min_size(member), 1)
         out.line(f"n = _check_count({self.t}, {member.name!r}, off, end, ({shape},), {element})")
@@ -219,18 +295,6 @@ class _Generator:
             out.line("out.append(buf[off:off + n].tobytes().translate(_BOOLS))")
             out.line("off += n")
             out.line("pos += n")
-        elif member.type_name in PRIMITIVE_FORMATS:
-            size = PRIMITIVE_FORMATS[member.type_name][1]
-            # After a count the position is 4-aligned: only 8-byte elements may need padding.
-            if size == 8 or fixed:
-                out.line(f"p = -pos & {size - 1}")
-                out.line("if p and n:")
-                with out.indent():
-                    out.line("out.append(_ZEROS[p])")
-                    out.line("pos += p")
-            out.line(f"out.append(_swap{size}(buf, off, n))")
-            out.line(f"off += n * {size}")
-            out.line(f"pos += n * {size}")
         else:
             out.line("for i in range(n):")
             with out.indent():
@@ -284,6 +348,9 @@ def compile_transcoders(
         "_string": _string,
         "_COUNT_AFTER_PAD": _COUNT_AFTER_PAD,
         "_ZEROS": _ZEROS,
+        "_bad_count": _bad_count,
+        "_glue": _glue,
+        "_view": memoryview,
         "_BOOLS": _BOOLS,
         **{f"_swap{size}": _swapped(size) for size in _SWAP_CODES},
         **formats,

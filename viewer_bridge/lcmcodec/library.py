@@ -98,7 +98,9 @@ class LcmType:
 class TypeLibrary:
     """The known LCM types, by full name and by fingerprint."""
 
-    def __init__(self, structs: Mapping[str, StructDef], fingerprints: Mapping[str, bytes], warnings: list[str]) -> None:
+    def __init__(
+        self, structs: Mapping[str, StructDef], fingerprints: Mapping[str, bytes], warnings: list[str]
+    ) -> None:
         self._structs = dict(structs)
         self._mapping: RosMapping = map_to_ros(self._structs)
         self._lock = threading.Lock()
@@ -172,7 +174,9 @@ class TypeLibrary:
     @cached_property
     def _codecs(self) -> dict[str, StructCodec]:
         with self._lock:
-            fingerprints = {name: int.from_bytes(known.packed_fingerprint, "big") for name, known in self._types.items()}
+            fingerprints = {
+                name: int.from_bytes(known.packed_fingerprint, "big") for name, known in self._types.items()
+            }
             return compile_codecs(self._structs, finite=False, fingerprints=fingerprints)
 
 
@@ -184,7 +188,9 @@ def _merge(structs: dict[str, StructDef], new: Mapping[str, StructDef]) -> None:
             structs[name] = definition
         elif known.base_hash() != definition.base_hash():
             raise SchemaError(
-                definition.source, definition.line, f"type {name} differs from its definition at {known.where}"
+                definition.source,
+                definition.line,
+                f"type {name} differs from its definition at {known.where}",
             )
 
 

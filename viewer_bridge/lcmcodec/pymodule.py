@@ -64,7 +64,9 @@ def struct_from_class(cls: Any, source: str) -> StructDef:
     package, name = _full_name(cls)
     slots, typenames, dimensions = list(cls.__slots__), list(cls.__typenames__), list(cls.__dimensions__)
     if not len(slots) == len(typenames) == len(dimensions):
-        raise SchemaError(source, 0, f"{cls.__name__}: __slots__, __typenames__, __dimensions__ differ in length")
+        raise SchemaError(
+            source, 0, f"{cls.__name__}: __slots__, __typenames__, __dimensions__ differ in length"
+        )
     members = tuple(
         Member(member, typename, _dims(dims, slots[:index], cls, source))
         for index, (member, typename, dims) in enumerate(zip(slots, typenames, dimensions, strict=True))
@@ -95,7 +97,9 @@ def _dims(dims: object, earlier: list[str], cls: Any, source: str) -> tuple[Dime
         elif isinstance(size, str) and size in earlier:
             result.append(Dimension(size, is_variable=True))
         else:
-            raise SchemaError(source, 0, f"{cls.__name__}: array size {size!r} is neither positive nor an earlier member")
+            raise SchemaError(
+                source, 0, f"{cls.__name__}: array size {size!r} is neither positive nor an earlier member"
+            )
     return tuple(result)
 
 

@@ -157,7 +157,9 @@ def message_text(struct: StructDef, messages: Mapping[str, RosMessage]) -> str:
         _claim(used, name, constant.name)
         if isinstance(constant.value, float) and not math.isfinite(constant.value):
             raise NameRefused(f"constant {constant.name!r} is {constant.value}, which ROS 2 cannot write")
-        value = repr(float(constant.value)) if constant.type_name in ("float", "double") else str(constant.value)
+        value = (
+            repr(float(constant.value)) if constant.type_name in ("float", "double") else str(constant.value)
+        )
         lines.extend(f"# {line}" for line in constant.comment.splitlines())
         lines.append(f"{ROS_PRIMITIVES[constant.type_name]} {name}={value}")
     used = {}

@@ -296,7 +296,7 @@ class _Parser:
 
     def parse_constants(self, comment: str) -> Iterator[Constant]:
         type_name = self.take()
-        if type_name not in PRIMITIVE_FORMATS or type_name == "boolean":
+        if type_name not in PRIMITIVE_FORMATS or type_name in ("boolean", "byte"):  # as lcm-gen
             self.index -= 1
             raise self.error(f"a constant must have a numeric type, not {type_name!r}")
         while True:
