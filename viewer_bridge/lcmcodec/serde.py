@@ -9,6 +9,7 @@ wrong raises one `DecodeError` naming the type, the field path and the byte offs
 
 from __future__ import annotations
 
+import itertools
 import math
 import struct
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -138,7 +139,7 @@ def _nest(flat: Sequence[Any], shape: Sequence[int], leaf: Callable[[Any], Any])
     if len(shape) == 1:
         return leaf(flat)
     step = math.prod(shape[1:])
-    if len(shape) == 2:  # the common case (e.g. position[num_links][3]), kept flat for speed
+    if len(shape) == 2 and step:  # the common case (e.g. position[num_links][3]), kept flat for speed
         return [leaf(flat[start : start + step]) for start in range(0, shape[0] * step, step)]
     return [_nest(flat[i * step : (i + 1) * step], shape[1:], leaf) for i in range(shape[0])]
 
@@ -332,7 +333,12 @@ class _StructGenerator:
         if not member.dims:
             return leaf
         if any(dim.is_variable for dim in member.dims):
-            return 'b""' if member.type_name == "byte" and len(member.dims) == 1 else "[]"
+            # Fixed dimensions before the first variable one are filled (`[4][n]` -> four empty rows).
+            fixed = [dim.count for dim in itertools.takewhile(lambda dim: not dim.is_variable, member.dims)]
+            inner = 'b""' if member.type_name == "byte" and len(member.dims) == len(fixed) + 1 else "[]"
+            for size in reversed(fixed):
+                inner = f"[{inner} for _ in range({size})]"
+            return inner
         shape = [dim.count for dim in member.dims]
         if member.type_name == "byte":
             inner = f"bytes({shape[-1]})"
