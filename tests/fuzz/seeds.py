@@ -31,7 +31,15 @@ from viewer_bridge.formats.gltf import write_gltf
 from viewer_bridge.formats.ign.model import model
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.requests import draw_request, load_requests
-from viewer_bridge.lcmcodec import DRAW, LOAD_ROBOT, SCHEMA_DIR, VIEWER2_COMMS, LcmMessage, StructCodec, codec_for
+from viewer_bridge.lcmcodec import (
+    DRAW,
+    LOAD_ROBOT,
+    SCHEMA_DIR,
+    VIEWER2_COMMS,
+    LcmMessage,
+    StructCodec,
+    codec_for,
+)
 from viewer_bridge.scene import Scene
 from viewer_bridge.transports.ign_discovery import STATISTICS_VERSION, WIRE_VERSION, Record, datagram
 
