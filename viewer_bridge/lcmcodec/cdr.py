@@ -32,8 +32,16 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, STRING_MIN_SIZE, Member, StructDef
-from viewer_bridge.lcmcodec.serde import _bad_count, _min_sizes, _string_error, _truncated, _Writer
+from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
+from viewer_bridge.lcmcodec.serde import (
+    _bad_count,
+    _min_sizes,
+    _string_error,
+    _truncated,
+    _Writer,
+    call_child,
+    element_min_size,
+)
 
 __all__ = ["CDR_HEADER", "CdrTranscoder", "compile_transcoders"]
 
@@ -281,7 +289,7 @@ class _Generator:
         out = self.out
         shape = self.shape(member)
         fixed = len(member.dims) == 1 and not member.dims[0].is_variable
-        element = max(self.element_min_size(member), 1)
+        element = max(element_min_size(member, self.min_sizes), 1)
         out.line(f"n = _check_count({self.t}, {member.name!r}, off, end, ({shape},), {element})")
         if not fixed:
             out.line("p = -pos & 3")
@@ -303,24 +311,13 @@ class _Generator:
     def index_of(self, name: str) -> int:
         return next(index for index, member in enumerate(self.struct.members) if member.name == name)
 
-    def element_min_size(self, member: Member) -> int:
-        if member.type_name == "string":
-            return STRING_MIN_SIZE
-        if member.type_name in PRIMITIVE_FORMATS:
-            return PRIMITIVE_FORMATS[member.type_name][1]
-        return self.min_sizes[member.type_name]
-
     def element(self, member: Member, field: str) -> None:
         out = self.out
         if member.type_name == "string":
             out.line(f"off, pos = _string(buf, off, end, out, pos, {self.t}, {field})")
             return
-        out.line("try:")
-        with out.indent():
-            out.line(f"off, pos = {self.idents[member.type_name]}(buf, off, end, out, pos)")
-        out.line("except DecodeError as error:")
-        with out.indent():
-            out.line(f"raise error.within({self.t}, {field}) from None")
+        statement = f"off, pos = {self.idents[member.type_name]}(buf, off, end, out, pos)"
+        call_child(out, statement, "DecodeError", self.t, field)
 
 
 def compile_transcoders(

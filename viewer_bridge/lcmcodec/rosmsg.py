@@ -67,11 +67,11 @@ class RosMapping:
     def ros2msg(self, lcm_name: str) -> str:
         """The MCAP `ros2msg` schema: the definition, then each nested type's after a separator."""
         main = self.messages[lcm_name]
-        parts = [main.definition]
+        parts = [main.definition.rstrip("\n")]
         for nested in self.closure(lcm_name):
             message = self.messages[nested]
-            parts.append(f"{SCHEMA_SEPARATOR}\nMSG: {message.short_type}\n{message.definition}")
-        return "\n".join(parts)
+            parts.append(f"{SCHEMA_SEPARATOR}\nMSG: {message.short_type}\n{message.definition.rstrip()}")
+        return "\n".join(parts) + "\n"
 
     def closure(self, lcm_name: str) -> list[str]:
         """Every type nested in `lcm_name`, at any depth, each once, in first-use order."""

@@ -286,6 +286,26 @@ def _element_min_size(
     return size_of(structs[member.type_name], parents)
 
 
+def call_child(out: _Writer, statement: str, error_class: str, type_literal: str, field: str) -> None:
+    """Write `statement` (a child struct's codec) so that its error is re-homed under the type
+    `type_literal` (a Python literal) and `field` (an expression)."""
+    out.line("try:")
+    with out.indent():
+        out.line(statement)
+    out.line(f"except {error_class} as error:")
+    with out.indent():
+        out.line(f"raise error.within({type_literal}, {field}) from None")
+
+
+def element_min_size(member: Member, min_sizes: Mapping[str, int]) -> int:
+    """The fewest bytes one element of `member` takes (`min_sizes`: each struct's, from `_min_sizes`)."""
+    if member.type_name == "string":
+        return STRING_MIN_SIZE
+    if member.type_name in PRIMITIVE_FORMATS:
+        return PRIMITIVE_FORMATS[member.type_name][1]
+    return min_sizes[member.type_name]
+
+
 class _StructGenerator:
     """Writes the class, the decoder and the encoder of one struct."""
 
@@ -483,11 +503,7 @@ class _StructGenerator:
             self.out.line(f"msg.{member.name} = {flat}")
 
     def element_min_size(self, member: Member) -> int:
-        if member.type_name == "string":
-            return STRING_MIN_SIZE
-        if member.type_name in PRIMITIVE_FORMATS:
-            return PRIMITIVE_FORMATS[member.type_name][1]
-        return self.min_sizes[member.type_name]
+        return element_min_size(member, self.min_sizes)
 
     def decode_element(self, member: Member, target: str, field: str) -> None:
         out, t = self.out, self.type_literal
@@ -516,14 +532,7 @@ class _StructGenerator:
         )
 
     def call_child(self, statement: str, error_class: str, field: str) -> None:
-        """Run `statement` (a child struct's codec), re-homing its error under this type and field."""
-        out = self.out
-        out.line("try:")
-        with out.indent():
-            out.line(statement)
-        out.line(f"except {error_class} as error:")
-        with out.indent():
-            out.line(f"raise error.within({self.type_literal}, {field}) from None")
+        call_child(self.out, statement, error_class, self.type_literal, field)
 
     # Encoding ---------------------------------------------------------------------------------
 
