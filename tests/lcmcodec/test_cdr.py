@@ -229,3 +229,26 @@ _LIBRARY = TypeLibrary.load([str(CORPUS)], drake=False)
 
 def test_path_of_corpus_is_outside_lcmtypes() -> None:
     assert Path("lcmtypes") not in CORPUS.parents
+
+
+def test_bytes_bytearray_and_memoryview_give_the_same_cdr(
+    library: TypeLibrary, classes: dict[str, type], read_cdr: Callable[[bytes, str], Any]
+) -> None:
+    """Small bytes are sliced directly, everything else through a view: both ways, small and large."""
+    known = library.get("lab.robot.arm_state_t")
+    small = _arm(classes)
+    arm = classes["lab.robot.arm_state_t"].decode(small)
+    arm.cols, arm.rows = 3000, 2
+    arm.grid = [list(range(3000)), list(range(3000, 6000))]
+    arm.table, arm.cube = [[1, 2]] * 4, [[[1, 2, 3]] * 2] * 2
+    arm.labels, arm.raw2d, arm.blob = [["x" * 300, "y"], ["", "z"]], [b"ab", b"cd"], bytes(range(250)) * 12
+    large = arm.encode()
+    assert len(large) > 8192
+    for data in (small, large):
+        cdr = known.to_cdr(data)
+        assert known.to_cdr(bytearray(data)) == known.to_cdr(memoryview(data)) == cdr
+        assert known.to_cdr(memoryview(b"pad" + data)[3:]) == cdr
+    structs = {t.full_name: t.definition for t in library.types()}
+    assert read_cdr(known.to_cdr(large), "lab_robot_lcm_msgs/msg/ArmStateT") == expected(
+        type(arm).decode(large), known.definition, structs
+    )

@@ -57,6 +57,7 @@ _ZEROS = [bytes(n) for n in range(8)]
 _COUNT_AFTER_PAD = [struct.Struct(f"<{pad}xI") for pad in range(4)]  # a uint32 after `pad` zero bytes
 _U32_BE = struct.Struct(">I").unpack_from
 _FIELD_FINGERPRINT = "<fingerprint>"
+_VIEW_FROM = 4096  # bytes
 
 
 @dataclass(frozen=True)
@@ -65,33 +66,33 @@ class CdrTranscoder:
 
     type_name: str
     packed_fingerprint: bytes
-    _body: Callable[[memoryview, int, int, Chunks, int], tuple[int, int]]
+    _body: Callable[[bytes | memoryview, int, int, Chunks, int], tuple[int, int]]
 
     def transcode(self, data: Buffer) -> bytes:
         """A whole LCM message (fingerprint first) as CDR with its encapsulation header."""
-        view = memoryview(data)
-        if view.ndim != 1 or view.itemsize != 1:
-            view = view.cast("B")
-        end = len(view)
-        if view[:8] != self.packed_fingerprint:
-            found = bytes(view[:8]).hex()
+        # Small bytes are read as they are (slicing bytes is cheapest); anything else through a
+        # flat byte view, so that a large byte array is copied once, into the result, not twice.
+        buf = data if type(data) is bytes and len(data) < _VIEW_FROM else memoryview(data).cast("B")
+        end = len(buf)
+        if buf[:8] != self.packed_fingerprint:
+            found = bytes(buf[:8]).hex()
             raise DecodeError(
                 self.type_name, _FIELD_FINGERPRINT, 0,
                 f"fingerprint {found} is not {self.packed_fingerprint.hex()}" if end >= 8 else f"truncated: {end} bytes",
             )  # fmt: skip
         out: Chunks = [CDR_HEADER]
-        offset, _ = self._body(view, 8, end, out, 0)
+        offset, _ = self._body(buf, 8, end, out, 0)
         if offset != end:
             raise DecodeError(self.type_name, "<end>", offset, f"{end - offset} trailing bytes")
         return b"".join(out)
 
 
-def _swapped(size: int) -> Callable[[memoryview, int, int], object]:
+def _swapped(size: int) -> Callable[[bytes | memoryview, int, int], object]:
     """A function returning `count` elements of `size` bytes at `offset`, each byte-reversed."""
     code = _SWAP_CODES[size]
     dtype = np.dtype(f"u{size}")
 
-    def swap(buf: memoryview, offset: int, count: int) -> object:
+    def swap(buf: bytes | memoryview, offset: int, count: int) -> object:
         if count < _NUMPY_FROM:
             items = array(code)
             items.frombytes(buf[offset : offset + count * size])
@@ -103,7 +104,7 @@ def _swapped(size: int) -> Callable[[memoryview, int, int], object]:
 
 
 def _string(
-    buf: memoryview, off: int, end: int, out: Chunks, pos: int, type_name: str, field: str
+    buf: bytes | memoryview, off: int, end: int, out: Chunks, pos: int, type_name: str, field: str
 ) -> tuple[int, int]:
     """One string: LCM's big-endian length to CDR's little-endian one (both count the NUL)."""
     if off + 4 > end:
@@ -137,6 +138,30 @@ def _glue(phase: int, count: int, size: int, sequence: bool) -> tuple[bytes, int
         glue += bytes(pad)
         position += pad + count * size
     return glue, position - phase
+
+
+@lru_cache(maxsize=1024)
+def _run_glue(phase: int, count: int, size: int, many: int) -> tuple[tuple[bytes, ...], tuple[slice, ...], int]:
+    """For `many` sequences of `count` elements of `size` bytes, one after the other from a
+    position of `phase` modulo 8: the bytes before each, each one's slice of the swapped
+    elements, and how far the position moves in all."""
+    glues: list[bytes] = []
+    position = phase
+    for _ in range(many):
+        glue, step = _glue(position & 7, count, size, True)
+        glues.append(glue)
+        position += step
+    cuts = tuple(slice(i * count, (i + 1) * count) for i in range(many))
+    return tuple(glues), cuts, position - phase
+
+
+def _shared_count_error(type_name: str, fields: tuple[str, ...], off: int, count: int, size: int, end: int) -> DecodeError:
+    """The error for sequences sharing one length: the first whose elements do not fit."""
+    for index, field in enumerate(fields):
+        start = off + index * count * size
+        if count < 0 or start + count * size > end:
+            return _bad_count(type_name, field, start, count, size, end)
+    raise AssertionError("no sequence overflows")  # the caller checked that one does
 
 
 def _check_count(type_name: str, field: str, off: int, end: int, shape: tuple[int, ...], element: int) -> int:
@@ -205,6 +230,10 @@ class _Generator:
         its count (a sequence's) and padding, and its slice of the swapped elements."""
         out = self.out
         size = PRIMITIVE_FORMATS[run[0][1].type_name][1]
+        lengths = {member.dims for _, member in run}
+        if len(run) > 1 and len(lengths) == 1 and [dim.is_variable for dim in run[0][1].dims] == [True]:
+            self.same_length_arrays(run, size)
+            return
         counts = []
         for number, (_, member) in enumerate(run):
             count = f"n{number}"
@@ -243,6 +272,22 @@ class _Generator:
             out.line("pos += step")
             start = f"{start} + {count}" if start != "0" else count
         out.line(f"off += ({total}) * {size}")
+
+    def same_length_arrays(self, run: list[tuple[int, Member]], size: int) -> None:
+        """Sequences that share one length member (a robot's positions, velocities, torques ...):
+        one check, one swap, and the counts, padding and cuts cached per (position % 8, length)."""
+        out, many = self.out, len(run)
+        names = tuple(member.name for _, member in run)
+        out.line(f"n = v{self.index_of(run[0][1].dims[0].size)}")
+        out.line(f"if n < 0 or {many * size} * n > end - off:")
+        with out.indent():
+            out.line(f"raise _shared_count_error({self.t}, {names!r}, off, n, {size}, end)")
+        out.line(f"swapped = _view(_swap{size}(buf, off, {many} * n))")
+        out.line(f"glues, cuts, step = _run_glue(pos & 7, n, {size}, {many})")
+        pieces = ", ".join(f"glues[{i}], swapped[cuts[{i}]]" for i in range(many))
+        out.line(f"out += ({pieces})")
+        out.line("pos += step")
+        out.line(f"off += {many * size} * n")
 
     def shape(self, member: Member) -> str:
         return ", ".join(
@@ -300,7 +345,7 @@ class _Generator:
             out.line("off += n")
             out.line("pos += n")
         elif member.type_name == "boolean":
-            out.line("out.append(buf[off:off + n].tobytes().translate(_BOOLS))")
+            out.line("out.append(bytes(buf[off:off + n]).translate(_BOOLS))")
             out.line("off += n")
             out.line("pos += n")
         else:
@@ -347,6 +392,8 @@ def compile_transcoders(
         "_ZEROS": _ZEROS,
         "_bad_count": _bad_count,
         "_glue": _glue,
+        "_run_glue": _run_glue,
+        "_shared_count_error": _shared_count_error,
         "_view": memoryview,
         "_BOOLS": _BOOLS,
         **{f"_swap{size}": _swapped(size) for size in _SWAP_CODES},
