@@ -172,6 +172,21 @@ def _bad_count(type_name: str, field: str, offset: int, count: int, size: int, e
     )
 
 
+_EMPTY_ROWS_LIMIT = 1 << 16  # lists an empty multi-dimensional array may have beyond the bytes left
+
+
+def _check_rows(type_name: str, field: str, offset: int, shape: Sequence[int], end: int) -> None:
+    """Refuse an empty multi-dimensional array whose nested lists outnumber the bytes that remain
+    (or 65,536, whichever is more): they cost memory and time but no bytes."""
+    rows, level = 0, 1
+    limit = max(end - offset, _EMPTY_ROWS_LIMIT)
+    for size in shape[:-1]:
+        level *= size
+        rows += level
+        if rows > limit:
+            raise DecodeError(type_name, field, offset, f"shape {tuple(shape)} is {rows}+ empty rows, more than {limit}")
+
+
 def _check_finite(
     type_name: str, field: str, offset: int, size: int, values: Sequence[float], shape: Sequence[int]
 ) -> None:
@@ -451,6 +466,11 @@ class _StructGenerator:
             out.line(
                 f"raise _bad_count({t}, {name!r}, off, min(shape) if min(shape) < 0 else count, {element_size}, end)"
             )
+        if len(member.dims) > 1:
+            # An empty array still has its rows: `x[n][m][0]` would be n * m lists for no bytes.
+            out.line("if not count:")
+            with out.indent():
+                out.line(f"_check_rows({t}, {name!r}, off, shape, end)")
         if member.type_name in ("byte", "boolean"):
             self.decode_small_array(member, leaf="bytes" if member.type_name == "byte" else "list")
         elif member.type_name in PRIMITIVE_FORMATS:
@@ -650,6 +670,7 @@ def compile_codecs(
         "_truncated": _truncated,
         "_bad_count": _bad_count,
         "_check_finite": _check_finite,
+        "_check_rows": _check_rows,
         "_string_error": _string_error,
         "_ENCODE_ERRORS": _ENCODE_ERRORS,
     }
