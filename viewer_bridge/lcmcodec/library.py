@@ -55,21 +55,19 @@ class LcmType:
 
     @cached_property
     def ros2msg(self) -> str:
-        """The `ros2msg` schema (MCAP, Foxglove): the definition, then each nested type's."""
-        self._require_ros()
-        return self._library._mapping.ros2msg(self.full_name)
+        """The `ros2msg` schema (MCAP, Foxglove): the definition, then each nested type's; "" when refused."""
+        return self._library._mapping.ros2msg(self.full_name) if self.refused is None else ""
 
     @cached_property
     def rihs01(self) -> str:
-        """`RIHS01_<64 hex>`, the type hash rmw_zenoh announces."""
-        self._require_ros()
-        return self._library._mapping.rihs01(self.full_name)
+        """`RIHS01_<64 hex>`, the type hash rmw_zenoh announces; "" when refused."""
+        return self._library._mapping.rihs01(self.full_name) if self.refused is None else ""
 
     @property
     def msg_definition(self) -> str:
-        """The `.msg` text of this type alone."""
-        self._require_ros()
-        return self._library._mapping.messages[self.full_name].definition
+        """The `.msg` text of this type alone; "" when refused."""
+        message = self._library._mapping.messages.get(self.full_name)
+        return message.definition if message is not None else ""
 
     def to_cdr(self, data: Buffer) -> bytes:
         """The whole LCM message (fingerprint included) as CDR, header included; bad bytes: DecodeError."""
@@ -89,10 +87,6 @@ class LcmType:
     @cached_property
     def _transcoder(self) -> CdrTranscoder:
         return self._library._transcoders[self.full_name]
-
-    def _require_ros(self) -> None:
-        if self.refused is not None:
-            raise KeyError(f"{self.full_name} has no ROS 2 form: {self.refused}")
 
 
 class TypeLibrary:
