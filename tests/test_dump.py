@@ -24,7 +24,7 @@ def test_drakes_iiwa_status_by_default() -> None:
 
 def test_a_labs_type_given_a_library_with_bytes_summarised() -> None:
     library = TypeLibrary.load([str(CORPUS)], drake=False)
-    codec = library.get("lab.robot.arm_state_t")._library._codecs["lab.robot.arm_state_t"]
+    codec = library.codecs("lab.robot.arm_state_t")["lab.robot.arm_state_t"]
     arm = codec.message_class(cols=3, blob=b"abc", grid=[], robotName="left")
     event = LcmEvent("LEFT_ARM", codec.encode(arm), 0)
     assert describe(event)["type"] is None  # the default library does not know it

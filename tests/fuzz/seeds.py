@@ -162,9 +162,9 @@ def lcm_type_seeds() -> Seeds:
     from tests.fuzz.targets import _CORPUS, _GENERIC, GENERIC_TYPES
 
     schemas = sorted(SCHEMA_DIR.glob("*.lcm")) + sorted(_CORPUS.rglob("*.lcm"))
-    codecs = _GENERIC._codecs
     messages: list[bytes] = []
     for choice, name in enumerate(GENERIC_TYPES):
+        codecs = _GENERIC.codecs(name)  # the type's and its nested types', generated together
         codec = codecs[name]
         for message in (codec.message_class(), _filled(name, codecs)):
             messages.append(bytes([choice]) + codec.encode(message)[8:])

@@ -290,8 +290,8 @@ def _instrument_generated_code() -> None:
     atheris = sys.modules.get("atheris")
     if atheris is None:
         return
-    functions = [_GENERIC._transcoders[name]._body for name in GENERIC_TYPES]
-    functions += [_GENERIC._codecs[name]._decode_body for name in GENERIC_TYPES]
+    functions = [_GENERIC.get(name)._transcoder._body for name in GENERIC_TYPES]
+    functions += [_GENERIC.codecs(name)[name]._decode_body for name in GENERIC_TYPES]
     for namespace in {id(function.__globals__): function.__globals__ for function in functions}.values():
         for value in list(namespace.values()):
             if inspect.isfunction(value) and value.__code__.co_filename.startswith("<lcm"):

@@ -154,7 +154,7 @@ def test_to_json_summarises_bytes_unless_asked(library: TypeLibrary) -> None:
     assert record["samples"] == [0.5, -1.0] and record["codes"] == [3, -4]
     comms = TypeLibrary.load(drake=False).get("robotlocomotion.viewer2_comms_t")
     payload = b'{"a": 1}'
-    message = comms._library._codecs[comms.full_name].message_class(
+    message = TypeLibrary.load(drake=False).codecs(comms.full_name)[comms.full_name].message_class(
         utime=1, format="f", format_version_major=1, format_version_minor=0, num_bytes=len(payload), data=payload
     )
     encoded = message.encode()

@@ -10,8 +10,8 @@ Usage::
 Types come from `.lcm` files, folders of them (searched recursively) and lcm-gen'd Python
 modules by import name; the project's own `lcmtypes/` always, and pydrake's `drake` module when
 it can be imported. All of them become the same `StructDef`s (`schema`), and one mapping
-(`rosmsg`) gives each its ROS 2 message or the reason it has none. The codecs are generated
-when first used, for every type at once.
+(`rosmsg`) gives each its ROS 2 message or the reason it has none. A type's codecs are
+generated when it is first used, together with the types it nests.
 """
 
 from __future__ import annotations
@@ -77,7 +77,7 @@ class LcmType:
 
     def to_json(self, data: Buffer, *, bytes_summary: bool = True) -> dict[str, object]:
         """Every field, JSON-ready; byte arrays as size and CRC-32 unless `bytes_summary` is False."""
-        codec = self._library._codecs[self.full_name]
+        codec = self._library.codecs(self.full_name)[self.full_name]
         try:
             message = codec.decode(data)
         except RecursionError:  # a recursive type nested deeper than Python's stack
@@ -86,7 +86,7 @@ class LcmType:
 
     @cached_property
     def _transcoder(self) -> CdrTranscoder:
-        return self._library._transcoders[self.full_name]
+        return self._library._transcoder(self.full_name)
 
 
 class TypeLibrary:
@@ -98,6 +98,8 @@ class TypeLibrary:
         self._structs = dict(structs)
         self._mapping: RosMapping = map_to_ros(self._structs)
         self._lock = threading.Lock()
+        self._codec_sets: dict[str, dict[str, StructCodec]] = {}
+        self._transcoders: dict[str, CdrTranscoder] = {}
         self.warnings = warnings + [
             f"{name} ({structs[name].where}) has no ROS 2 form: {reason}"
             for name, reason in self._mapping.refused.items()
@@ -159,19 +161,35 @@ class TypeLibrary:
         """`pkg/msg/Name` -> `.msg` text of every type that has a ROS 2 form."""
         return {message.ros_type: message.definition for message in self._mapping.messages.values()}
 
-    @cached_property
-    def _transcoders(self) -> dict[str, CdrTranscoder]:
+    def codecs(self, full_name: str) -> dict[str, StructCodec]:
+        """The LCM codecs of `full_name` and of every type it nests, generated together when first
+        asked for (so their message classes work together), NaN and infinities allowed."""
         with self._lock:
-            fingerprints = {name: known.packed_fingerprint for name, known in self._types.items()}
-            return compile_transcoders(self._structs, fingerprints, list(self._mapping.messages))
+            if full_name not in self._codec_sets:
+                closure = self._closure(full_name)
+                fingerprints = {name: int.from_bytes(self._types[name].packed_fingerprint, "big") for name in closure}
+                self._codec_sets[full_name] = compile_codecs(closure, finite=False, fingerprints=fingerprints)
+            return self._codec_sets[full_name]
 
-    @cached_property
-    def _codecs(self) -> dict[str, StructCodec]:
+    def _transcoder(self, full_name: str) -> CdrTranscoder:
+        """The LCM -> CDR transcoder of `full_name`, generated when first asked for."""
         with self._lock:
-            fingerprints = {
-                name: int.from_bytes(known.packed_fingerprint, "big") for name, known in self._types.items()
-            }
-            return compile_codecs(self._structs, finite=False, fingerprints=fingerprints)
+            if full_name not in self._transcoders:
+                closure = self._closure(full_name)
+                fingerprints = {name: self._types[name].packed_fingerprint for name in closure}
+                self._transcoders.update(compile_transcoders(closure, fingerprints, [full_name]))
+            return self._transcoders[full_name]
+
+    def _closure(self, full_name: str) -> dict[str, StructDef]:
+        """`full_name`'s definition and those of every type it nests, at any depth."""
+        found: dict[str, StructDef] = {}
+        pending = [full_name]
+        while pending:
+            name = pending.pop()
+            if name not in found:
+                found[name] = self._structs[name]
+                pending.extend(m.type_name for m in found[name].members if not m.is_primitive)
+        return found
 
 
 def _merge(structs: dict[str, StructDef], new: Mapping[str, StructDef]) -> None:
