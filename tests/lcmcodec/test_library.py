@@ -170,3 +170,18 @@ def test_to_json_summarises_bytes_unless_asked(library: TypeLibrary) -> None:
 )
 def test_channels_become_topics(channel: str, topic: str) -> None:
     assert ros_topic_for_channel(channel) == topic
+
+
+def test_the_folder_of_an_lcm_gen_package_is_imported_from_its_parent(tmp_path: Path, library: TypeLibrary) -> None:
+    generate_lcmgen(tmp_path)
+    sys.path_importer_cache.clear()
+    for name in [name for name in sys.modules if name == "lab" or name.startswith("lab.")]:
+        del sys.modules[name]  # imported from another folder by an earlier test
+    from_folder = TypeLibrary.load([str(tmp_path / "lab")], drake=False)  # subpackages robot, geometry
+    arm = from_folder.get("lab.robot.arm_state_t")
+    assert arm.source == f"module lab in {tmp_path}"
+    assert arm.packed_fingerprint == library.get("lab.robot.arm_state_t").packed_fingerprint
+    assert str(tmp_path) not in sys.path
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(SchemaError, match="is a folder with neither .lcm files nor an __init__.py"):
+        TypeLibrary.load([str(tmp_path / "empty")], drake=False)

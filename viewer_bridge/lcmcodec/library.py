@@ -110,25 +110,32 @@ class TypeLibrary:
     @classmethod
     def load(cls, sources: Sequence[str] = (), *, drake: bool = True) -> TypeLibrary:
         """The project's types, Drake's (when `drake` and pydrake is installed), and `sources`:
-        `.lcm` files, folders of them, or importable lcm-gen'd Python module names.
+        `.lcm` files, folders of them (searched recursively), lcm-gen'd Python modules by import
+        name, or the folder of an lcm-gen'd Python package (imported from its parent folder).
 
         A parse error is a `SchemaError` with file:line; one name defined twice with different
         contents is one naming both places."""
         structs: dict[str, StructDef] = dict(STRUCTS)
         declared: dict[str, bytes] = {}  # a class's own fingerprint, which its publisher writes
-        modules = [DRAKE_MODULE] if drake and importlib.util.find_spec(DRAKE_MODULE) is not None else []
+        drake_found = drake and importlib.util.find_spec(DRAKE_MODULE) is not None
+        modules: list[tuple[str, Path | None]] = [(DRAKE_MODULE, None)] if drake_found else []
         for source in sources:
             path = Path(source)
-            if path.is_dir():
-                _merge(structs, load_lcm_files(sorted(path.rglob("*.lcm"))))
+            files = sorted(path.rglob("*.lcm")) if path.is_dir() else []
+            if files:
+                _merge(structs, load_lcm_files(files))
+            elif path.is_dir() and (path / "__init__.py").is_file() and path.name.isidentifier():
+                modules.append((path.name, path.resolve().parent))  # an lcm-gen'd package's folder
+            elif path.is_dir() and not _looks_like_module(source):
+                raise SchemaError(source, 0, "is a folder with neither .lcm files nor an __init__.py")
             elif path.is_file():
                 _merge(structs, load_lcm_files([path]))
             elif _looks_like_module(source):
-                modules.append(source)
+                modules.append((source, None))
             else:
                 raise SchemaError(source, 0, "no such .lcm file, folder or importable module")
-        for module in modules:
-            loaded = structs_from_module(module)
+        for module, search in modules:
+            loaded = structs_from_module(module, search)
             _merge(structs, {name: definition for name, (definition, _) in loaded.items()})
             for name, (_, packed) in loaded.items():
                 declared.setdefault(name, packed)

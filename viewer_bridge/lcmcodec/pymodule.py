@@ -15,7 +15,10 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import pkgutil
+import sys
 from collections.abc import Mapping
+from pathlib import Path
 from types import ModuleType
 from typing import Any
 
@@ -36,15 +39,27 @@ def is_lcm_class(value: object) -> bool:
     )
 
 
-def structs_from_module(name: str) -> dict[str, LoadedClass]:
-    """Every lcm-gen'd class of module `name` and, transitively, the types their members name."""
-    source = f"module {name}"
+def structs_from_module(name: str, search: Path | None = None) -> dict[str, LoadedClass]:
+    """Every lcm-gen'd class of module `name` and, transitively, the types their members name;
+    `search`: a folder to import it from (as well as sys.path)."""
+    source = f"module {name}" if search is None else f"module {name} in {search}"
+    if search is not None:
+        sys.path.insert(0, str(search))
     try:
         module = importlib.import_module(name)
+        return _classes(module, source)
+    except SchemaError:
+        raise
     except Exception as error:  # noqa: BLE001  (an import runs arbitrary code; report, do not crash)
         raise SchemaError(source, 0, f"cannot import: {type(error).__name__}: {error}") from None
+    finally:
+        if search is not None:
+            sys.path.remove(str(search))
+
+
+def _classes(module: ModuleType, source: str) -> dict[str, LoadedClass]:
     found: dict[str, LoadedClass] = {}
-    pending = [value for value in vars(module).values() if is_lcm_class(value)]
+    pending = [value for child in _with_subpackages(module) for value in vars(child).values() if is_lcm_class(value)]
     if not pending:
         raise SchemaError(source, 0, "holds no lcm-gen'd Python class")
     while pending:
@@ -57,6 +72,16 @@ def structs_from_module(name: str) -> dict[str, LoadedClass]:
             if not member.is_primitive and member.type_name not in found:
                 pending.append(_import_class(member.type_name, cls, source))
     return found
+
+
+def _with_subpackages(module: ModuleType) -> list[ModuleType]:
+    """The module and, for a package, its subpackages at any depth (lcm-gen writes package `a.b`
+    as folders `a/b/`, with nothing but the subpackage in `a`)."""
+    modules = [module]
+    for info in pkgutil.walk_packages(getattr(module, "__path__", []), module.__name__ + "."):
+        if info.ispkg:
+            modules.append(importlib.import_module(info.name))
+    return modules
 
 
 def struct_from_class(cls: Any, source: str) -> StructDef:
