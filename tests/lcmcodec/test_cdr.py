@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 
 from tests.lcmcodec.corpus import (
     CORPUS,
+    PLAIN_TAIL,
     expected,
     generate_lcmgen,
     lcmgen_messages,
@@ -205,7 +206,10 @@ def test_booleans_other_than_one_are_true(
 ) -> None:
     known = library.get("plain_status_t")
     body = struct.pack(">qdB", 1, 2.0, 7) + struct.pack(">dddI", 0, 0, 0, 1) + b"\0" + struct.pack(">i", 0)
-    assert read_cdr(known.to_cdr(known.packed_fingerprint + body), "lcm_msgs/msg/PlainStatusT")["ok"] is True
+    body += PLAIN_TAIL
+    read = read_cdr(known.to_cdr(known.packed_fingerprint + body), "lcm_msgs/msg/PlainStatusT")
+    assert read["ok"] is True and read["bits"] == [False, True, True]
+    assert (read["tags"], read["odd"], read["fixed_shorts"], read["fixed_longs"]) == (["a", ""], -1, [1, -2, 3], [5, -6])
 
 
 def test_a_refused_type_has_no_cdr(library: TypeLibrary) -> None:

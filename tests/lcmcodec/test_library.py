@@ -11,7 +11,7 @@ from pathlib import Path
 import drake
 import pytest
 
-from tests.lcmcodec.corpus import CORPUS, generate_lcmgen
+from tests.lcmcodec.corpus import CORPUS, PLAIN_TAIL, generate_lcmgen
 from viewer_bridge.errors import DecodeError, SchemaError
 from viewer_bridge.lcmcodec import STRUCTS
 from viewer_bridge.lcmcodec.library import LcmType, TypeLibrary, ros_topic_for_channel
@@ -147,11 +147,11 @@ def test_lookups(library: TypeLibrary) -> None:
 def test_to_json_summarises_bytes_unless_asked(library: TypeLibrary) -> None:
     status = library.get("plain_status_t")
     body = struct.pack(">qd?", 5, float("nan"), True) + struct.pack(">dddI", 1, 2, 3, 3) + b"ab\0"
-    data = status.packed_fingerprint + body + struct.pack(">i2f2b", 2, 0.5, -1.0, 3, -4)
+    data = status.packed_fingerprint + body + struct.pack(">i2f2b", 2, 0.5, -1.0, 3, -4) + PLAIN_TAIL
     record = status.to_json(data)
     assert record["timestamp"] == 5 and record["ok"] is True and record["value"] != record["value"]  # NaN kept
     assert record["where"] == {"x": 1.0, "y": 2.0, "z": 3.0, "frameId": "ab"}
-    assert record["samples"] == [0.5, -1.0] and record["codes"] == [3, -4]
+    assert record["samples"] == [0.5, -1.0] and record["codes"] == [3, -4] and record["tags"] == ["a", ""]
     comms = TypeLibrary.load(drake=False).get("robotlocomotion.viewer2_comms_t")
     payload = b'{"a": 1}'
     message = TypeLibrary.load(drake=False).codecs(comms.full_name)[comms.full_name].message_class(
