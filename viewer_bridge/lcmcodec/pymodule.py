@@ -17,7 +17,6 @@ import importlib
 import inspect
 import pkgutil
 import sys
-from collections.abc import Mapping
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -163,7 +162,3 @@ def _import_class(full_name: str, parent: Any, source: str) -> Any:
 def _dotted(cls: Any) -> str:
     package, name = _full_name(cls)
     return f"{package}.{name}" if package else name
-
-
-def fingerprints(loaded: Mapping[str, LoadedClass]) -> dict[str, bytes]:
-    return {name: packed for name, (_, packed) in loaded.items()}
