@@ -1,8 +1,11 @@
-"""Render LCM events as readable text or as one JSON object per message, with every field."""
+"""Render LCM events of any known type as readable text or as one JSON object per message.
+
+The types are a `TypeLibrary`'s (the project's, Drake's and whatever `--lcm-types` names); a byte
+array is shown as its size and CRC-32 unless `bytes_summary` is False, then as UTF-8 text or base64.
+"""
 
 from __future__ import annotations
 
-import base64
 import json
 import math
 from functools import cache
@@ -14,55 +17,45 @@ from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.transports.lcm import LcmEvent
 
+__all__ = ["as_json", "as_text", "default_library", "describe"]
+
 
 @cache
-def _project_types() -> TypeLibrary:
-    return TypeLibrary.load(drake=False)
+def default_library() -> TypeLibrary:
+    """The project's types and, when pydrake is installed, Drake's."""
+    return TypeLibrary.load()
 
 
-def describe(event: LcmEvent, types: TypeLibrary | None = None) -> dict[str, Any]:
-    """A JSON-ready description of one event: its type (any of `types`; by default the
-    project's own) and every decoded field, or the error."""
-    types = _project_types() if types is None else types
+def describe(event: LcmEvent, library: TypeLibrary | None = None, *, bytes_summary: bool = True) -> dict[str, Any]:
+    """A JSON-ready description of one event: its type and every decoded field, or the error."""
+    library = library or default_library()
     record: dict[str, Any] = {
         "channel": event.channel,
         "timestamp_us": event.timestamp_us,
         "size": len(event.data),
         "fingerprint": event.data[:8].hex(),
     }
-    lcm_type = types.for_data(event.data)
-    if lcm_type is None:
+    known = library.for_data(event.data)
+    if known is None:
         record["type"] = None
-        record["error"] = "no known LCM type has this fingerprint (--lcm-types adds types)"
+        record["error"] = "no known LCM type has this fingerprint"
         return record
-    record["type"] = lcm_type.full_name
+    record["type"] = known.full_name
     try:
-        record["message"] = _json_ready(lcm_type.to_json(event.data, bytes_summary=False))
+        record["message"] = known.to_json(event.data, bytes_summary=bytes_summary)
     except DecodeError as error:
         record["error"] = str(error)
     return record
 
 
-def _json_ready(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {key: _json_ready(item) for key, item in value.items()}
-    if isinstance(value, list):
-        return [_json_ready(item) for item in value]
-    if isinstance(value, bytes):
-        # A byte array is shown as text when it is UTF-8 (the tree viewer's JSON is), else base64.
-        try:
-            return {"utf8": value.decode("utf-8")}
-        except UnicodeDecodeError:
-            return {"base64": base64.b64encode(value).decode("ascii")}
-    return value
+def as_json(event: LcmEvent, library: TypeLibrary | None = None, *, bytes_summary: bool = True) -> str:
+    """One line of JSON: channel, time, size, fingerprint, type and message (or error)."""
+    return json.dumps(describe(event, library, bytes_summary=bytes_summary), separators=(",", ":"))
 
 
-def as_json(event: LcmEvent, types: TypeLibrary | None = None) -> str:
-    return json.dumps(describe(event, types), separators=(",", ":"))
-
-
-def as_text(event: LcmEvent, types: TypeLibrary | None = None) -> str:
-    record = describe(event, types)
+def as_text(event: LcmEvent, library: TypeLibrary | None = None, *, bytes_summary: bool = True) -> str:
+    """A header line, then one indented line per field."""
+    record = describe(event, library, bytes_summary=bytes_summary)
     seconds = record["timestamp_us"] / 1e6
     header = (
         f"[{seconds:.6f}] {record['channel']} {record['type'] or '(unknown type)'} ({record['size']} bytes)"
@@ -85,6 +78,8 @@ def _text_lines(value: dict[str, Any], depth: int, lines: list[str]) -> None:
         elif isinstance(item, dict) and ("utf8" in item or "base64" in item):
             kind, text = next(iter(item.items()))
             lines.append(f"{pad}{key} ({kind}): {text}")
+        elif isinstance(item, dict) and set(item) == {"bytes", "crc32"}:
+            lines.append(f"{pad}{key}: {item['bytes']} bytes, CRC-32 {item['crc32']}")
         elif isinstance(item, dict):
             lines.append(f"{pad}{key}:")
             _text_lines(item, depth + 1, lines)
@@ -99,10 +94,3 @@ def _short(value: Any) -> str:
     if isinstance(value, float) and math.isfinite(value) and float(np.float32(value)) == value:
         return str(np.float32(value))
     return repr(value)
-
-
-__all__ = [
-    "as_json",
-    "as_text",
-    "describe",
-]

@@ -21,7 +21,7 @@ class SchemaError(BridgeError):
         self.path = path
         self.line = line
         self.reason = reason
-        super().__init__(f"{path}:{line}: {reason}")
+        super().__init__(f"{path}:{line}: {reason}" if line else f"{path}: {reason}")  # line 0: not a file
 
 
 class DecodeError(BridgeError):

@@ -31,7 +31,15 @@ from viewer_bridge.formats.gltf import write_gltf
 from viewer_bridge.formats.ign.model import model
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.requests import draw_request, load_requests
-from viewer_bridge.lcmcodec import DRAW, LOAD_ROBOT, VIEWER2_COMMS, LcmMessage, codec_for
+from viewer_bridge.lcmcodec import (
+    DRAW,
+    LOAD_ROBOT,
+    SCHEMA_DIR,
+    VIEWER2_COMMS,
+    LcmMessage,
+    StructCodec,
+    codec_for,
+)
 from viewer_bridge.scene import Scene
 from viewer_bridge.transports.ign_discovery import STATISTICS_VERSION, WIRE_VERSION, Record, datagram
 
@@ -54,6 +62,7 @@ def write_seeds(folder: Path) -> dict[str, int]:
                 seeds[nested._type_name].append(nested.encode())
     seeds["config"] = [text.encode() for text in BUILTIN_CONFIGS.values()]
     seeds.update(zenoh_seeds())
+    seeds.update(lcm_type_seeds())
     for kind, inputs in seeds.items():
         (folder / kind).mkdir(parents=True, exist_ok=True)
         for data in inputs:
@@ -145,6 +154,46 @@ def zenoh_seeds() -> Seeds:
         "rmw_zenoh.token": [token.encode() for token in tokens],
         "rmw_zenoh.attachment": [keys.attachment(12, 1_700_000_000_000_000_000, keys.gid(tokens[1]))],
     }
+
+
+def lcm_type_seeds() -> Seeds:
+    """The `.lcm` files of the project and of the test corpus; for the generic transcoder, an
+    empty and a filled message of each of its types (a type-choosing byte, then the body)."""
+    from tests.fuzz.targets import _CORPUS, _GENERIC, GENERIC_TYPES
+
+    schemas = sorted(SCHEMA_DIR.glob("*.lcm")) + sorted(_CORPUS.rglob("*.lcm"))
+    messages: list[bytes] = []
+    for choice, name in enumerate(GENERIC_TYPES):
+        codecs = _GENERIC.codecs(name)  # the type's and its nested types', generated together
+        codec = codecs[name]
+        for message in (codec.message_class(), _filled(name, codecs)):
+            messages.append(bytes([choice]) + codec.encode(message)[8:])
+    return {"lcm_schema": [path.read_bytes() for path in schemas], "lcm_generic": messages}
+
+
+def _filled(type_name: str, codecs: dict[str, StructCodec]) -> LcmMessage:
+    """A message of `type_name` whose variable arrays hold two elements (length members set to 2)."""
+    codec = codecs[type_name]
+    message = codec.message_class()
+    lengths = {dim.size for member in codec.definition.members for dim in member.dims if dim.is_variable}
+    for member in codec.definition.members:
+        if member.name in lengths:
+            setattr(message, member.name, 2)
+        elif member.dims:
+            shape = [2 if dim.is_variable else dim.count for dim in member.dims]
+            setattr(message, member.name, _full(shape, member.type_name, codecs))
+    return message
+
+
+def _full(shape: list[int], type_name: str, codecs: dict[str, StructCodec]) -> object:
+    if type_name == "byte" and len(shape) == 1:
+        return b"\x01" * shape[0]
+    if len(shape) > 1:
+        return [_full(shape[1:], type_name, codecs) for _ in range(shape[0])]
+    leaves: dict[str, object] = {"string": "ab", "double": 1.5, "float": 0.5, "boolean": True}
+    if type_name in leaves or type_name.endswith("_t") and type_name.startswith("int"):
+        return [leaves.get(type_name, 1) for _ in range(shape[0])]
+    return [_filled(type_name, codecs) for _ in range(shape[0])]
 
 
 def discovery_seeds() -> list[bytes]:

@@ -16,7 +16,9 @@ This module imports `bridge` at its top on purpose: the fuzz runner imports it i
 
 from __future__ import annotations
 
+import inspect
 import struct
+import sys
 import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -25,7 +27,15 @@ from pathlib import Path
 import numpy as np
 
 from viewer_bridge.config import load_config
-from viewer_bridge.errors import ConfigError, DecodeError, EncodeError, GltfError, RequestRejected, SceneError
+from viewer_bridge.errors import (
+    ConfigError,
+    DecodeError,
+    EncodeError,
+    GltfError,
+    RequestRejected,
+    SceneError,
+    SchemaError,
+)
 from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.drake.draw import DrawDecoder
 from viewer_bridge.formats.drake.image import read_image_array, unpack
@@ -35,7 +45,10 @@ from viewer_bridge.formats.gltf import read_gltf
 from viewer_bridge.formats.ign.model import scene_from_model
 from viewer_bridge.formats.ign.schema import MESSAGES
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr
-from viewer_bridge.lcmcodec import CODECS, LOAD_ROBOT, VIEWER2_COMMS, StructCodec
+from viewer_bridge.lcmcodec import CODECS, LOAD_ROBOT, STRUCTS, VIEWER2_COMMS, StructCodec
+from viewer_bridge.lcmcodec.library import TypeLibrary
+from viewer_bridge.lcmcodec.rosmsg import map_to_ros
+from viewer_bridge.lcmcodec.schema import check_references, parse_lcm
 from viewer_bridge.render import Camera
 from viewer_bridge.render_server import BadRequest, parse_form, render_request
 from viewer_bridge.skipped import collecting
@@ -255,6 +268,83 @@ register(
     Target("drake_images_to_foxglove", drake_images_to_foxglove, (DecodeError,), ("drake.lcmt_image_array",))
 )
 register(Target("ros_image_to_drake", ros_image_to_drake, (DecodeError, EncodeError), ("sensor_msgs/Image",)))
+
+
+# --- any LCM type: the .lcm parser and mapping, and the generic LCM -> CDR transcoder --------------------
+
+_CORPUS = Path(__file__).resolve().parent.parent / "lcmtypes_corpus"
+GENERIC_TYPES = (  # several shapes: multi-dimensional, nested across packages, strings, an empty struct
+    "lab.robot.arm_state_t",
+    "lab.robot.pulse_t",
+    "plain_status_t",
+    "drake.lcmt_iiwa_status",
+    "drake.lcmt_robot_plan",
+)
+_GENERIC = TypeLibrary.load([str(_CORPUS)])
+
+
+def _instrument_generated_code() -> None:
+    """Under the fuzzer, instrument the transcoders and decoders generated for GENERIC_TYPES too:
+    they are compiled from source text at run time, which `atheris.instrument_imports` never sees."""
+    atheris = sys.modules.get("atheris")
+    if atheris is None:
+        return
+    functions = [_GENERIC.get(name)._transcoder._body for name in GENERIC_TYPES]
+    functions += [_GENERIC.codecs(name)[name]._decode_body for name in GENERIC_TYPES]
+    for namespace in {id(function.__globals__): function.__globals__ for function in functions}.values():
+        for value in list(namespace.values()):
+            if inspect.isfunction(value) and value.__code__.co_filename.startswith("<lcm"):
+                atheris.instrument_func(value)
+
+
+_instrument_generated_code()
+
+
+def lcm_schema(data: bytes) -> object:
+    """A `.lcm` file as `--lcm-types FILE` reads it: parse, resolve, and map every type to ROS 2."""
+    structs = {struct.full_name: struct for struct in parse_lcm(data.decode("latin-1"), "fuzz.lcm")}
+    pending = list(structs.values())
+    while pending:  # the project's types may be named (the seeds are its own files, one type each)
+        for member in pending.pop().members:
+            if not member.is_primitive and member.type_name not in structs and member.type_name in STRUCTS:
+                structs[member.type_name] = STRUCTS[member.type_name]
+                pending.append(STRUCTS[member.type_name])
+    check_references(structs)
+    mapping = map_to_ros(structs)
+    return [mapping.ros2msg(name) for name in mapping.messages]
+
+
+def lcm_generic(data: bytes) -> object:
+    """The first byte picks a type (or none: the bytes are a whole message of any known type); the
+    rest is the message after its fingerprint. The CDR transcoder and the JSON decoder must agree
+    about whether it is valid."""
+    choice = data[0] if data else 0
+    if choice < len(GENERIC_TYPES):
+        known = _GENERIC.get(GENERIC_TYPES[choice])
+        message = known.packed_fingerprint + data[1:]
+    else:
+        message = data[1:]
+        found = _GENERIC.for_data(message)
+        if found is None or found.ros_type is None:
+            return None
+        known = found
+    try:
+        cdr: bytes | None = known.to_cdr(message)
+    except DecodeError:
+        cdr = None
+    try:
+        known.to_json(message)
+    except DecodeError:
+        if cdr is not None:
+            raise AssertionError("the transcoder took a message the JSON decoder refuses") from None
+        raise
+    if cdr is None:
+        raise AssertionError("the JSON decoder took a message the transcoder refuses")
+    return cdr
+
+
+register(Target("lcm_schema", lcm_schema, (SchemaError,), ("lcm_schema",)))
+register(Target("lcm_generic", lcm_generic, (DecodeError,), ("lcm_generic",)))
 
 
 # --- the config loader ----------------------------------------------------------------------------------

@@ -9,7 +9,7 @@ import pytest
 
 from viewer_bridge.errors import SchemaError
 from viewer_bridge.lcmcodec import CODECS, STRUCTS
-from viewer_bridge.lcmcodec.schema import fingerprint, parse_lcm
+from viewer_bridge.lcmcodec.schema import Dimension, fingerprint, parse_lcm
 
 # Values printed by lcm-gen 1.5.3 (docs/PROTOCOLS.md section 1 and 2).
 KNOWN_FINGERPRINTS = {
@@ -81,7 +81,7 @@ def test_parses_multiple_declarators_and_comments() -> None:
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("struct s { int32_t a[n]; }", "array size 'n' is not an earlier member"),
+        ("struct s { int32_t a[n]; }", "array size 'n' is neither a constant nor an earlier member"),
         ("struct s { double n; int32_t a[n]; }", "must be an integer scalar member"),
         ("struct s { int32_t a }", "expected ','"),
         ("struct s { int32_t a[0]; }", "array size must be positive"),
@@ -89,9 +89,39 @@ def test_parses_multiple_declarators_and_comments() -> None:
         ("struct s { int32_t a; $ }", "unexpected character"),
         ("enum e { A }", "expected 'package' or 'struct'"),
         ("struct s { int32_t a;", "unexpected end of file"),
+        ("struct s { const byte B = 1; }", "numeric type"),
+        ("struct s { const int8_t B = 200; }", "200 does not fit in int8_t"),
+        ("struct s { const int32_t N = 0; double x[N]; }", "must be a positive integer constant"),
+        ("struct s { const double N = 2.0; double x[N]; }", "must be a positive integer constant"),
+        ("struct s { int32_t a; double a; }", "'a' is declared twice"),
+        ("struct s { const int32_t a = 1; double a; }", "'a' is declared twice"),
+        ("struct s { int32_t class; }", "a member name 'class' is a Python keyword"),
+        ("struct s { int32_t x[1.5]; }", "array size '1.5' is not a number"),
+        ("package 9p; struct s { }", "'9' is not a package name"),
     ],
 )
 def test_schema_errors_name_file_and_line(text: str, message: str) -> None:
     with pytest.raises(SchemaError, match=message) as caught:
         parse_lcm(text, "bad.lcm")
     assert caught.value.path == "bad.lcm" and caught.value.line == 1
+
+
+def test_arrays_sized_by_constants_hash_the_constants_literal_as_lcm_gen_does() -> None:
+    """lcm-gen writes a dimension named by a constant as that constant's literal: `0x2`, not `2`."""
+    (hexed,) = parse_lcm("struct hexdim_t { const int32_t HEX = 0x2; double a[HEX]; }")
+    assert hexed.members[0].dims == (Dimension("0x2", is_variable=False),) and hexed.members[0].dims[0].count == 2
+    assert fingerprint(hexed, {"hexdim_t": hexed}) == 0x5C67C30CCCA84513 << 1 & (1 << 64) - 1 | 0x5C67C30CCCA84513 >> 63
+    (decimal,) = parse_lcm("struct s { const int16_t N = 3; int32_t m; float q[N][m]; }")
+    assert [(d.size, d.is_variable) for d in decimal.members[1].dims] == [("3", False), ("m", True)]
+
+
+def test_comments_are_kept_for_structs_members_and_constants() -> None:
+    (parsed,) = parse_lcm(
+        "// the struct\n/* more\n * lines */\nstruct s {\n  // a constant\n  const int8_t A = 1;\n"
+        "  // two members\n  int32_t n, m;  // trailing: belongs to nothing\n}\n",
+        "c.lcm",
+    )
+    assert parsed.comment == "the struct\nmore\nlines" and parsed.line == 4
+    assert parsed.constants[0].comment == "a constant" and parsed.constants[0].text == "1"
+    assert [m.comment for m in parsed.members] == ["two members", ""]
+    assert parsed.where == "c.lcm:4"

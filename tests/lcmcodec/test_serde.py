@@ -189,3 +189,19 @@ def test_finite_values_whose_sum_overflows_are_accepted() -> None:
     message = codec.message_class()
     message.traction_Aq_W = [0.0, 3.3978799665285463e306, 1.7637143351970303e308]
     assert codec.decode(codec.encode(message)).traction_Aq_W == message.traction_Aq_W
+
+
+def test_an_empty_array_with_absurd_outer_dimensions_is_refused_at_once() -> None:
+    """bench/fuzz.py's lcm_generic (after 296,287 runs): `x[n][m][0]` decoded to n * m empty lists,
+    for no bytes at all; rows beyond the bytes left (or 65,536) are a DecodeError now."""
+    import struct as struct_module
+
+    from viewer_bridge.errors import DecodeError
+    from viewer_bridge.lcmcodec.schema import parse_lcm
+    from viewer_bridge.lcmcodec.serde import compile_codecs
+
+    (definition,) = parse_lcm("struct rows_t { int32_t n; int32_t m; int8_t z; double x[n][m][z]; }")
+    codec = compile_codecs({"rows_t": definition})["rows_t"]
+    with pytest.raises(DecodeError, match=r"rows_t.x at byte 17: shape \(2147483647, 2147483647, 0\)"):
+        codec.decode(codec.packed_fingerprint + struct_module.pack(">iib", 2**31 - 1, 2**31 - 1, 0))
+    assert codec.decode(codec.packed_fingerprint + struct_module.pack(">iib", 3, 2, 0)).x == [[[], []]] * 3

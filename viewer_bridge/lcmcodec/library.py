@@ -1,220 +1,217 @@
-"""Known LCM types and their ROS 2 mapping: STAND-IN UNTIL THE lcmtypes BRANCH LANDS.
+"""Every LCM type the bridge knows, and each one's ROS 2 face: names, definitions, CDR, JSON.
 
-This module is a small stand-in, written by the `lcmroutes` branch, of the API the `lcmtypes`
-branch implements (`LcmType`, `TypeLibrary`, `ros_topic_for_channel`); the lead replaces it with
-that branch's module at merge. It covers what the router side's tests need and nothing more:
-`.lcm` files and folders (through `viewer_bridge.lcmcodec.schema`), lcm-gen'd Python modules by
-import name (their classes' `__slots__`, `__typenames__`, `__dimensions__`; no constants), the
-project's own `lcmtypes/`, and pydrake's `drake` module. `to_cdr` goes through rosbags' typestore
-(decode, build the rosbags message, serialize): slow but correct. Recursive types are refused.
+Usage::
+
+    library = TypeLibrary.load(["path/to/lab_types/", "exlcm"])   # + lcmtypes/ + Drake's `drake`
+    known = library.for_data(data)                                 # by the first 8 bytes
+    if known is not None and known.ros_type is not None:
+        cdr = known.to_cdr(data)                                   # for /lcm/<channel>
+
+Types come from `.lcm` files, folders of them (searched recursively) and lcm-gen'd Python
+modules by import name; the project's own `lcmtypes/` always, and pydrake's `drake` module when
+it can be imported. All of them become the same `StructDef`s (`schema`), and one mapping
+(`rosmsg`) gives each its ROS 2 message or the reason it has none. A type's codecs are
+generated when it is first used, together with the types it nests.
 """
 
 from __future__ import annotations
 
-import contextlib
-import importlib
-import re
+import importlib.util
 import threading
-from collections.abc import Iterable, Sequence
+from collections.abc import Mapping, Sequence
 from functools import cached_property
 from pathlib import Path
-from typing import Any
-
-import numpy as np
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from viewer_bridge.errors import DecodeError, SchemaError
 from viewer_bridge.lcmcodec import STRUCTS
-from viewer_bridge.lcmcodec.schema import Dimension, Member, StructDef, parse_lcm
-from viewer_bridge.lcmcodec.serde import Buffer, LcmMessage, StructCodec, compile_codecs
+from viewer_bridge.lcmcodec.cdr import CdrTranscoder, compile_transcoders
+from viewer_bridge.lcmcodec.jsonview import message_json
+from viewer_bridge.lcmcodec.pymodule import structs_from_module
+from viewer_bridge.lcmcodec.rosmsg import RosMapping, map_to_ros
+from viewer_bridge.lcmcodec.rosnames import ros_topic_for_channel
+from viewer_bridge.lcmcodec.schema import StructDef, check_references, fingerprint, load_lcm_files
+from viewer_bridge.lcmcodec.serde import Buffer, StructCodec, compile_codecs
 
-_ROS_PRIMITIVES = {
-    "int8_t": "int8",
-    "int16_t": "int16",
-    "int32_t": "int32",
-    "int64_t": "int64",
-    "byte": "uint8",
-    "float": "float32",
-    "double": "float64",
-    "string": "string",
-    "boolean": "bool",
-}
-_DTYPES = {"int8": "i1", "int16": "<i2", "int32": "<i4", "int64": "<i8", "uint8": "u1",
-           "float32": "<f4", "float64": "<f8", "bool": "?"}  # fmt: skip
-_STORE_LOCK = threading.Lock()
+__all__ = ["LcmType", "TypeLibrary", "ros_topic_for_channel"]
 
-
-def ros_topic_for_channel(channel: str) -> str:
-    """`left-arm.status` -> `/lcm/left_arm_status`."""
-    return "/lcm/" + re.sub(r"[^A-Za-z0-9_]", "_", channel)
-
-
-def _snake(name: str) -> str:
-    return re.sub(r"(?<=[a-z0-9])([A-Z])", r"_\1", name).lower()
-
-
-def _ros_name(full_name: str) -> str:
-    package, _, name = full_name.rpartition(".")
-    pascal = "".join(part[:1].upper() + part[1:] for part in name.split("_"))
-    return f"{package.replace('.', '_') + '_' if package else ''}lcm_msgs/msg/{pascal}"
-
-
-def _recursive(struct: StructDef, structs: dict[str, StructDef], parents: tuple[str, ...] = ()) -> bool:
-    if struct.full_name in parents:
-        return True
-    return any(
-        _recursive(structs[m.type_name], structs, (*parents, struct.full_name))
-        for m in struct.members
-        if not m.is_primitive
-    )
+DRAKE_MODULE = "drake"  # pydrake's wheel ships Drake's lcm-gen'd types as this module
 
 
 class LcmType:
-    """One known LCM type and its ROS 2 mapping (stand-in: see the module's docstring)."""
+    """One known LCM struct, and its ROS 2 face."""
 
-    def __init__(self, codec: StructCodec, library: TypeLibrary) -> None:
-        self.codec = codec
-        self.full_name = codec.type_name
-        self.packed_fingerprint = codec.packed_fingerprint
-        self.source = codec.definition.source
+    def __init__(self, library: TypeLibrary, definition: StructDef, packed_fingerprint: bytes) -> None:
         self._library = library
-        self.refused: str | None = None
-        if _recursive(codec.definition, library.structs):
-            self.refused = f"{self.full_name} is recursive: ROS 2 interfaces cannot refer to themselves"
-        self.ros_type: str | None = None if self.refused else _ros_name(self.full_name)
+        self.definition = definition
+        self.full_name = definition.full_name
+        self.packed_fingerprint = packed_fingerprint
+        self.source = definition.where
+        message = library._mapping.messages.get(self.full_name)
+        self.ros_type: str | None = message.ros_type if message else None
+        self.refused: str | None = library._mapping.refused.get(self.full_name)
+
+    def __repr__(self) -> str:
+        return f"LcmType({self.full_name!r}, ros_type={self.ros_type!r})"
 
     @cached_property
     def ros2msg(self) -> str:
-        return "" if self.ros_type is None else self._library.store.generate_msgdef(self.ros_type, ros_version=2)[0]
+        """The `ros2msg` schema (MCAP, Foxglove): the definition, then each nested type's; "" when refused."""
+        return self._library._mapping.ros2msg(self.full_name) if self.refused is None else ""
 
     @cached_property
     def rihs01(self) -> str:
-        return "" if self.ros_type is None else self._library.store.hash_rihs01(self.ros_type)
+        """`RIHS01_<64 hex>`, the type hash rmw_zenoh announces; "" when refused."""
+        return self._library._mapping.rihs01(self.full_name) if self.refused is None else ""
 
-    def decode(self, data: Buffer) -> LcmMessage:
-        return self.codec.decode(data)
+    @property
+    def msg_definition(self) -> str:
+        """The `.msg` text of this type alone; "" when refused."""
+        message = self._library._mapping.messages.get(self.full_name)
+        return message.definition if message is not None else ""
 
-    def to_cdr(self, data: bytes | memoryview) -> bytes:
-        """The message as CDR of `ros_type` (little-endian, with its 4-byte header)."""
-        assert self.ros_type is not None, self.refused
-        message = self._library.rosbags_message(self.codec.definition, self.decode(data))
-        with _STORE_LOCK:
-            return bytes(self._library.store.serialize_cdr(message, self.ros_type))
+    def to_cdr(self, data: Buffer) -> bytes:
+        """The whole LCM message (fingerprint included) as CDR, header included; bad bytes: DecodeError."""
+        if self.refused is not None:
+            raise DecodeError(self.full_name, "<type>", 0, f"has no ROS 2 form: {self.refused}")
+        return self._transcoder.transcode(data)
 
     def to_json(self, data: Buffer, *, bytes_summary: bool = True) -> dict[str, object]:
-        return self.decode(data).to_dict()
+        """Every field, JSON-ready; byte arrays as size and CRC-32 unless `bytes_summary` is False."""
+        codec = self._library.codecs(self.full_name)[self.full_name]
+        try:
+            message = codec.decode(data)
+        except RecursionError:  # a recursive type nested deeper than Python's stack
+            raise DecodeError(self.full_name, "<message>", 0, "nested too deeply") from None
+        return message_json(message, bytes_summary=bytes_summary)
 
-
-def _module_structs(name: str) -> Iterable[StructDef]:
-    """lcm-gen'd classes of a module (and of its package's modules, as `drake` exposes them)."""
-    module = importlib.import_module(name)
-    for value in vars(module).values():
-        if isinstance(value, type) and hasattr(value, "__typenames__"):
-            yield _class_struct(value, getattr(module, "__file__", name) or name)
-
-
-def _class_struct(cls: type, source: str) -> StructDef:
-    package, _, _ = cls.__module__.rpartition(".")
-    members = []
-    for slot, type_name, dims in zip(cls.__slots__, cls.__typenames__, cls.__dimensions__, strict=True):  # type: ignore[attr-defined]
-        shape = tuple(
-            Dimension(str(d), isinstance(d, str)) for d in (dims or ())
-        )
-        members.append(Member(slot, type_name, shape))
-    return StructDef(package, cls.__name__, tuple(members), (), source)
+    @cached_property
+    def _transcoder(self) -> CdrTranscoder:
+        return self._library._transcoder(self.full_name)
 
 
 class TypeLibrary:
-    """Every known LCM type (stand-in: see the module's docstring)."""
+    """The known LCM types, by full name and by fingerprint."""
 
-    def __init__(self, structs: dict[str, StructDef]) -> None:
-        self.structs = structs
-        self.warnings: list[str] = []
-        self.store = get_typestore(Stores.ROS2_JAZZY)
-        self._msg: dict[str, str] = {}  # ROS type -> its .msg text
-        codecs = compile_codecs(structs)
-        self._register({n: c for n, c in codecs.items() if not _recursive(c.definition, structs)})
-        self._types: dict[str, LcmType] = {name: LcmType(codec, self) for name, codec in codecs.items()}
-        self.warnings.extend(t.refused for t in self._types.values() if t.refused)
-        self._by_fingerprint = {t.packed_fingerprint: t for t in self._types.values()}
+    def __init__(
+        self, structs: Mapping[str, StructDef], fingerprints: Mapping[str, bytes], warnings: list[str]
+    ) -> None:
+        self._structs = dict(structs)
+        self._mapping: RosMapping = map_to_ros(self._structs)
+        self._lock = threading.Lock()
+        self._codec_sets: dict[str, dict[str, StructCodec]] = {}
+        self._transcoders: dict[str, CdrTranscoder] = {}
+        self.warnings = warnings + [
+            f"{name} ({structs[name].where}) has no ROS 2 form: {reason}"
+            for name, reason in self._mapping.refused.items()
+        ]
+        self._types = {name: LcmType(self, self._structs[name], fingerprints[name]) for name in self._structs}
+        self._by_fingerprint = {known.packed_fingerprint: known for known in self._types.values()}
 
     @classmethod
     def load(cls, sources: Sequence[str] = (), *, drake: bool = True) -> TypeLibrary:
-        """The project's types, pydrake's `drake` module (when importable and `drake`), and `sources`."""
-        structs = dict(STRUCTS)
-        found: list[StructDef] = []
-        if drake:
-            with contextlib.suppress(ImportError):  # no pydrake here
-                found.extend(_module_structs("drake"))
+        """The project's types, Drake's (when `drake` and pydrake is installed), and `sources`:
+        `.lcm` files, folders of them (searched recursively), lcm-gen'd Python modules by import
+        name, or the folder of an lcm-gen'd Python package (imported from its parent folder).
+
+        A parse error is a `SchemaError` with file:line; one name defined twice with different
+        contents is one naming both places."""
+        structs: dict[str, StructDef] = dict(STRUCTS)
+        declared: dict[str, bytes] = {}  # a class's own fingerprint, which its publisher writes
+        drake_found = drake and importlib.util.find_spec(DRAKE_MODULE) is not None
+        modules: list[tuple[str, Path | None]] = [(DRAKE_MODULE, None)] if drake_found else []
         for source in sources:
             path = Path(source)
-            if path.is_dir():
-                for file in sorted(path.rglob("*.lcm")):
-                    found.extend(parse_lcm(file.read_text(encoding="utf-8"), str(file)))
-            elif path.suffix == ".lcm" or path.exists():
-                if not path.exists():
-                    raise SchemaError(source, 1, "no such file")
-                found.extend(parse_lcm(path.read_text(encoding="utf-8"), str(path)))
+            files = sorted(path.rglob("*.lcm")) if path.is_dir() else []
+            if files:
+                _merge(structs, load_lcm_files(files))
+            elif path.is_dir() and (path / "__init__.py").is_file() and path.name.isidentifier():
+                modules.append((path.name, path.resolve().parent))  # an lcm-gen'd package's folder
+            elif path.is_dir() and not _looks_like_module(source):
+                raise SchemaError(source, 0, "is a folder with neither .lcm files nor an __init__.py")
+            elif path.is_file():
+                _merge(structs, load_lcm_files([path]))
+            elif _looks_like_module(source):
+                modules.append((source, None))
             else:
-                try:
-                    found.extend(_module_structs(source))
-                except ImportError as error:
-                    raise SchemaError(source, 1, f"neither a .lcm file or folder nor a module ({error})") from None
-        for struct in found:
-            structs.setdefault(struct.full_name, struct)
-        return cls(structs)
-
-    def _register(self, codecs: dict[str, StructCodec]) -> None:
-        texts: dict[str, Any] = {}
-        for codec in codecs.values():
-            lines = []
-            for member in codec.definition.members:
-                base = _ROS_PRIMITIVES.get(member.type_name) or _ros_name(member.type_name).replace("/msg/", "/")
-                fixed = len(member.dims) == 1 and not member.dims[0].is_variable
-                suffix = f"[{member.dims[0].size}]" if fixed else "[]" if member.dims else ""
-                lines.append(f"{base}{suffix} {_snake(member.name)}")
-            self._msg[_ros_name(codec.type_name)] = "\n".join(lines) + "\n"
-            texts.update(get_types_from_msg(self._msg[_ros_name(codec.type_name)], _ros_name(codec.type_name)))
-        self.store.register(texts)
-
-    def rosbags_message(self, struct: StructDef, message: LcmMessage) -> Any:
-        fields = {}
-        for member in struct.members:
-            value = getattr(message, member.name)
-            if member.dims:
-                value = _flat(value, len(member.dims))
-                if member.type_name in _ROS_PRIMITIVES and member.type_name != "string":
-                    value = np.asarray(value, dtype=_DTYPES[_ROS_PRIMITIVES[member.type_name]])
-                elif not member.is_primitive:
-                    value = [self.rosbags_message(self.structs[member.type_name], item) for item in value]
-            elif not member.is_primitive:
-                value = self.rosbags_message(self.structs[member.type_name], value)
-            elif member.type_name == "boolean":
-                value = bool(value)
-            fields[_snake(member.name)] = value
-        return self.store.types[_ros_name(struct.full_name)](**fields)
+                raise SchemaError(source, 0, "no such .lcm file, folder or importable module")
+        for module, search in modules:
+            loaded = structs_from_module(module, search)
+            _merge(structs, {name: definition for name, (definition, _) in loaded.items()})
+            for name, (_, packed) in loaded.items():
+                declared.setdefault(name, packed)
+        check_references(structs)
+        warnings: list[str] = []
+        fingerprints: dict[str, bytes] = {}
+        for name, definition in structs.items():
+            computed = fingerprint(definition, structs).to_bytes(8, "big")
+            fingerprints[name] = declared.get(name, computed)
+            if fingerprints[name] != computed:
+                warnings.append(
+                    f"{name} ({definition.where}): its class's fingerprint {fingerprints[name].hex()} is not "
+                    f"the {computed.hex()} its description gives; using the class's"
+                )
+        return cls(structs, fingerprints, warnings)
 
     def for_data(self, data: Buffer) -> LcmType | None:
-        """The type the first 8 bytes name (maybe a refused one), or None."""
+        """The type whose fingerprint starts `data`, or None."""
         return self._by_fingerprint.get(bytes(data[:8]))
 
     def get(self, full_name: str) -> LcmType:
+        """The type named `full_name` (`drake.lcmt_iiwa_status`); KeyError if unknown."""
         return self._types[full_name]
 
     def types(self) -> list[LcmType]:
-        return list(self._types.values())
+        """Every known type, sorted by full name."""
+        return [self._types[name] for name in sorted(self._types)]
 
     def ros_definitions(self) -> dict[str, str]:
-        return dict(self._msg)
+        """`pkg/msg/Name` -> `.msg` text of every type that has a ROS 2 form."""
+        return {message.ros_type: message.definition for message in self._mapping.messages.values()}
+
+    def codecs(self, full_name: str) -> dict[str, StructCodec]:
+        """The LCM codecs of `full_name` and of every type it nests, generated together when first
+        asked for (so their message classes work together), NaN and infinities allowed."""
+        with self._lock:
+            if full_name not in self._codec_sets:
+                closure = self._closure(full_name)
+                fingerprints = {name: int.from_bytes(self._types[name].packed_fingerprint, "big") for name in closure}
+                self._codec_sets[full_name] = compile_codecs(closure, finite=False, fingerprints=fingerprints)
+            return self._codec_sets[full_name]
+
+    def _transcoder(self, full_name: str) -> CdrTranscoder:
+        """The LCM -> CDR transcoder of `full_name`, generated when first asked for."""
+        with self._lock:
+            if full_name not in self._transcoders:
+                closure = self._closure(full_name)
+                fingerprints = {name: self._types[name].packed_fingerprint for name in closure}
+                self._transcoders.update(compile_transcoders(closure, fingerprints, [full_name]))
+            return self._transcoders[full_name]
+
+    def _closure(self, full_name: str) -> dict[str, StructDef]:
+        """`full_name`'s definition and those of every type it nests, at any depth."""
+        found: dict[str, StructDef] = {}
+        pending = [full_name]
+        while pending:
+            name = pending.pop()
+            if name not in found:
+                found[name] = self._structs[name]
+                pending.extend(m.type_name for m in found[name].members if not m.is_primitive)
+        return found
 
 
-def _flat(value: Any, depth: int) -> list[Any]:
-    if isinstance(value, np.ndarray):
-        return list(value.ravel())
-    items = list(value)
-    for _ in range(depth - 1):
-        items = [inner for outer in items for inner in outer]
-    return items
+def _merge(structs: dict[str, StructDef], new: Mapping[str, StructDef]) -> None:
+    """Add `new`; a name already known must have the same members (what its fingerprint covers)."""
+    for name, definition in new.items():
+        known = structs.get(name)
+        if known is None:
+            structs[name] = definition
+        elif known.base_hash() != definition.base_hash():
+            raise SchemaError(
+                definition.source,
+                definition.line,
+                f"type {name} differs from its definition at {known.where}",
+            )
 
 
-__all__ = ["DecodeError", "LcmType", "TypeLibrary", "ros_topic_for_channel"]
+def _looks_like_module(source: str) -> bool:
+    return all(part.isidentifier() for part in source.split(".")) and not source.endswith(".lcm")

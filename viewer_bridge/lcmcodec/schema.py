@@ -8,9 +8,10 @@ child's hash; the sum is rotated left by one bit.
 
 from __future__ import annotations
 
+import keyword
 import re
-from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from viewer_bridge.errors import SchemaError
@@ -30,6 +31,14 @@ PRIMITIVE_FORMATS: Mapping[str, tuple[str, int]] = {
 PRIMITIVE_TYPES = frozenset(PRIMITIVE_FORMATS) | {"string"}
 INTEGER_TYPES = frozenset({"int8_t", "int16_t", "int32_t", "int64_t", "byte"})
 STRING_MIN_SIZE = 5  # length word + NUL
+# The values a constant of each integer type may hold (`byte` is unsigned).
+INTEGER_RANGES: Mapping[str, tuple[int, int]] = {
+    "int8_t": (-(1 << 7), (1 << 7) - 1),
+    "int16_t": (-(1 << 15), (1 << 15) - 1),
+    "int32_t": (-(1 << 31), (1 << 31) - 1),
+    "int64_t": (-(1 << 63), (1 << 63) - 1),
+    "byte": (0, 255),
+}
 
 _MASK64 = (1 << 64) - 1
 
@@ -38,8 +47,13 @@ _MASK64 = (1 << 64) - 1
 class Dimension:
     """One array dimension: a literal size, or the name of an earlier integer member."""
 
-    size: str
+    size: str  # as the fingerprint hashes it: a literal (`3`, `0x3`), a constant's literal, a member name
     is_variable: bool
+
+    @property
+    def count(self) -> int:
+        """The number of elements of a fixed dimension (its literal may be hexadecimal)."""
+        return int(self.size, 0)
 
     @property
     def mode(self) -> int:
@@ -54,6 +68,7 @@ class Member:
     name: str
     type_name: str
     dims: tuple[Dimension, ...]
+    comment: str = field(default="", compare=False)  # the comment just before it in the .lcm file
 
     @property
     def is_primitive(self) -> bool:
@@ -67,6 +82,8 @@ class Constant:
     name: str
     type_name: str
     value: int | float
+    text: str = ""  # the literal as written (`0x1F`); an array sized by this constant hashes it
+    comment: str = field(default="", compare=False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,11 +94,21 @@ class StructDef:
     name: str
     members: tuple[Member, ...]
     constants: tuple[Constant, ...]
-    source: str
+    source: str  # a file path, or `module NAME` for an lcm-gen'd Python class
+    line: int = 1
+    comment: str = field(default="", compare=False)
 
     @property
     def full_name(self) -> str:
         return f"{self.package}.{self.name}" if self.package else self.name
+
+    @property
+    def where(self) -> str:
+        """Where it was defined, for messages: `path/x.lcm:12`, or `module drake`."""
+        return f"{self.source}:{self.line}" if not self.source.startswith("module ") else self.source
+
+    def member(self, name: str) -> Member | None:
+        return next((member for member in self.members if member.name == name), None)
 
     def base_hash(self) -> int:
         """The struct's own hash before children are added (unsigned 64-bit)."""
@@ -151,10 +178,12 @@ _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 class _Token:
     text: str
     line: int
+    comment: str  # the comments between the previous token and this one, markers stripped
 
 
 def _tokenize(text: str, path: str) -> list[_Token]:
     tokens: list[_Token] = []
+    comments: list[str] = []
     position = 0
     line = 1
     while position < len(text):
@@ -163,10 +192,20 @@ def _tokenize(text: str, path: str) -> list[_Token]:
             raise SchemaError(path, line, f"unexpected character {text[position]!r}")
         kind = match.lastgroup
         if kind in ("number", "word", "symbol"):
-            tokens.append(_Token(match.group(), line))
+            tokens.append(_Token(match.group(), line, "\n".join(comments)))
+            comments = []
+        elif kind in ("line_comment", "block_comment"):
+            comments.extend(_comment_lines(match.group()))
         line += match.group().count("\n")
         position = match.end()
     return tokens
+
+
+def _comment_lines(comment: str) -> list[str]:
+    """The text of a `// ...` or `/* ... */` comment, one item per line, decoration removed."""
+    body = comment[2:-2] if comment.startswith("/*") else comment[2:]
+    lines = [line.strip().lstrip("*").strip() for line in body.splitlines()]
+    return [line for line in lines if line]
 
 
 class _Parser:
@@ -179,8 +218,14 @@ class _Parser:
         self.package = ""
 
     def error(self, reason: str) -> SchemaError:
-        line = self.tokens[min(self.index, len(self.tokens) - 1)].line if self.tokens else 1
-        return SchemaError(self.path, line, reason)
+        return SchemaError(self.path, self.line(), reason)
+
+    def line(self) -> int:
+        return self.tokens[min(self.index, len(self.tokens) - 1)].line if self.tokens else 1
+
+    def comment(self) -> str:
+        """The comment in front of the next token."""
+        return self.tokens[self.index].comment if self.index < len(self.tokens) else ""
 
     def peek(self) -> str | None:
         return self.tokens[self.index].text if self.index < len(self.tokens) else None
@@ -203,46 +248,63 @@ class _Parser:
         if not _IDENTIFIER.match(token):
             self.index -= 1
             raise self.error(f"expected {what}, found {token!r}")
+        if keyword.iskeyword(token) or token == "self":
+            # lcm-gen's Python (and our own generated codecs) could not name it.
+            self.index -= 1
+            raise self.error(f"{what} {token!r} is a Python keyword")
         return token
 
     def parse_file(self) -> list[StructDef]:
         structs: list[StructDef] = []
         while self.peek() is not None:
-            keyword = self.take()
-            if keyword == "package":
+            comment, line = self.comment(), self.line()
+            keyword_ = self.take()
+            if keyword_ == "package":
                 self.package = self.take()
+                if not _PACKAGE.match(self.package):
+                    self.index -= 1
+                    raise self.error(f"{self.package!r} is not a package name")
                 self.expect(";")
-            elif keyword == "struct":
-                structs.append(self.parse_struct())
+            elif keyword_ == "struct":
+                structs.append(self.parse_struct(comment, line))
             else:
                 self.index -= 1
-                raise self.error(f"expected 'package' or 'struct', found {keyword!r}")
+                raise self.error(f"expected 'package' or 'struct', found {keyword_!r}")
         return structs
 
-    def parse_struct(self) -> StructDef:
+    def parse_struct(self, comment: str, line: int) -> StructDef:
         name = self.identifier("a struct name")
         self.expect("{")
         members: list[Member] = []
         constants: list[Constant] = []
         while self.peek() != "}":
             if self.peek() == "const":
+                constant_comment = self.comment()
                 self.take()
-                constants.extend(self.parse_constants())
+                for constant in self.parse_constants(constant_comment):
+                    self.check_new_name(constant.name, members, constants)
+                    constants.append(constant)
             else:
-                self.parse_members(members)
+                self.parse_members(members, constants)
         self.expect("}")
-        return StructDef(self.package, name, tuple(members), tuple(constants), self.path)
+        return StructDef(self.package, name, tuple(members), tuple(constants), self.path, line, comment)
 
-    def parse_constants(self) -> Iterator[Constant]:
+    def check_new_name(self, name: str, members: list[Member], constants: list[Constant]) -> None:
+        if any(member.name == name for member in members) or any(c.name == name for c in constants):
+            self.index -= 1
+            raise self.error(f"{name!r} is declared twice")
+
+    def parse_constants(self, comment: str) -> Iterator[Constant]:
         type_name = self.take()
-        if type_name not in PRIMITIVE_FORMATS:
+        if type_name not in PRIMITIVE_FORMATS or type_name in ("boolean", "byte"):  # as lcm-gen
             self.index -= 1
             raise self.error(f"a constant must have a numeric type, not {type_name!r}")
         while True:
             name = self.identifier("a constant name")
             self.expect("=")
             literal = self.take()
-            yield Constant(name, type_name, self.number(literal, type_name))
+            yield Constant(name, type_name, self.number(literal, type_name), literal, comment)
+            comment = ""
             if self.take() == ";":
                 return
             self.index -= 1
@@ -252,42 +314,69 @@ class _Parser:
         try:
             if type_name in ("float", "double"):
                 return float(literal)
-            return int(literal, 0)
+            value = int(literal, 0)
         except ValueError:
+            self.index -= 1
             raise self.error(f"{literal!r} is not a valid {type_name} value") from None
+        low, high = INTEGER_RANGES[type_name]
+        if not low <= value <= high:
+            self.index -= 1
+            raise self.error(f"{literal} does not fit in {type_name}")
+        return value
 
-    def parse_members(self, earlier: list[Member]) -> None:
+    def parse_members(self, earlier: list[Member], constants: list[Constant]) -> None:
         """Parse one declaration (`type a[n], b;`) and append its members to `earlier`."""
+        comment = self.comment()
         type_name = self.qualify(self.take())
         while True:
             name = self.identifier("a member name")
+            self.check_new_name(name, earlier, constants)
             dims: list[Dimension] = []
             while self.peek() == "[":
                 self.take()
-                dims.append(self.dimension(self.take(), earlier))
+                dims.append(self.dimension(self.take(), earlier, constants))
                 self.expect("]")
-            earlier.append(Member(name, type_name, tuple(dims)))
+            earlier.append(Member(name, type_name, tuple(dims), comment))
+            comment = ""
             if self.take() == ";":
                 return
             self.index -= 1
             self.expect(",")
 
     def qualify(self, type_name: str) -> str:
-        if type_name in PRIMITIVE_TYPES or "." in type_name or not self.package:
+        if type_name in PRIMITIVE_TYPES:
+            return type_name
+        if not _PACKAGE.match(type_name):
+            self.index -= 1
+            raise self.error(f"expected a type, found {type_name!r}")
+        if "." in type_name or not self.package:
             return type_name
         return f"{self.package}.{type_name}"
 
-    def dimension(self, size: str, earlier: list[Member]) -> Dimension:
-        if size.isdigit():
-            if int(size) <= 0:
+    def dimension(self, size: str, earlier: list[Member], constants: list[Constant]) -> Dimension:
+        if size[:1].isdigit():
+            try:
+                count = int(size, 0)
+            except ValueError:
+                raise self.error(f"array size {size!r} is not a number") from None
+            if count <= 0:
                 raise self.error(f"array size must be positive, not {size}")
             return Dimension(size, is_variable=False)
+        for constant in constants:
+            if constant.name == size:
+                # lcm-gen hashes the constant's literal, as if it had been written in the brackets.
+                if constant.type_name not in INTEGER_TYPES or int(constant.value) <= 0:
+                    raise self.error(f"array size {size!r} must be a positive integer constant")
+                return Dimension(constant.text, is_variable=False)
         for member in earlier:
             if member.name == size:
                 if member.type_name not in INTEGER_TYPES or member.dims:
                     raise self.error(f"array size {size!r} must be an integer scalar member")
                 return Dimension(size, is_variable=True)
-        raise self.error(f"array size {size!r} is not an earlier member")
+        raise self.error(f"array size {size!r} is neither a constant nor an earlier member")
+
+
+_PACKAGE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)*\Z")
 
 
 def parse_lcm(text: str, path: str = "<string>") -> list[StructDef]:
@@ -297,19 +386,35 @@ def parse_lcm(text: str, path: str = "<string>") -> list[StructDef]:
 
 def load_schema_dir(folder: Path) -> dict[str, StructDef]:
     """Parse every `.lcm` file in `folder` and check that each referenced type exists."""
+    structs = load_lcm_files(sorted(folder.glob("*.lcm")))
+    check_references(structs)
+    return structs
+
+
+def load_lcm_files(paths: Iterable[Path]) -> dict[str, StructDef]:
+    """Parse `.lcm` files into one table by full name; a name defined twice is an error naming both."""
     structs: dict[str, StructDef] = {}
-    for path in sorted(folder.glob("*.lcm")):
-        for struct in parse_lcm(path.read_text(encoding="utf-8"), str(path)):
+    for path in paths:
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as error:
+            raise SchemaError(str(path), 1, f"cannot read: {error}") from None
+        for struct in parse_lcm(text, str(path)):
             if struct.full_name in structs:
-                raise SchemaError(str(path), 1, f"type {struct.full_name} is defined twice")
+                first = structs[struct.full_name]
+                raise SchemaError(struct.source, struct.line, f"type {struct.full_name} is also defined at {first.where}")
             structs[struct.full_name] = struct
+    return structs
+
+
+def check_references(structs: Mapping[str, StructDef]) -> None:
+    """Refuse a member whose struct type is not in `structs`, naming the file and line of its struct."""
     for struct in structs.values():
         for member in struct.members:
             if not member.is_primitive and member.type_name not in structs:
                 raise SchemaError(
-                    struct.source, 1, f"{struct.full_name}.{member.name}: unknown type {member.type_name!r}"
+                    struct.source, struct.line, f"{struct.full_name}.{member.name}: unknown type {member.type_name!r}"
                 )
-    return structs
 
 
 __all__ = [
@@ -321,7 +426,9 @@ __all__ = [
     "PRIMITIVE_TYPES",
     "STRING_MIN_SIZE",
     "StructDef",
+    "check_references",
     "fingerprint",
+    "load_lcm_files",
     "load_schema_dir",
     "parse_lcm",
 ]

@@ -9,6 +9,7 @@ wrong raises one `DecodeError` naming the type, the field path and the byte offs
 
 from __future__ import annotations
 
+import itertools
 import math
 import struct
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -138,7 +139,7 @@ def _nest(flat: Sequence[Any], shape: Sequence[int], leaf: Callable[[Any], Any])
     if len(shape) == 1:
         return leaf(flat)
     step = math.prod(shape[1:])
-    if len(shape) == 2:  # the common case (e.g. position[num_links][3]), kept flat for speed
+    if len(shape) == 2 and step:  # the common case (e.g. position[num_links][3]), kept flat for speed
         return [leaf(flat[start : start + step]) for start in range(0, shape[0] * step, step)]
     return [_nest(flat[i * step : (i + 1) * step], shape[1:], leaf) for i in range(shape[0])]
 
@@ -169,6 +170,21 @@ def _bad_count(type_name: str, field: str, offset: int, count: int, size: int, e
         offset,
         f"count {count} needs at least {count * size} bytes, {end - offset} remain",
     )
+
+
+_EMPTY_ROWS_LIMIT = 1 << 16  # lists an empty multi-dimensional array may have beyond the bytes left
+
+
+def _check_rows(type_name: str, field: str, offset: int, shape: Sequence[int], end: int) -> None:
+    """Refuse an empty multi-dimensional array whose nested lists outnumber the bytes that remain
+    (or 65,536, whichever is more): they cost memory and time but no bytes."""
+    rows, level = 0, 1
+    limit = max(end - offset, _EMPTY_ROWS_LIMIT)
+    for size in shape[:-1]:
+        level *= size
+        rows += level
+        if rows > limit:
+            raise DecodeError(type_name, field, offset, f"shape {tuple(shape)} is {rows}+ empty rows, more than {limit}")
 
 
 def _check_finite(
@@ -222,7 +238,8 @@ _ENCODE_ERRORS = (struct.error, OverflowError, TypeError, ValueError, AttributeE
 
 
 def _ident(full_name: str) -> str:
-    return full_name.replace(".", "_")
+    """A Python identifier for a type name, distinct for distinct names (`a_b.c` is not `a.b_c`)."""
+    return full_name.replace("_", "__").replace(".", "_D")
 
 
 class _Writer:
@@ -259,7 +276,7 @@ def _min_sizes(structs: Mapping[str, StructDef]) -> dict[str, int]:
         for member in struct.members:
             if any(dim.is_variable for dim in member.dims):
                 continue
-            count = math.prod(int(dim.size) for dim in member.dims)
+            count = math.prod(dim.count for dim in member.dims)
             total += count * _element_min_size(member, structs, parents + (struct.full_name,), size_of)
         sizes[struct.full_name] = total
         return total
@@ -284,11 +301,32 @@ def _element_min_size(
     return size_of(structs[member.type_name], parents)
 
 
+def call_child(out: _Writer, statement: str, error_class: str, type_literal: str, field: str) -> None:
+    """Write `statement` (a child struct's codec) so that its error is re-homed under the type
+    `type_literal` (a Python literal) and `field` (an expression)."""
+    out.line("try:")
+    with out.indent():
+        out.line(statement)
+    out.line(f"except {error_class} as error:")
+    with out.indent():
+        out.line(f"raise error.within({type_literal}, {field}) from None")
+
+
+def element_min_size(member: Member, min_sizes: Mapping[str, int]) -> int:
+    """The fewest bytes one element of `member` takes (`min_sizes`: each struct's, from `_min_sizes`)."""
+    if member.type_name == "string":
+        return STRING_MIN_SIZE
+    if member.type_name in PRIMITIVE_FORMATS:
+        return PRIMITIVE_FORMATS[member.type_name][1]
+    return min_sizes[member.type_name]
+
+
 class _StructGenerator:
     """Writes the class, the decoder and the encoder of one struct."""
 
-    def __init__(self, struct: StructDef, min_sizes: Mapping[str, int], out: _Writer) -> None:
+    def __init__(self, struct: StructDef, min_sizes: Mapping[str, int], out: _Writer, finite: bool = True) -> None:
         self.struct = struct
+        self.finite = finite
         self.min_sizes = min_sizes
         self.out = out
         self.ident = _ident(struct.full_name)
@@ -330,8 +368,13 @@ class _StructGenerator:
         if not member.dims:
             return leaf
         if any(dim.is_variable for dim in member.dims):
-            return 'b""' if member.type_name == "byte" and len(member.dims) == 1 else "[]"
-        shape = [int(dim.size) for dim in member.dims]
+            # Fixed dimensions before the first variable one are filled (`[4][n]` -> four empty rows).
+            fixed = [dim.count for dim in itertools.takewhile(lambda dim: not dim.is_variable, member.dims)]
+            inner = 'b""' if member.type_name == "byte" and len(member.dims) == len(fixed) + 1 else "[]"
+            for size in reversed(fixed):
+                inner = f"[{inner} for _ in range({size})]"
+            return inner
+        shape = [dim.count for dim in member.dims]
         if member.type_name == "byte":
             inner = f"bytes({shape[-1]})"
             shape = shape[:-1]
@@ -394,7 +437,7 @@ class _StructGenerator:
         out.line(f"{targets}{',' if len(members) == 1 else ''} = {packer}.unpack_from(buf, off)")
         position = 0
         for member, size in zip(members, sizes, strict=True):
-            if member.type_name in ("float", "double"):
+            if member.type_name in ("float", "double") and self.finite:
                 out.line(f"if not _isfinite(msg.{member.name}):")
                 with out.indent():
                     out.line(
@@ -423,6 +466,11 @@ class _StructGenerator:
             out.line(
                 f"raise _bad_count({t}, {name!r}, off, min(shape) if min(shape) < 0 else count, {element_size}, end)"
             )
+        if len(member.dims) > 1:
+            # An empty array still has its rows: `x[n][m][0]` would be n * m lists for no bytes.
+            out.line("if not count:")
+            with out.indent():
+                out.line(f"_check_rows({t}, {name!r}, off, shape, end)")
         if member.type_name in ("byte", "boolean"):
             self.decode_small_array(member, leaf="bytes" if member.type_name == "byte" else "list")
         elif member.type_name in PRIMITIVE_FORMATS:
@@ -445,7 +493,7 @@ class _StructGenerator:
         out, t, name = self.out, self.type_literal, member.name
         code, size = PRIMITIVE_FORMATS[member.type_name]
         out.line(f"array = _frombuffer(buf, '>{code}', count, off)")
-        if member.type_name in ("float", "double"):
+        if member.type_name in ("float", "double") and self.finite:
             out.line("if not _isfinite_array(array).all():")
             with out.indent():
                 out.line(f"_check_finite({t}, {name!r}, off, {size}, array.tolist(), shape)")
@@ -459,7 +507,7 @@ class _StructGenerator:
             out.line("flat = bytes(buf[off:off + count])")
         else:
             out.line(f"flat = _unpack_from('>%d{code}' % count, buf, off)")
-        if member.type_name in ("float", "double"):
+        if member.type_name in ("float", "double") and self.finite:
             out.line(f"_check_finite({t}, {name!r}, off, {size}, flat, shape)")
         elif member.type_name == "boolean":
             out.line("flat = [bool(v) for v in flat]")
@@ -475,11 +523,7 @@ class _StructGenerator:
             self.out.line(f"msg.{member.name} = {flat}")
 
     def element_min_size(self, member: Member) -> int:
-        if member.type_name == "string":
-            return STRING_MIN_SIZE
-        if member.type_name in PRIMITIVE_FORMATS:
-            return PRIMITIVE_FORMATS[member.type_name][1]
-        return self.min_sizes[member.type_name]
+        return element_min_size(member, self.min_sizes)
 
     def decode_element(self, member: Member, target: str, field: str) -> None:
         out, t = self.out, self.type_literal
@@ -508,14 +552,7 @@ class _StructGenerator:
         )
 
     def call_child(self, statement: str, error_class: str, field: str) -> None:
-        """Run `statement` (a child struct's codec), re-homing its error under this type and field."""
-        out = self.out
-        out.line("try:")
-        with out.indent():
-            out.line(statement)
-        out.line(f"except {error_class} as error:")
-        with out.indent():
-            out.line(f"raise error.within({self.type_literal}, {field}) from None")
+        call_child(self.out, statement, error_class, self.type_literal, field)
 
     # Encoding ---------------------------------------------------------------------------------
 
@@ -592,11 +629,11 @@ def _flatten_bytes(value: Any, shape: Sequence[int], type_name: str, field: str)
     return b"".join(_flatten_bytes(row, shape[1:], type_name, f"{field}[{i}]") for i, row in enumerate(value))
 
 
-def generate_source(structs: Mapping[str, StructDef], min_sizes: Mapping[str, int]) -> str:
+def generate_source(structs: Mapping[str, StructDef], min_sizes: Mapping[str, int], finite: bool = True) -> str:
     """The Python source of every class, decoder and encoder for `structs`."""
     out = _Writer()
     for definition in structs.values():
-        generator = _StructGenerator(definition, min_sizes, out)
+        generator = _StructGenerator(definition, min_sizes, out, finite)
         generator.write_class()
         generator.write_decoder()
         generator.write_encoder()
@@ -605,8 +642,14 @@ def generate_source(structs: Mapping[str, StructDef], min_sizes: Mapping[str, in
     return "\n".join(out.lines) + "\n"
 
 
-def compile_codecs(structs: Mapping[str, StructDef]) -> dict[str, StructCodec]:
-    """Generate, compile and wrap the codecs of every struct in `structs`."""
+def compile_codecs(
+    structs: Mapping[str, StructDef], *, finite: bool = True, fingerprints: Mapping[str, int] | None = None
+) -> dict[str, StructCodec]:
+    """Generate, compile and wrap the codecs of every struct in `structs`.
+
+    `finite` refuses NaN and infinite floats (the viewer's messages never carry them); a generic
+    type's decoder passes them through. `fingerprints` overrides computed ones (an lcm-gen'd
+    class's own, which is what its publisher writes)."""
     namespace: dict[str, Any] = {
         "LcmMessage": LcmMessage,
         "DecodeError": DecodeError,
@@ -627,12 +670,13 @@ def compile_codecs(structs: Mapping[str, StructDef]) -> dict[str, StructCodec]:
         "_truncated": _truncated,
         "_bad_count": _bad_count,
         "_check_finite": _check_finite,
+        "_check_rows": _check_rows,
         "_string_error": _string_error,
         "_ENCODE_ERRORS": _ENCODE_ERRORS,
     }
     min_sizes = _min_sizes(structs)
-    source = generate_source(structs, min_sizes)
-    exec(compile(source, "<lcm codecs generated from lcmtypes/>", "exec"), namespace)  # noqa: S102
+    source = generate_source(structs, min_sizes, finite)
+    exec(compile(source, "<lcm codecs generated from lcm types>", "exec"), namespace)  # noqa: S102
     codecs: dict[str, StructCodec] = {}
     for name, definition in structs.items():
         ident = _ident(name)
@@ -640,7 +684,7 @@ def compile_codecs(structs: Mapping[str, StructDef]) -> dict[str, StructCodec]:
         codec = StructCodec(
             definition=definition,
             message_class=message_class,
-            fingerprint=fingerprint(definition, structs),
+            fingerprint=(fingerprints or {}).get(name) or fingerprint(definition, structs),
             min_size=min_sizes[name],
             _encode_body=namespace[f"{ident}_encode"],
             _decode_body=namespace[f"{ident}_decode"],

@@ -1,0 +1,146 @@
+"""Benchmark: any LCM type to ROS 2 CDR, the compiled transcoder against the obvious Python path.
+
+Run: .venv/bin/python bench/lcm_generic.py [--quick]
+
+The baseline is what a hand-written bridge does: decode with the lcm-gen'd class, build an rclpy
+message, `rclpy.serialization.serialize_message`. For `drake.lcmt_iiwa_status` the rclpy message
+is the real `drake_lcm_msgs/msg/LcmtIiwaStatus` when its interface package is built into the venv;
+until then it is `sensor_msgs/JointState` carrying three of the seven arrays (a lighter message
+than the real one, so the ratio is a lower bound), and the row says which. The 100,000-element
+array is a type of one `double[n]` against lcm-gen's class and `std_msgs/Float64MultiArray`, and
+against numpy byte-swapping the same 800 kB (the floor of any LCM -> CDR conversion).
+Both sides of a row run in this process on the same bytes, in alternating rounds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import subprocess
+import sys
+import sysconfig
+import tempfile
+from collections.abc import Callable
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+import drake
+import numpy as np
+from common import Measure  # bench/ is on sys.path when run as a script
+from draw_codec import paired, print_measures
+
+from viewer_bridge.lcmcodec.library import TypeLibrary
+
+BIG = "package bench;\nstruct big_array_t { int32_t n; double values[n]; }\n"
+BIG_SIZE = 100_000
+
+
+def iiwa_status(joints: int = 7) -> Any:
+    message = drake.lcmt_iiwa_status()
+    message.utime = 1_700_000_000_000_000
+    message.num_joints = joints
+    rng = np.random.default_rng(0)
+    for name in message.__slots__[2:]:
+        setattr(message, name, rng.normal(size=joints).tolist())
+    return message
+
+
+def iiwa_baseline(data: bytes) -> tuple[str, Callable[[], bytes]]:
+    """lcm-gen decode + an rclpy message + serialize_message, and the rclpy type's name."""
+    from rclpy.serialization import serialize_message
+
+    try:
+        real = importlib.import_module("drake_lcm_msgs.msg").LcmtIiwaStatus
+    except ImportError:
+        real = None
+    if real is not None:
+
+        def build_real() -> bytes:
+            status = drake.lcmt_iiwa_status.decode(data)
+            message = real()
+            message.utime, message.num_joints = status.utime, status.num_joints
+            for name in status.__slots__[2:]:
+                setattr(message, name, getattr(status, name))
+            return serialize_message(message)  # type: ignore[no-any-return]
+
+        return "drake_lcm_msgs/LcmtIiwaStatus", build_real
+    from sensor_msgs.msg import JointState
+
+    def build_joint_state() -> bytes:
+        status = drake.lcmt_iiwa_status.decode(data)
+        message = JointState()
+        message.header.stamp.sec, micros = divmod(status.utime, 1_000_000)
+        message.header.stamp.nanosec = micros * 1000
+        message.position = status.joint_position_measured
+        message.velocity = status.joint_velocity_estimated
+        message.effort = status.joint_torque_measured
+        return serialize_message(message)  # type: ignore[no-any-return]
+
+    return "sensor_msgs/JointState (3 of 7 arrays)", build_joint_state
+
+
+def big_array(folder: Path) -> tuple[TypeLibrary, Any, bytes]:
+    """The library knowing `bench.big_array_t`, lcm-gen's class for it, and one message's bytes."""
+    (folder / "big.lcm").write_text(BIG)
+    lcm_gen = Path(sysconfig.get_paths()["purelib"]) / "bin" / "lcm-gen"
+    subprocess.run([str(lcm_gen), "--python", "--ppath", str(folder), str(folder / "big.lcm")], check=True)
+    sys.path.insert(0, str(folder))
+    try:
+        lcmgen_class = importlib.import_module("bench.big_array_t").big_array_t
+    finally:
+        sys.path.remove(str(folder))
+    message = lcmgen_class()
+    message.n = BIG_SIZE
+    message.values = np.random.default_rng(1).normal(size=BIG_SIZE).tolist()
+    return TypeLibrary.load([str(folder / "big.lcm")], drake=False), lcmgen_class, message.encode()
+
+
+def big_baseline(lcmgen_class: Any, data: bytes) -> Callable[[], bytes]:
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import Float64MultiArray
+
+    def build() -> bytes:
+        decoded = lcmgen_class.decode(data)
+        message = Float64MultiArray()
+        message.data = decoded.values
+        return serialize_message(message)  # type: ignore[no-any-return]
+
+    return build
+
+
+def measures(quick: bool = False) -> list[Measure]:
+    """Issue 31's speed goals 1 and 2 (the throughput goal is the router's, in its own bench)."""
+    rows = []
+    library = TypeLibrary.load()
+    data = iiwa_status().encode()
+    known = library.get("drake.lcmt_iiwa_status")
+    rclpy_type, baseline = iiwa_baseline(data)
+    ours, base = paired(partial(known.to_cdr, data), baseline, quick)
+    rows.append(Measure(f"lcmt_iiwa_status (7 joints) -> CDR, vs lcm-gen + {rclpy_type}", ours * 1e6, base * 1e6,
+                        "us", "ratio >= 20x", base / ours >= 20))  # fmt: skip
+    with tempfile.TemporaryDirectory() as folder:
+        big_library, lcmgen_class, big = big_array(Path(folder))
+        big_known = big_library.get("bench.big_array_t")
+        ours, base = paired(partial(big_known.to_cdr, big), big_baseline(lcmgen_class, big), quick)
+        rows.append(Measure("double[100000] -> CDR, vs lcm-gen + Float64MultiArray", ours * 1e3, base * 1e3,
+                            "ms", "ratio >= 50x", base / ours >= 50))  # fmt: skip
+        swap = partial(_numpy_swap, big)
+        ours, floor = paired(partial(big_known.to_cdr, big), swap, quick)
+        rows.append(Measure("double[100000] -> CDR, vs numpy byteswap of its bytes", ours * 1e3, floor * 1e3,
+                            "ms", "ours <= 3x numpy", ours <= 3 * floor))  # fmt: skip
+    return rows
+
+
+def _numpy_swap(data: bytes) -> bytes:
+    return np.frombuffer(data, ">f8", BIG_SIZE, 12).astype("<f8").tobytes()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="fewer rounds")
+    print_measures(measures(parser.parse_args().quick))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,258 @@
+"""The compiled LCM -> CDR transcoder, held to lcm-gen's encoder and two independent CDR readers."""
+
+from __future__ import annotations
+
+import contextlib
+import struct
+import tracemalloc
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import drake
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from tests.lcmcodec.corpus import (
+    CORPUS,
+    PLAIN_TAIL,
+    expected,
+    generate_lcmgen,
+    lcmgen_messages,
+    mcap_ros2_decode,
+    rosbags_reader,
+)
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.lcmcodec.library import TypeLibrary
+
+CDR_TYPES = [
+    "lab.geometry.point3d_t",
+    "lab.robot.arm_state_t",
+    "lab.robot.heartbeat_t",
+    "lab.robot.pulse_t",
+    "plain_status_t",
+]
+
+
+@pytest.fixture(scope="module")
+def library() -> TypeLibrary:
+    return TypeLibrary.load([str(CORPUS)])
+
+
+@pytest.fixture(scope="module")
+def classes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, type]:
+    return generate_lcmgen(tmp_path_factory.mktemp("corpus_lcmgen"))
+
+
+@pytest.fixture(scope="module")
+def read_cdr(library: TypeLibrary) -> Callable[[bytes, str], Any]:
+    return rosbags_reader(library)
+
+
+def test_the_corpus_types_that_ros_can_say_are_the_ones_transcoded(library: TypeLibrary) -> None:
+    corpus = [known for known in library.types() if known.source.startswith(str(CORPUS))]
+    assert sorted(known.full_name for known in corpus if known.ros_type) == CDR_TYPES
+
+
+@pytest.mark.parametrize("type_name", CDR_TYPES)
+def test_every_value_survives_as_independent_readers_decode_it(
+    type_name: str, library: TypeLibrary, classes: dict[str, type], read_cdr: Callable[[bytes, str], Any]
+) -> None:
+    known = library.get(type_name)
+    structs = {t.full_name: t.definition for t in library.types()}
+    assert known.ros_type is not None
+
+    @settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+    @given(lcmgen_messages(known.definition, structs, classes))
+    def check(message: Any) -> None:
+        data = message.encode()
+        want = expected(type(message).decode(data), known.definition, structs)
+        cdr = known.to_cdr(data)
+        assert read_cdr(cdr, known.ros_type) == want
+        assert mcap_ros2_decode(known.ros_type, known.ros2msg, cdr) == want
+
+    check()
+
+
+def _iiwa_status(joints: int) -> Any:
+    message = drake.lcmt_iiwa_status()
+    message.utime = 123_456_789
+    message.num_joints = joints
+    for number, name in enumerate(message.__slots__[2:]):
+        setattr(message, name, [number * 10.0 + joint / 7 for joint in range(joints)])
+    return message
+
+
+def _robot_plan() -> Any:
+    plan = drake.lcmt_robot_plan()
+    plan.utime = 42
+    for step in range(3):
+        state = drake.lcmt_robot_state()
+        state.utime = step
+        state.num_joints = 2
+        state.joint_name = ["iiwa_joint_1", "iiwa_joint_2 ü"]
+        state.joint_position = [step + 0.25, -step - 0.5]
+        plan.plan.append(state)
+    plan.num_states = len(plan.plan)
+    return plan
+
+
+@pytest.mark.parametrize(
+    "message", [_iiwa_status(7), _iiwa_status(0), _robot_plan()], ids=["iiwa7", "iiwa0", "plan"]
+)
+def test_drakes_own_types_from_pydrakes_classes(message: Any, read_cdr: Callable[[bytes, str], Any]) -> None:
+    library = TypeLibrary.load()  # Drake's module is loaded by default
+    data = message.encode()
+    known = library.for_data(data)
+    assert known is not None and known.source == "module drake" and known.ros_type
+    structs = {t.full_name: t.definition for t in library.types()}
+    want = expected(type(message).decode(data), known.definition, structs)
+    cdr = known.to_cdr(data)
+    assert rosbags_reader(library)(cdr, known.ros_type) == want
+    assert mcap_ros2_decode(known.ros_type, known.ros2msg, cdr) == want
+
+
+def test_drake_iiwa_status_layout_by_hand(library: TypeLibrary) -> None:
+    """The bytes themselves, written out: header, scalars, then count / padding / doubles."""
+    cdr = TypeLibrary.load().get("drake.lcmt_iiwa_status").to_cdr(_iiwa_status(1).encode())
+    header, utime, joints = struct.unpack_from("<4sqi", cdr)
+    assert (header, utime, joints) == (b"\x00\x01\x00\x00", 123_456_789, 1)
+    # utime 0..8, num_joints 8..12; first count 12..16, its double 16..24 (8-aligned); the next
+    # count 24..28, padding 28..32, the double 32..40 ...
+    assert struct.unpack_from("<Id", cdr, 4 + 12) == (1, 0.0)
+    assert struct.unpack_from("<I4xd", cdr, 4 + 24) == (1, 10.0)
+    assert len(cdr) == 4 + 12 + 12 + 6 * 16
+
+
+# --- bad input ------------------------------------------------------------------------------------
+
+
+def _arm(classes: dict[str, type]) -> bytes:
+    """An arm_state_t with something in every array (lcm-gen's class)."""
+    point = classes["lab.geometry.point3d_t"]
+
+    def at(x: float) -> Any:
+        made = point()
+        made.x, made.y, made.z, made.frameId = x, -x, 0.5, f"frame {x}"
+        return made
+
+    arm = classes["lab.robot.arm_state_t"]()
+    arm.utime, arm.robotName, arm.numJoints, arm.rows, arm.cols = 7, "arm", 2, 2, 3
+    arm.jointAngles, arm.gains = [0.5, 1.5], [1.0, 2.0, 3.0, 4.0]
+    arm.grid = [[1, 2, 3], [4, 5, 6]]
+    arm.table = [[1, 2]] * 4
+    arm.cube = [[[1, 2, 3]] * 2] * 2
+    arm.labels = [["a", "bé"], ["", "d"]]
+    arm.blob, arm.fixedBlob, arm.flags, arm.enabled = b"xyz", b"\0\1\2", [True, False], True
+    arm.tip, arm.waypoints, arm.corners = at(1), [at(2), at(3)], [[at(4), at(5)], [at(6), at(7)]]
+    arm.tiny, arm.raw2d = [[1, -1], [2, -2]], [b"ab", b"cd"]
+    arm.temperature, arm.mode, arm.lastValue = 21.5, 3, -1.0
+    data: bytes = arm.encode()
+    return data
+
+
+def test_every_truncation_and_extension_is_a_decode_error(
+    library: TypeLibrary, classes: dict[str, type]
+) -> None:
+    known = library.get("lab.robot.arm_state_t")
+    data = _arm(classes)
+    for end in range(len(data)):
+        with pytest.raises(DecodeError, match="lab.robot.arm_state_t"):
+            known.to_cdr(data[:end])
+    with pytest.raises(DecodeError, match="1 trailing bytes") as caught:
+        known.to_cdr(data + b"\0")
+    assert caught.value.offset == len(data)
+
+
+def test_a_wrong_fingerprint_names_both(library: TypeLibrary) -> None:
+    known = library.get("lab.geometry.point3d_t")
+    with pytest.raises(DecodeError, match="fingerprint") as caught:
+        known.to_cdr(bytes(8) + bytes(24) + b"\0\0\0\1\0")
+    assert caught.value.field == "<fingerprint>" and known.packed_fingerprint.hex() in str(caught.value)
+
+
+@pytest.mark.parametrize("count", [2**31 - 1, -1, -(2**31)])
+def test_absurd_and_negative_lengths_are_refused_before_allocating(library: TypeLibrary, count: int) -> None:
+    known = library.get("plain_status_t")
+    body = (
+        struct.pack(">qd?", 1, 2.0, True)
+        + struct.pack(">dddI", 0, 0, 0, 1)
+        + b"\0"
+        + struct.pack(">i", count)
+    )
+    tracemalloc.start()
+    try:
+        with pytest.raises(DecodeError) as caught:
+            known.to_cdr(known.packed_fingerprint + body + bytes(64))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert caught.value.field == "samples" and caught.value.offset == 8 + len(body)
+    assert str(count) in str(caught.value)
+    assert peak < 1_000_000
+
+
+def test_a_nested_error_names_the_field_path(library: TypeLibrary) -> None:
+    known = library.get("plain_status_t")
+    bad_string = struct.pack(">qd?", 1, 2.0, True) + struct.pack(">dddI", 0, 0, 0, 2) + b"\xff\0" + bytes(4)
+    with pytest.raises(DecodeError, match="invalid UTF-8") as caught:
+        known.to_cdr(known.packed_fingerprint + bad_string)
+    assert caught.value.field == "where.frameId" and caught.value.offset == 8 + 17 + 24 + 4
+
+
+def test_booleans_other_than_one_are_true(
+    library: TypeLibrary, read_cdr: Callable[[bytes, str], Any]
+) -> None:
+    known = library.get("plain_status_t")
+    body = struct.pack(">qdB", 1, 2.0, 7) + struct.pack(">dddI", 0, 0, 0, 1) + b"\0" + struct.pack(">i", 0)
+    body += PLAIN_TAIL
+    read = read_cdr(known.to_cdr(known.packed_fingerprint + body), "lcm_msgs/msg/PlainStatusT")
+    assert read["ok"] is True and read["bits"] == [False, True, True]
+    assert (read["tags"], read["odd"], read["fixed_shorts"], read["fixed_longs"]) == (["a", ""], -1, [1, -2, 3], [5, -6])
+
+
+def test_a_refused_type_has_no_cdr(library: TypeLibrary) -> None:
+    known = library.get("lab.robot.tree_node_t")
+    with pytest.raises(DecodeError, match="contains itself"):
+        known.to_cdr(known.packed_fingerprint)
+
+
+@given(st.binary(max_size=200))
+@settings(max_examples=300, deadline=None)
+def test_random_bytes_raise_only_decode_errors(data: bytes) -> None:
+    library = _LIBRARY
+    for name in CDR_TYPES:
+        known = library.get(name)
+        with contextlib.suppress(DecodeError):
+            known.to_cdr(known.packed_fingerprint + data)
+
+
+_LIBRARY = TypeLibrary.load([str(CORPUS)], drake=False)
+
+
+def test_path_of_corpus_is_outside_lcmtypes() -> None:
+    assert Path("lcmtypes") not in CORPUS.parents
+
+
+def test_bytes_bytearray_and_memoryview_give_the_same_cdr(
+    library: TypeLibrary, classes: dict[str, type], read_cdr: Callable[[bytes, str], Any]
+) -> None:
+    """Small bytes are sliced directly, everything else through a view: both ways, small and large."""
+    known = library.get("lab.robot.arm_state_t")
+    small = _arm(classes)
+    arm = classes["lab.robot.arm_state_t"].decode(small)
+    arm.cols, arm.rows = 3000, 2
+    arm.grid = [list(range(3000)), list(range(3000, 6000))]
+    arm.table, arm.cube = [[1, 2]] * 4, [[[1, 2, 3]] * 2] * 2
+    arm.labels, arm.raw2d, arm.blob = [["x" * 300, "y"], ["", "z"]], [b"ab", b"cd"], bytes(range(250)) * 12
+    large = arm.encode()
+    assert len(large) > 8192
+    for data in (small, large):
+        cdr = known.to_cdr(data)
+        assert known.to_cdr(bytearray(data)) == known.to_cdr(memoryview(data)) == cdr
+        assert known.to_cdr(memoryview(b"pad" + data)[3:]) == cdr
+    structs = {t.full_name: t.definition for t in library.types()}
+    assert read_cdr(known.to_cdr(large), "lab_robot_lcm_msgs/msg/ArmStateT") == expected(
+        type(arm).decode(large), known.definition, structs
+    )

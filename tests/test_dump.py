@@ -1,0 +1,37 @@
+"""`dump`'s rendering of any known LCM type: Drake's driver types and a lab's own."""
+
+from __future__ import annotations
+
+import json
+
+import drake
+
+from tests.lcmcodec.corpus import CORPUS
+from viewer_bridge.dump import as_json, as_text, describe
+from viewer_bridge.lcmcodec.library import TypeLibrary
+from viewer_bridge.transports.lcm import LcmEvent
+
+
+def test_drakes_iiwa_status_by_default() -> None:
+    status = drake.lcmt_iiwa_status()
+    status.utime, status.num_joints = 9, 2
+    for name in status.__slots__[2:]:
+        setattr(status, name, [0.5, -0.5])
+    record = json.loads(as_json(LcmEvent("IIWA_STATUS", status.encode(), 1_000_000)))
+    assert record["type"] == "drake.lcmt_iiwa_status" and record["channel"] == "IIWA_STATUS"
+    assert record["message"]["joint_torque_external"] == [0.5, -0.5] and record["message"]["utime"] == 9
+
+
+def test_a_labs_type_given_a_library_with_bytes_summarised() -> None:
+    library = TypeLibrary.load([str(CORPUS)], drake=False)
+    codec = library.codecs("lab.robot.arm_state_t")["lab.robot.arm_state_t"]
+    arm = codec.message_class(cols=3, blob=b"abc", grid=[], robotName="left")
+    event = LcmEvent("LEFT_ARM", codec.encode(arm), 0)
+    assert describe(event)["type"] is None  # the default library does not know it
+    record = describe(event, library)
+    assert record["message"]["robotName"] == "left" and record["message"]["blob"]["bytes"] == 3
+    assert describe(event, library, bytes_summary=False)["message"]["blob"] == {"utf8": "abc"}
+    text = as_text(event, library).splitlines()
+    assert text[0].endswith("LEFT_ARM lab.robot.arm_state_t (" + str(len(event.data)) + " bytes)")
+    assert "  blob: 3 bytes, CRC-32 352441c2" in text
+    assert "  tip:" in text and "    frameId: ''" in text

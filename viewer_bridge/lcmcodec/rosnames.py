@@ -1,0 +1,89 @@
+"""How LCM names become ROS 2 names: packages, messages, fields, constants, and channels as topics.
+
+The rules (docs/PROTOCOLS.md, "Any LCM type"):
+- type `pkg.sub.struct_name` -> package `pkg_sub_lcm_msgs`, message `StructName` (each `_`-separated
+  word capitalised); a type with no package -> `lcm_msgs`;
+- a field to snake_case (an upper-case letter after a lower-case letter or a digit starts a new
+  word: `jointAngles` -> `joint_angles`), a constant to UPPER_SNAKE_CASE (`maxJoints` -> `MAX_JOINTS`);
+  package words are snake-cased the same way;
+- then, because ROS 2 forbids them in names, runs of underscores become one and underscores at
+  either end are dropped (`_private` -> `private`, `a__b` -> `a_b`);
+- a name that still breaks ROS 2's rules (rosidl_adapter's patterns) is a `NameRefused` naming it.
+"""
+
+from __future__ import annotations
+
+import re
+
+__all__ = [
+    "NameRefused",
+    "constant_name",
+    "field_name",
+    "message_name",
+    "package_name",
+    "ros_topic_for_channel",
+]
+
+# rosidl_adapter's patterns for valid names.
+_PACKAGE = re.compile(r"^(?!.*__)(?!.*_$)[a-z][a-z0-9_]*$")
+_MESSAGE = re.compile(r"^[A-Z][A-Za-z0-9]*$")
+_FIELD = _PACKAGE
+_CONSTANT = re.compile(r"^[A-Z]([A-Z0-9_]?[A-Z0-9]+)*$")
+
+_WORD_START = re.compile(r"(?<=[a-z0-9])(?=[A-Z])")
+_UNDERSCORES = re.compile(r"_+")
+_NOT_TOPIC = re.compile(r"[^A-Za-z0-9_]")
+PACKAGE_SUFFIX = "_lcm_msgs"
+NO_PACKAGE = "lcm_msgs"
+
+
+class NameRefused(ValueError):
+    """An LCM name with no valid ROS 2 form; the message names it."""
+
+
+def _snake(name: str) -> str:
+    return _tidy(_WORD_START.sub("_", name).lower())
+
+
+def _tidy(name: str) -> str:
+    return _UNDERSCORES.sub("_", name).strip("_")
+
+
+def field_name(name: str) -> str:
+    """The ROS 2 field name of LCM member `name`."""
+    result = _snake(name)
+    if not _FIELD.match(result):
+        raise NameRefused(f"field {name!r} has no valid ROS 2 name (got {result!r})")
+    return result
+
+
+def constant_name(name: str) -> str:
+    """The ROS 2 constant name of LCM constant `name`."""
+    result = _snake(name).upper()
+    if not _CONSTANT.match(result):
+        raise NameRefused(f"constant {name!r} has no valid ROS 2 name (got {result!r})")
+    return result
+
+
+def package_name(lcm_package: str) -> str:
+    """The ROS 2 package of LCM package `lcm_package` (`""` for a type with none)."""
+    if not lcm_package:
+        return NO_PACKAGE
+    result = "_".join(_snake(word) for word in lcm_package.split(".")) + PACKAGE_SUFFIX
+    result = _tidy(result)
+    if not _PACKAGE.match(result):
+        raise NameRefused(f"package {lcm_package!r} has no valid ROS 2 name (got {result!r})")
+    return result
+
+
+def message_name(struct_name: str) -> str:
+    """The ROS 2 message name of LCM struct `struct_name` (`lcmt_iiwa_status` -> `LcmtIiwaStatus`)."""
+    result = "".join(word[:1].upper() + word[1:] for word in struct_name.split("_"))
+    if not _MESSAGE.match(result):
+        raise NameRefused(f"type {struct_name!r} has no valid ROS 2 message name (got {result!r})")
+    return result
+
+
+def ros_topic_for_channel(channel: str) -> str:
+    """The ROS 2 topic of an LCM channel: `/lcm/` + the channel, other characters than [A-Za-z0-9_] as `_`."""
+    return "/lcm/" + _NOT_TOPIC.sub("_", channel)
