@@ -35,7 +35,7 @@ def describe(event: LcmEvent, library: TypeLibrary | None = None, *, bytes_summa
         "size": len(event.data),
         "fingerprint": event.data[:8].hex(),
     }
-    known = library.for_data(event.data)
+    known = library.for_data(event.data, event.channel)
     if known is None:
         record["type"] = None
         record["error"] = "no known LCM type has this fingerprint"

@@ -185,3 +185,17 @@ def test_the_folder_of_an_lcm_gen_package_is_imported_from_its_parent(tmp_path: 
     (tmp_path / "empty").mkdir()
     with pytest.raises(SchemaError, match="is a folder with neither .lcm files nor an __init__.py"):
         TypeLibrary.load([str(tmp_path / "empty")], drake=False)
+
+
+def test_types_of_one_shape_share_a_fingerprint_and_the_channel_picks_among_them() -> None:
+    # Drake's iiwa and allegro commands have the same fields, so the same fingerprint.
+    library = TypeLibrary.load()
+    data = drake.lcmt_iiwa_command().encode()
+    iiwa, allegro = library.get("drake.lcmt_iiwa_command"), library.get("drake.lcmt_allegro_command")
+    assert iiwa.packed_fingerprint == allegro.packed_fingerprint == data[:8]
+    assert library.sharing_fingerprint(iiwa) == [allegro, iiwa]
+    assert library.for_data(data, "IIWA_COMMAND") is iiwa
+    assert library.for_data(data, "left-arm.iiwa_command") is iiwa
+    assert library.for_data(data, "ALLEGRO_COMMAND") is allegro
+    assert library.for_data(data, "COMMAND") is allegro  # no name in the channel: the first by name
+    assert library.for_data(data) is allegro

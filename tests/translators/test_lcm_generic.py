@@ -164,7 +164,7 @@ def test_a_channel_whose_type_changes_gets_an_output_per_type(drake_types: TypeL
     status, command = drake_lcmtypes.lcmt_iiwa_status(), drake_lcmtypes.lcmt_iiwa_command()
     indices = []
     for message in (status, command, status):
-        received = Received("IIWA", message.encode())
+        received = Received("IIWA_COMMAND", message.encode())
         translator.observe(received)
         [(index, _)] = translator.translate(received)
         indices.append(index)

@@ -105,7 +105,12 @@ class TypeLibrary:
             for name, reason in self._mapping.refused.items()
         ]
         self._types = {name: LcmType(self, self._structs[name], fingerprints[name]) for name in self._structs}
-        self._by_fingerprint = {known.packed_fingerprint: known for known in self._types.values()}
+        # Types of one shape share a fingerprint (Drake's lcmt_iiwa_command and lcmt_allegro_command):
+        # every one is kept, in name order, and the channel's name picks among them.
+        self._by_fingerprint: dict[bytes, list[LcmType]] = {}
+        for name in sorted(self._types):
+            known = self._types[name]
+            self._by_fingerprint.setdefault(known.packed_fingerprint, []).append(known)
 
     @classmethod
     def load(cls, sources: Sequence[str] = (), *, drake: bool = True) -> TypeLibrary:
@@ -152,9 +157,24 @@ class TypeLibrary:
                 )
         return cls(structs, fingerprints, warnings)
 
-    def for_data(self, data: Buffer) -> LcmType | None:
-        """The type whose fingerprint starts `data`, or None."""
-        return self._by_fingerprint.get(bytes(data[:8]))
+    def for_data(self, data: Buffer, channel: str = "") -> LcmType | None:
+        """The type whose fingerprint starts `data`, or None.
+
+        When several known types share that fingerprint (the same fields under other names), the
+        one whose name the channel's holds wins (`IIWA_COMMAND`: `lcmt_iiwa_command`), the longest
+        such name first; with none, the first by full name."""
+        candidates = self._by_fingerprint.get(bytes(data[:8]))
+        if not candidates:
+            return None
+        if len(candidates) == 1 or not channel:
+            return candidates[0]
+        said = _letters(channel)
+        named = [known for known in candidates if _short_name(known.full_name) in said]
+        return max(named, key=lambda known: len(_short_name(known.full_name))) if named else candidates[0]
+
+    def sharing_fingerprint(self, lcm_type: LcmType) -> list[LcmType]:
+        """Every known type whose fingerprint is `lcm_type`'s (itself included), by full name."""
+        return list(self._by_fingerprint.get(lcm_type.packed_fingerprint, [lcm_type]))
 
     def get(self, full_name: str) -> LcmType:
         """The type named `full_name` (`drake.lcmt_iiwa_status`); KeyError if unknown."""
@@ -215,3 +235,15 @@ def _merge(structs: dict[str, StructDef], new: Mapping[str, StructDef]) -> None:
 
 def _looks_like_module(source: str) -> bool:
     return all(part.isidentifier() for part in source.split(".")) and not source.endswith(".lcm")
+
+
+def _letters(text: str) -> str:
+    """Lower-case letters and digits only: `IIWA_COMMAND` -> `iiwacommand`."""
+    return "".join(character for character in text.lower() if character.isalnum())
+
+
+def _short_name(full_name: str) -> str:
+    """A type's name as a channel would say it: `drake.lcmt_iiwa_command` -> `iiwacommand`."""
+    name = full_name.rpartition(".")[2].lower()
+    name = name.removeprefix("lcmt_").removesuffix("_t")
+    return _letters(name)

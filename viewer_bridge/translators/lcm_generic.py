@@ -60,7 +60,7 @@ class LcmToRos(Translator):
         fingerprint = bytes(message.data[:8])
         found = self._by_fingerprint.get(fingerprint)
         if found is None:
-            lcm_type = self.shared.lcm_types.for_data(message.data)
+            lcm_type = self.shared.lcm_types.for_data(message.data, message.channel)
             if lcm_type is None:
                 raise Held(
                     "unknown_type",
