@@ -142,6 +142,44 @@ def test_run_without_the_ros_extra_names_the_install_that_fixes_it() -> None:
     assert "Traceback" not in result.stderr
 
 
+# A built-in translator with a bug: it raises at construction, as a plugin's might.
+BUGGY = (
+    "import sys; from viewer_bridge.translators.drake_ros import DrakeToPoseArray\n"
+    "def broken(self, *args, **kwargs): raise ValueError('a bug in a translator')\n"
+    "DrakeToPoseArray.__init__ = broken\n"
+    "from viewer_bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+)
+
+
+@pytest.mark.parametrize("debug", [False, True])
+def test_an_internal_error_is_said_as_a_bug_and_debug_shows_its_traceback(debug: bool) -> None:
+    words = ["run", "--lcm-url", lcm_url(), "--duration", "1", *(["--debug"] if debug else [])]
+    result = subprocess.run(
+        [sys.executable, "-c", BUGGY, *words], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert result.returncode == 1, result.stderr
+    if debug:
+        assert "Traceback (most recent call last)" in result.stderr, result.stderr
+        assert "ValueError: a bug in a translator" in result.stderr.splitlines()[-1]
+    else:  # never passed off as a mistake in what was given
+        assert "Traceback" not in result.stderr
+        assert result.stderr.splitlines()[-1] == (
+            "viewer-bridge run: internal error: ValueError: a bug in a translator "
+            "(a bug in viewer-bridge: --debug shows its traceback)"
+        )
+
+
+def test_a_user_mistake_stays_one_line_under_debug(tmp_path: Path) -> None:
+    config = tmp_path / "bridge.yaml"
+    config.write_text(
+        "routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: teleport\n"
+        "    destination: {transport: ros, name: /x}\n"
+    )
+    result = run("run", "-c", str(config), "--debug")
+    assert result.returncode == 2 and len(result.stderr.splitlines()) == 1, result.stderr
+    assert "routes.0.translator: unknown translator 'teleport'" in result.stderr
+
+
 # --- convert: nothing lost ----------------------------------------------------------------------------
 
 

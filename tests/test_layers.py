@@ -19,7 +19,8 @@ LAYERS: dict[str, int] = {
     "viewer_bridge": 1,  # the package's __init__ (a docstring and the version)
     "viewer_bridge.errors": 1, "viewer_bridge.registry": 1, "viewer_bridge.resources": 1, "viewer_bridge.sim_time": 1,
     "viewer_bridge.lru": 1, "viewer_bridge.status": 1,
-    "viewer_bridge.scene": 2, "viewer_bridge.lcmcodec": 2, "viewer_bridge.yamldoc": 2, "viewer_bridge.arguments": 2,
+    "viewer_bridge.scene": 2, "viewer_bridge.pose_math": 2, "viewer_bridge.lcmcodec": 2, "viewer_bridge.yamldoc": 2,
+    "viewer_bridge.arguments": 2,
     "viewer_bridge.ros_interfaces": 2,
     "viewer_bridge.lowering": 3, "viewer_bridge.contact": 3, "viewer_bridge.image": 3, "viewer_bridge.skipped": 3,
     "viewer_bridge.mappings": 4,

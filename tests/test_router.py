@@ -305,6 +305,10 @@ def test_a_malformed_message_is_counted_and_nothing_valid_is_lost(probe: RosProb
 BROKEN_CONFIGS = [
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: teleport\n"
      "    destination: {transport: ros, name: /x}\n", 4, "routes.0.translator", "unknown translator 'teleport'"),
+    # A misspelt translator: the closest known name is suggested.
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_arrays\n"
+     "    destination: {transport: ros, name: /x}\n", 4, "routes.0.translator",
+     "unknown translator 'drake_to_pose_arrays' (did you mean 'drake_to_pose_array'? known: drake_to_marker_array,"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: 'X('}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n", 3, "routes.0.source", "not a regular expression"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"

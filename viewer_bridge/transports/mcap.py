@@ -28,7 +28,7 @@ import foxglove
 from mcap.writer import Writer
 from rosbags.typesys import Stores, get_typestore
 
-from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.errors import InvalidName, TransportUnavailable
 from viewer_bridge.transports.base import (
     CDR,
     PROTOBUF,
@@ -190,7 +190,7 @@ class McapTransport(Transport):
 
     @classmethod
     def check_source(cls, name: str) -> None:
-        raise ValueError("the mcap transport only writes a file; it cannot be a route's source")
+        raise InvalidName("the mcap transport only writes a file; it cannot be a route's source")
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         message_types = list(message_types)
