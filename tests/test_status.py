@@ -117,3 +117,9 @@ def test_run_without_a_terminal_prints_lines_and_quiet_prints_nothing_but_proble
     code, out, quiet = run_bridge("--quiet", terminal=False)
     assert code == 0 and out == ""
     assert "route " not in quiet and "routes running" not in quiet
+
+
+def test_counts_are_singular_or_plural() -> None:
+    from viewer_bridge.status import counted
+
+    assert [counted(n, "route") for n in (0, 1, 2)] == ["0 routes", "1 route", "2 routes"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import functools
 import importlib.metadata
+import itertools
 import logging
 import signal
 import sys
@@ -43,6 +44,7 @@ from viewer_bridge.router import Router
 from viewer_bridge.skipped import collecting
 from viewer_bridge.status import LiveTable, LogLines, StatusView
 from viewer_bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
+from viewer_bridge.transports.ros_names import ros_argument_problem
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -448,10 +450,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as error:
         command = next((word for word in words if word in _HANDLERS), "")
         parser.exit(2, f"{' '.join(filter(None, ('viewer-bridge', command)))}: {error}\n")
+    if not words:  # no command: what there is to run
+        parser.print_help()
+        return 2
     args = parser.parse_args(words)
     args.ros_args = ros_args
     if ros_args and args.command != "run":
         parser.exit(2, f"viewer-bridge {args.command}: --ros-args: only `run` is a ROS 2 node\n")
+    for flag, value in itertools.pairwise(ros_args):  # each flag and its value, as rcl checks them
+        if problem := ros_argument_problem(flag, value):
+            parser.exit(2, f"viewer-bridge run: --ros-args: {flag} {value}: {problem}\n")
     try:
         return _HANDLERS[args.command](args)
     except BridgeError as error:  # a mistake in what was given, or what this machine lacks: one line

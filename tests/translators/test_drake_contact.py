@@ -63,7 +63,7 @@ def test_a_drake_simulation_reaches_ros_as_contact_markers_and_wrenches() -> Non
     recorder = LcmRecorder(url)
     bridge = BridgeProcess("--lcm-url", url, "--stats-period", "1")
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         subprocess.run(
             [sys.executable, str(CONTACT_SCENE_SCRIPT), url, "0.5", "1.0"], check=True, timeout=120
         )
