@@ -2,7 +2,8 @@
 
 Every error names what was wrong and where, so that the router can count it by kind and log one
 useful line, and so that a user reading a message knows which field of which type to look at.
-The command line catches `BridgeError` once: whatever subclass, one line and exit status 2.
+The command line catches `BridgeError` once: whatever subclass, one line and exit status 2; any
+other exception is a bug, and `--debug` shows its traceback.
 """
 
 from __future__ import annotations
