@@ -240,7 +240,7 @@ def bridge(config: str, url: str, partition: str, ign_env: bool, extra: list[str
         env.update(IGN_PARTITION=partition, IGN_IP="127.0.0.1")
     running = BridgeProcess("-c", config, "--lcm-url", url, "--stats-period", "2", *extra, env=env)
     try:
-        running.wait_for_line("routes running")
+        running.wait_for_line(" running (")
         yield running
     finally:
         running.stop()

@@ -149,7 +149,7 @@ class Bridge:
         )
         assert self.process.stderr is not None
         for line in self.process.stderr:
-            if "routes running" in line:
+            if " running (" in line:
                 break
         threading.Thread(target=self.process.stderr.read, daemon=True).start()
 

@@ -92,7 +92,7 @@ class Bridge:
         assert self.process.stderr is not None
         for line in self.process.stderr:
             self.lines.append(line.rstrip())
-            if "routes running" in line:
+            if " running (" in line:
                 self.running.set()
 
     def snapshot(self) -> dict[str, Any]:

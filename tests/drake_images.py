@@ -8,8 +8,11 @@ from __future__ import annotations
 
 from typing import Any
 
-import drake as drake_lcmtypes
 import numpy as np
+
+from tests.optional import peer
+
+drake_lcmtypes = peer("drake")
 
 # Drake's pixel types by the names tests use: (PixelType member, its Image class name).
 PIXEL_TYPES = {

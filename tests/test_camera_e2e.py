@@ -92,7 +92,7 @@ def test_drake_cameras_reach_rclpy_with_drakes_pixels_and_camera_info(
     simulation: subprocess.Popen[bytes] | None = None
     started_us = time.time_ns() // 1000
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         simulation = subprocess.Popen([sys.executable, str(SCENE), url, "120"])
 
         def arrived() -> bool:
@@ -146,7 +146,7 @@ def test_rclpy_images_reach_drakes_image_reader(probe: RosProbe) -> None:
     sent: dict[str, np.ndarray] = {}
     arrived: dict[str, bytes] = {}
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         for second, encoding in enumerate(ROS_ENCODINGS, start=1):
             pixels = sent[encoding] = ros_test_image(encoding)
             message = Image(height=pixels.shape[0], width=pixels.shape[1], encoding=encoding)

@@ -143,6 +143,44 @@ def test_run_without_the_ros_extra_names_the_install_that_fixes_it() -> None:
     assert "Traceback" not in result.stderr
 
 
+# A built-in translator with a bug: it raises at construction, as a plugin's might.
+BUGGY = (
+    "import sys; from viewer_bridge.translators.drake_ros import DrakeToPoseArray\n"
+    "def broken(self, *args, **kwargs): raise ValueError('a bug in a translator')\n"
+    "DrakeToPoseArray.__init__ = broken\n"
+    "from viewer_bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+)
+
+
+@pytest.mark.parametrize("debug", [False, True])
+def test_an_internal_error_is_said_as_a_bug_and_debug_shows_its_traceback(debug: bool) -> None:
+    words = ["run", "--lcm-url", lcm_url(), "--duration", "1", *(["--debug"] if debug else [])]
+    result = subprocess.run(
+        [sys.executable, "-c", BUGGY, *words], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert result.returncode == 1, result.stderr
+    if debug:
+        assert "Traceback (most recent call last)" in result.stderr, result.stderr
+        assert "ValueError: a bug in a translator" in result.stderr.splitlines()[-1]
+    else:  # never passed off as a mistake in what was given
+        assert "Traceback" not in result.stderr
+        assert result.stderr.splitlines()[-1] == (
+            "viewer-bridge run: internal error: ValueError: a bug in a translator "
+            "(a bug in viewer-bridge: --debug shows its traceback)"
+        )
+
+
+def test_a_user_mistake_stays_one_line_under_debug(tmp_path: Path) -> None:
+    config = tmp_path / "bridge.yaml"
+    config.write_text(
+        "routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: teleport\n"
+        "    destination: {transport: ros, name: /x}\n"
+    )
+    result = run("run", "-c", str(config), "--debug")
+    assert result.returncode == 2 and len(result.stderr.splitlines()) == 1, result.stderr
+    assert "routes.0.translator: unknown translator 'teleport'" in result.stderr
+
+
 # --- convert: nothing lost ----------------------------------------------------------------------------
 
 
@@ -284,6 +322,13 @@ MISTAKES = [
      "(did you mean 'port'?); known keys: host, port"),
     (["run", "--set", "ros.namespace=/sim 1"], "'/sim 1' is not a valid ROS 2 namespace"),
     (["run", "--set", "ros.node=9x"], "'9x' is not a valid ROS 2 node name: it starts with a digit"),
+    # ROS arguments as rcl reads them, refused before rclpy sees them.
+    (["run", "--ros-args", "-r", "__ns:=bad-ns", "--", "--duration", "2"],
+     "--ros-args: -r __ns:=bad-ns: 'bad-ns' is not a valid ROS 2 namespace: it must be absolute"),
+    (["run", "--ros-args", "-r", "__node:=my-node", "--", "--duration", "2"],
+     "--ros-args: -r __node:=my-node: 'my-node' is not a valid ROS 2 node name"),
+    (["run", "--ros-args", "-p", "use_sim_time:=maybe", "--", "--duration", "2"],
+     "--ros-args: -p use_sim_time:=maybe: use_sim_time is a bool (true or false), not 'maybe'"),
 ]  # fmt: skip
 
 
@@ -353,8 +398,26 @@ def test_version_and_defaults_in_every_help() -> None:
     shot = run("snapshot", "--help").stdout
     assert "(default: 640x480)" in shot and "(default: 45.0)" in shot
     assert "(default: None)" not in shot  # options with no default say nothing
+    words = " ".join(shot.split())  # as read, whatever the terminal's width wrapped
+    assert words.count("default: unsuffixed") == 1 and "(default: )" not in words  # each default once
     interfaces = run("ros-interfaces", "--help").stdout
     assert "[NAME ...]" in interfaces and "optional: the packages to install or show" in interfaces
+
+
+def test_no_arguments_prints_the_help() -> None:
+    result = run()
+    assert result.returncode == 2 and not result.stderr, result
+    assert result.stdout.startswith("usage: viewer-bridge") and "{dump,demo,mappings,run" in result.stdout
+
+
+def test_one_route_is_one_route(tmp_path: Path) -> None:
+    config = tmp_path / "one.yaml"
+    config.write_text(
+        f"lcm: {{url: '{lcm_url()}'}}\nroutes:\n  - name: relay\n    source: {{transport: lcm, name: A}}\n"
+        "    translator: lcm_relay\n    destination: {transport: lcm, name: B}\n"
+    )
+    result = run("run", "-c", str(config), "--duration", "1")
+    assert result.returncode == 0 and "viewer-bridge: 1 route running (" in result.stderr, result.stderr
 
 
 def test_ros_interfaces_status_shows_the_names_asked_for() -> None:

@@ -9,7 +9,7 @@ import pytest
 from PIL import Image as PilImage
 
 from tests.drake_images import publish_with_drake, read_with_drake
-from tests.formats.drake.test_image import sample_pixels
+from tests.pixels import sample_pixels
 from viewer_bridge.errors import EncodeError
 from viewer_bridge.image import Image, Layout, depth_from_rep117, depth_rep117, encode_file
 

@@ -107,7 +107,7 @@ def test_pydrake_cloud_and_frames_reach_rclpy(probe: RosProbe, tmp_path: Path) -
     bus = LcmBus(url)
     bridge = BridgeProcess("--lcm-url", url)
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
 
         def sent() -> bool:
             publish()
@@ -170,7 +170,7 @@ def test_rclpy_cloud_reaches_drake_as_lcmt_point_cloud(probe: RosProbe, tmp_path
     bridge = BridgeProcess("--lcm-url", url)
     publisher = probe.publisher("/drake_in/point_cloud", "sensor_msgs/msg/PointCloud2")
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         received = lambda: recorder.messages.get("DRAKE_POINT_CLOUD_FROM_ROS")  # noqa: E731
         deadline = time.monotonic() + 60
         while not received() and time.monotonic() < deadline:  # until discovery has matched the two

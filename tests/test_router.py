@@ -77,7 +77,7 @@ def test_drake_simulation_reaches_ros_through_the_bridge(probe: RosProbe, tmp_pa
         "--lcm-url", url, "--stats-json", str(tmp_path / "stats.json"), "--stats-period", "1"
     )
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         drake = start_drake(url, tmp_path, 3.0)
         assert drake.wait(timeout=120) == 0
         recorder.sync()  # holds Drake's last draw
@@ -181,7 +181,7 @@ def test_ros_pose_array_arrives_as_a_drake_draw(probe: RosProbe, tmp_path: Path)
         pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = 0.0, 0.0, 0.6, 0.8
         message.poses.append(pose)
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         received = lambda: recorder.messages.get("DRAKE_VIEWER_DRAW_FROM_ROS")  # noqa: E731
         deadline = time.monotonic() + 60
         while not received() and time.monotonic() < deadline:  # until discovery has matched the two
@@ -208,7 +208,7 @@ def test_late_subscriber_and_late_bridge_get_the_model(probe: RosProbe, tmp_path
     config = write_config(tmp_path, DEFAULT_CONFIG + f"load_cache: {cache}\n")
     first = BridgeProcess("-c", str(config), "--lcm-url", url)
     try:
-        first.wait_for_line("routes running")
+        first.wait_for_line(" running (")
         assert start_drake(url, tmp_path, 1.5).wait(timeout=120) == 0
         time.sleep(0.5)
         # A subscriber that starts now, after the model was published, still gets it.
@@ -230,7 +230,7 @@ def test_late_subscriber_and_late_bridge_get_the_model(probe: RosProbe, tmp_path
         assert "DRAKE_VIEWER_LOAD_ROBOT_PROXIMITY" in recorder.messages  # sent: Drake will not send it again
         second = BridgeProcess("-c", str(config), "--lcm-url", url)
         try:
-            second.wait_for_line("routes running")
+            second.wait_for_line(" running (")
             fresh = probe.subscribe(
                 "/drake/proximity/markers", "visualization_msgs/msg/MarkerArray", 1, latched=True
             )
@@ -278,7 +278,7 @@ def test_a_malformed_message_is_counted_and_nothing_valid_is_lost(probe: RosProb
         )
 
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         deadline = time.monotonic() + 60
         while not received and time.monotonic() < deadline:  # until discovery has matched the two
             bus.publish("DRAKE_VIEWER_DRAW", draw(0))
@@ -305,6 +305,10 @@ def test_a_malformed_message_is_counted_and_nothing_valid_is_lost(probe: RosProb
 BROKEN_CONFIGS = [
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: teleport\n"
      "    destination: {transport: ros, name: /x}\n", 4, "routes.0.translator", "unknown translator 'teleport'"),
+    # A misspelt translator: the closest known name is suggested.
+    ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_arrays\n"
+     "    destination: {transport: ros, name: /x}\n", 4, "routes.0.translator",
+     "unknown translator 'drake_to_pose_arrays' (did you mean 'drake_to_pose_array'? known: drake_to_marker_array,"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: 'X('}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n", 3, "routes.0.source", "not a regular expression"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
@@ -462,7 +466,7 @@ def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_p
         return json.loads(stats_path.read_text()) if stats_path.exists() else {}  # type: ignore[no-any-return]
 
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         bus.publish("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(scene).encode())  # the only load
         draws(1.0, 0.0)
         # Every draw is in and accounted for (the stats file is rewritten every 0.2 s).
@@ -518,8 +522,8 @@ def test_ros_args_are_passed_to_rclpy_like_any_node(probe: RosProbe, tmp_path: P
     bus = LcmBus(url)
     poses = probe.subscribe("/sim1/drake/poses", "geometry_msgs/msg/PoseArray")
     try:
-        bridge.wait_for_line("routes running")
-        assert "ROS 2 node /sim1/viewer_bridge" in bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
+        assert "ROS 2 node /sim1/viewer_bridge" in bridge.wait_for_line(" running (")
 
         def sent() -> bool:
             bus.publish("DRAKE_VIEWER_DRAW", draw_of(small_scene(), 1.5))

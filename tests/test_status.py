@@ -135,3 +135,9 @@ def test_held_messages_show_once_per_kind_with_their_channels(caplog: Any) -> No
     table.show({"bus": bus})
     table.close()
     assert "bus held back: unknown_type 5 (MYSTERY, OTHER), waiting_for_build 7 (IIWA_STATUS)" in out.getvalue()
+
+
+def test_counts_are_singular_or_plural() -> None:
+    from viewer_bridge.status import counted
+
+    assert [counted(n, "route") for n in (0, 1, 2)] == ["0 routes", "1 route", "2 routes"]

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import importlib
+import functools
 import importlib.metadata
+import itertools
 import logging
 import signal
 import sys
@@ -43,6 +44,7 @@ from viewer_bridge.router import Router
 from viewer_bridge.skipped import collecting
 from viewer_bridge.status import LiveTable, LogLines, StatusView
 from viewer_bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
+from viewer_bridge.transports.ros_names import ros_argument_problem
 
 
 def _lcm_types_option(command: argparse.ArgumentParser) -> None:
@@ -57,11 +59,20 @@ def _lcm_types_option(command: argparse.ArgumentParser) -> None:
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = Parser(prog="viewer-bridge", description="Translate Drake's viewer scene between ecosystems.")
+    # --debug before or after the command: `viewer-bridge --debug run` or `viewer-bridge run --debug`.
+    debug = Parser(add_help=False)
+    debug.add_argument(
+        "--debug", action="store_true", default=argparse.SUPPRESS, help="show the traceback of an internal error"
+    )
+    parser = Parser(
+        prog="viewer-bridge", description="Translate Drake's viewer scene between ecosystems.", parents=[debug]
+    )
+    parser.set_defaults(debug=False)
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     commands = parser.add_subparsers(dest="command", required=True)
+    add = functools.partial(commands.add_parser, parents=[debug])
 
-    dump = commands.add_parser("dump", help="decode an LCM log (or a live LCM bus) to text or JSON")
+    dump = add("dump", help="decode an LCM log (or a live LCM bus) to text or JSON")
     dump.add_argument("log", nargs="?", type=input_file, help="an .lcmlog file (omit with --live)")
     dump.add_argument(
         "--live",
@@ -81,18 +92,18 @@ def _parser() -> argparse.ArgumentParser:
         "--demo", action="store_true", help="with --live: also publish the demo scene on the same URL"
     )
 
-    demo = commands.add_parser("demo", help="publish a moving Drake-like scene with every shape over LCM")
+    demo = add("demo", help="publish a moving Drake-like scene with every shape over LCM")
     demo.add_argument("--url", type=lcm_source, default=DEFAULT_URL, help="LCM URL to publish on")
     demo.add_argument(
         "--duration", type=positive, help="stop after this many seconds (default: until Ctrl-C)"
     )
     demo.add_argument("--rate", type=positive, default=60.0, help="draw messages per second")
 
-    commands.add_parser(
+    add(
         "mappings", help="print the mapping reference (mappings/REFERENCE.md) from the tables"
     )
 
-    run = commands.add_parser(
+    run = add(
         "run",
         help="run the router: bridge Drake's LCM scene to ROS 2 (and back); --ros-args ... [--] as any ROS 2 node",
     )
@@ -135,7 +146,7 @@ def _parser() -> argparse.ArgumentParser:
         "-q", "--quiet", action="store_true", help="print only warnings and errors (no route table or lines)"
     )
 
-    serve = commands.add_parser("serve-render", help="serve Drake's glTF render API (RenderEngineGltfClient)")
+    serve = add("serve-render", help="serve Drake's glTF render API (RenderEngineGltfClient)")
     serve.add_argument("--host", default="127.0.0.1", help="address to listen on (127.0.0.1: this host only)")
     serve.add_argument("--port", type=port, default=8000, help="TCP port to listen on (0: any free port)")
     serve.add_argument(
@@ -146,7 +157,7 @@ def _parser() -> argparse.ArgumentParser:
         help="largest request body accepted",
     )
 
-    shot = commands.add_parser(
+    shot = add(
         "snapshot", help="render the current scene of a log or a live LCM bus to a PNG or JPEG"
     )
     shot.add_argument("source", type=lcm_source, help="an .lcmlog file, or an LCM URL to listen on")
@@ -172,7 +183,7 @@ def _parser() -> argparse.ArgumentParser:
         help="leave out links whose names match (e.g. a body over a contact)",
     )
 
-    convert = commands.add_parser(
+    convert = add(
         "convert", help="translate an LCM log into an MCAP file (ROS 2 or Foxglove) or a Rerun .rrd file"
     )
     convert.add_argument("log", type=input_file, help="an .lcmlog file")
@@ -196,7 +207,7 @@ def _parser() -> argparse.ArgumentParser:
         help="the channels written as /lcm/<channel> in their own type (any known LCM type); default: all",
     )
 
-    interfaces = commands.add_parser(
+    interfaces = add(
         "ros-interfaces",
         help="build ROS 2 interface packages PyPI has no wheel for (tf2_msgs, LCM types) into the venv, "
         "or write them for a colcon workspace",
@@ -292,10 +303,8 @@ def _run(args: argparse.Namespace) -> int:
             _uses(config, "ros", "--ros-args", args.config)
             config = config.with_settings("ros", ros_args=args.ros_args)
         router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period, view=view)
-    except BaseException as error:
-        view.close()  # a live table leaves the screen before the one-line error
-        if isinstance(error, (OSError, ValueError)):
-            raise UsageError(str(error)) from None
+    except BaseException:
+        view.close()  # a live table leaves the screen before the error
         raise
     for signal_number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signal_number, lambda *_: router.stop())
@@ -411,18 +420,15 @@ def _snapshot(args: argparse.Namespace) -> int:
     jpeg = Path(args.out).suffix.lower() != ".png"
     if jpeg and args.image == "depth":
         raise UsageError("a depth image is 16-bit: write it as .png (JPEG holds 8 bits)")
-    try:
-        events = events_from(args.source, args.duration)
-        scene = latest_scene(events, args.role.upper())
-        if args.hide:
-            scene = without_links(scene, args.hide)
-        if args.contacts:
-            results = latest_contacts(events)
-            if results is None:
-                raise ValueError("no CONTACT_RESULTS message in the source")
-            scene = with_contacts(scene, results)
-    except ValueError as error:
-        raise UsageError(str(error)) from None
+    events = events_from(args.source, args.duration)
+    scene = latest_scene(events, args.role.upper())
+    if args.hide:
+        scene = without_links(scene, args.hide)
+    if args.contacts:
+        results = latest_contacts(events)
+        if results is None:
+            raise UsageError("no CONTACT_RESULTS message in the source")
+        scene = with_contacts(scene, results)
     with collecting() as skipped:  # a geometry that cannot be drawn is left out, and named
         picture = snapshot(scene, width, height, args.fov, eye, target, args.image, "JPEG" if jpeg else "PNG")
     for geometry in skipped:
@@ -514,16 +520,31 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UsageError as error:
         command = next((word for word in words if word in _HANDLERS), "")
         parser.exit(2, f"{' '.join(filter(None, ('viewer-bridge', command)))}: {error}\n")
+    if not words:  # no command: what there is to run
+        parser.print_help()
+        return 2
     args = parser.parse_args(words)
     args.ros_args = ros_args
     if ros_args and args.command != "run":
         parser.exit(2, f"viewer-bridge {args.command}: --ros-args: only `run` is a ROS 2 node\n")
+    for flag, value in itertools.pairwise(ros_args):  # each flag and its value, as rcl checks them
+        if problem := ros_argument_problem(flag, value):
+            parser.exit(2, f"viewer-bridge run: --ros-args: {flag} {value}: {problem}\n")
     try:
         return _HANDLERS[args.command](args)
-    except (BridgeError, OSError) as error:  # mistakes in what was given: one line
+    except BridgeError as error:  # a mistake in what was given, or what this machine lacks: one line
         return fail(args.command, str(error))
     except KeyboardInterrupt:  # Ctrl-C before a command's own handling of it: no traceback
         return 130
+    except Exception as error:  # a bug: said as one, with its traceback under --debug
+        if args.debug:
+            raise
+        print(
+            f"viewer-bridge {args.command}: internal error: {type(error).__name__}: {error} "
+            "(a bug in viewer-bridge: --debug shows its traceback)",
+            file=sys.stderr,
+        )
+        return 1
 
 
 if __name__ == "__main__":

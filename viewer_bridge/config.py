@@ -35,7 +35,7 @@ from pydantic import (
     model_validator,
 )
 
-from viewer_bridge.errors import ConfigError
+from viewer_bridge.errors import ConfigError, InvalidName, UnknownName
 from viewer_bridge.resources import data_dir
 from viewer_bridge.translators import TRANSLATORS, Translator, TranslatorOptions
 from viewer_bridge.transports import TRANSPORTS
@@ -169,25 +169,25 @@ class _Checker:
     def transport(self, name: str, at: KeyPath, what: str = "a transport") -> type[Transport]:
         try:
             return TRANSPORTS.get(name)
-        except KeyError:
-            known = ", ".join(TRANSPORTS.names())
+        except UnknownName as error:
+            known = ", ".join(error.known)
             raise self.error(at, f"{name!r} is not {what} (transports: {known})") from None
 
     def route(self, route: Route, at: KeyPath) -> None:
         try:
             translator = TRANSLATORS.get(route.translator)
-        except KeyError as error:
-            raise self.error((*at, "translator"), str(error).strip("\"'")) from None
+        except UnknownName as error:
+            raise self.error((*at, "translator"), str(error)) from None
         route._options = self.model(translator.Options, route.options, (*at, "options"))
         source = self.transport(route.source.transport, (*at, "source", "transport"))
         destination = self.transport(route.destination.transport, (*at, "destination", "transport"))
         try:
             source.check_source(route.source.name)
-        except ValueError as error:
+        except InvalidName as error:
             raise self.error((*at, "source", "name"), str(error)) from None
         try:
             destination.check_destination(_sample_destination(route))
-        except ValueError as error:
+        except InvalidName as error:
             raise self.error((*at, "destination", "name"), str(error)) from None
         self._carried(
             source, route.source.transport, translator.reads, (*at, "source", "transport"), route, "reads"

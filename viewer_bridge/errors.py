@@ -2,11 +2,13 @@
 
 Every error names what was wrong and where, so that the router can count it by kind and log one
 useful line, and so that a user reading a message knows which field of which type to look at.
-The command line catches `BridgeError` once: whatever subclass, one line and exit status 2.
+The command line catches `BridgeError` once: whatever subclass, one line and exit status 2; any
+other exception is a bug, and `--debug` shows its traceback.
 """
 
 from __future__ import annotations
 
+import difflib
 from pathlib import Path
 
 
@@ -73,6 +75,28 @@ class ConfigError(BridgeError):
         self.reason = reason
         where = f"{path}:{line}" if line is not None else path
         super().__init__(f"{where}: {key}: {reason}" if key else f"{where}: {reason}")
+
+
+class UnknownName(BridgeError):
+    """A name no registry knows (a transport, a translator): names the closest known ones."""
+
+    def __init__(self, kind: str, name: str, known: list[str]) -> None:
+        self.kind = kind
+        self.name = name
+        self.known = known
+        close = difflib.get_close_matches(name, known, n=1)
+        hint = f"did you mean {close[0]!r}? " if close else ""
+        super().__init__(f"unknown {kind} {name!r} ({hint}known: {', '.join(known)})")
+
+
+class PluginError(BridgeError):
+    """An installed plugin's entry point that is not what its group needs (not a `Transport`...)."""
+
+
+class InvalidName(BridgeError, ValueError):
+    """A channel, topic or key name a transport cannot subscribe to or publish on, or a node or
+    namespace name it cannot take; says why. (A `ValueError` too, so that the settings models'
+    validators may raise it.)"""
 
 
 # Files and documents others wrote.

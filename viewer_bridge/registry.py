@@ -18,6 +18,7 @@ from collections.abc import Mapping
 from importlib.metadata import entry_points
 from typing import Generic, TypeVar, cast
 
+from viewer_bridge.errors import PluginError, UnknownName
 from viewer_bridge.extras import missing
 
 Entry = TypeVar("Entry")
@@ -39,7 +40,7 @@ class Registry(Generic[Entry]):
         return [*self._builtins, *sorted(set(plugins))]
 
     def get(self, name: str) -> type[Entry]:
-        """The class registered as `name`; `KeyError` names the known ones."""
+        """The class registered as `name`; `UnknownName` names the known ones."""
         entry = self._loaded.get(name)
         if entry is None:
             entry = self._loaded[name] = self._load(name)
@@ -58,8 +59,8 @@ class Registry(Generic[Entry]):
         else:
             points = [point for point in entry_points(group=self.group) if point.name == name]
             if not points:
-                raise KeyError(f"unknown {self.kind} {name!r} (known: {', '.join(self.names())})")
+                raise UnknownName(self.kind, name, self.names())
             loaded = points[0].load()
         if not (isinstance(loaded, type) and issubclass(loaded, self._base)):
-            raise KeyError(f"{self.kind} {name!r} ({self.group}) is not a subclass of {self._base.__name__}")
+            raise PluginError(f"{self.kind} {name!r} ({self.group}) is not a subclass of {self._base.__name__}")
         return cast("type[Entry]", loaded)

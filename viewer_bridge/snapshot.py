@@ -22,6 +22,7 @@ import numpy as np
 from PIL import Image
 
 from viewer_bridge.contact import ContactDrawOptions, ContactResults, contact_scene, pressure_colors
+from viewer_bridge.errors import SceneError
 from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.drake.draw import DrawDecoder
 from viewer_bridge.formats.drake.load import decode_load
@@ -46,7 +47,7 @@ def latest_scene(events: list[LcmEvent], role: str = "") -> Scene:
         elif event.channel == f"DRAKE_VIEWER_DRAW{suffix}" and event.data[:8] == DRAW.packed_fingerprint:
             draw = event.data
     if load is None:
-        raise ValueError(f"no DRAKE_VIEWER_LOAD_ROBOT{suffix} message in the source")
+        raise SceneError(f"no DRAKE_VIEWER_LOAD_ROBOT{suffix} message in the source")
     scene = decode_load(load)
     return scene.with_poses(DrawDecoder().decode(draw)) if draw is not None else scene
 

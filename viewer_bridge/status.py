@@ -31,6 +31,11 @@ class StatusView(Protocol):
         """The bridge is stopping: leave the last state on screen."""
 
 
+def counted(count: int, noun: str) -> str:
+    """`1 route`, `2 routes`: a count and its noun, singular or plural."""
+    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
+
+
 def routes_of(snapshot: Snapshot) -> dict[str, dict[str, Any]]:
     return {name: stats for name, stats in snapshot.items() if name != "transports"}
 
@@ -109,12 +114,12 @@ class LiveTable:
         routes = routes_of(snapshot)
         rates = {name: self._rates(name, stats, elapsed) for name, stats in routes.items()}
         shown = [name for name, stats in routes.items() if is_shown(stats)]
-        title = f"viewer-bridge: {len(routes)} routes (rates over the last {elapsed:.1f} s)"
+        title = f"viewer-bridge: {counted(len(routes), 'route')} (rates over the last {elapsed:.1f} s)"
         parts: list[Any] = [self._table(title, {name: routes[name] for name in shown}, rates)]
         quiet = [name for name in routes if name not in shown]
         if quiet:
             idle = sum(1 for name in quiet if routes[name]["state"] != "active")
-            parts.append(Text(f"{len(quiet)} more routes quiet ({idle} idle: no subscriber; "
+            parts.append(Text(f"{counted(len(quiet), 'more route')} quiet ({idle} idle: no subscriber; "
                               f"{len(quiet) - idle} without traffic): {', '.join(quiet)}", style="dim"))  # fmt: skip
         for name, stats in routes.items():
             if held := held_of(stats):

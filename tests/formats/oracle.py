@@ -9,8 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from pydrake.common.eigen_geometry import Quaternion
-from pydrake.math import RigidTransform
+import pytest
 
 from viewer_bridge.lcmcodec import LcmMessage
 
@@ -24,9 +23,11 @@ def close(actual: Any, expected: Any) -> bool:
     return actual.shape == expected.shape and bool(np.allclose(actual, expected, rtol=F32, atol=1e-7))
 
 
-def transform(position: Any, quaternion_wxyz: Any) -> RigidTransform:
+def transform(position: Any, quaternion_wxyz: Any) -> Any:
+    """pydrake's RigidTransform (pydrake imported here: a core-only run skips the tests that need it)."""
+    eigen_geometry, drake_math = pytest.importorskip("pydrake.common.eigen_geometry"), pytest.importorskip("pydrake.math")
     w, x, y, z = (float(value) for value in quaternion_wxyz)
-    return RigidTransform(Quaternion(w, x, y, z), np.asarray(position, dtype=np.float64))
+    return drake_math.RigidTransform(eigen_geometry.Quaternion(w, x, y, z), np.asarray(position, dtype=np.float64))
 
 
 def world_pose(link_position: Any, link_wxyz: Any, geometry: LcmMessage) -> tuple[np.ndarray, np.ndarray]:

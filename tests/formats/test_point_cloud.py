@@ -6,14 +6,16 @@ from __future__ import annotations
 
 from typing import Any
 
-import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
+from tests.optional import peer
 from viewer_bridge.errors import SceneError
 from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
 from viewer_bridge.scene import PointCloud, StampedPointCloud
+
+drake_lcmtypes = peer("drake")  # Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
 
 
 def sample_cloud(count: int = 30, colors: bool = True, normals: bool = False, seed: int = 3) -> PointCloud:

@@ -7,10 +7,11 @@ from __future__ import annotations
 from collections import Counter
 from typing import Any
 
-import drake as drake_lcmtypes  # Drake's own lcm-gen classes, shipped with pydrake
-
+from tests.optional import peer
 from viewer_bridge.lcmcodec import codec_for
 from viewer_bridge.transports.lcm import LcmEvent
+
+drake_lcmtypes = peer("drake")  # Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
 
 
 def values(message: Any) -> Any:

@@ -16,6 +16,7 @@ import pytest
 
 from tests.conftest import lcm_url
 from tests.formats.drake.test_contact import pydrake_results
+from tests.formats.ros.oracle import ARROW, DELETEALL, TRIANGLE_LIST
 from tests.peers import BridgeProcess, RosProbe
 from tests.scenes import demo_contact_results
 from tests.test_router import LcmRecorder
@@ -29,7 +30,6 @@ from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import Received
 
 CONTACT_SCENE_SCRIPT = Path(__file__).parents[1] / "drake_contact_scene.py"
-ARROW, TRIANGLE_LIST, DELETEALL = 0, 11, 3
 
 
 # --- end to end: pydrake -> bridge process -> rclpy ---------------------------------------------------
@@ -63,7 +63,7 @@ def test_a_drake_simulation_reaches_ros_as_contact_markers_and_wrenches() -> Non
     recorder = LcmRecorder(url)
     bridge = BridgeProcess("--lcm-url", url, "--stats-period", "1")
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         subprocess.run(
             [sys.executable, str(CONTACT_SCENE_SCRIPT), url, "0.5", "1.0"], check=True, timeout=120
         )

@@ -103,7 +103,7 @@ def test_a_drake_simulation_reaches_ros_as_a_tf_tree(tmp_path: Path) -> None:
     recorder = LcmRecorder(url)
     bridge = BridgeProcess("--lcm-url", url, "--stats-period", "1")
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         drake = start_drake(url, tmp_path, 2.0)
         assert drake.wait(timeout=120) == 0
         recorder.sync()  # holds Drake's last draw

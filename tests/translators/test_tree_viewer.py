@@ -328,7 +328,7 @@ def test_a_spec_client_drives_the_bridge_over_lcm(lcmgen: dict[str, type], tmp_p
     bus.start()
     bridge = BridgeProcess("-c", str(write_config(tmp_path, SERVER.format(root=tmp_path))), "--lcm-url", url)
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         hello = client.wrap(request(settransform=[{"path": ["probe"], "transform": {}}]))
         deadline = time.monotonic() + 60
         while not received and time.monotonic() < deadline:  # until DDS has matched the probe
@@ -382,7 +382,7 @@ def test_client_and_server_routes_carry_the_demo_scene_through_the_tree_viewer(t
     bridge = BridgeProcess("-c", str(write_config(tmp_path, BOTH_SIDES)), "--lcm-url", url, "--demo",
                            "--stats-json", str(stats))  # fmt: skip
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         assert probe.wait_for(lambda: any(len({m.ns for m in a.markers}) >= 8 for a in received), timeout=30)
     finally:
         assert bridge.stop() == 0

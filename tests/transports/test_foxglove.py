@@ -160,7 +160,7 @@ CLIENTS: dict[str, tuple[Callable[..., Client], str]] = {
 
 
 def foxglove_port(bridge: BridgeProcess) -> int:
-    line = bridge.wait_for_line("routes running")
+    line = bridge.wait_for_line(" running (")
     match = re.search(r"ws://127\.0\.0\.1:(\d+)", line)
     assert match is not None, line
     # The SDK's own start-up line would name the port behind the front: not shown.

@@ -70,7 +70,7 @@ def test_the_cli_lists_and_echoes_what_a_drake_simulation_becomes(tmp_path: Path
     bridge = BridgeProcess("-c", "builtin:ign", "--lcm-url", url)
     drake = None
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         drake = subprocess.Popen([sys.executable, str(DRAKE_SCENE_SCRIPT), url, str(tmp_path), "8"])
         deadline = time.monotonic() + 60
         while "DRAKE_VIEWER_DRAW_ILLUSTRATION" not in recorder.messages and time.monotonic() < deadline:
@@ -109,7 +109,7 @@ def test_a_pose_v_from_the_cli_arrives_as_a_drake_draw(config: str) -> None:
     text = 'header { stamp { sec: 3 nsec: 250000000 } } pose { name: "plant::arm" position { x: 1 y: 2 z: 3 } ' \
            'orientation { x: 0 y: 0 z: 0.6 w: 0.8 } } pose { name: "plant::hand" position { x: 1 } }'  # fmt: skip
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         deadline = time.monotonic() + 60
         while "DRAKE_VIEWER_DRAW_FROM_IGN" not in recorder.messages and time.monotonic() < deadline:
             cli("-t", "/drake_in/pose_v", "-m", "ignition.msgs.Pose_V", "-p", text)
@@ -137,7 +137,7 @@ def test_publishers_and_cli_peers_can_restart() -> None:
     try:
         for _ in range(2):  # the second bridge is a new process: new uuid, new address
             bridge = BridgeProcess("-c", "builtin:ign", "--lcm-url", url, "--demo")
-            bridge.wait_for_line("routes running")
+            bridge.wait_for_line(" running (")
             started = time.monotonic()
             deadline = started + 60
             while not any(at > started for at in received) and time.monotonic() < deadline:
@@ -249,7 +249,7 @@ def test_builtin_gz_lists_its_publishers_with_gz_names() -> None:
     bridge = BridgeProcess("-c", "builtin:gz", "--lcm-url", lcm_url(10), "--demo")
     info = ""
     try:
-        bridge.wait_for_line("routes running")
+        bridge.wait_for_line(" running (")
         deadline = time.monotonic() + 60
         while "gz.msgs.Pose_V" not in info and time.monotonic() < deadline:
             info = cli("-i", "-t", "/drake/pose_v")

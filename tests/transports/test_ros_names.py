@@ -17,7 +17,12 @@ from rclpy.validate_namespace import validate_namespace
 from rclpy.validate_node_name import validate_node_name
 from rclpy.validate_topic_name import validate_topic_name
 
-from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem, topic_problem
+from viewer_bridge.transports.ros_names import (
+    namespace_problem,
+    node_name_problem,
+    ros_argument_problem,
+    topic_problem,
+)
 
 TOPICS = [
     "/tf", "drake/markers", "/sim2/bad topic!", "a/", "/", "", "/a//b", "~", "~/a", "~a", "a/~", "1a", "a/1b",
@@ -86,3 +91,32 @@ def test_node_names_as_rclpy_judges_them(context: Context, node: str) -> None:
     expected = node_made(context, node, "")
     assert expected == accepted(validate_node_name, node, InvalidNodeNameException)
     assert (node_name_problem(node) is None) == expected, node_name_problem(node)
+
+
+ROS_ARGUMENTS = [
+    ("-r", "__ns:=/sim1"), ("-r", "__ns:=sim1"), ("-r", "__ns:=bad-ns"), ("-r", "__ns:=/a//b"), ("-r", "__ns:="),
+    ("-r", "__node:=my-node"), ("-r", "__node:=my_node"), ("-r", "__name:=9x"), ("-r", "viewer_bridge:__ns:=/x"),
+    ("-r", "/a:=/b"), ("-r", "a-b:=c"), ("-r", "/a:=b c"), ("-r", "n:/a:=/b"), ("-r", "no_rule"),
+    ("-p", "use_sim_time:=maybe"), ("-p", "use_sim_time:=true"), ("-p", "use_sim_time:=On"),
+    ("-p", "use_sim_time:=1"), ("-p", "use_sim_time:=FALSE"), ("-p", "x-y:=3"), ("-p", "a.b:=3"), ("-p", "a:=anything"),
+]  # fmt: skip
+
+
+def rcl_accepts(flag: str, value: str) -> bool:
+    """Whether rclpy starts a node with these arguments (rcl parses them; the node declares use_sim_time)."""
+    context = Context()
+    try:
+        rclpy.init(context=context, args=["viewer-bridge", "--ros-args", flag, value])
+        Node("probe", context=context).destroy_node()
+    except Exception:
+        return False
+    finally:
+        if context.ok():
+            rclpy.shutdown(context=context)
+    return True
+
+
+@pytest.mark.parametrize(("flag", "value"), ROS_ARGUMENTS)
+def test_ros_arguments_are_refused_as_rcl_refuses_them(flag: str, value: str) -> None:
+    problem = ros_argument_problem(flag, value)
+    assert (problem is None) == rcl_accepts(flag, value), problem

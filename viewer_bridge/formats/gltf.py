@@ -25,7 +25,8 @@ import numpy as np
 from viewer_bridge.errors import GltfError
 from viewer_bridge.lowering import triangle_mesh
 from viewer_bridge.lru import SizedLru
-from viewer_bridge.scene import FloatArray, Geometry, Link, Pose, Scene, TriangleMesh, rotation_matrix
+from viewer_bridge.pose_math import rotation_matrix
+from viewer_bridge.scene import FloatArray, Geometry, Link, Pose, Scene, TriangleMesh
 from viewer_bridge.skipped import per_geometry
 
 _COMPONENTS = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}

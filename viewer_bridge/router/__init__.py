@@ -34,7 +34,7 @@ from viewer_bridge.config import BridgeConfig, Route
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.router.flow import InlineBudget
 from viewer_bridge.router.runner import PublisherFor, RouteRunner
-from viewer_bridge.status import LogLines, StatusView
+from viewer_bridge.status import LogLines, StatusView, counted
 from viewer_bridge.translators import TRANSLATORS, LoadCache, Output, Translator
 from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import (
@@ -155,7 +155,7 @@ class Router:
         for transport in self.transports.values():
             transport.start()
         where = ", ".join(transport.describe() for transport in self.transports.values())
-        log.info("viewer-bridge: %d routes running (%s)", len(self.routes), where)
+        log.info("viewer-bridge: %s running (%s)", counted(len(self.routes), "route"), where)
 
     def stop(self) -> None:
         self._stop.set()

@@ -216,12 +216,12 @@ class Transport(ABC):
 
     @classmethod
     def check_source(cls, name: str) -> None:
-        """Raise `ValueError` when `name` cannot be subscribed to (checked at config load)."""
+        """Raise `InvalidName` when `name` cannot be subscribed to (checked at config load)."""
         return None
 
     @classmethod
     def check_destination(cls, name: str) -> None:
-        """Raise `ValueError` when `name` cannot be published on (checked at config load, on the
+        """Raise `InvalidName` when `name` cannot be published on (checked at config load, on the
         destination template filled in with sample groups)."""
         return None
 

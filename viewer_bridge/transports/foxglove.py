@@ -28,7 +28,7 @@ from urllib.parse import urlencode
 
 from pydantic import Field
 
-from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.errors import InvalidName, TransportUnavailable
 from viewer_bridge.extras import missing
 from viewer_bridge.formats.foxglove.schema import schema
 from viewer_bridge.transports.base import (
@@ -234,7 +234,7 @@ class FoxgloveTransport(Transport):
 
     @classmethod
     def check_source(cls, name: str) -> None:
-        raise ValueError("the foxglove transport only publishes; it cannot be a route's source")
+        raise InvalidName("the foxglove transport only publishes; it cannot be a route's source")
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         require_schemas(message_types)

@@ -32,6 +32,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Mapping
 
+from viewer_bridge.errors import InvalidName
 from viewer_bridge.extras import missing
 from viewer_bridge.formats.ign.schema import PACKAGES, Package, type_name, wire_type_name
 from viewer_bridge.transports.base import (
@@ -259,7 +260,7 @@ class IgnTransport(Transport):
     @classmethod
     def check_source(cls, name: str) -> None:
         if not _TOPIC.fullmatch(name):  # ign-transport subscribes by exact topic: a pattern never appears
-            raise ValueError(f"an ign source is one topic name, not a pattern: {name!r}")
+            raise InvalidName(f"an ign source is one topic name, not a pattern: {name!r}")
 
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
         delivers = self._delivers.get(pattern)

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import lcm
 
-from viewer_bridge.errors import LogError
+from viewer_bridge.errors import LogError, TransportUnavailable
 from viewer_bridge.transports import base
 
 _log = logging.getLogger("viewer_bridge")
@@ -83,11 +83,11 @@ def write_log(path: str | Path, events: Iterator[LcmEvent] | list[LcmEvent]) -> 
 
 
 def _open(url: str) -> lcm.LCM:
-    """An LCM instance on `url`; a URL LCM cannot open is an `OSError` that names it."""
+    """An LCM instance on `url`; a URL LCM cannot open is a `TransportUnavailable` that names it."""
     try:
         return lcm.LCM(url)
     except RuntimeError as error:  # LCM says only "Couldn't create LCM"
-        raise OSError(f"LCM cannot open {url} ({error}): is it an LCM URL, e.g. {DEFAULT_URL}?") from None
+        raise TransportUnavailable(f"LCM cannot open {url} ({error}): is it an LCM URL, e.g. {DEFAULT_URL}?") from None
 
 
 class Subscription:
@@ -288,10 +288,13 @@ def open_bus(url: str) -> LcmBus | LogReplay:
         for part in filter(None, query.split("&")):
             key, _, value = part.partition("=")
             if key != "speed":
-                raise ValueError(f"{url}: unknown log option {key!r} (known: speed)")
-            speed = float(value)
+                raise TransportUnavailable(f"{url}: unknown log option {key!r} (known: speed)")
+            try:
+                speed = float(value)
+            except ValueError:
+                raise TransportUnavailable(f"{url}: speed={value!r} is not a number") from None
         if not Path(path).is_file():
-            raise FileNotFoundError(f"{url}: no such log file")
+            raise TransportUnavailable(f"{url}: no such log file")
         return LogReplay(path, speed)
     return LcmBus(url)
 

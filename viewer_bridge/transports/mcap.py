@@ -29,7 +29,7 @@ from typing import Literal, Protocol
 
 from rosbags.typesys import Stores, get_typestore
 
-from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.errors import InvalidName, TransportUnavailable
 from viewer_bridge.extras import missing
 from viewer_bridge.transports.base import (
     CDR,
@@ -203,7 +203,7 @@ class McapTransport(Transport):
 
     @classmethod
     def check_source(cls, name: str) -> None:
-        raise ValueError("the mcap transport only writes a file; it cannot be a route's source")
+        raise InvalidName("the mcap transport only writes a file; it cannot be a route's source")
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         message_types = list(message_types)

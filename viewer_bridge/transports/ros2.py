@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 from pydantic import field_validator
 
-from viewer_bridge.errors import Held, TransportUnavailable
+from viewer_bridge.errors import Held, InvalidName, TransportUnavailable
 from viewer_bridge.extras import missing
 from viewer_bridge.ros_builds import BuildState, InterfaceBuilder
 from viewer_bridge.transports.base import (
@@ -84,9 +84,9 @@ class RosSettings(TransportSettings):
 
 
 def _valid(name: str, problem: str | None, what: str) -> str:
-    """`name`, or a `ValueError` saying why it is no valid ROS 2 `what`."""
+    """`name`, or an `InvalidName` saying why it is no valid ROS 2 `what`."""
     if problem is not None:
-        raise ValueError(f"{name!r} is not a valid ROS 2 {what}: {problem}")
+        raise InvalidName(f"{name!r} is not a valid ROS 2 {what}: {problem}")
     return name
 
 

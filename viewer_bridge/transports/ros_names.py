@@ -95,11 +95,51 @@ def _tokens(name: str) -> str | None:
     return None
 
 
+# rcl's parameter names (rcl/lexer.c): name tokens separated by dots; its YAML booleans.
+_PARAMETER_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
+_YAML_BOOLS = {form for word in ("true", "false", "yes", "no", "on", "off")
+               for form in (word, word.capitalize(), word.upper())}  # fmt: skip
+
+
+def ros_argument_problem(flag: str, value: str) -> str | None:
+    """What rcl would refuse in one `--ros-args` flag and value (a remap rule, a parameter), or None.
+
+    `-r [node:]FROM:=TO`: `__ns` takes an absolute namespace, `__node` and `__name` a node name,
+    anything else a topic name on either side; `-p [node:]NAME:=VALUE`: a dotted parameter name,
+    and `use_sim_time` (which every node declares as a bool) a YAML bool. Other flags pass.
+    """
+    if flag not in ("-r", "--remap", "-p", "--param"):
+        return None
+    rule, separator, to = value.partition(":=")
+    node, _, name = rule.rpartition(":")
+    if not separator:
+        return f"{value!r} is not NAME:=VALUE"
+    if node and (problem := node_name_problem(node)):
+        return f"{node!r} is not a valid ROS 2 node name: {problem}"
+    if flag in ("-p", "--param"):
+        if not _PARAMETER_NAME.fullmatch(name):
+            return f"{name!r} is not a valid parameter name: letters, digits and _ in parts joined by ."
+        if name == "use_sim_time" and to not in _YAML_BOOLS:
+            return f"use_sim_time is a bool (true or false), not {to!r}"
+        return None
+    if name == "__ns":
+        problem = namespace_problem(to) if to.startswith("/") else "it must be absolute (start with /)"
+        return f"{to!r} is not a valid ROS 2 namespace: {problem}" if problem else None
+    if name in ("__node", "__name"):
+        problem = node_name_problem(to)
+        return f"{to!r} is not a valid ROS 2 node name: {problem}" if problem else None
+    for topic in (name, to):
+        if problem := topic_problem(topic):
+            return f"{topic!r} is not a valid ROS 2 topic name: {problem}"
+    return None
+
+
 __all__ = [
     "MAX_NAMESPACE_LENGTH",
     "MAX_NODE_NAME_LENGTH",
     "name_token",
     "namespace_problem",
     "node_name_problem",
+    "ros_argument_problem",
     "topic_problem",
 ]

@@ -5,12 +5,14 @@ from __future__ import annotations
 
 from typing import Any
 
-import drake as drake_lcmtypes
 import pytest
 
 from tests.formats.drake.oracle import contact_results_to_lcm
+from tests.optional import peer
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.drake.contact import decode_contact_results
+
+drake_lcmtypes = peer("drake")  # Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
 
 
 def pydrake_results(polygons: list[int] | None = None, force_z: float = 9.81) -> Any:

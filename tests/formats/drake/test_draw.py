@@ -5,16 +5,18 @@ from __future__ import annotations
 
 import warnings
 
-import drake as drake_lcmtypes  # Drake's own lcm-gen classes, shipped with pydrake
 import numpy as np
 import pytest
 
 from tests.formats.drake.oracle import draw_from_poses
+from tests.optional import peer
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder, poses_from_draw
 from viewer_bridge.lcmcodec import DRAW
 from viewer_bridge.scene import frame_name
 from viewer_bridge.transports.lcm import LcmEvent
+
+drake_lcmtypes = peer("drake")  # Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
 
 
 def test_draw_fast_path_matches_drake(drake_events: list[LcmEvent]) -> None:

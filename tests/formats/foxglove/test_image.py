@@ -8,8 +8,8 @@ from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
 
-from tests.formats.drake.test_image import sample_pixels
 from tests.formats.ros.test_image import padded
+from tests.pixels import sample_pixels
 from viewer_bridge.formats.foxglove.image import camera_calibration, compressed_image, raw_image
 from viewer_bridge.image import EncodedImage, Image, Intrinsics, Layout
 

@@ -10,7 +10,8 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.formats.ign.schema import MESSAGES
-from viewer_bridge.scene import LinkPoses, xyzw_from_wxyz
+from viewer_bridge.pose_math import xyzw_from_wxyz
+from viewer_bridge.scene import LinkPoses
 from viewer_bridge.sim_time import sec_nsec_from_ms
 
 

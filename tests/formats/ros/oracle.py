@@ -27,9 +27,12 @@ from viewer_bridge.formats.ros.messages import make
 from viewer_bridge.formats.ros.tables import TABLES
 from viewer_bridge.formats.ros.tf import FrameNames
 from viewer_bridge.mappings import ShapeRule
-from viewer_bridge.scene import Geometry, LinkPoses, Pose, Scene, Shape, link_poses_from_xyzw, pose_rows_xyzw
+from viewer_bridge.pose_math import pose_rows_xyzw
+from viewer_bridge.scene import Geometry, LinkPoses, Pose, Scene, Shape, link_poses_from_xyzw
 from viewer_bridge.sim_time import ms_from_sec_nsec
 from viewer_bridge.skipped import per_geometry
+
+ARROW, TRIANGLE_LIST, DELETEALL = 0, 11, 3  # visualization_msgs/Marker's type and action numbers
 
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 MARKER = "visualization_msgs/msg/Marker"

@@ -7,7 +7,7 @@ import numpy as np
 
 from tests.formats.drake.test_contact import pydrake_results
 from tests.formats.ros import oracle as ros_oracle
-from tests.translators.test_drake_contact import ARROW, DELETEALL, TRIANGLE_LIST
+from tests.formats.ros.oracle import ARROW, DELETEALL, TRIANGLE_LIST
 from viewer_bridge.contact import ContactDrawOptions, pressure_colors
 from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.ros import MARKER_ARRAY, WRENCH_STAMPED

@@ -8,11 +8,9 @@ from typing import Any
 
 import numpy as np
 import pytest
-from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import CameraInfo as RclpyCameraInfo
-from sensor_msgs.msg import Image as RclpyImage
 
-from tests.formats.drake.test_image import sample_pixels
+from tests.optional import peer
+from tests.pixels import sample_pixels
 from viewer_bridge.errors import DecodeError, EncodeError
 from viewer_bridge.formats.ros.image import (
     LAYOUTS,
@@ -25,6 +23,9 @@ from viewer_bridge.formats.ros.image import (
 )
 from viewer_bridge.formats.ros.messages import make, to_cdr
 from viewer_bridge.image import EncodedImage, Image, Intrinsics, Layout
+
+serialization = peer("rclpy.serialization")
+sensor_msgs = peer("sensor_msgs.msg")
 
 STAMP = (12, 345_000_000)
 
@@ -75,7 +76,7 @@ def test_image_cdr_is_what_rosbags_writes_and_rclpy_reads(case: str) -> None:
     assert encoding(image) == name
     data = image_to_cdr(image, "left_camera", STAMP)
     assert data == rosbags_image(image, "left_camera", name)
-    message = deserialize_message(data, RclpyImage)
+    message = serialization.deserialize_message(data, sensor_msgs.Image)
     assert (message.height, message.width, message.encoding) == (3, 5, name)
     assert message.header.frame_id == "left_camera" and message.header.stamp.nanosec == STAMP[1]
     dtype = image.pixels.dtype
@@ -115,7 +116,7 @@ def test_camera_info_is_a_pinhole_without_distortion_with_each_stamp() -> None:
     encoder = CameraInfoEncoder(intrinsics, "cam")
     data = encoder.encode(STAMP)
     assert data == camera_info_cdr(intrinsics, "cam", STAMP)
-    message: Any = deserialize_message(data, RclpyCameraInfo)
+    message: Any = serialization.deserialize_message(data, sensor_msgs.CameraInfo)
     assert (message.width, message.height, message.distortion_model) == (640, 480, "plumb_bob")
     assert list(message.d) == [0.0] * 5
     assert list(message.k) == [500.0, 0.0, 319.5, 0.0, 510.0, 239.5, 0.0, 0.0, 1.0]
@@ -124,8 +125,13 @@ def test_camera_info_is_a_pinhole_without_distortion_with_each_stamp() -> None:
     assert (message.header.stamp.sec, message.header.frame_id) == (12, "cam")
 
 
+def rclpy_image_bytes(**fields: Any) -> bytes:
+    """An rclpy `sensor_msgs/Image` of these fields, serialised by rclpy."""
+    return bytes(serialization.serialize_message(sensor_msgs.Image(**fields)))
+
+
 def rclpy_image(name: str, pixels: np.ndarray, step_padding: int = 0, big_endian: bool = False) -> bytes:
-    message = RclpyImage()
+    message = sensor_msgs.Image()
     message.header.frame_id, message.header.stamp.sec, message.header.stamp.nanosec = "cam", 3, 500_000_000
     message.height, message.width = pixels.shape[:2]
     message.encoding, message.is_bigendian = name, big_endian
@@ -133,7 +139,7 @@ def rclpy_image(name: str, pixels: np.ndarray, step_padding: int = 0, big_endian
     rows = np.frombuffer(wire.tobytes(), np.uint8).reshape(pixels.shape[0], -1)
     rows = np.concatenate((rows, np.zeros((pixels.shape[0], step_padding), np.uint8)), axis=1)
     message.step, message.data = rows.shape[1], rows.tobytes()
-    return bytes(serialize_message(message))
+    return bytes(serialization.serialize_message(message))
 
 
 @pytest.mark.parametrize("name", sorted(LAYOUTS))
@@ -152,7 +158,7 @@ BAD = {
     "an encoding Drake has no format for": (lambda: rclpy_image("yuv422", np.zeros((2, 2, 2), np.uint8)), "encoding",
                                             "'yuv422' has no Drake pixel format"),
     "data that is not step x height": (
-        lambda: bytes(serialize_message(RclpyImage(height=2, width=2, encoding="rgb8", step=6, data=bytes(10)))),
+        lambda: rclpy_image_bytes(height=2, width=2, encoding="rgb8", step=6, data=bytes(10)),
         "data", "10 bytes are not step 6 x height 2"),
     "not CDR": (lambda: b"\x07\x07\x00\x00", "", "not CDR"),
 }  # fmt: skip
@@ -167,14 +173,14 @@ def test_a_bad_image_is_a_decode_error_naming_the_field(case: str) -> None:
 
 
 def test_a_step_shorter_than_a_row_is_refused() -> None:
-    message = RclpyImage(height=2, width=4, encoding="mono16", step=6, data=bytes(12))
+    message = sensor_msgs.Image(height=2, width=4, encoding="mono16", step=6, data=bytes(12))
     with pytest.raises(DecodeError, match="step 6 is shorter than a row"):
-        image_from_cdr(bytes(serialize_message(message)))
+        image_from_cdr(bytes(serialization.serialize_message(message)))
 
 
 def test_an_empty_image_is_written() -> None:
     """bench/fuzz.py's first image finding (drake_images_to_ros): a 0 x 4 image raised TypeError
     (a memoryview of an empty array cannot be cast)."""
     empty = Image("rgb", 0, Layout.RGBA, np.zeros((0, 4, 4), np.uint8))
-    message = deserialize_message(image_to_cdr(empty, "cam", STAMP), RclpyImage)
+    message = serialization.deserialize_message(image_to_cdr(empty, "cam", STAMP), sensor_msgs.Image)
     assert (message.height, message.width, message.step, len(message.data)) == (0, 4, 16, 0)

@@ -7,13 +7,12 @@ from typing import Any
 
 import numpy as np
 import pytest
-from geometry_msgs.msg import PoseArray, PoseStamped
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from rclpy.serialization import deserialize_message
 
 from tests.conftest import Capture
 from tests.formats.ros import oracle as ros_oracle
+from tests.optional import peer
 from tests.strategies import link_poses
 from viewer_bridge.errors import DecodeError, EncodeError, SceneError
 from viewer_bridge.formats import ros
@@ -26,6 +25,9 @@ from viewer_bridge.formats.ros.poses import (
 )
 from viewer_bridge.scene import LinkPoses, Pose
 
+geometry = peer("geometry_msgs.msg")
+serialization = peer("rclpy.serialization")
+
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
 
 
@@ -34,7 +36,7 @@ def test_pose_array_fast_path_matches_the_objects(drake_capture: dict[str, Captu
     poses = raw = drake_capture[role].poses  # from Drake's draw: w-first float32 values
     data = PoseArrayEncoder("world").encode(poses)
     objects = to_rclpy(ros_oracle.pose_array(poses))
-    decoded = deserialize_message(data, PoseArray)
+    decoded = serialization.deserialize_message(data, geometry.PoseArray)
     assert decoded == objects
     assert to_rclpy(from_cdr(data, ros.POSE_ARRAY)) == objects
     assert decoded.header.stamp.sec * 1000 + decoded.header.stamp.nanosec // 1_000_000 == poses.timestamp_ms
@@ -49,7 +51,7 @@ def test_pose_array_fast_path_matches_the_objects(drake_capture: dict[str, Captu
         assert [pose.position.x, pose.position.y, pose.position.z] == raw.positions[index].tolist()
     for index, data in enumerate(ros_oracle.PoseStampedEncoder("world").encode(poses)):  # the fast path
         objects = to_rclpy(ros_oracle.pose_stamped(poses, index))
-        assert deserialize_message(data, PoseStamped) == objects
+        assert serialization.deserialize_message(data, geometry.PoseStamped) == objects
         assert to_rclpy(from_cdr(data, ros_oracle.POSE_STAMPED)) == objects
         assert objects.pose.position.x == poses.positions[index][0]
 
@@ -60,23 +62,25 @@ def test_one_pose_array_encoder_follows_changing_draws(frames: list[LinkPoses]) 
     """The encoder keeps its message between draws: nothing of one draw may show in the next."""
     encoder = PoseArrayEncoder("world")
     for poses in frames:
-        assert deserialize_message(encoder.encode(poses), PoseArray) == to_rclpy(ros_oracle.pose_array(poses))
+        expected = to_rclpy(ros_oracle.pose_array(poses))
+        assert serialization.deserialize_message(encoder.encode(poses), geometry.PoseArray) == expected
 
 
 @settings(max_examples=60, deadline=None)
 @given(link_poses(), st.text(st.characters(exclude_characters="\0", exclude_categories=("Cs",)), max_size=9))
 def test_draw_to_pose_array_to_draw_round_trips(poses: LinkPoses, frame_id: str) -> None:
     data = PoseArrayEncoder(frame_id).encode(poses)
-    assert deserialize_message(data, PoseArray) == to_rclpy(ros_oracle.pose_array(poses, frame_id))
+    assert serialization.deserialize_message(data, geometry.PoseArray) == to_rclpy(ros_oracle.pose_array(poses, frame_id))
     for index, stamped in enumerate(ros_oracle.PoseStampedEncoder(frame_id).encode(poses)):
-        assert deserialize_message(stamped, PoseStamped) == to_rclpy(
+        assert serialization.deserialize_message(stamped, geometry.PoseStamped) == to_rclpy(
             ros_oracle.pose_stamped(poses, index, frame_id)
         )
     names, numbers = poses.names, poses.robot_nums.tolist()
+    rclpy_object = serialization.deserialize_message(data, geometry.PoseArray)
     for back in (
         poses_from_pose_array_cdr(data, names, numbers),
         ros_oracle.poses_from_pose_array(ros_oracle.pose_array(poses), names, numbers),
-        ros_oracle.poses_from_pose_array(from_rclpy(deserialize_message(data, PoseArray)), names, numbers),
+        ros_oracle.poses_from_pose_array(from_rclpy(rclpy_object), names, numbers),
     ):
         assert back.names == poses.names and back.robot_nums.tolist() == numbers
         assert back.timestamp_ms == poses.timestamp_ms

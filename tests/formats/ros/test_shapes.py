@@ -7,13 +7,12 @@ from typing import Any
 
 import numpy as np
 import pytest
-from rclpy.serialization import deserialize_message
-from visualization_msgs.msg import Marker
 
 from tests.conftest import Capture
 from tests.formats import oracle
 from tests.formats.oracle import close
 from tests.formats.ros import oracle as ros_oracle
+from tests.optional import peer
 from viewer_bridge.demo import TETRAHEDRON_OBJ
 from viewer_bridge.errors import EncodeError, SceneError
 from viewer_bridge.formats import ros
@@ -21,6 +20,9 @@ from viewer_bridge.formats.ros.messages import from_cdr, from_rclpy, make, to_cd
 from viewer_bridge.formats.ros.poses import PoseArrayEncoder
 from viewer_bridge.formats.ros.shapes import shape_from_message, shapes_cdr
 from viewer_bridge.scene import Geometry, Link, LinkPoses, MeshFile, Pose, Scene, frame_name
+
+serialization = peer("rclpy.serialization")
+markers_msgs = peer("visualization_msgs.msg")
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
 TETRAHEDRON = np.array(
@@ -91,7 +93,7 @@ def test_shape_messages_cdr_decodes_to_the_objects(drake_capture: dict[str, Capt
         package, _, name = posed.typename.split("/")
         cls = getattr(__import__(f"{package}.msg", fromlist=[name]), name)
         data = to_cdr(posed.shape)
-        assert deserialize_message(data, cls) == to_rclpy(posed.shape)
+        assert serialization.deserialize_message(data, cls) == to_rclpy(posed.shape)
         assert to_rclpy(from_cdr(data, posed.typename)) == to_rclpy(posed.shape)
         if posed.typename == ros.SOLID_PRIMITIVE:
             assert shape_from_message(posed.shape) == shape_from_message(from_rclpy(to_rclpy(posed.shape)))
@@ -108,7 +110,7 @@ def test_a_missing_mesh_file_is_skipped_alone_with_a_warning() -> None:
             (posed.typename, to_cdr(posed.shape)) for posed in ros_oracle.shapes(scene)
         ]
         markers = ros_oracle.marker_array(scene, {"embed_mesh_files": True}).markers
-    assert [marker.type for marker in markers[1:]] == [Marker.CUBE]
+    assert [marker.type for marker in markers[1:]] == [markers_msgs.Marker.CUBE]
     assert [str(item) for item in skipped] == [
         "l geometry 0 skipped: mesh file /nowhere/mesh.obj does not exist",
         "l geometry 0 skipped: mesh file /nowhere/mesh.obj does not exist",

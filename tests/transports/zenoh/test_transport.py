@@ -147,7 +147,7 @@ def test_a_draw_reaches_an_rmw_zenoh_subscriber_as_poses_and_tf(router: Router, 
     bus = LcmBus(url)
     sent: dict[int, LinkPoses] = {}
     try:
-        process.wait_for_line("routes running")
+        process.wait_for_line(" running (")
         assert wait_for(lambda: bridge_token(peer, "/NN/") is not None)  # publishers come with the first draw
         bus.publish("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(SCENE).encode())
         sequence = 0
@@ -223,7 +223,7 @@ def test_a_late_subscriber_gets_tf_static_and_the_model(router: Router, tmp_path
                      stats=stats)  # fmt: skip
     bus = LcmBus(url)
     try:
-        process.wait_for_line("routes running")
+        process.wait_for_line(" running (")
         sent = lambda route: stats_of(stats).get(route, {}).get("messages_out", 0)  # noqa: E731
 
         def published() -> bool:  # the load (UDP may drop one), then a draw: /tf_static and the markers
@@ -292,7 +292,7 @@ def test_a_pose_array_from_rmw_zenoh_reaches_lcm_and_bad_samples_are_counted(
                      stats=stats)  # fmt: skip
     arrived = lambda: recorder.messages.get("DRAKE_VIEWER_DRAW_FROM_poses", [])  # noqa: E731
     try:
-        process.wait_for_line("routes running")
+        process.wait_for_line(" running (")
         # The route's source is a regex: the bridge subscribes once the graph shows the publisher.
         assert wait_for(lambda: bridge_token(peer, "/MS/") is not None)
         publish(pose_array(100.0), attachment=b"\x01\x02")  # a malformed attachment
@@ -359,7 +359,7 @@ def test_lazy_routes_wake_on_an_rmw_zenoh_subscriber_or_any_zenoh_subscriber(
     state = lambda route: stats_of(stats).get(route, {}).get("state")  # noqa: E731
     peer = RmwZenohPeer(router.endpoint, DOMAIN, node="viewer")
     try:
-        process.wait_for_line("routes running")
+        process.wait_for_line(" running (")
         with drawing(url, 0.05, load=True):
             assert wait_for(lambda: state("tf") == state("poses") == "idle: no subscriber")
             # An rmw_zenoh subscriber's token alone wakes /tf ...
@@ -389,7 +389,7 @@ def test_the_bridge_waits_for_the_router_and_recovers_when_it_restarts(tmp_path:
     unsent = lambda: zenoh_errors(stats).get("unsent_no_router", 0)  # noqa: E731
     peer = None
     try:
-        process.wait_for_line("routes running")  # with no router: the other routes run meanwhile
+        process.wait_for_line(" running (")  # with no router: the other routes run meanwhile
         with drawing(url, 0.01):  # 100 Hz
             assert wait_for(lambda: unsent() > 0)
             router.start()
@@ -429,8 +429,8 @@ def test_two_bridges_join_two_lcm_buses_and_a_late_viewer_gets_the_load(
     late_side = None
     load, draws = "DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION", "DRAKE_VIEWER_DRAW_ILLUSTRATION"
     try:
-        simulation_side.wait_for_line("routes running")
-        viewer_side.wait_for_line("routes running")
+        simulation_side.wait_for_line(" running (")
+        viewer_side.wait_for_line(" running (")
         assert start_drake(sim_url, tmp_path, 2.0).wait(timeout=120) == 0
         sim.sync()  # holds Drake's last draw
         last_draw = sim.messages[draws][-1]
@@ -442,7 +442,7 @@ def test_two_bridges_join_two_lcm_buses_and_a_late_viewer_gets_the_load(
         )
         # A viewer side that joins after the simulation has sent its one load still gets it.
         late_side = bridge(router.endpoint, "-c", "builtin:zenoh-to-lcm", "--lcm-url", late_url)
-        late_side.wait_for_line("routes running")
+        late_side.wait_for_line(" running (")
         assert wait_for(lambda: load in late.messages and draws in late.messages), (
             {k: len(v) for k, v in late.messages.items()},
             late_side.lines[-5:],

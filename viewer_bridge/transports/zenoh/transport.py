@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import Field, ValidationInfo, field_validator
 
-from viewer_bridge.errors import TransportUnavailable
+from viewer_bridge.errors import InvalidName, TransportUnavailable
 from viewer_bridge.extras import missing
 from viewer_bridge.transports.base import (
     CDR,
@@ -110,12 +110,12 @@ class ZenohTransport(Transport):
     @classmethod
     def check_source(cls, name: str) -> None:
         if _PLAIN_TOPIC.match(name) and (problem := key_problem(name)):
-            raise ValueError(f"{name!r} cannot be a Zenoh key: {problem}")
+            raise InvalidName(f"{name!r} cannot be a Zenoh key: {problem}")
 
     @classmethod
     def check_destination(cls, name: str) -> None:
         if problem := key_problem(name):
-            raise ValueError(f"{name!r} cannot be a Zenoh key: {problem}")
+            raise InvalidName(f"{name!r} cannot be a Zenoh key: {problem}")
 
     def __init__(self, settings: ZenohSettings) -> None:
         super().__init__(settings)
@@ -214,7 +214,7 @@ class ZenohTransport(Transport):
 
     def _lcm_key(self, channel: str) -> str:
         if problem := key_problem(channel):
-            raise ValueError(f"LCM channel {channel!r} cannot be a Zenoh key: {problem}")
+            raise InvalidName(f"LCM channel {channel!r} cannot be a Zenoh key: {problem}")
         return f"{self.settings.lcm_prefix}/{channel}"
 
     # --- subscribing ---------------------------------------------------------------------------------
