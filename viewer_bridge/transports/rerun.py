@@ -35,7 +35,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 from rerun.chunk import Chunk
 
-from viewer_bridge.errors import BridgeError, TransportUnavailable
+from viewer_bridge.errors import BridgeError, InvalidName, TransportUnavailable
 from viewer_bridge.formats.rerun.schema import RERUN, decode_batches
 from viewer_bridge.transports.base import (
     CallPublisher,
@@ -148,12 +148,12 @@ class RerunTransport(Transport):
 
     @classmethod
     def check_source(cls, name: str) -> None:
-        raise ValueError("the rerun transport only writes; it cannot be a route's source")
+        raise InvalidName("the rerun transport only writes; it cannot be a route's source")
 
     @classmethod
     def check_destination(cls, name: str) -> None:
         if not name.startswith("/"):
-            raise ValueError(f"a rerun destination is an entity path from the root, e.g. /drake (got {name!r})")
+            raise InvalidName(f"a rerun destination is an entity path from the root, e.g. /drake (got {name!r})")
 
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
         raise TransportUnavailable("the rerun transport only writes")
