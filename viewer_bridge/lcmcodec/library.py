@@ -22,7 +22,7 @@ from collections.abc import Mapping, Sequence
 from functools import cached_property
 from pathlib import Path
 
-from viewer_bridge.errors import DecodeError, SchemaError
+from viewer_bridge.errors import DecodeError, Held, SchemaError
 from viewer_bridge.lcmcodec import STRUCTS
 from viewer_bridge.lcmcodec.cdr import CdrTranscoder, compile_transcoders
 from viewer_bridge.lcmcodec.jsonview import message_json
@@ -171,6 +171,18 @@ class TypeLibrary:
         said = _letters(channel)
         named = [known for known in candidates if _short_name(known.full_name) in said]
         return max(named, key=lambda known: len(_short_name(known.full_name))) if named else candidates[0]
+
+    def type_of(self, data: Buffer, channel: str = "") -> LcmType:
+        """`for_data`, or `Held` (`unknown_type`, naming the fingerprint) for a type not known here:
+        what a route of any LCM type counts per channel and goes on."""
+        known = self.for_data(data, channel)
+        if known is None:
+            raise Held(
+                "unknown_type",
+                f"fingerprint {bytes(data[:8]).hex()} names no known LCM type (add its .lcm files or "
+                "module with --lcm-types or the config's lcm_types)",
+            )
+        return known
 
     def sharing_fingerprint(self, lcm_type: LcmType) -> list[LcmType]:
         """Every known type whose fingerprint is `lcm_type`'s (itself included), by full name."""

@@ -6,7 +6,8 @@ and FrameTransforms), `drake_point_cloud` (point clouds both ways, DRAKE_DRAW_FR
 triads), `drake_ign` (<-> ign/gz protobuf), `drake_contact` (contact results to all three),
 `drake_image` (camera images <-> ROS 2, and to Foxglove), `tree_viewer` (Director's remote tree
 viewer, both sides), `drake_rerun` (Rerun's archetypes), `relay` (raw LCM onto another transport,
-unchanged), `lcm_generic` (any LCM type as its ROS 2 mapping). Families share only these: `base`
+unchanged), `lcm_generic` (any LCM type as its ROS 2 mapping), `lcm_rerun` (any LCM type's
+numbers as Rerun scalars). Families share only these: `base`
 (what a translator is), `types` (the message types, each named once), `options` (options to
 inherit: markers, frames, ign names), `drake_stream` (the decode-once draw, and
 `DrakeTranslator`, the base that follows Drake's load/draw stream) and `load_cache` (the last
@@ -58,6 +59,7 @@ _BUILTINS = {
     "drake_point_cloud_to_rerun": "drake_rerun:DrakePointCloudToRerun",
     "drake_draw_frames_to_rerun": "drake_rerun:DrakeDrawFramesToRerun",
     "drake_contacts_to_rerun": "drake_rerun:DrakeContactsToRerun",
+    "lcm_to_rerun_scalars": "lcm_rerun:LcmToRerunScalars",
 }
 
 TRANSLATORS: Registry[Translator] = Registry(

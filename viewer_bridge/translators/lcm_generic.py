@@ -60,13 +60,7 @@ class LcmToRos(Translator):
         fingerprint = bytes(message.data[:8])
         found = self._by_fingerprint.get(fingerprint)
         if found is None:
-            lcm_type = self.shared.lcm_types.for_data(message.data, message.channel)
-            if lcm_type is None:
-                raise Held(
-                    "unknown_type",
-                    f"fingerprint {fingerprint.hex()} names no known LCM type (add its .lcm files or "
-                    "module with --lcm-types or the config's lcm_types)",
-                )
+            lcm_type = self.shared.lcm_types.type_of(message.data, message.channel)
             if lcm_type.ros_type is None:
                 raise Held("refused_type", f"{lcm_type.full_name} cannot be a ROS 2 message: {lcm_type.refused}")
             self.outputs = (*self.outputs, Output("", ros_message_type(lcm_type)))

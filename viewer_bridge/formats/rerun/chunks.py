@@ -18,7 +18,7 @@ from rerun.chunk import Chunk
 
 from viewer_bridge.formats.rerun.schema import RECEIVE_TIME, SIM_TIME
 
-__all__ = ["Stamp", "entity_path", "static_batch", "timed_batch", "time_columns"]
+__all__ = ["Stamp", "entity_path", "received_batch", "static_batch", "timed_batch", "time_columns"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -63,3 +63,10 @@ def static_batch(path: str, archetypes: Iterable[rr.AsComponents]) -> pa.RecordB
 def timed_batch(path: str, stamp: Stamp, archetypes: Iterable[rr.AsComponents]) -> pa.RecordBatch:
     """One row of `archetypes` on the entity `path`, at `stamp`."""
     return Chunk.from_columns(path, time_columns(stamp), _one_row(archetypes)).to_record_batch()
+
+
+def received_batch(path: str, received_us: int, archetypes: Iterable[rr.AsComponents]) -> pa.RecordBatch:
+    """One row of `archetypes` on the entity `path`, on the receive_time timeline alone (for a
+    message that carries no simulation time)."""
+    column = rr.TimeColumn(RECEIVE_TIME, timestamp=np.full(1, received_us * 1000, dtype="datetime64[ns]"))
+    return Chunk.from_columns(path, [column], _one_row(archetypes)).to_record_batch()
