@@ -141,4 +141,4 @@ def _packages_used(typename: str) -> set[str]:
 def test_the_build_wheels_are_the_ros_build_extra() -> None:
     extras = tomllib.loads(PYPROJECT.read_text())["project"]["optional-dependencies"]
     assert tuple(extras["ros-build"]) == ros_interfaces.BUILD_WHEELS
-    assert "viewer-bridge[ros-build]" in extras["test"]
+    assert "viewer-bridge[ros-build]" in extras["all"] and "viewer-bridge[all]" in extras["test"]
