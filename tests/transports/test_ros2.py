@@ -22,33 +22,43 @@ def test_a_missing_interface_is_refused_at_start_naming_the_fix() -> None:
         transport.close()
 
 
-def test_an_lcm_types_interface_not_built_yet_holds_its_channel_and_the_rest_flows() -> None:
-    """Over DDS an LCM type's ROS 2 mapping needs its interface built (the lcmros work): until it
-    is, its channel's messages wait, counted per channel (`waiting_for_build`), never an error,
-    while the other routes publish."""
+def test_drakes_driver_messages_reach_an_rclpy_subscriber_of_the_built_interfaces() -> None:
+    """A pydrake diagram publishes `lcmt_iiwa_status` and `lcmt_robot_plan` (LcmPublisherSystems)
+    on the bus; the default config's lazy LCM-bus route carries them to /lcm/<channel> as
+    drake_lcm_msgs (built by the project's setup), and an rclpy subscriber that imports those
+    classes gets every field equal to Drake's own decode of the bytes sent."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
     import drake as drake_lcmtypes
 
-    from tests.scenes import draw_of, small_scene
-    from viewer_bridge.config import BridgeConfig
-    from viewer_bridge.router import Router
-    from viewer_bridge.transports.base import Received
+    from tests.conftest import lcm_url
+    from tests.drake_robot_status import PLAN_CHANNEL, STATUS_CHANNEL
+    from tests.peers import BridgeProcess, RosProbe
+    from tests.test_router import LcmRecorder
+    from tests.translators.test_lcm_generic import assert_same
 
-    config = BridgeConfig.model_validate(
-        {"lcm": {"url": "memq://"}, "ros": {"node": "held_probe"}, "routes": [
-            {"name": "bus", "source": {"transport": "lcm", "name": "(IIWA_.*)"}, "translator": "lcm_to_ros",
-             "destination": {"transport": "ros", "name": "/lcm/{1:topic}"}},
-            {"name": "poses", "source": {"transport": "lcm", "name": "DRAKE_VIEWER_DRAW"},
-             "translator": "drake_to_pose_array", "destination": {"transport": "ros", "name": "drake/poses"}},
-        ]}
-    )  # fmt: skip
-    router = Router(config)
+    url = lcm_url(61)
+    recorder = LcmRecorder(url)
+    bridge = BridgeProcess("--lcm-url", url)
+    probe = RosProbe("lcm_bus_subscriber")
     try:
-        for step in range(3):
-            router.feed("lcm", Received("IIWA_STATUS", drake_lcmtypes.lcmt_iiwa_status().encode()))
-            router.feed("lcm", Received("DRAKE_VIEWER_DRAW", draw_of(small_scene(), step)))
-        snapshot = router.snapshot()
+        statuses = probe.subscribe(f"/lcm/{STATUS_CHANNEL}", "drake_lcm_msgs/msg/LcmtIiwaStatus", depth=1000)
+        plans = probe.subscribe(f"/lcm/{PLAN_CHANNEL}", "drake_lcm_msgs/msg/LcmtRobotPlan", depth=1000)
+        bridge.wait_for_line(" running (")
+        script = Path(__file__).parents[1] / "drake_robot_status.py"
+        assert subprocess.run([sys.executable, str(script), url, "3.0"], timeout=120).returncode == 0
+        recorder.sync()
+        # The lazy route wakes once it sees the subscriber: the first messages may go before.
+        assert probe.wait_for(lambda: len(statuses) >= 30 and len(plans) >= 3, timeout=90), (
+            len(statuses), len(plans), bridge.lines[-10:])
     finally:
-        router.close()
-    assert snapshot["bus"]["held"] == {"IIWA_STATUS": {"waiting_for_build": 3}}
-    assert snapshot["bus"]["errors"] == {} and snapshot["poses"]["errors"] == {}
-    assert snapshot["poses"]["messages_out"] == 3
+        probe.close()
+        assert bridge.stop() == 0
+        recorder.close()
+    for channel, lcm_class, received in ((STATUS_CHANNEL, drake_lcmtypes.lcmt_iiwa_status, statuses),
+                                         (PLAN_CHANNEL, drake_lcmtypes.lcmt_robot_plan, plans)):  # fmt: skip
+        sent = {lcm_class.decode(data).utime: data for data in recorder.messages[channel]}
+        for message in received:
+            assert_same(lcm_class.decode(sent[message.utime]), message)
