@@ -20,6 +20,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.errors": 1, "viewer_bridge.registry": 1, "viewer_bridge.resources": 1, "viewer_bridge.sim_time": 1,
     "viewer_bridge.lru": 1, "viewer_bridge.status": 1,
     "viewer_bridge.scene": 2, "viewer_bridge.lcmcodec": 2, "viewer_bridge.yamldoc": 2, "viewer_bridge.arguments": 2,
+    "viewer_bridge.lcm_url": 2,
     "viewer_bridge.ros_interfaces": 2,
     "viewer_bridge.lowering": 3, "viewer_bridge.contact": 3, "viewer_bridge.image": 3, "viewer_bridge.skipped": 3,
     "viewer_bridge.mappings": 4,

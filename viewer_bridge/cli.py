@@ -33,10 +33,11 @@ from viewer_bridge.arguments import (
     split_ros_args,
 )
 from viewer_bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
-from viewer_bridge.log_convert import convert
 from viewer_bridge.demo import run_demo
 from viewer_bridge.dump import as_json, as_text
 from viewer_bridge.errors import BridgeError, ConfigError, Interrupted, UsageError
+from viewer_bridge.lcm_url import log_to_write
+from viewer_bridge.log_convert import convert
 from viewer_bridge.mappings import format_names, reference_markdown
 from viewer_bridge.router import Router
 from viewer_bridge.skipped import collecting
@@ -255,6 +256,11 @@ def _run(args: argparse.Namespace) -> int:
         if args.ros_args:
             _uses(config, "ros", "--ros-args", args.config)
             config = config.with_settings("ros", ros_args=args.ros_args)
+        if args.demo and log_to_write(_lcm_url(config)):
+            raise UsageError(
+                f"--demo: the routes would read the demo on {_lcm_url(config)}, a log LCM only writes; "
+                "record the demo itself with `viewer-bridge demo --url URL`"
+            )
         router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period, view=view)
     except BaseException as error:
         view.close()  # a live table leaves the screen before the one-line error
@@ -399,8 +405,13 @@ def _serve_render(args: argparse.Namespace) -> int:
     # Ctrl-C stops it cleanly from the moment it says it is ready.
     for signal_number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signal_number, lambda *_: threading.Thread(target=server.shutdown).start())
+    # Drake's client takes the base URL and adds the endpoint (/render) itself: print that one.
+    host, port_number = server.server_address[:2]
+    base_url = f"http://{host}:{port_number}"
     logging.getLogger("viewer_bridge").info(
-        "render server on http://%s:%d/render", *server.server_address[:2]
+        'render server on %s (Drake: RenderEngineGltfClientParams(base_url="%s"), which posts to /render)',
+        base_url,
+        base_url,
     )
     server.serve_forever()
     server.server_close()

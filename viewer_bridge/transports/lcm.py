@@ -22,6 +22,7 @@ from pathlib import Path
 import lcm
 
 from viewer_bridge.errors import LogError
+from viewer_bridge.lcm_url import log_to_write
 from viewer_bridge.transports import base
 
 _log = logging.getLogger("viewer_bridge")
@@ -281,14 +282,20 @@ class LogReplay:
 
 
 def open_bus(url: str) -> LcmBus | LogReplay:
-    """A live bus for an LCM URL; a replay for `file://PATH[?speed=S]` or a path to a log file."""
+    """A live bus for an LCM URL; a replay for `file://PATH[?speed=S]` or a path to a log file.
+
+    `file://PATH?mode=w` (or `a`) is a bus too: LCM writes what is published on it into PATH."""
+    if log_to_write(url) is not None:
+        return LcmBus(url)
     if url.startswith("file://") or (("://" not in url) and Path(url.split("?")[0]).is_file()):
         path, _, query = url.removeprefix("file://").partition("?")
         speed = 1.0
         for part in filter(None, query.split("&")):
             key, _, value = part.partition("=")
+            if key == "mode" and value == "r":
+                continue
             if key != "speed":
-                raise ValueError(f"{url}: unknown log option {key!r} (known: speed)")
+                raise ValueError(f"{url}: unknown log option {key}={value} (known: speed, mode=r|w|a)")
             speed = float(value)
         if not Path(path).is_file():
             raise FileNotFoundError(f"{url}: no such log file")
