@@ -283,6 +283,14 @@ MISTAKES = [
      "(did you mean 'port'?); known keys: host, port"),
     (["run", "--set", "ros.namespace=/sim 1"], "'/sim 1' is not a valid ROS 2 namespace"),
     (["run", "--set", "ros.node=9x"], "'9x' is not a valid ROS 2 node name: it starts with a digit"),
+    (["run", "-c", "builtin:zenoh", "--set", "zenoh.connect=[tcp/localhost:notaport]"],
+     "'tcp/localhost:notaport' is not a Zenoh endpoint: the port 'notaport' is not a number from 0 to 65535"),
+    (["run", "-c", "builtin:zenoh", "--set", "zenoh.listen=[localhost]"],
+     "'localhost' is not a Zenoh endpoint: expected <protocol>/<address>"),
+    # LCM's file provider writes a log with ?mode=w: into a folder that exists; the demo inside
+    # `run` cannot feed routes through a log that is only written.
+    (["demo", "--url", "file://MISSING/x.lcmlog?mode=w"], "the folder MISSING does not exist"),
+    (["run", "--demo", "--lcm-url", "file://TMP/x.lcmlog?mode=w"], "--demo: the routes would read the demo on"),
 ]  # fmt: skip
 
 
@@ -395,3 +403,24 @@ def test_a_replayed_log_says_it_ended_and_the_stats_come_once_at_shutdown(tmp_pa
                "--demo", "--duration", "4", "--stats-period", "2")  # fmt: skip
     assert live.returncode == 0, live.stderr
     assert sum(" route foxglove_scene: " in line for line in live.stderr.splitlines()) == 2, live.stderr
+
+
+def test_demo_records_a_log_through_lcms_file_url(tmp_path: Path) -> None:
+    """`demo --url 'file://LOG?mode=w'`: LCM's own file provider writes what the demo publishes."""
+    log = tmp_path / "demo.lcmlog"
+    result = run("demo", "--url", f"file://{log}?mode=w", "--duration", "1")
+    assert result.returncode == 0, result.stderr
+    channels = [event.channel for event in read_log(log)]
+    assert channels[0] == "DRAKE_VIEWER_LOAD_ROBOT" and channels.count("DRAKE_VIEWER_DRAW") > 10
+    replayed = run("run", "--lcm-url", str(log), "--set", "foxglove.port=0", "--stats-period", "60")
+    assert replayed.returncode == 0 and "has ended: stopping" in replayed.stderr, replayed.stderr
+
+
+def test_a_listening_zenoh_session_says_where_it_listens() -> None:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    result = run("run", "-c", "builtin:zenoh", "--set", "zenoh.mode=router", "--set", f"zenoh.listen=[tcp/127.0.0.1:{port}]",
+                 "--lcm-url", lcm_url(), "--duration", "1")  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert f"Zenoh router, listening on tcp/127.0.0.1:{port}" in result.stderr, result.stderr

@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 import yaml
 from rich.console import Console
-from rich.logging import RichHandler
 
 from viewer_bridge.arguments import (
     IMAGE_SUFFIXES,
@@ -41,7 +40,7 @@ from viewer_bridge.log_convert import convert
 from viewer_bridge.mappings import format_names, reference_markdown
 from viewer_bridge.router import Router
 from viewer_bridge.skipped import collecting
-from viewer_bridge.status import LiveTable, LogLines, StatusView
+from viewer_bridge.status import ConsoleLog, LiveTable, LogLines, StatusView
 from viewer_bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 
 
@@ -293,8 +292,7 @@ def _status_view(quiet: bool) -> StatusView:
         logging.basicConfig(level=level, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
         return LogLines()
     console = Console()
-    handler = RichHandler(console=console, show_path=False, log_time_format="%H:%M:%S")
-    logging.basicConfig(level=level, format="%(message)s", handlers=[handler])
+    logging.basicConfig(level=level, handlers=[ConsoleLog(console)])
     return LiveTable(console)
 
 
@@ -407,6 +405,7 @@ def _serve_render(args: argparse.Namespace) -> int:
         signal.signal(signal_number, lambda *_: threading.Thread(target=server.shutdown).start())
     # Drake's client takes the base URL and adds the endpoint (/render) itself: print that one.
     host, port_number = server.server_address[:2]
+    host = host.decode() if isinstance(host, bytes) else host
     base_url = f"http://{host}:{port_number}"
     logging.getLogger("viewer_bridge").info(
         'render server on %s (Drake: RenderEngineGltfClientParams(base_url="%s"), which posts to /render)',
