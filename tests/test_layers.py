@@ -28,7 +28,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.transports": 6, "viewer_bridge.render": 6,
     "viewer_bridge.translators": 7, "viewer_bridge.dump": 7, "viewer_bridge.snapshot": 7, "viewer_bridge.demo": 7,
     "viewer_bridge.render_server": 7,
-    "viewer_bridge.config": 8,
+    "viewer_bridge.config": 8, "viewer_bridge.examples": 8,
     "viewer_bridge.router": 9,
     "viewer_bridge.log_convert": 10,
     "viewer_bridge.cli": 11, "viewer_bridge.__main__": 11,

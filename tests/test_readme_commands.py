@@ -4,8 +4,8 @@ The commands come from README.md itself: every line of the fenced bash blocks of
 named in SECTIONS (a `\\` continuation joined to its next line, the trailing comment removed,
 comment-only lines skipped). Each runs through bash in one temporary folder holding `drake.lcmlog`
 and an empty `mappings/`, with the venv's `viewer-bridge` first on PATH. The log is lcm-logger's
-recording of two pydrake simulations, one after the other: tests/drake_contact_scene.py (Drake's
-default unsuffixed channels and CONTACT_RESULTS) and tests/drake_scene.py (role-suffixed
+recording of two pydrake simulations, one after the other: viewer_bridge/examples/contacts.py (Drake's
+default unsuffixed channels and CONTACT_RESULTS) and viewer_bridge/examples/shapes.py (role-suffixed
 channels, `--role illustration`).
 
 What the test changes in the commands, and why, is all in SUBSTITUTIONS (applied in order to
@@ -28,12 +28,12 @@ from typing import IO
 
 import pytest
 
-from tests.conftest import lcm_url, record_log
+from tests.conftest import EXAMPLES, lcm_url, record_log
 
 pytestmark = pytest.mark.slow
 README = Path(__file__).parents[1] / "README.md"
-CONTACT_SCENE = Path(__file__).parent / "drake_contact_scene.py"
-SCENE = Path(__file__).parent / "drake_scene.py"
+CONTACT_SCENE = EXAMPLES / "contacts.py"
+SCENE = EXAMPLES / "shapes.py"
 SECTIONS = ("Command line", "glTF: export, snapshots, and a render server for Drake's cameras")  # `## ` headings
 LCM = lcm_url(31)  # this test's own LCM port: the README's default one is shared by the machine
 

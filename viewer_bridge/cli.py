@@ -35,6 +35,7 @@ from viewer_bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
 from viewer_bridge.demo import run_demo
 from viewer_bridge.dump import as_json, as_text
 from viewer_bridge.errors import BridgeError, ConfigError, Interrupted, UsageError
+from viewer_bridge.examples import EXAMPLES, drake_missing, run_example
 from viewer_bridge.lcm_url import log_to_write
 from viewer_bridge.log_convert import convert
 from viewer_bridge.mappings import format_names, reference_markdown
@@ -74,6 +75,22 @@ def _parser() -> argparse.ArgumentParser:
         "--duration", type=positive, help="stop after this many seconds (default: until Ctrl-C)"
     )
     demo.add_argument("--rate", type=positive, default=60.0, help="draw messages per second")
+
+    example = commands.add_parser(
+        "example",
+        help="run an example pydrake simulation that publishes over LCM (needs Drake: "
+        "pip install 'viewer-bridge[drake]')",
+        description="Example simulations: " + "; ".join(f"{name}: {what}" for name, what in EXAMPLES.items()),
+    )
+    example.add_argument("name", choices=list(EXAMPLES), help="which example")
+    example.add_argument("--duration", type=positive, default=10.0, metavar="S", help="seconds to simulate, in real time")
+    example.add_argument(
+        "--lcm-url",
+        type=lcm_source,
+        default=DEFAULT_URL,
+        metavar="URL",
+        help="LCM URL to publish on (file://LOG?mode=w records a log)",
+    )
 
     commands.add_parser(
         "mappings", help="print the mapping reference (mappings/REFERENCE.md) from the tables"
@@ -230,6 +247,15 @@ def _demo(args: argparse.Namespace) -> int:
     print(f"publishing the demo scene on {args.url} at {args.rate:g} Hz, {until}", flush=True)
     sent = run_demo(args.url, args.duration, args.rate, stop=stop)
     print(f"published {sent} draw messages on {args.url}")
+    return 0
+
+
+def _example(args: argparse.Namespace) -> int:
+    if missing := drake_missing():
+        raise UsageError(missing)
+    print(f"example {args.name}: publishing on {args.lcm_url} for {args.duration:g} s", flush=True)
+    run_example(args.name, args.lcm_url, args.duration)
+    print(f"example {args.name}: done")
     return 0
 
 
@@ -436,6 +462,7 @@ def _ros_interfaces(args: argparse.Namespace) -> int:
 _HANDLERS = {
     "dump": _dump,
     "demo": _demo,
+    "example": _example,
     "mappings": _mappings,
     "run": _run,
     "convert": _convert,
