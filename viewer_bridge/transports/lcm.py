@@ -26,7 +26,9 @@ from viewer_bridge.lcm_url import log_to_write
 from viewer_bridge.transports import base
 
 _log = logging.getLogger("viewer_bridge")
-DEFAULT_URL = "udpm://239.255.76.67:7667?ttl=0"  # LCM's default; ttl=0 never leaves the host
+# LCM's default (ttl=0 never leaves the host), or LCM_DEFAULT_URL as LCM's own tools read it, so
+# that the bridge, lcm-logger and a pydrake DrakeLcm() agree on one bus.
+DEFAULT_URL = os.environ.get("LCM_DEFAULT_URL") or "udpm://239.255.76.67:7667?ttl=0"
 
 
 @dataclass(frozen=True, slots=True)
