@@ -54,7 +54,7 @@ def test_the_table_shows_busy_routes_with_rates_and_folds_the_quiet_ones() -> No
     lines = last.splitlines()
     headings = next(cells for cells in (line.strip("┃ ").split("┃") for line in lines if "┃" in line))
     # Columns of counts that are 0 in every row (drop, unsent) are left out.
-    assert [h.strip() for h in headings] == ["route", "in/s", "out/s", "in", "out", "err", "warn", "p50 ms", "p99 ms"]
+    assert [h.strip() for h in headings] == ["route", "in/s", "out/s", "in", "out", "err", "warn", "p50", "p99"]
     rows = {cells[0]: cells[1:] for cells in map(table_cells, lines) if cells}
     assert set(rows) == {"poses", "broken"}  # traffic, or an error even while idle
     rate_in, rate_out, total_in, total_out, errors, warnings, p50, p99 = rows["poses"]
@@ -104,7 +104,7 @@ def test_at_80_columns_a_busy_demo_keeps_its_totals() -> None:
     last = lines[max(i for i, line in enumerate(lines) if "┃ route" in line) :]
     assert max(map(len, last)) <= 80
     assert [h.strip() for h in last[0].strip("┃").split("┃")] == [
-        "route", "in/s", "out/s", "in", "out", "err", "drop", "p50 ms", "p99 ms"
+        "route", "in/s", "out/s", "in", "out", "err", "drop", "p50", "p99"
     ]  # fmt: skip
     rows = {cells[0]: cells[1:] for cells in map(table_cells, last) if cells}
     foxglove = next(cells for name, cells in rows.items() if name.startswith("foxglove_tr"))

@@ -132,11 +132,11 @@ COLUMNS: dict[str, Cell] = {
     "warn": lambda stats, rates: str(warnings_of(stats)),
     "drop": lambda stats, rates: str(stats["dropped"]),
     "unsent": lambda stats, rates: str(unsent_of(stats)),
-    "p50 ms": lambda stats, rates: _ms(stats["latency_ms"]["p50"]),
-    "p99 ms": lambda stats, rates: _ms(stats["latency_ms"]["p99"]),
+    "p50": lambda stats, rates: _ms(stats["latency_ms"]["p50"]),
+    "p99": lambda stats, rates: _ms(stats["latency_ms"]["p99"]),
 }
 ZERO_HIDDEN = ("warn", "drop", "unsent")  # shown only when some row has one
-OPTIONAL = ("p99 ms", "in", "out", "p50 ms")  # dropped first when the terminal is narrow
+OPTIONAL = ("p99", "in", "out", "p50")  # dropped first when the terminal is narrow
 ROUTE_MIN = 12  # characters of a route's name kept, at least, when the terminal is narrow
 STYLES = {"err": "bold red", "warn": "yellow", "drop": "yellow", "unsent": "bold red"}
 
@@ -174,7 +174,7 @@ class LiveTable:
         routes = routes_of(snapshot)
         rates = {name: self._rates(name, stats, elapsed) for name, stats in routes.items()}
         shown = [name for name, stats in routes.items() if is_shown(stats)]
-        title = f"viewer-bridge: {plural(len(routes), 'route')} (rates over the last {elapsed:.1f} s)"
+        title = f"viewer-bridge: {plural(len(routes), 'route')} (rates over the last {elapsed:.1f} s; latency in ms)"
         parts: list[Any] = [self._table(title, {name: routes[name] for name in shown}, rates)]
         quiet = [name for name in routes if name not in shown]
         if quiet:
