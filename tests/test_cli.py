@@ -424,3 +424,15 @@ def test_a_listening_zenoh_session_says_where_it_listens() -> None:
                  "--lcm-url", lcm_url(), "--duration", "1")  # fmt: skip
     assert result.returncode == 0, result.stderr
     assert f"Zenoh router, listening on tcp/127.0.0.1:{port}" in result.stderr, result.stderr
+
+
+@pytest.mark.parametrize(("config", "warned"), [("builtin:ign", False), ("builtin:gz", True)])
+def test_ign_partition_is_fortress_own_name_and_a_warning_only_for_harmonic(config: str, warned: bool) -> None:
+    """The Gazebo guide tells Fortress users to set IGN_PARTITION: `builtin:ign` reads it quietly,
+    `builtin:gz` (whose gz tools ignore it) says to set GZ_PARTITION."""
+    environ = {key: value for key, value in os.environ.items() if not key.startswith(("GZ_", "IGN_"))}
+    environ |= {"IGN_PARTITION": "docs_check", "IGN_IP": "127.0.0.1"}
+    done = subprocess.run([*CLI, "run", "-c", config, "--lcm-url", lcm_url(), "--duration", "1"], capture_output=True,
+                          text=True, timeout=120, env=environ)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert ("IGN_PARTITION is Fortress's name" in done.stderr) == warned, done.stderr
