@@ -272,6 +272,9 @@ MISTAKES = [
     (["snapshot", "LOG", "MISSING/x.png"], "the folder MISSING does not exist"),
     (["snapshot", "LOG", "TMP/x.gif"], "x.gif: the name must end in .png, .jpg, .jpeg"),
     (["snapshot", "LOG", "TMP/x.jpg", "--image", "depth"], "a depth image is 16-bit: write it as .png"),
+    # A demo log has no contact results and no role-suffixed channels: said, with what would do.
+    (["snapshot", "LOG", "TMP/x.png", "--contacts"], "(`viewer-bridge example contacts` does)"),
+    (["snapshot", "LOG", "TMP/x.png", "--role", "illustration"], "(it has DRAKE_VIEWER_LOAD_ROBOT: choose with --role)"),
     (["serve-render", "--port", "70000"], "argument --port: a port is 0 (any free one) to 65535"),
     (["serve-render", "--port", "BUSY"], "cannot listen on 127.0.0.1:BUSY: Address already in use"),
     (["demo", "--rate", "0"], "argument --rate: must be greater than 0"),

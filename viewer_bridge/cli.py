@@ -404,7 +404,10 @@ def _snapshot(args: argparse.Namespace) -> int:
         if args.contacts:
             results = latest_contacts(events)
             if results is None:
-                raise ValueError("no CONTACT_RESULTS message in the source")
+                raise ValueError(
+                    "no CONTACT_RESULTS message in the source: Drake publishes them when a simulation calls "
+                    "ConnectContactResultsToDrakeVisualizer (`viewer-bridge example contacts` does)"
+                )
             scene = with_contacts(scene, results)
     except ValueError as error:
         raise UsageError(str(error)) from None
