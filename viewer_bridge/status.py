@@ -79,7 +79,8 @@ def quiet_line(routes: dict[str, dict[str, Any]], names: list[str], listed: bool
     """The routes without a row, counted (and named when `listed`)."""
     idle = sum(1 for name in names if routes[name]["state"] != "active")
     counts = f"{idle} idle: no subscriber; {len(names) - idle} without traffic"
-    return f"{len(names)} more {'route' if len(names) == 1 else 'routes'} quiet ({counts})" + (
+    more = " more" if len(names) < len(routes) else ""  # beside the rows shown, or all of them
+    return f"{len(names)}{more} {'route' if len(names) == 1 else 'routes'} quiet ({counts})" + (
         f": {', '.join(names)}" if listed else ""
     )
 
