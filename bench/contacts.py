@@ -26,13 +26,13 @@ from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 from tests.formats.drake.oracle import contact_results_to_lcm
-from tests.scenes import demo_contact_results
 from viewer_bridge.contact import (
     FORCE_COLOR,
     MOMENT_COLOR,
     ContactDrawOptions,
     pressure_colors,
 )
+from viewer_bridge.examples.scenes import demo_contact_results
 from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.ros.contact import contact_marker_array_cdr
 

@@ -2,7 +2,7 @@
 
 Run: .venv/bin/python bench/images.py [--quick]
 
-The images are real: the test scene (tests/drake_camera_scene.py) rendered by RenderEngineVtk at
+The images are real: the test scene (viewer_bridge/examples/cameras.py) rendered by RenderEngineVtk at
 1280x720 and published by Drake's own ApplyCameraConfig (zlib level 1, as Drake sends them).
 1. zlib: one 1280x720 RGBA image, from the array's bytes to the Image CDR (read the array, the
    bounded inflate, the CDR with its one copy of the rows), beside `zlib.decompress` of the same
@@ -45,7 +45,7 @@ def drake_arrays(cameras: int) -> list[bytes]:
     """One lcmt_image_array (rgb + depth, zlib) per camera, as ApplyCameraConfig publishes them."""
     from pydrake.lcm import DrakeLcm
 
-    from tests.drake_camera_scene import build_simulator
+    from viewer_bridge.examples.cameras import build_simulator
 
     lcm = DrakeLcm("memq://")
     sent: dict[str, bytes] = {}

@@ -2,7 +2,7 @@
 
 Run: .venv/bin/python docs/camera_images.py
 
-Drake renders tests/drake_camera_scene.py (RenderEngineVtk) and ApplyCameraConfig publishes the
+Drake renders viewer_bridge/examples/cameras.py (RenderEngineVtk) and ApplyCameraConfig publishes the
 three images as one zlib-compressed lcmt_image_array, on an in-process LCM; the bridge's own code
 reads it (`viewer_bridge.formats.drake.image`) and draws each image for a person to look at
 (`viewer_bridge.image.preview`: depth as grey, near is light; labels a colour each).
@@ -28,7 +28,7 @@ GAP = 6  # white pixels between the pictures
 def main() -> None:
     from pydrake.lcm import DrakeLcm
 
-    from tests.drake_camera_scene import build_simulator
+    from viewer_bridge.examples.cameras import build_simulator
 
     lcm = DrakeLcm("memq://")
     sent: list[bytes] = []

@@ -17,6 +17,7 @@ from types import ModuleType
 import lcm
 import pytest
 
+import viewer_bridge.examples
 from viewer_bridge.formats.drake.draw import poses_from_draw
 from viewer_bridge.formats.drake.load import decode_load
 from viewer_bridge.lcmcodec import DRAW, LOAD_ROBOT, SCHEMA_DIR, LcmMessage
@@ -91,7 +92,8 @@ def lcmgen(tmp_path_factory: pytest.TempPathFactory) -> dict[str, type]:
     return classes
 
 
-DRAKE_SCENE_SCRIPT = Path(__file__).parent / "drake_scene.py"
+EXAMPLES = Path(viewer_bridge.examples.__file__).parent  # the example simulations, run as scripts
+DRAKE_SCENE_SCRIPT = EXAMPLES / "shapes.py"
 
 
 def record_log(log: Path, url: str, simulation: list[str]) -> Path:

@@ -15,17 +15,17 @@ import numpy as np
 import pytest
 import yaml
 
-from tests.conftest import lcm_url
-from tests.drake_camera_scene import CAMERAS, FOV_Y_DEGREES
+from tests.conftest import EXAMPLES, lcm_url
 from tests.drake_images import read_with_drake
 from tests.peers import BridgeProcess, RosProbe
 from tests.test_router import LcmRecorder
 from tests.translators.test_drake_image import assert_drake_reads, ros_test_image
 from viewer_bridge.config import DEFAULT_CONFIG
+from viewer_bridge.examples.cameras import CAMERAS, FOV_Y_DEGREES
 
 pytestmark = pytest.mark.slow
 
-SCENE = Path(__file__).parent / "drake_camera_scene.py"
+SCENE = EXAMPLES / "cameras.py"
 PORTS = ("rgb", "depth", "label")
 WIDTH, HEIGHT, _ = CAMERAS["left"]
 ENCODINGS = {"rgb": "rgba8", "depth": "16UC1", "label": "16SC1"}

@@ -311,6 +311,9 @@ MISTAKES = [
     (["snapshot", "LOG", "MISSING/x.png"], "the folder MISSING does not exist"),
     (["snapshot", "LOG", "TMP/x.gif"], "x.gif: the name must end in .png, .jpg, .jpeg"),
     (["snapshot", "LOG", "TMP/x.jpg", "--image", "depth"], "a depth image is 16-bit: write it as .png"),
+    # A demo log has no contact results and no role-suffixed channels: said, with what would do.
+    (["snapshot", "LOG", "TMP/x.png", "--contacts"], "(`viewer-bridge example contacts` does)"),
+    (["snapshot", "LOG", "TMP/x.png", "--role", "illustration"], "(it has DRAKE_VIEWER_LOAD_ROBOT: choose with --role)"),
     (["serve-render", "--port", "70000"], "argument --port: a port is 0 (any free one) to 65535"),
     (["serve-render", "--port", "BUSY"], "cannot listen on 127.0.0.1:BUSY: Address already in use"),
     (["demo", "--rate", "0"], "argument --rate: must be greater than 0"),
@@ -329,6 +332,14 @@ MISTAKES = [
      "--ros-args: -r __node:=my-node: 'my-node' is not a valid ROS 2 node name"),
     (["run", "--ros-args", "-p", "use_sim_time:=maybe", "--", "--duration", "2"],
      "--ros-args: -p use_sim_time:=maybe: use_sim_time is a bool (true or false), not 'maybe'"),
+    (["run", "-c", "builtin:zenoh", "--set", "zenoh.connect=[tcp/localhost:notaport]"],
+     "'tcp/localhost:notaport' is not a Zenoh endpoint: the port 'notaport' is not a number from 0 to 65535"),
+    (["run", "-c", "builtin:zenoh", "--set", "zenoh.listen=[localhost]"],
+     "'localhost' is not a Zenoh endpoint: expected <protocol>/<address>"),
+    # LCM's file provider writes a log with ?mode=w: into a folder that exists; the demo inside
+    # `run` cannot feed routes through a log that is only written.
+    (["demo", "--url", "file://MISSING/x.lcmlog?mode=w"], "the folder MISSING does not exist"),
+    (["run", "--demo", "--lcm-url", "file://TMP/x.lcmlog?mode=w"], "--demo: the routes would read the demo on"),
 ]  # fmt: skip
 
 
@@ -458,7 +469,41 @@ def test_a_replayed_log_says_it_ended_and_the_stats_come_once_at_shutdown(tmp_pa
     live = run("run", "-c", "builtin:foxglove", "--set", "foxglove.port=0", "--lcm-url", lcm_url(4),
                "--demo", "--duration", "4", "--stats-period", "2")  # fmt: skip
     assert live.returncode == 0, live.stderr
-    assert sum(" route foxglove_scene: " in line for line in live.stderr.splitlines()) == 2, live.stderr
+    # Every route of builtin:foxglove is lazy and has no client: each report is one line counting them.
+    assert sum(" routes quiet (" in line for line in live.stderr.splitlines()) == 2, live.stderr
+
+
+def test_demo_records_a_log_through_lcms_file_url(tmp_path: Path) -> None:
+    """`demo --url 'file://LOG?mode=w'`: LCM's own file provider writes what the demo publishes."""
+    log = tmp_path / "demo.lcmlog"
+    result = run("demo", "--url", f"file://{log}?mode=w", "--duration", "1")
+    assert result.returncode == 0, result.stderr
+    channels = [event.channel for event in read_log(log)]
+    assert channels[0] == "DRAKE_VIEWER_LOAD_ROBOT" and channels.count("DRAKE_VIEWER_DRAW") > 10
+    replayed = run("run", "--lcm-url", str(log), "--set", "foxglove.port=0", "--stats-period", "60")
+    assert replayed.returncode == 0 and "has ended: stopping" in replayed.stderr, replayed.stderr
+
+
+def test_a_listening_zenoh_session_says_where_it_listens() -> None:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    result = run("run", "-c", "builtin:zenoh", "--set", "zenoh.mode=router", "--set", f"zenoh.listen=[tcp/127.0.0.1:{port}]",
+                 "--lcm-url", lcm_url(), "--duration", "1")  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert f"Zenoh router, listening on tcp/127.0.0.1:{port}" in result.stderr, result.stderr
+
+
+@pytest.mark.parametrize(("config", "warned"), [("builtin:ign", False), ("builtin:gz", True)])
+def test_ign_partition_is_fortress_own_name_and_a_warning_only_for_harmonic(config: str, warned: bool) -> None:
+    """The Gazebo guide tells Fortress users to set IGN_PARTITION: `builtin:ign` reads it quietly,
+    `builtin:gz` (whose gz tools ignore it) says to set GZ_PARTITION."""
+    environ = {key: value for key, value in os.environ.items() if not key.startswith(("GZ_", "IGN_"))}
+    environ |= {"IGN_PARTITION": "docs_check", "IGN_IP": "127.0.0.1"}
+    done = subprocess.run([*CLI, "run", "-c", config, "--lcm-url", lcm_url(), "--duration", "1"], capture_output=True,
+                          text=True, timeout=120, env=environ)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert ("IGN_PARTITION is Fortress's name" in done.stderr) == warned, done.stderr
 
 
 # --- --lcm-types: a lab's own types -----------------------------------------------------------------------

@@ -5,10 +5,10 @@ from __future__ import annotations
 import io
 import json
 import random
-import socket
+import re
 import subprocess
 import sys
-import time
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -32,25 +32,20 @@ f 2//2 3//2 4//2
 """
 
 
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return int(sock.getsockname()[1])
-
-
 def start_server(*args: str) -> tuple[subprocess.Popen[str], str]:
-    """`viewer-bridge serve-render` on a free port, once it accepts connections."""
-    port = free_port()
-    server = subprocess.Popen([sys.executable, "-m", "viewer_bridge.cli", "serve-render", "--port", str(port), *args],
-                              stderr=subprocess.DEVNULL, text=True)  # fmt: skip
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        try:
-            socket.create_connection(("127.0.0.1", port), timeout=0.5).close()
+    """`viewer-bridge serve-render` on a free port, once it says it is ready, and the base URL it
+    prints: the one Drake's RenderEngineGltfClientParams takes (every test here renders through it)."""
+    server = subprocess.Popen([sys.executable, "-m", "viewer_bridge.cli", "serve-render", "--port", "0", *args],
+                              stderr=subprocess.PIPE, text=True)  # fmt: skip
+    assert server.stderr is not None
+    logged = []
+    for line in server.stderr:  # the server's first lines, until it is ready (or gone)
+        logged.append(line)
+        if ready := re.search(r"render server on (\S+) \(Drake: RenderEngineGltfClientParams\(base_url=\"(.*?)\"\)", line):
             break
-        except OSError:
-            time.sleep(0.1)
-    return server, f"http://127.0.0.1:{port}"
+    assert ready is not None and ready.group(1) == ready.group(2), logged
+    threading.Thread(target=server.stderr.read, daemon=True).start()  # keep its pipe from filling
+    return server, ready.group(1)
 
 
 @pytest.fixture(scope="module")

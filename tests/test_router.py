@@ -447,7 +447,7 @@ def test_a_camera_route_whose_interface_is_missing_is_refused_at_start_in_one_li
 def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_path: Path) -> None:
     """The default config's TF and marker routes are lazy: nothing is translated for them until a
     subscriber appears, which then gets the model and the latest transforms at once."""
-    from tests.scenes import draw_of, small_scene
+    from viewer_bridge.examples.scenes import draw_of, small_scene
     from viewer_bridge.formats.drake.load import load_from_scene
 
     url = lcm_url(10)
@@ -515,7 +515,7 @@ def _tip_z(message: Any) -> float:
 def test_ros_args_are_passed_to_rclpy_like_any_node(probe: RosProbe, tmp_path: Path) -> None:
     from rclpy.parameter_client import AsyncParameterClient
 
-    from tests.scenes import draw_of, small_scene
+    from viewer_bridge.examples.scenes import draw_of, small_scene
 
     url = lcm_url(14)
     bridge = BridgeProcess("--lcm-url", url, "--ros-args", "-r", "__ns:=/sim1", "-p", "use_sim_time:=true")

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import io
+import logging
 import os
 import pty
 import re
 import select
+import socket
 import subprocess
 import sys
 import time
@@ -15,7 +17,7 @@ from typing import Any
 from rich.console import Console
 
 from tests.conftest import lcm_url
-from viewer_bridge.status import LiveTable, LogLines
+from viewer_bridge.status import ConsoleLog, LiveTable, LogLines
 
 
 def route(messages_in: int, messages_out: int, state: str = "active", **counts: Any) -> dict[str, Any]:
@@ -25,7 +27,7 @@ def route(messages_in: int, messages_out: int, state: str = "active", **counts: 
         "idle_skipped": counts.get("idle_skipped", 0), "errors": counts.get("errors", {}),
         "warnings": counts.get("warnings", {}), "dropped": counts.get("dropped", 0),
         "max_hz_skipped": counts.get("max_hz_skipped", 0), "queued": 0, "translate_ms": no_samples,
-        "latency_ms": counts.get("latency_ms", no_samples),
+        "latency_ms": counts.get("latency_ms", no_samples), "unsent": counts.get("unsent", 0),
     }  # fmt: skip
 
 
@@ -49,30 +51,93 @@ def test_the_table_shows_busy_routes_with_rates_and_folds_the_quiet_ones() -> No
     })  # fmt: skip
     table.close()
     last = out.getvalue().split("viewer-bridge: 4 routes")[-1]  # the last frame drawn
-    rows = {cells[0]: cells[1:] for cells in map(table_cells, last.splitlines()) if cells}
+    lines = last.splitlines()
+    headings = next(cells for cells in (line.strip("┃ ").split("┃") for line in lines if "┃" in line))
+    # Columns of counts that are 0 in every row (drop, unsent) are left out.
+    assert [h.strip() for h in headings] == ["route", "in/s", "out/s", "in", "out", "err", "warn", "p50", "p99"]
+    rows = {cells[0]: cells[1:] for cells in map(table_cells, lines) if cells}
     assert set(rows) == {"poses", "broken"}  # traffic, or an error even while idle
-    rate_in, rate_out, total_in, total_out, errors, warnings, dropped, p50, p99 = rows["poses"]
+    rate_in, rate_out, total_in, total_out, errors, warnings, p50, p99 = rows["poses"]
     assert 0 < float(rate_in) == float(rate_out) <= 30 / 0.5 and (total_in, total_out) == ("30", "30")
-    assert (errors, warnings, dropped, p50, p99) == ("0", "2", "0", "0.25", "1.50")
+    assert (errors, warnings, p50, p99) == ("0", "2", "0.25", "1.50")
     assert rows["broken"][4] == "5"  # errors
     assert "2 more routes quiet (1 idle: no subscriber; 1 without traffic): tf, empty" in last
-    assert "dropped_by_kernel" in last
+    assert "transport errors: lcm: 3 dropped by kernel" in last  # words, not a dict
 
 
-def test_log_lines_are_one_per_route_with_the_transports_last(caplog: Any) -> None:
+def test_at_80_columns_every_number_is_whole_and_unsent_shows_in_the_row() -> None:
+    """An 80-column terminal: columns go (p99 first) and long route names are shortened before any
+    number would be cut; a route whose transport could not send shows it in its own row."""
+    out = io.StringIO()
+    table = LiveTable(Console(file=out, force_terminal=True, width=80, color_system=None))
+    busy = {"p50": 1234.5, "p99": 98765.25, "max": 1e5}
+    time.sleep(0.5)  # rates per second over half a second
+    table.show({
+        "foxglove_camera_images_unnamed": route(12345678, 1234567, latency_ms=busy, dropped=4567,
+                                                warnings={"skipped_geometry": 89}, errors={"DecodeError": 123456}),
+        "poses": route(468, 357, unsent=357, latency_ms=busy),
+    })  # fmt: skip
+    table.close()
+    lines = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", out.getvalue()).splitlines()  # without cursor moves
+    assert max(map(len, lines)) <= 80, "\n".join(lines)
+    rows = {cells[0]: cells[1:] for cells in map(table_cells, lines) if cells}
+    assert "poses" in rows, "\n".join(lines)
+    long_name = next(name for name in rows if name != "poses")
+    assert long_name.endswith("…") and "foxglove_camera_images_unnamed".startswith(long_name[:-1])
+    for number in ("123456", "89", "4567"):  # err, warn, drop: never dropped (p99, in, out, p50 go first)
+        assert number in rows[long_name], (number, rows[long_name])
+    assert "357" in rows["poses"]  # unsent, in the route's own row
+    every_cell = [cell for cells in rows.values() for cell in cells]
+    assert all(re.fullmatch(r"\d+(\.\d+)?|-", cell) for cell in every_cell), "\n".join(lines)
+
+
+def test_at_80_columns_a_busy_demo_keeps_its_totals() -> None:
+    out = io.StringIO()
+    table = LiveTable(Console(file=out, force_terminal=True, width=80, color_system=None))
+    latency = {"p50": 0.29, "p99": 148.25, "max": 150.0}
+    table.show({"foxglove_transforms": route(46770, 46770), "poses": route(46770, 46769)})
+    time.sleep(0.5)  # then 30 more: about 60 a second, as the demo sends
+    table.show({"foxglove_transforms": route(46800, 46800, latency_ms=latency, dropped=5),
+                "poses": route(46800, 46799, latency_ms=latency)})  # fmt: skip
+    table.close()
+    lines = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", out.getvalue()).splitlines()
+    last = lines[max(i for i, line in enumerate(lines) if "┃ route" in line) :]
+    assert max(map(len, last)) <= 80
+    assert [h.strip() for h in last[0].strip("┃").split("┃")] == [
+        "route", "in/s", "out/s", "in", "out", "err", "drop", "p50", "p99"
+    ]  # fmt: skip
+    rows = {cells[0]: cells[1:] for cells in map(table_cells, last) if cells}
+    foxglove = next(cells for name, cells in rows.items() if name.startswith("foxglove_tr"))
+    assert foxglove[2:6] == ["46800", "46800", "0", "5"] and rows["poses"][3] == "46799"
+    assert all(re.fullmatch(r"\d+(\.\d+)?|-", cell) for cells in rows.values() for cell in cells)
+
+
+def test_log_lines_show_routes_with_traffic_and_count_the_rest(caplog: Any) -> None:
     with caplog.at_level("INFO", logger="viewer_bridge"):
         LogLines().show({
             "poses": route(3, 3, latency_ms={"p50": 0.25, "p99": 1.5, "max": 2.0}),
             "tf": route(2, 0, "idle: no subscriber", idle_skipped=2),
             "slow": route(5, 2, warnings={"skipped_geometry": 1}, max_hz_skipped=3),
-            "transports": {"lcm": {"errors": {"dropped_by_kernel": 1}}},
+            "zenoh_poses": route(4, 4, unsent=4),
+            "empty": route(0, 0),
+            "transports": {"zenoh": {"errors": {"unsent_no_router": 4}}},
         })  # fmt: skip
     assert [record.getMessage() for record in caplog.records] == [
         "route poses: in 3 out 3 errors 0 dropped 0 latency p50 0.25 p99 1.50 ms",
-        "route tf: in 2 out 0 errors 0 dropped 0 latency p50 - p99 - ms (idle: no subscriber, 2 not translated)",
         "route slow: in 5 out 2 errors 0 warnings 1 dropped 0 max_hz skipped 3 latency p50 - p99 - ms",
-        "transports: {'lcm': {'errors': {'dropped_by_kernel': 1}}}",
+        "route zenoh_poses: in 4 out 4 errors 0 dropped 0 not delivered 4 latency p50 - p99 - ms",
+        "2 more routes quiet (1 idle: no subscriber; 1 without traffic)",
+        "transport errors: zenoh: 4 unsent no router",
     ]
+
+
+def test_a_log_record_on_the_console_keeps_a_url_whole() -> None:
+    """Above the live table, log records are soft-wrapped: no line break inside a URL."""
+    out = io.StringIO()
+    console = Console(file=out, force_terminal=True, width=80, color_system=None)
+    url = "https://app.foxglove.dev?ds=foxglove-websocket&ds.url=ws%3A%2F%2F127.0.0.1%3A8765"
+    ConsoleLog(console).emit(logging.makeLogRecord({"msg": "serving (open %s)", "args": (url,), "levelno": 20}))
+    assert url in out.getvalue()
 
 
 def run_bridge(*args: str, terminal: bool) -> tuple[int, str, str]:
@@ -141,3 +206,18 @@ def test_counts_are_singular_or_plural() -> None:
     from viewer_bridge.status import counted
 
     assert [counted(n, "route") for n in (0, 1, 2)] == ["0 routes", "1 route", "2 routes"]
+
+
+def test_without_a_zenoh_router_the_routes_say_what_was_not_delivered() -> None:
+    """`-c builtin:zenoh` with no router: the poses route's line counts what could not be sent, and
+    the transport's own count is a sentence, not a dict."""
+    with socket.socket() as probe:  # a port where no router listens
+        probe.bind(("127.0.0.1", 0))
+        nowhere = probe.getsockname()[1]
+    code, _, lines = run_bridge("-c", "builtin:zenoh", "--set", f"zenoh.connect=[tcp/127.0.0.1:{nowhere}]",
+                                terminal=False)  # fmt: skip
+    assert code == 0, lines[-2000:]
+    poses = re.findall(r"route poses: in (\d+) out (\d+) errors 0 dropped \d+ not delivered (\d+)", lines)
+    assert poses and int(poses[-1][2]) > 0, lines[-2000:]
+    assert re.search(r"transport errors: zenoh: \d+ unsent no router", lines), lines[-2000:]
+    assert "{'zenoh'" not in lines

@@ -21,7 +21,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import lcm_url
-from tests.test_readme_python import python_blocks
+from tests.test_docs import blocks
 from viewer_bridge import convert
 from viewer_bridge.demo import demo_poses, demo_scene
 from viewer_bridge.formats.drake.draw import DrawEncoder
@@ -30,11 +30,17 @@ pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parents[1]
 HEAVY = ["rclpy", "moderngl", "foxglove", "foxglove_schemas_protobuf", "zenoh", "zmq", "trimesh", "scipy"]
 
-# The README block's inputs, made with the installed package (the README takes them as given).
+# The README block's input, made with the installed package: the log its tour records
+# (`viewer-bridge demo --url 'file://demo.lcmlog?mode=w'`), here a load and one draw of the demo.
 SETUP = """
 from viewer_bridge.demo import demo_poses, demo_scene
 from viewer_bridge.formats.drake.draw import DrawEncoder
-draw_bytes = DrawEncoder().encode(demo_poses(demo_scene(), 1.0))
+from viewer_bridge.formats.drake.load import load_from_scene
+from viewer_bridge.transports.lcm import LcmEvent, write_log
+write_log("demo.lcmlog", [
+    LcmEvent("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(demo_scene()).encode(), 0),
+    LcmEvent("DRAKE_VIEWER_DRAW", DrawEncoder().encode(demo_poses(demo_scene(), 1.0)), 1),
+])
 """
 REPORT = f"""
 import json, sys, viewer_bridge
@@ -48,7 +54,7 @@ def library_snippet() -> str:
     text = (ROOT / "README.md").read_text()
     section = text[text.index("\n## Library\n") :]
     section = section[: section.index("\n## ", 1)]
-    return python_blocks(section)[0][1]
+    return blocks(section, ("python",))[0]
 
 
 def clean_env() -> dict[str, str]:

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from viewer_bridge.errors import UsageError
+from viewer_bridge.lcm_url import log_to_write
 
 
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -146,7 +147,8 @@ _LCM_PROVIDERS = ("udpm", "udp", "mpudpm", "memq", "tcpq", "file")
 
 
 def lcm_source(text: str) -> str:
-    """An LCM URL (`udpm://...`, `file://LOG?speed=S`, ...) or the path of a log file."""
+    """An LCM URL (`udpm://...`, `file://LOG?speed=S`, `file://LOG?mode=w` to write one, ...) or the
+    path of a log file."""
     if "://" not in text:
         return input_file(text)
     provider, _, rest = text.partition("://")
@@ -155,7 +157,10 @@ def lcm_source(text: str) -> str:
             f"{text}: unknown LCM provider {provider!r} (known: {', '.join(_LCM_PROVIDERS)}; or a log file)"
         )
     if provider == "file":
-        input_file(rest.partition("?")[0])
+        if log_to_write(text) is not None:  # LCM writes a log there (`?mode=w`): its folder must exist
+            output_file()(rest.partition("?")[0])
+        else:
+            input_file(rest.partition("?")[0])
     return text
 
 

@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 import yaml
 from rich.console import Console
-from rich.logging import RichHandler
 
 from viewer_bridge.arguments import (
     IMAGE_SUFFIXES,
@@ -37,12 +36,14 @@ from viewer_bridge.arguments import (
 from viewer_bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
 from viewer_bridge.demo import run_demo
 from viewer_bridge.dump import as_json, as_text
-from viewer_bridge.errors import BridgeError, ConfigError, Interrupted, UsageError
+from viewer_bridge.errors import BridgeError, ConfigError, Interrupted, SceneError, UsageError
+from viewer_bridge.examples import EXAMPLES, drake_missing, run_example
+from viewer_bridge.lcm_url import log_to_write
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.mappings import format_names, reference_markdown
 from viewer_bridge.router import Router
 from viewer_bridge.skipped import collecting
-from viewer_bridge.status import LiveTable, LogLines, StatusView
+from viewer_bridge.status import ConsoleLog, LiveTable, LogLines, StatusView
 from viewer_bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 from viewer_bridge.transports.ros_names import ros_argument_problem
 
@@ -98,6 +99,22 @@ def _parser() -> argparse.ArgumentParser:
         "--duration", type=positive, help="stop after this many seconds (default: until Ctrl-C)"
     )
     demo.add_argument("--rate", type=positive, default=60.0, help="draw messages per second")
+
+    example = add(
+        "example",
+        help="run an example pydrake simulation that publishes over LCM (needs Drake: "
+        "pip install 'viewer-bridge[drake]')",
+        description="Example simulations: " + "; ".join(f"{name}: {what}" for name, what in EXAMPLES.items()),
+    )
+    example.add_argument("name", choices=list(EXAMPLES), help="which example")
+    example.add_argument("--duration", type=positive, default=10.0, metavar="S", help="seconds to simulate, in real time")
+    example.add_argument(
+        "--lcm-url",
+        type=lcm_source,
+        default=DEFAULT_URL,
+        metavar="URL",
+        help="LCM URL to publish on (file://LOG?mode=w records a log)",
+    )
 
     add(
         "mappings", help="print the mapping reference (mappings/REFERENCE.md) from the tables"
@@ -280,6 +297,15 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _example(args: argparse.Namespace) -> int:
+    if missing := drake_missing():
+        raise UsageError(missing)
+    print(f"example {args.name}: publishing on {args.lcm_url} for {args.duration:g} s", flush=True)
+    run_example(args.name, args.lcm_url, args.duration)
+    print(f"example {args.name}: done")
+    return 0
+
+
 def _mappings(args: argparse.Namespace) -> int:
     print(reference_markdown(format_names()), end="")
     return 0
@@ -302,6 +328,11 @@ def _run(args: argparse.Namespace) -> int:
         if args.ros_args:
             _uses(config, "ros", "--ros-args", args.config)
             config = config.with_settings("ros", ros_args=args.ros_args)
+        if args.demo and log_to_write(_lcm_url(config)):
+            raise UsageError(
+                f"--demo: the routes would read the demo on {_lcm_url(config)}, a log LCM only writes; "
+                "record the demo itself with `viewer-bridge demo --url URL`"
+            )
         router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period, view=view)
     except BaseException:
         view.close()  # a live table leaves the screen before the error
@@ -337,8 +368,7 @@ def _status_view(quiet: bool) -> StatusView:
         logging.basicConfig(level=level, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
         return LogLines()
     console = Console()
-    handler = RichHandler(console=console, show_path=False, log_time_format="%H:%M:%S")
-    logging.basicConfig(level=level, format="%(message)s", handlers=[handler])
+    logging.basicConfig(level=level, handlers=[ConsoleLog(console)])
     return LiveTable(console)
 
 
@@ -427,7 +457,10 @@ def _snapshot(args: argparse.Namespace) -> int:
     if args.contacts:
         results = latest_contacts(events)
         if results is None:
-            raise UsageError("no CONTACT_RESULTS message in the source")
+            raise SceneError(
+                "no CONTACT_RESULTS message in the source: Drake publishes them when a simulation calls "
+                "ConnectContactResultsToDrakeVisualizer (`viewer-bridge example contacts` does)"
+            )
         scene = with_contacts(scene, results)
     with collecting() as skipped:  # a geometry that cannot be drawn is left out, and named
         picture = snapshot(scene, width, height, args.fov, eye, target, args.image, "JPEG" if jpeg else "PNG")
@@ -450,8 +483,14 @@ def _serve_render(args: argparse.Namespace) -> int:
     # Ctrl-C stops it cleanly from the moment it says it is ready.
     for signal_number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signal_number, lambda *_: threading.Thread(target=server.shutdown).start())
+    # Drake's client takes the base URL and adds the endpoint (/render) itself: print that one.
+    host, port_number = server.server_address[:2]
+    host = host.decode() if isinstance(host, bytes) else host
+    base_url = f"http://{host}:{port_number}"
     logging.getLogger("viewer_bridge").info(
-        "render server on http://%s:%d/render", *server.server_address[:2]
+        'render server on %s (Drake: RenderEngineGltfClientParams(base_url="%s"), which posts to /render)',
+        base_url,
+        base_url,
     )
     server.serve_forever()
     server.server_close()
@@ -503,6 +542,7 @@ def _lcm_ros_definitions(sources: Sequence[str]) -> dict[str, str]:
 _HANDLERS = {
     "dump": _dump,
     "demo": _demo,
+    "example": _example,
     "mappings": _mappings,
     "run": _run,
     "convert": _convert,

@@ -47,7 +47,11 @@ def latest_scene(events: list[LcmEvent], role: str = "") -> Scene:
         elif event.channel == f"DRAKE_VIEWER_DRAW{suffix}" and event.data[:8] == DRAW.packed_fingerprint:
             draw = event.data
     if load is None:
-        raise SceneError(f"no DRAKE_VIEWER_LOAD_ROBOT{suffix} message in the source")
+        loads = sorted({e.channel for e in events if e.channel.startswith("DRAKE_VIEWER_LOAD_ROBOT")})
+        raise SceneError(
+            f"no DRAKE_VIEWER_LOAD_ROBOT{suffix} message in the source"
+            + (f" (it has {', '.join(loads)}: choose with --role)" if loads else "")
+        )
     scene = decode_load(load)
     return scene.with_poses(DrawDecoder().decode(draw)) if draw is not None else scene
 

@@ -3,14 +3,16 @@
 The router hands a view a snapshot of every route's counters once per stats period
 (`Router.snapshot`); the view alone decides how it looks. On a terminal, `LiveTable` keeps one
 table on screen, a row per route that carries traffic or has a subscriber, with rates per second
-since the last snapshot, and folds the quiet routes into one line. Logs, CI and pipes get
-`LogLines`: one plain line per route, the same text every period, easy to grep.
+since the last snapshot, and folds the quiet routes into one line; it fits the terminal's width
+without cutting a number. Logs, CI and pipes get `LogLines`: a plain line per route with
+traffic (or losses), the same text every period, easy to grep, and a count of the quiet rest.
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from typing import Any, Protocol
 
 from rich.console import Console, Group
@@ -59,43 +61,114 @@ def held_of(stats: dict[str, Any]) -> str:
     return ", ".join(f"{kind} {total} ({', '.join(channels)})" for kind, (total, channels) in kinds.items())
 
 
+def unsent_of(stats: dict[str, Any]) -> int:
+    """What a route published that its transport could not send (a Zenoh session with no router)."""
+    return int(stats.get("unsent", 0))
+
+
+def transports_line(transports: dict[str, Any]) -> str:
+    """The transports' own error counts in words: `zenoh: 366 unsent no router; lcm: 3 dropped by kernel`."""
+    return "; ".join(
+        f"{name}: " + ", ".join(f"{count} {kind.replace('_', ' ')}" for kind, count in entry["errors"].items())
+        for name, entry in transports.items()
+    )
+
+
 def _ms(value: float | None) -> str:
     return "-" if value is None else f"{value:.2f}"
 
 
+def is_shown(stats: dict[str, Any]) -> bool:
+    """A route worth a row: it lost or failed something, or it carries traffic (a lazy route:
+    for a subscriber). Idle lazy routes and routes nothing arrived on are folded into a line."""
+    if errors_of(stats) or stats["dropped"] or unsent_of(stats):
+        return True
+    return bool(stats["state"] == "active" and (stats["messages_in"] > 0 or stats["messages_out"] > 0))
+
+
+def quiet_line(routes: dict[str, dict[str, Any]], names: list[str], listed: bool) -> str:
+    """The routes without a row, counted (and named when `listed`)."""
+    idle = sum(1 for name in names if routes[name]["state"] != "active")
+    counts = f"{idle} idle: no subscriber; {len(names) - idle} without traffic"
+    more = " more" if len(names) < len(routes) else ""  # beside the rows shown, or all of them
+    return f"{len(names)}{more} {'route' if len(names) == 1 else 'routes'} quiet ({counts})" + (
+        f": {', '.join(names)}" if listed else ""
+    )
+
+
 class LogLines:
-    """One log line per route (and one for the transports' own errors) each period."""
+    """Each period, a log line per route that carries traffic or lost something, one counting the
+    quiet rest, and one for the transports' own errors: what a log or CI needs, not 30 idle lines."""
 
     def show(self, snapshot: Snapshot) -> None:
-        for name, stats in routes_of(snapshot).items():
+        routes = routes_of(snapshot)
+        for name, stats in routes.items():
+            if not is_shown(stats):
+                continue
             latency = stats["latency_ms"]
             log.info(
-                "route %s: in %d out %d errors %d%s dropped %d%s latency p50 %s p99 %s ms%s%s",
+                "route %s: in %d out %d errors %d%s dropped %d%s%s latency p50 %s p99 %s ms%s%s",
                 name,
                 stats["messages_in"],
                 stats["messages_out"],
                 errors_of(stats),
                 f" warnings {warnings_of(stats)}" if stats["warnings"] else "",
                 stats["dropped"],
+                f" not delivered {unsent_of(stats)}" if unsent_of(stats) else "",
                 f" max_hz skipped {stats['max_hz_skipped']}" if stats["max_hz_skipped"] else "",
                 _ms(latency["p50"]),
                 _ms(latency["p99"]),
                 f" ({stats['state']}, {stats['idle_skipped']} not translated)" if stats["state"] != "active" else "",
                 f" held: {held}" if (held := held_of(stats)) else "",
             )
+        quiet = [name for name, stats in routes.items() if not is_shown(stats)]
+        if quiet:
+            log.info("%s", quiet_line(routes, quiet, listed=False))
         if "transports" in snapshot:
-            log.info("transports: %s", snapshot["transports"])
+            log.info("transport errors: %s", transports_line(snapshot["transports"]))
 
     def close(self) -> None:
         pass
 
 
-def is_shown(stats: dict[str, Any]) -> bool:
-    """A route worth a row: it lost or failed something, or it carries traffic (a lazy route:
-    for a subscriber). Idle lazy routes and routes nothing arrived on are folded into a line."""
-    if errors_of(stats) or stats["dropped"]:
-        return True
-    return bool(stats["state"] == "active" and (stats["messages_in"] > 0 or stats["messages_out"] > 0))
+# The table's columns: (heading, what a row shows). Columns of counts that are 0 in every row are
+# left out; if the rest is still wider than the terminal, OPTIONAL columns go, in this order, so
+# that no number is ever cut (only a route's name may be shortened, with an ellipsis).
+Cell = Callable[[dict[str, Any], tuple[float, float]], str]
+COLUMNS: dict[str, Cell] = {
+    "route": lambda stats, rates: "",  # filled in with the name
+    "in/s": lambda stats, rates: f"{rates[0]:.1f}",
+    "out/s": lambda stats, rates: f"{rates[1]:.1f}",
+    "in": lambda stats, rates: str(stats["messages_in"]),
+    "out": lambda stats, rates: str(stats["messages_out"]),
+    "err": lambda stats, rates: str(errors_of(stats)),
+    "warn": lambda stats, rates: str(warnings_of(stats)),
+    "drop": lambda stats, rates: str(stats["dropped"]),
+    "unsent": lambda stats, rates: str(unsent_of(stats)),
+    "p50": lambda stats, rates: _ms(stats["latency_ms"]["p50"]),
+    "p99": lambda stats, rates: _ms(stats["latency_ms"]["p99"]),
+}
+ZERO_HIDDEN = ("warn", "drop", "unsent")  # shown only when some row has one
+OPTIONAL = ("p99", "in", "out", "p50")  # dropped first when the terminal is narrow
+ROUTE_MIN = 12  # characters of a route's name kept, at least, when the terminal is narrow
+STYLES = {"err": "bold red", "warn": "yellow", "drop": "yellow", "unsent": "bold red"}
+
+
+class ConsoleLog(logging.Handler):
+    """Log records on the console above the live table, each one line that the terminal wraps
+    (soft wrap): rich inserts no line break, so a URL stays one token to copy."""
+
+    def __init__(self, console: Console) -> None:
+        super().__init__()
+        self._console = console
+        self.setFormatter(logging.Formatter("%(asctime)s %(message)s", datefmt="%H:%M:%S"))
+
+    def emit(self, record: logging.LogRecord) -> None:
+        style = "bold red" if record.levelno >= logging.ERROR else "yellow" if record.levelno >= logging.WARNING else ""
+        try:
+            self._console.print(Text(self.format(record), style=style), soft_wrap=True)
+        except Exception:  # a log record must never stop the bridge
+            self.handleError(record)
 
 
 class LiveTable:
@@ -114,18 +187,16 @@ class LiveTable:
         routes = routes_of(snapshot)
         rates = {name: self._rates(name, stats, elapsed) for name, stats in routes.items()}
         shown = [name for name, stats in routes.items() if is_shown(stats)]
-        title = f"viewer-bridge: {counted(len(routes), 'route')} (rates over the last {elapsed:.1f} s)"
+        title = f"viewer-bridge: {counted(len(routes), 'route')} (rates over the last {elapsed:.1f} s; latency in ms)"
         parts: list[Any] = [self._table(title, {name: routes[name] for name in shown}, rates)]
         quiet = [name for name in routes if name not in shown]
         if quiet:
-            idle = sum(1 for name in quiet if routes[name]["state"] != "active")
-            parts.append(Text(f"{counted(len(quiet), 'more route')} quiet ({idle} idle: no subscriber; "
-                              f"{len(quiet) - idle} without traffic): {', '.join(quiet)}", style="dim"))  # fmt: skip
+            parts.append(Text(quiet_line(routes, quiet, listed=True), style="dim"))
         for name, stats in routes.items():
             if held := held_of(stats):
                 parts.append(Text(f"{name} held back: {held}", style="yellow"))
         if "transports" in snapshot:
-            parts.append(Text(f"transport errors: {snapshot['transports']}", style="red"))
+            parts.append(Text(f"transport errors: {transports_line(snapshot['transports'])}", style="red"))
         self._live.update(Group(*parts), refresh=True)
 
     def _rates(self, name: str, stats: dict[str, Any], elapsed: float) -> tuple[float, float]:
@@ -134,27 +205,32 @@ class LiveTable:
         self._previous[name] = (now_in, now_out)
         return (now_in - before_in) / elapsed, (now_out - before_out) / elapsed
 
-    @staticmethod
-    def _table(title: str, routes: dict[str, dict[str, Any]], rates: dict[str, tuple[float, float]]) -> Table:
+    def _table(self, title: str, routes: dict[str, dict[str, Any]], rates: dict[str, tuple[float, float]]) -> Table:
+        cells = {
+            heading: [name if heading == "route" else cell(stats, rates[name]) for name, stats in routes.items()]
+            for heading, cell in COLUMNS.items()
+        }
+        headings = [h for h in COLUMNS if h not in ZERO_HIDDEN or any(value != "0" for value in cells[h])]
+        widths = {h: max([len(h), *(len(value) for value in cells[h])]) for h in headings}
+        widths["route"] = min(widths["route"], max(ROUTE_MIN, len("route")))  # what may shrink
+        for optional in OPTIONAL:  # a column takes its width, a space either side and a rule
+            if sum(widths[h] + 3 for h in headings) + 1 <= self._console.width:
+                break
+            headings.remove(optional)
+        # The route's name gets what the numbers leave (rich crops a table that does not fit).
+        names = self._console.width - 4 - sum(widths[h] + 3 for h in headings if h != "route")
         table = Table(title=title, title_justify="left", expand=False)
-        for heading in ("route", "in/s", "out/s", "in", "out", "errors", "warnings", "dropped", "p50 ms", "p99 ms"):
-            table.add_column(heading, justify="left" if heading == "route" else "right", no_wrap=True)
-        for name, stats in routes.items():
-            rate_in, rate_out = rates[name]
-            latency = stats["latency_ms"]
-            errors, warnings, dropped = errors_of(stats), warnings_of(stats), stats["dropped"]
-            table.add_row(
-                name,
-                f"{rate_in:.1f}",
-                f"{rate_out:.1f}",
-                str(stats["messages_in"]),
-                str(stats["messages_out"]),
-                Text(str(errors), style="bold red" if errors else ""),
-                Text(str(warnings), style="yellow" if warnings else ""),
-                Text(str(dropped), style="yellow" if dropped else ""),
-                _ms(latency["p50"]),
-                _ms(latency["p99"]),
-            )
+        for heading in headings:
+            if heading == "route":
+                table.add_column(heading, no_wrap=True, overflow="ellipsis", max_width=max(ROUTE_MIN, names))
+            else:  # a number is never cut: its column is as wide as its widest value
+                table.add_column(heading, justify="right", no_wrap=True, min_width=widths[heading])
+        for row in range(len(routes)):
+            values = [cells[heading][row] for heading in headings]
+            table.add_row(*(
+                Text(value, style=STYLES.get(heading, "") if value != "0" else "")
+                for heading, value in zip(headings, values, strict=True)
+            ))  # fmt: skip
         return table
 
     def close(self) -> None:

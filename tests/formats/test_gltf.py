@@ -45,6 +45,30 @@ def test_glb_is_the_same_document_in_binary() -> None:
     assert kind == b"JSON" and len(document["meshes"]) == 2 and "uri" not in document["buffers"][0]
 
 
+def test_glb_reads_back_as_the_json_document_does() -> None:
+    glb, text = read_gltf(write_gltf(scene(), binary=True)), read_gltf(write_gltf(scene()))
+    assert [m.name for m in glb.meshes] == [m.name for m in text.meshes] == ["plant::a", "plant::b"]
+    for ours, theirs in zip(glb.meshes, text.meshes, strict=True):
+        np.testing.assert_array_equal(ours.vertices, theirs.vertices)
+        np.testing.assert_array_equal(ours.triangles, theirs.triangles)
+        assert ours.color == theirs.color
+
+
+@pytest.mark.parametrize(
+    ("cut", "reason"),
+    [
+        (lambda d: d[:10], "shorter than its 12-byte header"),
+        (lambda d: d[:-4], "length"),
+        (lambda d: d[:12] + struct.pack("<I4s", 8, b"BIN\0") + d[20:], "not JSON|past the end"),
+        (lambda d: d[:8] + struct.pack("<I", 30) + d[12:30], "past the end|cut off"),
+    ],
+)
+def test_a_broken_glb_is_a_gltf_error(cut: object, reason: str) -> None:
+    data = cut(write_gltf(scene(), binary=True))  # type: ignore[operator]
+    with pytest.raises(GltfError, match=reason):
+        read_gltf(data)
+
+
 def test_hierarchy_trs_and_the_camera() -> None:
     positions = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype="<f4").tobytes()
     document = {

@@ -1,6 +1,6 @@
 """Seed inputs for the fuzz targets, from a real Drake run: `write_seeds(folder)` -> folder/<kind>/<hash>.
 
-pydrake's DrakeVisualizer publishes the scene of tests/drake_scene.py (every shape, both roles)
+pydrake's DrakeVisualizer publishes the scene of viewer_bridge/examples/shapes.py (every shape, both roles)
 on an in-process LCM; every message it sends is a seed for its type's codec (found by
 fingerprint), and each nested struct one for its own type. The other formats' seeds are the
 bridge's own encodings of that captured scene: tree viewer envelopes, ign Pose_V and Model, glTF
@@ -21,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.drake_scene import build_simulator
 from tests.formats.ign.oracle import pose_v
 from tests.fuzz.targets import DISCOVERY_ADVERTISED, DISCOVERY_ANY, DISCOVERY_SUBSCRIBED
 from viewer_bridge.config import BUILTIN_CONFIGS
+from viewer_bridge.examples.shapes import build_simulator
 from viewer_bridge.formats.drake.draw import poses_from_draw
 from viewer_bridge.formats.drake.load import decode_load
 from viewer_bridge.formats.gltf import write_gltf
@@ -223,7 +223,7 @@ def discovery_seeds() -> list[bytes]:
 def meldis_seeds() -> Seeds:
     """Contact results and point clouds (what meldis shows), as the bridge writes them."""
     from tests.formats.drake.oracle import contact_results_to_lcm
-    from tests.scenes import demo_contact_results
+    from viewer_bridge.examples.scenes import demo_contact_results
     from viewer_bridge.formats.drake.point_cloud import cloud_to_lcm
     from viewer_bridge.formats.ros.point_cloud import cloud_to_cdr
     from viewer_bridge.scene import PointCloud, StampedPointCloud

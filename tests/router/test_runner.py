@@ -48,7 +48,7 @@ def lazy_pose_route(**rate: Any) -> Route:
 
 
 def test_a_lazy_route_that_wakes_does_not_count_the_wait_as_latency() -> None:
-    from tests.scenes import draw_of, small_scene
+    from viewer_bridge.examples.scenes import draw_of, small_scene
     from viewer_bridge.router.runner import RouteRunner
     from viewer_bridge.translators import TRANSLATORS
 

@@ -7,20 +7,19 @@ from __future__ import annotations
 import io
 import subprocess
 import sys
-from pathlib import Path
 from typing import Any
 
 import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from tests.conftest import lcm_url
+from tests.conftest import EXAMPLES, lcm_url
 from tests.formats.drake.test_contact import pydrake_results
 from tests.formats.ros.oracle import ARROW, DELETEALL, TRIANGLE_LIST
 from tests.peers import BridgeProcess, RosProbe
-from tests.scenes import demo_contact_results
 from tests.test_router import LcmRecorder
 from viewer_bridge.contact import FORCE_COLOR, pressure_colors
+from viewer_bridge.examples.scenes import demo_contact_results
 from viewer_bridge.formats import ros
 from viewer_bridge.formats.ros.messages import from_cdr
 from viewer_bridge.formats.tree_viewer import envelope
@@ -29,7 +28,7 @@ from viewer_bridge.scene import Line, Scene, TriangleMesh
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import Received
 
-CONTACT_SCENE_SCRIPT = Path(__file__).parents[1] / "drake_contact_scene.py"
+CONTACT_SCENE_SCRIPT = EXAMPLES / "contacts.py"
 
 
 # --- end to end: pydrake -> bridge process -> rclpy ---------------------------------------------------

@@ -6,7 +6,7 @@ from typing import Any
 
 import pytest
 
-from tests.scenes import draw_of, small_scene
+from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.draw import DrawDecoder
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.translators import TRANSLATORS, LoadCache

@@ -13,9 +13,9 @@ import pytest
 from tests.conftest import lcm_url
 from tests.formats import oracle
 from tests.peers import BridgeProcess, RosProbe
-from tests.scenes import draw_of, small_scene
 from tests.test_router import LcmRecorder, start_drake
 from viewer_bridge.errors import EncodeError
+from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.formats.ros.messages import from_cdr
 from viewer_bridge.scene import Box, Geometry, Link, Pose, Scene

@@ -275,7 +275,7 @@ def _stamp_ms(message: Any) -> int:
 
 
 def test_bad_clients_do_not_stop_the_bridge_or_other_clients(tmp_path: Path) -> None:
-    from tests.scenes import draw_of, small_scene
+    from viewer_bridge.examples.scenes import draw_of, small_scene
     from viewer_bridge.formats.drake.load import load_from_scene
     from viewer_bridge.transports.lcm import LcmBus
 

@@ -44,7 +44,16 @@ def test_an_ign_name_alone_is_used_with_a_warning(caplog: pytest.LogCaptureFixtu
     assert environment == NodeEnvironment("fortress", "127.0.0.1", ("10.0.0.2",), "239.255.0.9", 12317, 12318)
     warned = sorted(record.getMessage().split()[0] for record in caplog.records)
     assert warned == sorted(environ), warned
-    assert "gz-transport 13 reads only GZ_PARTITION" in caplog.text
+    assert "Harmonic and later (gz-transport 13) read only GZ_PARTITION" in caplog.text
+
+
+def test_an_ign_name_is_read_quietly_for_fortress(caplog: pytest.LogCaptureFixture) -> None:
+    """`-c builtin:ign` (Fortress) reads IGN_PARTITION, as the Gazebo guide says to set, without a
+    warning: Fortress's tools read that name too."""
+    with caplog.at_level(logging.WARNING, "viewer_bridge"):
+        environment = read_environment({"IGN_PARTITION": "fortress", "IGN_IP": "127.0.0.1"}, fortress=True)
+    assert (environment.partition, environment.ip) == ("fortress", "127.0.0.1")
+    assert not caplog.records
 
 
 def test_the_gz_name_wins_and_an_empty_one_counts_as_unset(caplog: pytest.LogCaptureFixture) -> None:

@@ -58,7 +58,8 @@ class GltfScene:
 
 
 def read_gltf(data: bytes) -> GltfScene:
-    """A glTF 2.0 JSON document (with `data:` buffers) as meshes in the world and a camera.
+    """A glTF 2.0 document, JSON (with `data:` buffers) or binary (`.glb`: the JSON chunk and its
+    BIN chunk, which the first buffer without a `uri` stands for), as meshes in the world and a camera.
 
     Raises `GltfError` for anything that does not hold together; the specific checks name the
     part, and a last net turns any other inconsistency into a `GltfError` too.
@@ -72,13 +73,14 @@ def read_gltf(data: bytes) -> GltfScene:
 
 
 def _read(data: bytes) -> GltfScene:
+    text, binary = _glb_chunks(data) if data[:4] == _GLB_MAGIC else (data, None)
     try:
-        document = json.loads(data)
+        document = json.loads(text)
     except (ValueError, UnicodeDecodeError) as error:
         raise GltfError(f"not JSON: {error}") from None
     if not isinstance(document, dict):
         raise GltfError("the document is not a JSON object")
-    buffers = [_buffer(item, index) for index, item in enumerate(_list(document, "buffers"))]
+    buffers = [_buffer(item, index, binary) for index, item in enumerate(_list(document, "buffers"))]
     reader = _Accessors(document, buffers)
     meshes: list[GltfMesh] = []
     camera: FloatArray | None = None
@@ -127,7 +129,40 @@ def _index(value: Any, count: int, where: str) -> int:
     return value
 
 
-def _buffer(item: Any, index: int) -> bytes:
+_GLB_MAGIC = b"glTF"
+_GLB_HEADER = struct.Struct("<4sII")  # magic, version, total length
+_GLB_CHUNK = struct.Struct("<I4s")  # chunk length, type
+
+
+def _glb_chunks(data: bytes) -> tuple[bytes, bytes | None]:
+    """A `.glb`'s JSON chunk and its BIN chunk (None without one), checked against the lengths."""
+    if len(data) < _GLB_HEADER.size:
+        raise GltfError("a binary glTF shorter than its 12-byte header")
+    _, version, length = _GLB_HEADER.unpack_from(data)
+    if version != 2 or length != len(data):
+        raise GltfError(f"binary glTF header: version {version}, length {length} for {len(data)} bytes")
+    chunks: list[tuple[bytes, bytes]] = []
+    offset = _GLB_HEADER.size
+    while offset < length:
+        if offset + _GLB_CHUNK.size > length:
+            raise GltfError(f"binary glTF: a chunk header cut off at byte {offset}")
+        size, kind = _GLB_CHUNK.unpack_from(data, offset)
+        start = offset + _GLB_CHUNK.size
+        if start + size > length:
+            raise GltfError(f"binary glTF: the chunk at byte {offset} claims {size} bytes past the end")
+        chunks.append((kind, data[start : start + size]))
+        offset = start + size
+    if not chunks or chunks[0][0] != b"JSON":
+        raise GltfError("binary glTF: the first chunk is not JSON")
+    binary = chunks[1][1] if len(chunks) > 1 and chunks[1][0] == b"BIN\0" else None
+    return chunks[0][1], binary
+
+
+def _buffer(item: Any, index: int, binary: bytes | None = None) -> bytes:
+    if isinstance(item, dict) and "uri" not in item and index == 0 and binary is not None:
+        if len(binary) < int(item.get("byteLength", 0) or 0):
+            raise GltfError(f"buffers[0]: the BIN chunk holds {len(binary)} bytes, fewer than its byteLength")
+        return binary
     uri = item.get("uri") if isinstance(item, dict) else None
     if not isinstance(uri, str) or not uri.startswith("data:"):
         raise GltfError(f"buffers[{index}]: only embedded data: URIs are read")

@@ -177,7 +177,13 @@ class Qos:
 
 
 class Publisher(Protocol):
-    """Publishes on one name; says how many subscribers it has, or None when it cannot know."""
+    """Publishes on one name; says how many subscribers it has, or None when it cannot know.
+
+    `unsent` counts what it was given but could not send (a Zenoh session without a router):
+    the route's row shows it as not delivered. Publishers that always send keep it at 0.
+    """
+
+    unsent: int
 
     def publish(self, data: bytes) -> None: ...
 
@@ -265,11 +271,12 @@ class Transport(ABC):
 class CallPublisher:
     """A `Publisher` from a function; the count is unknown unless `count` is given."""
 
-    __slots__ = ("publish", "_count")
+    __slots__ = ("publish", "_count", "unsent")
 
     def __init__(self, publish: Callable[[bytes], None], count: Callable[[], int] | None = None) -> None:
         self.publish = publish
         self._count = count
+        self.unsent = 0
 
     def subscriber_count(self) -> int | None:
         return None if self._count is None else self._count()

@@ -146,6 +146,7 @@ class _Channel:
         self.latched = latched
         self.last: bytes | None = None
         self.clients: set[int] = set()
+        self.unsent = 0  # a channel logs to every client and file of its context: nothing stays unsent
         self._lock = threading.Lock()
 
     def publish(self, data: bytes) -> None:

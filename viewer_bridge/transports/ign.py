@@ -249,7 +249,8 @@ class IgnTransport(Transport):
 
     def __init__(self, settings: IgnSettings) -> None:
         super().__init__(settings)
-        self.node = IgnNode(settings.partition, settings.ip)
+        fortress = settings.package == "ignition"  # Fortress reads IGN_*: no warning for them
+        self.node = IgnNode(settings.partition, settings.ip, read_environment(fortress=fortress))
         self._delivers: dict[str, list[Deliver]] = {}
 
     @classmethod

@@ -22,10 +22,13 @@ from pathlib import Path
 import lcm
 
 from viewer_bridge.errors import LogError, TransportUnavailable
+from viewer_bridge.lcm_url import log_to_write
 from viewer_bridge.transports import base
 
 _log = logging.getLogger("viewer_bridge")
-DEFAULT_URL = "udpm://239.255.76.67:7667?ttl=0"  # LCM's default; ttl=0 never leaves the host
+# LCM's default (ttl=0 never leaves the host), or LCM_DEFAULT_URL as LCM's own tools read it, so
+# that the bridge, lcm-logger and a pydrake DrakeLcm() agree on one bus.
+DEFAULT_URL = os.environ.get("LCM_DEFAULT_URL") or "udpm://239.255.76.67:7667?ttl=0"
 
 
 @dataclass(frozen=True, slots=True)
@@ -281,14 +284,20 @@ class LogReplay:
 
 
 def open_bus(url: str) -> LcmBus | LogReplay:
-    """A live bus for an LCM URL; a replay for `file://PATH[?speed=S]` or a path to a log file."""
+    """A live bus for an LCM URL; a replay for `file://PATH[?speed=S]` or a path to a log file.
+
+    `file://PATH?mode=w` (or `a`) is a bus too: LCM writes what is published on it into PATH."""
+    if log_to_write(url) is not None:
+        return LcmBus(url)
     if url.startswith("file://") or (("://" not in url) and Path(url.split("?")[0]).is_file()):
         path, _, query = url.removeprefix("file://").partition("?")
         speed = 1.0
         for part in filter(None, query.split("&")):
             key, _, value = part.partition("=")
+            if key == "mode" and value == "r":
+                continue
             if key != "speed":
-                raise TransportUnavailable(f"{url}: unknown log option {key!r} (known: speed)")
+                raise TransportUnavailable(f"{url}: unknown log option {key!r} (known: speed, mode=r|w|a)")
             try:
                 speed = float(value)
             except ValueError:

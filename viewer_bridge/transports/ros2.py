@@ -104,6 +104,7 @@ class PublisherOnceBuilt:
         self._node, self._builder, self._topic, self._typename, self._profile = node, builder, topic, typename, profile
         self._package = typename.split("/")[0]
         self._publisher: Any = None
+        self.unsent = 0  # held while building (counted by the route), never given and lost
         self._lock = threading.Lock()
         builder.request(self._package)
 

@@ -80,12 +80,43 @@ class ZenohSettings(TransportSettings):
             raise ValueError(f"{name!r} is not a valid ROS 2 {info.field_name}: {problem}")
         return name
 
+    @field_validator("connect", "listen")
+    @classmethod
+    def _valid_endpoints(cls, endpoints: list[str] | None) -> list[str] | None:
+        for endpoint in endpoints or ():
+            if problem := endpoint_problem(endpoint):
+                raise ValueError(f"{endpoint!r} is not a Zenoh endpoint: {problem}")
+        return endpoints
+
     @field_validator("lcm_prefix")
     @classmethod
     def _valid_prefix(cls, prefix: str) -> str:
         if problem := key_problem(prefix):
             raise ValueError(f"{prefix!r} cannot start a Zenoh key: {problem}")
         return prefix
+
+
+# Zenoh's links for these protocols resolve their address as Rust's `ToSocketAddrs` does: `host:port`,
+# the port a 16-bit number (an IPv6 host in brackets). Zenoh checks that only when it connects, and
+# then retries forever; the other protocols (unixsock-stream, serial, ...) take other addresses.
+_SOCKET_PROTOCOLS = frozenset({"tcp", "udp", "tls", "quic", "ws"})
+
+
+def endpoint_problem(endpoint: str) -> str | None:
+    """What keeps `endpoint` from being one Zenoh can open: the form Zenoh parses
+    (`<protocol>/<address>[?<metadata>][#<config>]`), and a socket address's `host:port`."""
+    locator = endpoint.partition("#")[0].partition("?")[0]
+    protocol, slash, address = locator.partition("/")
+    if not (protocol and slash and address):
+        return "expected <protocol>/<address>, e.g. tcp/localhost:7447"
+    if protocol not in _SOCKET_PROTOCOLS:
+        return None
+    host, colon, port = address.rpartition(":")
+    if not (host and colon):
+        return f"a {protocol} address is host:port, e.g. {protocol}/localhost:7447"
+    if not (port.isdigit() and int(port) <= 65535):
+        return f"the port {port!r} is not a number from 0 to 65535"
+    return None
 
 
 def key_problem(name: str) -> str | None:
@@ -129,6 +160,8 @@ class ZenohTransport(Transport):
         mode = settings.mode or ("client" if file is None else f"as {file} says")
         endpoints = settings.connect or ([] if file else [session.ROUTER_ENDPOINT])
         self._where = f"{mode}, connecting to {', '.join(endpoints) or 'no endpoint'}"
+        if settings.listen:  # a router or a peer others connect to: where, for the start line
+            self._where = f"{mode}, listening on {', '.join(settings.listen)}, connecting to {', '.join(endpoints)}"
         self.link: Link = session.Link(lambda: session.make_config(file, pairs), self._where)
         self.domain = (
             settings.domain_id

@@ -1,10 +1,12 @@
-"""Run a pydrake scene with every shape through DrakeVisualizer on a given LCM URL.
+"""Example `shapes`: a pydrake scene with every shape, published by DrakeVisualizer over LCM.
 
-Usage: python drake_scene.py LCM_URL FOLDER [SECONDS]. With SECONDS the simulation runs that
-long in real time (a live source for the router's tests); without, 0.1 s as fast as it can.
-Illustration and proximity roles both publish (role-suffixed channels), so every way Drake
-lowers a shape is on the wire: a Mesh by file, Convex and proximity meshes as mesh arrays, an
-in-memory mesh as JSON, a HalfSpace as a box.
+`viewer-bridge example shapes` runs it; the tests run it as
+`python -m viewer_bridge.examples.shapes LCM_URL FOLDER [SECONDS]` (the mesh files written into
+FOLDER). With SECONDS the simulation runs that long in real time (a live source); without, 0.1 s
+as fast as it can. Two model instances of eight bodies fall onto a ground half-space. Each role
+publishes on its own role-suffixed channels (the tests' illustration and proximity; the example
+adds perception), so every way Drake lowers a shape is on the wire: a Mesh by file, Convex and
+proximity meshes as mesh arrays, an in-memory mesh as JSON, a HalfSpace as a box.
 """
 
 from __future__ import annotations
@@ -34,7 +36,10 @@ from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from viewer_bridge.demo import TETRAHEDRON_OBJ
+from viewer_bridge.demo import DEMO_MESH, TETRAHEDRON_OBJ
+
+TEST_ROLES = (Role.kIllustration, Role.kProximity)
+EVERY_ROLE = (Role.kIllustration, Role.kProximity, Role.kPerception)
 
 
 def main(url: str, folder: Path, seconds: float | None = None) -> None:
@@ -47,10 +52,20 @@ def main(url: str, folder: Path, seconds: float | None = None) -> None:
         simulator.AdvanceTo(seconds)
 
 
-def build_simulator(lcm: DrakeLcm, folder: Path) -> Simulator:
-    """The scene with every shape, its DrakeVisualizers (both roles) publishing on `lcm`."""
-    obj = folder / "tetrahedron.obj"
-    obj.write_text(TETRAHEDRON_OBJ)
+def run(url: str, seconds: float) -> None:
+    """`viewer-bridge example shapes`: every role, in real time; the mesh file is the package's own,
+    so a recording of it still finds the mesh later."""
+    simulator = build_simulator(DrakeLcm(url), None, EVERY_ROLE)
+    simulator.set_target_realtime_rate(1.0)
+    simulator.AdvanceTo(seconds)
+
+
+def build_simulator(lcm: DrakeLcm, folder: Path | None, roles: tuple[Role, ...] = TEST_ROLES) -> Simulator:
+    """The scene with every shape, a DrakeVisualizer per role publishing on `lcm`; the mesh file
+    is written into `folder` (None: the package's own copy)."""
+    obj = DEMO_MESH if folder is None else folder / "tetrahedron.obj"
+    if folder is not None:
+        obj.write_text(TETRAHEDRON_OBJ)
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, 0.001)
     shapes = [
@@ -77,7 +92,7 @@ def build_simulator(lcm: DrakeLcm, folder: Path) -> Simulator:
         plant.world_body(), ground, HalfSpace(), "ground", CoulombFriction(0.9, 0.5)
     )
     plant.Finalize()
-    for role in (Role.kIllustration, Role.kProximity):
+    for role in roles:
         params = DrakeVisualizerParams(role=role, use_role_channel_suffix=True)
         DrakeVisualizer.AddToBuilder(builder, scene_graph, lcm, params)
     return Simulator(builder.Build())

@@ -1,5 +1,5 @@
-"""A small two-link scene and its draws, and contact results of every kind: what the tests (and the
-benchmarks) publish by hand."""
+"""A small two-link scene and its draws, and contact results of every kind, built without Drake:
+what the tests and the benchmarks publish by hand."""
 
 from __future__ import annotations
 

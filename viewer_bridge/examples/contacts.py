@@ -1,6 +1,7 @@
-"""Run a pydrake scene with both kinds of contact, publishing CONTACT_RESULTS on a given LCM URL.
+"""Example `contacts`: a pydrake scene with both kinds of contact, publishing CONTACT_RESULTS over LCM.
 
-Usage: python drake_contact_scene.py LCM_URL [SECONDS] [REALTIME]. A box (rigid hydroelastic
+`viewer-bridge example contacts` runs it in real time (the tests: `python -m
+viewer_bridge.examples.contacts LCM_URL [SECONDS] [REALTIME]`, as fast as it can). A box (rigid hydroelastic
 properties, so against the rigid half-space it falls back to point contact) and a sphere
 (compliant hydroelastic: a contact surface with the half-space) fall onto a half-space in a
 `hydroelastic_with_fallback` plant; `ConnectContactResultsToDrakeVisualizer` publishes them,
@@ -71,6 +72,11 @@ def main(url: str, seconds: float = 0.5, realtime: float = 0.0) -> None:
     plant.SetFreeBodyPose(context, sphere, RigidTransform([0.5, 0.0, 0.11]))
     simulator.set_target_realtime_rate(realtime)
     simulator.AdvanceTo(seconds)
+
+
+def run(url: str, seconds: float) -> None:
+    """`viewer-bridge example contacts`: in real time."""
+    main(url, seconds, 1.0)
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
-"""Run a pydrake scene watched by simulated cameras (ApplyCameraConfig) on a given LCM URL.
+"""Example `cameras`: a pydrake scene watched by simulated cameras (ApplyCameraConfig) over LCM.
 
-Usage: python drake_camera_scene.py LCM_URL SECONDS. The simulation runs that long in real time.
+`viewer-bridge example cameras` runs it (the tests: `python -m viewer_bridge.examples.cameras
+LCM_URL SECONDS`). The simulation runs that long in real time.
 Two cameras look at a few shapes on a ground plane, both with colour, depth and label images
 rendered by RenderEngineVtk (headless, EGL): `left` publishes zlib-compressed (Drake's default),
 `right` uncompressed, each on DRAKE_RGBD_CAMERA_IMAGES_<name>. Nothing moves, so every image a
@@ -58,6 +59,9 @@ def main(url: str, seconds: float) -> None:
     simulator = build_simulator(DrakeLcm(url))
     simulator.set_target_realtime_rate(1.0)
     simulator.AdvanceTo(seconds)
+
+
+run = main  # `viewer-bridge example cameras`
 
 
 if __name__ == "__main__":
