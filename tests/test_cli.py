@@ -418,7 +418,7 @@ def test_version_and_defaults_in_every_help() -> None:
 def test_no_arguments_prints_the_help() -> None:
     result = run()
     assert result.returncode == 2 and not result.stderr, result
-    assert result.stdout.startswith("usage: viewer-bridge") and "{dump,demo,mappings,run" in result.stdout
+    assert result.stdout.startswith("usage: viewer-bridge") and "{dump,demo,example,mappings,run" in result.stdout
 
 
 def test_one_route_is_one_route(tmp_path: Path) -> None:

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
-from tests.conftest import lcm_url, record_log
+from tests.conftest import EXAMPLES, lcm_url, record_log
 from tests.drake_images import publish_with_drake
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.point_cloud import cloud_to_lcm
@@ -24,7 +24,7 @@ from viewer_bridge.transports.base import Qos, Received
 from viewer_bridge.transports.lcm import read_log
 from viewer_bridge.transports.rerun import RerunSettings, RerunTransport
 
-CONTACT_SCENE = Path(__file__).parents[1] / "drake_contact_scene.py"
+CONTACT_SCENE = EXAMPLES / "contacts.py"
 
 
 def _rows(path: Path) -> dict[str, dict[str, Any]]:

@@ -17,9 +17,9 @@ import pytest
 import rerun as rr
 from rerun.chunk import RrdReader
 
-from tests.scenes import draw_of, small_scene
 from viewer_bridge.config import load_config
 from viewer_bridge.errors import ConvertError, TransportUnavailable
+from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.draw import poses_from_draw
 from viewer_bridge.formats.drake.load import decode_load, load_from_scene
 from viewer_bridge.lcmcodec import DRAW
