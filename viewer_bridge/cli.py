@@ -66,7 +66,9 @@ def _parser() -> argparse.ArgumentParser:
         "--debug", action="store_true", default=argparse.SUPPRESS, help="show the traceback of an internal error"
     )
     parser = Parser(
-        prog="viewer-bridge", description="Translate Drake's LCM messages (its viewer scene, and any LCM type) between ecosystems.", parents=[debug]
+        prog="viewer-bridge",
+        description="Translate Drake's LCM messages (its viewer scene, and any LCM type) between ecosystems.",
+        parents=[debug],
     )
     parser.set_defaults(debug=False)
     parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
