@@ -53,7 +53,7 @@ def library_snippet() -> str:
     """The first Python block of README's Library section."""
     text = (ROOT / "README.md").read_text()
     section = text[text.index("\n## Library\n") :]
-    section = section[: section.index("\n## ", 1)]
+    section = section.split("\n## ", 2)[1]  # up to the next section, if any
     return blocks(section, ("python",))[0]
 
 
