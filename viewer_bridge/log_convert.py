@@ -32,7 +32,7 @@ from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -44,7 +44,9 @@ from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import LCM, MessageType, Received
 from viewer_bridge.transports.lcm import read_log
-from viewer_bridge.transports.mcap import McapTransport, Profile
+
+if TYPE_CHECKING:
+    from viewer_bridge.transports.mcap import Profile
 
 log = logging.getLogger("viewer_bridge")
 
@@ -74,8 +76,8 @@ def convert(
     events = read_log(log_path)
     first = next(events, None)  # a file that is not an LCM log fails here, before anything is written
     sink = _Sink.rerun(target) if is_rrd(target) else _Sink.mcap(target, schema)
-    held = [route for route in config.routes if _reads_lcm(route) and sink.holds(route)]
-    writes = _distinct([_narrowed(route, lcm_channels) for route in held])
+    fitting = [route for route in config.routes if _reads_lcm(route) and sink.holds(route)]
+    writes = _distinct([_narrowed(route, lcm_channels) for route in fitting])
     if not writes:
         raise ConvertError(f"no route of {config_name} reads LCM and writes {sink.what}")
     partial = target.with_name(target.name + ".partial")
@@ -117,6 +119,8 @@ class _Sink:
 
     @classmethod
     def mcap(cls, target: Path, schema: Profile) -> _Sink:
+        from viewer_bridge.transports.mcap import McapTransport  # the foxglove extra, only for .mcap files
+
         return cls("mcap", {"profile": schema}, lambda kind: McapTransport.carries(kind, schema), f"the {schema} schema")
 
     @classmethod
