@@ -110,7 +110,8 @@ class Router:
             return translator_class(options, shared=self.shared, reply=reply)
 
         runner = RouteRunner(
-            route, make_translator, self._publisher_factory(route), self._inline, self.shared.message_time
+            route, make_translator, self._publisher_factory(route), self._inline, self.shared.message_time,
+            source.rejected,
         )
         translator = runner.prototype
         assert translator is not None

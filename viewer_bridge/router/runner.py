@@ -79,8 +79,10 @@ class RouteRunner:
         publisher_for: PublisherFor,
         inline: InlineBudget | None = None,
         message_time: MessageTime | None = None,
+        rejected: Callable[[Received, BridgeError], None] | None = None,
     ) -> None:
         self.route = route
+        self._rejected = rejected  # the source transport's `rejected`: a sender may expect an answer
         self.pattern = re.compile(route.source.name)
         self.mailbox = Mailbox(route.rate.policy, route.qos.depth, rate_limited=bool(route.rate.max_hz))
         self.stats = RouteStats()
@@ -204,7 +206,7 @@ class RouteRunner:
                     lane.skipped.pop(message.channel, None)
                     self._replay(lane)
         except Held as held:  # a type unknown or refused here, an interface being built: counted on its channel
-            self._held(message.channel, held)
+            self._held(message, held)
             return
         except Exception as error:  # a bug in a translator's bookkeeping or a transport
             self._error(f"crash:{type(error).__name__}", f"{message.channel}: {traceback.format_exc()}")
@@ -217,10 +219,11 @@ class RouteRunner:
             with collecting() as skipped:
                 outputs = lane.translator.translate(message.received)
         except Held as held:
-            self._held(message.channel, held)
+            self._held(message, held)
             return
         except BridgeError as error:
             self._error(type(error).__name__, f"{message.channel}: {error}")
+            self._tell_source(message, error)
             return
         except Exception as error:  # a bug in a translator: report it, keep serving
             self._error(f"crash:{type(error).__name__}", f"{message.channel}: {traceback.format_exc()}")
@@ -236,7 +239,7 @@ class RouteRunner:
             try:
                 lane.publisher(index).publish(payload)
             except Held as held:  # its interface is being built: counted on the channel, the rest goes on
-                self._held(message.channel, held)
+                self._held(message, held)
                 continue
             except Exception as error:  # the transport refused: count it, go on with the rest
                 self._error(f"publish:{type(error).__name__}", f"{lane.name}: {error}")
@@ -246,12 +249,21 @@ class RouteRunner:
         if outputs and latency:
             self.stats.latency_ms.append((time.time_ns() // 1000 - message.received.received_us) / 1e3)
 
-    def _held(self, channel: str, held: Held) -> None:
+    def _held(self, message: Message, held: Held) -> None:
         """A message held back on purpose: counted per channel and kind, said once per both."""
+        self._tell_source(message, held)
+        channel = message.channel
         self.stats.held.setdefault(channel, Counter())[held.kind] += 1
         if (channel, held.kind) not in self._held_logged:
             self._held_logged.add((channel, held.kind))
             log.warning("route %s: %s: %s (%s; counted, not said again)", self.route.name, channel, held.reason, held.kind)
+
+    def _tell_source(self, message: Message, error: BridgeError) -> None:
+        if self._rejected is not None:
+            try:
+                self._rejected(message.received, error)
+            except Exception:  # a transport's answer failing must not stop the route
+                log.exception("route %s: telling the sender of %s failed", self.route.name, message.channel)
 
     def _error(self, kind: str, text: str) -> None:
         self._count(self.stats.errors, kind, text)

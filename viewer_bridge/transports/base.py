@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol, Self, TypeVar, cast
 from pydantic import BaseModel, ConfigDict
 
 if TYPE_CHECKING:
+    from viewer_bridge.errors import BridgeError
     from viewer_bridge.lcmcodec.library import TypeLibrary
 
 # Payload encodings, named as MCAP names message encodings where it has a name for them.
@@ -72,18 +73,33 @@ Decoded = TypeVar("Decoded")
 class Received:
     """One message as a transport received it, shared by every route it is offered to.
 
+    `message_type` is the message's own type when the transport knows it per message (a ROS 2
+    topic found by a pattern, a Zenoh key, a Foxglove client's channel), else None: the route's
+    type. `origin` is the transport's note of who sent it (a Foxglove client), for the transport's
+    own answer when the message is refused (`Transport.rejected`).
+
     `decoded(decoder)` runs `decoder(self)` the first time and returns the same result after:
     a draw that the markers and the poses routes both read is decoded once. Routes run on
     threads of their own; two may race to decode the same message, which costs a second
     decode and nothing else (decoders are pure, and a dict store is atomic).
     """
 
-    __slots__ = ("channel", "data", "received_us", "_decoded")
+    __slots__ = ("channel", "data", "received_us", "message_type", "origin", "_decoded")
 
-    def __init__(self, channel: str, data: bytes, received_us: int | None = None) -> None:
+    def __init__(
+        self,
+        channel: str,
+        data: bytes,
+        received_us: int | None = None,
+        *,
+        message_type: MessageType | None = None,
+        origin: object = None,
+    ) -> None:
         self.channel = channel
         self.data = data
         self.received_us = time.time_ns() // 1000 if received_us is None else received_us
+        self.message_type = message_type
+        self.origin = origin
         self._decoded: dict[object, Any] = {}
 
     def decoded(self, decoder: Callable[[Received], Decoded]) -> Decoded:
@@ -254,6 +270,12 @@ class Transport(ABC):
     def describe(self) -> str:
         """Where it is, for the start-up line."""
         return type(self).__name__
+
+    def rejected(self, message: Received, error: BridgeError) -> None:
+        """Told when a route could not translate a message this transport delivered (`error` says
+        why; a `Held` too): a transport whose senders expect an answer gives one (the Foxglove
+        server's status message to the client that published). Called on the route's thread."""
+        return None
 
     def errors(self) -> Mapping[str, int]:
         """The transport's own error counts (bad frames, refused datagrams), by kind."""
