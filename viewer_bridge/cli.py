@@ -233,7 +233,10 @@ def _parser() -> argparse.ArgumentParser:
     )
     interfaces.add_argument("action", choices=["install", "status", "generate"])
     interfaces.add_argument(
-        "names", nargs="*", metavar="NAME", help="optional: the packages to install or show (default: all of them)"
+        "names",
+        nargs="*",
+        metavar="NAME",
+        help="optional: the packages to install, show or generate (with the packages they use; default: all of them)",
     )
     interfaces.add_argument(
         "--lcm-types",
@@ -506,13 +509,15 @@ def _ros_interfaces(args: argparse.Namespace) -> int:
     if args.action == "generate" or args.lcm_types:
         if not args.lcm_types:
             raise UsageError("generate needs --lcm-types SRC")
-        definitions = _lcm_ros_definitions(args.lcm_types)
         if args.action == "generate":
             if args.output is None:
                 raise UsageError("generate needs -o DIR")
-            for folder in ros_interfaces.generate_packages(definitions, args.output):
+            documented = _lcm_ros_definitions(args.lcm_types, comments=True)
+            for folder in ros_interfaces.generate_packages(documented, args.output, only=args.names or None):
                 print(folder)
-        elif args.action == "install":
+            return 0
+        definitions = _lcm_ros_definitions(args.lcm_types)
+        if args.action == "install":
             ros_interfaces.build(definitions, log=say, only=args.names or None)
         else:
             chosen = ros_interfaces.packages(definitions)
@@ -534,11 +539,12 @@ def _ros_interfaces(args: argparse.Namespace) -> int:
     return 0
 
 
-def _lcm_ros_definitions(sources: Sequence[str]) -> dict[str, str]:
-    """The ROS 2 `.msg` definitions of the LCM types of `sources` (and the project's own)."""
+def _lcm_ros_definitions(sources: Sequence[str], *, comments: bool = False) -> dict[str, str]:
+    """The ROS 2 `.msg` definitions of the LCM types of `sources` (and the project's own), with
+    the `.lcm` files' comments when `comments` (for a workspace's files)."""
     from viewer_bridge.lcmcodec.library import TypeLibrary  # rosbags: only for this command
 
-    return dict(TypeLibrary.load(sources).ros_definitions())
+    return dict(TypeLibrary.load(sources).ros_definitions(comments=comments))
 
 
 _HANDLERS = {

@@ -42,9 +42,9 @@ if TYPE_CHECKING:
     from rosbags.interfaces.typing import Typesdict
 
 __all__ = [
-    "INTERFACES", "BUILD_WHEELS", "RUNTIME_WHEELS", "Interface", "Package", "build", "current", "digests",
-    "generate_packages", "install", "interface_package", "log_path", "message_text", "missing", "packages",
-    "uninstall", "write_package",
+    "APT_PACKAGES", "INTERFACES", "BUILD_WHEELS", "RUNTIME_WHEELS", "Interface", "Package", "build",
+    "cmake_lists", "current", "digests", "generate_packages", "install", "interface_package", "log_path",
+    "message_text", "missing", "package_xml", "packages", "uninstall", "write_package",
 ]  # fmt: skip
 
 @dataclass(frozen=True)
@@ -194,6 +194,9 @@ def packages(definitions: Mapping[str, str]) -> list[Package]:
 
 
 def package_xml(package: Package) -> str:
+    """A format 3 manifest as ROS 2's interface tutorial and rosidl's own packages write it: rosidl's
+    generators as a build tool, its runtime to run, membership of rosidl_interface_packages, and
+    one `depend` (build, export and run) on each interface package whose types it nests."""
     depends = "".join(f"  <depend>{depend}</depend>\n" for depend in package.depends)
     return f"""<?xml version="1.0"?>
 <package format="3">
@@ -204,7 +207,6 @@ def package_xml(package: Package) -> str:
   <license>BSD-3-Clause</license>
   <buildtool_depend>ament_cmake</buildtool_depend>
   <buildtool_depend>rosidl_default_generators</buildtool_depend>
-  <build_depend>rosidl_default_generators</build_depend>
 {depends}  <exec_depend>rosidl_default_runtime</exec_depend>
   <member_of_group>rosidl_interface_packages</member_of_group>
   <export>
@@ -215,6 +217,7 @@ def package_xml(package: Package) -> str:
 
 
 def cmake_lists(package: Package) -> str:
+    """rosidl_generate_interfaces of the package's messages, DEPENDENCIES the packages they nest."""
     find = "".join(f"find_package({depend} REQUIRED)\n" for depend in package.depends)
     files = " ".join(f'"{file}"' for file in package.files())
     depends = f" DEPENDENCIES {' '.join(package.depends)}" if package.depends else ""
@@ -252,12 +255,18 @@ def write_package(package: Package, folder: Path) -> Path:
     return folder
 
 
-def generate_packages(definitions: Mapping[str, str], out_dir: str | Path) -> list[Path]:
+def generate_packages(
+    definitions: Mapping[str, str], out_dir: str | Path, only: Iterable[str] | None = None
+) -> list[Path]:
     """One complete ROS 2 interface package per package of `definitions`, each in `out_dir/<name>`
-    (what a colcon workspace's `src/` holds); returns their folders, each after those it uses."""
+    (what a colcon workspace's `src/` holds); returns their folders, each after those it uses.
+
+    `only` restricts it to those packages and the ones of `definitions` they use; a name that is
+    not a package of `definitions` is a RosInterfaceError naming it."""
     root = Path(out_dir)
+    chosen = _closure(packages(definitions), only)
     try:
-        return [write_package(package, root / package.name) for package in packages(definitions)]
+        return [write_package(package, root / package.name) for package in chosen]
     except OSError as error:
         raise RosInterfaceError(f"cannot write the interface packages to {root}: {error.strerror}") from None
 
@@ -482,6 +491,11 @@ def _closure(chosen: list[Package], only: Iterable[str] | None) -> list[Package]
     if only is None:
         return chosen
     by_name = {package.name: package for package in chosen}
+    unknown = sorted(set(only) - set(by_name))
+    if unknown:
+        raise RosInterfaceError(
+            f"no LCM type maps to the package {', '.join(unknown)} (known: {', '.join(sorted(by_name))})"
+        )
     keep: set[str] = set()
     pending = list(only)
     while pending:
@@ -568,17 +582,3 @@ def uninstall(names: Iterable[str] | None = None, prefix: str | Path = sys.prefi
             shutil.rmtree(egg, ignore_errors=True)
     return removed
 
-
-__all__ = [
-    "APT_PACKAGES",
-    "BUILD_WHEELS",
-    "INTERFACES",
-    "Interface",
-    "RUNTIME_WHEELS",
-    "cmake_lists",
-    "install",
-    "message_text",
-    "missing",
-    "package_xml",
-    "uninstall",
-]

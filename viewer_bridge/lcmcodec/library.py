@@ -65,9 +65,15 @@ class LcmType:
 
     @property
     def msg_definition(self) -> str:
-        """The `.msg` text of this type alone; "" when refused."""
+        """The `.msg` text of this type alone, as the bridge announces it; "" when refused."""
         message = self._library._mapping.messages.get(self.full_name)
         return message.definition if message is not None else ""
+
+    @property
+    def msg_file(self) -> str:
+        """The `.msg` text with the `.lcm` file's comments, as `ros-interfaces generate` writes it; "" when refused."""
+        message = self._library._mapping.messages.get(self.full_name)
+        return message.documented if message is not None else ""
 
     def to_cdr(self, data: Buffer) -> bytes:
         """The whole LCM message (fingerprint included) as CDR, header included; bad bytes: DecodeError."""
@@ -196,9 +202,14 @@ class TypeLibrary:
         """Every known type, sorted by full name."""
         return [self._types[name] for name in sorted(self._types)]
 
-    def ros_definitions(self) -> dict[str, str]:
-        """`pkg/msg/Name` -> `.msg` text of every type that has a ROS 2 form."""
-        return {message.ros_type: message.definition for message in self._mapping.messages.values()}
+    def ros_definitions(self, *, comments: bool = False) -> dict[str, str]:
+        """`pkg/msg/Name` -> `.msg` text of every type that has a ROS 2 form: the text the bridge
+        announces and builds, or with `comments` the one with the `.lcm` files' comments carried
+        over, for a workspace's packages (both give the same RIHS01 hash)."""
+        return {
+            message.ros_type: message.documented if comments else message.definition
+            for message in self._mapping.messages.values()
+        }
 
     def codecs(self, full_name: str) -> dict[str, StructCodec]:
         """The LCM codecs of `full_name` and of every type it nests, generated together when first

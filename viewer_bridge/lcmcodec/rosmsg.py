@@ -42,8 +42,9 @@ class RosMessage:
     lcm_name: str
     package: str
     name: str
-    definition: str  # the .msg text
+    definition: str  # the .msg text, with no comments of the .lcm file (see `message_text`)
     nested: tuple[str, ...]  # LCM full names of the struct types its members name, in order
+    documented: str = ""  # the .msg text with the .lcm file's comments, for a workspace's msg/ files
 
     @property
     def ros_type(self) -> str:
@@ -142,15 +143,27 @@ def map_to_ros(structs: Mapping[str, StructDef]) -> RosMapping:
         except NameRefused as error:
             refused[lcm_name] = f"{lcm_name}: {error}"
             continue
+        documented = message_text(struct, messages, comments=True)
         package, name = names[lcm_name]
-        messages[lcm_name] = RosMessage(lcm_name, package, name, definition, tuple(_nested(struct)))
+        messages[lcm_name] = RosMessage(lcm_name, package, name, definition, tuple(_nested(struct)), documented)
     return RosMapping(messages, refused)
 
 
-def message_text(struct: StructDef, messages: Mapping[str, RosMessage]) -> str:
-    """The `.msg` text of one struct: its comment, constants with values, then fields."""
-    lines = [f"# {line}" for line in struct.comment.splitlines()]
+def message_text(struct: StructDef, messages: Mapping[str, RosMessage], *, comments: bool = False) -> str:
+    """The `.msg` text of one struct: a header naming the LCM type, constants with values, then fields.
+
+    With `comments`, the `.lcm` file's comments come along as ROS 2 `.msg` comments, where rosidl
+    puts them: the struct's in the file's leading block, each constant's and field's on the lines
+    before it and, for one that followed it on its line, after it on its line (further lines
+    indented, which rosidl adds to the same field). Without, the text is the same whatever the
+    comments (and an lcm-gen'd class, which has none, gives the same text as its `.lcm` file): it is
+    what the bridge announces (`ros2msg` schemas) and builds. Comments never change the RIHS01
+    hash, which covers names and types only.
+    """
+    lines = [f"# {line}" for line in struct.comment.splitlines()] if comments else []
     lines.append(f"# LCM type {struct.full_name}")
+    if comments:
+        lines.append("")  # ends the file's comment block: the next comment is a field's
     used: dict[str, str] = {}  # constants and fields are checked apart: ROS 2 tells them by case
     for constant in struct.constants:
         name = constant_name(constant.name)
@@ -160,17 +173,31 @@ def message_text(struct: StructDef, messages: Mapping[str, RosMessage]) -> str:
         value = (
             repr(float(constant.value)) if constant.type_name in ("float", "double") else str(constant.value)
         )
-        lines.extend(f"# {line}" for line in constant.comment.splitlines())
-        lines.append(f"{ROS_PRIMITIVES[constant.type_name]} {name}={value}")
+        line = f"{ROS_PRIMITIVES[constant.type_name]} {name}={value}"
+        lines.extend(_commented(line, "", constant.comment, constant.trailing) if comments else [line])
     used = {}
     for member in struct.members:
         name = field_name(member.name)
         _claim(used, name, member.name)
-        lines.extend(f"# {line}" for line in member.comment.splitlines())
         dims = "".join(f"[{dim.size}]" for dim in member.dims)
-        note = f"  # LCM {member.type_name} {member.name}{dims}" if len(member.dims) > 1 else ""
-        lines.append(f"{ros_type_of(member, messages)} {name}{note}")
-    return "\n".join(lines) + "\n"
+        note = f"LCM {member.type_name} {member.name}{dims}" if len(member.dims) > 1 else ""
+        line = f"{ros_type_of(member, messages)} {name}"
+        if comments:
+            lines.extend(_commented(line, note, member.comment, member.trailing))
+        else:
+            lines.append(f"{line}  # {note}" if note else line)
+    return "\n".join(lines).rstrip("\n") + "\n"  # no blank line closing a struct with no fields
+
+
+def _commented(line: str, note: str, before: str, after: str) -> list[str]:
+    """A constant or field line with its comments: `before` on lines of their own above it, the
+    `note` and `after` behind it on its line, `after`'s further lines indented below it."""
+    behind = [text for text in (note, *after.splitlines()) if text]
+    return [
+        *(f"# {text}" for text in before.splitlines()),
+        f"{line}  # {behind[0]}" if behind else line,
+        *(f"  # {text}" for text in behind[1:]),
+    ]
 
 
 def _claim(used: dict[str, str], ros_name: str, lcm_name: str) -> None:

@@ -69,6 +69,7 @@ class Member:
     type_name: str
     dims: tuple[Dimension, ...]
     comment: str = field(default="", compare=False)  # the comment just before it in the .lcm file
+    trailing: str = field(default="", compare=False)  # the comment after it, from the same line on
 
     @property
     def is_primitive(self) -> bool:
@@ -84,6 +85,7 @@ class Constant:
     value: int | float
     text: str = ""  # the literal as written (`0x1F`); an array sized by this constant hashes it
     comment: str = field(default="", compare=False)
+    trailing: str = field(default="", compare=False)
 
 
 @dataclass(frozen=True, slots=True)
@@ -174,16 +176,20 @@ _TOKEN = re.compile(
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class _Token:
     text: str
     line: int
-    comment: str  # the comments between the previous token and this one, markers stripped
+    comment: str  # the comments between the previous token's line and this token, markers stripped
+    trailing: str = ""  # the comments that start on this token's line after it (`; // metres`)
 
 
 def _tokenize(text: str, path: str) -> list[_Token]:
+    """The tokens of `text`, each with the comments around it: a comment that starts on the line
+    of the token before it trails that token; the others lead the token after them."""
     tokens: list[_Token] = []
     comments: list[str] = []
+    trailing: list[str] = []
     position = 0
     line = 1
     while position < len(text):
@@ -194,8 +200,13 @@ def _tokenize(text: str, path: str) -> list[_Token]:
         if kind in ("number", "word", "symbol"):
             tokens.append(_Token(match.group(), line, "\n".join(comments)))
             comments = []
+            trailing = []
         elif kind in ("line_comment", "block_comment"):
-            comments.extend(_comment_lines(match.group()))
+            if tokens and tokens[-1].line == line and not comments:
+                trailing.extend(_comment_lines(match.group()))
+                tokens[-1].trailing = "\n".join(trailing)
+            else:
+                comments.extend(_comment_lines(match.group()))
         line += match.group().count("\n")
         position = match.end()
     return tokens
@@ -226,6 +237,10 @@ class _Parser:
     def comment(self) -> str:
         """The comment in front of the next token."""
         return self.tokens[self.index].comment if self.index < len(self.tokens) else ""
+
+    def trailing(self) -> str:
+        """The comment after the token just taken, on its line."""
+        return self.tokens[self.index - 1].trailing
 
     def peek(self) -> str | None:
         return self.tokens[self.index].text if self.index < len(self.tokens) else None
@@ -303,9 +318,11 @@ class _Parser:
             name = self.identifier("a constant name")
             self.expect("=")
             literal = self.take()
-            yield Constant(name, type_name, self.number(literal, type_name), literal, comment)
+            value = self.number(literal, type_name)
+            ends = self.take()
+            yield Constant(name, type_name, value, literal, comment, self.trailing())
             comment = ""
-            if self.take() == ";":
+            if ends == ";":
                 return
             self.index -= 1
             self.expect(",")
@@ -336,9 +353,10 @@ class _Parser:
                 self.take()
                 dims.append(self.dimension(self.take(), earlier, constants))
                 self.expect("]")
-            earlier.append(Member(name, type_name, tuple(dims), comment))
+            ends = self.take()  # `;` or `,`: a comment after it on its line is this member's
+            earlier.append(Member(name, type_name, tuple(dims), comment, self.trailing()))
             comment = ""
-            if self.take() == ";":
+            if ends == ";":
                 return
             self.index -= 1
             self.expect(",")
