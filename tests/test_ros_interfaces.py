@@ -8,22 +8,28 @@ its sources) and build nothing.
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
+from xml.etree import ElementTree
 
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from tests.lcmcodec.corpus import CORPUS, expected, generate_lcmgen
 from tests.peers import RosProbe
 from tests.ros_interfaces_corpus import BASE, DEFINITIONS, MAIN
 from viewer_bridge import ros_interfaces
 from viewer_bridge.cli import main
 from viewer_bridge.errors import RosInterfaceError
+from viewer_bridge.lcmcodec.library import TypeLibrary
+from viewer_bridge.lcmcodec.schema import Member, StructDef
 from viewer_bridge.transports.ros2 import message_class
 
 TYPES = sorted(DEFINITIONS)
@@ -253,23 +259,137 @@ def test_each_type_round_trips_between_rclpy_nodes_with_rosbags_type_hash(
         assert str(info.topic_type_hash) == store.hash_rihs01(typename)
 
 
-def test_the_cli_generate_needs_lcm_types(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["ros-interfaces", "generate", "-o", "x"]) == 2
-    assert "generate needs --lcm-types SRC" in capsys.readouterr().err
+def test_the_cli_generate_needs_an_output_folder(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["ros-interfaces", "generate"]) == 2
+    assert "generate needs -o DIR" in capsys.readouterr().err
+
+
+def test_the_cli_generates_drakes_types_by_default_and_the_packages_named(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["ros-interfaces", "generate", "-o", str(tmp_path / "all")]) == 0
+    folders = capsys.readouterr().out.split()
+    assert str(tmp_path / "all" / "drake_lcm_msgs") in folders
+    command = (tmp_path / "all" / "drake_lcm_msgs" / "msg" / "LcmtIiwaCommand.msg").read_text()
+    assert command.startswith("# LCM type drake.lcmt_iiwa_command\n")  # pydrake's class: no comments
+    draw = (tmp_path / "all" / "drake_lcm_msgs" / "msg" / "LcmtViewerDraw.msg").read_text()
+    assert "int64 timestamp  # simulation time in milliseconds\n" in draw  # lcmtypes/'s file: its comments
+    lab = ["ros-interfaces", "generate", "lab_robot_lcm_msgs", "--lcm-types", str(CORPUS), "-o", str(tmp_path / "lab")]
+    assert main(lab) == 0
+    assert capsys.readouterr().out.split() == [str(tmp_path / "lab" / name)
+                                               for name in ("lab_geometry_lcm_msgs", "lab_robot_lcm_msgs")]  # fmt: skip
+    assert main([*lab[:2], "lab_arm_lcm_msgs", *lab[3:]]) == 2
+    error = capsys.readouterr().err
+    assert "no LCM type maps to the package lab_arm_lcm_msgs (known: " in error and "lab_robot_lcm_msgs" in error
+
+
+# The corpus's lab.robot and lab.geometry packages, renamed: the venv may hold lab_*_lcm_msgs built,
+# which must not be what the workspace's build is checked with.
+RENAMED = {"lab.": "vbws."}
+ROBOT, GEOMETRY = "vbws_robot_lcm_msgs", "vbws_geometry_lcm_msgs"
+WORKSPACE_TYPES = ["vbws.robot.arm_state_t", "vbws.robot.pulse_t", "vbws.geometry.point3d_t"]
+
+
+def _renamed_corpus(folder: Path) -> Path:
+    """tests/lcmtypes_corpus/lab/ (comments and all) with its packages renamed, in `folder`."""
+    for path in sorted((CORPUS / "lab").rglob("*.lcm")):
+        text = path.read_text()
+        for old, new in RENAMED.items():
+            text = text.replace(old, new)
+        target = folder / path.relative_to(CORPUS)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(text)
+    return folder
+
+
+def _leaf(type_name: str, k: int) -> Any:
+    """A value of an LCM primitive type that is nobody's default, different for each `k`."""
+    if type_name in ("int8_t", "int16_t", "int32_t", "int64_t"):
+        bits = int(type_name[3:-2])
+        return (97 * k) % 2**bits - 2 ** (bits - 1)  # the sign bit set for the first ones: the width shows
+    return {
+        "byte": 255 - k % 256,
+        "float": 0.5 + k,  # exact in float32
+        "double": -1e300 / (k + 3),
+        "boolean": k % 2 == 1,
+        "string": f"\u00e9 {k}",
+    }[type_name]
+
+
+def _lcm_message(name: str, structs: dict[str, StructDef], classes: dict[str, type], seed: int = 1) -> Any:
+    """An lcm-gen'd message of type `name` with a value of its own in every field (two elements
+    along each variable dimension)."""
+    struct = structs[name]
+    message = classes[name]()
+    counts = {dim.size for member in struct.members for dim in member.dims if dim.is_variable}
+
+    def element(member: Member, k: int) -> Any:
+        if member.is_primitive:
+            return _leaf(member.type_name, k)
+        return _lcm_message(member.type_name, structs, classes, 7 * k)
+
+    def array(member: Member, shape: list[int], k: int) -> Any:
+        if len(shape) == 1 and member.type_name == "byte":
+            return bytes(_leaf("byte", k + index) for index in range(shape[0]))
+        if len(shape) == 1:
+            return [element(member, k + index) for index in range(shape[0])]
+        return [array(member, shape[1:], k + 10 * index) for index in range(shape[0])]
+
+    for index, member in enumerate(struct.members):
+        k = seed + 100 * index
+        if member.name in counts:
+            value: Any = 2
+        elif member.dims:
+            value = array(member, [2 if dim.is_variable else dim.count for dim in member.dims], k)
+        else:
+            value = element(member, k)
+        setattr(message, member.name, value)
+    return message
+
+
+def _package_depends(xml: str) -> list[tuple[str, str]]:
+    """A package.xml's dependency elements (and its groups), as (tag, package)."""
+    tags = ("depend", "build_depend", "build_export_depend", "buildtool_depend", "buildtool_export_depend",
+            "exec_depend", "test_depend", "doc_depend", "member_of_group", "group_depend")  # fmt: skip
+    root = ElementTree.fromstring(xml)
+    return sorted((element.tag, element.text or "") for element in root if element.tag in tags)
 
 
 @pytest.mark.slow
-def test_colcon_builds_the_generated_workspace_and_rclpy_imports_it(tmp_path: Path) -> None:
-    """A user's colcon workspace with the generated packages, built against the venv's ROS 2 wheels
-    as `ros_interfaces` builds into the venv (the venv is the underlay's ament prefix)."""
+def test_colcon_builds_packages_generated_from_lcm_files_and_rclpy_reads_the_bridges_cdr(tmp_path: Path) -> None:
+    """A user's colcon workspace with the packages of real .lcm files (comments carried over),
+    built by colcon against the venv's ROS 2 wheels (the venv is the underlay's ament prefix);
+    rclpy's classes from its install space read the CDR the bridge writes for lcm-gen's messages."""
+    lcm_types = _renamed_corpus(tmp_path / "lcmtypes")
     workspace = tmp_path / "ws"
-    # Names of their own: the venv holds the corpus's packages built, which must not be what imports.
-    definitions = {name.replace("vbtest_", "vbtestws_"): text.replace("vbtest_", "vbtestws_")
-                   for name, text in DEFINITIONS.items()}  # fmt: skip
-    ros_interfaces.generate_packages(definitions, workspace / "src")
+    generated = subprocess.run(
+        [sys.executable, "-m", "viewer_bridge.cli", "ros-interfaces", "generate", ROBOT,
+         "--lcm-types", str(lcm_types), "-o", str(workspace / "src")],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert generated.returncode == 0, generated.stderr
+    # The package asked for and the one it nests, nothing else of the library (drake_lcm_msgs).
+    assert generated.stdout.split() == [str(workspace / "src" / name) for name in (GEOMETRY, ROBOT)]
+    src = workspace / "src"
+    common = [("buildtool_depend", "ament_cmake"), ("buildtool_depend", "rosidl_default_generators"),
+              ("exec_depend", "rosidl_default_runtime"), ("member_of_group", "rosidl_interface_packages")]  # fmt: skip
+    assert _package_depends((src / GEOMETRY / "package.xml").read_text()) == sorted(common)
+    assert _package_depends((src / ROBOT / "package.xml").read_text()) == sorted([*common, ("depend", GEOMETRY)])
+    assert f"DEPENDENCIES {GEOMETRY})" in (src / ROBOT / "CMakeLists.txt").read_text()
+    assert "DEPENDENCIES" not in (src / GEOMETRY / "CMakeLists.txt").read_text()
+    point = (src / GEOMETRY / "msg" / "Point3dT.msg").read_text()
+    assert point.startswith("# A point in a named frame.\n# Used by vbws.robot's types, across packages.\n")
+    assert "string frame_id  # the frame's name\n" in point
+    arm = (src / ROBOT / "msg" / "ArmStateT.msg").read_text()
+    assert "# joint angles, radians\nfloat64[] joint_angles\n" in arm
+    assert sorted(path.name for path in (src / ROBOT / "msg").iterdir()) == [
+        "ArmStateT.msg", "HeartbeatT.msg", "PulseT.msg"  # the recursive and colliding types have no ROS 2 form
+    ]  # fmt: skip
+
     prefix = sys.prefix
     env = dict(os.environ, AMENT_PREFIX_PATH=prefix, CMAKE_PREFIX_PATH=prefix)
     colcon = Path(sys.executable).parent / "colcon"
+    start = time.monotonic()
     build = subprocess.run(
         [
             str(colcon), "build", "--event-handlers", "console_direct-",
@@ -282,31 +402,70 @@ def test_colcon_builds_the_generated_workspace_and_rclpy_imports_it(tmp_path: Pa
         timeout=1800,
     )
     assert build.returncode == 0, build.stdout[-3000:] + build.stderr[-3000:]
-    install = workspace / "install"
-    python_path = [str(path) for path in sorted(install.glob("*/**/python3*/*-packages"))]
-    libraries = [str(install / package.replace("vbtest_", "vbtestws_") / "lib") for package in (BASE, MAIN)]
-    run_env = dict(
-        os.environ,
-        PYTHONPATH=os.pathsep.join([*python_path, os.environ.get("PYTHONPATH", "")]),
-        LD_LIBRARY_PATH=os.pathsep.join([*libraries, os.environ.get("LD_LIBRARY_PATH", "")]),
-    )
-    # In a process of its own: the install space's libraries must be on its loader path at start.
+    print(f"colcon build of {GEOMETRY} and {ROBOT}: {time.monotonic() - start:.0f} s")
+
+    # The bridge's CDR of messages lcm-gen's classes encoded, and what rclpy should read from it.
+    library = TypeLibrary.load([str(lcm_types)], drake=False)
+    structs = {known.full_name: known.definition for known in library.types()}
+    classes = generate_lcmgen(tmp_path / "lcmgen", lcm_types)
+    cases = []
+    for name in WORKSPACE_TYPES:
+        known = library.get(name)
+        message = _lcm_message(name, structs, classes)
+        cases.append({
+            "type": known.ros_type,
+            "cdr": known.to_cdr(message.encode()).hex(),
+            "values": expected(message, structs[name], structs),
+        })  # fmt: skip
+        # rosidl's type hash of the commented files is the one the bridge announces.
+        package, _, message_name = str(known.ros_type).split("/")
+        description = json.loads((workspace / "install" / package / "share" / package / "msg" /
+                                  f"{message_name}.json").read_text())  # fmt: skip
+        hashes = {entry["type_name"]: entry["hash_string"] for entry in description["type_hashes"]}
+        assert hashes[known.ros_type] == known.rihs01, name
+    (tmp_path / "cases.json").write_text(json.dumps(cases))
+    # In a process of its own that sources the install space as a user's shell does.
     check = subprocess.run(
-        [sys.executable, "-c", ROUND_TRIP], env=run_env, capture_output=True, text=True, timeout=300
-    )
+        ["bash", "-c", f'source install/setup.bash && exec "{sys.executable}" -c "$0"', READ_BRIDGE_CDR],
+        cwd=workspace, env=dict(os.environ, CASES=str(tmp_path / "cases.json")),
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
     assert check.returncode == 0, check.stdout + check.stderr
-    assert check.stdout.split() == ["7", "round-tripped"]
+    written = check.stdout.split()
+    assert len(written) == len(cases)
+    store = get_typestore(Stores.EMPTY)
+    for text_type, text in library.ros_definitions().items():
+        store.register(get_types_from_msg(text, text_type))
+    for case, back_hex in zip(cases, written, strict=True):
+        cdr, back = bytes.fromhex(case["cdr"]), bytes.fromhex(back_hex)
+        # rclpy's bytes are the bridge's, but for the alignment padding Fast-CDR leaves unwritten
+        # (the bridge writes zeros there): rosbags, which writes zeros too, reads and writes them as the bridge's.
+        assert len(back) == len(cdr), case["type"]
+        assert all(cdr[index] == 0 for index in range(len(cdr)) if back[index] != cdr[index]), case["type"]
+        assert bytes(store.serialize_cdr(store.deserialize_cdr(back, case["type"]), case["type"])) == cdr
 
 
-# Run against the colcon install space (the packages are nowhere else).
-ROUND_TRIP = """
+# Run with the colcon install space sourced (the packages are nowhere else): each case's CDR read by
+# rclpy's class is the expected values; what rclpy writes back is printed, in hex.
+READ_BRIDGE_CDR = """
+import importlib, json, os
+from array import array
+import numpy as np
 from rclpy.serialization import deserialize_message, serialize_message
-from vbtestws_base_lcm_msgs.msg import Point
-from vbtestws_lcm_msgs.msg import JointSample
-sample = JointSample(num_joints=JointSample.MAX_JOINTS, velocity=[1.0, -2.5], joint_names=["a", "b"],
-                     path=[Point(x=1.0, y=2.0, z=3.0)], ok=True)
-sample.blob.data = [1, 2, 255]
-back = deserialize_message(serialize_message(sample), JointSample)
-assert back == sample, (back, sample)
-print(back.num_joints, "round-tripped")
+
+def plain(value):
+    if hasattr(value, "get_fields_and_field_types"):
+        return {field: plain(getattr(value, field)) for field in value.get_fields_and_field_types()}
+    if isinstance(value, (list, tuple, np.ndarray, array, bytes)):
+        return [plain(item) for item in value]
+    return value.item() if isinstance(value, np.generic) else value
+
+for case in json.load(open(os.environ["CASES"])):
+    package, _, name = case["type"].split("/")
+    cls = getattr(importlib.import_module(package + ".msg"), name)
+    assert cls.__module__.startswith(package), cls.__module__
+    cdr = bytes.fromhex(case["cdr"])
+    message = deserialize_message(cdr, cls)
+    assert plain(message) == case["values"], (case["type"], plain(message), case["values"])
+    print(serialize_message(message).hex())
 """

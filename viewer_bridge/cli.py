@@ -229,7 +229,7 @@ def _parser() -> argparse.ArgumentParser:
     interfaces = add(
         "ros-interfaces",
         help="build ROS 2 interface packages PyPI has no wheel for (tf2_msgs, LCM types) into the venv, "
-        "or write them for a colcon workspace",
+        "or write the LCM types' packages for a colcon workspace",
     )
     interfaces.add_argument("action", choices=["install", "status", "generate"])
     interfaces.add_argument(
@@ -244,7 +244,7 @@ def _parser() -> argparse.ArgumentParser:
         default=[],
         metavar="SRC",
         help="LCM types (.lcm files, folders, lcm-gen'd modules): install builds their *_lcm_msgs packages "
-        "instead of tf2_msgs, generate writes them (repeatable)",
+        "instead of tf2_msgs; generate writes them beside the project's and Drake's (repeatable)",
     )
     interfaces.add_argument(
         "-o", "--output", type=Path, metavar="DIR", help="generate: the folder to write the packages to (a workspace's src/)"
@@ -506,16 +506,14 @@ def _ros_interfaces(args: argparse.Namespace) -> int:
     from viewer_bridge import ros_interfaces
 
     say = lambda line: print(line, file=sys.stderr)  # noqa: E731
-    if args.action == "generate" or args.lcm_types:
-        if not args.lcm_types:
-            raise UsageError("generate needs --lcm-types SRC")
-        if args.action == "generate":
-            if args.output is None:
-                raise UsageError("generate needs -o DIR")
-            documented = _lcm_ros_definitions(args.lcm_types, comments=True)
-            for folder in ros_interfaces.generate_packages(documented, args.output, only=args.names or None):
-                print(folder)
-            return 0
+    if args.action == "generate":  # the LCM types' packages: the project's and Drake's, and --lcm-types'
+        if args.output is None:
+            raise UsageError("generate needs -o DIR")
+        documented = _lcm_ros_definitions(args.lcm_types, comments=True)
+        for folder in ros_interfaces.generate_packages(documented, args.output, only=args.names or None):
+            print(folder)
+        return 0
+    if args.lcm_types:
         definitions = _lcm_ros_definitions(args.lcm_types)
         if args.action == "install":
             ros_interfaces.build(definitions, log=say, only=args.names or None)
