@@ -61,6 +61,7 @@ SUBSTITUTIONS: list[tuple[str, str, str]] = [
     (r"\[--host 127\.0\.0\.1\] \[--port 8000\] \[--max-upload BYTES\]",
      "--host 127.0.0.1 --port {port} --max-upload 1000000", "the optional arguments, given; a free port"),
     (r"\./my_lcmtypes", str(ROOT / "tests" / "translators" / "lcm_corpus"), "a lab's types: the tests' corpus"),
+    (r"\bmy_lab_lcm_msgs\b", "vbtest_lab_lcm_msgs", "the package of the tests' corpus (package vbtest_lab)"),
     (r"rerun\.serve=true", "rerun.serve=true --set rerun.grpc_port=0 --set rerun.web_port=0",
      "free ports: a viewer or another bridge may be serving here"),
     (r"\[--size 640x480\] \[--fov 45\] \[--camera EX,EY,EZ,TX,TY,TZ\]",
@@ -91,6 +92,8 @@ NOT_RUN: list[tuple[str, str]] = [
     (r"ign-transport-topic -(e|p)\b", "needs a bridge running at the same time: tests/transports/test_ign.py "
      "runs the same commands against one"),
     (r"&\s*$", "starts a background process for the lines after it (docs/GZ_PEER.md)"),
+    (r"\bcolcon build\b", "builds a workspace against a ROS 2 install (none here: the venv has its wheels): "
+     "tests/test_ros_interfaces.py builds generated packages and a C++ one with colcon against the wheels"),
     (r"^rerun\b", "opens Rerun's viewer window: tests/transports/test_rerun_web.py opens its web viewer in Chromium"),
 ]  # fmt: skip
 

@@ -386,6 +386,8 @@ def test_colcon_builds_packages_generated_from_lcm_files_and_rclpy_reads_the_bri
         "ArmStateT.msg", "HeartbeatT.msg", "PulseT.msg"  # the recursive and colliding types have no ROS 2 form
     ]  # fmt: skip
 
+    _write_cpp_node(src / "vbws_show")  # a C++ user of the generated package, as docs/lcm-types.md says
+
     prefix = sys.prefix
     env = dict(os.environ, AMENT_PREFIX_PATH=prefix, CMAKE_PREFIX_PATH=prefix)
     colcon = Path(sys.executable).parent / "colcon"
@@ -402,7 +404,13 @@ def test_colcon_builds_packages_generated_from_lcm_files_and_rclpy_reads_the_bri
         timeout=1800,
     )
     assert build.returncode == 0, build.stdout[-3000:] + build.stderr[-3000:]
-    print(f"colcon build of {GEOMETRY} and {ROBOT}: {time.monotonic() - start:.0f} s")
+    print(f"colcon build of {GEOMETRY}, {ROBOT} and a C++ node: {time.monotonic() - start:.0f} s")
+    shown = subprocess.run(
+        ["bash", "-c", "source install/setup.bash && exec install/vbws_show/lib/vbws_show/show"],
+        cwd=workspace, env=dict(os.environ, LD_LIBRARY_PATH=str(Path(prefix) / "lib")),
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert (shown.returncode, shown.stdout.split()) == (0, ["4", "4", "tool", "2"]), shown.stderr
 
     # The bridge's CDR of messages lcm-gen's classes encoded, and what rclpy should read from it.
     library = TypeLibrary.load([str(lcm_types)], drake=False)
@@ -443,6 +451,54 @@ def test_colcon_builds_packages_generated_from_lcm_files_and_rclpy_reads_the_bri
         assert len(back) == len(cdr), case["type"]
         assert all(cdr[index] == 0 for index in range(len(cdr)) if back[index] != cdr[index]), case["type"]
         assert bytes(store.serialize_cdr(store.deserialize_cdr(back, case["type"]), case["type"])) == cdr
+
+
+def _write_cpp_node(folder: Path) -> None:
+    """A C++ package that uses the generated ArmStateT: find_package, the package's targets, and
+    the header rosidl names after the message in snake_case."""
+    (folder / "src").mkdir(parents=True)
+    (folder / "package.xml").write_text(f"""<?xml version="1.0"?>
+<package format="3">
+  <name>vbws_show</name>
+  <version>0.0.0</version>
+  <description>Prints a generated message's constant and fields</description>
+  <maintainer email="viewer-bridge@example.invalid">viewer-bridge</maintainer>
+  <license>BSD-3-Clause</license>
+  <buildtool_depend>ament_cmake</buildtool_depend>
+  <depend>{ROBOT}</depend>
+  <export><build_type>ament_cmake</build_type></export>
+</package>
+""")
+    (folder / "CMakeLists.txt").write_text(f"""cmake_minimum_required(VERSION 3.21)
+project(vbws_show CXX)
+find_package(ament_cmake REQUIRED)
+find_package({ROBOT} REQUIRED)
+# The PyPI wheels' targets name include folders of the machine that built them (as the generated
+# packages' CMakeLists.txt says): a ROS 2 install needs none of this.
+get_property(imported DIRECTORY PROPERTY IMPORTED_TARGETS)
+foreach(target IN LISTS imported)
+  get_target_property(includes ${{target}} INTERFACE_INCLUDE_DIRECTORIES)
+  if(includes)
+    list(FILTER includes EXCLUDE REGEX "^/opt/python/")
+    set_target_properties(${{target}} PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${{includes}}")
+  endif()
+endforeach()
+add_executable(show src/show.cpp)
+target_link_libraries(show ${{{ROBOT}_TARGETS}})
+install(TARGETS show DESTINATION lib/${{PROJECT_NAME}})
+ament_package()
+""")
+    (folder / "src" / "show.cpp").write_text(f"""#include <iostream>
+#include <{ROBOT}/msg/arm_state_t.hpp>
+
+int main() {{
+  {ROBOT}::msg::ArmStateT arm;
+  arm.tip.frame_id = "tool";
+  arm.joint_angles = {{0.5, -0.25}};
+  std::cout << {ROBOT}::msg::ArmStateT::MAX_JOINTS << " " << arm.gains.size() << " "
+            << arm.tip.frame_id << " " << arm.joint_angles.size() << std::endl;
+}}
+""")
 
 
 # Run with the colcon install space sourced (the packages are nowhere else): each case's CDR read by
