@@ -236,7 +236,7 @@ def _parser() -> argparse.ArgumentParser:
         "names",
         nargs="*",
         metavar="NAME",
-        help="optional: the packages to install, show or generate (with the packages they use; default: all of them)",
+        help="optional: the packages to install or show, or to generate with those they nest (default: all of them)",
     )
     interfaces.add_argument(
         "--lcm-types",
