@@ -275,9 +275,15 @@ def test_the_cli_generates_drakes_types_by_default_and_the_packages_named(
     draw = (tmp_path / "all" / "drake_lcm_msgs" / "msg" / "LcmtViewerDraw.msg").read_text()
     assert "int64 timestamp  # simulation time in milliseconds\n" in draw  # lcmtypes/'s file: its comments
     lab = ["ros-interfaces", "generate", "lab_robot_lcm_msgs", "--lcm-types", str(CORPUS), "-o", str(tmp_path / "lab")]
+    stale = tmp_path / "lab" / "lab_robot_lcm_msgs" / "msg" / "GoneT.msg"  # a type an earlier run wrote
+    stale.parent.mkdir(parents=True)
+    stale.write_text("int8 x\n")
     assert main(lab) == 0
-    assert capsys.readouterr().out.split() == [str(tmp_path / "lab" / name)
-                                               for name in ("lab_geometry_lcm_msgs", "lab_robot_lcm_msgs")]  # fmt: skip
+    said = capsys.readouterr()
+    assert said.out.split() == [str(tmp_path / "lab" / name) for name in ("lab_geometry_lcm_msgs", "lab_robot_lcm_msgs")]
+    assert not stale.exists()
+    # The types left out are named, with the reason.
+    assert "viewer-bridge ros-interfaces: lab.robot.tree_node_t (" in said.err and "contains itself" in said.err
     assert main([*lab[:2], "lab_arm_lcm_msgs", *lab[3:]]) == 2
     error = capsys.readouterr().err
     assert "no LCM type maps to the package lab_arm_lcm_msgs (known: " in error and "lab_robot_lcm_msgs" in error

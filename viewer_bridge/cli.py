@@ -10,7 +10,7 @@ import logging
 import signal
 import sys
 import threading
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -509,7 +509,7 @@ def _ros_interfaces(args: argparse.Namespace) -> int:
     if args.action == "generate":  # the LCM types' packages: the project's and Drake's, and --lcm-types'
         if args.output is None:
             raise UsageError("generate needs -o DIR")
-        documented = _lcm_ros_definitions(args.lcm_types, comments=True)
+        documented = _lcm_ros_definitions(args.lcm_types, comments=True, warn=say)
         for folder in ros_interfaces.generate_packages(documented, args.output, only=args.names or None):
             print(folder)
         return 0
@@ -537,12 +537,19 @@ def _ros_interfaces(args: argparse.Namespace) -> int:
     return 0
 
 
-def _lcm_ros_definitions(sources: Sequence[str], *, comments: bool = False) -> dict[str, str]:
+def _lcm_ros_definitions(
+    sources: Sequence[str], *, comments: bool = False, warn: Callable[[str], None] | None = None
+) -> dict[str, str]:
     """The ROS 2 `.msg` definitions of the LCM types of `sources` (and the project's own), with
-    the `.lcm` files' comments when `comments` (for a workspace's files)."""
+    the `.lcm` files' comments when `comments` (for a workspace's files); `warn` hears each type
+    left out (no ROS 2 form) and the library's other warnings."""
     from viewer_bridge.lcmcodec.library import TypeLibrary  # rosbags: only for this command
 
-    return dict(TypeLibrary.load(sources).ros_definitions(comments=comments))
+    library = TypeLibrary.load(sources)
+    if warn is not None:
+        for warning in library.warnings:
+            warn(f"viewer-bridge ros-interfaces: {warning}")
+    return dict(library.ros_definitions(comments=comments))
 
 
 _HANDLERS = {

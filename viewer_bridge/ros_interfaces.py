@@ -246,10 +246,15 @@ ament_package()
 
 
 def write_package(package: Package, folder: Path) -> Path:
-    """`package`'s sources in `folder`: package.xml, CMakeLists.txt and msg/*.msg."""
+    """`package`'s sources in `folder`: package.xml, CMakeLists.txt and msg/*.msg (a `.msg` file
+    of a type the package no longer has, from an earlier run, is removed)."""
     (folder / "msg").mkdir(parents=True, exist_ok=True)
     (folder / "package.xml").write_text(package_xml(package))
     (folder / "CMakeLists.txt").write_text(cmake_lists(package))
+    wanted = {f"{message}.msg" for message, _ in package.messages}
+    for stale in (folder / "msg").glob("*.msg"):
+        if stale.name not in wanted:
+            stale.unlink()
     for message, text in package.messages:
         (folder / "msg" / f"{message}.msg").write_text(text)
     return folder

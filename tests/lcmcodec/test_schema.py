@@ -117,12 +117,12 @@ def test_arrays_sized_by_constants_hash_the_constants_literal_as_lcm_gen_does() 
 
 def test_comments_are_kept_for_structs_members_and_constants() -> None:
     (parsed,) = parse_lcm(
-        "// the struct\n/* more\n * lines */\nstruct s {\n  // a constant\n  const int8_t A = 1;\n"
+        "// the struct\n/* more\n * lines */\nstruct s {  // and its brace's\n  // a constant\n  const int8_t A = 1;\n"
         "  // two members\n  int32_t n, m;  // trailing: the last one's\n  /** doc\n   * comment */ double d; /* a */ // b\n"
         "  // c\n}\n",
         "c.lcm",
     )
-    assert parsed.comment == "the struct\nmore\nlines" and parsed.line == 4
+    assert parsed.comment == "the struct\nmore\nlines\nand its brace's" and parsed.line == 4
     assert parsed.constants[0].comment == "a constant" and parsed.constants[0].text == "1"
     assert [m.comment for m in parsed.members] == ["two members", "", "doc\ncomment"]
     assert [m.trailing for m in parsed.members] == ["", "trailing: the last one's", "a\nb"]

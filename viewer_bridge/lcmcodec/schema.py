@@ -290,6 +290,7 @@ class _Parser:
     def parse_struct(self, comment: str, line: int) -> StructDef:
         name = self.identifier("a struct name")
         self.expect("{")
+        comment = "\n".join(filter(None, (comment, self.trailing())))  # `struct s {  // what s is`
         members: list[Member] = []
         constants: list[Constant] = []
         while self.peek() != "}":
