@@ -76,6 +76,7 @@ def lcmgen(tmp_path_factory: pytest.TempPathFactory) -> dict[str, type]:
     subprocess.run([str(SCRIPTS / "lcm-gen"), "--python", "--ppath", str(out), *schemas], check=True)
     sys.path.insert(0, str(out))
     classes: dict[str, type] = {}
+    before = set(sys.modules)
     try:
         for package in ("drake", "robotlocomotion"):
             for path in (out / package).glob("*.py"):
@@ -89,6 +90,11 @@ def lcmgen(tmp_path_factory: pytest.TempPathFactory) -> dict[str, type]:
                 classes[f"{package}.{path.stem}"] = getattr(module, path.stem)
     finally:
         sys.path.remove(str(out))
+        # The generated modules' own `import drake.…` imported this folder's `drake` package: it
+        # must not stand for pydrake's in later tests (TypeLibrary reads Drake's types from it).
+        for name in set(sys.modules) - before:
+            if str(getattr(sys.modules[name], "__file__", "")).startswith(str(out)):
+                del sys.modules[name]
     return classes
 
 
