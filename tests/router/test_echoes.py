@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import pytest
 
-from viewer_bridge.router import echoes
-from viewer_bridge.router.echoes import EchoGuard, Echoes, GuardedPublisher
-from viewer_bridge.transports.base import CallPublisher, MessageTime, Received
 from tests.peers import wait_for
+from viewer_bridge.router import echoes
+from viewer_bridge.router.echoes import Echoes, EchoGuard, GuardedPublisher
+from viewer_bridge.transports.base import CallPublisher, MessageTime, Received
 
 LCM_X = ("lcm", "X")
 
