@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
+from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef, nested_closure
 from viewer_bridge.lcmcodec.serde import (
     _bad_count,
     _min_sizes,
@@ -370,13 +370,7 @@ def compile_transcoders(
 ) -> dict[str, CdrTranscoder]:
     """The transcoders of types `names` (none may contain itself; every nested type is in `structs`)."""
     wanted = list(names)
-    needed: dict[str, None] = {}
-    pending = list(wanted)
-    while pending:
-        name = pending.pop()
-        if name not in needed:
-            needed[name] = None
-            pending.extend(m.type_name for m in structs[name].members if not m.is_primitive)
+    needed = nested_closure(structs, wanted)
     idents = {name: f"T{index}" for index, name in enumerate(needed)}
     min_sizes = _min_sizes({name: structs[name] for name in needed})
     out = _Writer()
