@@ -32,10 +32,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.lcmcodec.cdr import _swapped
+from viewer_bridge.lcmcodec.cdr import _swapped, compile_generated
 from viewer_bridge.lcmcodec.rosnames import field_name
-from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef, nested_closure
-from viewer_bridge.lcmcodec.serde import _min_sizes, _Writer, call_child, element_min_size
+from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
+from viewer_bridge.lcmcodec.serde import _Writer, call_child, element_min_size
 
 __all__ = ["LcmEncoder", "compile_encoders"]
 
@@ -285,15 +285,7 @@ def compile_encoders(
     structs: Mapping[str, StructDef], fingerprints: Mapping[str, bytes], names: Iterable[str]
 ) -> dict[str, LcmEncoder]:
     """The CDR -> LCM encoders of types `names` (none may contain itself; every nested type is in `structs`)."""
-    wanted = list(names)
-    needed = nested_closure(structs, wanted)
-    idents = {name: f"C{index}" for index, name in enumerate(needed)}
-    min_sizes = _min_sizes({name: structs[name] for name in needed})
-    out = _Writer()
-    formats: dict[str, object] = {}
-    for name in needed:
-        _Generator(structs[name], idents, min_sizes, out, formats).write()
-    namespace: dict[str, object] = {
+    helpers: dict[str, object] = {
         "DecodeError": DecodeError,
         "_truncated": _truncated,
         "_run_error": _run_error,
@@ -303,10 +295,6 @@ def compile_encoders(
         "_string": _string,
         "_U32_LE": _U32_LE,
         **{f"_swap{size}": _swapped(size) for size in (2, 4, 8)},
-        **formats,
     }
-    exec(compile("\n".join(out.lines) + "\n", "<cdr -> lcm encoders>", "exec"), namespace)  # noqa: S102
-    return {
-        name: LcmEncoder(name, fingerprints[name], namespace[idents[name]])  # type: ignore[arg-type]
-        for name in wanted
-    }
+    bodies = compile_generated(structs, list(names), "C", _Generator, helpers, "<cdr -> lcm encoders>")
+    return {name: LcmEncoder(name, fingerprints[name], body) for name, body in bodies.items()}
