@@ -76,13 +76,15 @@ def test_a_channel_carried_both_ways_on_the_same_names_does_not_echo(tmp_path: P
         on_ros = probe.subscribe("/LOOP_IIWA_COMMAND_A", COMMAND, latched=True)  # gets the first even if matched after it
         bus.publish("LOOP_IIWA_COMMAND_A", command(1).encode())
         assert probe.wait_for(lambda: len(on_ros) == 1, 60), bridge.lines[-10:]
-        assert probe.wait_for(lambda: probe.node.count_subscribers("/LOOP_IIWA_COMMAND_A") >= 2, 60)  # the probe's and the bridge's
+        # Two subscribers: the probe's and the bridge's own.
+        assert probe.wait_for(lambda: probe.node.count_subscribers("/LOOP_IIWA_COMMAND_A") >= 2, 60)
         bus.publish("LOOP_IIWA_COMMAND_A", command(2).encode())
         assert wait_for(lambda: held(stats, "back", "/LOOP_IIWA_COMMAND_A") == 1, 60), (stats_of(stats), bridge.lines[-10:])
         assert probe.wait_for(lambda: len(on_ros) == 2, 60)
         recorder.sync()
         assert [message.utime for message in on_ros] == [1, 2]
-        assert recorder.messages["LOOP_IIWA_COMMAND_A"] == [command(1).encode(), command(2).encode()]  # the test's own: no echo
+        # Only the test's own two: no echo.
+        assert recorder.messages["LOOP_IIWA_COMMAND_A"] == [command(1).encode(), command(2).encode()]
 
         # ROS -> LCM. The bridge sends LOOP_IIWA_COMMAND_B on LCM, hears it back, and holds it in `out`.
         publisher = probe.publisher("/LOOP_IIWA_COMMAND_B", COMMAND)
