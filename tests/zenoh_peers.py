@@ -166,7 +166,10 @@ class RmwZenohPeer:
         self._lock = threading.Lock()
         self._sequence = 0
 
-    def subscribe(self, topic: str, typename: str, latched: bool = False, depth: int = 10) -> list[Arrival]:
+    def subscribe(
+        self, topic: str, typename: str, latched: bool = False, depth: int = 10, type_hash: str | None = None
+    ) -> list[Arrival]:
+        """What arrives on the topic's data key (`type_hash`: for a type not in Jazzy)."""
         arrivals = self.arrivals.setdefault(topic, [])
 
         def keep(sample: zenoh.Sample) -> None:
@@ -177,7 +180,7 @@ class RmwZenohPeer:
                             None if attachment is None else attachment.to_bytes(), time.time_ns())
                 )  # fmt: skip
 
-        key = data_key(self.domain, topic, typename)
+        key = data_key(self.domain, topic, typename, type_hash)
         if latched:
             history = zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=depth)
             self._held.append(zenoh.ext.declare_advanced_subscriber(self.session, key, keep, history=history))
