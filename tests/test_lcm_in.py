@@ -136,6 +136,9 @@ def test_rclpy_commands_reach_lcm_as_lcm_gen_writes_them_and_bad_cdr_is_counted_
     try:
         bridge.wait_for_line(" running (")
         sent = corpus_messages(lcmgen_corpus)
+        # The outward route copies what the bridge sends on IIWA_COMMAND to /lcm/IIWA_COMMAND: the
+        # loop guard lets that copy through (another name), as it would any node's command.
+        copies = probe.subscribe("/lcm/IIWA_COMMAND", "drake_lcm_msgs/msg/LcmtIiwaCommand")
         publishers = {}
         for channel, message in sent.items():
             typename = ros_type_of(corpus_interfaces, message)
@@ -148,6 +151,8 @@ def test_rclpy_commands_reach_lcm_as_lcm_gen_writes_them_and_bad_cdr_is_counted_
         assert wait_for(lambda: all(channel in recorder.messages for channel in sent), 60), bridge.lines[-10:]
         recorder.sync()
         assert_lcm_got(recorder, sent)
+        assert probe.wait_for(lambda: len(copies) >= 1, 60), bridge.lines[-10:]  # lazy: sent once it sees the probe
+        assert copies[0].utime == sent["IIWA_COMMAND"].utime
 
         # Bad CDR on the same topic (rclpy publishes bytes as they are): short, too long, and a
         # length field that disagrees with its sequence. Each is counted and named; none is sent.
