@@ -134,7 +134,7 @@ def iiwa_command_baseline(cdr: bytes) -> Callable[[], bytes]:
         ros = deserialize_message(cdr, LcmtIiwaCommand)
         message = drake.lcmt_iiwa_command()
         message.utime, message.num_joints, message.num_torques = ros.utime, ros.num_joints, ros.num_torques
-        message.joint_position, message.joint_torque = ros.joint_position, ros.joint_torque  # array.arrays: encode takes them
+        message.joint_position, message.joint_torque = ros.joint_position, ros.joint_torque  # encode takes arrays
         return message.encode()  # type: ignore[no-any-return]
 
     return build
