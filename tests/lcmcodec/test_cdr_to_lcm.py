@@ -298,3 +298,62 @@ def test_random_bytes_raise_only_decode_errors(data: bytes) -> None:
         with contextlib.suppress(DecodeError):
             lcm = known.from_cdr(b"\0\1\0\0" + data)
             assert known.from_cdr(known.to_cdr(lcm)) == lcm  # what is taken is a valid LCM message
+
+
+# --- the kept layouts of messages of numbers only ------------------------------------------------------
+
+MIX = """package mix;
+struct mix_t { int8_t n; boolean flags[n]; float f[n]; int16_t m; int64_t big[m][2]; double d; boolean ok; }
+"""
+
+
+def _same(known: LcmType, data: bytes) -> None:
+    """The kept-layout path gives what the generated code gives: the same bytes or the same error."""
+    encoder = known._encoder
+    try:
+        want: bytes | str = encoder._encode(data)
+    except DecodeError as error:
+        want = str(error)
+    try:
+        got: bytes | str = known.from_cdr(data)
+    except DecodeError as error:
+        got = str(error)
+    assert got == want
+
+
+def test_a_kept_layout_takes_only_messages_of_its_own_shape(iiwa: LcmType) -> None:
+    """(7, 7) and (6, 8) joints and torques give CDR of one size: the second must not be read
+    with the first's layout; nor a message whose length field disagrees with its count."""
+    seven = iiwa.to_cdr(_iiwa_command(7, 7).encode())
+    six = iiwa.to_cdr(_iiwa_command(6, 8).encode())
+    assert len(seven) == len(six)
+    assert iiwa.from_cdr(seven) == _iiwa_command(7, 7).encode()
+    assert len(iiwa._encoder._layouts) == 1
+    assert iiwa.from_cdr(six) == _iiwa_command(6, 8).encode()
+    assert iiwa.from_cdr(seven) == _iiwa_command(7, 7).encode()
+    lying = bytearray(seven)
+    lying[4 + 8] = 6  # num_joints 6, seven positions
+    _refused(iiwa, bytes(lying), "joint_position", "has 7 elements, but num_joints = 6")
+    big_endian = b"\0\0" + seven[2:]
+    _refused(iiwa, big_endian, "<header>", "big-endian")
+
+
+def test_kept_layouts_agree_with_the_generated_code(tmp_path: Any) -> None:
+    (tmp_path / "mix.lcm").write_text(MIX)
+    known = TypeLibrary.load([str(tmp_path / "mix.lcm")], drake=False).get("mix.mix_t")
+    lcm = known.packed_fingerprint + struct.pack(">b2?2fh4qd?", 2, True, False, 0.5, -1.0, 2, 1, 2, 3, 4, 9.5, True)
+    cdr = known.to_cdr(lcm)
+    assert known.from_cdr(cdr) == lcm and known._encoder._layouts
+
+    @given(st.lists(st.tuples(st.integers(0, len(cdr) - 1), st.integers(0, 255)), max_size=4))
+    @settings(max_examples=400, deadline=None)
+    def check(changes: list[tuple[int, int]]) -> None:
+        data = bytearray(cdr)
+        for index, value in changes:
+            data[index] = value
+        _same(known, bytes(data))
+
+    check()
+    flags = bytearray(cdr)
+    flags[4 + 9] = 2  # after the header: n at 0, its count at 4..8, the flags at 8 and 9
+    _refused(known, bytes(flags), "flags[1]", "bool byte 2")

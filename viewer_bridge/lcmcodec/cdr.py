@@ -16,7 +16,7 @@ including a NUL, the UTF-8 bytes and the NUL; a nested message inline; an empty 
 Bad input raises `DecodeError` naming the type, the field path and the byte offset: a wrong
 fingerprint, too few or too many bytes, a negative length, a count whose elements could not fit
 in the bytes that remain (checked before anything is allocated), a string without its NUL or not
-UTF-8. The reverse direction (CDR -> LCM) would be a second generator beside `_Generator`.
+UTF-8. The reverse direction (CDR -> LCM) is `cdr_to_lcm`, compiled by the same `compile_generated`.
 """
 
 from __future__ import annotations

@@ -28,8 +28,8 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass
-from typing import Any
+from operator import itemgetter
+from typing import Any, NamedTuple
 
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec.cdr import _swapped, compile_generated
@@ -49,16 +49,43 @@ _U32_BE = struct.Struct(">I").pack
 _NOT_BOOL = bytes(range(2))  # what `translate` deletes from a bool array: anything left is not 0 or 1
 
 
-@dataclass(frozen=True)
 class LcmEncoder:
-    """The compiled CDR -> LCM path of one type."""
+    """The compiled CDR -> LCM path of one type.
 
-    type_name: str
-    packed_fingerprint: bytes
-    _body: Callable[[Any, int, int, list[Any]], int]
+    For a type of numbers only (scalars and arrays of them, as robot commands are), the layout
+    of a message is fixed by its sequence counts: after a message has passed the generated code,
+    its layout is kept (by total size) as one little-endian `struct` that reads every number as
+    raw bits, the positions of the header, counts and length fields with their values, and one
+    big-endian `struct`. A message of the same size whose header, counts and length fields are
+    those values has the same layout, so it is converted with one unpack, one comparison and one
+    pack (bools checked to be 0 or 1). Anything else takes the generated code, which finds and
+    names what is wrong."""
+
+    def __init__(self, type_name: str, packed_fingerprint: bytes, body: Callable[[Any, int, int, list[Any]], int],
+                 definition: StructDef | None = None) -> None:  # fmt: skip
+        self.type_name = type_name
+        self.packed_fingerprint = packed_fingerprint
+        self._body = body
+        self._flat = definition if definition is not None and _numbers_only(definition) else None
+        self._layouts: dict[int, _Layout] = {}
 
     def encode(self, data: Buffer) -> bytes:
         """A whole CDR message (encapsulation header first) as the whole LCM message."""
+        layout = self._layouts.get(len(data)) if type(data) is bytes else None
+        if layout is not None:
+            read, key, expected, bools, write = layout
+            values = read(data)
+            if key(values) == expected and (bools is None or max(bools(values)) <= 1):
+                return self.packed_fingerprint + write(*values)
+        lcm = self._encode(data)
+        if self._flat is not None and type(data) is bytes and len(self._layouts) < _LAYOUTS:
+            found = _layout(self._flat, data)
+            if found is not None:
+                self._layouts[len(data)] = found
+        return lcm
+
+    def _encode(self, data: Buffer) -> bytes:
+        """The generated code's way: every check, every error named."""
         view = memoryview(data).cast("B") if type(data) is not bytes else memoryview(data)
         total = len(view)
         if total < _HEADER:
@@ -75,6 +102,76 @@ class LcmEncoder:
         if offset != end and not (end - offset < 4 and total % 4 == 0):
             raise DecodeError(self.type_name, "<end>", offset, f"{end - offset} trailing bytes")
         return b"".join(out)
+
+
+# --- the layouts of messages of numbers only ---------------------------------------------------------
+
+_LAYOUTS = 16  # sizes kept per type (a robot sends one or two)
+_LAYOUT_VALUES = 256  # beyond this many numbers, the generated code's byte swap is faster
+# How each number is read and written: as itself, except that a float32 goes as its raw bits
+# (Python would widen it to a double and back, which turns a signalling NaN into a quiet one).
+_CODES = {"int8_t": "b", "int16_t": "h", "int32_t": "i", "int64_t": "q", "float": "I", "double": "d",
+          "boolean": "B", "byte": "B"}  # fmt: skip
+
+
+class _Layout(NamedTuple):  # a tuple: unpacked at once on the fast path
+    read: Callable[[Buffer], tuple[Any, ...]]  # every value of the whole CDR message, header first
+    key: Callable[[tuple[Any, ...]], tuple[Any, ...]]  # the header, counts and length fields
+    expected: tuple[Any, ...]
+    bools: Callable[[tuple[Any, ...]], Any] | None
+    write: Callable[..., bytes]  # all of them again, as LCM: the header and counts as nothing ("0s")
+
+
+def _numbers_only(definition: StructDef) -> bool:
+    return bool(definition.members) and all(member.type_name in PRIMITIVE_FORMATS for member in definition.members)
+
+
+def _layout(definition: StructDef, data: Buffer) -> _Layout | None:
+    """The layout of `data`, a valid CDR message of `definition` (numbers only), or None when it
+    holds too many numbers (or too few to be worth it). The header and the sequence counts are
+    read as bytes ("2s", "4s") so that the big-endian `struct` can take them and write nothing
+    ("0s"): one tuple goes from one `struct` to the other untouched."""
+    lengths = {dim.size for member in definition.members for dim in member.dims if dim.is_variable}
+    little, big = "<2s2x", ">0s"
+    key: list[int] = [0, 0]
+    expected: list[Any] = [_CDR_LE, _CDR_LE]
+    bools: list[int] = []
+    position, index, numbers = 0, 1, 0
+    for member in definition.members:
+        size = PRIMITIVE_FORMATS[member.type_name][1]
+        code = _CODES[member.type_name]
+        if member.dims and not (len(member.dims) == 1 and not member.dims[0].is_variable):
+            pad = -position & 3
+            little += "x" * pad + "4s"
+            big += "0s"
+            count_bytes = bytes(data[_HEADER + position + pad : _HEADER + position + pad + 4])
+            count = int.from_bytes(count_bytes, "little")
+            key.append(index)
+            expected.append(count_bytes)
+            position += pad + 4
+            index += 1
+        else:
+            count = member.dims[0].count if member.dims else 1
+        pad = -position & (size - 1) if count else 0
+        little += "x" * pad + f"{count}{code}"
+        big += f"{count}{code}"
+        if member.name in lengths:
+            key.append(index)
+            expected.append(struct.unpack_from(f"<{code}", data, _HEADER + position + pad)[0])
+        if member.type_name == "boolean":
+            bools.extend(range(index, index + count))
+        position += pad + count * size
+        index += count
+        numbers += count
+    if not 2 <= numbers <= _LAYOUT_VALUES:
+        return None
+    return _Layout(
+        read=struct.Struct(little).unpack_from,
+        key=itemgetter(*key),
+        expected=tuple(expected),
+        bools=itemgetter(*(bools * 2)) if bools else None,  # twice: a tuple even for one bool
+        write=struct.Struct(big).pack,
+    )
 
 
 # --- what the generated code calls when something is wrong, or for whole values ----------------------
@@ -297,4 +394,4 @@ def compile_encoders(
         **{f"_swap{size}": _swapped(size) for size in (2, 4, 8)},
     }
     bodies = compile_generated(structs, list(names), "C", _Generator, helpers, "<cdr -> lcm encoders>")
-    return {name: LcmEncoder(name, fingerprints[name], body) for name, body in bodies.items()}
+    return {name: LcmEncoder(name, fingerprints[name], body, structs[name]) for name, body in bodies.items()}

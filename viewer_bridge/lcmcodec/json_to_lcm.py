@@ -132,6 +132,12 @@ class JsonEncoder:
         lengths = {dim.size for member in struct_.members for dim in member.dims if dim.is_variable}
         self._lengths = [member for member in struct_.members if member.name in lengths]
         self._arrays = [m for m in struct_.members if any(dim.is_variable for dim in m.dims)]
+        # When every variable array is one-dimensional (most robot types), a length field is
+        # simply the length of the first of its arrays that is given: no search needed.
+        self._sized: dict[str, list[Member]] | None = None
+        if all(len(array.dims) == 1 for array in self._arrays):
+            self._sized = {member.name: [a for a in self._arrays if a.dims[0].size == member.name]
+                           for member in self._lengths}  # fmt: skip
         self._children = children
         self._steps: list[tuple[Member, Encode]] = [(member, self._step(member)) for member in struct_.members]
 
@@ -188,7 +194,17 @@ class JsonEncoder:
                 raise JsonValueError(self.type_name, ros, f"a length field cannot be negative ({given})")
             known[member.name] = given
         derived_from: dict[str, str] = {}
-        changed = True
+        if self._sized is not None:
+            for name, arrays in self._sized.items():
+                for array in arrays if name not in known else ():
+                    items = value.get(self._ros[array.name], _MISSING)
+                    if type(items) is str and array.type_name == "byte":
+                        items = self._bytes(array, self._ros[array.name], items)
+                    if type(items) is list:
+                        known[name] = len(items)
+                        derived_from[name] = self._ros[array.name]
+                        break
+        changed = self._sized is None
         while changed:  # each round derives at least one more length, so it ends
             changed = False
             for array in self._arrays:

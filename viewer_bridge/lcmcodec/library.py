@@ -7,6 +7,10 @@ Usage::
     if known is not None and known.ros_type is not None:
         cdr = known.to_cdr(data)                                   # for /lcm/<channel>
 
+    back = library.for_ros_type("drake_lcm_msgs/msg/LcmtIiwaCommand")  # or "drake_lcm_msgs/LcmtIiwaCommand"
+    lcm = back.from_cdr(cdr)                                       # a ROS 2 message -> LCM bytes
+    lcm = back.from_json({"utime": 1, "joint_position": [0.0] * 7})  # a Foxglove client's JSON -> LCM bytes
+
 Types come from `.lcm` files, folders of them (searched recursively) and lcm-gen'd Python
 modules by import name; the project's own `lcmtypes/` always, and pydrake's `drake` module when
 it can be imported. All of them become the same `StructDef`s (`schema`), and one mapping
