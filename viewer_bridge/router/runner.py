@@ -118,7 +118,11 @@ class RouteRunner:
         match = self.pattern.fullmatch(received.channel)
         if match is None:
             return
-        if (self.route.destination.transport, destination_name(self.route.destination.name, match)) != origin:
+        try:
+            back_where = (self.route.destination.transport, destination_name(self.route.destination.name, match))
+        except Exception:  # a name the template cannot make: offered, and counted where it is made
+            back_where = None
+        if back_where != origin:
             self.offer(received)  # a copy elsewhere (LCM X -> /lcm/X beside /lcm_in/X -> X): no loop
             return
         self.stats.messages_in += 1
