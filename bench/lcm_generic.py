@@ -1,4 +1,4 @@
-"""Benchmark: any LCM type to ROS 2 CDR, the compiled transcoder against the obvious Python path.
+"""Benchmark: any LCM type to ROS 2 CDR and back, the compiled code against the obvious Python path.
 
 Run: .venv/bin/python bench/lcm_generic.py [--quick]
 
@@ -9,6 +9,11 @@ until then it is `sensor_msgs/JointState` carrying three of the seven arrays (a 
 than the real one, so the ratio is a lower bound), and the row says which. The 100,000-element
 array is a type of one `double[n]` against lcm-gen's class and `std_msgs/Float64MultiArray`, and
 against numpy byte-swapping the same 800 kB (the floor of any LCM -> CDR conversion).
+The way back (issue 32): `lcmt_iiwa_command` (7 joints, as Drake's driver takes it) from CDR to
+LCM bytes against rclpy's `deserialize_message` into the built `drake_lcm_msgs/LcmtIiwaCommand`
+and Drake's lcm-gen'd class filled from it and encoded; the 100,000 doubles against rclpy's
+`deserialize_message` of a `Float64MultiArray` and lcm-gen's class. Each row first checks that
+both sides give the same LCM bytes.
 Both sides of a row run in this process on the same bytes, in alternating rounds.
 """
 
@@ -109,8 +114,74 @@ def big_baseline(lcmgen_class: Any, data: bytes) -> Callable[[], bytes]:
     return build
 
 
+def iiwa_command(joints: int = 7) -> Any:
+    message = drake.lcmt_iiwa_command()
+    message.utime = 1_700_000_000_000_000
+    message.num_joints = message.num_torques = joints
+    rng = np.random.default_rng(2)
+    message.joint_position = rng.normal(size=joints).tolist()
+    message.joint_torque = rng.normal(size=joints).tolist()
+    return message
+
+
+def iiwa_command_baseline(cdr: bytes) -> Callable[[], bytes]:
+    """What a hand-written ROS 2 -> LCM bridge does: rclpy's `deserialize_message` into the built
+    `drake_lcm_msgs/LcmtIiwaCommand`, then Drake's lcm-gen'd class filled from it and encoded."""
+    from drake_lcm_msgs.msg import LcmtIiwaCommand
+    from rclpy.serialization import deserialize_message
+
+    def build() -> bytes:
+        ros = deserialize_message(cdr, LcmtIiwaCommand)
+        message = drake.lcmt_iiwa_command()
+        message.utime, message.num_joints, message.num_torques = ros.utime, ros.num_joints, ros.num_torques
+        message.joint_position, message.joint_torque = ros.joint_position, ros.joint_torque  # encode takes arrays
+        return message.encode()  # type: ignore[no-any-return]
+
+    return build
+
+
+def big_back_baseline(lcmgen_class: Any, values: list[float]) -> Callable[[], bytes]:
+    """rclpy's `deserialize_message` of a `std_msgs/Float64MultiArray` holding the same doubles,
+    and lcm-gen's class filled from it and encoded."""
+    from rclpy.serialization import deserialize_message, serialize_message
+    from std_msgs.msg import Float64MultiArray
+
+    cdr = serialize_message(Float64MultiArray(data=values))
+
+    def build() -> bytes:
+        ros = deserialize_message(cdr, Float64MultiArray)
+        message = lcmgen_class()
+        message.n, message.values = len(ros.data), ros.data.tolist()
+        return message.encode()  # type: ignore[no-any-return]
+
+    return build
+
+
+def reverse_measures(quick: bool, library: TypeLibrary, big_library: TypeLibrary, lcmgen_class: Any,
+                     big: bytes) -> list[Measure]:  # fmt: skip
+    """Issue 32's speed goal: CDR -> LCM."""
+    known = library.get("drake.lcmt_iiwa_command")
+    lcm = iiwa_command().encode()
+    cdr = known.to_cdr(lcm)
+    baseline = iiwa_command_baseline(cdr)
+    assert known.from_cdr(cdr) == lcm == baseline()  # noqa: S101 (the rows compare like with like)
+    ours, base = paired(partial(known.from_cdr, cdr), baseline, quick)
+    rows = [Measure("lcmt_iiwa_command (7 joints) CDR -> LCM, vs rclpy deserialize + lcm-gen", ours * 1e6,
+                    base * 1e6, "us", "ratio >= 20x", base / ours >= 20)]  # fmt: skip
+    big_known = big_library.get("bench.big_array_t")
+    big_cdr = big_known.to_cdr(big)
+    values = lcmgen_class.decode(big).values
+    big_base = big_back_baseline(lcmgen_class, list(values))
+    assert big_known.from_cdr(big_cdr) == big == big_base()  # noqa: S101
+    ours, base = paired(partial(big_known.from_cdr, big_cdr), big_base, quick)
+    rows.append(Measure("double[100000] CDR -> LCM, vs rclpy Float64MultiArray + lcm-gen", ours * 1e3,
+                        base * 1e3, "ms", "ratio >= 50x", base / ours >= 50))  # fmt: skip
+    return rows
+
+
 def measures(quick: bool = False) -> list[Measure]:
-    """Issue 31's speed goals 1 and 2 (the throughput goal is the router's, in its own bench)."""
+    """Issue 31's speed goals 1 and 2 (the throughput goal is the router's, in its own bench), and
+    issue 32's (CDR -> LCM)."""
     rows = []
     library = TypeLibrary.load()
     data = iiwa_status().encode()
@@ -129,6 +200,7 @@ def measures(quick: bool = False) -> list[Measure]:
         ours, floor = paired(partial(big_known.to_cdr, big), swap, quick)
         rows.append(Measure("double[100000] -> CDR, vs numpy byteswap of its bytes", ours * 1e3, floor * 1e3,
                             "ms", "ours <= 3x numpy", ours <= 3 * floor))  # fmt: skip
+        rows += reverse_measures(quick, library, big_library, lcmgen_class, big)
     return rows
 
 

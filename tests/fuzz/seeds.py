@@ -159,7 +159,7 @@ def zenoh_seeds() -> Seeds:
 def lcm_type_seeds() -> Seeds:
     """The `.lcm` files of the project and of the test corpus; for the generic transcoder, an
     empty and a filled message of each of its types (a type-choosing byte, then the body)."""
-    from tests.fuzz.targets import _CORPUS, _GENERIC, GENERIC_TYPES
+    from tests.fuzz.targets import _CORPUS, _GENERIC, BACK_TYPES, GENERIC_TYPES
 
     schemas = sorted(SCHEMA_DIR.glob("*.lcm")) + sorted(_CORPUS.rglob("*.lcm"))
     messages: list[bytes] = []
@@ -168,7 +168,18 @@ def lcm_type_seeds() -> Seeds:
         codec = codecs[name]
         for message in (codec.message_class(), _filled(name, codecs)):
             messages.append(bytes([choice]) + codec.encode(message)[8:])
-    return {"lcm_schema": [path.read_bytes() for path in schemas], "lcm_generic": messages}
+    back_cdr, back_json = [], []
+    for choice, name in enumerate(BACK_TYPES):
+        known = _GENERIC.get(name)
+        codecs = _GENERIC.codecs(name)
+        for message in (codecs[name].message_class(), _filled(name, codecs)):
+            back_cdr.append(bytes([choice]) + known.to_cdr(codecs[name].encode(message)))
+        back_json.append(bytes([128 + choice]) + b"{}")
+        back_json.append(bytes([choice]) + bytes([7, 9, 0, 1, 2, 3, 6, 2]) + bytes(8) + bytes([8, 8]))
+    iiwa = BACK_TYPES.index("drake.lcmt_iiwa_command")
+    back_json.append(bytes([128 + iiwa]) + b'{"utime": 5, "joint_position": [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]}')
+    return {"lcm_schema": [path.read_bytes() for path in schemas], "lcm_generic": messages,
+            "lcm_back_cdr": back_cdr, "lcm_back_json": back_json}  # fmt: skip
 
 
 def _filled(type_name: str, codecs: dict[str, StructCodec]) -> LcmMessage:

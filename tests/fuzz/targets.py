@@ -17,6 +17,7 @@ This module imports `bridge` at its top on purpose: the fuzz runner imports it i
 from __future__ import annotations
 
 import inspect
+import json
 import struct
 import sys
 import tempfile
@@ -32,6 +33,7 @@ from viewer_bridge.errors import (
     DecodeError,
     EncodeError,
     GltfError,
+    JsonValueError,
     RequestRejected,
     SceneError,
     SchemaError,
@@ -46,7 +48,7 @@ from viewer_bridge.formats.ign.model import scene_from_model
 from viewer_bridge.formats.ign.schema import MESSAGES
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr
 from viewer_bridge.lcmcodec import CODECS, LOAD_ROBOT, STRUCTS, VIEWER2_COMMS, StructCodec
-from viewer_bridge.lcmcodec.library import TypeLibrary
+from viewer_bridge.lcmcodec.library import LcmType, TypeLibrary
 from viewer_bridge.lcmcodec.rosmsg import map_to_ros
 from viewer_bridge.lcmcodec.schema import check_references, parse_lcm
 from viewer_bridge.render import Camera
@@ -345,6 +347,149 @@ def lcm_generic(data: bytes) -> object:
 
 register(Target("lcm_schema", lcm_schema, (SchemaError,), ("lcm_schema",)))
 register(Target("lcm_generic", lcm_generic, (DecodeError,), ("lcm_generic",)))
+
+
+# --- any LCM type, back: CDR -> LCM and JSON -> LCM -------------------------------------------------------
+
+BACK_TYPES = (*GENERIC_TYPES, "drake.lcmt_iiwa_command")  # the last: numbers only, its layouts kept
+
+
+def _instrument_back_code() -> None:
+    """Under the fuzzer, instrument the CDR -> LCM code generated for BACK_TYPES too."""
+    atheris = sys.modules.get("atheris")
+    if atheris is None:
+        return
+    for name in BACK_TYPES:
+        namespace = _GENERIC.get(name)._encoder._body.__globals__
+        for value in list(namespace.values()):
+            if inspect.isfunction(value) and value.__code__.co_filename.startswith("<cdr"):
+                atheris.instrument_func(value)
+
+
+_instrument_back_code()
+
+
+def _lcm_is_valid(known: LcmType, lcm: bytes) -> None:
+    """What the way back wrote must be the type's LCM: it decodes, and goes to CDR and back unchanged."""
+    known.to_json(lcm)
+    if known.from_cdr(known.to_cdr(lcm)) != lcm:
+        raise AssertionError("LCM -> CDR -> LCM changed the message")
+
+
+def lcm_back_cdr(data: bytes) -> object:
+    """The first byte picks a type of BACK_TYPES, the rest is CDR (header included) as a ROS 2
+    publisher or a Foxglove client sends it. What is taken must be valid LCM, and the same as the
+    generated code alone makes of it (the kept layouts of a numbers-only type are a shortcut)."""
+    known = _GENERIC.get(BACK_TYPES[data[0] % len(BACK_TYPES)] if data else BACK_TYPES[0])
+    cdr = data[1:]
+    lcm = known.from_cdr(cdr)
+    if known._encoder._encode(cdr) != lcm:
+        raise AssertionError("the kept layout and the generated code disagree")
+    _lcm_is_valid(known, lcm)
+    return lcm
+
+
+_JSON_OPS = 12
+_HUGE_LIST = 1 << 20
+
+
+def json_value(data: bytes, names: list[str]) -> object:
+    """A JSON value built from bytes by a small stack machine (no recursion, so nesting may be as
+    deep as the input is long): numbers of every size (NaN, infinities and 2000-bit integers
+    included), strings, booleans, null, arrays, objects keyed by the type's field names or not,
+    and arrays of up to a million elements."""
+    root: list[object] = []
+    stack: list[list[object] | dict[str, object]] = [root]
+    at = 0
+
+    def take(count: int) -> bytes:
+        nonlocal at
+        chunk = data[at : at + count]
+        at += count
+        return chunk
+
+    while at < len(data):
+        op = data[at] % _JSON_OPS
+        at += 1
+        value: object
+        if op == 0:
+            value = int.from_bytes(take(1), "little", signed=True)
+        elif op == 1:
+            size = take(1)
+            value = int.from_bytes(take(size[0] if size else 0), "little", signed=True)
+        elif op == 2:
+            raw = take(8).ljust(8, b"\0")
+            value = struct.unpack("<d", raw)[0]
+        elif op == 3:
+            size = take(1)
+            value = take(size[0] if size else 0).decode("utf-8", "surrogateescape" if at % 2 else "replace")
+        elif op == 4:
+            value = bool(at % 2)
+        elif op == 5:
+            value = None
+        elif op == 6:
+            stack.append([])
+            continue
+        elif op == 7:
+            stack.append({})
+            continue
+        elif op == 8 and len(stack) > 1:
+            value = stack.pop()
+        elif op == 9:
+            size = int.from_bytes(take(3), "little") % _HUGE_LIST
+            value = [0.5 if at % 2 else 1] * size
+        elif op == 10:
+            value = list(take(take(1)[0] if at < len(data) else 0))  # bytes as a list of 0..255
+        else:
+            continue
+        top = stack[-1]
+        if isinstance(top, dict):
+            pick = take(1)
+            top[names[pick[0] % len(names)] if pick and pick[0] < 240 else f"x{len(top)}"] = value
+        else:
+            top.append(value)
+    while len(stack) > 1:  # close what is open
+        value = stack.pop()
+        top = stack[-1]
+        if isinstance(top, dict):
+            top[names[len(top) % len(names)]] = value
+        else:
+            top.append(value)
+    return root[0] if root else {}
+
+
+def _ros_names(known: LcmType) -> list[str]:
+    """Every ROS 2 field name of `known` and of the types it nests."""
+    from viewer_bridge.lcmcodec.rosnames import field_name
+
+    return sorted({field_name(member.name) for definition in known._library._closure(known.full_name).values()
+                   for member in definition.members})  # fmt: skip
+
+
+_BACK_NAMES = {name: _ros_names(_GENERIC.get(name)) or ["x"] for name in BACK_TYPES}
+
+
+def lcm_back_json(data: bytes) -> object:
+    """The first byte picks a type of BACK_TYPES and how the rest becomes a JSON value: parsed
+    as JSON text (when it is), or built by `json_value`. What is taken must be valid LCM."""
+    choice = data[0] if data else 0
+    name = BACK_TYPES[choice % len(BACK_TYPES)]
+    known = _GENERIC.get(name)
+    value: object
+    if choice >= 128:
+        try:
+            value = json.loads(data[1:])
+        except (ValueError, RecursionError):  # not JSON, or too deep for Python's parser: the transport's concern
+            return None
+    else:
+        value = json_value(data[1:], _BACK_NAMES[name])
+    lcm = known.from_json(value)
+    _lcm_is_valid(known, lcm)
+    return lcm
+
+
+register(Target("lcm_back_cdr", lcm_back_cdr, (DecodeError,), ("lcm_back_cdr",)))
+register(Target("lcm_back_json", lcm_back_json, (JsonValueError,), ("lcm_back_json",)))
 
 
 # --- the config loader ----------------------------------------------------------------------------------
