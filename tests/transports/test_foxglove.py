@@ -416,7 +416,7 @@ def test_without_the_front_only_the_sdks_name_is_served() -> None:
 
     from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
 
-    transport = FoxgloveTransport(FoxgloveSettings(port=0, accept_websocket_v1=False))
+    transport = FoxgloveTransport(FoxgloveSettings(port=0, accept_websocket_v1=False, client_publish=False))
     url = f"ws://127.0.0.1:{transport.port}"
     try:
         assert transport.front is None and transport.port == transport.server.port
