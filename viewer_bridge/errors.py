@@ -151,6 +151,11 @@ class Held(BridgeError):
         super().__init__(reason)
 
 
+class NotAnLcmType(BridgeError):
+    """A message routed to LCM whose type is no generated LCM type (or that came with no type):
+    names the topic and the type, so the sender (a ROS node, a Foxglove client) can tell."""
+
+
 class HandshakeError(BridgeError):
     """A client connection whose opening handshake cannot be relayed (cut off, too long, too slow)."""
 
@@ -190,6 +195,7 @@ __all__ = [
     "Interrupted",
     "LogError",
     "MissingExtra",
+    "NotAnLcmType",
     "RequestRejected",
     "RosInterfaceError",
     "SceneError",

@@ -32,6 +32,7 @@ from typing import Any
 
 from viewer_bridge.config import BridgeConfig, Route
 from viewer_bridge.lcmcodec.library import TypeLibrary
+from viewer_bridge.router.echoes import Echoes
 from viewer_bridge.router.flow import InlineBudget
 from viewer_bridge.router.runner import PublisherFor, RouteRunner
 from viewer_bridge.status import LogLines, StatusView, counted
@@ -87,6 +88,7 @@ class Router:
         self.routes: list[RouteRunner] = []
         self._sourced: dict[str, list[RouteRunner]] = {}  # by source transport, for `feed`
         self._inline = InlineBudget()
+        self._echoes = Echoes(self.shared.message_time)  # the loop guard of names both published and subscribed
         self._stop = threading.Event()
         self._started = False
         try:
@@ -120,16 +122,27 @@ class Router:
         # one clear line at start, not an error per message.
         source.require(translator.reads[:1] + ((translator.replies,) if translator.replies else ()))
         self.transports[route.destination.transport].require(translator_class.writes(options))
-        source.subscribe(route.source.name, translator.reads[0], output_qos(route, False), runner.offer)
+        deliver = self._echoes.deliver(route.source.transport, runner.offer, runner.came_back)
+        source.subscribe(route.source.name, translator.reads[0], output_qos(route, False), deliver)
         return runner
 
     def _publisher_factory(self, route: Route) -> PublisherFor:
         transport = self.transports[route.destination.transport]
 
         def make(name: str, output: Output) -> Publisher:
-            return transport.publisher(name, output.type, output_qos(route, output.latched))
+            publisher = transport.publisher(name, output.type, output_qos(route, output.latched))
+            subscribed = self._subscribed(route.destination.transport, name)
+            return self._echoes.publisher(
+                route.destination.transport, name, publisher, route.source.transport, subscribed
+            )
 
         return make
+
+    def _subscribed(self, transport: str, name: str) -> bool:
+        """Whether a route reads `name` on `transport` (then what is published there may come back)."""
+        return any(
+            runner.route.source.transport == transport and runner.pattern.fullmatch(name) for runner in self.routes
+        )
 
     def _replier(self, route: Route) -> Callable[[str, bytes], None]:
         """Publishing back on the route's source transport, a publisher per channel."""

@@ -111,6 +111,20 @@ class RouteRunner:
             if not self._translated_inline(message):
                 self.mailbox.put(message)
 
+    def came_back(self, received: Received, origin: tuple[str, str]) -> None:
+        """A message the bridge itself sent, come back (the loop guard, `viewer_bridge.router.echoes`)
+        from `origin` (transport, channel) where it first came from: held (`own_message`) when this
+        route would send it back there, else offered as any other."""
+        match = self.pattern.fullmatch(received.channel)
+        if match is None:
+            return
+        if (self.route.destination.transport, destination_name(self.route.destination.name, match)) != origin:
+            self.offer(received)  # a copy elsewhere (LCM X -> /lcm/X beside /lcm_in/X -> X): no loop
+            return
+        self.stats.messages_in += 1
+        self.stats.bytes_in += len(received.data)
+        self._count_held(received.channel, Held("own_message", "the bridge's own message, come back: not sent again"))
+
     def feed(self, received: Received) -> None:
         """Offline (no worker running): translate and publish at once, on the caller's thread, if
         this route's source matches; no mailbox and no rate limit, so every message is translated."""
@@ -235,6 +249,7 @@ class RouteRunner:
             else:  # a geometry a target cannot write: a warning
                 self._count(self.stats.warnings, "skipped_geometry", f"{message.channel}: {part}")
         self._message_time.received_us = message.received.received_us  # what a file stamps its outputs with
+        self._message_time.channel = message.channel  # where they came from (the loop guard)
         for index, payload in outputs:
             try:
                 lane.publisher(index).publish(payload)
@@ -252,7 +267,9 @@ class RouteRunner:
     def _held(self, message: Message, held: Held) -> None:
         """A message held back on purpose: counted per channel and kind, said once per both."""
         self._tell_source(message, held)
-        channel = message.channel
+        self._count_held(message.channel, held)
+
+    def _count_held(self, channel: str, held: Held) -> None:
         self.stats.held.setdefault(channel, Counter())[held.kind] += 1
         if (channel, held.kind) not in self._held_logged:
             self._held_logged.add((channel, held.kind))

@@ -6,7 +6,7 @@ and FrameTransforms), `drake_point_cloud` (point clouds both ways, DRAKE_DRAW_FR
 triads), `drake_ign` (<-> ign/gz protobuf), `drake_contact` (contact results to all three),
 `drake_image` (camera images <-> ROS 2, and to Foxglove), `tree_viewer` (Director's remote tree
 viewer, both sides), `drake_rerun` (Rerun's archetypes), `relay` (raw LCM onto another transport,
-unchanged), `lcm_generic` (any LCM type as its ROS 2 mapping), `lcm_rerun` (any LCM type's
+unchanged), `lcm_generic` (any LCM type as its ROS 2 mapping, and back), `lcm_rerun` (any LCM type's
 numbers as Rerun scalars). Families share only these: `base`
 (what a translator is), `types` (the message types, each named once), `options` (options to
 inherit: markers, frames, ign names), `drake_stream` (the decode-once draw, and
@@ -32,6 +32,7 @@ _BUILTINS = {
     "lcm_bytes_to_ros": "drake_ros:LcmBytesToRos",
     "lcm_relay": "relay:LcmRelay",
     "lcm_to_ros": "lcm_generic:LcmToRos",
+    "ros_to_lcm": "lcm_generic:RosToLcm",
     "drake_to_tf": "drake_tf:DrakeToTf",
     "drake_to_link_markers": "drake_tf:DrakeToLinkMarkers",
     "drake_to_scene_update": "drake_foxglove:DrakeToSceneUpdate",

@@ -1,4 +1,5 @@
-"""Any LCM type, as its ROS 2 mapping: `lcm_to_ros`, with no translator written per type.
+"""Any LCM type, as its ROS 2 mapping and back: `lcm_to_ros` and `ros_to_lcm`, with no
+translator written per type.
 
 A channel's type is the known type its message's first 8 bytes (the fingerprint) name, as
 lcm-spy finds it, and may change from one message to the next. The known types are the router's
@@ -17,23 +18,26 @@ announced as soon as its channel's first message is seen, and translated once so
 A fingerprint no known type has is held back (`unknown_type`), a type ROS 2 cannot say (a
 recursive one) too (`refused_type`): counted on the channel, said once; the route's other
 channels go on.
+
+Back (`ros_to_lcm`): a message of a generated type (`drake_lcm_msgs/msg/LcmtIiwaCommand`), as
+CDR from ROS 2 or Zenoh or as JSON from a Foxglove client, becomes the LCM bytes lcm-gen would
+write, fingerprint first. The type is the message's own (`Received.message_type`: the transport
+knows it per topic), so one route carries every channel whatever its type. A type that is no
+generated LCM type is a `NotAnLcmType` naming the topic and the type, and bad bytes a
+`DecodeError` naming the field: counted, and nothing is sent.
 """
 
 from __future__ import annotations
 
+import json
 from typing import Any
 
-from viewer_bridge.errors import Held
+from viewer_bridge.errors import DecodeError, Held, NotAnLcmType
 from viewer_bridge.lcmcodec.library import LcmType
 from viewer_bridge.translators.base import Output, Outputs, Translator
-from viewer_bridge.translators.types import ANY_LCM_TYPE, LCM_AS_ROS_TYPE
-from viewer_bridge.transports.base import CDR, Definition, MessageType, Received
-
-
-def ros_message_type(lcm_type: LcmType) -> MessageType:
-    """The ROS 2 message type an LCM type maps to, carrying its definition."""
-    assert lcm_type.ros_type is not None, lcm_type.refused
-    return MessageType(lcm_type.ros_type, CDR, Definition(lcm_type.ros2msg, lcm_type.rihs01))
+from viewer_bridge.translators.types import ANY_LCM_TYPE, ANY_ROS_TYPE, LCM_AS_ROS_TYPE
+from viewer_bridge.transports.base import JSON, Received
+from viewer_bridge.transports.topic_types import ros_message_type
 
 
 class LcmToRos(Translator):
@@ -66,3 +70,41 @@ class LcmToRos(Translator):
             self.outputs = (*self.outputs, Output("", ros_message_type(lcm_type)))
             found = self._by_fingerprint[fingerprint] = (len(self.outputs) - 1, lcm_type)
         return found
+
+
+class RosToLcm(Translator):
+    """CDR (or JSON) of any generated LCM type's ROS 2 mapping -> the LCM message, on the route's
+    destination channel. The message's type is its own, as its transport found it."""
+
+    reads = (ANY_ROS_TYPE,)
+    outputs = (Output("", ANY_LCM_TYPE),)
+
+    def translate(self, message: Received) -> Outputs:
+        lcm_type = self.lcm_type(message)
+        assert message.message_type is not None  # lcm_type refused a message without one
+        if message.message_type.encoding == JSON:
+            return [(0, lcm_type.from_json(parse_json(message.data, lcm_type.full_name)))]
+        return [(0, lcm_type.from_cdr(message.data))]
+
+    def lcm_type(self, message: Received) -> LcmType:
+        """The LCM type whose ROS 2 mapping the message's type is; `NotAnLcmType` if none."""
+        message_type = message.message_type
+        if message_type is None:
+            raise NotAnLcmType(f"{message.channel}: the transport gave no message type, so no LCM type is known")
+        lcm_type = self.shared.lcm_types.for_ros_type(message_type.name)
+        if lcm_type is None:
+            raise NotAnLcmType(
+                f"{message.channel}: {message_type.name} is no generated LCM type (known: the *_lcm_msgs "
+                "packages of the bridge's LCM types)"
+            )
+        return lcm_type
+
+
+def parse_json(data: bytes, type_name: str) -> object:
+    """A JSON message's value; text that is not JSON (or nested past Python's stack) is a DecodeError."""
+    try:
+        return json.loads(data)
+    except (ValueError, RecursionError) as error:  # JSONDecodeError and UnicodeDecodeError are ValueErrors
+        offset = getattr(error, "pos", 0)
+        reason = "nested too deeply" if isinstance(error, RecursionError) else f"not JSON: {error}"
+        raise DecodeError(type_name, "<json>", offset, reason) from None

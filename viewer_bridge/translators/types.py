@@ -38,6 +38,8 @@ IMAGE_ARRAY_TYPE = MessageType(IMAGE_ARRAY.type_name, LCM)  # DRAKE_RGBD_CAMERA_
 # maps to: CDR of a type whose definition each instance's output carries (no installed package).
 ANY_LCM_TYPE = MessageType("*", LCM)
 LCM_AS_ROS_TYPE = MessageType("*", CDR, CARRIED_DEFINITION)
+# Any ROS 2 type, its name given per message by the transport (`ros_to_lcm`: the reverse routes).
+ANY_ROS_TYPE = MessageType("*", CDR)
 # Director's tree viewer envelope (requests and responses alike).
 ENVELOPE_TYPE = MessageType(VIEWER2_COMMS.type_name, LCM)
 # Foxglove's protobuf schemas.

@@ -119,9 +119,12 @@ class MessageTime(threading.local):
     The router sets it before it publishes a translation's outputs, so a transport that stamps
     what it writes (an MCAP file's log time) gives every output its message's receive time: the
     log's own time offline, the bus's receive time live. One per router; each thread sees its own.
+    `channel` is that message's channel on its source (the loop guard remembers where a payload
+    it sends came from: `viewer_bridge.router.echoes`).
     """
 
     received_us: int = 0
+    channel: str = ""
 
 
 Made = TypeVar("Made")

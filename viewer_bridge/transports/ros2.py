@@ -6,7 +6,10 @@ generated type support to publish it: a type whose interface package is missing,
 definitions the router was given (`Shared.ros_definitions`), is built in the background
 (`viewer_bridge.ros_builds`); until it is importable its route's messages are dropped and counted
 as `waiting_for_build`, then published. A source name that is a regular expression is matched
-against the graph once a second and subscribed as topics of the wanted type appear. rclpy is
+against the graph once a second and subscribed as topics of the wanted type appear; a pattern of
+type `*` takes each topic whose type is a generated LCM type the router knows, building its
+interface if it must (`viewer_bridge.transports.topic_types`). Every message delivered carries
+its topic's type (`Received.message_type`). rclpy is
 imported when the transport starts, not when a config that names it is checked, so the ROS 2
 wheels are needed only by bridges that use them.
 """
@@ -40,6 +43,7 @@ from viewer_bridge.transports.base import (
     TransportSettings,
 )
 from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem, topic_problem
+from viewer_bridge.transports.topic_types import ANY, TopicTypes
 
 if TYPE_CHECKING:
     from rclpy.node import Node
@@ -145,7 +149,9 @@ class RosTransport(Transport):
         _valid(name, topic_problem(name), "topic name")
     settings: RosSettings
 
-    def __init__(self, settings: RosSettings, builder: InterfaceBuilder | None = None) -> None:
+    def __init__(
+        self, settings: RosSettings, builder: InterfaceBuilder | None = None, shared: Shared | None = None
+    ) -> None:
         super().__init__(settings)
         try:
             import rclpy
@@ -165,7 +171,8 @@ class RosTransport(Transport):
         )
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self.node)
-        self._patterns: list[tuple[re.Pattern[str], str, Qos, Deliver]] = []
+        self._patterns: list[tuple[re.Pattern[str], MessageType, Qos, Deliver]] = []
+        self._types = TopicTypes(Shared() if shared is None else shared)  # what a `*` pattern takes
         self._delivers: dict[str, list[Deliver]] = {}  # topic -> every route reading it
         self._lock = threading.Lock()
         self._thread = threading.Thread(target=self._spin, name="rclpy", daemon=True)
@@ -177,11 +184,11 @@ class RosTransport(Transport):
     def create(cls, settings: TransportSettings, shared: Shared) -> RosTransport:
         assert isinstance(settings, RosSettings)
         definitions = shared.ros_definitions  # what it may build of the interfaces it lacks
-        return cls(settings, None if definitions is None else InterfaceBuilder(definitions))
+        return cls(settings, None if definitions is None else InterfaceBuilder(definitions), shared)
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         for message_type in message_types:
-            if message_type.definition is not None:
+            if message_type.definition is not None or message_type.name == ANY:
                 continue  # a type that carries its definition (any LCM type) waits for its build instead
             try:
                 message_class(message_type.name)
@@ -230,12 +237,13 @@ class RosTransport(Transport):
 
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
         """Raw bytes of the type from `pattern`: a topic, or a regex matched against the graph."""
-        if _PLAIN_TOPIC.match(pattern):
-            self._subscribe(pattern, message_type.name, qos, deliver)
-        else:
-            self._patterns.append((re.compile(pattern), message_type.name, qos, deliver))
+        if _PLAIN_TOPIC.match(pattern) and message_type.name != ANY:
+            self._subscribe(pattern, message_type, qos, deliver)
+        else:  # a regex, or a topic whose type the graph will say
+            self._patterns.append((re.compile(pattern), message_type, qos, deliver))
 
-    def _subscribe(self, topic: str, typename: str, qos: Qos, deliver: Deliver) -> None:
+    def _subscribe(self, topic: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
+        typename = message_type.name
         with self._lock:
             delivers = self._delivers.get(topic)
             if delivers is not None:  # another route reads it already: share the subscription
@@ -245,7 +253,7 @@ class RosTransport(Transport):
             delivers = self._delivers[topic] = [deliver]
 
         def on_message(data: bytes) -> None:
-            message = Received(topic, bytes(data))
+            message = Received(topic, bytes(data), message_type=message_type)
             for each in delivers:
                 each(message)
 
@@ -278,9 +286,9 @@ class RosTransport(Transport):
         if not self._patterns:
             return
         for topic, types in self.node.get_topic_names_and_types():
-            for pattern, typename, qos, deliver in self._patterns:
-                if pattern.fullmatch(topic) and typename in types:
-                    self._subscribe(topic, typename, qos, deliver)
+            for pattern, wanted, qos, deliver in self._patterns:
+                if pattern.fullmatch(topic) and (found := self._types.pick(wanted, topic, types)) is not None:
+                    self._subscribe(topic, found, qos, deliver)
 
     def describe(self) -> str:
         return f"ROS 2 node {self.node.get_fully_qualified_name()}"

@@ -25,7 +25,7 @@ import zenoh
 import zenoh.ext
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.transports.base import Deliver, Qos, Received
+from viewer_bridge.transports.base import Deliver, MessageType, Qos, Received
 from viewer_bridge.transports.zenoh import keys
 from viewer_bridge.transports.zenoh.session import Link
 
@@ -184,9 +184,11 @@ def declare_subscriber(
     return session.declare_subscriber(key, on_sample)
 
 
-def ros_receiver(channel: str, delivers: list[Deliver], errors: Errors) -> Callable[[zenoh.Sample], None]:
-    """A sample callback: checks the attachment and the CDR header, then hands the payload to
-    every route reading the topic. What fails a check is counted and dropped."""
+def ros_receiver(
+    channel: str, message_type: MessageType, delivers: list[Deliver], errors: Errors
+) -> Callable[[zenoh.Sample], None]:
+    """A sample callback: checks the attachment and the CDR header, then hands the payload (of
+    `message_type`) to every route reading the topic. What fails a check is counted and dropped."""
 
     def on_sample(sample: zenoh.Sample) -> None:
         attachment = sample.attachment
@@ -199,7 +201,7 @@ def ros_receiver(channel: str, delivers: list[Deliver], errors: Errors) -> Calla
         if not is_cdr(payload):
             errors["not_cdr"] += 1
             return
-        message = Received(channel, payload)
+        message = Received(channel, payload, message_type=message_type)
         for deliver in delivers:
             deliver(message)
 

@@ -5,7 +5,9 @@ One Zenoh session carries two kinds of route:
   domain `ROS_DOMAIN_ID`, its publishers and subscribers announced by liveliness tokens, so
   `ros2 topic list` under rmw_zenoh shows them. Names resolve as ROS resolves them (relative
   under the namespace, `~` under the node). A source that is a regular expression is matched
-  against the topics the graph's publishers announce, once a second.
+  against the topics the graph's publishers announce, once a second; a source of type `*` takes
+  each topic whose type is a generated LCM type the router knows (`transports.topic_types`, as
+  the ROS 2 transport does). Every message carries its topic's type (`Received.message_type`).
 - LCM types are raw LCM messages under `<lcm_prefix>/<channel>`: a source regex is matched
   against the channel, so two bridges join two LCM buses through a router.
 The session is `viewer_bridge.transports.zenoh.session`'s; eclipse-zenoh is imported when the
@@ -34,10 +36,12 @@ from viewer_bridge.transports.base import (
     Publisher,
     Qos,
     Received,
+    Shared,
     Transport,
     TransportSettings,
 )
 from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem
+from viewer_bridge.transports.topic_types import ANY, TopicTypes
 from viewer_bridge.transports.zenoh import keys
 
 if TYPE_CHECKING:
@@ -148,7 +152,7 @@ class ZenohTransport(Transport):
         if problem := key_problem(name):
             raise InvalidName(f"{name!r} cannot be a Zenoh key: {problem}")
 
-    def __init__(self, settings: ZenohSettings) -> None:
+    def __init__(self, settings: ZenohSettings, shared: Shared | None = None) -> None:
         super().__init__(settings)
         try:
             from viewer_bridge.transports.zenoh import entities, session
@@ -175,6 +179,7 @@ class ZenohTransport(Transport):
         self._publishers: list[RosPublisher | LcmPublisher] = []
         self._topics: dict[str, list[Deliver]] = {}  # topic -> every route reading it
         self._patterns: list[tuple[re.Pattern[str], MessageType, Qos, Deliver]] = []
+        self._types = TopicTypes(Shared() if shared is None else shared)  # what a `*` pattern takes
         self._channels: list[tuple[re.Pattern[str], Deliver]] = []
         self._channels_latched = False  # a route asked for each channel's last message on joining
         self._last_values: LastValues | None = None  # made with the first latched LCM publisher
@@ -182,6 +187,11 @@ class ZenohTransport(Transport):
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._discovery = threading.Thread(target=self._discover, name="zenoh discovery", daemon=True)
+
+    @classmethod
+    def create(cls, settings: TransportSettings, shared: Shared) -> ZenohTransport:
+        assert isinstance(settings, ZenohSettings)
+        return cls(settings, shared)
 
     # --- names -------------------------------------------------------------------------------------
 
@@ -214,7 +224,7 @@ class ZenohTransport(Transport):
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         for message_type in message_types:
-            if message_type.encoding == CDR and message_type.definition is None:
+            if message_type.encoding == CDR and message_type.definition is None and message_type.name != ANY:
                 try:
                     keys.topic_type(message_type.name)
                 except (KeyError, ValueError):
@@ -258,7 +268,7 @@ class ZenohTransport(Transport):
         if message_type.encoding == LCM:
             self._channels.append((re.compile(pattern), deliver))
             self._channels_latched = self._channels_latched or qos.latched
-        elif _PLAIN_TOPIC.match(pattern):
+        elif _PLAIN_TOPIC.match(pattern) and message_type.name != ANY:
             self._subscribe_topic(pattern, message_type, qos, deliver)
         else:
             self._patterns.append((re.compile(pattern), message_type, qos, deliver))
@@ -273,10 +283,10 @@ class ZenohTransport(Transport):
                     delivers.append(deliver)
                 return
             delivers = self._topics[topic] = [deliver]
-        resolved, topic_type = self.resolve(topic), keys.topic_type(message_type.name)
+        resolved, topic_type = self.resolve(topic), _topic_type(message_type)
         key = keys.data_key(self.domain, resolved, topic_type)
         token = self._token(keys.SUBSCRIBER, resolved, topic_type, qos)
-        on_sample = entities.ros_receiver(topic, delivers, self._errors)
+        on_sample = entities.ros_receiver(topic, message_type, delivers, self._errors)
 
         def declare(session: zenoh.Session) -> None:
             self.link.hold(entities.declare_subscriber(session, key, qos, on_sample))
@@ -288,9 +298,10 @@ class ZenohTransport(Transport):
         """Once a second: topics the graph's publishers announce that a source regex matches."""
         while not self._stop.wait(1.0):
             for topic, dds_type in self.graph.publishers():
-                for pattern, message_type, qos, deliver in self._patterns:
-                    if pattern.fullmatch(topic) and keys.ros_type_name(dds_type) == message_type.name:
-                        self._subscribe_topic(topic, message_type, qos, deliver)
+                announced = [name] if (name := keys.ros_type_name(dds_type)) else []
+                for pattern, wanted, qos, deliver in self._patterns:
+                    if pattern.fullmatch(topic) and (found := self._types.pick(wanted, topic, announced)):
+                        self._subscribe_topic(topic, found, qos, deliver)
 
     def _on_lcm(self, sample: zenoh.Sample) -> None:
         channel = str(sample.key_expr)[len(self.settings.lcm_prefix) + 1 :]
