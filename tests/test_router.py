@@ -572,6 +572,8 @@ def test_default_config_is_printed_and_valid() -> None:
         "foxglove_camera_images_unnamed",
         "lcm_bus",
         "foxglove_lcm_bus",
+        "lcm_in",
+        "foxglove_lcm_in",
     ]
 
 

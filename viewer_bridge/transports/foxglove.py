@@ -152,7 +152,7 @@ class FoxgloveSettings(TransportSettings):
     # Clients may publish (the app's Publish and Teleop panels) to the routes that read from
     # foxglove: the server lists the clientPublish capability (encodings cdr and json), and a
     # client hears, as an error status, what the bridge does not take. false: a read-only server
-    # (no clientPublish capability); a route that reads from foxglove is then refused at start.
+    # (no clientPublish capability); a route that reads from foxglove then gets nothing (said once).
     client_publish: bool = True
 
 
@@ -262,11 +262,9 @@ class FoxgloveTransport(Transport):
 
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
         """Deliver what clients publish on topics that fully match `pattern`, each message with its own type."""
-        if self.clients is None:
-            raise TransportUnavailable(
-                f"a route reads {pattern!r} from foxglove clients, but client publishing is off "
-                "(foxglove.client_publish: false)"
-            )
+        if self.clients is None:  # a read-only server: the route stays idle, the rest of the config runs
+            log.warning("foxglove.client_publish is false: the route reading %r from Foxglove clients gets nothing", pattern)
+            return
         self.clients.subscribe(pattern, deliver)
 
     def rejected(self, message: Received, error: BridgeError) -> None:
