@@ -109,7 +109,7 @@ class ClientPublishing:
         """Say to the client that sent `received` why a route refused it."""
         if not isinstance(received.origin, Connection):
             return
-        reason = error.reason if isinstance(error, Held) else str(error)
+        reason = (error.reason if isinstance(error, Held) else str(error)).removeprefix(f"{received.channel}: ")
         what = f" ({received.message_type})" if received.message_type is not None else ""
         self._say(received.origin, received.channel, f"{received.channel}{what}: refused: {reason}")
 
