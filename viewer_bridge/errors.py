@@ -47,6 +47,20 @@ class DecodeError(BridgeError):
         return DecodeError(type_name, f"{prefix}.{self.field}", self.offset, self.reason, self.unit)
 
 
+class JsonValueError(DecodeError):
+    """A JSON value (already parsed) that is no message of its type: `field` is the path of the
+    offending value in the message's own names (`joint_position[3]`, `pose.position.x`), "" for
+    the value as a whole."""
+
+    def __init__(self, type_name: str, field: str, reason: str) -> None:
+        super().__init__(type_name, field, 0, reason, unit="JSON value")
+        self.args = (f"{type_name}.{field}: {reason}" if field else f"{type_name}: {reason}",)
+
+    def within(self, type_name: str, prefix: str) -> JsonValueError:
+        """This error, raised in a nested message, as seen from the outer type at field `prefix`."""
+        return JsonValueError(type_name, f"{prefix}.{self.field}" if self.field else prefix, self.reason)
+
+
 class EncodeError(BridgeError):
     """A message whose content cannot be encoded (wrong length, out-of-range value, ...)."""
 
@@ -193,6 +207,7 @@ __all__ = [
     "GltfError",
     "HandshakeError",
     "Interrupted",
+    "JsonValueError",
     "LogError",
     "MissingExtra",
     "NotAnLcmType",

@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 from tests.lcmcodec.corpus import (
     CORPUS,
     PLAIN_TAIL,
+    arm_state,
     expected,
-    generate_lcmgen,
     lcmgen_messages,
     mcap_ros2_decode,
     rosbags_reader,
@@ -33,16 +33,6 @@ CDR_TYPES = [
     "lab.robot.pulse_t",
     "plain_status_t",
 ]
-
-
-@pytest.fixture(scope="module")
-def library() -> TypeLibrary:
-    return TypeLibrary.load([str(CORPUS)])
-
-
-@pytest.fixture(scope="module")
-def classes(tmp_path_factory: pytest.TempPathFactory) -> dict[str, type]:
-    return generate_lcmgen(tmp_path_factory.mktemp("corpus_lcmgen"))
 
 
 @pytest.fixture(scope="module")
@@ -128,35 +118,11 @@ def test_drake_iiwa_status_layout_by_hand(library: TypeLibrary) -> None:
 # --- bad input ------------------------------------------------------------------------------------
 
 
-def _arm(classes: dict[str, type]) -> bytes:
-    """An arm_state_t with something in every array (lcm-gen's class)."""
-    point = classes["lab.geometry.point3d_t"]
-
-    def at(x: float) -> Any:
-        made = point()
-        made.x, made.y, made.z, made.frameId = x, -x, 0.5, f"frame {x}"
-        return made
-
-    arm = classes["lab.robot.arm_state_t"]()
-    arm.utime, arm.robotName, arm.numJoints, arm.rows, arm.cols = 7, "arm", 2, 2, 3
-    arm.jointAngles, arm.gains = [0.5, 1.5], [1.0, 2.0, 3.0, 4.0]
-    arm.grid = [[1, 2, 3], [4, 5, 6]]
-    arm.table = [[1, 2]] * 4
-    arm.cube = [[[1, 2, 3]] * 2] * 2
-    arm.labels = [["a", "bé"], ["", "d"]]
-    arm.blob, arm.fixedBlob, arm.flags, arm.enabled = b"xyz", b"\0\1\2", [True, False], True
-    arm.tip, arm.waypoints, arm.corners = at(1), [at(2), at(3)], [[at(4), at(5)], [at(6), at(7)]]
-    arm.tiny, arm.raw2d = [[1, -1], [2, -2]], [b"ab", b"cd"]
-    arm.temperature, arm.mode, arm.lastValue = 21.5, 3, -1.0
-    data: bytes = arm.encode()
-    return data
-
-
 def test_every_truncation_and_extension_is_a_decode_error(
     library: TypeLibrary, classes: dict[str, type]
 ) -> None:
     known = library.get("lab.robot.arm_state_t")
-    data = _arm(classes)
+    data = arm_state(classes).encode()
     for end in range(len(data)):
         with pytest.raises(DecodeError, match="lab.robot.arm_state_t"):
             known.to_cdr(data[:end])
@@ -240,7 +206,7 @@ def test_bytes_bytearray_and_memoryview_give_the_same_cdr(
 ) -> None:
     """Small bytes are sliced directly, everything else through a view: both ways, small and large."""
     known = library.get("lab.robot.arm_state_t")
-    small = _arm(classes)
+    small = arm_state(classes).encode()
     arm = classes["lab.robot.arm_state_t"].decode(small)
     arm.cols, arm.rows = 3000, 2
     arm.grid = [list(range(3000)), list(range(3000, 6000))]

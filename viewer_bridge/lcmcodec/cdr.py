@@ -27,12 +27,12 @@ from array import array
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
+from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef, nested_closure
 from viewer_bridge.lcmcodec.serde import (
     _bad_count,
     _min_sizes,
@@ -43,7 +43,7 @@ from viewer_bridge.lcmcodec.serde import (
     element_min_size,
 )
 
-__all__ = ["CDR_HEADER", "CdrTranscoder", "compile_transcoders"]
+__all__ = ["CDR_HEADER", "CdrTranscoder", "compile_generated", "compile_transcoders"]
 
 Buffer = bytes | bytearray | memoryview
 Chunks = list[Any]  # what b"".join takes: bytes, memoryviews, arrays, numpy arrays
@@ -365,25 +365,37 @@ class _Generator:
         call_child(out, statement, "DecodeError", self.t, field)
 
 
-def compile_transcoders(
-    structs: Mapping[str, StructDef], fingerprints: Mapping[str, bytes], names: Iterable[str]
-) -> dict[str, CdrTranscoder]:
-    """The transcoders of types `names` (none may contain itself; every nested type is in `structs`)."""
-    wanted = list(names)
-    needed: dict[str, None] = {}
-    pending = list(wanted)
-    while pending:
-        name = pending.pop()
-        if name not in needed:
-            needed[name] = None
-            pending.extend(m.type_name for m in structs[name].members if not m.is_primitive)
-    idents = {name: f"T{index}" for index, name in enumerate(needed)}
+class _Writes(Protocol):
+    def write(self) -> None: ...
+
+
+_MakeGenerator = Callable[[StructDef, Mapping[str, str], Mapping[str, int], _Writer, dict[str, object]], _Writes]
+
+
+def compile_generated(
+    structs: Mapping[str, StructDef], names: list[str], prefix: str, generator: _MakeGenerator,
+    helpers: Mapping[str, object], filename: str,
+) -> dict[str, Callable[..., Any]]:  # fmt: skip
+    """Generate one function per type of `names` and of every type they nest (named `prefix` and a
+    number), with `generator`'s `write`, compile them together with `helpers` in their namespace,
+    and return those of `names`."""
+    needed = nested_closure(structs, names)
+    idents = {name: f"{prefix}{index}" for index, name in enumerate(needed)}
     min_sizes = _min_sizes({name: structs[name] for name in needed})
     out = _Writer()
     formats: dict[str, object] = {}
     for name in needed:
-        _Generator(structs[name], idents, min_sizes, out, formats).write()
-    namespace: dict[str, object] = {
+        generator(structs[name], idents, min_sizes, out, formats).write()
+    namespace: dict[str, Any] = {**helpers, **formats}
+    exec(compile("\n".join(out.lines) + "\n", filename, "exec"), namespace)  # noqa: S102
+    return {name: namespace[idents[name]] for name in names}
+
+
+def compile_transcoders(
+    structs: Mapping[str, StructDef], fingerprints: Mapping[str, bytes], names: Iterable[str]
+) -> dict[str, CdrTranscoder]:
+    """The transcoders of types `names` (none may contain itself; every nested type is in `structs`)."""
+    helpers: dict[str, object] = {
         "DecodeError": DecodeError,
         "_truncated": _truncated,
         "_check_count": _check_count,
@@ -397,13 +409,9 @@ def compile_transcoders(
         "_view": memoryview,
         "_BOOLS": _BOOLS,
         **{f"_swap{size}": _swapped(size) for size in _SWAP_CODES},
-        **formats,
     }
-    exec(compile("\n".join(out.lines) + "\n", "<lcm -> cdr transcoders>", "exec"), namespace)  # noqa: S102
-    return {
-        name: CdrTranscoder(name, fingerprints[name], namespace[idents[name]])  # type: ignore[arg-type]
-        for name in wanted
-    }
+    bodies = compile_generated(structs, list(names), "T", _Generator, helpers, "<lcm -> cdr transcoders>")
+    return {name: CdrTranscoder(name, fingerprints[name], body) for name, body in bodies.items()}
 
 
 assert sys.byteorder == "little", "the swaps assume a little-endian host"  # noqa: S101

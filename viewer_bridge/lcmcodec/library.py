@@ -18,22 +18,33 @@ from __future__ import annotations
 
 import importlib.util
 import threading
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from functools import cached_property
 from pathlib import Path
+from typing import TypeVar
 
-from viewer_bridge.errors import DecodeError, Held, SchemaError
+from viewer_bridge.errors import DecodeError, Held, JsonValueError, SchemaError
 from viewer_bridge.lcmcodec import STRUCTS
 from viewer_bridge.lcmcodec.cdr import CdrTranscoder, compile_transcoders
+from viewer_bridge.lcmcodec.cdr_to_lcm import LcmEncoder, compile_encoders
+from viewer_bridge.lcmcodec.json_to_lcm import JsonEncoder, compile_json_encoders
 from viewer_bridge.lcmcodec.jsonview import message_json
 from viewer_bridge.lcmcodec.pymodule import structs_from_module
 from viewer_bridge.lcmcodec.rosmsg import RosMapping, map_to_ros
 from viewer_bridge.lcmcodec.rosnames import ros_topic_for_channel
-from viewer_bridge.lcmcodec.schema import StructDef, check_references, fingerprint, load_lcm_files
+from viewer_bridge.lcmcodec.schema import (
+    StructDef,
+    check_references,
+    fingerprint,
+    load_lcm_files,
+    nested_closure,
+)
 from viewer_bridge.lcmcodec.serde import Buffer, StructCodec, compile_codecs
 
 __all__ = ["LcmType", "TypeLibrary", "ros_topic_for_channel"]
 
+_T = TypeVar("_T")
+_Compile = Callable[[Mapping[str, StructDef], Mapping[str, bytes], list[str]], dict[str, _T]]
 DRAKE_MODULE = "drake"  # pydrake's wheel ships Drake's lcm-gen'd types as this module
 
 
@@ -84,9 +95,66 @@ class LcmType:
             raise DecodeError(self.full_name, "<message>", 0, "nested too deeply") from None
         return message_json(message, bytes_summary=bytes_summary)
 
+    def from_cdr(self, data: Buffer) -> bytes:
+        """The CDR of this type's ROS 2 message (4-byte header first, little-endian as ROS 2
+        writes it) as the whole LCM message, fingerprint first: byte for byte what lcm-gen's
+        `encode` writes for the same values.
+
+        Refused with a `DecodeError` naming the ROS 2 field path and the byte offset (counted
+        after the header), and nothing returned: a header other than little-endian CDR; too few
+        bytes, or more than the message (beyond the up to 3 that pad it to a multiple of 4); a
+        sequence whose count is not what LCM's length fields say (`joint_position` must hold
+        exactly `num_joints` elements, a flattened `grid[rows][cols]` exactly rows × cols, a
+        fixed-size multi-dimensional array the product of its sizes) or a negative length field;
+        a count that could not fit in the bytes left (checked before anything is allocated); a
+        string of length 0, without its NUL or not UTF-8 (a NUL inside passes: LCM's length word
+        carries it, as `to_cdr` does the other way); a bool byte other than 0 or 1 (Fast CDR refuses those too; LCM
+        would read any as true and hide bytes that are not this message). A type with no ROS 2
+        form raises as `to_cdr` does. ROS 2 constants are not serialized: nothing is read for them.
+        """
+        if self.refused is not None:
+            raise DecodeError(self.full_name, "<type>", 0, f"has no ROS 2 form: {self.refused}")
+        return self._encoder.encode(data)
+
+    def from_json(self, value: object) -> bytes:
+        """A JSON value (already parsed: dicts, lists, str, int, float, bool, None) with the ROS 2
+        message's field names, as the whole LCM message (fingerprint first).
+
+        - An object per message, keys the ROS 2 field names (`joint_position`); arrays flat in
+          row-major order as the ROS 2 message holds them; a byte array a list of 0..255 or a
+          base64 string.
+        - A missing field takes its zero value (0, false, "", an all-zero nested message, a fixed
+          array of zeros, an empty variable array).
+        - A missing length field is derived from the arrays it sizes (`num_joints` from
+          `joint_position`; in `grid[rows][cols]` once the other dimension is known), so that a
+          ROS 2 user gives nothing the message already says; arrays that disagree, or a given
+          length field that disagrees with its arrays, are refused. A length field that nothing
+          gives is 0; a missing array is empty, so an array said to have elements must be given.
+        - Strict types: an integer field takes an integer (not 3.0, not true) in its type's
+          range; a float field an integer or a float, finite (NaN is not JSON), in float32's
+          range for `float32`; a bool field true or false; a string field a string encodable as
+          UTF-8; `null` is refused everywhere.
+        - An array is counted before its elements are encoded: one past its length field's
+          type, or past `json_to_lcm.MESSAGE_LIMIT` (64 MiB of LCM), is refused.
+
+        Every refusal is a `JsonValueError` (a `DecodeError`) naming the field path, e.g.
+        `joint_position[3]` or `tip.frame_id`; a value that is not an object names none.
+        """
+        if self.refused is not None:
+            raise JsonValueError(self.full_name, "", f"has no ROS 2 form: {self.refused}")
+        return self._json_encoder.encode(value)
+
     @cached_property
     def _transcoder(self) -> CdrTranscoder:
         return self._library._transcoder(self.full_name)
+
+    @cached_property
+    def _encoder(self) -> LcmEncoder:
+        return self._library._encoder(self.full_name)
+
+    @cached_property
+    def _json_encoder(self) -> JsonEncoder:
+        return self._library._json_encoder(self.full_name)
 
 
 class TypeLibrary:
@@ -100,6 +168,8 @@ class TypeLibrary:
         self._lock = threading.Lock()
         self._codec_sets: dict[str, dict[str, StructCodec]] = {}
         self._transcoders: dict[str, CdrTranscoder] = {}
+        self._encoders: dict[str, LcmEncoder] = {}
+        self._json_encoders: dict[str, JsonEncoder] = {}
         self.warnings = warnings + [
             f"{name} ({structs[name].where}) has no ROS 2 form: {reason}"
             for name, reason in self._mapping.refused.items()
@@ -107,6 +177,7 @@ class TypeLibrary:
         self._types = {name: LcmType(self, self._structs[name], fingerprints[name]) for name in self._structs}
         # Types of one shape share a fingerprint (Drake's lcmt_iiwa_command and lcmt_allegro_command):
         # every one is kept, in name order, and the channel's name picks among them.
+        self._by_ros_type = {message.ros_type: name for name, message in self._mapping.messages.items()}
         self._by_fingerprint: dict[bytes, list[LcmType]] = {}
         for name in sorted(self._types):
             known = self._types[name]
@@ -188,6 +259,14 @@ class TypeLibrary:
         """Every known type whose fingerprint is `lcm_type`'s (itself included), by full name."""
         return list(self._by_fingerprint.get(lcm_type.packed_fingerprint, [lcm_type]))
 
+    def for_ros_type(self, ros_type: str) -> LcmType | None:
+        """The known type whose ROS 2 message is `ros_type` (`drake_lcm_msgs/msg/LcmtIiwaCommand`,
+        or `drake_lcm_msgs/LcmtIiwaCommand` as Foxglove schema names may say it), or None."""
+        package, _, name = ros_type.partition("/")
+        name = name.removeprefix("msg/")
+        found = self._by_ros_type.get(f"{package}/msg/{name}")
+        return self._types[found] if found is not None else None
+
     def get(self, full_name: str) -> LcmType:
         """The type named `full_name` (`drake.lcmt_iiwa_status`); KeyError if unknown."""
         return self._types[full_name]
@@ -212,23 +291,28 @@ class TypeLibrary:
 
     def _transcoder(self, full_name: str) -> CdrTranscoder:
         """The LCM -> CDR transcoder of `full_name`, generated when first asked for."""
+        return self._compiled(self._transcoders, full_name, compile_transcoders)
+
+    def _encoder(self, full_name: str) -> LcmEncoder:
+        """The CDR -> LCM encoder of `full_name`, generated when first asked for."""
+        return self._compiled(self._encoders, full_name, compile_encoders)
+
+    def _json_encoder(self, full_name: str) -> JsonEncoder:
+        """The JSON -> LCM encoder of `full_name`, built when first asked for."""
+        return self._compiled(self._json_encoders, full_name, compile_json_encoders)
+
+    def _compiled(self, cache: dict[str, _T], full_name: str, compile_: _Compile[_T]) -> _T:
+        """`cache[full_name]`, made by `compile_` from the type's closure when first asked for."""
         with self._lock:
-            if full_name not in self._transcoders:
+            if full_name not in cache:
                 closure = self._closure(full_name)
                 fingerprints = {name: self._types[name].packed_fingerprint for name in closure}
-                self._transcoders.update(compile_transcoders(closure, fingerprints, [full_name]))
-            return self._transcoders[full_name]
+                cache.update(compile_(closure, fingerprints, [full_name]))
+            return cache[full_name]
 
     def _closure(self, full_name: str) -> dict[str, StructDef]:
         """`full_name`'s definition and those of every type it nests, at any depth."""
-        found: dict[str, StructDef] = {}
-        pending = [full_name]
-        while pending:
-            name = pending.pop()
-            if name not in found:
-                found[name] = self._structs[name]
-                pending.extend(m.type_name for m in found[name].members if not m.is_primitive)
-        return found
+        return {name: self._structs[name] for name in nested_closure(self._structs, [full_name])}
 
 
 def _merge(structs: dict[str, StructDef], new: Mapping[str, StructDef]) -> None:

@@ -141,6 +141,18 @@ def _hash_string(value: int, text: str) -> int:
     return value
 
 
+def nested_closure(structs: Mapping[str, StructDef], names: Iterable[str]) -> list[str]:
+    """`names` and every type they nest, at any depth, each once (`names` first)."""
+    found: dict[str, None] = {}
+    pending = list(reversed(list(names)))
+    while pending:
+        name = pending.pop()
+        if name not in found:
+            found[name] = None
+            pending.extend(m.type_name for m in structs[name].members if not m.is_primitive)
+    return list(found)
+
+
 def fingerprint(struct: StructDef, structs: Mapping[str, StructDef]) -> int:
     """The 64-bit fingerprint written in front of every encoded message of this type."""
     return _recursive_hash(struct, structs, ())
@@ -430,5 +442,6 @@ __all__ = [
     "fingerprint",
     "load_lcm_files",
     "load_schema_dir",
+    "nested_closure",
     "parse_lcm",
 ]
