@@ -22,7 +22,7 @@ from typing import Any
 import xxhash
 import zenoh
 import zenoh.ext
-from rosbags.typesys import Stores, get_typestore
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 
@@ -110,22 +110,35 @@ def type_hash(typename: str) -> str:
     return STORE.hash_rihs01(typename)  # type: ignore[no-any-return]
 
 
+def rihs01(typename: str, definitions: dict[str, str]) -> str:
+    """The RIHS01 hash of a type that is not one of Jazzy's (an LCM type's mapping), computed by
+    rosbags from the `.msg` definitions ("pkg/msg/Name" -> text) of it and the types it uses."""
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types: dict[str, Any] = {}
+    for name, text in definitions.items():
+        types.update(get_types_from_msg(text, name))
+    store.register(types)
+    return store.hash_rihs01(typename)  # type: ignore[no-any-return]
+
+
 def dds_name(typename: str) -> str:
     package, _, name = typename.split("/")
     return f"{package}::msg::dds_::{name}_"
 
 
-def data_key(domain: int, topic: str, typename: str) -> str:
-    return f"{domain}/{topic.strip('/')}/{dds_name(typename)}/{type_hash(typename)}"
+def data_key(domain: int, topic: str, typename: str, hash_: str | None = None) -> str:
+    return f"{domain}/{topic.strip('/')}/{dds_name(typename)}/{hash_ or type_hash(typename)}"
 
 
 def publisher_token(
-    domain: int, zid: str, entity: int, node: str, topic: str, typename: str, qos: str
+    domain: int, zid: str, entity: int, node: str, topic: str, typename: str, qos: str, hash_: str | None = None
 ) -> str:
     """`@ros2_lv/<domain>/<zid>/<node id>/<entity id>/MP/<enclave>/<namespace>/<node>/<topic>/<type>/<hash>/<qos>`
-    with `/` as `%` inside a part (the root namespace and enclave `/`: `%`)."""
+    with `/` as `%` inside a part (the root namespace and enclave `/`: `%`); the hash is Jazzy's
+    type's unless given."""
     mangled = topic.replace("/", "%")
-    return f"@ros2_lv/{domain}/{zid}/0/{entity}/MP/%/%/{node}/{mangled}/{dds_name(typename)}/{type_hash(typename)}/{qos}"
+    hashed = hash_ or type_hash(typename)
+    return f"@ros2_lv/{domain}/{zid}/0/{entity}/MP/%/%/{node}/{mangled}/{dds_name(typename)}/{hashed}/{qos}"
 
 
 @dataclass
@@ -172,18 +185,28 @@ class RmwZenohPeer:
             self._held.append(self.session.declare_subscriber(key, keep))
         return arrivals
 
+    def subscribed(self, topic: str) -> bool:
+        """Whether some node announces a subscriber (an MS token) on `topic`."""
+        mangled = topic.replace("/", "%")
+        return any("/MS/" in token and f"/{mangled}/" in token for token in self.tokens())
+
     def tokens(self) -> list[str]:
         replies = self.session.liveliness().get(f"@ros2_lv/{self.domain}/**")
         return [str(reply.ok.key_expr) for reply in replies if reply.ok is not None]
 
-    def publisher(self, topic: str, typename: str, entity: int = 1) -> Callable[..., None]:
-        """`publish(cdr, attachment=None)`: on the topic's key, with this node's MP token; the
-        attachment is rmw_zenoh's unless one is given."""
-        token = publisher_token(self.domain, self.zid, entity, self.node, topic, typename, "::,10:,:,:,,")
+    def publisher(
+        self, topic: str, typename: str, entity: int = 1, type_hash: str | None = None
+    ) -> Callable[..., None]:
+        """`publish(cdr, attachment=None)`: on the topic's key, with this node's MP token (the
+        liveliness token rmw_zenoh declares for a publisher, which a bridge finds it by); the
+        attachment is rmw_zenoh's unless one is given. `type_hash`: for a type not in Jazzy."""
+        token = publisher_token(
+            self.domain, self.zid, entity, self.node, topic, typename, "::,10:,:,:,,", type_hash
+        )
         self._held.append(self.session.liveliness().declare_token(token))
         digest = xxhash.xxh3_128_intdigest(token.encode())
         gid = struct.pack("<QQ", digest & (2**64 - 1), digest >> 64)
-        put = self.session.declare_publisher(data_key(self.domain, topic, typename))
+        put = self.session.declare_publisher(data_key(self.domain, topic, typename, type_hash))
         self._held.append(put)
 
         def publish(cdr: bytes, attachment: bytes | None = None) -> None:

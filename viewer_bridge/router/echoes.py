@@ -49,12 +49,18 @@ class EchoGuard:
         """Remember `data` as sent now for a message from `origin`; its digest (for `unsent`)."""
         digest = hash(data)
         now = time.monotonic()
+        expiry = now + self._window
         with self._lock:
-            self._expire(now)
-            if len(self._order) >= LIMIT:  # a flood: forget the oldest send
-                self._forget(*self._order.popleft())
-            self._order.append((now + self._window, digest))
-            self._pending.setdefault(digest, deque()).append((now + self._window, origin))
+            order = self._order
+            if order and order[0][0] <= now:
+                self._expire(now)
+            if len(order) >= LIMIT:  # a flood: forget the oldest send
+                self._forget(*order.popleft())
+            order.append((expiry, digest))
+            sends = self._pending.get(digest)
+            if sends is None:
+                sends = self._pending[digest] = deque()
+            sends.append((expiry, origin))
         return digest
 
     def unsent(self, digest: int) -> None:
@@ -74,8 +80,10 @@ class EchoGuard:
 
     def _judge(self, message: Received) -> Origin | None:
         digest = hash(message.data)
+        now = time.monotonic()
         with self._lock:
-            self._expire(time.monotonic())
+            if self._order and self._order[0][0] <= now:
+                self._expire(now)
             sends = self._pending.get(digest)
             if not sends:
                 return None
