@@ -219,3 +219,60 @@ def test_one_setting_makes_the_bridge_read_only() -> None:
         if client is not None:
             client.close()
         assert bridge.stop() == 0
+
+
+def test_statuses_go_between_the_sdks_messages_while_it_streams(transport: FoxgloveTransport) -> None:
+    """A client that receives 100 kB messages back to back while statuses are put into its stream:
+    `websockets`' strict parser reads every message whole and every status."""
+    import threading
+
+    from websockets.sync.client import connect
+
+    from viewer_bridge.transports.base import PROTOBUF
+
+    delivered: list[Received] = []
+    transport.subscribe("/in", MessageType("*", CDR), Qos(), delivered.append)
+    publisher = transport.publisher("/big", MessageType("foxglove.FrameTransforms", PROTOBUF), Qos())
+    payloads = [bytes([index]) * 100_000 for index in range(100)]  # within the SDK's backlog per client
+    statuses_sent = 50
+    with connect(f"ws://127.0.0.1:{transport.port}", subprotocols=["foxglove.websocket.v1"], max_size=None) as ws:  # type: ignore[list-item]
+        channel = None
+        while channel is None:
+            message = json.loads(ws.recv(timeout=WAIT))
+            if message["op"] == "advertise":
+                channel = message["channels"][0]["id"]
+        ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": channel}]}))
+        advertised = {"id": 1, "topic": "/in", "encoding": "cdr", "schemaName": "a/msg/B"}
+        ws.send(json.dumps({"op": "advertise", "channels": [advertised]}))
+        ws.send(bytes([1, 1, 0, 0, 0]) + b"\x00\x01\x00\x00")
+        deadline = time.monotonic() + WAIT
+        while (not delivered or publisher.subscriber_count() != 1) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        (received,) = delivered
+
+        streaming = threading.Event()
+
+        def refuse() -> None:  # while the SDK's messages stream, a status every millisecond
+            streaming.wait(WAIT)
+            for index in range(statuses_sent):
+                transport.rejected(received, DecodeError("a.B", f"field_{index}", index, "refused"))
+                time.sleep(0.001)
+
+        refusing = threading.Thread(target=refuse)
+        refusing.start()
+        for payload in payloads:
+            publisher.publish(payload)
+        data: list[bytes] = []
+        said: list[str] = []
+        while len(data) < len(payloads) or len(said) < statuses_sent:
+            frame = ws.recv(timeout=WAIT)
+            if isinstance(frame, bytes):
+                data.append(frame[13:])  # 0x01 | u32 subscription | u64 time | payload
+                streaming.set()
+                time.sleep(0.001)  # a client slower than the server: the stream stays busy
+            elif (message := json.loads(frame))["op"] == "status":
+                said.append(message["message"])
+        refusing.join()
+    assert data == payloads
+    assert sorted(said) == sorted(f"viewer-bridge: /in (a/msg/B (cdr)): refused: a.B.field_{index} at byte {index}: refused"
+                                  for index in range(statuses_sent))  # fmt: skip
