@@ -276,3 +276,28 @@ def test_statuses_go_between_the_sdks_messages_while_it_streams(transport: Foxgl
     assert data == payloads
     assert sorted(said) == sorted(f"viewer-bridge: /in (a/msg/B (cdr)): refused: a.B.field_{index} at byte {index}: refused"
                                   for index in range(statuses_sent))  # fmt: skip
+
+
+def test_with_client_publishing_the_front_stays_on_the_port_but_renames_only_if_asked() -> None:
+    from websockets.exceptions import InvalidStatus
+    from websockets.sync.client import connect
+
+    transport = FoxgloveTransport(FoxgloveSettings(port=0, accept_websocket_v1=False))
+    url = f"ws://127.0.0.1:{transport.port}"
+    try:
+        assert transport.front is not None  # it answers each client alone
+        with connect(url, subprotocols=["foxglove.sdk.v1"], open_timeout=WAIT) as ws:  # type: ignore[list-item]
+            assert "clientPublish" in json.loads(ws.recv(timeout=WAIT))["capabilities"]
+        with pytest.raises(InvalidStatus, match="400"):
+            connect(url, subprotocols=["foxglove.websocket.v1"], open_timeout=WAIT)  # type: ignore[list-item]
+    finally:
+        transport.close()
+
+
+def test_a_ros_type_as_foxglove_may_name_it() -> None:
+    from viewer_bridge.transports.foxglove_clients import ros_type_name
+
+    assert ros_type_name("drake_lcm_msgs/LcmtIiwaCommand") == COMMAND_TYPE
+    assert ros_type_name(COMMAND_TYPE) == COMMAND_TYPE
+    for other in ("foxglove.Pose", "", "a/", "/b"):
+        assert ros_type_name(other) == other

@@ -138,7 +138,7 @@ class ClientPublishing:
         encoding, schema_name = fields.get("encoding"), fields.get("schemaName")
         if not (isinstance(channel_id, int) and isinstance(topic, str)):
             return  # not a channel: the SDK refuses it
-        message_type = MessageType(ros_type_name(str(schema_name)), str(encoding))
+        message_type = MessageType(ros_type_name(schema_name if isinstance(schema_name, str) else ""), str(encoding))
         routes = tuple(deliver for pattern, deliver in self._subscriptions if pattern.fullmatch(topic))
         with self._lock:
             self._channels.setdefault(connection, {})[channel_id] = ClientChannel(
