@@ -3,7 +3,7 @@ any split into chunks, fragments and control frames between them, skipped messag
 
 from __future__ import annotations
 
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from websockets.extensions.permessage_deflate import PerMessageDeflate
 from websockets.frames import Frame, Opcode
@@ -125,3 +125,19 @@ def _parse(data: bytes) -> Frame:
     except StopIteration as done:
         return done.value  # type: ignore[no-any-return]
     raise AssertionError("the frame was not whole")
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=2000), st.lists(st.integers(0, 1 << 20), max_size=8))
+@example(bytes([0x83, 0x82, 0, 0, 0, 0, 65, 66]), [])  # a reserved opcode
+@example(bytes([0x89, 0xFF]) + b"\xff" * 12, [5])  # a ping claiming 2**64 - 1 bytes
+def test_any_bytes_from_a_client_are_read_without_an_error_and_kept_within_bounds(
+    junk: bytes, cuts: list[int]
+) -> None:
+    reader = ClientMessages(max_bytes=1000)
+    for chunk in split(junk, cuts):
+        for message in reader.feed(chunk):
+            assert message.opcode in (TEXT, BINARY) or message.skipped is not None
+            assert len(message.payload) <= 1000
+    # What it holds is at most a partial header or a frame within the limit, never a claimed length.
+    assert len(reader._buffer) <= 1000 + 14

@@ -100,15 +100,15 @@ class ClientMessages:
             if header is None:
                 break
             end = header.size + header.length
-            if header.opcode >= 8:  # control (at most 125 bytes): nothing a relay reads along
-                if len(self._buffer) < end:
-                    break
-                del self._buffer[:end]
+            if header.opcode >= 8:  # control: nothing a relay reads along, dropped as it comes
+                del self._buffer[: header.size]
+                self._drop = header.length
                 continue
-            if header.opcode != CONTINUATION:
-                self._opcode, self._parts, self._joined = header.opcode, [], 0
-                if header.rsv1:
-                    messages.append(Message(header.opcode, b"", "compressed (an extension the bridge does not read)"))
+            if header.opcode != CONTINUATION:  # a new message (opcodes 3 to 7 are reserved: dropped)
+                self._opcode = header.opcode if header.opcode in (TEXT, BINARY) else None
+                self._parts, self._joined = [], 0
+                if header.rsv1 and self._opcode is not None:
+                    messages.append(Message(self._opcode, b"", "compressed (an extension the bridge does not read)"))
                     self._opcode = None
             if self._opcode is not None and self._joined + header.length > self.max_bytes:
                 messages.append(Message(self._opcode, b"", f"longer than {self.max_bytes} bytes"))
