@@ -10,7 +10,8 @@ once-per-load SceneUpdate of a 1000-geometry scene.
 
 Then the live server: from `publish` of those bytes to a WebSocket client's receipt, a client
 connected straight to the SDK's server (the baseline: what the SDK costs alone) beside clients
-connected through our front (viewer_bridge/transports/foxglove_front.py) with either subprotocol name.
+connected through our front (viewer_bridge/transports/foxglove_front.py) with either subprotocol name,
+and through the front of a read-only server (no client publishing: nothing read along).
 Two figures each: one message at a time (publish, wait for it: the latency), and a burst of
 messages back to back (the time per message when the relay is kept busy).
 """
@@ -101,29 +102,36 @@ def per_message(publisher: Publisher, ws: ClientConnection, payload: bytes, coun
 
 def live_paths(payload: bytes, count: int, rounds: int = 5) -> dict[str, tuple[float, float]]:
     """(one at a time, in a burst) seconds per message for each way of reaching the server, the
-    best of `rounds` alternating rounds (this machine's load drifts)."""
+    best of `rounds` alternating rounds (this machine's load drifts). The default server reads
+    along what clients send (client publishing) and tracks where the SDK's messages end; a
+    read-only one (`client_publish: false`) only relays."""
     transport = FoxgloveTransport(FoxgloveSettings(port=0))
+    read_only = FoxgloveTransport(FoxgloveSettings(port=0, client_publish=False))
     try:
-        publisher = transport.publisher("/bench", MessageType("foxglove.FrameTransforms", PROTOBUF), Qos())
-        paths = {  # name: (port, subprotocol)
-            "SDK server alone, foxglove.sdk.v1 (baseline)": (transport.server.port, "foxglove.sdk.v1"),
-            "through the front, foxglove.sdk.v1": (transport.port, "foxglove.sdk.v1"),
-            "through the front, foxglove.websocket.v1": (transport.port, "foxglove.websocket.v1"),
+        message_type = MessageType("foxglove.FrameTransforms", PROTOBUF)
+        publisher = transport.publisher("/bench", message_type, Qos())
+        relay_only = read_only.publisher("/bench", message_type, Qos())
+        paths = {  # name: (publisher, port, subprotocol)
+            "SDK server alone, foxglove.sdk.v1 (baseline)": (publisher, transport.server.port, "foxglove.sdk.v1"),
+            "through the front, foxglove.sdk.v1": (publisher, transport.port, "foxglove.sdk.v1"),
+            "through the front, foxglove.websocket.v1": (publisher, transport.port, "foxglove.websocket.v1"),
+            "read-only server's front, .websocket.v1": (relay_only, read_only.port, "foxglove.websocket.v1"),
         }
         best: dict[str, tuple[float, float]] = {}
         for _ in range(rounds):
-            for name, (port, subprotocol) in paths.items():
+            for name, (on, port, subprotocol) in paths.items():
                 with connect(f"ws://127.0.0.1:{port}", subprotocols=[subprotocol], max_size=None) as ws:  # type: ignore[list-item]
                     assert ws.subprotocol == subprotocol
                     subscribe(ws)
-                    wait_for_subscriber(publisher)
-                    per_message(publisher, ws, payload, 20, burst=False)  # warm up
-                    figures = tuple(per_message(publisher, ws, payload, count, burst) for burst in (False, True))
+                    wait_for_subscriber(on)
+                    per_message(on, ws, payload, 20, burst=False)  # warm up
+                    figures = tuple(per_message(on, ws, payload, count, burst) for burst in (False, True))
                 old = best.get(name, (float("inf"), float("inf")))
                 best[name] = (min(old[0], figures[0]), min(old[1], figures[1]))
         return best
     finally:
         transport.close()
+        read_only.close()
 
 
 def main() -> None:

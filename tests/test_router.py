@@ -573,6 +573,7 @@ def test_default_config_is_printed_and_valid() -> None:
         "lcm_bus",
         "foxglove_lcm_bus",
         "lcm_in",
+        "foxglove_lcm_in",
     ]
 
 

@@ -1,10 +1,17 @@
 // A test peer: Foxglove's own ws-protocol client (`FoxgloveClient`, the subprotocol it names,
 // foxglove.websocket.v1) over the `ws` package's WebSocket. It subscribes to the topics named on
 // its command line as they are advertised and prints what it receives as JSON lines on stdout,
-// payloads in base64, for the Python test to decode. It ends when its stdin closes.
+// payloads in base64, for the Python test to decode. It publishes as its stdin's JSON lines say
+// (client publishing, with the client's own `advertise` and `sendMessage`):
+//   {"op": "advertise", "name": ..., "topic": ..., "encoding": "json" | "cdr", "schemaName": ...}
+//     advertises a client channel known by `name` (the topic unless given), printed back as
+//     {"event": "advertised", "name", "id"};
+//   {"op": "publish", "name": ..., "data": <base64>}  sends one message on that channel.
+// It ends when its stdin closes.
 //
 //   node foxglove_client.js ws://127.0.0.1:8765 /drake/scene /drake/transforms
 const { FoxgloveClient } = require("@foxglove/ws-protocol");
+const readline = require("readline");
 const { WebSocket } = require("ws");
 
 const [url, ...topics] = process.argv.slice(2);
@@ -23,7 +30,12 @@ function subscribeTo(channelId) {
 client.on("open", () => print({ event: "open", subprotocol: ws.protocol }));
 client.on("error", (error) => print({ event: "error", message: String(error) }));
 client.on("close", (event) => print({ event: "close", code: event.code }));
-client.on("serverInfo", (info) => print({ event: "serverInfo", name: info.name }));
+client.on("serverInfo", (info) =>
+  print({
+    event: "serverInfo", name: info.name, capabilities: info.capabilities,
+    supportedEncodings: info.supportedEncodings ?? null,
+  }),
+);
 client.on("unadvertise", (ids) => print({ event: "unadvertise", channelIds: ids }));
 client.on("advertise", (channels) => {
   for (const channel of channels) {
@@ -58,8 +70,20 @@ client.on("message", ({ subscriptionId, timestamp, data }) => {
   });
 });
 
-process.stdin.resume();
-process.stdin.on("end", () => {
+const published = new Map(); // name -> client channel id
+const commands = readline.createInterface({ input: process.stdin });
+commands.on("line", (line) => {
+  const command = JSON.parse(line);
+  if (command.op === "advertise") {
+    const { topic, encoding, schemaName } = command;
+    const name = command.name ?? topic;
+    published.set(name, client.advertise({ topic, encoding, schemaName }));
+    print({ event: "advertised", name, id: published.get(name) });
+  } else if (command.op === "publish") {
+    client.sendMessage(published.get(command.name), new Uint8Array(Buffer.from(command.data, "base64")));
+  }
+});
+commands.on("close", () => {
   client.close();
   process.exit(0);
 });

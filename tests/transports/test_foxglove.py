@@ -116,6 +116,17 @@ class WsProtocolClient:
         with self._arrived:
             return self._arrived.wait_for(until, timeout=seconds)
 
+    def send(self, **command: Any) -> None:
+        """A command to the client (foxglove_client.js: advertise a client channel, publish on it)."""
+        assert self.process.stdin is not None
+        self.process.stdin.write(json.dumps(command) + "\n")
+        self.process.stdin.flush()
+
+    def seen(self, kind: str) -> list[dict[str, Any]]:
+        """The events of one kind so far ("status", "serverInfo", "advertised" ...)."""
+        with self._arrived:
+            return [event for event in self.events if event["event"] == kind]
+
     def log(self) -> str:
         """What it saw, for a failed wait: every event but the messages, then the payloads per topic."""
         events = [event for event in self.events if event["event"] != "message"]
@@ -416,7 +427,7 @@ def test_without_the_front_only_the_sdks_name_is_served() -> None:
 
     from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
 
-    transport = FoxgloveTransport(FoxgloveSettings(port=0, accept_websocket_v1=False))
+    transport = FoxgloveTransport(FoxgloveSettings(port=0, accept_websocket_v1=False, client_publish=False))
     url = f"ws://127.0.0.1:{transport.port}"
     try:
         assert transport.front is None and transport.port == transport.server.port

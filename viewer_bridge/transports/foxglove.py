@@ -1,6 +1,6 @@
 """Foxglove's live WebSocket protocol as a transport, through the official foxglove-sdk.
 
-Publish only: each name a route publishes on is a Foxglove channel (protobuf, with the schema of
+Each name a route publishes on is a Foxglove channel (protobuf, with the schema of
 its `foxglove.*` type; or CDR with the `ros2msg` schema a type's definition carries, as any LCM
 type's mapping does: viewer_bridge/translators/lcm_generic.py), served to browsers on
 `host:port` (127.0.0.1:8765 unless configured). A Foxglove client that subscribes is counted
@@ -10,6 +10,14 @@ idempotent). Everything about the protocol is the SDK's; unless `accept_websocke
 a front of ours (viewer_bridge/transports/foxglove_front.py) holds the public port so that
 clients asking for the protocol's older name, `foxglove.websocket.v1`, are served as well as
 those asking for `foxglove.sdk.v1`, the only name the SDK's server accepts.
+
+As a route's source it reads what clients publish (the app's Publish and Teleop panels): unless
+`client_publish` is false, the server lists the `clientPublish` capability with the encodings
+`cdr` and `json`, and a route whose source pattern fully matches a client channel's topic gets
+each of its messages with the message's own type (its schema name as `pkg/msg/Name`, and its
+encoding) and the client it came from; the client alone hears, as an error status, what the
+bridge did not take (viewer_bridge/transports/foxglove_clients.py). This goes through the front,
+which then holds the port even when `accept_websocket_v1` is false (it renames nothing then).
 
 Where a config also writes an MCAP file of Foxglove messages (viewer_bridge/transports/mcap.py), the
 server and the file log to one `FoxgloveContext`, as in the SDK: a message logged on a channel,
@@ -28,7 +36,7 @@ from urllib.parse import urlencode
 
 from pydantic import Field
 
-from viewer_bridge.errors import InvalidName, TransportUnavailable
+from viewer_bridge.errors import BridgeError, TransportUnavailable
 from viewer_bridge.extras import missing
 from viewer_bridge.formats.foxglove.schema import schema
 from viewer_bridge.transports.base import (
@@ -38,22 +46,27 @@ from viewer_bridge.transports.base import (
     MessageType,
     Publisher,
     Qos,
+    Received,
     Shared,
     Transport,
     TransportSettings,
 )
+from viewer_bridge.transports.foxglove_clients import CLIENT_ENCODINGS, ClientPublishing
 from viewer_bridge.transports.foxglove_front import SubprotocolFront
 
 try:
     import foxglove
-    from foxglove.websocket import ChannelView, Client, ServerListener
+    from foxglove.websocket import Capability, ChannelView, Client, ServerListener
 except ImportError as error:
     raise missing(error, "the foxglove transport") from None
 
 
 def carried(message_type: MessageType) -> bool:
     """Whether a Foxglove channel (live or in a file) can hold this type: Foxglove's own protobuf
-    messages, or CDR of a ROS 2 type that carries its definition (an LCM type's mapping)."""
+    messages, or CDR of a ROS 2 type that carries its definition (an LCM type's mapping); and,
+    from clients that publish, any type of the encodings they may use (`*`: each message says its own)."""
+    if message_type.name == "*":
+        return message_type.encoding in CLIENT_ENCODINGS
     if message_type.encoding == PROTOBUF:
         return message_type.name.startswith("foxglove.")
     return message_type.encoding == CDR and message_type.definition is not None
@@ -134,8 +147,13 @@ class FoxgloveSettings(TransportSettings):
     name: str = "viewer-bridge"
     # Also serve clients that ask for the protocol's older name, foxglove.websocket.v1, through a
     # relay of ours on the port (it costs every client a loopback hop per message). false: the
-    # SDK's server alone on the port, for foxglove.sdk.v1 clients only.
+    # SDK's server alone on the port, for foxglove.sdk.v1 clients only (unless client_publish).
     accept_websocket_v1: bool = True
+    # Clients may publish (the app's Publish and Teleop panels) to the routes that read from
+    # foxglove: the server lists the clientPublish capability (encodings cdr and json), and a
+    # client hears, as an error status, what the bridge does not take. false: a read-only server
+    # (no clientPublish capability); a route that reads from foxglove then gets nothing (said once).
+    client_publish: bool = True
 
 
 class _Channel:
@@ -196,7 +214,9 @@ class FoxgloveTransport(Transport):
         super().__init__(settings)
         self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
         self.context = FoxgloveContext() if context is None else context
-        relayed = settings.accept_websocket_v1  # then the front holds the public port
+        self.clients = ClientPublishing() if settings.client_publish else None
+        relayed = settings.accept_websocket_v1 or self.clients is not None  # then the front holds the public port
+        publishing = {"capabilities": [Capability.ClientPublish], "supported_encodings": list(CLIENT_ENCODINGS)}
         try:
             self.server = foxglove.start_server(
                 name=settings.name,
@@ -204,13 +224,17 @@ class FoxgloveTransport(Transport):
                 port=0 if relayed else settings.port,
                 context=self.context.context,
                 server_listener=_Listener(self._channels),
+                **(publishing if self.clients is not None else {}),  # type: ignore[arg-type]
             )
         except Exception as error:  # the SDK raises its own error types, e.g. for a port in use
             raise self._cannot_listen(error) from None
         self.front: SubprotocolFront | None = None
         if relayed:
             try:
-                self.front = SubprotocolFront(settings.host, settings.port, self.server.port)
+                self.front = SubprotocolFront(
+                    settings.host, settings.port, self.server.port,
+                    rename=settings.accept_websocket_v1, reader=self.clients,
+                )  # fmt: skip
             except OSError as error:  # a port in use, an address not of this machine
                 self.server.stop()
                 raise self._cannot_listen(error) from None
@@ -233,15 +257,20 @@ class FoxgloveTransport(Transport):
     def carries(cls, message_type: MessageType) -> bool:
         return carried(message_type)
 
-    @classmethod
-    def check_source(cls, name: str) -> None:
-        raise InvalidName("the foxglove transport only publishes; it cannot be a route's source")
-
     def require(self, message_types: Iterable[MessageType]) -> None:
-        require_schemas(message_types)
+        require_schemas([message_type for message_type in message_types if message_type.name != "*"])
 
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
-        raise TransportUnavailable("the foxglove transport only publishes")
+        """Deliver what clients publish on topics that fully match `pattern`, each message with its own type."""
+        if self.clients is None:  # a read-only server: the route stays idle, the rest of the config runs
+            log.warning("foxglove.client_publish is false: the route reading %r from Foxglove clients gets nothing", pattern)
+            return
+        self.clients.subscribe(pattern, deliver)
+
+    def rejected(self, message: Received, error: BridgeError) -> None:
+        """Say to the client that published `message` why a route refused it (an error status)."""
+        if self.clients is not None:
+            self.clients.answer(message, error)
 
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         channel = self.context.channel(name, message_type, "foxglove")
@@ -254,7 +283,9 @@ class FoxgloveTransport(Transport):
         return f"Foxglove WebSocket server {url} (open {app})"
 
     def errors(self) -> Mapping[str, int]:
-        return {} if self.front is None else self.front.errors()
+        """Client connections dropped (the front's), and what clients published that no route got."""
+        counts = {} if self.front is None else self.front.errors()
+        return counts | ({} if self.clients is None else self.clients.errors())
 
     def close(self) -> None:
         if self.front is not None:

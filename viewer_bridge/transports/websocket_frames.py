@@ -1,0 +1,196 @@
+"""WebSocket framing (RFC 6455, section 5) as far as a relay that reads along needs it.
+
+A frame is: a byte `FIN | RSV1-3 | opcode`, a byte `MASK | length` (126: a 16-bit length follows,
+127: a 64-bit one, both big-endian), the 4-byte masking key when MASK is set (every frame a client
+sends; none a server sends), then the payload, XORed with the key byte by byte when masked. A
+message is one data frame (opcode 1 text, 2 binary) with FIN set, or such a frame without FIN
+followed by continuation frames (opcode 0), the last with FIN. Control frames (opcode 8 close,
+9 ping, 10 pong) are never fragmented and may come between the fragments of a message.
+
+Two readers of a byte stream fed in whatever chunks the socket gives: `ClientMessages` returns
+each complete data message a client sent, unmasked; `MessageEnds` only finds where the server's
+messages end, so that a frame of the relay's own (`text_frame`) can go between two of them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = ["BINARY", "TEXT", "ClientMessages", "Message", "MessageEnds", "text_frame", "unmask"]
+
+CONTINUATION, TEXT, BINARY = 0, 1, 2
+_FIN, _RSV1, _MASKED = 0x80, 0x40, 0x80
+
+
+@dataclass(frozen=True, slots=True)
+class Message:
+    """One complete data message: `opcode` TEXT or BINARY, and its unmasked payload; or, with
+    `skipped` saying why, one that could not be read (its payload empty)."""
+
+    opcode: int
+    payload: bytes
+    skipped: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class _Header:
+    fin: bool
+    rsv1: bool
+    opcode: int
+    mask: bytes  # b"" when unmasked
+    length: int
+    size: int  # bytes of the header itself
+
+
+def _header(data: bytes | bytearray) -> _Header | None:
+    """The header at the start of `data`, or None while `data` holds only part of it."""
+    if len(data) < 2:
+        return None
+    first, second = data[0], data[1]
+    length, size = second & 0x7F, 2
+    if length == 126:
+        size = 4
+    elif length == 127:
+        size = 10
+    masked = bool(second & _MASKED)
+    if len(data) < size + 4 * masked:
+        return None
+    if size > 2:
+        length = int.from_bytes(data[2:size], "big")
+    mask = bytes(data[size : size + 4]) if masked else b""
+    return _Header(bool(first & _FIN), bool(first & _RSV1), first & 0x0F, mask, length, size + len(mask))
+
+
+def unmask(payload: bytes | bytearray, mask: bytes) -> bytes:
+    """`payload` XORed with the 4-byte `mask` repeated (as one big integer: no loop per byte)."""
+    if not mask or not payload:
+        return bytes(payload)
+    count = len(payload)
+    key = (mask * (count // 4 + 1))[:count]
+    return (int.from_bytes(payload, "little") ^ int.from_bytes(key, "little")).to_bytes(count, "little")
+
+
+class ClientMessages:
+    """The data messages of a client's byte stream (masked frames), fragments joined.
+
+    `feed(chunk)` returns the messages that chunk completed. A message longer than `max_bytes`
+    or compressed (RSV1, a negotiated extension) is skipped whole, its bytes dropped as they
+    come; it is returned once as a `Message` whose `skipped` says why.
+    """
+
+    def __init__(self, max_bytes: int) -> None:
+        self.max_bytes = max_bytes
+        self._buffer = bytearray()  # bytes not yet consumed: a partial header or payload
+        self._opcode: int | None = None  # the data message under way (None: none, or skipped)
+        self._parts: list[bytes] = []
+        self._joined = 0
+        self._drop = 0  # payload bytes of a skipped frame still to come
+
+    def feed(self, chunk: bytes | memoryview) -> list[Message]:
+        self._buffer += chunk
+        messages: list[Message] = []
+        while True:
+            if self._drop:
+                taken = min(self._drop, len(self._buffer))
+                del self._buffer[:taken]
+                self._drop -= taken
+                if self._drop:
+                    break
+            header = _header(self._buffer)
+            if header is None:
+                break
+            end = header.size + header.length
+            if header.opcode >= 8:  # control: nothing a relay reads along, dropped as it comes
+                del self._buffer[: header.size]
+                self._drop = header.length
+                continue
+            if header.opcode != CONTINUATION:  # a new message (opcodes 3 to 7 are reserved: dropped)
+                self._opcode = header.opcode if header.opcode in (TEXT, BINARY) else None
+                self._parts, self._joined = [], 0
+                if header.rsv1 and self._opcode is not None:
+                    messages.append(Message(self._opcode, b"", "compressed (an extension the bridge does not read)"))
+                    self._opcode = None
+            if self._opcode is not None and self._joined + header.length > self.max_bytes:
+                messages.append(Message(self._opcode, b"", f"longer than {self.max_bytes} bytes"))
+                self._opcode = None
+            if self._opcode is None:  # skipped (or a continuation of nothing): drop its payload
+                del self._buffer[: header.size]
+                self._drop = header.length
+                self._parts = []
+                continue
+            if len(self._buffer) < end:
+                break
+            self._parts.append(unmask(self._buffer[header.size : end], header.mask))
+            self._joined += header.length
+            del self._buffer[:end]
+            if header.fin:
+                messages.append(Message(self._opcode, b"".join(self._parts)))
+                self._opcode, self._parts = None, []
+        return messages
+
+
+class MessageEnds:
+    """Where the messages of a server's byte stream (unmasked frames) end, fed chunk by chunk."""
+
+    def __init__(self) -> None:
+        self._header = bytearray()  # a header cut by a chunk's end
+        self._left = 0  # payload bytes of the current frame still to come
+        self._in_message = False  # between the fragments of a data message
+        self._frame_ends_message = False
+
+    @property
+    def between(self) -> bool:
+        """True when everything fed so far ends with a whole message (a frame may go in here)."""
+        return self._left == 0 and not self._header and not self._in_message
+
+    def feed(self, chunk: memoryview) -> int | None:
+        """Consume `chunk`; the offset in it just after its first message end, or None."""
+        first: int | None = None
+        at, size = 0, len(chunk)
+        while at < size:
+            if self._left:
+                taken = min(self._left, size - at)
+                self._left -= taken
+                at += taken
+            else:
+                needed = self._header_bytes_needed()
+                taken = min(needed, size - at)
+                self._header += chunk[at : at + taken]
+                at += taken
+                header = _header(self._header)
+                if header is None or len(self._header) < header.size:
+                    continue
+                self._header.clear()
+                self._left = header.length
+                if header.opcode < 8:  # data: a message ends with its frame that has FIN
+                    self._in_message = not header.fin
+                    self._frame_ends_message = header.fin
+                else:  # control: ends no message of its own between fragments
+                    self._frame_ends_message = not self._in_message
+            if self._left == 0 and not self._header and self._frame_ends_message:
+                self._frame_ends_message = False
+                if first is None:
+                    first = at
+        return first
+
+    def _header_bytes_needed(self) -> int:
+        """How many more bytes the header under way may take (at least the next one)."""
+        have = len(self._header)
+        if have < 2:
+            return 2 - have
+        length = self._header[1] & 0x7F
+        size = 2 + (2 if length == 126 else 8 if length == 127 else 0) + (4 if self._header[1] & _MASKED else 0)
+        return size - have
+
+
+def text_frame(text: str) -> bytes:
+    """One unmasked, unfragmented text frame (a server's) carrying `text`."""
+    payload = text.encode()
+    count = len(payload)
+    if count < 126:
+        head = bytes([_FIN | TEXT, count])
+    elif count < 1 << 16:
+        head = bytes([_FIN | TEXT, 126]) + count.to_bytes(2, "big")
+    else:
+        head = bytes([_FIN | TEXT, 127]) + count.to_bytes(8, "big")
+    return head + payload
