@@ -199,7 +199,7 @@ def test_the_pages_list_commands() -> None:
 def test_what_is_not_run_is_few_and_said_why() -> None:
     skipped = [(_page(page), line) for page in PAGES for line in page_commands(page.read_text())
                if not_run(without_comment(line)[0])]  # fmt: skip
-    assert len(skipped) <= 25, skipped
+    assert len(skipped) <= 27, skipped
 
 
 @pytest.mark.parametrize(("page", "command", "exit_code"), CASES)
