@@ -24,15 +24,16 @@ from viewer_bridge.lcmcodec.rosnames import field_name
 from viewer_bridge.lcmcodec.schema import Member, StructDef
 
 CORPUS = Path(__file__).resolve().parent.parent / "lcmtypes_corpus"
+TRANSLATOR_CORPUS = CORPUS.parent / "translators" / "lcm_corpus"  # another lab's: vbtest_lab, vbtest_geo
 # plain_status_t after its arrays: tags[2] ("a", ""), odd, fixedShorts[3], bits[3], fixedLongs[2].
 PLAIN_TAIL = struct.pack(">I2sI1sb3h3B2q", 2, b"a\0", 1, b"\0", -1, 1, -2, 3, 0, 2, 255, 5, -6)
 INT_BITS = {"int8_t": 8, "int16_t": 16, "int32_t": 32, "int64_t": 64}
 
 
-def generate_lcmgen(out: Path) -> dict[str, type]:
-    """lcm-gen --python for every .lcm file of the corpus into `out`, imported: classes by full name."""
+def generate_lcmgen(out: Path, corpus: Path = CORPUS) -> dict[str, type]:
+    """lcm-gen --python for every .lcm file of `corpus` into `out`, imported: classes by full name."""
     # One run per file: lcm-gen carries a file's package over to the next file of a run.
-    for schema in sorted(CORPUS.rglob("*.lcm")):
+    for schema in sorted(corpus.rglob("*.lcm")):
         subprocess.run([str(SCRIPTS / "lcm-gen"), "--python", "--ppath", str(out), str(schema)], check=True)
     sys.path.insert(0, str(out))
     try:
