@@ -24,6 +24,7 @@ from viewer_bridge.lcmcodec.rosnames import field_name
 from viewer_bridge.lcmcodec.schema import Member, StructDef
 
 CORPUS = Path(__file__).resolve().parent.parent / "lcmtypes_corpus"
+TRANSLATOR_CORPUS = CORPUS.parent / "translators" / "lcm_corpus"  # another lab's: vbtest_lab, vbtest_geo
 # plain_status_t after its arrays: tags[2] ("a", ""), odd, fixedShorts[3], bits[3], fixedLongs[2].
 PLAIN_TAIL = struct.pack(">I2sI1sb3h3B2q", 2, b"a\0", 1, b"\0", -1, 1, -2, 3, 0, 2, 255, 5, -6)
 INT_BITS = {"int8_t": 8, "int16_t": 16, "int32_t": 32, "int64_t": 64}

@@ -14,12 +14,18 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tests.lcmcodec.corpus import CORPUS, arm_state, expected, lcmgen_messages, rosbags_writer
+from tests.lcmcodec.corpus import (
+    CORPUS,
+    TRANSLATOR_CORPUS,
+    arm_state,
+    expected,
+    generate_lcmgen,
+    lcmgen_messages,
+    rosbags_writer,
+)
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec.library import LcmType, TypeLibrary
 from viewer_bridge.lcmcodec.schema import StructDef
-
-TRANSLATOR_CORPUS = CORPUS.parent / "translators" / "lcm_corpus"
 
 
 def _structs(library: TypeLibrary) -> dict[str, StructDef]:
@@ -58,30 +64,12 @@ def test_every_corpus_type_round_trips(library: TypeLibrary, classes: dict[str, 
 
 
 def test_the_translators_corpus_round_trips(tmp_path_factory: pytest.TempPathFactory) -> None:
-    import subprocess
-    import sys
-
-    from tests.conftest import SCRIPTS
-
     library = TypeLibrary.load([str(TRANSLATOR_CORPUS)], drake=False)
-    out = tmp_path_factory.mktemp("translators_lcmgen")
-    for schema in sorted(TRANSLATOR_CORPUS.rglob("*.lcm")):
-        subprocess.run([str(SCRIPTS / "lcm-gen"), "--python", "--ppath", str(out), str(schema)], check=True)
-    sys.path.insert(0, str(out))
-    try:
-        import importlib
-
-        classes = {}
-        for known in library.types():
-            if known.source.startswith(str(TRANSLATOR_CORPUS)):
-                module = importlib.import_module(known.full_name)
-                classes[known.full_name] = getattr(module, known.full_name.rsplit(".", 1)[-1])
-        types = [k for k in library.types() if k.source.startswith(str(TRANSLATOR_CORPUS)) and k.ros_type]
-        assert {k.full_name for k in types} == {"vbtest_geo.point3_t", "vbtest_lab.arm_status_t"}
-        for known in types:
-            _round_trips(known, _structs(library), classes, rosbags_writer(library), 30)
-    finally:
-        sys.path.remove(str(out))
+    classes = generate_lcmgen(tmp_path_factory.mktemp("translators_lcmgen"), TRANSLATOR_CORPUS)
+    types = [k for k in library.types() if k.source.startswith(str(TRANSLATOR_CORPUS)) and k.ros_type]
+    assert {k.full_name for k in types} == {"vbtest_geo.point3_t", "vbtest_lab.arm_status_t"}
+    for known in types:
+        _round_trips(known, _structs(library), classes, rosbags_writer(library), 30)
 
 
 def test_every_drake_type_round_trips() -> None:
