@@ -369,9 +369,15 @@ def _instrument_back_code() -> None:
 _instrument_back_code()
 
 
+_ORACLE_DECODE_LIMIT = 1 << 16  # bytes: decoding a million-element array to Python objects is the oracle's
+# cost, not the code's (a second, under instrumentation), and libFuzzer reports it as a slow unit
+
+
 def _lcm_is_valid(known: LcmType, lcm: bytes) -> None:
-    """What the way back wrote must be the type's LCM: it decodes, and goes to CDR and back unchanged."""
-    known.to_json(lcm)
+    """What the way back wrote must be the type's LCM: it goes to CDR and back unchanged, and
+    (when not huge) decodes."""
+    if len(lcm) <= _ORACLE_DECODE_LIMIT:
+        known.to_json(lcm)
     if known.from_cdr(known.to_cdr(lcm)) != lcm:
         raise AssertionError("LCM -> CDR -> LCM changed the message")
 
