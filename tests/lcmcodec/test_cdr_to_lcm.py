@@ -345,3 +345,16 @@ def test_kept_layouts_agree_with_the_generated_code(tmp_path: Any) -> None:
     flags = bytearray(cdr)
     flags[4 + 9] = 2  # after the header: n at 0, its count at 4..8, the flags at 8 and 9
     _refused(known, bytes(flags), "flags[1]", "bool byte 2")
+
+
+def test_float32_bits_are_carried_unchanged(tmp_path: Any) -> None:
+    """A signalling NaN would come back quiet through a Python float: scalars, arrays and kept
+    layouts, both ways, move a float32 as its bits."""
+    (tmp_path / "f.lcm").write_text("package f; struct f_t { float a; int32_t n; float b[n]; }")
+    known = TypeLibrary.load([str(tmp_path / "f.lcm")], drake=False).get("f.f_t")
+    signalling = b"\x7f\xa0\x00\x01"
+    lcm = known.packed_fingerprint + signalling + struct.pack(">i", 2) + signalling + b"\xff\x80\x00\x00"
+    cdr = known.to_cdr(lcm)
+    assert cdr == b"\0\1\0\0" + signalling[::-1] + struct.pack("<iI", 2, 2) + signalling[::-1] + b"\0\0\x80\xff"
+    assert known.from_cdr(cdr) == lcm and known._encoder._layouts
+    assert known.from_cdr(cdr) == lcm  # through the kept layout

@@ -48,8 +48,10 @@ __all__ = ["CDR_HEADER", "CdrTranscoder", "compile_generated", "compile_transcod
 Buffer = bytes | bytearray | memoryview
 Chunks = list[Any]  # what b"".join takes: bytes, memoryviews, arrays, numpy arrays
 CDR_HEADER = b"\x00\x01\x00\x00"  # CDR_LE, no options
-_LE_CODES = {"int8_t": "b", "int16_t": "h", "int32_t": "i", "int64_t": "q", "float": "f", "double": "d",
+# A float32 scalar moves as its raw bits ("I"): through a Python float a signalling NaN would turn quiet.
+_LE_CODES = {"int8_t": "b", "int16_t": "h", "int32_t": "i", "int64_t": "q", "float": "I", "double": "d",
              "boolean": "?", "byte": "B"}  # fmt: skip
+_BE_CODES = {name: "I" if name == "float" else code for name, (code, _) in PRIMITIVE_FORMATS.items()}
 _SWAP_CODES = {2: "H", 4: "I", 8: "Q"}  # an array typecode of each size: byteswap only needs the size
 _NUMPY_FROM = 256  # elements; below this Python's array module swaps faster than numpy's call overhead
 _BOOLS = bytes([0] + [1] * 255)  # LCM reads any non-zero byte as true; CDR wants 0 or 1
@@ -300,7 +302,7 @@ class _Generator:
         sizes = [PRIMITIVE_FORMATS[m.type_name][1] for _, m in run]
         total = sum(sizes)
         name = f"{self.ident}_S{len(self.formats)}"
-        self.formats[name] = struct.Struct(">" + "".join(PRIMITIVE_FORMATS[m.type_name][0] for _, m in run))
+        self.formats[name] = struct.Struct(">" + "".join(_BE_CODES[m.type_name] for _, m in run))
         packers = []
         for phase in range(8):
             fmt, position = "<", phase

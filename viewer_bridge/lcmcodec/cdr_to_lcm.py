@@ -42,8 +42,10 @@ __all__ = ["LcmEncoder", "compile_encoders"]
 Buffer = bytes | bytearray | memoryview
 _CDR_LE = b"\x00\x01"
 _HEADER = 4
-_LE_CODES = {"int8_t": "b", "int16_t": "h", "int32_t": "i", "int64_t": "q", "float": "f", "double": "d",
-             "boolean": "B", "byte": "B"}  # fmt: skip
+# How a scalar is read and written: as itself, except a float32, which goes as its raw bits (Python
+# would widen it to a double and back, which turns a signalling NaN into a quiet one).
+_CODES = {"int8_t": "b", "int16_t": "h", "int32_t": "i", "int64_t": "q", "float": "I", "double": "d",
+          "boolean": "B", "byte": "B"}  # fmt: skip
 _U32_LE = struct.Struct("<I").unpack_from
 _U32_BE = struct.Struct(">I").pack
 _NOT_BOOL = bytes(range(2))  # what `translate` deletes from a bool array: anything left is not 0 or 1
@@ -54,8 +56,8 @@ class LcmEncoder:
 
     For a type of numbers only (scalars and arrays of them, as robot commands are), the layout
     of a message is fixed by its sequence counts: after a message has passed the generated code,
-    its layout is kept (by total size) as one little-endian `struct` that reads every number as
-    raw bits, the positions of the header, counts and length fields with their values, and one
+    its layout is kept (by total size) as one little-endian `struct` that reads every number, the
+    positions of the header, counts and length fields with their values, and one
     big-endian `struct`. A message of the same size whose header, counts and length fields are
     those values has the same layout, so it is converted with one unpack, one comparison and one
     pack (bools checked to be 0 or 1). Anything else takes the generated code, which finds and
@@ -108,10 +110,6 @@ class LcmEncoder:
 
 _LAYOUTS = 16  # sizes kept per type (a robot sends one or two)
 _LAYOUT_VALUES = 256  # beyond this many numbers, the generated code's byte swap is faster
-# How each number is read and written: as itself, except that a float32 goes as its raw bits
-# (Python would widen it to a double and back, which turns a signalling NaN into a quiet one).
-_CODES = {"int8_t": "b", "int16_t": "h", "int32_t": "i", "int64_t": "q", "float": "I", "double": "d",
-          "boolean": "B", "byte": "B"}  # fmt: skip
 
 
 class _Layout(NamedTuple):  # a tuple: unpacked at once on the fast path
@@ -289,14 +287,14 @@ class _Generator:
         """Fixed scalars: one little-endian unpack padded for `off % 8`, bools checked, one pack."""
         out = self.out
         name = f"{self.ident}_S{len(self.formats)}"
-        self.formats[name] = struct.Struct(">" + "".join(PRIMITIVE_FORMATS[m.type_name][0] for _, m in run))
+        self.formats[name] = struct.Struct(">" + "".join(_CODES[m.type_name] for _, m in run))
         unpackers, layouts = [], []
         for phase in range(8):
             fmt, position, layout = "<", phase, []
             for _, member in run:
                 size = PRIMITIVE_FORMATS[member.type_name][1]
                 pad = -position & (size - 1)
-                fmt += "x" * pad + _LE_CODES[member.type_name]
+                fmt += "x" * pad + _CODES[member.type_name]
                 layout.append((field_name(member.name), position + pad - phase, size, member.type_name == "boolean"))
                 position += pad + size
             unpackers.append(struct.Struct(fmt))
