@@ -126,7 +126,7 @@ class Package:
         return tuple(f"msg/{message}.msg" for message, _ in self.messages)
 
 
-# rosidl_adapter's name rules (shared/PROTOCOLS.md section 13): checked here so that a bad name is
+# rosidl_adapter's name rules (docs/PROTOCOLS.md, "Names"): checked here so that a bad name is
 # one line naming the type, before CMake is run.
 _PACKAGE_NAME = re.compile(r"^(?!.*__)(?!.*_$)[a-z][a-z0-9_]*$")
 _MESSAGE_NAME = re.compile(r"^[A-Z][A-Za-z0-9]*$")
