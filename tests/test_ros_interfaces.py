@@ -479,17 +479,7 @@ def _write_cpp_node(folder: Path) -> None:
 project(vbws_show CXX)
 find_package(ament_cmake REQUIRED)
 find_package({ROBOT} REQUIRED)
-# The PyPI wheels' targets name include folders of the machine that built them (as the generated
-# packages' CMakeLists.txt says): a ROS 2 install needs none of this.
-get_property(imported DIRECTORY PROPERTY IMPORTED_TARGETS)
-foreach(target IN LISTS imported)
-  get_target_property(includes ${{target}} INTERFACE_INCLUDE_DIRECTORIES)
-  if(includes)
-    list(FILTER includes EXCLUDE REGEX "^/opt/python/")
-    set_target_properties(${{target}} PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${{includes}}")
-  endif()
-endforeach()
-add_executable(show src/show.cpp)
+{ros_interfaces.WHEEL_INCLUDES_CMAKE}add_executable(show src/show.cpp)
 target_link_libraries(show ${{{ROBOT}_TARGETS}})
 install(TARGETS show DESTINATION lib/${{PROJECT_NAME}})
 ament_package()

@@ -42,8 +42,8 @@ if TYPE_CHECKING:
     from rosbags.interfaces.typing import Typesdict
 
 __all__ = [
-    "APT_PACKAGES", "INTERFACES", "BUILD_WHEELS", "RUNTIME_WHEELS", "Interface", "Package", "build",
-    "cmake_lists", "current", "digests", "generate_packages", "install", "interface_package", "log_path",
+    "APT_PACKAGES", "INTERFACES", "BUILD_WHEELS", "RUNTIME_WHEELS", "WHEEL_INCLUDES_CMAKE", "Interface", "Package",
+    "build", "cmake_lists", "current", "digests", "generate_packages", "install", "interface_package", "log_path",
     "message_text", "missing", "package_xml", "packages", "uninstall", "write_package",
 ]  # fmt: skip
 
@@ -216,6 +216,22 @@ def package_xml(package: Package) -> str:
 """
 
 
+# What a CMake package built against the ROS 2 PyPI wheels needs (the generated ones, and a user's
+# C++ package using them); a ROS 2 install needs none of it.
+WHEEL_INCLUDES_CMAKE = """# The PyPI wheels' exported targets carry include directories of the machine they were built on
+# (/opt/python/...): CMake refuses a target with a missing one. The generated Python target adds
+# this interpreter's and numpy's include directories itself.
+get_property(imported DIRECTORY PROPERTY IMPORTED_TARGETS)
+foreach(target IN LISTS imported)
+  get_target_property(includes ${target} INTERFACE_INCLUDE_DIRECTORIES)
+  if(includes)
+    list(FILTER includes EXCLUDE REGEX "^/opt/python/")
+    set_target_properties(${target} PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${includes}")
+  endif()
+endforeach()
+"""
+
+
 def cmake_lists(package: Package) -> str:
     """rosidl_generate_interfaces of the package's messages, DEPENDENCIES the packages they nest."""
     find = "".join(f"find_package({depend} REQUIRED)\n" for depend in package.depends)
@@ -227,18 +243,7 @@ project({package.name})
 find_package(ament_cmake REQUIRED)
 {find}find_package(rosidl_default_generators REQUIRED)
 
-# The PyPI wheels' exported targets carry include directories of the machine they were built on
-# (/opt/python/...): CMake refuses a target with a missing one. The generated Python target adds
-# this interpreter's and numpy's include directories itself.
-get_property(imported DIRECTORY PROPERTY IMPORTED_TARGETS)
-foreach(target IN LISTS imported)
-  get_target_property(includes ${{target}} INTERFACE_INCLUDE_DIRECTORIES)
-  if(includes)
-    list(FILTER includes EXCLUDE REGEX "^/opt/python/")
-    set_target_properties(${{target}} PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${{includes}}")
-  endif()
-endforeach()
-
+{WHEEL_INCLUDES_CMAKE}
 rosidl_generate_interfaces(${{PROJECT_NAME}} {files}{depends})
 ament_export_dependencies(rosidl_default_runtime)
 ament_package()

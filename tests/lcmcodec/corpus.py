@@ -13,13 +13,15 @@ import subprocess
 import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
+import pytest
 from hypothesis import strategies as st
 
 from tests.conftest import SCRIPTS
-from viewer_bridge.lcmcodec.library import TypeLibrary
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.lcmcodec.library import LcmType, TypeLibrary
 from viewer_bridge.lcmcodec.rosnames import field_name
 from viewer_bridge.lcmcodec.schema import Member, StructDef
 
@@ -28,6 +30,21 @@ TRANSLATOR_CORPUS = CORPUS.parent / "translators" / "lcm_corpus"  # another lab'
 # plain_status_t after its arrays: tags[2] ("a", ""), odd, fixedShorts[3], bits[3], fixedLongs[2].
 PLAIN_TAIL = struct.pack(">I2sI1sb3h3B2q", 2, b"a\0", 1, b"\0", -1, 1, -2, 3, 0, 2, 255, 5, -6)
 INT_BITS = {"int8_t": 8, "int16_t": 16, "int32_t": 32, "int64_t": 64}
+
+
+Refused = TypeVar("Refused", bound=DecodeError)
+
+
+def assert_refused(
+    convert: Callable[[Any], bytes], value: Any, error: type[Refused], known: LcmType, field: str, reason: str
+) -> Refused:
+    """`convert(value)` (a way back to LCM of `known`) raises `error` naming `field`, with `reason` in its reason."""
+    with pytest.raises(error) as caught:
+        convert(value)
+    assert caught.value.field == field, caught.value
+    assert reason in caught.value.reason, caught.value
+    assert caught.value.type_name == known.full_name
+    return caught.value
 
 
 def generate_lcmgen(out: Path, corpus: Path = CORPUS) -> dict[str, type]:

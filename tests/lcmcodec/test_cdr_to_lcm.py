@@ -18,6 +18,7 @@ from tests.lcmcodec.corpus import (
     CORPUS,
     TRANSLATOR_CORPUS,
     arm_state,
+    assert_refused,
     expected,
     generate_lcmgen,
     lcmgen_messages,
@@ -142,12 +143,7 @@ def iiwa() -> LcmType:
 
 
 def _refused(known: LcmType, data: bytes, field: str, reason: str) -> DecodeError:
-    with pytest.raises(DecodeError) as caught:
-        known.from_cdr(data)
-    assert caught.value.field == field, caught.value
-    assert reason in caught.value.reason, caught.value
-    assert caught.value.type_name == known.full_name
-    return caught.value
+    return assert_refused(known.from_cdr, data, DecodeError, known, field, reason)
 
 
 def test_every_truncation_and_extension_is_refused(iiwa: LcmType) -> None:

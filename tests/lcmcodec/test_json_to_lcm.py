@@ -14,7 +14,14 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from tests.lcmcodec.corpus import CORPUS, TRANSLATOR_CORPUS, expected, generate_lcmgen, lcmgen_messages
+from tests.lcmcodec.corpus import (
+    CORPUS,
+    TRANSLATOR_CORPUS,
+    assert_refused,
+    expected,
+    generate_lcmgen,
+    lcmgen_messages,
+)
 from viewer_bridge.errors import DecodeError, JsonValueError
 from viewer_bridge.lcmcodec.json_to_lcm import MESSAGE_LIMIT
 from viewer_bridge.lcmcodec.library import LcmType, TypeLibrary
@@ -102,13 +109,9 @@ def test_what_a_ros_user_writes_for_an_iiwa_command(iiwa: LcmType) -> None:
 
 
 def _refused(known: LcmType, value: Any, field: str, reason: str) -> JsonValueError:
-    with pytest.raises(JsonValueError) as caught:
-        known.from_json(value)
-    assert caught.value.field == field, caught.value
-    assert reason in caught.value.reason, caught.value
-    assert caught.value.type_name == known.full_name
-    assert isinstance(caught.value, DecodeError)
-    return caught.value
+    refused = assert_refused(known.from_json, value, JsonValueError, known, field, reason)
+    assert isinstance(refused, DecodeError)
+    return refused
 
 
 @pytest.mark.parametrize(

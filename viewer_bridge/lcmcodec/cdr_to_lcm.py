@@ -35,7 +35,7 @@ from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec.cdr import _swapped, compile_generated
 from viewer_bridge.lcmcodec.rosnames import field_name
 from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
-from viewer_bridge.lcmcodec.serde import _Writer, call_child, element_min_size
+from viewer_bridge.lcmcodec.serde import _truncated, _Writer, call_child, element_min_size
 
 __all__ = ["LcmEncoder", "compile_encoders"]
 
@@ -173,10 +173,6 @@ def _layout(definition: StructDef, data: Buffer) -> _Layout | None:
 
 
 # --- what the generated code calls when something is wrong, or for whole values ----------------------
-
-
-def _truncated(type_name: str, field: str, offset: int, need: int, end: int) -> DecodeError:
-    return DecodeError(type_name, field, offset, f"truncated: needs {need} bytes, {max(end - offset, 0)} remain")
 
 
 def _run_error(type_name: str, layout: tuple[tuple[str, int, int, bool], ...], values: tuple[int, ...] | None,
