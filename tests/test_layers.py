@@ -19,7 +19,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge": 1,  # the package's __init__ (a docstring, the version, lazy submodules)
     "viewer_bridge.extras": 1,
     "viewer_bridge.errors": 1, "viewer_bridge.registry": 1, "viewer_bridge.resources": 1, "viewer_bridge.sim_time": 1,
-    "viewer_bridge.lru": 1, "viewer_bridge.status": 1,
+    "viewer_bridge.lru": 1, "viewer_bridge.status": 1, "viewer_bridge.commands": 1,
     "viewer_bridge.scene": 2, "viewer_bridge.pose_math": 2, "viewer_bridge.lcmcodec": 2, "viewer_bridge.yamldoc": 2,
     "viewer_bridge.arguments": 2, "viewer_bridge.ros_interfaces": 2, "viewer_bridge.ros_builds": 2,
     "viewer_bridge.lcm_url": 2,

@@ -243,3 +243,22 @@ def test_changed_definitions_rebuild_the_package_and_leave_nothing_of_the_old_on
     finally:
         ros_interfaces.build(ROUTER_DEFINITIONS)
     assert (share / "msg" / "Counter.msg").exists() and not (share / "msg" / "Tally.msg").exists()
+
+
+def test_a_running_bridge_never_installs_what_a_build_needs(tmp_path: Path) -> None:
+    """A message on a bus must not make the bridge install software: in an environment without the
+    build's wheels the builder refuses, naming what to install, and installs nothing."""
+    import importlib.metadata
+    import venv
+
+    prefix = tmp_path / "bare"
+    venv.EnvBuilder(with_pip=False, symlinks=True).create(prefix)
+    site = next(prefix.glob("lib/python*/site-packages"))
+    before = sorted(path.name for path in site.iterdir())
+    builder = InterfaceBuilder(definitions, prefix=prefix)
+    assert builder.request(ROUTER).state is BuildState.BUILDING
+    status = builder.wait(ROUTER, timeout=120)
+    assert status.state is BuildState.FAILED, status
+    assert "pip install 'viewer-bridge[ros-build]'" in status.reason and "ros-jazzy-ament-cmake" in status.reason
+    assert sorted(path.name for path in site.iterdir()) == before  # nothing was installed
+    assert not list(importlib.metadata.distributions(path=[str(site)]))

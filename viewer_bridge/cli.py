@@ -33,6 +33,7 @@ from viewer_bridge.arguments import (
     regex,
     split_ros_args,
 )
+from viewer_bridge.commands import COMMAND_FLAG
 from viewer_bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
 from viewer_bridge.demo import run_demo
 from viewer_bridge.dump import as_json, as_text
@@ -145,9 +146,19 @@ def _parser() -> argparse.ArgumentParser:
         action="append",
         default=[],
         metavar="TRANSPORT.KEY=VALUE",
-        help="override a transport setting, e.g. foxglove.port=9000 or ros.namespace=/sim1 (repeatable)",
+        help="override a transport setting, e.g. foxglove.port=9000 or ros.namespace=/sim1, or the "
+        "commands section's, e.g. commands.max_age_ms=500 (repeatable)",
     )
     _lcm_types_option(run)
+    run.add_argument(
+        COMMAND_FLAG,
+        action="append",
+        default=[],
+        type=regex,
+        metavar="REGEX",
+        help="LCM channels (a regular expression matched against the whole name) that ROS 2 and Foxglove "
+        "may command by publishing on /lcm_in/<channel> (repeatable; default: none, nothing is written)",
+    )
     run.add_argument(
         "--stats-json",
         type=output_file(),
@@ -325,7 +336,7 @@ def _run(args: argparse.Namespace) -> int:
         return 0
     view = _status_view(args.quiet)
     try:
-        config = _with_lcm_types(load_config(args.config), args.lcm_types)
+        config = _with_lcm_types(load_config(args.config), args.lcm_types).allowing_commands(args.allow_commands)
         if args.lcm_url:
             config = config.with_settings("lcm", url=args.lcm_url)
         for setting in args.set:
@@ -378,12 +389,14 @@ def _status_view(quiet: bool) -> StatusView:
 
 
 def _with_setting(config: BridgeConfig, setting: str, config_name: str | None) -> BridgeConfig:
-    """`TRANSPORT.KEY=VALUE` (the value read as YAML: 9000 is a number, true a bool) applied."""
+    """`TRANSPORT.KEY=VALUE` (the value read as YAML: 9000 is a number, true a bool) applied; a
+    section of the config's own (`commands.max_age_ms=500`) is set the same way."""
     name, _, value = setting.partition("=")
     transport, _, key = name.partition(".")
     if not (transport and key and _):
         raise UsageError(f"--set {setting!r}: expected TRANSPORT.KEY=VALUE, e.g. foxglove.port=9000")
-    _uses(config, transport, f"--set {setting}", config_name)
+    if transport not in BridgeConfig.model_fields:
+        _uses(config, transport, f"--set {setting}", config_name)
     try:
         return config.with_settings(transport, **{key: yaml.safe_load(value)})
     except ConfigError as error:

@@ -35,6 +35,7 @@ from pydantic import (
     model_validator,
 )
 
+from viewer_bridge.commands import CommandPolicy
 from viewer_bridge.errors import ConfigError, InvalidName, UnknownName
 from viewer_bridge.resources import data_dir
 from viewer_bridge.translators import TRANSLATORS, Translator, TranslatorOptions
@@ -72,6 +73,13 @@ class Route(_Strict):
     qos: Qos = Qos()
     rate: Rate = Rate()
     lazy: bool = False  # translate only while the destination has a subscriber (where the transport can tell)
+    # A message older than this when it would be sent is dropped (`stale`); a route that writes
+    # commands has the config's `commands.max_age_ms` unless it says otherwise.
+    max_age_ms: float | None = Field(None, gt=0)
+    # At most this many streams (sets of captured groups: LCM channels, topics) get a translator
+    # and publishers of their own; a message of one more is held (`too_many_streams`), so a bus
+    # with 10,000 channel names cannot make 10,000 publishers.
+    max_streams: int = Field(1000, ge=1)
     options: dict[str, Any] = {}
     _options: TranslatorOptions | None = PrivateAttr(None)
 
@@ -108,6 +116,8 @@ class BridgeConfig(BaseModel):
     # recursively) and lcm-gen'd Python modules by import name (`--lcm-types` adds to these).
     lcm_types: list[str] = []
     drake_lcm_types: bool = True  # also Drake's own types (pydrake's `drake` module), when pydrake is installed
+    # The LCM channels the way back (ros_to_lcm) may write, and how fresh a command must be.
+    commands: CommandPolicy = CommandPolicy()
     routes: list[Route]
     _settings: dict[str, TransportSettings] = PrivateAttr(default_factory=dict)
 
@@ -116,7 +126,7 @@ class BridgeConfig(BaseModel):
         document = (info.context or {}).get("document")
         check = _Checker(document if isinstance(document, YamlDocument) else None)
         for name, section in (self.model_extra or {}).items():
-            known = "a config key (load_cache, lcm_types, drake_lcm_types, routes) nor a transport"
+            known = "a config key (load_cache, lcm_types, drake_lcm_types, commands, routes) nor a transport"
             transport = check.transport(name, (name,), known)
             self._settings[name] = check.model(transport.Settings, section or {}, (name,))
         names = [route.name for route in self.routes]
@@ -144,11 +154,18 @@ class BridgeConfig(BaseModel):
             self._settings[transport] = TRANSPORTS.get(transport).Settings()
         return self._settings[transport]
 
+    def allowing_commands(self, patterns: list[str]) -> BridgeConfig:
+        """The same config with more LCM channels the way back may write (`--allow-commands`)."""
+        return self.model_copy(update={"commands": self.commands.widened(patterns)}) if patterns else self
+
     def with_settings(self, transport: str, **values: Any) -> BridgeConfig:
         """The same config with some of a transport's settings replaced (e.g. a command line's --lcm-url)."""
         data = self.model_dump()
         data[transport] = {**(data.get(transport) or {}), **values}
-        return BridgeConfig.model_validate(data)  # checked again: a bad value is a ConfigError
+        try:  # checked again: a bad value is a ConfigError
+            return BridgeConfig.model_validate(data)
+        except ValidationError as error:  # a section of the config's own (a transport's raises ConfigError)
+            raise YamlDocument("<config>", "").validation_error(error, model=BridgeConfig) from None
 
 
 class _Checker:

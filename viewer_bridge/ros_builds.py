@@ -92,7 +92,10 @@ class InterfaceBuilder:
     def _build(self, package: str) -> None:
         try:
             definitions = self._definitions(package)
-            ros_interfaces.build(definitions, self._prefix, self._jobs, log=log.info, only=[package])
+            # Never pip: a message on a bus must not install software (the tools must be there already).
+            ros_interfaces.build(
+                definitions, self._prefix, self._jobs, log=log.info, only=[package], install_wheels=False
+            )
             importlib.invalidate_caches()  # the finders cached site-packages' listing before it existed
             importlib.import_module(f"{package}.msg")
             status = BuildStatus(BuildState.READY)

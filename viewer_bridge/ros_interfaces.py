@@ -476,13 +476,16 @@ def build(
     jobs: int = 2,
     log: Callable[[str], None] | None = None,
     only: Iterable[str] | None = None,
+    install_wheels: bool = True,
 ) -> list[str]:
     """Build the interface packages of `definitions` into `prefix`, each that is not installed
     from the same sources already (see `digests`), each after the packages it uses.
 
     `only` restricts it to those packages and the ones of `definitions` they use. Returns the
     names built. Raises RosInterfaceError in one line naming the package and its build log when
-    a build fails, or naming the folder when `prefix` cannot be written.
+    a build fails, or naming the folder when `prefix` cannot be written. `install_wheels=False`
+    (a running bridge: what arrives on a bus must never install software) refuses, naming what
+    to install, where wheels the build needs are missing, instead of pip installing them.
     """
     root = Path(prefix)
     chosen = _closure(packages(definitions), only)
@@ -492,7 +495,7 @@ def build(
     _writable(root)
     with _locked(root):  # again once locked: another process may have built them meanwhile
         todo = [package for package in chosen if not current(package, wanted[package.name], root)]
-        _build_all(todo, wanted, root, jobs, log)
+        _build_all(todo, wanted, root, jobs, log, install_wheels)
     return [package.name for package in todo]
 
 
@@ -517,9 +520,15 @@ def _closure(chosen: list[Package], only: Iterable[str] | None) -> list[Package]
 
 
 def _build_all(
-    todo: Sequence[Package], wanted: Mapping[str, str], root: Path, jobs: int, log: Callable[[str], None] | None
+    todo: Sequence[Package],
+    wanted: Mapping[str, str],
+    root: Path,
+    jobs: int,
+    log: Callable[[str], None] | None,
+    install_wheels: bool = True,
 ) -> None:
-    """Build `todo` in order into `root` (the caller holds the lock), pip installing what is missing."""
+    """Build `todo` in order into `root` (the caller holds the lock), pip installing what is
+    missing (or, without `install_wheels`, refusing to)."""
     if not todo:
         return
     say = log or (lambda _: None)
@@ -529,6 +538,12 @@ def _build_all(
     external = {depend for package in todo for depend in package.depends if depend not in generated}
     wheels = [wheel for wheel in _missing_wheels(root, external) if not _is_interface(wheel, root)]
     first_log = log_path(root, todo[0].name)
+    if wheels and not install_wheels:
+        raise RosInterfaceError(
+            f"building {todo[0].name} needs {' '.join(wheels)}, not installed (the bridge installs nothing "
+            "while it runs): pip install 'viewer-bridge[ros-build]', or build it beforehand with "
+            "viewer-bridge ros-interfaces install"
+        )
     if wheels:
         say(f"pip installing {' '.join(wheels)}")
         pip = [python, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", *wheels]

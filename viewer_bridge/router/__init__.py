@@ -30,6 +30,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from viewer_bridge.commands import COMMAND_FLAG, CommandPolicy
 from viewer_bridge.config import BridgeConfig, Route
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.router.echoes import Echoes
@@ -82,6 +83,7 @@ class Router:
         lcm_types = TypeLibrary.load(config.lcm_types, drake=config.drake_lcm_types)
         self.shared = Shared(lcm_types, ros_definitions or definitions_of(lcm_types))
         self.shared.provide(LoadCache, LoadCache(config.load_cache))
+        self.shared.provide(CommandPolicy, config.commands)  # a server offers publishing only when it can land
         for warning in lcm_types.warnings:
             log.warning("viewer-bridge: %s", warning)
         self.transports: dict[str, Transport] = {}
@@ -113,7 +115,7 @@ class Router:
 
         runner = RouteRunner(
             route, make_translator, self._publisher_factory(route), self._inline, self.shared.message_time,
-            source.rejected,
+            source.rejected, self.config.commands if translator_class.commands else None,
         )
         translator = runner.prototype
         assert translator is not None
@@ -170,6 +172,25 @@ class Router:
             transport.start()
         where = ", ".join(transport.describe() for transport in self.transports.values())
         log.info("viewer-bridge: %s running (%s)", counted(len(self.routes), "route"), where)
+        self._say_commands()
+
+    def _say_commands(self) -> None:
+        """One line naming what may be commanded and from where, when routes write commands, and
+        each source's warning when commands can come from past this machine."""
+        sources = [runner.route.source.transport for runner in self.routes if runner.commands is not None]
+        if not sources:
+            return
+        policy = self.config.commands
+        if not policy.allow:
+            log.info("viewer-bridge: commands: none (the way back writes no LCM channel until one is named: %s REGEX)",
+                     COMMAND_FLAG)  # fmt: skip
+            return
+        exposures = [self.transports[name].exposure() for name in dict.fromkeys(sources)]
+        who = ", ".join(exposure.who for exposure in exposures)
+        log.info("viewer-bridge: commands: %s from %s (max_age_ms %g)", policy.describe(), who, policy.max_age_ms)
+        for exposure in exposures:
+            if exposure.warning is not None:
+                log.warning("viewer-bridge: %s", exposure.warning)
 
     def stop(self) -> None:
         self._stop.set()

@@ -21,6 +21,7 @@ from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
+from viewer_bridge.commands import CommandPolicy
 from viewer_bridge.config import Route, destination_name
 from viewer_bridge.errors import BridgeError, Held
 from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
@@ -33,6 +34,10 @@ log = logging.getLogger("viewer_bridge")
 
 PublisherFor = Callable[[str, Output], Publisher]  # (full name, output) -> a publisher
 _LISTENERS_CHECK_S = 0.25  # how often a lazy route asks its publishers whether anyone listens
+# Channels a route counts held messages on one by one; the rest are counted together, so that a
+# flood of new channel names (a hostile peer's topics) cannot grow the stats without bound.
+MAX_HELD_CHANNELS = 1000
+OTHER_CHANNELS = "(other channels)"
 
 
 class _Lane:
@@ -80,8 +85,14 @@ class RouteRunner:
         inline: InlineBudget | None = None,
         message_time: MessageTime | None = None,
         rejected: Callable[[Received, BridgeError], None] | None = None,
+        commands: CommandPolicy | None = None,
     ) -> None:
+        """`commands`: the policy of a route that writes commands (its destinations must be
+        allowed; its messages expire after `max_age_ms`), or None for any other route."""
         self.route = route
+        self.commands = commands
+        max_age_ms = route.max_age_ms if route.max_age_ms is not None else commands and commands.max_age_ms
+        self._max_age_us = max_age_ms * 1000 if max_age_ms else None
         self._rejected = rejected  # the source transport's `rejected`: a sender may expect an answer
         self.pattern = re.compile(route.source.name)
         self.mailbox = Mailbox(route.rate.policy, route.qos.depth, rate_limited=bool(route.rate.max_hz))
@@ -131,7 +142,9 @@ class RouteRunner:
 
     def feed(self, received: Received) -> None:
         """Offline (no worker running): translate and publish at once, on the caller's thread, if
-        this route's source matches; no mailbox and no rate limit, so every message is translated."""
+        this route's source matches; no mailbox, no rate limit and no age limit (a log's times are
+        its own), so every message is translated."""
+        self._max_age_us = None
         match = self.pattern.fullmatch(received.channel)
         if match is not None:
             self.stats.messages_in += 1
@@ -205,10 +218,28 @@ class RouteRunner:
         key = message.match.groups()
         lane = self._lanes.get(key)
         if lane is None:
-            translator, self.prototype = self.prototype or self._make_translator(), None
             name = destination_name(self.route.destination.name, message.match)
+            self._admit(name)
+            translator, self.prototype = self.prototype or self._make_translator(), None
             lane = self._lanes[key] = _Lane(name, translator, self._publisher)
         return lane
+
+    def _admit(self, name: str) -> None:
+        """Raise `Held` when a new stream publishing on `name` may not have a lane: a command
+        destination not allowed, or one stream more than the route's `max_streams`."""
+        if self.commands is not None and not self.commands.allows(name):
+            raise Held("not_allowed", self.commands.refusal(name))
+        if len(self._lanes) >= self.route.max_streams:
+            raise Held(
+                "too_many_streams",
+                f"the route carries {len(self._lanes)} streams already (its max_streams): not carried",
+            )
+
+    def _expired(self, message: Message) -> Held | None:
+        """Why a message is too old to send (older than the route's `max_age_ms` now), or None."""
+        if self._max_age_us is None or time.time_ns() // 1000 - message.received.received_us <= self._max_age_us:
+            return None
+        return Held("stale", f"older than max_age_ms ({self._max_age_us / 1000:g}) when it would be sent: dropped")
 
     def handle(self, message: Message) -> None:
         """Translate and publish one message; errors are counted and reported, never raised."""
@@ -252,6 +283,10 @@ class RouteRunner:
                 self._error(type(part).__name__, f"{message.channel}: {part}")
             else:  # a geometry a target cannot write: a warning
                 self._count(self.stats.warnings, "skipped_geometry", f"{message.channel}: {part}")
+        stale = self._expired(message)
+        if stale is not None:  # a command held up (a stall, a busy core) is never sent late
+            self._held(message, stale)
+            return
         self._message_time.received_us = message.received.received_us  # what a file stamps its outputs with
         self._message_time.channel = message.channel  # where they came from (the loop guard)
         for index, payload in outputs:
@@ -274,6 +309,8 @@ class RouteRunner:
         self._count_held(message.channel, held)
 
     def _count_held(self, channel: str, held: Held) -> None:
+        if channel not in self.stats.held and len(self.stats.held) >= MAX_HELD_CHANNELS:
+            channel = OTHER_CHANNELS
         self.stats.held.setdefault(channel, Counter())[held.kind] += 1
         if (channel, held.kind) not in self._held_logged:
             self._held_logged.add((channel, held.kind))

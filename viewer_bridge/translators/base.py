@@ -62,12 +62,17 @@ class Translator:
       with requests and responses, like the tree viewer's, answers. Required when the class
       declares `replies`; fixed for the translator's life (never set after it is made).
     A subclass with its own `__init__` takes `*args, **kwargs` and passes them on.
+
+    `commands` marks a translator whose outputs command a robot-facing bus (the generic way back
+    to LCM): the router writes only the destinations the config's `commands.allow` names, and
+    drops what is older than the route's `max_age_ms` (`viewer_bridge.commands`).
     """
 
     Options: ClassVar[type[TranslatorOptions]] = TranslatorOptions
     reads: tuple[MessageType, ...]
     outputs: tuple[Output, ...]
     replies: ClassVar[MessageType | None] = None
+    commands: ClassVar[bool] = False
 
     def __init__(
         self,

@@ -78,6 +78,7 @@ class RosToLcm(Translator):
 
     reads = (ANY_ROS_TYPE,)
     outputs = (Output("", ANY_LCM_TYPE),)
+    commands = True  # it writes LCM channels that drive robots: only those the config allows, fresh
 
     def translate(self, message: Received) -> Outputs:
         lcm_type = self.lcm_type(message)

@@ -187,6 +187,16 @@ class Shared:
 
 
 @dataclass(frozen=True, slots=True)
+class Exposure:
+    """Who can send a transport the messages a route reads, said at start for the routes that
+    command a robot: `who` for the start-up line, `warning` when that reaches past this machine
+    (with how to narrow it), else None."""
+
+    who: str
+    warning: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
 class Qos:
     """What a route asks of a publisher or subscription; transports use what they have of it."""
 
@@ -274,6 +284,10 @@ class Transport(ABC):
         """Where it is, for the start-up line."""
         return type(self).__name__
 
+    def exposure(self) -> Exposure:
+        """Who can send this transport messages (said at start when routes reading it write commands)."""
+        return Exposure(self.describe())
+
     def rejected(self, message: Received, error: BridgeError) -> None:
         """Told when a route could not translate a message this transport delivered (`error` says
         why; a `Held` too): a transport whose senders expect an answer gives one (the Foxglove
@@ -312,6 +326,7 @@ __all__ = [
     "CallPublisher",
     "Decoded",
     "Deliver",
+    "Exposure",
     "JSON",
     "LCM",
     "Made",

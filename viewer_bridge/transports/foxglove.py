@@ -36,6 +36,7 @@ from urllib.parse import urlencode
 
 from pydantic import Field
 
+from viewer_bridge.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, TransportUnavailable
 from viewer_bridge.extras import missing
 from viewer_bridge.formats.foxglove.schema import schema
@@ -43,6 +44,7 @@ from viewer_bridge.transports.base import (
     CDR,
     PROTOBUF,
     Deliver,
+    Exposure,
     MessageType,
     Publisher,
     Qos,
@@ -210,7 +212,12 @@ class FoxgloveTransport(Transport):
     encodings = frozenset({PROTOBUF, CDR})
     settings: FoxgloveSettings
 
-    def __init__(self, settings: FoxgloveSettings, context: FoxgloveContext | None = None) -> None:
+    def __init__(
+        self, settings: FoxgloveSettings, context: FoxgloveContext | None = None, *, accept_commands: bool = True
+    ) -> None:
+        """`accept_commands`: whether what clients publish can land anywhere (a router's config
+        allows some command channel); without it the server offers no publishing, and a client
+        that publishes anyway is told why."""
         super().__init__(settings)
         self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
         self.context = FoxgloveContext() if context is None else context
@@ -224,7 +231,7 @@ class FoxgloveTransport(Transport):
                 port=0 if relayed else settings.port,
                 context=self.context.context,
                 server_listener=_Listener(self._channels),
-                **(publishing if self.clients is not None else {}),  # type: ignore[arg-type]
+                **(publishing if self.clients is not None and accept_commands else {}),  # type: ignore[arg-type]
             )
         except Exception as error:  # the SDK raises its own error types, e.g. for a port in use
             raise self._cannot_listen(error) from None
@@ -242,7 +249,8 @@ class FoxgloveTransport(Transport):
     @classmethod
     def create(cls, settings: TransportSettings, shared: Shared) -> FoxgloveTransport:
         assert isinstance(settings, FoxgloveSettings)
-        return cls(settings, shared.get(FoxgloveContext))  # an MCAP file of this router logs to it too
+        accept = bool(shared.get(CommandPolicy).allow)  # without an allowed channel nothing clients publish lands
+        return cls(settings, shared.get(FoxgloveContext), accept_commands=accept)  # an MCAP file logs to it too
 
     def _cannot_listen(self, error: Exception) -> TransportUnavailable:
         where = f"{self.settings.host}:{self.settings.port}"
@@ -277,10 +285,17 @@ class FoxgloveTransport(Transport):
         publisher = self._channels[channel.id()] = _Channel(channel, qos.latched)
         return publisher
 
+    @property
+    def url(self) -> str:
+        """Where clients connect."""
+        return f"ws://{self.settings.host}:{self.port}"
+
     def describe(self) -> str:
-        url = f"ws://{self.settings.host}:{self.port}"
-        app = "https://app.foxglove.dev?" + urlencode({"ds": "foxglove-websocket", "ds.url": url})
-        return f"Foxglove WebSocket server {url} (open {app})"
+        app = "https://app.foxglove.dev?" + urlencode({"ds": "foxglove-websocket", "ds.url": self.url})
+        return f"Foxglove WebSocket server {self.url} (open {app})"
+
+    def exposure(self) -> Exposure:
+        return Exposure(f"Foxglove clients ({self.url})")
 
     def errors(self) -> Mapping[str, int]:
         """Client connections dropped (the front's), and what clients published that no route got."""

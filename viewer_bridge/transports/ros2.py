@@ -20,9 +20,10 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import os
 import re
 import threading
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from pydantic import field_validator
@@ -34,6 +35,7 @@ from viewer_bridge.transports.base import (
     CDR,
     CallPublisher,
     Deliver,
+    Exposure,
     MessageType,
     Publisher,
     Qos,
@@ -50,7 +52,20 @@ if TYPE_CHECKING:
     from rclpy.qos import QoSProfile
 
 _PLAIN_TOPIC = re.compile(r"^[A-Za-z0-9_/~{}]+$")
+LOCAL_RANGES = ("LOCALHOST", "OFF")  # discovery ranges that reach no other host (but static peers)
 BUILDABLE_INTERFACES = ("tf2_msgs",)  # no wheel on PyPI: `viewer-bridge ros-interfaces install` builds them
+
+
+def discovery_range(environ: Mapping[str, str]) -> tuple[str, str]:
+    """How far ROS 2 discovery reaches, as Jazzy reads the environment: the range (unset, empty
+    and SYSTEM_DEFAULT are the middleware's default, the subnet; the older ROS_LOCALHOST_ONLY=1
+    means LOCALHOST when no range is set) and the static peers, if any."""
+    scope = environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip().upper()
+    if not scope and environ.get("ROS_LOCALHOST_ONLY", "").strip() == "1":
+        scope = "LOCALHOST"
+    if scope not in ("LOCALHOST", "OFF", "SUBNET"):
+        scope = "SUBNET"
+    return scope, environ.get("ROS_STATIC_PEERS", "").strip()
 
 
 def message_class(typename: str) -> Any:
@@ -292,6 +307,18 @@ class RosTransport(Transport):
 
     def describe(self) -> str:
         return f"ROS 2 node {self.node.get_fully_qualified_name()}"
+
+    def exposure(self) -> Exposure:
+        scope, peers = discovery_range(os.environ)
+        who = f"ROS 2 (DDS, discovery {scope}{f', static peers {peers}' if peers else ''})"
+        if scope in LOCAL_RANGES and not peers:
+            return Exposure(who)
+        reach = f"the static peers {peers}" if scope in LOCAL_RANGES else "any host on the subnet"
+        return Exposure(who, (
+            f"commands are taken over DDS with discovery {scope}: {reach} can publish on their topics and "
+            "command those LCM channels. Keep it to this machine with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, "
+            "name the hosts that may with ROS_STATIC_PEERS, or authenticate peers with SROS2 (needs a ROS install)"
+        ))  # fmt: skip
 
     def close(self) -> None:
         import rclpy

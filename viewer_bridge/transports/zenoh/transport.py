@@ -32,6 +32,7 @@ from viewer_bridge.transports.base import (
     CDR,
     LCM,
     Deliver,
+    Exposure,
     MessageType,
     Publisher,
     Qos,
@@ -343,6 +344,13 @@ class ZenohTransport(Transport):
     def describe(self) -> str:
         node = f"{self.node.namespace.rstrip('/')}/{self.node.name}"
         return f"Zenoh {self._where}: ROS domain {self.domain}, node {node}; LCM under {self.settings.lcm_prefix}/"
+
+    def exposure(self) -> Exposure:
+        return Exposure(f"Zenoh ({self._where})", (
+            "commands are taken from every Zenoh session that reaches this one (through its router too): "
+            "limit who may publish on the command topics with the Zenoh router's access control "
+            "(the Zenoh guide, docs/zenoh.md: who may command your robot)"
+        ))  # fmt: skip
 
     def errors(self) -> dict[str, int]:
         counts = dict(self._errors)

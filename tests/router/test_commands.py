@@ -1,0 +1,176 @@
+"""Routes that write commands (viewer_bridge/commands.py, viewer_bridge/router/runner.py): only the
+channels the config allows, only fresh messages, and a bounded number of streams per route."""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any, ClassVar
+
+import pytest
+
+from viewer_bridge.commands import CommandPolicy
+from viewer_bridge.config import Route
+from viewer_bridge.errors import BridgeError, ConfigError, Held
+from viewer_bridge.router.runner import MAX_HELD_CHANNELS, OTHER_CHANNELS, RouteRunner
+from viewer_bridge.translators.base import Output, Outputs, Translator
+from viewer_bridge.transports.base import LCM, CallPublisher, MessageType, Publisher, Received
+
+WAIT = 60.0
+
+
+class PassThrough(Translator):
+    """Sends each message's bytes as they are."""
+
+    reads = (MessageType("*", LCM),)
+    outputs: ClassVar[tuple[Output, ...]] = (Output("", MessageType("*", LCM)),)
+
+    def translate(self, message: Received) -> Outputs:
+        return [(0, message.data)]
+
+
+class PassCommands(PassThrough):
+    """A command writer (the way back, minus the codec)."""
+
+    commands = True
+
+
+def command_route(**fields: Any) -> Route:
+    return Route.model_validate(
+        {"name": "lcm_in", "source": {"transport": "ros", "name": "/lcm_in/(.*)"}, "translator": "ros_to_lcm",
+         "destination": {"transport": "lcm", "name": "{1}"}} | fields
+    )  # fmt: skip
+
+
+class Sent:
+    """What the route published, by channel, with when it was published."""
+
+    def __init__(self) -> None:
+        self.by_channel: dict[str, list[tuple[bytes, int]]] = {}
+
+    def publisher(self, name: str, output: Output) -> Publisher:
+        def publish(data: bytes) -> None:
+            self.by_channel.setdefault(name, []).append((data, time.time_ns() // 1000))
+
+        return CallPublisher(publish)
+
+
+def runner_for(policy: CommandPolicy, route: Route | None = None) -> tuple[RouteRunner, Sent, list[BridgeError]]:
+    sent, told = Sent(), []
+    runner = RouteRunner(
+        route or command_route(), lambda: PassCommands({}), sent.publisher,
+        rejected=lambda message, error: told.append(error), commands=policy,
+    )  # fmt: skip
+    return runner, sent, told
+
+
+def test_only_allowed_channels_are_written_and_each_refusal_is_counted_and_answered() -> None:
+    runner, sent, told = runner_for(CommandPolicy(allow=("WSG_COMMAND",)))
+    runner.feed(Received("/lcm_in/WSG_COMMAND", b"grip"))
+    runner.feed(Received("/lcm_in/IIWA_COMMAND", b"move"))
+    runner.feed(Received("/lcm_in/IIWA_COMMAND", b"move"))
+    assert sent.by_channel.keys() == {"WSG_COMMAND"}
+    assert runner.snapshot()["held"] == {"/lcm_in/IIWA_COMMAND": {"not_allowed": 2}}
+    assert len(told) == 2 and all(isinstance(error, Held) for error in told)
+    assert "IIWA_COMMAND may not be commanded (allowed: WSG_COMMAND)" in str(told[0])
+    assert "--allow-commands 'IIWA_COMMAND'" in str(told[0])
+
+
+def test_with_nothing_allowed_nothing_is_written() -> None:
+    runner, sent, told = runner_for(CommandPolicy())
+    for channel in ("IIWA_COMMAND", "WSG_COMMAND", "ANYTHING"):
+        runner.feed(Received(f"/lcm_in/{channel}", b"x"))
+    assert not sent.by_channel and len(told) == 3
+    assert "(none is allowed)" in str(told[0])
+
+
+def test_a_pattern_matches_the_whole_channel_name() -> None:
+    policy = CommandPolicy(allow=("IIWA_COMMAND|WSG_.*",))
+    assert policy.allows("IIWA_COMMAND") and policy.allows("WSG_COMMAND")
+    assert not policy.allows("IIWA_COMMAND_2") and not policy.allows("MY_IIWA_COMMAND")
+
+
+def test_a_pattern_that_is_no_regular_expression_is_a_config_error(tmp_path: Any) -> None:
+    from viewer_bridge.config import load_config
+
+    path = tmp_path / "bridge.yaml"
+    path.write_text("commands:\n  allow: ['IIWA_(']\nroutes: []\n")
+    with pytest.raises(ConfigError, match=r"bridge.yaml:2: commands.allow.*not a regular expression"):
+        load_config(path)
+
+
+def stalled(runner: RouteRunner, stall_s: float, send_for_s: float, count: int = 100) -> tuple[list[int], int]:
+    """The route's publisher stalls for `stall_s` on its first message (as a blocked socket or a
+    busy core would), while `count` commands arrive over the first `send_for_s` seconds. Returns
+    the receive times of what was sent after the stall, and when the stall ended."""
+    release, stalling = threading.Event(), threading.Event()
+    published: list[int] = []
+
+    def publish(data: bytes) -> None:
+        if not stalling.is_set():
+            stalling.set()
+            release.wait(WAIT)
+        published.append(int(data))
+
+    runner._publisher_for = lambda name, output: CallPublisher(publish)  # type: ignore[assignment]
+    runner.start()
+    try:
+        runner.offer(Received("/lcm_in/IIWA_COMMAND", str(time.time_ns() // 1000).encode()))  # stalls its thread
+        assert stalling.wait(WAIT)
+        for _ in range(count):
+            runner.offer(Received("/lcm_in/IIWA_COMMAND", str(time.time_ns() // 1000).encode()))
+            time.sleep(send_for_s / count)
+        time.sleep(max(0.0, stall_s - send_for_s))
+        resumed_us = time.time_ns() // 1000
+        release.set()
+        deadline = time.monotonic() + WAIT
+        while len(runner.mailbox) and time.monotonic() < deadline:  # what waited is taken (sent or dropped)
+            time.sleep(0.01)
+        with runner._turn:  # the worker takes a message under its turn and keeps it until handled
+            pass
+    finally:
+        runner.stop()
+        runner.join(timeout=5)
+    return published[1:], resumed_us
+
+
+def test_a_stalled_command_route_sends_at_most_one_afterwards_and_nothing_stale() -> None:
+    """The stall in the receiving thread: 100 commands meanwhile, over the whole 2 s stall."""
+    route = command_route(rate={"policy": "latest"})
+    runner, _, _ = runner_for(CommandPolicy(allow=(".*",), max_age_ms=200), route)
+    after, resumed_us = stalled(runner, stall_s=2.0, send_for_s=2.0)
+    assert len(after) <= 1, after
+    for received_us in after:
+        assert resumed_us - received_us <= 200_000 + 100_000  # at most the age limit when taken (+ the handover)
+    assert runner.mailbox.dropped == 99  # superseded while the route stalled: the newest waited
+
+
+def test_commands_that_went_stale_during_a_stall_are_never_sent() -> None:
+    """100 commands in the first half second of a 2 s stall: all older than 200 ms when it ends."""
+    route = command_route(rate={"policy": "latest"})
+    runner, _, _ = runner_for(CommandPolicy(allow=(".*",), max_age_ms=200), route)
+    after, _ = stalled(runner, stall_s=2.0, send_for_s=0.5)
+    assert after == []
+    assert runner.snapshot()["held"]["/lcm_in/IIWA_COMMAND"]["stale"] == 1  # the newest, taken and dropped
+
+
+def test_a_route_gives_at_most_max_streams_channels_their_own_publisher() -> None:
+    """A bus with 10,000 channel names: 1,000 get a lane and a publisher, the rest are held and
+    counted, and the per-channel counts stay bounded too."""
+    made: list[str] = []
+
+    def publisher(name: str, output: Output) -> Publisher:
+        made.append(name)
+        return CallPublisher(lambda data: None)
+
+    route = Route.model_validate(
+        {"name": "bus", "source": {"transport": "lcm", "name": "(.*)"}, "translator": "lcm_to_ros",
+         "destination": {"transport": "ros", "name": "/lcm/{1:topic}"}}
+    )  # fmt: skip
+    runner = RouteRunner(route, lambda: PassThrough({}), publisher)
+    for index in range(10_000):
+        runner.feed(Received(f"CHANNEL_{index}", b"x"))
+    assert len(made) == route.max_streams == 1000
+    held = runner.snapshot()["held"]
+    assert len(held) == MAX_HELD_CHANNELS + 1 and held[OTHER_CHANNELS] == {"too_many_streams": 9000 - MAX_HELD_CHANNELS}
+    assert sum(kinds["too_many_streams"] for kinds in held.values()) == 9000

@@ -1,0 +1,68 @@
+"""Which LCM channels the way back may write, and how old a command may be when it is sent.
+
+The generic way back (`ros_to_lcm`: ROS 2 over DDS or Zenoh, and Foxglove clients, publishing on
+`/lcm_in/<channel>`) writes into LCM buses that drive real arms and grippers. So it writes no
+channel the user has not named: `commands.allow` in a config, or `--allow-commands REGEX` on
+`viewer-bridge run`, each a regular expression matched against the whole channel name. With none
+named, nothing is written, and each refused message is counted (`not_allowed`) and answered.
+
+A command is worth sending only while it is fresh: a message older than `max_age_ms` when it
+would be sent (measured from the bridge's own receive time) is dropped and counted (`stale`),
+never replayed after a stall. The senders' own stamps (a ROS 2 `header.stamp`, an LCM `utime`)
+are not used: they come from another clock (a simulation's, another host's) that the bridge
+cannot compare with its own.
+"""
+
+from __future__ import annotations
+
+import re
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+COMMAND_FLAG = "--allow-commands"
+DEFAULT_MAX_AGE_MS = 200.0
+
+
+class CommandPolicy(BaseModel):
+    """A config's `commands:` section."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    # Regular expressions, each matched against the whole LCM channel name (`IIWA_COMMAND|WSG_COMMAND`).
+    allow: tuple[str, ...] = ()
+    # A command older than this when it would be sent is dropped (`stale`); a route's own
+    # `max_age_ms` overrides it.
+    max_age_ms: float = Field(DEFAULT_MAX_AGE_MS, gt=0)
+
+    @field_validator("allow")
+    @classmethod
+    def _regular_expressions(cls, allow: tuple[str, ...]) -> tuple[str, ...]:
+        for pattern in allow:
+            try:
+                re.compile(pattern)
+            except re.error as error:
+                raise ValueError(f"{pattern!r} is not a regular expression: {error}") from None
+        return allow
+
+    def allows(self, channel: str) -> bool:
+        """Whether the way back may write LCM `channel`."""
+        return any(re.fullmatch(pattern, channel) for pattern in self.allow)
+
+    def widened(self, patterns: list[str]) -> CommandPolicy:
+        """This policy with more channels allowed (`--allow-commands` on top of the config's)."""
+        return CommandPolicy(allow=(*self.allow, *patterns), max_age_ms=self.max_age_ms)
+
+    def describe(self) -> str:
+        """What may be commanded, for the start-up line."""
+        return ", ".join(self.allow) if self.allow else "none"
+
+    def refusal(self, channel: str) -> str:
+        """Why a message for `channel` is not written, and how to allow it."""
+        named = f" (allowed: {', '.join(self.allow)})" if self.allow else " (none is allowed)"
+        return (
+            f"LCM channel {channel} may not be commanded{named}: run with {COMMAND_FLAG} "
+            f"'{re.escape(channel)}', or name it in the config's commands: {{allow: [...]}}"
+        )
+
+
+__all__ = ["COMMAND_FLAG", "DEFAULT_MAX_AGE_MS", "CommandPolicy"]
