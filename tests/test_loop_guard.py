@@ -27,6 +27,7 @@ from viewer_bridge.transports.ros2 import message_class
 pytestmark = pytest.mark.slow
 
 BOTH_WAYS = """\
+commands: {{allow: ["LOOP_.*"], max_age_ms: 60000}}
 routes:
   - name: out
     source: {{transport: lcm, name: "(LOOP_.*)"}}

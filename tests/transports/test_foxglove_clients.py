@@ -27,6 +27,9 @@ from viewer_bridge.transports.foxglove_front import Connection
 pytestmark = pytest.mark.slow
 COMMAND_TYPE = "drake_lcm_msgs/msg/LcmtIiwaCommand"
 WAIT = 60.0
+# Every channel these tests command, and an age limit no loaded machine reaches (freshness has its
+# own tests: tests/router/test_commands.py).
+COMMANDS_ALLOWED = ("--allow-commands", ".*", "--set", "commands.max_age_ms=60000")
 
 
 def connected(port: int) -> WsProtocolClient:
@@ -150,7 +153,7 @@ def _b64(data: bytes) -> str:
 def test_a_foxglove_client_commands_an_lcm_robot_as_json_and_as_cdr() -> None:
     url = lcm_url(14)
     recorder = LcmRecorder(url)
-    bridge = BridgeProcess("-c", "builtin:foxglove", "--lcm-url", url, "--stats-period", "1")
+    bridge = BridgeProcess("-c", "builtin:foxglove", "--lcm-url", url, "--stats-period", "1", *COMMANDS_ALLOWED)
     publisher = bystander = other = None
     try:
         port = foxglove_port(bridge)
@@ -159,25 +162,35 @@ def test_a_foxglove_client_commands_an_lcm_robot_as_json_and_as_cdr() -> None:
         publisher.send(op="advertise", name="json", topic=topic, encoding="json", schemaName=COMMAND_TYPE)
         publisher.send(op="advertise", name="cdr", topic=topic, encoding="cdr", schemaName=COMMAND_TYPE)
         assert publisher.pump(WAIT, lambda: len(publisher.seen("advertised")) == 2), publisher.log()  # type: ignore[union-attr]
-        sent = [command_values(1), command_values(2)]
-        publisher.send(op="publish", name="json", data=_b64(json.dumps(sent[0]).encode()))
-        publisher.send(op="publish", name="cdr", data=_b64(command_cdr(sent[1])))
-        # Malformed: a wrong type in JSON; CDR whose length field says 7 joints for 6 positions.
-        wrong_type = command_values(3) | {"joint_position": "seven numbers"}
-        publisher.send(op="publish", name="json", data=_b64(json.dumps(wrong_type).encode()))
-        short = command_values(4)
-        short["joint_position"] = short["joint_position"][:6]
-        publisher.send(op="publish", name="cdr", data=_b64(command_cdr(short)))
-        # A last good one: when it is on LCM, the malformed ones before it were handled.
-        sent.append(command_values(5))
-        publisher.send(op="publish", name="json", data=_b64(json.dumps(sent[2]).encode()))
 
         def commands() -> list[Any]:
             return [drake_lcmtypes.lcmt_iiwa_command.decode(data) for data in recorder.messages.get("IIWA_COMMAND", [])]
 
-        deadline = time.monotonic() + WAIT
-        while len(commands()) < 3 and time.monotonic() < deadline:
-            time.sleep(0.05)
+        def landed(count: int) -> None:
+            deadline = time.monotonic() + WAIT
+            while len(commands()) < count and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert len(commands()) == count, bridge.lines
+
+        # One at a time, each waited for: the route keeps the newest command per channel, so
+        # commands sent faster than it takes them would be superseded (counted), by design.
+        sent = [command_values(1), command_values(2)]
+        publisher.send(op="publish", name="json", data=_b64(json.dumps(sent[0]).encode()))
+        landed(1)
+        publisher.send(op="publish", name="cdr", data=_b64(command_cdr(sent[1])))
+        landed(2)
+        # Malformed: a wrong type in JSON; CDR whose length field says 7 joints for 6 positions.
+        # Each: an error status at its client naming the field (and the length field).
+        wrong_type = command_values(3) | {"joint_position": "seven numbers"}
+        publisher.send(op="publish", name="json", data=_b64(json.dumps(wrong_type).encode()))
+        wait_for_status(publisher, topic, f"{COMMAND_TYPE} (json)", "joint_position", "string")
+        short = command_values(4)
+        short["joint_position"] = short["joint_position"][:6]
+        publisher.send(op="publish", name="cdr", data=_b64(command_cdr(short)))
+        wait_for_status(publisher, topic, f"{COMMAND_TYPE} (cdr)", "joint_position", "num_joints")
+        sent.append(command_values(5))  # and the next good one flows
+        publisher.send(op="publish", name="json", data=_b64(json.dumps(sent[2]).encode()))
+        landed(3)
         recorder.sync()
         received = commands()
         assert [command.utime for command in received] == [1, 2, 5], bridge.lines
@@ -185,9 +198,6 @@ def test_a_foxglove_client_commands_an_lcm_robot_as_json_and_as_cdr() -> None:
             assert command.num_joints == 7 and command.num_torques == 2
             assert list(command.joint_position) == values["joint_position"]
             assert list(command.joint_torque) == values["joint_torque"]
-        # Each malformed one: an error status at its client naming the field (and the length field).
-        wait_for_status(publisher, topic, f"{COMMAND_TYPE} (json)", "joint_position", "string")
-        wait_for_status(publisher, topic, f"{COMMAND_TYPE} (cdr)", "joint_position", "num_joints")
 
         # Another schema (the Teleop panel's Twist) on /lcm_in/: said to that client too.
         other.send(op="advertise", topic="/lcm_in/CMD_VEL", encoding="json", schemaName="geometry_msgs/msg/Twist")

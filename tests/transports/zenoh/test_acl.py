@@ -204,3 +204,23 @@ def test_a_wildcard_publication_passes_the_rule_as_the_guide_warns(site: Site, t
     viewer = site.login("viewer")
     assert put_until(viewer, "**", b"viewer on **", lambda: heard.has(b"viewer on **"))
     assert ("**", b"viewer on **") in heard.payloads
+
+
+def test_the_bridge_drops_a_sample_put_on_a_wildcard_key() -> None:
+    """What the rule above lets through commands nothing: the bridge takes a command only on the
+    concrete key it subscribed to, and counts the rest."""
+    from collections import Counter
+    from types import SimpleNamespace
+
+    from viewer_bridge.transports.base import CDR, MessageType, Received
+    from viewer_bridge.transports.zenoh import entities
+
+    errors: Counter[str] = Counter()
+    delivered: list[Received] = []
+    on_sample = entities.ros_receiver(
+        "/lcm_in/IIWA_COMMAND", MessageType("drake_lcm_msgs/msg/LcmtIiwaCommand", CDR), [delivered.append], errors
+    )
+    payload = SimpleNamespace(to_bytes=lambda: b"\0\1\0\0" + bytes(16))
+    for key in ("**", "0/**", "0/*/IIWA_COMMAND/T/H", "0/lcm_in/$*"):
+        on_sample(SimpleNamespace(key_expr=key, attachment=None, payload=payload))
+    assert errors == {"wildcard_key": 4} and not delivered

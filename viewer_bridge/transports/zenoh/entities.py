@@ -187,10 +187,14 @@ def declare_subscriber(
 def ros_receiver(
     channel: str, message_type: MessageType, delivers: list[Deliver], errors: Errors
 ) -> Callable[[zenoh.Sample], None]:
-    """A sample callback: checks the attachment and the CDR header, then hands the payload (of
-    `message_type`) to every route reading the topic. What fails a check is counted and dropped."""
+    """A sample callback: checks the key (concrete, no wildcard), the attachment and the CDR
+    header, then hands the payload (of `message_type`) to every route reading the topic. What
+    fails a check is counted and dropped."""
 
     def on_sample(sample: zenoh.Sample) -> None:
+        if keys.wildcard(str(sample.key_expr)):
+            errors["wildcard_key"] += 1
+            return
         attachment = sample.attachment
         try:
             keys.parse_attachment(b"" if attachment is None else attachment.to_bytes())

@@ -300,6 +300,14 @@ def parse_attachment(data: bytes) -> Attachment:
     return Attachment(sequence, timestamp_ns, source_gid)
 
 
+def wildcard(key: str) -> bool:
+    """Whether a sample's key expression has a wildcard chunk (`*`, `**`, `$*`). A put on a
+    wildcard key reaches every subscriber whose key it covers, past access-control rules written
+    for the concrete keys (a rule applies only where its key expression covers the put's): so a
+    sample must come on the concrete key it is for, or it is dropped."""
+    return "*" in key
+
+
 __all__ = [
     "ADMIN_SPACE",
     "ATTACHMENT",
@@ -325,4 +333,5 @@ __all__ = [
     "qos_part",
     "ros_type_name",
     "topic_type",
+    "wildcard",
 ]

@@ -306,7 +306,7 @@ class ZenohTransport(Transport):
 
     def _on_lcm(self, sample: zenoh.Sample) -> None:
         channel = str(sample.key_expr)[len(self.settings.lcm_prefix) + 1 :]
-        if not channel:
+        if not channel or keys.wildcard(channel):  # a wildcard put would write every channel it covers
             self._errors["bad_key"] += 1
             return
         message = None
