@@ -41,7 +41,7 @@ from viewer_bridge.resources import data_dir
 from viewer_bridge.translators import TRANSLATORS, Translator, TranslatorOptions
 from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import MessageType, Transport, TransportSettings
-from viewer_bridge.transports.ros_names import name_token
+from viewer_bridge.transports.ros_names import ChannelNames, name_token
 from viewer_bridge.yamldoc import KeyPath, YamlDocument
 
 
@@ -245,7 +245,12 @@ class _Checker:
 
 
 class _Template(string.Formatter):
-    """`{1}`, `{1:lower}`, `{1:path}` over a regex match's groups (a missing group is empty)."""
+    """`{1}`, `{1:lower}`, `{1:path}`, `{1:topic}`, `{1:channel}` over a regex match's groups (a
+    missing group is empty); `names` remembers the channels `:topic` made tokens of, for `:channel`."""
+
+    def __init__(self, names: ChannelNames | None = None) -> None:
+        super().__init__()
+        self._names = names
 
     def get_field(self, field_name: str, args: Sequence[Any], kwargs: Mapping[str, Any]) -> Any:
         # Only group numbers: `{1.path}` or `{1[a]}` would reach into the group's str (found by
@@ -261,7 +266,9 @@ class _Template(string.Formatter):
         if format_spec == "path":  # "_PROXIMITY" -> "/proximity"; "" stays ""
             return "/" + text.lstrip("_").lower() if text else ""
         if format_spec == "topic":  # any text as one valid ROS name token: "my client!" -> "my_client_"
-            return name_token(text)
+            return name_token(text) if self._names is None else self._names.token(text)
+        if format_spec == "channel":  # a token back to the LCM channel it was made of: "A_B" -> "A.B"
+            return text if self._names is None else self._names.channel(text)
         if format_spec:
             raise ValueError(f"unknown format spec {format_spec!r}")
         return text
@@ -274,7 +281,7 @@ def _check_template(template: str, groups: int) -> None:
     except (IndexError, KeyError, ValueError) as error:
         raise ValueError(
             f"destination name {template!r} does not fit a source with {groups} groups "
-            f"(use {{0}}..{{{groups}}}, with :lower, :path or :topic): {error}"
+            f"(use {{0}}..{{{groups}}}, with :lower, :path, :topic or :channel): {error}"
         ) from None
 
 
@@ -284,8 +291,10 @@ def _sample_destination(route: Route) -> str:
     return _Template().format(route.destination.name, "x", *(["x"] * groups))
 
 
-def destination_name(template: str, match: re.Match[str]) -> str:
-    return _Template().format(template, match.group(0), *match.groups())
+def destination_name(template: str, match: re.Match[str], names: ChannelNames | None = None) -> str:
+    """The destination name for a message whose source name `match`ed (`names`: see `_Template`).
+    Raises `Held` for a `:channel` that cannot be told."""
+    return _Template(names).format(template, match.group(0), *match.groups())
 
 
 def _builtin_configs() -> dict[str, str]:

@@ -174,3 +174,33 @@ def test_a_route_gives_at_most_max_streams_channels_their_own_publisher() -> Non
     held = runner.snapshot()["held"]
     assert len(held) == MAX_HELD_CHANNELS + 1 and held[OTHER_CHANNELS] == {"too_many_streams": 9000 - MAX_HELD_CHANNELS}
     assert sum(kinds["too_many_streams"] for kinds in held.values()) == 9000
+
+
+def test_a_command_topic_finds_the_channel_its_name_was_made_of_and_refuses_an_ambiguous_one() -> None:
+    """`/lcm/{1:topic}` made tokens of the channels seen (`1ARM` -> `n1ARM`, `a.b` and `a-b` ->
+    `a_b`); `/lcm_in/{1:channel}` maps them back, and refuses a token two channels share."""
+    from viewer_bridge.transports.ros_names import ChannelNames
+
+    names = ChannelNames()
+    made: list[str] = []
+    outward = Route.model_validate(
+        {"name": "bus", "source": {"transport": "lcm", "name": "(.*)"}, "translator": "lcm_to_ros",
+         "destination": {"transport": "ros", "name": "/lcm/{1:topic}"}}
+    )  # fmt: skip
+    out = RouteRunner(outward, lambda: PassThrough({}), lambda name, output: (made.append(name), CallPublisher(print))[1],
+                      names=names)  # fmt: skip
+    for channel in ("1ARM", "a.b", "a-b", "IIWA_STATUS"):
+        out.feed(Received(channel, b"x"))
+    assert made == ["/lcm/n1ARM", "/lcm/a_b", "/lcm/IIWA_STATUS"]  # a.b and a-b share one topic
+
+    sent, told = Sent(), []
+    back = RouteRunner(
+        command_route(destination={"transport": "lcm", "name": "{1:channel}"}), lambda: PassCommands({}),
+        sent.publisher, rejected=lambda message, error: told.append(error),
+        commands=CommandPolicy(allow=(".*",)), names=names,
+    )  # fmt: skip
+    for topic in ("/lcm_in/n1ARM", "/lcm_in/a_b", "/lcm_in/IIWA_COMMAND"):
+        back.feed(Received(topic, b"go"))
+    assert sorted(sent.by_channel) == ["1ARM", "IIWA_COMMAND"]  # unseen: the channel named as its topic
+    (refusal,) = told
+    assert isinstance(refusal, Held) and refusal.kind == "ambiguous_channel" and "a-b, a.b" in refusal.reason

@@ -48,6 +48,7 @@ from viewer_bridge.transports.base import (
     Transport,
     definitions_of,
 )
+from viewer_bridge.transports.ros_names import ChannelNames
 
 log = logging.getLogger("viewer_bridge")
 
@@ -116,6 +117,7 @@ class Router:
         runner = RouteRunner(
             route, make_translator, self._publisher_factory(route), self._inline, self.shared.message_time,
             source.rejected, self.config.commands if translator_class.commands else None,
+            self.shared.get(ChannelNames),
         )
         translator = runner.prototype
         assert translator is not None

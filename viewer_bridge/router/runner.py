@@ -29,6 +29,7 @@ from viewer_bridge.router.stats import RouteStats
 from viewer_bridge.skipped import collecting
 from viewer_bridge.translators import Output, Translator
 from viewer_bridge.transports.base import MessageTime, MessageType, Publisher, Received
+from viewer_bridge.transports.ros_names import ChannelNames
 
 log = logging.getLogger("viewer_bridge")
 
@@ -86,11 +87,14 @@ class RouteRunner:
         message_time: MessageTime | None = None,
         rejected: Callable[[Received, BridgeError], None] | None = None,
         commands: CommandPolicy | None = None,
+        names: ChannelNames | None = None,
     ) -> None:
         """`commands`: the policy of a route that writes commands (its destinations must be
-        allowed; its messages expire after `max_age_ms`), or None for any other route."""
+        allowed; its messages expire after `max_age_ms`), or None for any other route. `names`:
+        the router's channels made into ROS name tokens (`{1:topic}`, `{1:channel}`)."""
         self.route = route
         self.commands = commands
+        self._names = names
         max_age_ms = route.max_age_ms if route.max_age_ms is not None else commands and commands.max_age_ms
         self._max_age_us = max_age_ms * 1000 if max_age_ms else None
         self._rejected = rejected  # the source transport's `rejected`: a sender may expect an answer
@@ -130,7 +134,7 @@ class RouteRunner:
         if match is None:
             return
         try:
-            back_where = (self.route.destination.transport, destination_name(self.route.destination.name, match))
+            back_where = self.route.destination.transport, destination_name(self.route.destination.name, match, self._names)
         except Exception:  # a name the template cannot make: offered, and counted where it is made
             back_where = None
         if back_where != origin:
@@ -218,7 +222,7 @@ class RouteRunner:
         key = message.match.groups()
         lane = self._lanes.get(key)
         if lane is None:
-            name = destination_name(self.route.destination.name, message.match)
+            name = destination_name(self.route.destination.name, message.match, self._names)
             self._admit(name)
             translator, self.prototype = self.prototype or self._make_translator(), None
             lane = self._lanes[key] = _Lane(name, translator, self._publisher)

@@ -10,6 +10,9 @@ Each function returns what is wrong, or None for a valid name.
 from __future__ import annotations
 
 import re
+import threading
+
+from viewer_bridge.errors import Held
 
 _TOPIC_CHARACTERS = re.compile(r"[A-Za-z0-9_/~{}]")
 _NAME_CHARACTERS = re.compile(r"[A-Za-z0-9_/]")
@@ -24,6 +27,41 @@ def name_token(text: str) -> str:
     `my client!` -> `my_client_`, `0` -> `n0`."""
     token = re.sub(r"[^A-Za-z0-9_]", "_", text)
     return token if token[:1].isalpha() else f"n{token}"
+
+
+class ChannelNames:
+    """The channels whose names became ROS name tokens (`{1:topic}`: `A.B` -> `A_B`, `1ARM` ->
+    `n1ARM`), so that the way back (`{1:channel}`) finds the channel a token stands for: the one
+    channel seen with that token, else the token itself. Two channels with one token make the
+    token ambiguous: refused (`Held`), never a guess. Bounded: past `limit` channels, new ones are
+    not remembered (their tokens then stand for themselves)."""
+
+    def __init__(self, limit: int = 10_000) -> None:
+        self._by_token: dict[str, set[str]] = {}
+        self._count = 0
+        self._limit = limit
+        self._lock = threading.Lock()
+
+    def token(self, channel: str) -> str:
+        """`channel`'s token, remembered."""
+        token = name_token(channel)
+        with self._lock:
+            channels = self._by_token.setdefault(token, set())
+            if channel not in channels and self._count < self._limit:
+                channels.add(channel)
+                self._count += 1
+        return token
+
+    def channel(self, token: str) -> str:
+        """The channel `token` stands for; `Held` (`ambiguous_channel`) when several do."""
+        with self._lock:
+            channels = sorted(self._by_token.get(token, ()))
+        if len(channels) > 1:
+            raise Held(
+                "ambiguous_channel",
+                f"{token} stands for the LCM channels {', '.join(channels)}: which one cannot be told, nothing is sent",
+            )
+        return channels[0] if channels else token
 
 
 def topic_problem(name: str) -> str | None:
@@ -135,6 +173,7 @@ def ros_argument_problem(flag: str, value: str) -> str | None:
 
 
 __all__ = [
+    "ChannelNames",
     "MAX_NAMESPACE_LENGTH",
     "MAX_NODE_NAME_LENGTH",
     "name_token",
