@@ -56,6 +56,7 @@ _NUMBER = frozenset({int, float})
 _INT = frozenset({int})
 _BOOL = frozenset({bool})
 
+
 class _Output(list[Any]):
     """The chunks of one message's LCM, and `least`: the fewest bytes the message can take with
     what is known so far (its type's fixed part, and each variable array at its length)."""
