@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import drake
 
@@ -35,3 +36,19 @@ def test_a_labs_type_given_a_library_with_bytes_summarised() -> None:
     assert text[0].endswith("LEFT_ARM lab.robot.arm_state_t (" + str(len(event.data)) + " bytes)")
     assert "  blob: 3 bytes, CRC-32 352441c2" in text
     assert "  tip:" in text and "    frameId: ''" in text
+
+
+def _refuse(constant: str) -> None:
+    raise ValueError(f"not JSON: {constant}")
+
+
+def test_json_lines_are_strict_json_with_nan_and_infinities_as_strings() -> None:
+    status = drake.lcmt_iiwa_status()
+    status.utime, status.num_joints = 9, 3
+    for name in status.__slots__[2:]:
+        setattr(status, name, [0.5, 0.5, 0.5])
+    status.joint_position_measured = [math.nan, math.inf, -math.inf]
+    line = as_json(LcmEvent("IIWA_STATUS", status.encode(), 1_000_000))
+    record = json.loads(line, parse_constant=_refuse)  # Python's parser takes bare NaN unless told not to
+    assert record["message"]["joint_position_measured"] == ["NaN", "Infinity", "-Infinity"]
+    assert record["message"]["joint_torque_external"] == [0.5, 0.5, 0.5] and record["message"]["utime"] == 9

@@ -173,6 +173,9 @@ def test_a_package_is_rebuilt_when_its_sources_or_a_nested_package_change() -> N
     [
         ({"Bad_msgs/msg/X": "int32 a\n"}, "'Bad_msgs/msg/X' is not a ROS 2 message name"),
         ({"a_msgs/srv/X": "int32 a\n"}, "'a_msgs/srv/X' is not a ROS 2 message name"),
+        # A name is matched whole: `$` alone took a final newline, and the .msg file's name with it.
+        ({"a_msgs/msg/X\n": "int32 a\n"}, "'a_msgs/msg/X\\n' is not a ROS 2 message name"),
+        ({"a_msgs\n/msg/X": "int32 a\n"}, "'a_msgs\\n/msg/X' is not a ROS 2 message name"),
         ({"a_msgs/msg/X": "float64[ x\n"}, "a_msgs/msg/X: not a valid .msg definition: Could not parse"),
         (
             {"a_msgs/msg/X": "b_msgs/Y y\n", "b_msgs/msg/Y": "a_msgs/X x\n"},
@@ -275,10 +278,11 @@ def test_the_cli_generates_drakes_types_by_default_and_the_packages_named(
     draw = (tmp_path / "all" / "drake_lcm_msgs" / "msg" / "LcmtViewerDraw.msg").read_text()
     assert "int64 timestamp  # simulation time in milliseconds\n" in draw  # lcmtypes/'s file: its comments
     lab = ["ros-interfaces", "generate", "lab_robot_lcm_msgs", "--lcm-types", str(CORPUS), "-o", str(tmp_path / "lab")]
-    stale = tmp_path / "lab" / "lab_robot_lcm_msgs" / "msg" / "GoneT.msg"  # a type an earlier run wrote
-    stale.parent.mkdir(parents=True)
-    stale.write_text("int8 x\n")
     assert main(lab) == 0
+    capsys.readouterr()
+    stale = tmp_path / "lab" / "lab_robot_lcm_msgs" / "msg" / "GoneT.msg"  # as if a type an earlier run wrote
+    stale.write_text("int8 x\n")
+    assert main(lab) == 0  # over its own output: rewritten
     said = capsys.readouterr()
     assert said.out.split() == [str(tmp_path / "lab" / name) for name in ("lab_geometry_lcm_msgs", "lab_robot_lcm_msgs")]
     assert not stale.exists()
@@ -521,3 +525,33 @@ for case in json.load(open(os.environ["CASES"])):
     assert plain(message) == case["values"], (case["type"], plain(message), case["values"])
     print(serialize_message(message).hex())
 """
+
+
+def test_generate_leaves_a_package_folder_it_did_not_write_untouched_and_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Before, it wrote over a folder of the same name and deleted its .msg files."""
+    mine = tmp_path / "src" / BASE
+    (mine / "msg").mkdir(parents=True)
+    (mine / "package.xml").write_text("<package format='3'><name>hand written</name></package>\n")
+    (mine / "msg" / "Mine.msg").write_text("# my own\nint32 x\n")
+    before = {path: path.read_bytes() for path in sorted(mine.rglob("*")) if path.is_file()}
+    with pytest.raises(RosInterfaceError) as raised:
+        ros_interfaces.generate_packages(DEFINITIONS, tmp_path / "src")
+    assert str(raised.value).startswith(f"{mine} is not a package viewer-bridge generated")
+    assert {path: path.read_bytes() for path in sorted(mine.rglob("*")) if path.is_file()} == before
+    assert not (tmp_path / "src" / MAIN).exists()  # all or nothing: the other package was not written either
+    lab = ["ros-interfaces", "generate", "--lcm-types", str(CORPUS), "-o", str(tmp_path / "src")]
+    capsys.readouterr()
+    assert main([*lab[:2], "lab_geometry_lcm_msgs", *lab[2:]]) == 0  # beside it: fine
+    (tmp_path / "src" / "lab_robot_lcm_msgs").mkdir()
+    (tmp_path / "src" / "lab_robot_lcm_msgs" / "notes.txt").write_text("mine\n")
+    assert main([*lab[:2], "lab_robot_lcm_msgs", *lab[2:]]) == 2
+    error = capsys.readouterr().err
+    assert f"{tmp_path / 'src' / 'lab_robot_lcm_msgs'} is not a package viewer-bridge generated" in error
+    assert [path.name for path in (tmp_path / "src" / "lab_robot_lcm_msgs").iterdir()] == ["notes.txt"]
+    # Its own output, generated again over itself, is fine; an empty folder is taken too.
+    (tmp_path / "src" / "lab_robot_lcm_msgs" / "notes.txt").unlink()
+    assert main([*lab[:2], "lab_robot_lcm_msgs", *lab[2:]]) == 0
+    assert main([*lab[:2], "lab_robot_lcm_msgs", *lab[2:]]) == 0
+    assert (tmp_path / "src" / "lab_robot_lcm_msgs" / ros_interfaces.GENERATED_MARK).is_file()

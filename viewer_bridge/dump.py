@@ -2,6 +2,8 @@
 
 The types are a `TypeLibrary`'s (the project's, Drake's and whatever `--lcm-types` names); a byte
 array is shown as its size and CRC-32 unless `bytes_summary` is False, then as UTF-8 text or base64.
+JSON has no NaN or infinity: such a float is written as the string "NaN", "Infinity" or
+"-Infinity" (the words JavaScript and Python's own parser use), so that every line is valid JSON.
 """
 
 from __future__ import annotations
@@ -49,8 +51,24 @@ def describe(event: LcmEvent, library: TypeLibrary | None = None, *, bytes_summa
 
 
 def as_json(event: LcmEvent, library: TypeLibrary | None = None, *, bytes_summary: bool = True) -> str:
-    """One line of JSON: channel, time, size, fingerprint, type and message (or error)."""
-    return json.dumps(describe(event, library, bytes_summary=bytes_summary), separators=(",", ":"))
+    """One line of valid JSON: channel, time, size, fingerprint, type and message (or error);
+    a NaN or infinite float as a string ("NaN", "Infinity", "-Infinity")."""
+    record = describe(event, library, bytes_summary=bytes_summary)
+    try:  # almost every message is finite: the walk that replaces non-finite floats is the exception
+        return json.dumps(record, separators=(",", ":"), allow_nan=False)
+    except ValueError:
+        return json.dumps(_finite_json(record), separators=(",", ":"), allow_nan=False)
+
+
+def _finite_json(value: Any) -> Any:
+    """`value` with every NaN or infinite float (at any depth) replaced by its name as a string."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return "NaN" if math.isnan(value) else "Infinity" if value > 0 else "-Infinity"
+    if isinstance(value, dict):
+        return {key: _finite_json(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [_finite_json(item) for item in value]
+    return value
 
 
 def as_text(event: LcmEvent, library: TypeLibrary | None = None, *, bytes_summary: bool = True) -> str:

@@ -40,7 +40,7 @@ from viewer_bridge.yamldoc import KeyPath, YamlDocument
 # A function that writes what a table's terms cannot (a mesh's vertices, say): the fields it sets.
 Encoder = Callable[..., dict[str, Any]]
 
-_TERM = re.compile(r"^(?:(?P<factor>[0-9]+(?:\.[0-9]*)?)\s*\*\s*)?(?P<field>[a-z_]+)(?:\.(?P<axis>[xyz]))?$")
+_TERM = re.compile(r"(?:(?P<factor>[0-9]+(?:\.[0-9]*)?)\s*\*\s*)?(?P<field>[a-z_]+)(?:\.(?P<axis>[xyz]))?")  # fullmatch
 _AXES = "xyz"
 
 
@@ -402,7 +402,7 @@ def _rule(
 def _term(document: YamlDocument, where: KeyPath, kind: str, item: float | str) -> Term:
     if not isinstance(item, str):
         return Term(literal=float(item))
-    match = _TERM.match(item.strip())
+    match = _TERM.fullmatch(item.strip())
     if match is None:
         raise document.error(where, f"{item!r} is not a number, 'field', 'field.x' or 'factor * field'")
     field, axis, factor = match["field"], match["axis"], match["factor"]

@@ -42,9 +42,10 @@ if TYPE_CHECKING:
     from rosbags.interfaces.typing import Typesdict
 
 __all__ = [
-    "APT_PACKAGES", "INTERFACES", "BUILD_WHEELS", "RUNTIME_WHEELS", "WHEEL_INCLUDES_CMAKE", "Interface", "Package",
-    "build", "cmake_lists", "current", "digests", "generate_packages", "install", "interface_package", "log_path",
-    "message_text", "missing", "package_xml", "packages", "uninstall", "write_package",
+    "APT_PACKAGES", "INTERFACES", "BUILD_WHEELS", "GENERATED_MARK", "RUNTIME_WHEELS", "WHEEL_INCLUDES_CMAKE",
+    "Interface", "Package", "build", "check_writable_package", "cmake_lists", "current", "digests",
+    "generate_packages", "install", "interface_package", "log_path", "message_text", "missing", "package_xml",
+    "packages", "uninstall", "write_package",
 ]  # fmt: skip
 
 @dataclass(frozen=True)
@@ -128,8 +129,8 @@ class Package:
 
 # rosidl_adapter's name rules (docs/PROTOCOLS.md, "Names"): checked here so that a bad name is
 # one line naming the type, before CMake is run.
-_PACKAGE_NAME = re.compile(r"^(?!.*__)(?!.*_$)[a-z][a-z0-9_]*$")
-_MESSAGE_NAME = re.compile(r"^[A-Z][A-Za-z0-9]*$")
+_PACKAGE_NAME = re.compile(r"(?!.*__)(?!.*_\Z)[a-z][a-z0-9_]*")  # fullmatch: `$` takes "name\n"
+_MESSAGE_NAME = re.compile(r"[A-Z][A-Za-z0-9]*")
 
 
 def interface_package(name: str) -> Package:
@@ -152,7 +153,7 @@ def packages(definitions: Mapping[str, str]) -> list[Package]:
     depends: dict[str, set[str]] = {}
     for typename, text in sorted(definitions.items()):
         package, kind, message = (typename.split("/") + ["", ""])[:3]
-        if kind != "msg" or not _PACKAGE_NAME.match(package) or not _MESSAGE_NAME.match(message):
+        if kind != "msg" or not _PACKAGE_NAME.fullmatch(package) or not _MESSAGE_NAME.fullmatch(message):
             raise RosInterfaceError(f"{typename!r} is not a ROS 2 message name (package/msg/Name)")
         try:
             fields = get_types_from_msg(text, typename)[typename][1]
@@ -250,10 +251,35 @@ ament_package()
 """
 
 
+# The file that marks a package folder as written by `write_package`: only such a folder (or an
+# empty one) is written over, so that `generate -o ws/src` never touches a package of the user's.
+GENERATED_MARK = ".viewer-bridge-generated"
+_MARK_TEXT = (
+    "Written by `viewer-bridge ros-interfaces generate`, which rewrites this package folder each time\n"
+    "it runs (and removes the .msg files it did not write). Delete this file to keep it from doing so.\n"
+)
+
+
+def check_writable_package(folder: Path) -> None:
+    """Raise RosInterfaceError naming `folder` unless `write_package` may write there: it does not
+    exist, is empty, or holds the mark of an earlier `write_package`."""
+    if not folder.exists() and not folder.is_symlink():
+        return
+    if not folder.is_dir():
+        raise RosInterfaceError(f"{folder} exists and is not a folder: not writing a package there")
+    if any(folder.iterdir()) and not (folder / GENERATED_MARK).is_file():
+        raise RosInterfaceError(
+            f"{folder} is not a package viewer-bridge generated (it has no {GENERATED_MARK}): "
+            "left as it is; move it away or generate into another folder"
+        )
+
+
 def write_package(package: Package, folder: Path) -> Path:
     """`package`'s sources in `folder`: package.xml, CMakeLists.txt and msg/*.msg (a `.msg` file
-    of a type the package no longer has, from an earlier run, is removed)."""
+    of a type the package no longer has, from an earlier run, is removed), and the mark that lets
+    a later run do so (`check_writable_package` must pass first)."""
     (folder / "msg").mkdir(parents=True, exist_ok=True)
+    (folder / GENERATED_MARK).write_text(_MARK_TEXT)
     (folder / "package.xml").write_text(package_xml(package))
     (folder / "CMakeLists.txt").write_text(cmake_lists(package))
     wanted = {f"{message}.msg" for message, _ in package.messages}
@@ -272,10 +298,13 @@ def generate_packages(
     (what a colcon workspace's `src/` holds); returns their folders, each after those it uses.
 
     `only` restricts it to those packages and the ones of `definitions` they use; a name that is
-    not a package of `definitions` is a RosInterfaceError naming it."""
+    not a package of `definitions` is a RosInterfaceError naming it. So is a package folder that
+    exists and was not written by this function (`check_writable_package`): then nothing is written."""
     root = Path(out_dir)
     chosen = _closure(packages(definitions), only)
     try:
+        for package in chosen:  # every folder before any is written: all or nothing
+            check_writable_package(root / package.name)
         return [write_package(package, root / package.name) for package in chosen]
     except OSError as error:
         raise RosInterfaceError(f"cannot write the interface packages to {root}: {error.strerror}") from None

@@ -6,6 +6,7 @@ from __future__ import annotations
 import base64
 import contextlib
 import json
+import tracemalloc
 from collections.abc import Mapping
 from typing import Any
 
@@ -23,6 +24,7 @@ from tests.lcmcodec.corpus import (
     lcmgen_messages,
 )
 from viewer_bridge.errors import DecodeError, JsonValueError
+from viewer_bridge.lcmcodec import json_to_lcm
 from viewer_bridge.lcmcodec.json_to_lcm import MESSAGE_LIMIT
 from viewer_bridge.lcmcodec.library import LcmType, TypeLibrary
 from viewer_bridge.lcmcodec.schema import StructDef
@@ -244,3 +246,46 @@ def test_random_json_raises_only_json_value_errors(value: Any) -> None:
             with contextlib.suppress(JsonValueError):
                 data = known.from_json(value)
                 assert known.from_cdr(known.to_cdr(data)) == data
+
+
+# Each `inner` is 800,000 bytes of LCM however it is written: `{}` is its zeros.
+NESTED_ZEROS = """package vbtest_big;
+struct inner { double big[100000]; }
+struct outer { int32_t n; inner items[n]; }
+struct wrap { int32_t n; outer outers[n]; }
+"""
+
+
+@pytest.fixture(scope="module")
+def big(tmp_path_factory: pytest.TempPathFactory) -> TypeLibrary:
+    folder = tmp_path_factory.mktemp("big")
+    (folder / "big.lcm").write_text(NESTED_ZEROS)
+    return TypeLibrary.load([str(folder)], drake=False)
+
+
+def test_a_short_json_claiming_a_huge_array_of_nested_messages_is_refused_before_building_it(big: TypeLibrary) -> None:
+    """411 bytes of JSON said 100 nested messages: 80 MB of LCM were built before the size limit
+    was seen, as a nested message counted as 1 byte. Its real fewest bytes are counted first now."""
+    known = big.get("vbtest_big.outer")
+    text = json.dumps({"items": [{}] * 100})
+    assert len(text) < 500
+    tracemalloc.start()
+    try:
+        error = assert_refused(known.from_json, json.loads(text), JsonValueError, known, "items",
+                               "100 elements of at least 800000 bytes each make the message at least")  # fmt: skip
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert f"more than {MESSAGE_LIMIT} bytes" in error.reason
+    assert peak < 4 << 20, f"{peak} bytes allocated on the way to the refusal"
+    assert len(known.from_json({"items": [{}] * 2})) == 8 + 4 + 2 * 800_000  # what fits is built
+
+
+def test_arrays_that_fit_alone_but_not_together_are_refused_at_the_one_that_passes_the_limit(
+    big: TypeLibrary, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(json_to_lcm, "MESSAGE_LIMIT", 2_500_000)  # three inners, not four
+    known = big.get("vbtest_big.wrap")
+    assert len(known.from_json({"outers": [{"items": [{}]}, {"items": [{}, {}]}]})) == 8 + 4 + 2 * 4 + 3 * 800_000
+    assert_refused(known.from_json, {"outers": [{"items": [{}, {}]}] * 2}, JsonValueError, known, "outers[1].items",
+                   "2 elements of at least 800000 bytes each make the message at least 3200020 bytes")  # fmt: skip

@@ -89,6 +89,22 @@ def test_one_name_defined_differently_twice_names_both_places(tmp_path: Path) ->
     assert f"{CORPUS}/lab/geometry/point3d_t.lcm:5" in message
 
 
+def test_two_definitions_that_differ_only_in_a_nested_types_name_are_refused(tmp_path: Path) -> None:
+    """`inner_a` and `inner_b` have one shape, so `holder` hashes alike with either: before, the
+    second definition was merged into the first and its data decoded as the other type."""
+    first, second = tmp_path / "first", tmp_path / "second.lcm"
+    first.mkdir()
+    shapes = "struct inner_a { double v; }\nstruct inner_b { double v; }\n"
+    (first / "types.lcm").write_text(f"package vbtest_twin;\n{shapes}struct holder {{ inner_a x; }}\n")
+    second.write_text("package vbtest_twin;\n\nstruct holder\n{\n  inner_b x;\n}\n")
+    with pytest.raises(SchemaError) as caught:
+        TypeLibrary.load([str(first), str(second)], drake=False)
+    assert str(caught.value) == (
+        f"{second}:3: type vbtest_twin.holder differs from its definition at {first}/types.lcm:4: "
+        "member vbtest_twin.inner_b x here, vbtest_twin.inner_a x there"
+    )
+
+
 def test_the_same_definition_twice_is_fine(tmp_path: Path) -> None:
     shutil.copy(CORPUS / "lab/geometry/point3d_t.lcm", tmp_path / "copy.lcm")
     both = TypeLibrary.load([str(CORPUS), str(tmp_path)], drake=False)

@@ -7,7 +7,7 @@ import pytest
 
 from viewer_bridge.errors import SchemaError
 from viewer_bridge.lcmcodec import STRUCTS
-from viewer_bridge.lcmcodec.pymodule import is_lcm_class, structs_from_module
+from viewer_bridge.lcmcodec.pymodule import is_lcm_class, struct_from_class, structs_from_module
 from viewer_bridge.lcmcodec.schema import fingerprint
 
 
@@ -48,3 +48,31 @@ def test_constants_are_read_from_the_class() -> None:
 def test_modules_without_lcm_classes_are_refused() -> None:
     with pytest.raises(SchemaError, match="module os.path: holds no lcm-gen'd Python class"):
         structs_from_module("os.path")
+
+
+def _lcm_class(members: list[str], **constants: object) -> type:
+    """A class that describes itself as lcm-gen's do (one int32_t per member), with `constants`."""
+    namespace: dict[str, object] = {
+        "__slots__": members,
+        "__typenames__": ["int32_t"] * len(members),
+        "__dimensions__": [None] * len(members),
+        "_get_packed_fingerprint": staticmethod(lambda: bytes(8)),
+        **constants,
+    }
+    return type("handmade_t", (), namespace)
+
+
+@pytest.mark.parametrize(
+    ("cls", "reason"),
+    [
+        (_lcm_class(["a"], LIMIT=float("inf")), "handmade_t: inf is not a finite double"),
+        (_lcm_class(["a"], GAP=float("nan")), "handmade_t: nan is not a finite double"),
+        (_lcm_class(["a", "to_dict"]), "handmade_t: a member name 'to_dict' is the name of an attribute"),
+        (_lcm_class(["a"], encode=3), "handmade_t: a constant name 'encode' is the name of an attribute"),
+    ],
+)
+def test_a_class_the_generated_codecs_could_not_copy_is_refused_naming_its_module(cls: type, reason: str) -> None:
+    with pytest.raises(SchemaError) as caught:
+        struct_from_class(cls, "module handmade")
+    assert str(caught.value).startswith(f"module handmade: {reason}")
+    assert struct_from_class(_lcm_class(["a", "b"], LIMIT=2.5), "module handmade").constants[0].value == 2.5

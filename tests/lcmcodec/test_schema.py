@@ -127,3 +127,39 @@ def test_comments_are_kept_for_structs_members_and_constants() -> None:
     assert [m.comment for m in parsed.members] == ["two members", "", "doc\ncomment"]
     assert [m.trailing for m in parsed.members] == ["", "trailing: the last one's", "a\nb"]
     assert parsed.where == "c.lcm:4"
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        # Constants that Python, C and a ROS 2 .msg file cannot all write as a literal.
+        ("struct s {\n  const double X = nan;\n}", "nan is not a finite double"),
+        ("struct s {\n  const double X = 1e999;\n}", "1e999 is not a finite double"),
+        ("struct s {\n  const double X = -1e999;\n}", "-1e999 is not a finite double"),
+        ("struct s {\n  const float X = 1e39;\n}", "1e39 is out of float's"),
+        # Names the generated class has already, or that Python mangles in a class body.
+        ("struct s {\n  int32_t __slots__;\n}", "a member name '__slots__' starts with two underscores"),
+        ("struct s {\n  int32_t __eq__;\n}", "a member name '__eq__' starts with two underscores"),
+        ("struct s {\n  int32_t __private;\n}", "a member name '__private' starts with two underscores"),
+        ("struct s {\n  double _type_name;\n}", "'_type_name' is the name of an attribute every generated"),
+        ("struct s {\n  string encode;\n}", "a member name 'encode' is the name of an attribute"),
+        ("struct s {\n  int8_t field_names[2];\n}", "a member name 'field_names' is the name of an attribute"),
+        ("struct s {\n  const int32_t to_dict = 1;\n}", "a constant name 'to_dict' is the name of an attribute"),
+        ("struct s {\n  const double _codec = 1.0;\n}", "a constant name '_codec' is the name of an attribute"),
+        ("struct s {\n  const int32_t __init__ = 1;\n}", "a constant name '__init__' starts with two underscores"),
+        ("package p;\nstruct __x { int32_t a; }", "a struct name '__x' starts with two underscores"),
+    ],
+)
+def test_what_generated_python_cannot_hold_is_refused_where_it_is_written(text: str, message: str) -> None:
+    """Before, these parsed and failed later, in the generated code, with a plain Python error
+    (`NameError: nan`, a slot that hid `encode`, a class whose `__slots__` was a constant)."""
+    with pytest.raises(SchemaError) as caught:
+        parse_lcm(text, "bad.lcm")
+    assert message in caught.value.reason, caught.value
+    assert str(caught.value).startswith("bad.lcm:2: ")
+
+
+def test_names_with_one_underscore_and_builtins_names_are_fine() -> None:
+    (parsed,) = parse_lcm("struct _U32 { const double _X = 1e38; int32_t _a, list, range; float f; }")
+    assert [member.name for member in parsed.members] == ["_a", "list", "range", "f"]
+    assert parsed.constants[0].value == 1e38

@@ -3,15 +3,19 @@
 from __future__ import annotations
 
 import struct
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from tests.lcmcodec.corpus import generate_lcmgen
 from tests.strategies import message_pairs, use_lcmgen
 from viewer_bridge.errors import DecodeError, EncodeError
 from viewer_bridge.lcmcodec import CODECS, DRAW, GEOMETRY_DATA, LOAD_ROBOT, VIEWER2_COMMS, LcmMessage
+from viewer_bridge.lcmcodec.library import TypeLibrary
+from viewer_bridge.lcmcodec.schema import MESSAGE_CLASS_ATTRIBUTES
 
 NAMES = sorted(CODECS)
 
@@ -205,3 +209,63 @@ def test_an_empty_array_with_absurd_outer_dimensions_is_refused_at_once() -> Non
     with pytest.raises(DecodeError, match=r"rows_t.x at byte 17: shape \(2147483647, 2147483647, 0\)"):
         codec.decode(codec.packed_fingerprint + struct_module.pack(">iib", 2**31 - 1, 2**31 - 1, 0))
     assert codec.decode(codec.packed_fingerprint + struct_module.pack(">iib", 3, 2, 0)).x == [[[], []]] * 3
+
+
+# Types named as builtins the generated code calls (`list(flat)`, `bytes(...)`) and as one of its
+# helpers (`_U32`), nested in another type, whose member names are builtins its defaults call.
+NAMESAKES = """package vbtest_names;
+struct list { int32_t a; double xy[2]; }
+struct bytes { string s; byte raw[3]; }
+struct _U32 { double d; }
+struct outer {
+  int32_t range;
+  int32_t n;
+  list items[n];
+  bytes blobs[2];
+  _U32 u;
+  byte data[3];
+  double xyz[2];
+  string name;
+}
+"""
+
+
+def test_types_named_as_builtins_or_helpers_round_trip_as_lcm_gen_writes_them(tmp_path: Path) -> None:
+    (tmp_path / "lcm").mkdir()
+    (tmp_path / "lcm" / "names.lcm").write_text(NAMESAKES)
+    classes = generate_lcmgen(tmp_path / "py", tmp_path / "lcm")  # lcm-gen takes these names too
+    theirs = classes["vbtest_names.outer"]()
+    theirs.range, theirs.n, theirs.data, theirs.xyz, theirs.name = 9, 2, b"\x01\x02\x03", [1.5, -2.5], "ok"
+    theirs.items = [classes["vbtest_names.list"]() for _ in range(2)]
+    theirs.items[1].a, theirs.items[1].xy = 7, [0.25, 4.0]
+    theirs.blobs[0].s, theirs.blobs[0].raw, theirs.blobs[1].raw = "blob", bytes(3), b"xyz"  # lcm-gen: raw = b""
+    theirs.u.d = 3.75
+    data = theirs.encode()
+
+    library = TypeLibrary.load([str(tmp_path / "lcm")], drake=False)
+    known = library.get("vbtest_names.outer")
+    codec = library.codecs(known.full_name)[known.full_name]
+    ours = codec.decode(data)
+    assert ours.items[1].to_dict() == {"a": 7, "xy": [0.25, 4.0]} and ours.blobs[1].raw == b"xyz"
+    assert ours.data == b"\x01\x02\x03" and ours.xyz == [1.5, -2.5] and ours.u.d == 3.75
+    assert [type(item).__name__ for item in ours.items] == ["list", "list"]
+    assert codec.encode(ours) == data
+    assert known.from_cdr(known.to_cdr(data)) == data
+    assert classes["vbtest_names.outer"].decode(known.from_cdr(known.to_cdr(data))).encode() == data
+    # Built by keyword, a member named `range` does not hide the builtin that fills `xyz`.
+    built = codec.message_class(range=9, n=2, items=ours.items, blobs=ours.blobs, u=ours.u, data=b"\x01\x02\x03",
+                                xyz=[1.5, -2.5], name="ok")  # fmt: skip
+    assert built == ours and codec.message_class(range=1).xyz == [0.0, 0.0]
+    with pytest.raises(TypeError, match="vbtest_names.outer has no member 'rnage'"):
+        codec.message_class(rnage=1)
+
+
+def test_every_attribute_a_generated_class_has_is_a_name_the_schema_refuses() -> None:
+    """The schema refuses member and constant names in MESSAGE_CLASS_ATTRIBUTES: it must hold every
+    name a generated class has that is not its own field or constant (dunders are refused apart)."""
+    for codec in CODECS.values():
+        cls = codec.message_class
+        own = {member.name for member in codec.definition.members} | {c.name for c in codec.definition.constants}
+        defined = {name for klass in cls.__mro__[:-1] for name in vars(klass)} - own
+        assert {name for name in defined if not name.startswith("__")} <= MESSAGE_CLASS_ATTRIBUTES, cls
+        assert {"_codec", "encode"} <= defined

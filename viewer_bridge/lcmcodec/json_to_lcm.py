@@ -25,8 +25,10 @@ nest themselves). What JSON may say, and what it must not (docs/PROTOCOLS.md, "A
   within float32's range for `float32`; a bool field true or false only; a string field a string
   encodable as UTF-8 (no lone surrogate; a NUL inside passes, as LCM's length word carries it);
   `null` is no value of any type.
-- An array's elements are counted before they are encoded: one whose encoding would pass
-  `MESSAGE_LIMIT` (64 MiB), or whose length does not fit its length field's type, is refused at once.
+- An array's elements are counted before they are encoded, each at the fewest bytes its type
+  takes (a nested message with its fixed arrays, which `{}` fills with zeros, included): an array
+  that would take the message past `MESSAGE_LIMIT` (64 MiB), or whose length does not fit its
+  length field's type, is refused at once, before anything is built for it.
 
 Every refusal is a `JsonValueError` naming the field path (`joint_position[3]`, `tip.frame_id`).
 """
@@ -43,18 +45,30 @@ from typing import Any
 from viewer_bridge.errors import JsonValueError
 from viewer_bridge.lcmcodec.rosnames import field_name
 from viewer_bridge.lcmcodec.schema import INTEGER_RANGES, PRIMITIVE_FORMATS, Member, StructDef, nested_closure
+from viewer_bridge.lcmcodec.serde import _min_sizes, element_min_size
 
 __all__ = ["MESSAGE_LIMIT", "JsonEncoder", "compile_json_encoders"]
 
 MESSAGE_LIMIT = 64 << 20  # bytes of LCM; LCM's UDP multicast carries at most about 4 GB, nobody sends that
 _FLOAT32_MAX = 3.4028234663852886e38
-_STRING_MIN = 5
 _MISSING = object()
 _NUMBER = frozenset({int, float})
 _INT = frozenset({int})
 _BOOL = frozenset({bool})
 
-Encode = Callable[[Any, list[Any]], None]
+
+class _Output(list[Any]):
+    """The chunks of one message's LCM, and `least`: the fewest bytes the message can take with
+    what is known so far (its type's fixed part, and each variable array at its length)."""
+
+    __slots__ = ("least",)
+
+    def __init__(self, least: int) -> None:
+        super().__init__()
+        self.least = least
+
+
+Encode = Callable[[Any, _Output], None]
 
 
 def _kind(value: Any) -> str:
@@ -123,7 +137,13 @@ def _rehome(type_name: str, error: JsonValueError) -> JsonValueError:
 class JsonEncoder:
     """The JSON -> LCM path of one type (and, through `_encode`, of the types it nests)."""
 
-    def __init__(self, struct_: StructDef, packed_fingerprint: bytes, children: Mapping[str, JsonEncoder]) -> None:
+    def __init__(
+        self,
+        struct_: StructDef,
+        packed_fingerprint: bytes,
+        children: Mapping[str, JsonEncoder],
+        min_sizes: Mapping[str, int],
+    ) -> None:
         self.type_name = struct_.full_name
         self.packed_fingerprint = packed_fingerprint
         self.struct = struct_
@@ -139,18 +159,24 @@ class JsonEncoder:
             self._sized = {member.name: [a for a in self._arrays if a.dims[0].size == member.name]
                            for member in self._lengths}  # fmt: skip
         self._children = children
+        self._min_sizes = min_sizes  # each type's fewest bytes of body (`serde._min_sizes`)
         self._steps: list[tuple[Member, Encode]] = [(member, self._step(member)) for member in struct_.members]
 
     def encode(self, value: object) -> bytes:
         """The whole LCM message (fingerprint first) of a JSON value; bad values: JsonValueError."""
-        out: list[Any] = [self.packed_fingerprint]
+        out = _Output(len(self.packed_fingerprint) + self._min_sizes[self.type_name])
+        if out.least > MESSAGE_LIMIT:
+            raise JsonValueError(
+                self.type_name, "", f"takes at least {out.least} bytes of LCM, more than {MESSAGE_LIMIT} bytes"
+            )
+        out.append(self.packed_fingerprint)
         self._encode(value, out)
         size = sum(map(len, out))
         if size > MESSAGE_LIMIT:
             raise JsonValueError(self.type_name, "", f"{size} bytes of LCM, more than {MESSAGE_LIMIT}")
         return b"".join(out)
 
-    def _encode(self, value: Any, out: list[Any]) -> None:
+    def _encode(self, value: Any, out: _Output) -> None:
         if type(value) is not dict:
             raise JsonValueError(self.type_name, "", f"expected an object, got {_kind(value)}")
         names = self.names
@@ -245,23 +271,26 @@ class JsonEncoder:
         except (binascii.Error, ValueError):
             raise JsonValueError(self.type_name, ros, "a byte array's string must be base64") from None
 
-    def _array(self, member: Member, ros: str, items: Any, shape: list[int], out: list[Any]) -> None:
+    def _array(self, member: Member, ros: str, items: Any, shape: list[int], out: _Output) -> None:
         count = math.prod(shape)
         fixed = all(not dim.is_variable for dim in member.dims)
         if items is _MISSING:
             if count and not fixed:
                 names = [self._ros[dim.size] if dim.is_variable else str(dim.count) for dim in member.dims]
                 raise JsonValueError("", ros, f"missing, but {self._said(names, shape)}")
-            items = [_zero(member.type_name)] * count if member.is_primitive else [{}] * count
         elif type(items) is str and member.type_name == "byte":
             items = self._bytes(member, ros, items)
         elif type(items) is not list:
             raise JsonValueError("", ros, f"expected an array, got {_kind(items)}")
-        if len(items) != count:
+        if items is not _MISSING and len(items) != count:
             names = [self._ros[dim.size] if dim.is_variable else str(dim.count) for dim in member.dims]
             raise JsonValueError("", ros, f"has {len(items)} elements, but {self._said(names, shape)}")
-        if count * _min_size(member) > MESSAGE_LIMIT:
-            raise JsonValueError("", ros, f"{count} elements are more than {MESSAGE_LIMIT} bytes of LCM")
+        self._check_size(member, ros, count, fixed, out)
+        if items is _MISSING:  # a fixed array (a variable one is empty): zeros
+            if member.type_name in PRIMITIVE_FORMATS:  # every primitive's zero is all zero bits
+                out.append(bytes(count * PRIMITIVE_FORMATS[member.type_name][1]))
+                return
+            items = [""] * count if member.type_name == "string" else [{}] * count
         if member.type_name in PRIMITIVE_FORMATS:
             out.append(_pack_array(member.type_name, ros, items))
         elif member.type_name == "string":
@@ -275,6 +304,20 @@ class JsonEncoder:
                 except JsonValueError as error:
                     path = f"{ros}[{index}]" + (f".{error.field}" if error.field else "")
                     raise JsonValueError("", path, error.reason) from None
+
+    def _check_size(self, member: Member, ros: str, count: int, fixed: bool, out: _Output) -> None:
+        """Refuse an array of `count` elements that would take the message past MESSAGE_LIMIT,
+        before any of it is built. A fixed array is in its type's fewest bytes already; a variable
+        one adds its elements' to `out.least`. A nested message that takes no bytes counts as one,
+        as it is still one element to build."""
+        element = element_min_size(member, self._min_sizes)
+        if not fixed:
+            out.least += count * element
+        if out.least > MESSAGE_LIMIT or count * max(element, 1) > MESSAGE_LIMIT:
+            raise JsonValueError(
+                "", ros, f"{count} elements of at least {element} bytes each make the message at least "
+                f"{max(out.least, count * element)} bytes of LCM, more than {MESSAGE_LIMIT} bytes",
+            )  # fmt: skip
 
     @staticmethod
     def _said(names: list[str], shape: list[int]) -> str:
@@ -292,7 +335,7 @@ class JsonEncoder:
             packer = struct.Struct(">" + PRIMITIVE_FORMATS[type_name][0]).pack
             zero = _zero(type_name)
 
-            def scalar(value: Any, out: list[Any]) -> None:
+            def scalar(value: Any, out: _Output) -> None:
                 if value is _MISSING:
                     value = zero
                 error = _scalar_error(type_name, ros, value)
@@ -303,7 +346,7 @@ class JsonEncoder:
             return scalar
         children = self._children
 
-        def nested(value: Any, out: list[Any]) -> None:
+        def nested(value: Any, out: _Output) -> None:
             children[type_name]._encode({} if value is _MISSING else value, out)
 
         return nested
@@ -311,12 +354,6 @@ class JsonEncoder:
 
 def _zero(type_name: str) -> Any:
     return {"string": "", "boolean": False, "float": 0.0, "double": 0.0}.get(type_name, 0)
-
-
-def _min_size(member: Member) -> int:
-    if member.type_name == "string":
-        return _STRING_MIN
-    return PRIMITIVE_FORMATS[member.type_name][1] if member.type_name in PRIMITIVE_FORMATS else 1
 
 
 def _string(value: Any, field: str, out: list[Any]) -> None:
@@ -369,6 +406,8 @@ def compile_json_encoders(
 ) -> dict[str, JsonEncoder]:
     """The JSON -> LCM encoders of types `names` and of every type they nest (none may contain itself)."""
     encoders: dict[str, JsonEncoder] = {}
-    for name in nested_closure(structs, names):  # children are looked up when used: any order will do
-        encoders[name] = JsonEncoder(structs[name], fingerprints[name], encoders)
+    closure = nested_closure(structs, names)
+    min_sizes = _min_sizes({name: structs[name] for name in closure})
+    for name in closure:  # children are looked up when used: any order will do
+        encoders[name] = JsonEncoder(structs[name], fingerprints[name], encoders, min_sizes)
     return encoders

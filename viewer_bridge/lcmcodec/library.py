@@ -37,6 +37,7 @@ from viewer_bridge.lcmcodec.pymodule import structs_from_module
 from viewer_bridge.lcmcodec.rosmsg import RosMapping, map_to_ros
 from viewer_bridge.lcmcodec.rosnames import ros_topic_for_channel
 from viewer_bridge.lcmcodec.schema import (
+    Member,
     StructDef,
     check_references,
     fingerprint,
@@ -331,17 +332,32 @@ class TypeLibrary:
 
 
 def _merge(structs: dict[str, StructDef], new: Mapping[str, StructDef]) -> None:
-    """Add `new`; a name already known must have the same members (what its fingerprint covers)."""
+    """Add `new`; a name already known must have the same members: names, dimensions and types,
+    nested types by name too (the fingerprint leaves those out, so two definitions that differ
+    only in a nested type's name would hash alike, and the first would decode the other's data)."""
     for name, definition in new.items():
         known = structs.get(name)
         if known is None:
             structs[name] = definition
-        elif known.base_hash() != definition.base_hash():
+        elif known.members != definition.members:
             raise SchemaError(
                 definition.source,
                 definition.line,
-                f"type {name} differs from its definition at {known.where}",
+                f"type {name} differs from its definition at {known.where}: {_difference(definition, known)}",
             )
+
+
+def _difference(here: StructDef, there: StructDef) -> str:
+    """The first member in which two definitions of one type differ, said for a message."""
+    for ours, theirs in zip(here.members, there.members, strict=False):
+        if ours != theirs:
+            return f"member {_declaration(ours)} here, {_declaration(theirs)} there"
+    return f"{len(here.members)} members here, {len(there.members)} there"
+
+
+def _declaration(member: Member) -> str:
+    """A member as a .lcm file declares it: `tlp.list items[n]`."""
+    return f"{member.type_name} {member.name}" + "".join(f"[{dim.size}]" for dim in member.dims)
 
 
 def _looks_like_module(source: str) -> bool:

@@ -22,7 +22,15 @@ from types import ModuleType
 from typing import Any
 
 from viewer_bridge.errors import SchemaError
-from viewer_bridge.lcmcodec.schema import INTEGER_RANGES, Constant, Dimension, Member, StructDef
+from viewer_bridge.lcmcodec.schema import (
+    INTEGER_RANGES,
+    Constant,
+    Dimension,
+    Member,
+    StructDef,
+    constant_problem,
+    name_problem,
+)
 
 __all__ = ["LoadedClass", "is_lcm_class", "structs_from_module"]
 
@@ -95,7 +103,18 @@ def struct_from_class(cls: Any, source: str) -> StructDef:
         Member(member, typename, _dims(dims, slots[:index], cls, source))
         for index, (member, typename, dims) in enumerate(zip(slots, typenames, dimensions, strict=True))
     )
-    return StructDef(package, name, members, _constants(cls, set(slots)), source, 0)
+    constants = _constants(cls, set(slots))
+    # The same names a .lcm file may not use: our codecs generate a class from this definition.
+    problems = [
+        name_problem(name, "a struct name", attribute=False),
+        *(name_problem(member.name, "a member name", attribute=True) for member in members),
+        *(name_problem(constant.name, "a constant name", attribute=True) for constant in constants),
+        *(constant_problem(c.type_name, c.value, c.text) for c in constants if c.type_name == "double"),
+    ]
+    problem = next((problem for problem in problems if problem is not None), None)
+    if problem is not None:
+        raise SchemaError(source, 0, f"{cls.__name__}: {problem}")
+    return StructDef(package, name, members, constants, source, 0)
 
 
 def _full_name(cls: Any) -> tuple[str, str]:

@@ -25,10 +25,10 @@ __all__ = [
 ]
 
 # rosidl_adapter's patterns for valid names.
-_PACKAGE = re.compile(r"^(?!.*__)(?!.*_$)[a-z][a-z0-9_]*$")
-_MESSAGE = re.compile(r"^[A-Z][A-Za-z0-9]*$")
+_PACKAGE = re.compile(r"(?!.*__)(?!.*_\Z)[a-z][a-z0-9_]*")  # each used with fullmatch: `$` takes "name\n"
+_MESSAGE = re.compile(r"[A-Z][A-Za-z0-9]*")
 _FIELD = _PACKAGE
-_CONSTANT = re.compile(r"^[A-Z]([A-Z0-9_]?[A-Z0-9]+)*$")
+_CONSTANT = re.compile(r"[A-Z]([A-Z0-9_]?[A-Z0-9]+)*")
 
 _WORD_START = re.compile(r"(?<=[a-z0-9])(?=[A-Z])")
 _UNDERSCORES = re.compile(r"_+")
@@ -52,7 +52,7 @@ def _tidy(name: str) -> str:
 def field_name(name: str) -> str:
     """The ROS 2 field name of LCM member `name`."""
     result = _snake(name)
-    if not _FIELD.match(result):
+    if not _FIELD.fullmatch(result):
         raise NameRefused(f"field {name!r} has no valid ROS 2 name (got {result!r})")
     return result
 
@@ -60,7 +60,7 @@ def field_name(name: str) -> str:
 def constant_name(name: str) -> str:
     """The ROS 2 constant name of LCM constant `name`."""
     result = _snake(name).upper()
-    if not _CONSTANT.match(result):
+    if not _CONSTANT.fullmatch(result):
         raise NameRefused(f"constant {name!r} has no valid ROS 2 name (got {result!r})")
     return result
 
@@ -71,7 +71,7 @@ def package_name(lcm_package: str) -> str:
         return NO_PACKAGE
     result = "_".join(_snake(word) for word in lcm_package.split(".")) + PACKAGE_SUFFIX
     result = _tidy(result)
-    if not _PACKAGE.match(result):
+    if not _PACKAGE.fullmatch(result):
         raise NameRefused(f"package {lcm_package!r} has no valid ROS 2 name (got {result!r})")
     return result
 
@@ -79,7 +79,7 @@ def package_name(lcm_package: str) -> str:
 def message_name(struct_name: str) -> str:
     """The ROS 2 message name of LCM struct `struct_name` (`lcmt_iiwa_status` -> `LcmtIiwaStatus`)."""
     result = "".join(word[:1].upper() + word[1:] for word in struct_name.split("_"))
-    if not _MESSAGE.match(result):
+    if not _MESSAGE.fullmatch(result):
         raise NameRefused(f"type {struct_name!r} has no valid ROS 2 message name (got {result!r})")
     return result
 

@@ -9,10 +9,12 @@ child's hash; the sum is rotated left by one bit.
 from __future__ import annotations
 
 import keyword
+import math
 import re
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from struct import pack as pack_struct
 
 from viewer_bridge.errors import SchemaError
 
@@ -41,6 +43,41 @@ INTEGER_RANGES: Mapping[str, tuple[int, int]] = {
 }
 
 _MASK64 = (1 << 64) - 1
+
+# What every generated message class (serde's `LcmMessage` and the classes made from it) defines
+# beside its fields: a member or constant of one of these names would replace the class's own.
+# tests/lcmcodec/test_serde.py holds this set to what the classes really define.
+MESSAGE_CLASS_ATTRIBUTES = frozenset({"_codec", "_type_name", "encode", "field_names", "to_dict"})
+
+
+def name_problem(name: str, what: str, *, attribute: bool) -> str | None:
+    """Why `name` cannot name a struct, or (`attribute`) a member or constant, in generated Python
+    (ours and lcm-gen's); None when it can. `what` says what it names, for the message."""
+    if not _IDENTIFIER.fullmatch(name):
+        return f"{what} {name!r} is not an identifier"
+    if keyword.iskeyword(name) or name == "self":
+        return f"{what} {name!r} is a Python keyword"
+    if name.startswith("__"):
+        # Python mangles such a name inside a class body (and reserves the dunders for itself):
+        # the attribute a class declares would not be the one its code reads.
+        return f"{what} {name!r} starts with two underscores, which Python keeps for its own and mangles in classes"
+    if attribute and name in MESSAGE_CLASS_ATTRIBUTES:
+        return f"{what} {name!r} is the name of an attribute every generated message class has"
+    return None
+
+
+def constant_problem(type_name: str, value: float, text: str) -> str | None:
+    """Why `value` (written `text`) cannot be a constant of type `type_name` (a float or double);
+    None when it can. Python's code, C's and a ROS 2 .msg file could not all write NaN or an
+    infinity as a literal."""
+    if not math.isfinite(value):
+        return f"{text} is not a finite {type_name}"
+    if type_name == "float":
+        try:  # struct rounds to the nearest float32 first: what rounds to FLT_MAX fits
+            pack_struct(">f", value)
+        except OverflowError:
+            return f"{text} is out of float's (float32's) range"
+    return None
 
 
 @dataclass(frozen=True, slots=True)
@@ -185,7 +222,7 @@ _TOKEN = re.compile(
     """,
     re.VERBOSE | re.DOTALL,
 )
-_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # always fullmatch: `$` would take "name\n"
 
 
 @dataclass(slots=True)
@@ -270,15 +307,16 @@ class _Parser:
             self.index -= 1
             raise self.error(f"expected {text!r}, found {token!r}")
 
-    def identifier(self, what: str) -> str:
+    def identifier(self, what: str, *, attribute: bool = True) -> str:
+        """The next token as a name: of a member or constant (`attribute`), or of a struct."""
         token = self.take()
-        if not _IDENTIFIER.match(token):
+        if not _IDENTIFIER.fullmatch(token):
             self.index -= 1
             raise self.error(f"expected {what}, found {token!r}")
-        if keyword.iskeyword(token) or token == "self":
-            # lcm-gen's Python (and our own generated codecs) could not name it.
+        problem = name_problem(token, what, attribute=attribute)
+        if problem is not None:  # lcm-gen's Python, or our own generated codecs, could not name it
             self.index -= 1
-            raise self.error(f"{what} {token!r} is a Python keyword")
+            raise self.error(problem)
         return token
 
     def parse_file(self) -> list[StructDef]:
@@ -288,7 +326,7 @@ class _Parser:
             keyword_ = self.take()
             if keyword_ == "package":
                 self.package = self.take()
-                if not _PACKAGE.match(self.package):
+                if not _PACKAGE.fullmatch(self.package):
                     self.index -= 1
                     raise self.error(f"{self.package!r} is not a package name")
                 self.expect(";")
@@ -300,7 +338,7 @@ class _Parser:
         return structs
 
     def parse_struct(self, comment: str, line: int) -> StructDef:
-        name = self.identifier("a struct name")
+        name = self.identifier("a struct name", attribute=False)
         self.expect("{")
         comment = "\n".join(filter(None, (comment, self.trailing())))  # `struct s {  // what s is`
         members: list[Member] = []
@@ -343,7 +381,12 @@ class _Parser:
     def number(self, literal: str, type_name: str) -> int | float:
         try:
             if type_name in ("float", "double"):
-                return float(literal)
+                number = float(literal)  # also takes the words `nan` and `inf`: refused next
+                problem = constant_problem(type_name, number, literal)
+                if problem is not None:
+                    self.index -= 1
+                    raise self.error(problem)
+                return number
             value = int(literal, 0)
         except ValueError:
             self.index -= 1
@@ -377,7 +420,7 @@ class _Parser:
     def qualify(self, type_name: str) -> str:
         if type_name in PRIMITIVE_TYPES:
             return type_name
-        if not _PACKAGE.match(type_name):
+        if not _PACKAGE.fullmatch(type_name):
             self.index -= 1
             raise self.error(f"expected a type, found {type_name!r}")
         if "." in type_name or not self.package:
@@ -407,7 +450,7 @@ class _Parser:
         raise self.error(f"array size {size!r} is neither a constant nor an earlier member")
 
 
-_PACKAGE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)*\Z")
+_PACKAGE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)*")  # always fullmatch
 
 
 def parse_lcm(text: str, path: str = "<string>") -> list[StructDef]:
@@ -452,15 +495,18 @@ __all__ = [
     "Constant",
     "Dimension",
     "INTEGER_TYPES",
+    "MESSAGE_CLASS_ATTRIBUTES",
     "Member",
     "PRIMITIVE_FORMATS",
     "PRIMITIVE_TYPES",
     "STRING_MIN_SIZE",
     "StructDef",
     "check_references",
+    "constant_problem",
     "fingerprint",
     "load_lcm_files",
     "load_schema_dir",
+    "name_problem",
     "nested_closure",
     "parse_lcm",
 ]

@@ -229,6 +229,11 @@ def _string_error(type_name: str, field: str, buf: Buffer, offset: int, end: int
     return DecodeError(type_name, field, offset, "malformed string")
 
 
+def _unexpected_fields(type_name: str, fields: Mapping[str, Any]) -> TypeError:
+    """What a message class's constructor raises for keywords that are none of its members."""
+    return TypeError(f"{type_name} has no member {', '.join(map(repr, fields))}")
+
+
 _U32 = struct.Struct(">I")
 _NUMPY_THRESHOLD = 48  # elements; below this, struct.unpack beats numpy's per-call overhead
 _ENCODE_ERRORS = (struct.error, OverflowError, TypeError, ValueError, AttributeError, UnicodeError)
@@ -336,23 +341,31 @@ class _StructGenerator:
     # The class --------------------------------------------------------------------------------
 
     def write_class(self) -> None:
+        """The message class, bound only as `<ident>_class`: a type's own name (`list`, `bytes`,
+        `_U32`) never enters the namespace, where it would stand for a builtin or a helper the
+        generated code calls. Its `__init__` takes `**fields`, and `<ident>_init` fills them in:
+        a parameter per member would let a member named `range` or `bytes` hide the builtin that
+        computes another member's default."""
         out, struct = self.out, self.struct
         names = [member.name for member in struct.members]
-        out.line(f"class {struct.name}(LcmMessage):")
+        out.line(f"class {self.ident}_class(LcmMessage):")
         with out.indent():
             out.line(f"__slots__ = {tuple(names)!r}")
             out.line(f"_type_name = {self.type_literal}")
             for constant in struct.constants:
                 out.line(f"{constant.name} = {constant.value!r}")
-            params = ", ".join(f"{name}=None" for name in names)
-            out.line(f"def __init__(self, {params}):" if names else "def __init__(self):")
+            out.line("def __init__(self, **fields):")
             with out.indent():
-                for member in struct.members:
-                    default = self.default_value(member)
-                    out.line(f"self.{member.name} = {default} if {member.name} is None else {member.name}")
-                if not names:
-                    out.line("pass")
-        out.line(f"{self.ident}_class = {struct.name}")
+                out.line(f"{self.ident}_init(self, fields)")
+        out.line(f"{self.ident}_class.__name__ = {self.ident}_class.__qualname__ = {struct.name!r}")
+        out.line(f"def {self.ident}_init(msg, fields):")
+        with out.indent():
+            for member in struct.members:
+                out.line(f"value = fields.pop({member.name!r}, None)")
+                out.line(f"msg.{member.name} = {self.default_value(member)} if value is None else value")
+            out.line("if fields:")
+            with out.indent():
+                out.line(f"raise _unexpected_fields({self.type_literal}, fields)")
 
     def default_value(self, member: Member) -> str:
         if member.type_name == "string":
@@ -650,6 +663,9 @@ def compile_codecs(
     `finite` refuses NaN and infinite floats (the viewer's messages never carry them); a generic
     type's decoder passes them through. `fingerprints` overrides computed ones (an lcm-gen'd
     class's own, which is what its publisher writes)."""
+    # The helpers' names are capitalised or start with one underscore; every name the generated
+    # code defines is `<ident>_<what>`, and `_ident` doubles each underscore of a type's name, so
+    # none of those starts with a single one: no type's name can take a helper's (or a builtin's).
     namespace: dict[str, Any] = {
         "LcmMessage": LcmMessage,
         "DecodeError": DecodeError,
@@ -672,6 +688,7 @@ def compile_codecs(
         "_check_finite": _check_finite,
         "_check_rows": _check_rows,
         "_string_error": _string_error,
+        "_unexpected_fields": _unexpected_fields,
         "_ENCODE_ERRORS": _ENCODE_ERRORS,
     }
     min_sizes = _min_sizes(structs)

@@ -24,7 +24,7 @@ from viewer_bridge.translators.load_cache import LoadCache
 from viewer_bridge.translators.types import DRAW_TYPE, LOAD_TYPE
 from viewer_bridge.transports.base import MessageType, Received
 
-_ROLE = re.compile(r"_(ILLUSTRATION|PROXIMITY|PERCEPTION)$")
+_ROLE = re.compile(r"_(ILLUSTRATION|PROXIMITY|PERCEPTION)\Z")  # \Z: `$` also matches before a final "\n"
 
 
 def role_of(channel: str) -> str:

@@ -51,7 +51,7 @@ if TYPE_CHECKING:
     from rclpy.node import Node
     from rclpy.qos import QoSProfile
 
-_PLAIN_TOPIC = re.compile(r"^[A-Za-z0-9_/~{}]+$")
+_PLAIN_TOPIC = re.compile(r"[A-Za-z0-9_/~{}]+")  # fullmatch: `$` takes "name\n"
 LOCAL_RANGES = ("LOCALHOST", "OFF")  # discovery ranges that reach no other host (but static peers)
 BUILDABLE_INTERFACES = ("tf2_msgs",)  # no wheel on PyPI: `viewer-bridge ros-interfaces install` builds them
 
@@ -156,7 +156,7 @@ class RosTransport(Transport):
 
     @classmethod
     def check_source(cls, name: str) -> None:
-        if _PLAIN_TOPIC.match(name):  # one topic, not a pattern matched against the graph
+        if _PLAIN_TOPIC.fullmatch(name):  # one topic, not a pattern matched against the graph
             _valid(name, topic_problem(name), "topic name")
 
     @classmethod
@@ -252,7 +252,7 @@ class RosTransport(Transport):
 
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
         """Raw bytes of the type from `pattern`: a topic, or a regex matched against the graph."""
-        if _PLAIN_TOPIC.match(pattern) and message_type.name != ANY:
+        if _PLAIN_TOPIC.fullmatch(pattern) and message_type.name != ANY:
             self._subscribe(pattern, message_type, qos, deliver)
         else:  # a regex, or a topic whose type the graph will say
             self._patterns.append((re.compile(pattern), message_type, qos, deliver))

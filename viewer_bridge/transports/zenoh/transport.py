@@ -51,7 +51,7 @@ if TYPE_CHECKING:
     from viewer_bridge.transports.zenoh.entities import Graph, LastValues, LcmPublisher, RosPublisher
     from viewer_bridge.transports.zenoh.session import Link
 
-_PLAIN_TOPIC = re.compile(r"^[A-Za-z0-9_/~{}]+$")  # one topic, not a pattern
+_PLAIN_TOPIC = re.compile(r"[A-Za-z0-9_/~{}]+")  # one topic, not a pattern (fullmatch: `$` takes "name\n")
 _NOT_IN_KEYS = re.compile(r"[*$?#]")  # Zenoh's wildcards and reserved characters
 
 
@@ -145,7 +145,7 @@ class ZenohTransport(Transport):
 
     @classmethod
     def check_source(cls, name: str) -> None:
-        if _PLAIN_TOPIC.match(name) and (problem := key_problem(name)):
+        if _PLAIN_TOPIC.fullmatch(name) and (problem := key_problem(name)):
             raise InvalidName(f"{name!r} cannot be a Zenoh key: {problem}")
 
     @classmethod
@@ -269,7 +269,7 @@ class ZenohTransport(Transport):
         if message_type.encoding == LCM:
             self._channels.append((re.compile(pattern), deliver))
             self._channels_latched = self._channels_latched or qos.latched
-        elif _PLAIN_TOPIC.match(pattern) and message_type.name != ANY:
+        elif _PLAIN_TOPIC.fullmatch(pattern) and message_type.name != ANY:
             self._subscribe_topic(pattern, message_type, qos, deliver)
         else:
             self._patterns.append((re.compile(pattern), message_type, qos, deliver))
