@@ -43,11 +43,11 @@ class ChildGroups:
         """From now on every `subprocess.Popen` of this process starts a group of its own, recorded here."""
         if self._original_popen is None:
             self._original_popen = subprocess.Popen
-            subprocess.Popen = grouped_popen(self._original_popen, self)  # type: ignore[misc]
+            subprocess.Popen = grouped_popen(self._original_popen, self)  # type: ignore[misc,assignment]
 
     def uninstall(self) -> None:
         if self._original_popen is not None:
-            subprocess.Popen = self._original_popen  # type: ignore[misc]
+            subprocess.Popen = self._original_popen  # type: ignore[misc,assignment]
             self._original_popen = None
 
     def add(self, child: subprocess.Popen[Any]) -> None:

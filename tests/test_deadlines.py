@@ -7,13 +7,14 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from tests.process_groups import end_groups, live_groups
 
 ROOT = Path(__file__).resolve().parent.parent
 HERE = Path(__file__).relative_to(ROOT)
-PROBE_PIDS = os.environ.get("VIEWER_BRIDGE_DEADLINE_PROBE")  # set only in the sub-session's run, below
+PROBE = "VIEWER_BRIDGE_DEADLINE_PROBE"  # the file the probes write their pids to: set only in the run below
 
 # A shell whose own child is in its group: a kill of the shell alone would leave the sleep running.
 SHELL_WITH_A_CHILD = ["bash", "-c", "sleep 600 & echo $! ; wait"]
@@ -28,13 +29,13 @@ def start_a_family(pids: Path) -> None:
         out.write(f"{shell.pid} {grandchild}\n")
 
 
-if PROBE_PIDS:
+if PROBE in os.environ:
 
     def test_probe_that_leaves_its_children_running() -> None:
-        start_a_family(Path(PROBE_PIDS))
+        start_a_family(Path(os.environ[PROBE]))
 
     def test_probe_that_hangs() -> None:
-        start_a_family(Path(PROBE_PIDS))
+        start_a_family(Path(os.environ[PROBE]))
         time.sleep(600)  # past the 2 s deadline the run outside sets
 
 
@@ -47,10 +48,10 @@ def alive(pid: int) -> bool:
     return state != "Z"
 
 
-def wait_until(condition: object, timeout: float = 60.0) -> bool:
+def wait_until(condition: Callable[[], bool], timeout: float = 60.0) -> bool:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        if condition():  # type: ignore[operator]
+        if condition():
             return True
         time.sleep(0.1)
     return False
@@ -61,7 +62,7 @@ def test_a_hung_test_fails_by_name_with_every_stack_and_leaves_no_child(tmp_path
     run = subprocess.run(
         [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-v", "--timeout", "2",
          f"{HERE}::test_probe_that_leaves_its_children_running", f"{HERE}::test_probe_that_hangs"],
-        cwd=ROOT, env={**os.environ, "VIEWER_BRIDGE_DEADLINE_PROBE": str(pids), "PYTHONPATH": str(ROOT)},
+        cwd=ROOT, env={**os.environ, PROBE: str(pids), "PYTHONPATH": str(ROOT)},
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     report = run.stdout + run.stderr
