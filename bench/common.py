@@ -1,5 +1,6 @@
-"""What every bench script returns, so that `bench/all.py` can gather them into one table, and what
-they share: timing (`best_of`) and a frame of link poses to draw (`frame`).
+"""What every bench script returns, so that `bench/all.py` can gather them into one table, what it
+is asked for (`Size`), and what they share: timing (`best_of`) and a frame of link poses to draw
+(`frame`).
 
 Only `viewer_bridge.scene` from the bridge: bench/load_targets.py imports this beside an older commit's
 `bridge` too.
@@ -7,9 +8,11 @@ Only `viewer_bridge.scene` from the bridge: bench/load_targets.py imports this b
 
 from __future__ import annotations
 
+import enum
 import timeit
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 
@@ -26,6 +29,32 @@ class Measure:
     unit: str
     goal: str
     met: bool | None
+
+
+T = TypeVar("T")
+
+
+class Size(enum.Enum):
+    """How much a bench script's `measures(size)` measures.
+
+    FULL gives the figures of the table; QUICK fewer rounds, and may leave out the slowest rows;
+    SMOKE runs every row of FULL at sizes so small that it takes seconds: its figures mean
+    nothing, but every path a row measures still runs (`bench/all.py --smoke`, which the test
+    suite runs so that no bench rots unseen).
+    """
+
+    FULL = "full"
+    QUICK = "quick"
+    SMOKE = "smoke"
+
+    def pick(self, full: T, quick: T, smoke: T) -> T:
+        """This size's value of a parameter, given its value at each size."""
+        return {Size.FULL: full, Size.QUICK: quick, Size.SMOKE: smoke}[self]
+
+    @property
+    def every_row(self) -> bool:
+        """Whether the rows QUICK leaves out are measured (FULL and SMOKE)."""
+        return self is not Size.QUICK
 
 
 def best_of(fn: Callable[[], object], repeat: int = 5, number: int = 1) -> float:

@@ -21,10 +21,16 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 CHILD = """
-import dataclasses, json, sys
+import dataclasses, inspect, json, sys
 sys.path[:0] = [sys.argv[1]]
 module = __import__(sys.argv[2])
-print("ROWS" + json.dumps([dataclasses.asdict(row) for row in module.measures(quick=sys.argv[3] == "1")]))
+quick = sys.argv[3] == "1"
+if "size" in inspect.signature(module.measures).parameters:
+    from common import Size
+    rows = module.measures(Size.QUICK if quick else Size.FULL)
+else:  # a checkout from before common.Size: measures(quick)
+    rows = module.measures(quick=quick)
+print("ROWS" + json.dumps([dataclasses.asdict(row) for row in rows]))
 """
 
 

@@ -18,7 +18,7 @@ from typing import Any
 
 import drake as drake_lcmtypes
 import numpy as np
-from common import Measure  # bench/ is on sys.path when run as a script
+from common import Measure, Size  # bench/ is on sys.path when run as a script
 from draw_codec import seconds_per_call
 from geometry_msgs.msg import Point
 from rclpy.serialization import deserialize_message, serialize_message
@@ -98,10 +98,10 @@ def _same(ours: bytes, theirs: bytes) -> None:
         )
 
 
-def measures(quick: bool = False) -> list[Measure]:
+def measures(size: Size = Size.FULL) -> list[Measure]:
     """Issue 13: 1000 point contacts and a 10,000-triangle surface -> MarkerArray CDR."""
     data = contact_results_to_lcm(demo_contact_results(1000, (100, 50), 1_000_000)).encode()
-    budget = 0.2 if quick else 0.5
+    budget = size.pick(full=0.5, quick=0.2, smoke=0.0)
     ours = seconds_per_call(lambda: contact_marker_array_cdr(decode_contact_results(data)), budget)
     baseline = seconds_per_call(lambda: rclpy_markers(data), budget)
     return [Measure("contact results (1000 points, 10,000-triangle surface) -> MarkerArray CDR",

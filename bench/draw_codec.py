@@ -20,7 +20,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from common import Measure, best_of, frame  # bench/ is on sys.path when run as a script
+from common import Measure, Size, best_of, frame  # bench/ is on sys.path when run as a script
 
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from viewer_bridge.lcmcodec import DRAW, SCHEMA_DIR
@@ -40,25 +40,29 @@ def lcm_gen_draw_class(folder: Path) -> Any:
 
 
 def seconds_per_call(function: Callable[[], object], budget: float) -> float:
+    """Seconds per call of `function`, the best of repeats that fill about `budget` seconds; a
+    budget of 0 times one call (a smoke run, where only that it runs matters)."""
     timer = timeit.Timer(function)
+    if budget <= 0:
+        return timer.timeit(1)
     number, _ = timer.autorange()
     repeats = max(3, int(budget / max(timer.timeit(number), 1e-9)))
     return min(timer.repeat(repeat=min(repeats, 7), number=number)) / number
 
 
-def paired(ours: Callable[[], object], baseline: Callable[[], object], quick: bool) -> tuple[float, float]:
+def paired(ours: Callable[[], object], baseline: Callable[[], object], size: Size) -> tuple[float, float]:
     """Seconds per call of both, measured in alternating rounds (the machine's load drifts), the
     best of each."""
     number_ours = max(1, int(0.02 / max(best_of(ours, 1, 10), 1e-9)))
     number_base = max(1, int(0.02 / max(best_of(baseline, 1, 3), 1e-9)))
     ours_best = base_best = float("inf")
-    for _ in range(3 if quick else 8):
+    for _ in range(size.pick(full=8, quick=3, smoke=1)):
         ours_best = min(ours_best, best_of(ours, 5, number_ours))
         base_best = min(base_best, best_of(baseline, 3, number_base))
     return ours_best, base_best
 
 
-def measures(quick: bool = False) -> list[Measure]:
+def measures(size: Size = Size.FULL) -> list[Measure]:
     """Goal 1: the fast decode of a 1000-link and a 10-link draw against lcm-gen's decode."""
     with tempfile.TemporaryDirectory() as folder:
         baseline_class = lcm_gen_draw_class(Path(folder))
@@ -67,7 +71,7 @@ def measures(quick: bool = False) -> list[Measure]:
         data = DrawEncoder().encode(frame(links))
         decoder = DrawDecoder()
         decoder.decode(data)  # steady state: the names are known from the previous frame
-        ours, base = paired(partial(decoder.decode, data), partial(baseline_class.decode, data), quick)
+        ours, base = paired(partial(decoder.decode, data), partial(baseline_class.decode, data), size)
         rows.append(
             Measure(
                 f"decode lcmt_viewer_draw, {links} links, vs lcm-gen",
@@ -100,7 +104,7 @@ def main() -> None:
     parser.add_argument("--budget", type=float, default=0.3, help="seconds per measurement")
     parser.add_argument("--quick", action="store_true", help="only the goal rows, fewer rounds")
     args = parser.parse_args()
-    print_measures(measures(args.quick))
+    print_measures(measures(Size.QUICK if args.quick else Size.FULL))
     if args.quick:
         return
     with tempfile.TemporaryDirectory() as folder:

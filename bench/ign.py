@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from common import Measure, frame  # noqa: E402
+from common import Measure, Size, frame  # noqa: E402
 from draw_codec import paired, print_measures, seconds_per_call  # noqa: E402
 from router import Bridge, publish_at  # noqa: E402
 
@@ -53,7 +53,7 @@ def cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def encode_measure(quick: bool) -> Measure:
+def encode_measure(size: Size) -> Measure:
     """draw bytes -> Pose_V bytes (decode included on both sides), ours against the objects."""
     draw = DrawEncoder().encode(frame(1000, seed=1))
     decoder, encoder = DrawDecoder(), PosesEncoder()
@@ -65,7 +65,7 @@ def encode_measure(quick: bool) -> Measure:
         return bytes(pose_v(decoder.decode(draw)).SerializeToString())
 
     assert ours() == objects()  # byte for byte
-    fast, slow = paired(ours, objects, quick)
+    fast, slow = paired(ours, objects, size)
     return Measure("draw -> ign Pose_V bytes, 1000 links, vs protobuf objects", fast * 1e6, slow * 1e6, "us",
                    "ratio >= 20x", slow / fast >= 20.0)  # fmt: skip
 
@@ -117,10 +117,10 @@ def live_measure(result: dict[str, float]) -> Measure:
                    "1 kHz carried", carried)  # fmt: skip
 
 
-def measures(quick: bool = False, seconds: float = 10.0) -> list[Measure]:
-    rows = [encode_measure(quick)]
-    if not quick:
-        rows.append(live_measure(live(seconds)))
+def measures(size: Size = Size.FULL, seconds: float = 10.0) -> list[Measure]:
+    rows = [encode_measure(size)]
+    if size.every_row:
+        rows.append(live_measure(live(size.pick(full=seconds, quick=seconds, smoke=0.5))))
     return rows
 
 
@@ -131,7 +131,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--quick", action="store_true", help="only the in-process ratio")
     args = parser.parse_args()
-    rows = [encode_measure(args.quick)]
+    rows = [encode_measure(Size.QUICK if args.quick else Size.FULL)]
     translator = TRANSLATORS["drake_to_ign_pose_v"]({})
     draw = DrawEncoder().encode(frame(1000))
     translator.translate(Received("DRAKE_VIEWER_DRAW", draw))

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from common import Measure, best_of  # bench/ is on sys.path when run as a script
+from common import Measure, Size, best_of  # bench/ is on sys.path when run as a script
 
 from viewer_bridge.config import DEFAULT_CONFIG
 from viewer_bridge.formats.drake.image import images_to_lcm, read_image_array, unpack
@@ -62,20 +62,21 @@ def to_image_cdr(data: bytes, index: int) -> bytes:
     return image_to_cdr(unpack(read_image_array(data).images[index]), "camera", STAMP)
 
 
-def single_image(data: bytes) -> tuple[float, float, float, float]:
+def single_image(data: bytes, size: Size = Size.FULL) -> tuple[float, float, float, float]:
     """(ours zlib, floor zlib, ours raw, floor raw), seconds per image, for the array's rgb image."""
+    repeat, number = size.pick(full=(7, 20), quick=(7, 20), smoke=(1, 1))
     array = read_image_array(data)
     rgb = next(index for index, packed in enumerate(array.images) if packed.name == "rgb")
     packed = array.images[rgb]
-    size = packed.row_stride * packed.height
+    image_bytes = packed.row_stride * packed.height
     compressed = bytes(packed.data)
     raw = images_to_lcm([unpack(packed)], packed.time_us)
     rows = memoryview(unpack(read_image_array(raw).images[0]).pixels.reshape(-1))
     return (
-        best_of(lambda: to_image_cdr(data, rgb), repeat=7, number=20),
-        best_of(lambda: zlib.decompress(compressed, bufsize=size), repeat=7, number=20),
-        best_of(lambda: to_image_cdr(raw, 0), repeat=7, number=20),
-        best_of(lambda: bytes(rows), repeat=7, number=20),
+        best_of(lambda: to_image_cdr(data, rgb), repeat, number),
+        best_of(lambda: zlib.decompress(compressed, bufsize=image_bytes), repeat, number),
+        best_of(lambda: to_image_cdr(raw, 0), repeat, number),
+        best_of(lambda: bytes(rows), repeat, number),
     )
 
 
@@ -194,12 +195,12 @@ def _route_counts(snapshot: dict[str, Any]) -> tuple[int, int]:
     return int(route.get("messages_in", 0)), int(route.get("messages_out", 0))
 
 
-def measures(quick: bool = False) -> list[Measure]:
+def measures(size: Size = Size.FULL) -> list[Measure]:
     """Issue 23's speed goals: one zlib image against one decompression, a raw one against one
     copy, and three 1280x720 cameras at 30 Hz through the router on one core."""
     arrays = drake_arrays(3)
-    ours_zlib, floor_zlib, ours_raw, floor_raw = single_image(arrays[0])
-    run = three_cameras(arrays, 4.0 if quick else 15.0)
+    ours_zlib, floor_zlib, ours_raw, floor_raw = single_image(arrays[0], size)
+    run = three_cameras(arrays, size.pick(full=15.0, quick=4.0, smoke=0.5))
     delivered = run.percent(run.received)
     return [
         Measure("zlib 1280x720 RGBA -> sensor_msgs/Image CDR, vs zlib.decompress alone", ours_zlib * 1e3,
@@ -222,7 +223,7 @@ def main() -> None:
     )
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args()
-    for row in measures(args.quick):
+    for row in measures(Size.QUICK if args.quick else Size.FULL):
         baseline = (
             ""
             if row.baseline is None

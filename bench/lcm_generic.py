@@ -32,7 +32,7 @@ from typing import Any
 
 import drake
 import numpy as np
-from common import Measure  # bench/ is on sys.path when run as a script
+from common import Measure, Size  # bench/ is on sys.path when run as a script
 from draw_codec import paired, print_measures
 
 from viewer_bridge.lcmcodec.library import TypeLibrary
@@ -157,7 +157,7 @@ def big_back_baseline(lcmgen_class: Any, values: list[float]) -> Callable[[], by
     return build
 
 
-def reverse_measures(quick: bool, library: TypeLibrary, big_library: TypeLibrary, lcmgen_class: Any,
+def reverse_measures(size: Size, library: TypeLibrary, big_library: TypeLibrary, lcmgen_class: Any,
                      big: bytes) -> list[Measure]:  # fmt: skip
     """Issue 32's speed goal: CDR -> LCM."""
     known = library.get("drake.lcmt_iiwa_command")
@@ -165,7 +165,7 @@ def reverse_measures(quick: bool, library: TypeLibrary, big_library: TypeLibrary
     cdr = known.to_cdr(lcm)
     baseline = iiwa_command_baseline(cdr)
     assert known.from_cdr(cdr) == lcm == baseline()  # noqa: S101 (the rows compare like with like)
-    ours, base = paired(partial(known.from_cdr, cdr), baseline, quick)
+    ours, base = paired(partial(known.from_cdr, cdr), baseline, size)
     rows = [Measure("lcmt_iiwa_command (7 joints) CDR -> LCM, vs rclpy deserialize + lcm-gen", ours * 1e6,
                     base * 1e6, "us", "ratio >= 20x", base / ours >= 20)]  # fmt: skip
     big_known = big_library.get("bench.big_array_t")
@@ -173,13 +173,13 @@ def reverse_measures(quick: bool, library: TypeLibrary, big_library: TypeLibrary
     values = lcmgen_class.decode(big).values
     big_base = big_back_baseline(lcmgen_class, list(values))
     assert big_known.from_cdr(big_cdr) == big == big_base()  # noqa: S101
-    ours, base = paired(partial(big_known.from_cdr, big_cdr), big_base, quick)
+    ours, base = paired(partial(big_known.from_cdr, big_cdr), big_base, size)
     rows.append(Measure("double[100000] CDR -> LCM, vs rclpy Float64MultiArray + lcm-gen", ours * 1e3,
                         base * 1e3, "ms", "ratio >= 20x", base / ours >= 20))  # fmt: skip
     return rows
 
 
-def measures(quick: bool = False) -> list[Measure]:
+def measures(size: Size = Size.FULL) -> list[Measure]:
     """Issue 31's speed goals 1 and 2 (the throughput goal is the router's, in its own bench), and
     issue 32's (CDR -> LCM)."""
     rows = []
@@ -187,20 +187,20 @@ def measures(quick: bool = False) -> list[Measure]:
     data = iiwa_status().encode()
     known = library.get("drake.lcmt_iiwa_status")
     rclpy_type, baseline = iiwa_baseline(data)
-    ours, base = paired(partial(known.to_cdr, data), baseline, quick)
+    ours, base = paired(partial(known.to_cdr, data), baseline, size)
     rows.append(Measure(f"lcmt_iiwa_status (7 joints) -> CDR, vs lcm-gen + {rclpy_type}", ours * 1e6, base * 1e6,
                         "us", "ratio >= 20x", base / ours >= 20))  # fmt: skip
     with tempfile.TemporaryDirectory() as folder:
         big_library, lcmgen_class, big = big_array(Path(folder))
         big_known = big_library.get("bench.big_array_t")
-        ours, base = paired(partial(big_known.to_cdr, big), big_baseline(lcmgen_class, big), quick)
+        ours, base = paired(partial(big_known.to_cdr, big), big_baseline(lcmgen_class, big), size)
         rows.append(Measure("double[100000] -> CDR, vs lcm-gen + Float64MultiArray", ours * 1e3, base * 1e3,
                             "ms", "ratio >= 50x", base / ours >= 50))  # fmt: skip
         swap = partial(_numpy_swap, big)
-        ours, floor = paired(partial(big_known.to_cdr, big), swap, quick)
+        ours, floor = paired(partial(big_known.to_cdr, big), swap, size)
         rows.append(Measure("double[100000] -> CDR, vs numpy byteswap of its bytes", ours * 1e3, floor * 1e3,
                             "ms", "ours <= 3x numpy", ours <= 3 * floor))  # fmt: skip
-        rows += reverse_measures(quick, library, big_library, lcmgen_class, big)
+        rows += reverse_measures(size, library, big_library, lcmgen_class, big)
     return rows
 
 
@@ -211,7 +211,7 @@ def _numpy_swap(data: bytes) -> bytes:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="fewer rounds")
-    print_measures(measures(parser.parse_args().quick))
+    print_measures(measures(Size.QUICK if parser.parse_args().quick else Size.FULL))
 
 
 if __name__ == "__main__":

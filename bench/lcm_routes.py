@@ -27,7 +27,7 @@ from typing import Any
 
 import drake as drake_lcmtypes
 import yaml
-from common import Measure
+from common import Measure, Size
 from router import URL, Bridge
 from zenoh_routes import _free_port, zenoh_session
 
@@ -149,9 +149,9 @@ def compare(seconds: float, rounds: int = 2) -> dict[str, dict[str, float]]:
     return best
 
 
-def measures(quick: bool = False) -> list[Measure]:
+def measures(size: Size = Size.FULL) -> list[Measure]:
     """Issue 31's throughput goal: >= 99% delivered through `run`, with the bridge's CPU per message."""
-    best = compare(4.0 if quick else 10.0, 1 if quick else 2)
+    best = compare(size.pick(full=10.0, quick=4.0, smoke=0.5), size.pick(full=2, quick=1, smoke=1))
     ours, relay = best["lcm_bus"], best["relay"]
     setup = "20 channels of lcmt_iiwa_status at 500 Hz, Zenoh, bridge pinned"
     return [

@@ -1,10 +1,14 @@
 """The load targets and the settransform path, timed as the base commit (65407f5) and as this
 checkout write them, each in a child process (`times`), for `bench/translators.py`.
 
-The base side's `bridge` is the base commit's, unpacked with `git archive`: so what runs on that
+The base side is the base commit's package, unpacked with `git archive`: so what runs on that
 side (`base_calls`) uses only what both versions have, and each side imports the format modules
-by its own paths (the base commit's `viewer_bridge/formats/ros.py` and `ros_tf.py` are `viewer_bridge/formats/ros/`
-here, its `drake.py` is `viewer_bridge/formats/drake/`), in the function that uses them.
+by its own names and paths, in the function that uses them. The package was `bridge` then (it
+is `viewer_bridge` since), and its `bridge/formats/ros.py` and `ros_tf.py` are
+`viewer_bridge/formats/ros/` here, its `drake.py` is `viewer_bridge/formats/drake/`. The scenes
+and frames both sides time are built by this module and `common.py` from `viewer_bridge.scene`:
+in the base side's process that name stands for the base commit's own `bridge.scene`, so that
+its code gets its own classes.
 """
 
 from __future__ import annotations
@@ -23,6 +27,20 @@ from viewer_bridge.scene import Box, Capsule, Cylinder, Ellipsoid, Geometry, Lin
 from viewer_bridge.scene import Pose as ScenePose
 
 BASE_COMMIT = "65407f5"
+BASE_PACKAGE = "bridge"  # the import package's name at BASE_COMMIT
+
+# A side's process: its package must be the side's own code (the folder given), not the installed one.
+_CHILD = """
+import importlib, json, sys
+folder, package_name, side, links, repeat = sys.argv[1:]
+package = importlib.import_module(package_name)
+assert package.__file__.startswith(folder), package.__file__
+if package_name != "viewer_bridge":  # the base commit's scene classes, under the name this module imports
+    sys.modules["viewer_bridge"] = package
+    sys.modules["viewer_bridge.scene"] = importlib.import_module(package_name + ".scene")
+from load_targets import _time
+print(json.dumps(_time(side, links, repeat)))
+"""
 
 
 def scene(links: int) -> Scene:
@@ -36,7 +54,7 @@ def scene(links: int) -> Scene:
 def inputs(side: str, links: int) -> tuple[Scene, LinkPoses]:
     """The load (with a frame's poses) and a draw as the side's decoder hands it over (float32 views)."""
     if side == "base":
-        from viewer_bridge.formats.drake import DrawDecoder, DrawEncoder  # the base commit's one module
+        from bridge.formats.drake import DrawDecoder, DrawEncoder  # the base commit's one module
     else:
         from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder  # a package here
     load = scene(links).with_poses(frame(links))
@@ -46,13 +64,8 @@ def inputs(side: str, links: int) -> tuple[Scene, LinkPoses]:
 
 def base_calls(load: Scene, draw: LinkPoses) -> dict[str, Callable[[], object]]:
     """Each measured path as the base commit writes it."""
-    from viewer_bridge.formats import (  # the base commit's modules: one file each then
-        foxglove,
-        ign,
-        ros,
-        ros_tf,
-    )
-    from viewer_bridge.formats import tree_viewer as tv  # the base commit's one module (a package since)
+    from bridge.formats import foxglove, ign, ros, ros_tf  # the base commit's modules: one file each then
+    from bridge.formats import tree_viewer as tv  # the base commit's one module (a package since)
 
     frames = ros_tf.FrameNames()
     return {
@@ -96,18 +109,15 @@ def times(side: str, links: int, repeat: int) -> dict[str, float]:
     root = Path(__file__).resolve().parent.parent
     with tempfile.TemporaryDirectory() as folder:
         if side == "base":
-            archive = subprocess.run(["git", "-C", str(root), "archive", BASE_COMMIT, "bridge", "mappings", "lcmtypes"],
+            archive = subprocess.run(["git", "-C", str(root), "archive", BASE_COMMIT, BASE_PACKAGE, "mappings", "lcmtypes"],
                                      check=True, capture_output=True).stdout  # fmt: skip
             subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
-        code = (
-            "import json, sys, bridge; assert bridge.__file__.startswith(sys.argv[1]), bridge.__file__\n"
-            "from load_targets import _time; print(json.dumps(_time(*sys.argv[2:])))"
-        )
         # The working directory comes first on sys.path, before the editable install.
         where = folder if side == "base" else str(root)
+        package = BASE_PACKAGE if side == "base" else "viewer_bridge"
         environment = {**os.environ, "PYTHONPATH": f"{where}:{Path(__file__).parent}"}
-        result = subprocess.run([sys.executable, "-c", code, where, side, str(links), str(repeat)], check=True,
-                                capture_output=True, text=True, cwd=where, env=environment)  # fmt: skip
+        result = subprocess.run([sys.executable, "-c", _CHILD, where, package, side, str(links), str(repeat)],
+                                check=True, capture_output=True, text=True, cwd=where, env=environment)  # fmt: skip
     seconds: dict[str, float] = json.loads(result.stdout)
     return seconds
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 from functools import partial
 
-from common import Measure  # bench/ is on sys.path when run as a script
+from common import Measure, Size  # bench/ is on sys.path when run as a script
 from draw_codec import paired, print_measures
 from lcm_generic import iiwa_status
 
@@ -40,7 +40,7 @@ def _plain_round(publisher: Publisher, offer: object, cdr: bytes) -> None:
     offer(Received("/X", cdr))  # type: ignore[operator]
 
 
-def measures(quick: bool = False) -> list[Measure]:
+def measures(size: Size = Size.FULL) -> list[Measure]:
     rows = []
     library = TypeLibrary.load()
     data = iiwa_status().encode()
@@ -53,15 +53,15 @@ def measures(quick: bool = False) -> list[Measure]:
     guarded = echoes.publisher("ros", "/X", plain, "lcm", subscribed=True)
     deliver = echoes.deliver("ros", _nothing, lambda message, origin: None)
     guard_cost, plain_cost = paired(
-        partial(_guarded_round, guarded, deliver, cdr), partial(_plain_round, plain, _nothing, cdr), quick
+        partial(_guarded_round, guarded, deliver, cdr), partial(_plain_round, plain, _nothing, cdr), size
     )
-    translate = paired(partial(known.to_cdr, data), partial(known.to_cdr, data), quick)[0]
+    translate = paired(partial(known.to_cdr, data), partial(known.to_cdr, data), size)[0]
     added = max(guard_cost - plain_cost, 0.0)
     rows.append(Measure("loop guard, a guarded name: added per message, vs translating it (lcmt_iiwa_status)",
                         added * 1e6, translate * 1e6, "us", "added <= 10 us", added <= 10e-6))  # fmt: skip
     unguarded = Echoes(sending).deliver("lcm", _nothing, lambda message, origin: None)
     message = Received("IIWA_STATUS", data)
-    wrapped, direct = paired(partial(unguarded, message), partial(_nothing, message), quick)
+    wrapped, direct = paired(partial(unguarded, message), partial(_nothing, message), size)
     rows.append(Measure("loop guard, any other name: deliver, vs calling the route directly", wrapped * 1e6,
                         direct * 1e6, "us", "added < 0.5 us", wrapped - direct < 0.5e-6))  # fmt: skip
     return rows
@@ -70,7 +70,7 @@ def measures(quick: bool = False) -> list[Measure]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="fewer rounds")
-    print_measures(measures(parser.parse_args().quick))
+    print_measures(measures(Size.QUICK if parser.parse_args().quick else Size.FULL))
 
 
 if __name__ == "__main__":

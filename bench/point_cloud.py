@@ -22,7 +22,7 @@ from typing import Any
 
 import drake as drake_lcmtypes
 import numpy as np
-from common import Measure  # bench/ is on sys.path when run as a script
+from common import Measure, Size  # bench/ is on sys.path when run as a script
 from draw_codec import seconds_per_call
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import PointCloud2, PointField
@@ -113,9 +113,9 @@ def report(title: str, ours: Any, baseline: Any, budget: float) -> None:
     print(f"  ratio                                 {slow / fast:10.0f}x")
 
 
-def measures(quick: bool = False) -> list[Measure]:
+def measures(size: Size = Size.FULL) -> list[Measure]:
     """Issue 13: a 100,000-point coloured cloud -> PointCloud2 CDR, and both routes' bytes."""
-    budget = 0.2 if quick else 0.5
+    budget = size.pick(full=0.5, quick=0.2, smoke=0.0)
     stamped = cloud(100_000)
     assert stamped.cloud.colors is not None
     rgb = np.rint(stamped.cloud.colors * 255).astype(int)

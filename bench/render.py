@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pydrake.all as drake
 import trimesh
-from common import Measure  # bench/ is on sys.path when run as a script
+from common import Measure, Size  # bench/ is on sys.path when run as a script
 
 
 def build(url: str, folder: Path, big: bool) -> tuple[object, dict[str, object]]:
@@ -87,9 +87,9 @@ def wait_for(port: int, seconds: float = 30.0) -> None:
 GOALS = {False: 1.2, True: 1.5}
 
 
-def measures(quick: bool = False) -> list[Measure]:
+def measures(size: Size = Size.FULL) -> list[Measure]:
     """Median server-side ms per image (ours) beside RenderEngineVtk (baseline), per scene and kind."""
-    repeats = 3 if quick else 5
+    repeats = size.pick(full=5, quick=3, smoke=1)
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         port = sock.getsockname()[1]
@@ -139,7 +139,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="3 repeats instead of 5")
     args = parser.parse_args()
     print(f"{'scene, image':<42} | {'serve-render':>12} | {'RenderEngineVtk':>15} | {'ratio':>6} | goal")
-    for row in measures(args.quick):
+    for row in measures(Size.QUICK if args.quick else Size.FULL):
         assert row.baseline is not None
         print(f"{row.name:<42} | {row.ours:>9.1f} ms | {row.baseline:>12.1f} ms | "
               f"{row.ours / row.baseline:>5.2f}x | {row.goal}: {'met' if row.met else 'NOT met'}")  # fmt: skip

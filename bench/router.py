@@ -38,7 +38,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
-from common import Measure
+from common import Measure, Size
 
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
@@ -501,9 +501,9 @@ def latency(folder: Path, seconds: float) -> None:
     print(f"   p99 ratio, translated / passthrough: {ratio:.2f} (goal: within 1.5)")
 
 
-def measures(quick: bool = False) -> list[Measure]:
+def measures(size: Size = Size.FULL) -> list[Measure]:
     """Issue 15's goals 4 and 5: CPU per draw against the passthrough, and the 2 kHz run."""
-    seconds = 4.0 if quick else 10.0
+    seconds = size.pick(full=10.0, quick=4.0, smoke=0.5)
     everywhere = os.sched_getaffinity(0)
     os.sched_setaffinity(0, {1})  # the publisher and subscribers; the bridge gets CPU 0
     try:
@@ -512,7 +512,7 @@ def measures(quick: bool = False) -> list[Measure]:
             # Two rounds, interleaved, each set-up keeping its lower figure: a run's CPU per draw
             # moves by 10 to 15% with what else the machine does, and disturbances only add.
             cpu: dict[str, float] = {}
-            for _ in range(2):
+            for _ in range(size.pick(full=2, quick=2, smoke=1)):
                 for label, config in (("passthrough", PASSTHROUGH), ("poses", POSES), ("tf", TF_ONLY)):
                     ours = throughput_run(label, config, folder, seconds)["cpu_us_per_draw"]
                     cpu[label] = min(ours, cpu.get(label, ours))
@@ -521,7 +521,7 @@ def measures(quick: bool = False) -> list[Measure]:
                      for policy, config in (("all", DEFAULT_ALL), ("latest", DEFAULT_LATEST))}  # fmt: skip
             sizes = output_sizes()
             floor = publish_floor(tuple(sizes.values()), 2000.0, seconds)
-            wake = wake_cost()
+            wake = wake_cost(wakes=size.pick(full=3000, quick=3000, smoke=100))
     finally:
         os.sched_setaffinity(0, everywhere)
     passthrough = cpu["passthrough"]

@@ -27,13 +27,13 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).parent))
 import pyarrow.compute as pc  # noqa: E402
 import rerun as rr  # noqa: E402
-from common import Measure, frame  # noqa: E402
+from common import Measure, Size, frame  # noqa: E402
 from draw_codec import paired, print_measures  # noqa: E402
 from rerun.chunk import RrdReader  # noqa: E402
 from router import URL, Bridge, publish_at  # noqa: E402
 
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder  # noqa: E402
-from viewer_bridge.translators import TRANSLATORS, LoadCache  # noqa: E402
+from viewer_bridge.translators import TRANSLATORS  # noqa: E402
 from viewer_bridge.translators.types import RERUN_CHUNKS_TYPE  # noqa: E402
 from viewer_bridge.transports.base import Qos, Received  # noqa: E402
 from viewer_bridge.transports.lcm import LcmBus  # noqa: E402
@@ -51,11 +51,11 @@ routes:
 """
 
 
-def calls_measure(quick: bool, folder: Path) -> Measure:
+def calls_measure(size: Size, folder: Path) -> Measure:
     """One 1000-link draw to the Rerun SDK: ours (one chunk) against one rr.log per link."""
     poses = frame(1000, seed=3)
     draw = DrawEncoder().encode(poses)
-    translator = TRANSLATORS["drake_to_rerun"]({}, LoadCache())
+    translator = TRANSLATORS["drake_to_rerun"]({})  # made alone: a Shared (load cache) of its own
     transport = RerunTransport(RerunSettings(path=folder / "ours.rrd"))
     publisher = transport.publisher("/drake", RERUN_CHUNKS_TYPE, Qos())
     baseline = rr.RecordingStream("bench_per_link", recording_id="bench_per_link")
@@ -73,7 +73,7 @@ def calls_measure(quick: bool, folder: Path) -> Measure:
         for path, position, (w, x, y, z) in zip(paths, decoded.positions, decoded.quaternions_wxyz, strict=True):
             baseline.log(path, rr.Transform3D(translation=position, quaternion=(x, y, z, w)))
 
-    fast, slow = paired(ours, per_link, quick)
+    fast, slow = paired(ours, per_link, size)
     transport.close()
     baseline.disconnect()
     return Measure("draw -> Rerun, 1000 links, one chunk vs one log per link", fast * 1e6, slow * 1e6, "us",
@@ -124,11 +124,11 @@ def live_measure(result: dict[str, float]) -> Measure:
                    "1 kHz, every draw", every and result["cpu_us"] < 1000.0)  # fmt: skip
 
 
-def measures(quick: bool = False, seconds: float = 10.0) -> list[Measure]:
+def measures(size: Size = Size.FULL, seconds: float = 10.0) -> list[Measure]:
     with tempfile.TemporaryDirectory() as folder:
-        rows = [calls_measure(quick, Path(folder))]
-        if not quick:
-            rows.append(live_measure(live(seconds, Path(folder))))
+        rows = [calls_measure(size, Path(folder))]
+        if size.every_row:
+            rows.append(live_measure(live(size.pick(full=seconds, quick=seconds, smoke=0.5), Path(folder))))
     return rows
 
 
@@ -138,7 +138,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="only the in-process ratio")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as folder:
-        rows = [calls_measure(args.quick, Path(folder))]
+        rows = [calls_measure(Size.QUICK if args.quick else Size.FULL, Path(folder))]
         if not args.quick:
             result = live(args.seconds, Path(folder))
             print(result)

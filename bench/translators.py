@@ -21,7 +21,7 @@ from __future__ import annotations
 import argparse
 
 import numpy as np
-from common import Measure, frame  # bench/ is on sys.path when run as a script
+from common import Measure, Size, frame  # bench/ is on sys.path when run as a script
 from draw_codec import paired, seconds_per_call
 from geometry_msgs.msg import Point, Pose, PoseArray, PoseStamped, Quaternion
 from load_targets import scene, times
@@ -99,10 +99,10 @@ def marker_stream_case(links: int) -> tuple[MarkerStream, ReferenceMarkerStream,
     return stream, reference, moved
 
 
-def marker_measures(quick: bool = False) -> list[Measure]:
+def marker_measures(size: Size = Size.FULL) -> list[Measure]:
     """Goal 3: `MarkerStream.update` for 1400 markers <= 100 us (baseline: the replaced algorithm)."""
     stream, reference, moved = marker_stream_case(1000)
-    ours, base = paired(lambda: stream.update(moved), lambda: reference.update(moved), quick)
+    ours, base = paired(lambda: stream.update(moved), lambda: reference.update(moved), size)
     return [
         Measure(
             f"MarkerStream.update, {len(stream)} markers (1000 links)",
@@ -209,14 +209,15 @@ SETTRANSFORM_GOAL = 200e-6
 LOAD_GOAL = 10e-3
 
 
-def measures(quick: bool = False, links: int = 1000) -> list[Measure]:
+def measures(size: Size = Size.FULL, links: int = 1000) -> list[Measure]:
     """Goal 3's rows: MarkerStream.update, draw -> settransform and every load target."""
-    return marker_measures(quick) + load_measures(quick, links)
+    # The base commit's slowest load target takes seconds at 1000 geometries: a smoke run takes 100.
+    return marker_measures(size) + load_measures(size, size.pick(full=links, quick=links, smoke=100))
 
 
-def load_measures(quick: bool = False, links: int = 1000) -> list[Measure]:
+def load_measures(size: Size = Size.FULL, links: int = 1000) -> list[Measure]:
     """Draw -> settransform and every load target for `links` links: ours beside the base commit."""
-    repeat, rounds = (3, 1) if quick else (5, 3)
+    repeat, rounds = size.pick(full=(5, 3), quick=(3, 1), smoke=(1, 1))
     # Rounds alternate between the base commit's process and ours, and each side keeps its best:
     # the machine is shared, and its load changes from one second to the next.
     baseline: dict[str, float] = {}

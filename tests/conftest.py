@@ -1,4 +1,5 @@
-"""Shared fixtures: lcm-gen's generated Python for our schemas, and real Drake traffic."""
+"""Shared fixtures: lcm-gen's generated Python for our schemas, and real Drake traffic; every test's
+deadline, and the end of every child process it started."""
 
 from __future__ import annotations
 
@@ -8,16 +9,19 @@ import signal
 import subprocess
 import sys
 import sysconfig
+import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import lcm
 import pytest
 
 import viewer_bridge.examples
+from tests.process_groups import ChildGroups
 from viewer_bridge.formats.drake.draw import poses_from_draw
 from viewer_bridge.formats.drake.load import decode_load
 from viewer_bridge.lcmcodec import DRAW, LOAD_ROBOT, SCHEMA_DIR, LcmMessage
@@ -61,6 +65,79 @@ def _skip_fails(report: pytest.TestReport | pytest.CollectReport) -> None:
         reason = report.longrepr[-1] if isinstance(report.longrepr, tuple) else report.longrepr
         report.outcome = "failed"
         report.longrepr = f"skipped ({reason}): a skip fails the run unless VIEWER_BRIDGE_CORE_ONLY=1"
+
+
+# --- deadlines and child processes ---------------------------------------------------------------
+
+CHILDREN = ChildGroups()
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    CHILDREN.install()  # every child from here on runs in a process group of its own
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    CHILDREN.end_all()  # what session and module fixtures started and left
+    CHILDREN.uninstall()
+
+
+@pytest.fixture(autouse=True)
+def _children_ended_at_teardown() -> Iterator[None]:
+    """The process groups this test started end with it (autouse, so set up first and torn down last)."""
+    with CHILDREN.test_scope():
+        yield
+
+
+@pytest.hookimpl(tryfirst=True, optionalhook=True)
+def pytest_timeout_set_timer(item: pytest.Item, settings: Any) -> bool | None:
+    """pytest-timeout's `thread` method, with the test named in the report and its children ended.
+
+    A thread, not SIGALRM: a test stuck in C (rclpy, Zenoh, a socket) never returns to the
+    interpreter to see a signal. The thread cannot fail the test and go on, so the run ends
+    (exit 1); the child groups are ended first, since no teardown runs after os._exit.
+    """
+    if settings.method != "thread":
+        return None  # pytest-timeout's own signal method; the teardown above still ends the children
+    timer = threading.Timer(settings.timeout, _deadline_passed, (item, settings))
+    timer.name = f"deadline of {item.nodeid}"
+    timer.daemon = True
+
+    def cancel() -> None:
+        timer.cancel()
+        timer.join()
+
+    item.cancel_timeout = cancel  # type: ignore[attr-defined]  # what pytest-timeout's cancel hook calls
+    timer.start()
+    return True
+
+
+def _deadline_passed(item: pytest.Item, settings: Any) -> None:
+    import pytest_timeout
+
+    if not settings.disable_debugger_detection and pytest_timeout.is_debugging():
+        return
+    terminal = item.config.get_terminal_writer()
+    try:
+        capture = item.config.pluginmanager.getplugin("capturemanager")
+        captured = ("", "")
+        if capture is not None:
+            capture.suspend_global_capture(item)
+            captured = capture.read_global_capture()
+        terminal.sep("+", f"Timeout: {item.nodeid} ran past its {settings.timeout:g} s")
+        for title, text in zip(("Captured stdout", "Captured stderr"), captured, strict=True):
+            if text:
+                terminal.sep("~", title)
+                terminal.write(text)
+        pytest_timeout.dump_stacks(terminal)  # every thread's stack but this timer's
+        terminal.sep("+", f"Timeout: {item.nodeid}: ending its child processes and the run")
+    finally:
+        terminal.flush()
+        try:
+            CHILDREN.end_all(grace=5)
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(1)
 
 
 def lcm_url(offset: int = 0) -> str:

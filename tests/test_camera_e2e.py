@@ -23,7 +23,7 @@ from tests.translators.test_drake_image import assert_drake_reads, ros_test_imag
 from viewer_bridge.config import DEFAULT_CONFIG
 from viewer_bridge.examples.cameras import CAMERAS, FOV_Y_DEGREES
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
 SCENE = EXAMPLES / "cameras.py"
 PORTS = ("rgb", "depth", "label")

@@ -51,6 +51,7 @@ def pytest_run(*args: str, core_only: bool, **env: str) -> subprocess.CompletedP
     )
 
 
+@pytest.mark.timeout(2000)  # two pytest runs of up to 900 s each
 def test_a_skip_fails_the_run_unless_the_run_is_core_only() -> None:
     probe = (f"{Path(__file__).relative_to(ROOT)}::test_probe_that_skips",)
     full = pytest_run(*probe, core_only=False, VIEWER_BRIDGE_SKIP_PROBE="1")
@@ -76,6 +77,7 @@ def test_the_core_only_python_cannot_import_the_peers() -> None:
     assert result.stdout.split() == peers
 
 
+@pytest.mark.timeout(1200)  # a pytest run of up to 900 s
 def test_codec_tests_run_where_rclpy_and_pydrake_are_missing() -> None:
     result = pytest_run(*CODEC_TESTS, "-m", "not slow", core_only=True)
     assert result.returncode == 0, result.stdout[-3000:]

@@ -28,7 +28,7 @@ from viewer_bridge import ros_interfaces
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.transports.ros2 import message_class
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 __all__ = ["lcmgen_corpus"]  # a fixture, used by name
 
 _NESTED = re.compile(r"(?:sequence<)?([a-z0-9_]+)/([A-Za-z0-9]+)")

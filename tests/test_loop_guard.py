@@ -24,7 +24,7 @@ from tests.test_router import LcmRecorder
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.transports.ros2 import message_class
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
 BOTH_WAYS = """\
 commands: {{allow: ["LOOP_.*"], max_age_ms: 60000}}

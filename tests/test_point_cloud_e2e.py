@@ -18,7 +18,7 @@ from tests.peers import BridgeProcess, RosProbe
 from tests.test_router import LcmRecorder
 from viewer_bridge.config import destination_name, load_config
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
 POINTS = 500
 # sensor_msgs/PointField datatypes, as sensor_msgs_py.point_cloud2 maps them to numpy.

@@ -33,6 +33,8 @@ from viewer_bridge.translators.base import Output, Outputs, Translator
 from viewer_bridge.transports.base import CDR, LCM, MessageType, Received
 from viewer_bridge.transports.ros2 import message_class
 
+pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
+
 COUNTER = f"{ROUTER}/msg/Counter"
 BAD = "vbtest_bad_router_lcm_msgs"
 BAD_DEFINITIONS = {f"{BAD}/msg/Bad": "float64 jointAngles\n"}  # rosidl: field names are lower case
@@ -145,6 +147,7 @@ def not_built() -> Iterator[None]:
     yield
 
 
+@pytest.mark.timeout(2400)  # waits up to 900 s for each of two builds
 def test_a_route_waits_for_its_build_while_the_others_flow_then_publishes(
     translators: None, not_built: None, tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
@@ -217,6 +220,7 @@ def test_a_builder_asked_for_a_package_it_does_not_know_says_so() -> None:
     assert builder.status("std_msgs").state is BuildState.ABSENT
 
 
+@pytest.mark.timeout(1200)  # waits up to 600 s for the build, then builds it again
 def test_a_failed_build_is_failed_with_the_reason(caplog: pytest.LogCaptureFixture) -> None:
     builder = InterfaceBuilder(definitions)
     assert builder.request(BAD).state is BuildState.BUILDING
@@ -228,6 +232,7 @@ def test_a_failed_build_is_failed_with_the_reason(caplog: pytest.LogCaptureFixtu
     assert builder.request(BAD) == status  # asked again: not built again
 
 
+@pytest.mark.timeout(1800)  # three builds of the package
 def test_changed_definitions_rebuild_the_package_and_leave_nothing_of_the_old_one(
     capsys: pytest.CaptureFixture[str],
 ) -> None:

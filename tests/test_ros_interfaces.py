@@ -366,6 +366,7 @@ def _package_depends(xml: str) -> list[tuple[str, str]]:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(2700)  # colcon's build alone may take 1800 s
 def test_colcon_builds_packages_generated_from_lcm_files_and_rclpy_reads_the_bridges_cdr(tmp_path: Path) -> None:
     """A user's colcon workspace with the packages of real .lcm files (comments carried over),
     built by colcon against the venv's ROS 2 wheels (the venv is the underlay's ament prefix);

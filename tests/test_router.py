@@ -25,7 +25,7 @@ from viewer_bridge.scene import LinkPoses
 from viewer_bridge.transports.base import Received
 from viewer_bridge.transports.lcm import LcmBus
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
 
 @pytest.fixture

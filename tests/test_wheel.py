@@ -26,7 +26,8 @@ from viewer_bridge import convert
 from viewer_bridge.demo import demo_poses, demo_scene
 from viewer_bridge.formats.drake.draw import DrawEncoder
 
-pytestmark = pytest.mark.slow
+# Building the wheel and installing it into a fresh venv may each take up to 900 s.
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(2000)]
 ROOT = Path(__file__).resolve().parents[1]
 HEAVY = ["rclpy", "moderngl", "foxglove", "foxglove_schemas_protobuf", "zenoh", "zmq", "trimesh", "scipy"]
 
@@ -115,6 +116,7 @@ def test_a_missing_extra_is_one_line_naming_it(venv: Path, tmp_path: Path) -> No
     assert "pip install 'viewer-bridge[foxglove]'" in refused.stderr and "Traceback" not in refused.stderr
 
 
+@pytest.mark.timeout(3000)  # and then every extra installed, and tf2_msgs compiled
 def test_the_bridge_runs_its_demo_with_every_extra(venv: Path, wheel: Path, tmp_path: Path) -> None:
     installed = run([str(venv / "bin/python"), "-m", "pip", "install", "--quiet", f"{wheel}[all]"], tmp_path)
     assert installed.returncode == 0, installed.stderr

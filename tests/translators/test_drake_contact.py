@@ -28,6 +28,8 @@ from viewer_bridge.scene import Line, Scene, TriangleMesh
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import Received
 
+pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
+
 CONTACT_SCENE_SCRIPT = EXAMPLES / "contacts.py"
 
 

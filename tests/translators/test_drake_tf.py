@@ -22,6 +22,8 @@ from viewer_bridge.scene import Box, Geometry, Link, Pose, Scene
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import Received
 
+pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
+
 
 def translate_all(translator: Any, *messages: Received) -> list[tuple[int, bytes]]:
     out = []

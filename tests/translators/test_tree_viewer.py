@@ -32,6 +32,8 @@ from viewer_bridge.translators.tree_viewer import DrakeToTreeViewer, TreeViewerS
 from viewer_bridge.transports.base import Received
 from viewer_bridge.transports.lcm import LcmBus
 
+pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
+
 REQUEST = "DIRECTOR_TREE_VIEWER_REQUEST_<spec client>"
 RESPONSE = "DIRECTOR_TREE_VIEWER_RESPONSE_<spec client>"
 

@@ -32,7 +32,7 @@ from tests.formats import oracle
 from tests.peers import BridgeProcess
 from tests.test_router import LcmRecorder, start_drake
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
 NODE_CLIENT = Path(__file__).parents[1] / "node" / "foxglove_client.js"  # ./dev installs its packages
 

@@ -24,7 +24,7 @@ from viewer_bridge.transports.base import CDR, JSON, MessageType, Qos, Received
 from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
 from viewer_bridge.transports.foxglove_front import Connection
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 COMMAND_TYPE = "drake_lcm_msgs/msg/LcmtIiwaCommand"
 WAIT = 60.0
 # Every channel these tests command, and an age limit no loaded machine reaches (freshness has its

@@ -29,7 +29,7 @@ from viewer_bridge.transports.ign import IgnNode, IgnSettings, IgnTransport
 from viewer_bridge.transports.ign_discovery import WIRE_VERSION
 from viewer_bridge.transports.ign_environment import DISCOVERY_GROUP, MESSAGE_PORT, NodeEnvironment
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
 CLI = "/usr/libexec/ignition/transport11/ign-transport-topic"
 

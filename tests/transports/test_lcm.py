@@ -12,6 +12,8 @@ from tests.conftest import lcm_url
 from viewer_bridge.transports import lcm as lcm_transport
 from viewer_bridge.transports.lcm import LcmSettings, LcmTransport, with_receive_buffer
 
+pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
+
 
 def rmem_max() -> int:
     return int(Path("/proc/sys/net/core/rmem_max").read_text())

@@ -27,6 +27,8 @@ from viewer_bridge.transports.base import Received
 from viewer_bridge.transports.foxglove import FoxgloveTransport
 from viewer_bridge.transports.mcap import McapTransport
 
+pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
+
 LOAD = load_from_scene(small_scene()).encode()
 DRAW_ROUTE = {"source": {"transport": "lcm", "name": "DRAKE_VIEWER_DRAW"}}
 SCENE_ROUTE = {"source": {"transport": "lcm", "name": "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)"}}

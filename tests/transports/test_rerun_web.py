@@ -28,6 +28,8 @@ from websockets.sync.client import connect
 from tests.conftest import lcm_url
 from tests.peers import BridgeProcess
 
+pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
+
 DOCS_SCREENSHOT = Path(__file__).parents[2] / "docs" / "rerun_web_viewer.png"
 CHROMIUM_FLAGS = [
     "--headless=new",

@@ -8,6 +8,8 @@ from viewer_bridge.errors import TransportUnavailable
 from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import CDR, MessageType
 
+pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
+
 
 def test_a_missing_interface_is_refused_at_start_naming_the_fix() -> None:
     transport_class = TRANSPORTS.get("ros")

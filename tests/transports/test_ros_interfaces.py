@@ -22,6 +22,8 @@ from tests.peers import RosProbe
 from viewer_bridge import ros_interfaces
 from viewer_bridge.cli import main
 
+pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
+
 TFMESSAGE_HASH = "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087"
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 PYPROJECT = Path(__file__).parents[2] / "pyproject.toml"

@@ -39,7 +39,7 @@ from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.scene import Box, Geometry, Link, LinkPoses, Scene
 from viewer_bridge.transports.lcm import LcmBus
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 DOMAIN = int(os.environ["ROS_DOMAIN_ID"])  # this test process's own (tests/conftest.py)
 STORE = get_typestore(Stores.ROS2_JAZZY)
 
