@@ -22,7 +22,7 @@ from tests.transports.test_foxglove import foxglove_port
 from tests.transports.test_foxglove_clients import WAIT, _b64, connected, statuses
 from viewer_bridge.transports.ros2 import message_class
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
 TYPES = {"IIWA_COMMAND": "drake_lcm_msgs/msg/LcmtIiwaCommand", "WSG_COMMAND": "drake_lcm_msgs/msg/LcmtSchunkWsgCommand"}
 ROUTES = {"ros": "lcm_in", "foxglove": "foxglove_lcm_in"}
