@@ -56,7 +56,7 @@ _MESSAGE_DATA = 0x01  # a client's binary opcode: u32 LE channel id, then the pa
 SAY_AGAIN_SECONDS = 5.0  # the same status to the same client, not more often (a panel publishing at 10 Hz)
 _SAID_KEPT = 1000  # statuses remembered (client, text) to hold back repeats; then the oldest are forgotten
 MAX_CLIENT_CHANNELS = 256  # channels one client may have advertised at once (foxglove.max_client_channels)
-_TOPIC_SHOWN = 200  # characters of a client's topic repeated in a status (a topic may be megabytes)
+_SAID_CHARACTERS = 1000  # of a status's text and of its id: a client's topic or schema name may be megabytes
 
 
 def ros_type_name(schema_name: str) -> str:
@@ -65,8 +65,8 @@ def ros_type_name(schema_name: str) -> str:
     return f"{parts[0]}/msg/{parts[1]}" if len(parts) == 2 and all(parts) else schema_name
 
 
-def _shown(topic: str) -> str:
-    return topic if len(topic) <= _TOPIC_SHOWN else topic[:_TOPIC_SHOWN] + "..."
+def _clipped(text: str) -> str:
+    return text if len(text) <= _SAID_CHARACTERS else text[:_SAID_CHARACTERS] + "..."
 
 
 def status(level: int, message: str, status_id: str) -> str:
@@ -167,7 +167,6 @@ class ClientPublishing:
                          f"a channel was refused: a client may have at most {self.max_channels} channels "
                          "advertised (foxglove.max_client_channels); unadvertise some first")  # fmt: skip
             return
-        topic = _shown(topic)
         if encoding not in CLIENT_ENCODINGS:
             self._refuse(connection, "client_channel_refused", topic,
                          f"{topic}: encoding {encoding!r} is not read by this bridge (it reads "
@@ -207,6 +206,7 @@ class ClientPublishing:
         self._say(connection, topic, text)
 
     def _say(self, connection: Connection, topic: str, text: str) -> None:
+        text, topic = _clipped(text), _clipped(topic)  # what is kept and sent stays small, whatever the client sent
         now = time.monotonic()
         with self._lock:
             last = self._said.get((connection, text))

@@ -30,7 +30,7 @@ __all__ = [
     "OriginGate",
     "Origins",
     "is_origin_pattern",
-    "origin_pattern",
+    "origin_matches",
 ]
 
 log = logging.getLogger("viewer_bridge")
@@ -39,16 +39,45 @@ ANY_ORIGIN = "*"  # as a whole entry: every origin passes (the check is off)
 FOXGLOVE_APPS = ("https://app.foxglove.dev", "https://studio.foxglove.dev")  # Foxglove's web app, old and new host
 # scheme://host[:port]: what a browser puts in Origin; "null" is what an opaque origin (a file:// page, a sandbox) sends
 _ENTRY = re.compile(r"(?:[a-z][a-z0-9+.-]*://[^/\s]+|null)", re.IGNORECASE)
-_LOOPBACK = re.compile(r"https?://(?:localhost|127\.0\.0\.1|\[::1\])(?::[0-9]{1,5})?", re.IGNORECASE)
+_LOOPBACK = re.compile(r"https?://(?:localhost|127\.0\.0\.1|\[::1\])(?::[0-9]{1,5})?", re.IGNORECASE | re.ASCII)
 _SHOWN = 200  # characters of a refused origin put in a log line or an answer
 _REMEMBERED = 1024  # distinct refused origins remembered (each logged once); then the oldest are forgotten
 
 
-def origin_pattern(entry: str) -> re.Pattern[str]:
-    """The regular expression of one allowed entry: its characters literally (so `[::1]` is
-    itself, not a class), each `*` any run of characters other than `/`; case does not matter
-    (browsers write scheme and host in lower case, a config may not)."""
-    return re.compile("[^/]*".join(re.escape(part) for part in entry.split("*")), re.IGNORECASE)
+_ASCII_LOWER = str.maketrans("ABCDEFGHIJKLMNOPQRSTUVWXYZ", "abcdefghijklmnopqrstuvwxyz")
+
+
+def origin_matches(entry: str, origin: str) -> bool:
+    """Whether `origin` is one `entry` allows: every character of the entry stands for itself
+    (so `[::1]` is itself, not a class), each `*` for any run of characters other than `/`;
+    ASCII letters match in either case (browsers write scheme and host in lower case, a config
+    may not; hosts are ASCII, punycode). A `*` never spans a `/`, so the entry and the origin
+    split at their slashes into parts matched one to one.
+
+    No regular expression: `[^/]*` repeated backtracks, and an origin of 64 kB against a few
+    stars then takes minutes (bench/fuzz.py found it). Each part is matched in linear time:
+    the text before its first star is a prefix, after its last a suffix, and every piece
+    between is found leftmost (`str.find`), which leaves the most room for the pieces after it.
+    """
+    entry_parts = entry.translate(_ASCII_LOWER).split("/")
+    origin_parts = origin.translate(_ASCII_LOWER).split("/")
+    return len(entry_parts) == len(origin_parts) and all(map(_part_matches, entry_parts, origin_parts))
+
+
+def _part_matches(entry: str, text: str) -> bool:
+    """`entry` (no `/`) against `text` (no `/`): see `origin_matches`."""
+    if "*" not in entry:
+        return entry == text
+    first, *middle, last = entry.split("*")
+    if len(text) < len(first) + len(last) or not (text.startswith(first) and text.endswith(last)):
+        return False
+    at, end = len(first), len(text) - len(last)
+    for piece in middle:
+        found = text.find(piece, at, end)
+        if found < 0:
+            return False
+        at = found + len(piece)
+    return True
 
 
 def is_origin_pattern(entry: str) -> bool:
@@ -64,14 +93,14 @@ class Origins:
         self.allowed = tuple(allowed)
         self.trusted = tuple(trusted)
         self.checked = ANY_ORIGIN not in self.allowed
-        self._patterns = [origin_pattern(entry) for entry in (*self.trusted, *self.allowed)]
+        self._entries = (*self.trusted, *self.allowed)
 
     def allows(self, origin: str | None) -> bool:
         """Whether a request with this `Origin` header value (None: no header) may be served."""
         if origin is None or not self.checked:
             return True
         origin = origin.strip()
-        return _LOOPBACK.fullmatch(origin) is not None or any(pattern.fullmatch(origin) for pattern in self._patterns)
+        return _LOOPBACK.fullmatch(origin) is not None or any(origin_matches(entry, origin) for entry in self._entries)
 
     def describe(self) -> str:
         """What passes, in a few words, for a start-up line."""
