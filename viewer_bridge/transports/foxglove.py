@@ -297,8 +297,8 @@ class FoxgloveTransport(Transport):
     def describe(self) -> str:
         url = f"ws://{self.settings.host}:{self.port}"
         app = "https://app.foxglove.dev?" + urlencode({"ds": "foxglove-websocket", "ds.url": url})
-        checked = "" if self.front.gate.origins.checked else "; origin check off: any web page may connect"
-        return f"Foxglove WebSocket server {url} (open {app}{checked})"
+        checked = "" if self.front.gate.origins.checked else ", origin check off: any web page may connect"
+        return f"Foxglove WebSocket server {url} (open {app}){checked}"
 
     def errors(self) -> Mapping[str, int]:
         """Client connections dropped or refused (the front's), and what clients published that no route got."""
