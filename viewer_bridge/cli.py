@@ -183,7 +183,7 @@ def _parser() -> argparse.ArgumentParser:
         default=[],
         metavar="ORIGIN",
         help="also accept posts from browser pages of this origin (scheme://host[:port], * for any run of "
-        "characters but /; '*': any page); loopback pages and clients that send no Origin always may",
+        "characters but /; '*': any page); loopback pages and clients that send no Origin always may; repeatable",
     )
 
     shot = add(
