@@ -333,3 +333,34 @@ def test_uploads_above_the_cap_are_refused_unread() -> None:
     finally:
         server.terminate()
         server.wait(timeout=10)
+
+
+def test_a_page_of_a_foreign_origin_may_not_post_renders() -> None:
+    """A browser page may post a form to any address; the server takes posts from Drake's client
+    (no Origin), loopback pages and the origins `--allow-origin` names, and answers others 403
+    before it reads their upload."""
+    import urllib.error
+    import urllib.request
+
+    server, url = start_server("--allow-origin", "https://lab.example", "--allow-origin", "https://*.corp.example")
+    try:
+
+        def status(origin: str | None) -> tuple[int, bytes]:
+            headers = {"Content-Type": "multipart/form-data; boundary=b"} | ({"Origin": origin} if origin else {})
+            request = urllib.request.Request(f"{url}/render", data=b"--b--\r\n", method="POST", headers=headers)
+            with pytest.raises(urllib.error.HTTPError) as caught:  # a form with no fields: 400 when let in
+                urllib.request.urlopen(request, timeout=20)
+            return caught.value.code, caught.value.read()
+
+        for origin in (None, "http://localhost:5173", "http://127.0.0.1", "https://lab.example", "https://x.corp.example"):
+            assert status(origin)[0] == 400, origin
+        code, body = status("https://evil.example")
+        assert code == 403
+        assert b"render request from origin https://evil.example refused (403)" in body
+        assert b"serve-render --allow-origin 'https://evil.example'" in body
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+    refused = subprocess.run([sys.executable, "-m", "viewer_bridge.cli", "serve-render", "--allow-origin", "https://x/"],
+                             capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert refused.returncode == 2 and "'https://x/' is no origin" in refused.stderr

@@ -46,6 +46,7 @@ from viewer_bridge.router import Router
 from viewer_bridge.skipped import collecting
 from viewer_bridge.status import ConsoleLog, LiveTable, LogLines, StatusView
 from viewer_bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
+from viewer_bridge.transports.origins import ANY_ORIGIN, is_origin_pattern
 from viewer_bridge.transports.ros_names import ros_argument_problem
 
 
@@ -185,6 +186,15 @@ def _parser() -> argparse.ArgumentParser:
         default=256 * 1024 * 1024,
         metavar="BYTES",
         help="largest request body accepted",
+    )
+    serve.add_argument(
+        "--allow-origin",
+        action="append",
+        type=_origin,
+        default=[],
+        metavar="ORIGIN",
+        help="also accept posts from browser pages of this origin (scheme://host[:port], * for any run of "
+        "characters but /; '*': any page); loopback pages and clients that send no Origin always may; repeatable",
     )
 
     shot = add(
@@ -490,12 +500,20 @@ def _snapshot(args: argparse.Namespace) -> int:
     return 0
 
 
+def _origin(text: str) -> str:
+    """An --allow-origin value: an origin or a pattern of origins (no path: browsers send none)."""
+    if not is_origin_pattern(text):
+        raise argparse.ArgumentTypeError(f"{text!r} is no origin: write scheme://host[:port] (no path), "
+                                         "with * for any run of characters but '/', or '*' alone")  # fmt: skip
+    return text
+
+
 def _serve_render(args: argparse.Namespace) -> int:
     from viewer_bridge.render_server import make_server  # OpenGL only for this command
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
     try:
-        server = make_server(args.host, args.port, args.max_upload)
+        server = make_server(args.host, args.port, args.max_upload, args.allow_origin)
     except OSError as error:  # e.g. the port is taken, or the host is not an address of this machine
         raise UsageError(f"cannot listen on {args.host}:{args.port}: {error.strerror or error}") from None
     # Ctrl-C stops it cleanly from the moment it says it is ready.
@@ -506,9 +524,10 @@ def _serve_render(args: argparse.Namespace) -> int:
     host = host.decode() if isinstance(host, bytes) else host
     base_url = f"http://{host}:{port_number}"
     logging.getLogger("viewer_bridge").info(
-        'render server on %s (Drake: RenderEngineGltfClientParams(base_url="%s"), which posts to /render)',
+        'render server on %s (Drake: RenderEngineGltfClientParams(base_url="%s"), which posts to /render)%s',
         base_url,
         base_url,
+        "; origin check off: any web page may post" if ANY_ORIGIN in args.allow_origin else "",
     )
     server.serve_forever()
     server.server_close()

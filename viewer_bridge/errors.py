@@ -174,6 +174,17 @@ class HandshakeError(BridgeError):
     """A client connection whose opening handshake cannot be relayed (cut off, too long, too slow)."""
 
 
+class HttpRefusal(BridgeError):
+    """A connection a server of the bridge answers with an HTTP error `status` instead of serving
+    it (403: a browser page of a foreign origin; 503: too many clients at once), counted as `kind`;
+    the text names what was refused and the setting that would let it in."""
+
+    def __init__(self, status: int, kind: str, reason: str) -> None:
+        super().__init__(reason)
+        self.status = status
+        self.kind = kind
+
+
 class RosInterfaceError(BridgeError):
     """An interface package could not be built or installed; says which step and why."""
 
@@ -206,6 +217,7 @@ __all__ = [
     "EncodeError",
     "GltfError",
     "HandshakeError",
+    "HttpRefusal",
     "Interrupted",
     "JsonValueError",
     "LogError",

@@ -3,7 +3,9 @@
 The multipart form carries the scene (glTF with embedded buffers), its sha256, the image type
 and the camera. Replies: a PNG (8-bit RGB colour or label, 16-bit millimetre depth), 400 with a
 plain-text reason for a bad request, 500 for anything else. GL work happens on one thread;
-concurrent requests queue for it. Uploads above `max_upload` bytes are refused unread.
+concurrent requests queue for it. Uploads above `max_upload` bytes are refused unread, and so is
+a post from a browser page of a foreign origin (403; viewer_bridge/transports/origins.py: no
+`Origin` header, as from Drake's client, and loopback pages pass, and the `allowed_origins`).
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import queue
 import re
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from concurrent.futures import Future
 from typing import Any
 
@@ -26,6 +28,7 @@ from PIL import Image
 from viewer_bridge.errors import GltfError
 from viewer_bridge.formats.gltf import read_gltf
 from viewer_bridge.render import Camera, Renderer, depth_mm, rgb8
+from viewer_bridge.transports.origins import OriginGate, Origins
 
 log = logging.getLogger("viewer_bridge")
 
@@ -170,15 +173,25 @@ class RenderThread:
         return future.result()
 
 
+def render_gate(allowed_origins: Iterable[str] = ()) -> OriginGate:
+    """The render server's origin check: loopback pages and `allowed_origins` (Drake's client sends no Origin)."""
+    return OriginGate(Origins(allowed_origins), "render request", lambda origin: f"serve-render --allow-origin '{origin}'")
+
+
 def make_server(
-    host: str = "127.0.0.1", port: int = 8000, max_upload: int = DEFAULT_MAX_UPLOAD
+    host: str = "127.0.0.1", port: int = 8000, max_upload: int = DEFAULT_MAX_UPLOAD, allowed_origins: Iterable[str] = ()
 ) -> http.server.ThreadingHTTPServer:
     renderer = RenderThread()
+    gate = render_gate(allowed_origins)
 
     class Handler(http.server.BaseHTTPRequestHandler):
         timeout = 30  # seconds a stalled upload may hold its connection's thread
 
         def do_POST(self) -> None:  # noqa: N802 - the http.server name
+            refusal = gate.refusal(self.headers.get_all("Origin") or [])
+            if refusal is not None:  # before anything is read: a foreign page gets nothing of ours
+                self.close_connection = True
+                return self._reply(refusal.status, f"{refusal}\n".encode(), "text/plain; charset=utf-8")
             if self.path.split("?")[0] != "/render":
                 return self._reply(404, b"only POST /render is served", "text/plain")
             try:
@@ -216,6 +229,8 @@ def make_server(
             self.send_response(status)
             self.send_header("Content-Type", content_type)
             self.send_header("Content-Length", str(len(body)))
+            if self.close_connection:
+                self.send_header("Connection", "close")
             self.end_headers()
             self.wfile.write(body)
 
@@ -232,5 +247,6 @@ __all__ = [
     "log",
     "make_server",
     "parse_form",
+    "render_gate",
     "render_request",
 ]

@@ -62,6 +62,7 @@ def write_seeds(folder: Path) -> dict[str, int]:
                 seeds[nested._type_name].append(nested.encode())
     seeds["config"] = [text.encode() for text in BUILTIN_CONFIGS.values()]
     seeds.update(zenoh_seeds())
+    seeds.update(foxglove_seeds())
     seeds.update(lcm_type_seeds())
     for kind, inputs in seeds.items():
         (folder / kind).mkdir(parents=True, exist_ok=True)
@@ -154,6 +155,56 @@ def zenoh_seeds() -> Seeds:
         "rmw_zenoh.token": [token.encode() for token in tokens],
         "rmw_zenoh.attachment": [keys.attachment(12, 1_700_000_000_000_000_000, keys.gid(tokens[1]))],
     }
+
+
+def foxglove_seeds() -> Seeds:
+    """What Foxglove clients send: control messages and message data, as masked frames (whole,
+    fragmented, past the size limit, with a ping between fragments) and as `client_frames`
+    records; handshakes with and without an Origin; allowed-origin entries with origins."""
+    from tests.fuzz.targets import FOXGLOVE_MAX_MESSAGE
+
+    channel = {"id": 1, "topic": "/lcm_in/IIWA_COMMAND", "encoding": "json", "schemaName": "drake_lcm_msgs/LcmtIiwaCommand"}
+    texts = [
+        json.dumps({"op": "advertise", "channels": [channel, {**channel, "id": 2, "topic": "/cmd_vel"},
+                                                    {**channel, "id": 3, "encoding": "protobuf"}]}),
+        json.dumps({"op": "advertise", "channels": [{**channel, "id": index} for index in range(6)]}),
+        json.dumps({"op": "unadvertise", "channelIds": [1, 2, "x"]}),
+        json.dumps({"op": "subscribe", "subscriptions": [{"id": 1, "channelId": 1}]}),
+        json.dumps({"op": "unsubscribe", "subscriptionIds": [1]}),
+        '{"op": "advertise", "channels": [{"id": 1,',  # cut off
+        "[1, 2]",
+    ]  # fmt: skip
+    data = b"\x01" + (1).to_bytes(4, "little") + b'{"utime": 7}'
+    records = [bytes([0x81]) + len(text).to_bytes(2, "little") + text.encode() for text in texts]
+    records.insert(1, bytes([0x82]) + len(data).to_bytes(2, "little") + data)  # on the channel just advertised
+    records.append(bytes([0x01]) + (5).to_bytes(2, "little") + b"\x00\x00\x00\x00{" + bytes([0x89, 0, 0])
+                   + bytes([0x80]) + (5).to_bytes(2, "little") + b"\x00\x00\x00\x00}")  # fragments, a ping between
+    big = b"\x01\x01\x00\x00\x00" + b"x" * FOXGLOVE_MAX_MESSAGE
+    records.append(bytes([0x82]) + len(big).to_bytes(2, "little") + big)
+    records.append(bytes([0xC1]) + (4).to_bytes(2, "little") + b"abcd")  # compressed (RSV1)
+    every = b"".join(records)
+    return {
+        "foxglove_client_messages": [b"\x00" + record for record in records] + [b"\x03" + every],
+        "foxglove_client_stream": [b"\x00" + _frames(record) for record in records] + [b"\x10" + _frames(every)],
+        "foxglove_handshake": [b"\x40" + _request(origin) for origin in
+                               (None, "https://app.foxglove.dev", "http://localhost:3000", "https://evil.example",
+                                "https://viewer.lab.example", "http://[::1]:8080")],  # fmt: skip
+        "origin_match": [b"https://*.lab.example\0https://viewer.lab.example", b"http://[::1]:*\0http://[::1]:8080",
+                         b"*\0https://evil.example/x", b"https://*:*\0HTTPS://A:1"],  # fmt: skip
+    }
+
+
+def _frames(records: bytes) -> bytes:
+    from tests.fuzz.targets import client_frames
+
+    return client_frames(records)
+
+
+def _request(origin: str | None) -> bytes:
+    lines = ["GET / HTTP/1.1", "Host: 127.0.0.1:8765", "Upgrade: websocket", "Connection: Upgrade",
+             "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==", "Sec-WebSocket-Version: 13",
+             "Sec-WebSocket-Protocol: foxglove.websocket.v1, foxglove.sdk.v1"]  # fmt: skip
+    return "\r\n".join(lines + ([f"Origin: {origin}"] if origin else []) + ["", ""]).encode()
 
 
 def lcm_type_seeds() -> Seeds:

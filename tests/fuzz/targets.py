@@ -7,8 +7,10 @@ types; anything else, a hang or unbounded memory is a finding (see bench/fuzz.py
 Adding a target is one line: `register(Target("name", function, (DocumentedError,), ("seed kind",)))`.
 Seed kinds are what tests/fuzz/seeds.py writes: every LCM type by its full name (from a real Drake
 capture, so a new schema Drake publishes gets seeds and a target with no code here), plus
-"ign.Pose_V", "ign.Model", "ign.discovery", "gltf", "render_form", "sensor_msgs/PointCloud2", "config"
-and the rmw_zenoh kinds "rmw_zenoh.data_key", "rmw_zenoh.token" and "rmw_zenoh.attachment".
+"ign.Pose_V", "ign.Model", "ign.discovery", "gltf", "render_form", "sensor_msgs/PointCloud2", "config",
+the rmw_zenoh kinds "rmw_zenoh.data_key", "rmw_zenoh.token" and "rmw_zenoh.attachment", and the
+Foxglove front's "foxglove_client_stream", "foxglove_client_messages", "foxglove_handshake" and
+"origin_match".
 
 This module imports `bridge` at its top on purpose: the fuzz runner imports it inside
 `atheris.instrument_imports()`, so that every bridge module is instrumented for coverage.
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import re
 import struct
 import sys
 import tempfile
@@ -33,6 +36,7 @@ from viewer_bridge.errors import (
     DecodeError,
     EncodeError,
     GltfError,
+    HandshakeError,
     JsonValueError,
     RequestRejected,
     SceneError,
@@ -58,8 +62,22 @@ from viewer_bridge.translators.drake_ign import IgnPoseVToDrakeDraw
 from viewer_bridge.translators.drake_image import DrakeImagesToFoxglove, DrakeImagesToRos, RosImageToDrake
 from viewer_bridge.translators.tree_viewer import TreeViewerServer
 from viewer_bridge.transports.base import Received
+from viewer_bridge.transports.foxglove_clients import ClientPublishing
+from viewer_bridge.transports.foxglove_front import (
+    SDK_SUBPROTOCOL,
+    Connection,
+    foxglove_gate,
+    http_response,
+    naming,
+    older_name_asked,
+    origin_refusal,
+    read_head,
+    subprotocols,
+)
 from viewer_bridge.transports.ign_discovery import ANY_TYPE, Discovery, Record, is_tcp_address
 from viewer_bridge.transports.ign_environment import NodeEnvironment
+from viewer_bridge.transports.origins import FOXGLOVE_APPS, Origins, origin_matches
+from viewer_bridge.transports.websocket_frames import BINARY, TEXT, ClientMessages, Message, unmask
 from viewer_bridge.transports.zenoh import keys as zenoh_keys
 
 
@@ -496,6 +514,158 @@ def lcm_back_json(data: bytes) -> object:
 
 register(Target("lcm_back_cdr", lcm_back_cdr, (DecodeError,), ("lcm_back_cdr",)))
 register(Target("lcm_back_json", lcm_back_json, (JsonValueError,), ("lcm_back_json",)))
+
+
+# --- the Foxglove front: what a client sends, read along; a request's head at the door -------------------
+
+FOXGLOVE_MAX_MESSAGE = 4096  # small, so that messages past the limit are common
+FOXGLOVE_MAX_CHANNELS = 4
+FOXGLOVE_ROUTE = "/lcm_in/(.*)"
+FOXGLOVE_ORIGINS = Origins(["https://*.lab.example", "http://[::1]:*"], trusted=FOXGLOVE_APPS)
+
+
+class RecordingConnection(Connection):
+    """A client as ClientPublishing sees it, with no socket: what the bridge says to it is kept."""
+
+    def __init__(self) -> None:  # no Connection.__init__: nothing here is relayed
+        self.address = "fuzz:0"
+        self.said: list[str] = []
+
+    def send_text(self, text: str) -> bool:
+        self.said.append(text)
+        return True
+
+
+def _read_along(stream: bytes, chunk: int) -> tuple[list[Message], list[str], list[Received]]:
+    """`stream` as a client sends it, in reads of `chunk` bytes, through the front's reader and
+    ClientPublishing; checks what it may keep and say, and that closing forgets the client."""
+    delivered: list[Received] = []
+    publishing = ClientPublishing(FOXGLOVE_MAX_CHANNELS)
+    publishing.subscribe(FOXGLOVE_ROUTE, delivered.append)
+    connection = RecordingConnection()
+    reader = ClientMessages(FOXGLOVE_MAX_MESSAGE, "foxglove.max_client_message_bytes")
+    messages: list[Message] = []
+    for start in range(0, len(stream), chunk):
+        for message in reader.feed(memoryview(stream)[start : start + chunk]):
+            messages.append(message)
+            publishing.message(connection, message)
+            if len(publishing._channels.get(connection, {})) > FOXGLOVE_MAX_CHANNELS:
+                raise AssertionError("a client kept more channels than max_channels")
+    for message in messages:
+        if message.opcode not in (TEXT, BINARY) or len(message.payload) > FOXGLOVE_MAX_MESSAGE:
+            raise AssertionError(f"read along: opcode {message.opcode}, {len(message.payload)} bytes")
+    for text in connection.said:
+        said = json.loads(text)
+        if said["op"] != "status" or said["level"] != 2 or len(said["message"]) > 1100 or len(said["id"]) > 1100:
+            raise AssertionError(f"said {text[:200]!r}")
+    for received in delivered:
+        if re.fullmatch(FOXGLOVE_ROUTE, received.channel) is None or received.origin is not connection:
+            raise AssertionError(f"delivered {received.channel!r} from {received.origin!r}")
+    publishing.closed(connection)
+    if publishing._channels or publishing._said:
+        raise AssertionError("a closed connection is still remembered")
+    return messages, connection.said, delivered
+
+
+def foxglove_client_stream(data: bytes) -> object:
+    """The first byte picks the size of each read (1 to 256 bytes); the rest is the stream."""
+    return _read_along(data[1:], (data[0] if data else 0) + 1)
+
+
+def client_frames(data: bytes) -> bytes:
+    """Records `flags | u16 LE length | payload` as the masked frames a client sends: flags' low
+    nibble is the opcode, 0x80 FIN, 0x40 RSV1; 0x20 picks the 16-bit length field even for a
+    short payload and 0x10 the 64-bit one; the mask is the record's first four payload bytes."""
+    frames = bytearray()
+    at = 0
+    while at + 3 <= len(data):
+        flags, length = data[at], struct.unpack_from("<H", data, at + 1)[0]
+        payload = data[at + 3 : at + 3 + length]
+        at += 3 + length
+        mask = (payload[:4] + b"\x00" * 4)[:4]
+        if flags & 0x10:
+            size = bytes([0x80 | 127]) + len(payload).to_bytes(8, "big")
+        elif flags & 0x20 or len(payload) > 125:
+            size = bytes([0x80 | 126]) + len(payload).to_bytes(2, "big")
+        else:
+            size = bytes([0x80 | len(payload)])
+        frames += bytes([flags & 0xCF]) + size + mask + unmask(payload, mask)
+    return bytes(frames)
+
+
+def foxglove_client_messages(data: bytes) -> object:
+    """Whole frames of the fuzzer's payloads (`client_frames`), so the JSON and the message data
+    are what mutates; read in reads of a size the first byte picks."""
+    return _read_along(client_frames(data[1:]), (data[0] if data else 0) * 8 + 1)
+
+
+class _Chunks:
+    """A socket's `recv` over fixed bytes, a few at a time, then the end."""
+
+    def __init__(self, data: bytes, size: int) -> None:
+        self._data, self._size, self._at = data, size, 0
+
+    def recv(self, size: int, /) -> bytes:
+        taken = self._data[self._at : self._at + min(size, self._size)]
+        self._at += len(taken)
+        return taken
+
+
+def foxglove_handshake(data: bytes) -> object:
+    """A request's head as the front reads it (the first byte picks the read size): its
+    subprotocols renamed for the SDK, and its origin checked; a refusal is a well-formed answer."""
+    request, _ = read_head(_Chunks(data[1:], (data[0] if data else 0) + 1))
+    offered = subprotocols(request)
+    if offered and subprotocols(naming(request, SDK_SUBPROTOCOL)) != [SDK_SUBPROTOCOL]:
+        raise AssertionError("renamed, the request names other subprotocols")
+    older_name_asked(request)
+    refusal = origin_refusal(request, foxglove_gate(FOXGLOVE_ORIGINS))
+    if refusal is None:
+        return None
+    answer = http_response(refusal)
+    head, _, body = answer.partition(b"\r\n\r\n")
+    lines = head.split(b"\r\n")
+    if lines[0] != b"HTTP/1.1 403 Forbidden" or f"Content-Length: {len(body)}".encode() not in lines:
+        raise AssertionError(f"answered {answer[:300]!r}")
+    if b"\n" in body[:-1] or b"\r" in body or len(lines) != 4:
+        raise AssertionError(f"an origin forged a line: {answer[:300]!r}")
+    return answer
+
+
+def _star_match(pattern: str, text: str) -> bool:
+    """The allowed-origin rule, written again as a plain dynamic programme (the test's own): `*`
+    any run of characters but `/`, every other character itself, ASCII letters in either case."""
+    pattern, text = pattern.translate(_ASCII_LOWER), text.translate(_ASCII_LOWER)
+    matched = [True] + [False] * len(text)  # which prefixes of text the pattern's prefix matches
+    for character in pattern:
+        if character == "*":
+            for index in range(1, len(text) + 1):
+                matched[index] = matched[index] or (matched[index - 1] and text[index - 1] != "/")
+        else:
+            matched = [False] + [matched[index] and text[index] == character for index in range(len(text))]
+    return matched[-1]
+
+
+_ASCII_LOWER = str.maketrans("ABCDEFGHIJKLMNOPQRSTUVWXYZ", "abcdefghijklmnopqrstuvwxyz")
+
+
+_ORACLE_STEPS = 200_000  # entry x origin characters the slow oracle takes on (the matcher takes on any)
+
+
+def origin_match(data: bytes) -> object:
+    """An allowed entry and an origin, split at the first NUL: the matcher and `_star_match` agree
+    (the oracle, quadratic, only on inputs small enough for it)."""
+    entry, _, origin = data.decode("latin-1").partition("\0")
+    found = origin_matches(entry, origin)
+    if len(entry) * len(origin) <= _ORACLE_STEPS and found != _star_match(entry, origin):
+        raise AssertionError(f"{entry!r} against {origin!r}: the matcher says {found}")
+    return found
+
+
+register(Target("foxglove_client_stream", foxglove_client_stream, (), ("foxglove_client_stream",)))
+register(Target("foxglove_client_messages", foxglove_client_messages, (), ("foxglove_client_messages",)))
+register(Target("foxglove_handshake", foxglove_handshake, (HandshakeError,), ("foxglove_handshake",)))
+register(Target("origin_match", origin_match, (), ("origin_match",)))
 
 
 # --- the config loader ----------------------------------------------------------------------------------

@@ -69,3 +69,25 @@ def test_a_destination_reaching_into_a_group_is_a_config_error(tmp_path: Path) -
         )
         with pytest.raises(ConfigError, match="is not a group number"):
             load_config(path)
+
+
+def test_an_origin_against_many_stars_is_matched_at_once() -> None:
+    """bench/fuzz.py's fourth finding (origin_match, after 4,339 runs): allowed origins were a
+    regular expression, each `*` a `[^/]*`, and stars side by side backtracked for minutes on a
+    65-byte input. The matcher is linear now; here a 64 kB origin (the longest head the front
+    reads) against an entry of many stars, given a generous 30 s."""
+    import threading
+
+    from viewer_bridge.transports.origins import Origins, origin_matches
+
+    found = TARGETS["origin_match"].run(
+        b"***********@@@@@@@@@@@@@@@****\x01\x00\x00\x00\x00\x00\x00\x00****************(*********t"
+    )
+    assert found is False
+    entry, origin = "https://*-*-*-*-*-*.example", "https://" + "-" * 64_000 + ".example.org"
+    answers: list[bool] = []
+    worker = threading.Thread(target=lambda: answers.append(Origins([entry]).allows(origin)), daemon=True)
+    worker.start()
+    worker.join(timeout=30)
+    assert answers == [False]
+    assert origin_matches(entry, "https://a-b-c-d-e-f.example") and not origin_matches(entry, "https://a-b/c-d-e-f.example")

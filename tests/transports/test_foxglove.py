@@ -422,7 +422,7 @@ def test_the_front_serves_each_name_what_it_asked_for() -> None:
 
 
 
-def test_without_the_front_only_the_sdks_name_is_served() -> None:
+def test_without_renaming_only_the_sdks_name_is_served() -> None:
     from websockets.exceptions import InvalidStatus
 
     from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
@@ -430,7 +430,8 @@ def test_without_the_front_only_the_sdks_name_is_served() -> None:
     transport = FoxgloveTransport(FoxgloveSettings(port=0, accept_websocket_v1=False, client_publish=False))
     url = f"ws://127.0.0.1:{transport.port}"
     try:
-        assert transport.front is None and transport.port == transport.server.port
+        # The front holds the port all the same (it checks origins: tests/transports/test_foxglove_front.py).
+        assert transport.front.port == transport.port != transport.server.port
         with connect(url, subprotocols=["foxglove.sdk.v1"], open_timeout=60) as ws:  # type: ignore[list-item]
             assert ws.subprotocol == "foxglove.sdk.v1"
         with pytest.raises(InvalidStatus, match="400"):

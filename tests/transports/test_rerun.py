@@ -186,3 +186,32 @@ def test_a_viewer_that_is_not_there_stops_nothing(tmp_path: Path) -> None:
     assert len({row["sim_time"] for row in rows["/drake/transforms"]}) == 20
     drawn = [link for link in scene.links if link.geometries]
     assert all("/drake/" + link.name.replace("::", "/") in rows for link in drawn)
+
+
+def test_the_served_data_names_only_loopback_and_rerun_pages_for_cors(tmp_path: Path) -> None:
+    """What docs/rerun.md says of the gRPC server `rerun.serve` starts: it answers every origin
+    (no check of its own the bridge could set), and a browser lets a page call it only when the
+    answer names the page's origin in Access-Control-Allow-Origin: localhost, 127.0.0.1 and
+    rerun.io, not another page (nor [::1])."""
+    import http.client
+
+    transport = _transport(tmp_path, serve=True, grpc_port=0, web_port=0)
+    try:
+
+        def preflight(origin: str) -> tuple[int, str | None]:
+            connection = http.client.HTTPConnection("127.0.0.1", transport.grpc_port, timeout=30)
+            try:
+                connection.request("OPTIONS", "/rerun.sdk_comms.v1alpha1.MessageProxyService/ReadMessages",
+                                   headers={"Origin": origin, "Access-Control-Request-Method": "POST",
+                                            "Access-Control-Request-Headers": "content-type,x-grpc-web"})  # fmt: skip
+                response = connection.getresponse()
+                return response.status, response.getheader("Access-Control-Allow-Origin")
+            finally:
+                connection.close()
+
+        for origin in ("http://localhost:3000", "http://127.0.0.1:9090", "https://rerun.io"):
+            assert preflight(origin) == (200, origin)
+        for origin in ("https://evil.example", "http://[::1]:9090"):
+            assert preflight(origin) == (200, None)  # answered, but a browser keeps the page out
+    finally:
+        transport.close()

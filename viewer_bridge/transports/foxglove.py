@@ -6,10 +6,12 @@ type's mapping does: viewer_bridge/translators/lcm_generic.py), served to browse
 `host:port` (127.0.0.1:8765 unless configured). A Foxglove client that subscribes is counted
 (so lazy routes wake up), and a latched output's last message is logged again when a client
 subscribes, so a client that connects after the load still gets the scene (SceneUpdates are
-idempotent). Everything about the protocol is the SDK's; unless `accept_websocket_v1` is false,
-a front of ours (viewer_bridge/transports/foxglove_front.py) holds the public port so that
-clients asking for the protocol's older name, `foxglove.websocket.v1`, are served as well as
-those asking for `foxglove.sdk.v1`, the only name the SDK's server accepts.
+idempotent). Everything about the protocol is the SDK's; a front of ours
+(viewer_bridge/transports/foxglove_front.py) always holds the public port: it refuses browser
+pages of foreign origins (`allowed_origins`) and clients past `max_clients`, and, unless
+`accept_websocket_v1` is false, serves clients asking for the protocol's older name,
+`foxglove.websocket.v1`, as well as those asking for `foxglove.sdk.v1`, the only name the SDK's
+server accepts.
 
 As a route's source it reads what clients publish (the app's Publish and Teleop panels): unless
 `client_publish` is false, the server lists the `clientPublish` capability with the encodings
@@ -17,7 +19,7 @@ As a route's source it reads what clients publish (the app's Publish and Teleop 
 each of its messages with the message's own type (its schema name as `pkg/msg/Name`, and its
 encoding) and the client it came from; the client alone hears, as an error status, what the
 bridge did not take (viewer_bridge/transports/foxglove_clients.py). This goes through the front,
-which then holds the port even when `accept_websocket_v1` is false (it renames nothing then).
+which reads along what clients send.
 
 Where a config also writes an MCAP file of Foxglove messages (viewer_bridge/transports/mcap.py), the
 server and the file log to one `FoxgloveContext`, as in the SDK: a message logged on a channel,
@@ -34,7 +36,7 @@ import threading
 from collections.abc import Iterable, Mapping
 from urllib.parse import urlencode
 
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from viewer_bridge.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, TransportUnavailable
@@ -53,8 +55,9 @@ from viewer_bridge.transports.base import (
     Transport,
     TransportSettings,
 )
-from viewer_bridge.transports.foxglove_clients import CLIENT_ENCODINGS, ClientPublishing
-from viewer_bridge.transports.foxglove_front import SubprotocolFront
+from viewer_bridge.transports.foxglove_clients import CLIENT_ENCODINGS, MAX_CLIENT_CHANNELS, ClientPublishing
+from viewer_bridge.transports.foxglove_front import MAX_CLIENT_MESSAGE, MAX_CLIENTS, SubprotocolFront
+from viewer_bridge.transports.origins import FOXGLOVE_APPS, Origins, is_origin_pattern
 
 try:
     import foxglove
@@ -147,15 +150,30 @@ class FoxgloveSettings(TransportSettings):
     host: str = "127.0.0.1"  # this machine only, unless you mean to serve other hosts
     port: int = Field(8765, ge=0, le=65535)  # 0: any free port (the start-up line says which)
     name: str = "viewer-bridge"
-    # Also serve clients that ask for the protocol's older name, foxglove.websocket.v1, through a
-    # relay of ours on the port (it costs every client a loopback hop per message). false: the
-    # SDK's server alone on the port, for foxglove.sdk.v1 clients only (unless client_publish).
+    # Also serve clients that ask for the protocol's older name, foxglove.websocket.v1 (the relay
+    # of ours that holds the port renames it). false: foxglove.sdk.v1 clients only.
     accept_websocket_v1: bool = True
     # Clients may publish (the app's Publish and Teleop panels) to the routes that read from
     # foxglove: the server lists the clientPublish capability (encodings cdr and json), and a
     # client hears, as an error status, what the bridge does not take. false: a read-only server
     # (no clientPublish capability); a route that reads from foxglove then gets nothing (said once).
     client_publish: bool = True
+    # Origins of browser pages that may connect, besides loopback pages and Foxglove's app (a
+    # request without an Origin header, from no browser, always may): exact ("https://lab.example:8080")
+    # or with * for any run of characters but "/" ("https://*.lab.example"); ["*"]: any page.
+    allowed_origins: list[str] = Field(default_factory=list)
+    max_clients: int = Field(MAX_CLIENTS, ge=1)  # connected at once; one more is answered HTTP 503
+    max_client_channels: int = Field(MAX_CLIENT_CHANNELS, ge=1)  # advertised by one client at once
+    max_client_message_bytes: int = Field(MAX_CLIENT_MESSAGE, ge=1024)  # read from a client; longer: refused
+
+    @field_validator("allowed_origins")
+    @classmethod
+    def _origins(cls, entries: list[str]) -> list[str]:
+        for entry in entries:
+            if not is_origin_pattern(entry):
+                raise ValueError(f"{entry!r} is no origin: write scheme://host[:port] (no path), with * for any "
+                                 "run of characters but '/', or '*' alone for every origin")  # fmt: skip
+        return entries
 
 
 class _Channel:
@@ -221,30 +239,29 @@ class FoxgloveTransport(Transport):
         super().__init__(settings)
         self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
         self.context = FoxgloveContext() if context is None else context
-        self.clients = ClientPublishing() if settings.client_publish else None
-        relayed = settings.accept_websocket_v1 or self.clients is not None  # then the front holds the public port
+        self.clients = ClientPublishing(settings.max_client_channels) if settings.client_publish else None
         publishing = {"capabilities": [Capability.ClientPublish], "supported_encodings": list(CLIENT_ENCODINGS)}
         try:
             self.server = foxglove.start_server(
                 name=settings.name,
-                host="127.0.0.1" if relayed else settings.host,
-                port=0 if relayed else settings.port,
+                host="127.0.0.1",  # behind the front, which holds the public port
+                port=0,
                 context=self.context.context,
                 server_listener=_Listener(self._channels),
                 **(publishing if self.clients is not None and accept_commands else {}),  # type: ignore[arg-type]
             )
         except Exception as error:  # the SDK raises its own error types, e.g. for a port in use
             raise self._cannot_listen(error) from None
-        self.front: SubprotocolFront | None = None
-        if relayed:
-            try:
-                self.front = SubprotocolFront(
-                    settings.host, settings.port, self.server.port,
-                    rename=settings.accept_websocket_v1, reader=self.clients,
-                )  # fmt: skip
-            except OSError as error:  # a port in use, an address not of this machine
-                self.server.stop()
-                raise self._cannot_listen(error) from None
+        try:
+            self.front = SubprotocolFront(
+                settings.host, settings.port, self.server.port,
+                rename=settings.accept_websocket_v1, reader=self.clients,
+                origins=Origins(settings.allowed_origins, trusted=FOXGLOVE_APPS),
+                max_clients=settings.max_clients, max_message_bytes=settings.max_client_message_bytes,
+            )  # fmt: skip
+        except OSError as error:  # a port in use, an address not of this machine
+            self.server.stop()
+            raise self._cannot_listen(error) from None
 
     @classmethod
     def create(cls, settings: TransportSettings, shared: Shared) -> FoxgloveTransport:
@@ -259,7 +276,7 @@ class FoxgloveTransport(Transport):
     @property
     def port(self) -> int:
         """The port clients connect to."""
-        return self.server.port if self.front is None else self.front.port
+        return self.front.port
 
     @classmethod
     def carries(cls, message_type: MessageType) -> bool:
@@ -292,19 +309,19 @@ class FoxgloveTransport(Transport):
 
     def describe(self) -> str:
         app = "https://app.foxglove.dev?" + urlencode({"ds": "foxglove-websocket", "ds.url": self.url})
-        return f"Foxglove WebSocket server {self.url} (open {app})"
+        checked = "" if self.front.gate.origins.checked else ", origin check off: any web page may connect"
+        return f"Foxglove WebSocket server {self.url} (open {app}){checked}"
 
     def exposure(self) -> Exposure:
         return Exposure(f"Foxglove clients ({self.url})")
 
     def errors(self) -> Mapping[str, int]:
-        """Client connections dropped (the front's), and what clients published that no route got."""
-        counts = {} if self.front is None else self.front.errors()
+        """Client connections dropped or refused (the front's), and what clients published that no route got."""
+        counts = self.front.errors()
         return counts | ({} if self.clients is None else self.clients.errors())
 
     def close(self) -> None:
-        if self.front is not None:
-            self.front.close()
+        self.front.close()
         self.server.stop()
 
 

@@ -18,6 +18,10 @@ origin, handed to every such route on the client's relay thread. What the bridge
 said to that client as an error status, not passed over in silence: a channel whose encoding is
 not `cdr` or `json`, or whose topic no route reads (on advertise), an unreadable frame, and
 (through `answer`, from `Transport.rejected`) a message a route refused, naming the field.
+
+What it keeps per client is bounded: at most `max_channels` channels (an advertise past that is
+refused with a status), all forgotten when the connection ends; and the statuses said lately, to
+say each again only after SAY_AGAIN_SECONDS, are at most _SAID_KEPT, the oldest forgotten first.
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ import re
 import struct
 import threading
 import time
-from collections import Counter
+from collections import Counter, OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
@@ -36,19 +40,33 @@ from viewer_bridge.transports.base import CDR, JSON, Deliver, MessageType, Recei
 from viewer_bridge.transports.foxglove_front import Connection
 from viewer_bridge.transports.websocket_frames import BINARY, TEXT, Message
 
-__all__ = ["CLIENT_ENCODINGS", "ClientChannel", "ClientPublishing", "ERROR", "ros_type_name", "status"]
+__all__ = [
+    "CLIENT_ENCODINGS",
+    "ClientChannel",
+    "ClientPublishing",
+    "ERROR",
+    "MAX_CLIENT_CHANNELS",
+    "ros_type_name",
+    "status",
+]
 
 CLIENT_ENCODINGS = (CDR, JSON)  # what the bridge reads from clients (serverInfo's supportedEncodings)
 ERROR = 2  # a status message's level: 0 info, 1 warning, 2 error
 _MESSAGE_DATA = 0x01  # a client's binary opcode: u32 LE channel id, then the payload
 SAY_AGAIN_SECONDS = 5.0  # the same status to the same client, not more often (a panel publishing at 10 Hz)
-_SAID_KEPT = 1000
+_SAID_KEPT = 1000  # statuses remembered (client, text) to hold back repeats; then the oldest are forgotten
+MAX_CLIENT_CHANNELS = 256  # channels one client may have advertised at once (foxglove.max_client_channels)
+_SAID_CHARACTERS = 1000  # of a status's text and of its id: a client's topic or schema name may be megabytes
 
 
 def ros_type_name(schema_name: str) -> str:
     """A ROS type as `pkg/msg/Name`; Foxglove's panels also say `pkg/Name` (ROS 1's form)."""
     parts = schema_name.split("/")
     return f"{parts[0]}/msg/{parts[1]}" if len(parts) == 2 and all(parts) else schema_name
+
+
+def _clipped(text: str) -> str:
+    return text if len(text) <= _SAID_CHARACTERS else text[:_SAID_CHARACTERS] + "..."
 
 
 def status(level: int, message: str, status_id: str) -> str:
@@ -70,10 +88,12 @@ class ClientChannel:
 class ClientPublishing:
     """The channels clients advertise and the messages they publish on them (a front's `Reader`)."""
 
-    def __init__(self) -> None:
+    def __init__(self, max_channels: int = MAX_CLIENT_CHANNELS) -> None:
+        self.max_channels = max_channels
         self._subscriptions: list[tuple[re.Pattern[str], Deliver]] = []
         self._channels: dict[Connection, dict[int, ClientChannel]] = {}
-        self._said: dict[tuple[Connection, str], float] = {}  # when each status was last said to each client
+        # when each status was last said to each client, the least recently said first
+        self._said: OrderedDict[tuple[Connection, str], float] = OrderedDict()
         self._errors: Counter[str] = Counter()
         self._lock = threading.Lock()
 
@@ -140,10 +160,13 @@ class ClientPublishing:
             return  # not a channel: the SDK refuses it
         message_type = MessageType(ros_type_name(schema_name if isinstance(schema_name, str) else ""), str(encoding))
         routes = tuple(deliver for pattern, deliver in self._subscriptions if pattern.fullmatch(topic))
-        with self._lock:
-            self._channels.setdefault(connection, {})[channel_id] = ClientChannel(
-                channel_id, topic, message_type, routes if encoding in CLIENT_ENCODINGS else ()
-            )
+        channel = ClientChannel(channel_id, topic, message_type, routes if encoding in CLIENT_ENCODINGS else ())
+        if not self._keep(connection, channel):
+            # One text for every channel past the limit: said once, however many were advertised.
+            self._refuse(connection, "client_channel_limit", "-",
+                         f"a channel was refused: a client may have at most {self.max_channels} channels "
+                         "advertised (foxglove.max_client_channels); unadvertise some first")  # fmt: skip
+            return
         if encoding not in CLIENT_ENCODINGS:
             self._refuse(connection, "client_channel_refused", topic,
                          f"{topic}: encoding {encoding!r} is not read by this bridge (it reads "
@@ -153,6 +176,16 @@ class ClientPublishing:
             self._refuse(connection, "client_channel_refused", topic,
                          f"{topic} ({message_type}): no route of this bridge reads it (the topics routes "
                          f"read: {patterns}); its messages are dropped")  # fmt: skip
+
+    def _keep(self, connection: Connection, channel: ClientChannel) -> bool:
+        """Hold `channel` as one of `connection`'s (an id advertised again is replaced); False
+        when that would be more than `max_channels`."""
+        with self._lock:
+            channels = self._channels.setdefault(connection, {})
+            if channel.id not in channels and len(channels) >= self.max_channels:
+                return False
+            channels[channel.id] = channel
+            return True
 
     def _publish(self, connection: Connection, channel_id: int, payload: bytes) -> None:
         with self._lock:
@@ -173,14 +206,16 @@ class ClientPublishing:
         self._say(connection, topic, text)
 
     def _say(self, connection: Connection, topic: str, text: str) -> None:
+        text, topic = _clipped(text), _clipped(topic)  # what is kept and sent stays small, whatever the client sent
         now = time.monotonic()
         with self._lock:
             last = self._said.get((connection, text))
             if last is not None and now - last < SAY_AGAIN_SECONDS:
                 return
-            if len(self._said) > _SAID_KEPT:  # forget what was said long enough ago to be said again
-                self._said = {key: when for key, when in self._said.items() if now - when < SAY_AGAIN_SECONDS}
             self._said[(connection, text)] = now
+            self._said.move_to_end((connection, text))
+            while len(self._said) > _SAID_KEPT:  # the least recently said is forgotten (it may be said again)
+                self._said.popitem(last=False)
         if not connection.send_text(status(ERROR, f"viewer-bridge: {text}", f"viewer-bridge {topic}")):
             with self._lock:
                 self._errors["status_unsent"] += 1

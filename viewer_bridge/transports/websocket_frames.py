@@ -75,11 +75,13 @@ class ClientMessages:
 
     `feed(chunk)` returns the messages that chunk completed. A message longer than `max_bytes`
     or compressed (RSV1, a negotiated extension) is skipped whole, its bytes dropped as they
-    come; it is returned once as a `Message` whose `skipped` says why.
+    come; it is returned once as a `Message` whose `skipped` says why (naming `limit_name`, the
+    setting of `max_bytes`, when it was too long).
     """
 
-    def __init__(self, max_bytes: int) -> None:
+    def __init__(self, max_bytes: int, limit_name: str = "") -> None:
         self.max_bytes = max_bytes
+        self._too_long = f"longer than {max_bytes} bytes" + (f" ({limit_name})" if limit_name else "")
         self._buffer = bytearray()  # bytes not yet consumed: a partial header or payload
         self._opcode: int | None = None  # the data message under way (None: none, or skipped)
         self._parts: list[bytes] = []
@@ -111,7 +113,7 @@ class ClientMessages:
                     messages.append(Message(self._opcode, b"", "compressed (an extension the bridge does not read)"))
                     self._opcode = None
             if self._opcode is not None and self._joined + header.length > self.max_bytes:
-                messages.append(Message(self._opcode, b"", f"longer than {self.max_bytes} bytes"))
+                messages.append(Message(self._opcode, b"", self._too_long))
                 self._opcode = None
             if self._opcode is None:  # skipped (or a continuation of nothing): drop its payload
                 del self._buffer[: header.size]

@@ -1,0 +1,261 @@
+"""Who may connect to the Foxglove server: the front's origin check (403) and its limits per
+client (503 past `max_clients`; channels and message size, refused with a status), against the
+`websockets` package's client, which sends an `Origin` header only when told to."""
+
+from __future__ import annotations
+
+import json
+import logging
+import socket
+import struct
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+from pydantic import ValidationError
+from websockets.exceptions import InvalidStatus
+from websockets.sync.client import ClientConnection, connect
+from websockets.typing import Origin, Subprotocol
+
+from tests.fuzz.targets import RecordingConnection
+from viewer_bridge.transports.base import CDR, MessageType, Qos, Received
+from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
+from viewer_bridge.transports.foxglove_clients import ClientPublishing
+from viewer_bridge.transports.foxglove_front import SubprotocolFront
+from viewer_bridge.transports.origins import FOXGLOVE_APPS, Origins
+from viewer_bridge.transports.websocket_frames import BINARY, TEXT, Message
+
+NAMES = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
+WAIT = 60.0
+EVIL = "https://evil.example"
+
+
+def open_client(port: int, origin: str | None, name: str = "foxglove.sdk.v1") -> ClientConnection:
+    """A client that has its serverInfo; raises InvalidStatus when the server refuses it."""
+    ws = connect(f"ws://127.0.0.1:{port}", origin=Origin(origin) if origin else None,
+                 subprotocols=[Subprotocol(name)], open_timeout=WAIT).__enter__()  # fmt: skip
+    assert ws.subprotocol == name
+    assert json.loads(ws.recv(timeout=WAIT))["op"] == "serverInfo"
+    return ws
+
+
+def refused(port: int, origin: str | None, name: str = "foxglove.sdk.v1") -> tuple[int, str]:
+    """The status and body a refused handshake gets (fails when it is accepted)."""
+    with pytest.raises(InvalidStatus) as caught:
+        open_client(port, origin, name).close()
+    response = caught.value.response
+    return response.status_code, response.body.decode() if response.body else ""
+
+
+def wait_until(condition: Callable[[], bool], seconds: float = WAIT) -> bool:
+    deadline = time.monotonic() + seconds
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return condition()
+
+
+@pytest.fixture
+def foxglove() -> Iterator[Callable[..., FoxgloveTransport]]:
+    """Makes Foxglove transports on free ports with the settings given; closes them after the test."""
+    made: list[FoxgloveTransport] = []
+
+    def make(**settings: Any) -> FoxgloveTransport:
+        made.append(FoxgloveTransport(FoxgloveSettings(port=0, **settings)))
+        return made[-1]
+
+    yield make
+    for transport in made:
+        transport.close()
+
+
+# --- The origin check ------------------------------------------------------------------------------------
+
+
+def test_a_page_of_a_foreign_origin_gets_403_on_both_names_and_the_sdk_sees_nothing(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    # A plain listener stands for the SDK's server: the front connects to it only to relay a client.
+    with socket.create_server(("127.0.0.1", 0)) as sdk:
+        front = SubprotocolFront("127.0.0.1", 0, sdk.getsockname()[1])
+        try:
+            with caplog.at_level(logging.WARNING, logger="viewer_bridge"):
+                for name in NAMES:
+                    status, body = refused(front.port, EVIL, name)
+                    assert status == 403
+                    assert f'allow it with foxglove.allowed_origins: ["{EVIL}"]' in body
+                assert refused(front.port, "http://other.example:8080")[0] == 403
+            # The front answers before it would connect to the SDK: by now, a connection would be waiting.
+            sdk.setblocking(False)
+            with pytest.raises(BlockingIOError):
+                sdk.accept()
+            assert front.errors() == {"origin_refused": 3}
+            lines = [record.getMessage() for record in caplog.records if "refused (403)" in record.getMessage()]
+            assert lines == [  # one line per distinct origin
+                f'foxglove client from origin {EVIL} refused (403): allow it with foxglove.allowed_origins: ["{EVIL}"]',
+                "foxglove client from origin http://other.example:8080 refused (403): allow it with "
+                'foxglove.allowed_origins: ["http://other.example:8080"]',
+            ]
+        finally:
+            front.close()
+
+
+def test_the_refusal_is_a_whole_http_response_and_the_connection_ends() -> None:
+    with socket.create_server(("127.0.0.1", 0)) as sdk:
+        front = SubprotocolFront("127.0.0.1", 0, sdk.getsockname()[1])
+        try:
+            with socket.create_connection(("127.0.0.1", front.port), timeout=WAIT) as raw:
+                raw.sendall(b"GET / HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                            b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
+                            b"Sec-WebSocket-Protocol: foxglove.websocket.v1\r\n"
+                            b"Origin: https://evil.example\r\n\r\n")  # fmt: skip
+                answer = b""
+                while chunk := raw.recv(4096):  # read until the front closes
+                    answer += chunk
+            head, _, body = answer.partition(b"\r\n\r\n")
+            lines = head.decode().split("\r\n")
+            assert lines[0] == "HTTP/1.1 403 Forbidden"
+            assert f"Content-Length: {len(body)}" in lines and "Connection: close" in lines
+            assert body.decode().startswith("foxglove client from origin https://evil.example refused (403)")
+        finally:
+            front.close()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", NAMES)
+def test_clients_without_an_origin_foxgloves_app_and_loopback_pages_get_through(
+    foxglove: Callable[..., FoxgloveTransport], name: str
+) -> None:
+    transport = foxglove()
+    for origin in (None, "https://app.foxglove.dev", "https://studio.foxglove.dev", "http://localhost:3000",
+                   "http://localhost", "http://127.0.0.1:8080", "https://[::1]:5173", "http://[::1]"):  # fmt: skip
+        open_client(transport.port, origin, name).close()
+    assert refused(transport.port, "http://localhost.evil.example", name)[0] == 403
+    assert refused(transport.port, "null", name)[0] == 403  # a file:// page or a sandboxed frame
+    assert transport.errors() == {"origin_refused": 2}
+    assert "origin check off" not in transport.describe()
+
+
+@pytest.mark.slow
+def test_allowed_origins_add_exact_origins_and_patterns(foxglove: Callable[..., FoxgloveTransport]) -> None:
+    transport = foxglove(allowed_origins=["https://lab.example", "https://*.corp.example"])
+    for origin in ("https://lab.example", "https://viewer.corp.example", "https://a.b.corp.example",
+                   "http://localhost:3000", "https://app.foxglove.dev"):  # fmt: skip
+        open_client(transport.port, origin).close()
+    for origin in (EVIL, "https://lab.example:8443", "http://lab.example", "https://corp.example",
+                   "https://viewer.corp.example.evil"):  # fmt: skip
+        assert refused(transport.port, origin)[0] == 403, origin
+    assert transport.errors() == {"origin_refused": 5}
+
+
+@pytest.mark.slow
+def test_a_lone_star_lets_every_page_in_and_the_start_up_line_says_so(foxglove: Callable[..., FoxgloveTransport]) -> None:
+    transport = foxglove(allowed_origins=["*"])
+    for name in NAMES:
+        open_client(transport.port, EVIL, name).close()
+    assert transport.errors() == {}
+    assert "origin check off" in transport.describe()
+
+
+def test_the_origin_rules() -> None:
+    foxglove = Origins(trusted=FOXGLOVE_APPS)
+    assert foxglove.allows(None) and foxglove.allows("HTTPS://APP.FOXGLOVE.DEV")  # case of scheme and host
+    assert foxglove.allows("https://localhost:1") and foxglove.allows("http://[::1]:65535")
+    assert not foxglove.allows("https://app.foxglove.dev.evil.example")
+    assert not foxglove.allows("http://127.0.0.1.evil.example") and not foxglove.allows("http://[::2]")
+    # Every character but * is itself: brackets are no class, a dot no wildcard.
+    lab = Origins(["https://[ab].example", "https://a.b:*"])
+    assert lab.allows("https://[ab].example") and not lab.allows("https://a.example")
+    assert lab.allows("https://a.b:8443") and not lab.allows("https://aXb:8443")
+    # A * spans no /.
+    assert Origins(["https://*.example"]).allows("https://x.example")
+    assert not Origins(["https://*.example"]).allows("https://x/y.example")
+
+
+def test_an_allowed_origin_with_a_path_is_refused_in_the_config() -> None:
+    with pytest.raises(ValidationError, match="'https://lab.example/' is no origin"):
+        FoxgloveSettings(allowed_origins=["https://lab.example/"])
+    assert FoxgloveSettings(allowed_origins=["*", "null", "https://*.lab.example:*"]).allowed_origins[0] == "*"
+
+
+@pytest.mark.slow
+def test_the_front_checks_origins_even_when_it_renames_and_reads_nothing(foxglove: Callable[..., FoxgloveTransport]) -> None:
+    transport = foxglove(accept_websocket_v1=False, client_publish=False)
+    assert refused(transport.port, EVIL)[0] == 403
+    open_client(transport.port, None).close()
+    assert refused(transport.port, None, "foxglove.websocket.v1")[0] == 400  # not renamed: the SDK refuses it
+
+
+# --- The limits per client --------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_one_client_past_max_clients_gets_503_until_one_leaves(
+    foxglove: Callable[..., FoxgloveTransport], caplog: pytest.LogCaptureFixture
+) -> None:
+    transport = foxglove(max_clients=2)
+    first, second = open_client(transport.port, None), open_client(transport.port, None)
+    try:
+        with caplog.at_level(logging.WARNING, logger="viewer_bridge"):
+            for _ in range(2):
+                status, body = refused(transport.port, None, "foxglove.websocket.v1")
+                assert status == 503 and "raise foxglove.max_clients" in body
+        assert transport.errors() == {"too_many_clients": 2}
+        assert len([record for record in caplog.records if "(503)" in record.getMessage()]) == 1  # said once
+        first.close()
+        assert wait_until(lambda: transport.front.clients() == 1)
+        open_client(transport.port, None).close()  # the place it left is free
+    finally:
+        first.close()
+        second.close()
+
+
+def statuses(ws: ClientConnection, *words: str) -> str:
+    """The first of the bridge's error statuses naming all of `words` (read until it comes)."""
+    deadline = time.monotonic() + WAIT
+    while time.monotonic() < deadline:
+        frame = ws.recv(timeout=max(0.01, deadline - time.monotonic()))
+        if isinstance(frame, str):
+            message: dict[str, Any] = json.loads(frame)
+            text = message.get("message", "")
+            if message["op"] == "status" and text.startswith("viewer-bridge:") and all(word in text for word in words):
+                return str(text)
+    raise AssertionError(f"no status naming {words}")
+
+
+@pytest.mark.slow
+def test_a_client_past_its_channel_limit_or_message_size_hears_why(foxglove: Callable[..., FoxgloveTransport]) -> None:
+    transport = foxglove(max_client_channels=2, max_client_message_bytes=2048)
+    delivered: list[Received] = []
+    transport.subscribe("/lcm_in/(.*)", MessageType("*", CDR), Qos(), delivered.append)
+    ws = open_client(transport.port, None)
+    try:
+        channels = [{"id": index, "topic": f"/lcm_in/C{index}", "encoding": "json", "schemaName": "std_msgs/msg/Empty"}
+                    for index in (1, 2, 3)]  # fmt: skip
+        ws.send(json.dumps({"op": "advertise", "channels": channels}))
+        assert "at most 2 channels" in statuses(ws, "foxglove.max_client_channels")
+        ws.send(b"\x01" + struct.pack("<I", 1) + b"x" * 4096)
+        assert "longer than 2048 bytes" in statuses(ws, "foxglove.max_client_message_bytes")
+        ws.send(b"\x01" + struct.pack("<I", 2) + b"{}")  # within the limits: delivered
+        assert wait_until(lambda: len(delivered) == 1)
+        assert delivered[0].channel == "/lcm_in/C2"
+        assert transport.errors() == {"client_channel_limit": 1, "client_message_unread": 1}
+    finally:
+        ws.close()
+
+
+def test_what_a_client_leaves_behind_is_bounded_and_forgotten_when_it_goes() -> None:
+    publishing = ClientPublishing(max_channels=4)
+    publishing.subscribe("/lcm_in/(.*)", lambda received: None)
+    connection = RecordingConnection()
+    for index in range(3000):  # each channel refused with a status of its own, then withdrawn
+        advertised = {"id": index, "topic": f"/lcm_in/T{index}", "encoding": "protobuf", "schemaName": "x"}
+        publishing.message(connection, Message(TEXT, json.dumps({"op": "advertise", "channels": [advertised]}).encode()))
+        publishing.message(connection, Message(TEXT, json.dumps({"op": "unadvertise", "channelIds": [index]}).encode()))
+    assert len(connection.said) == 3000 and len(publishing._said) == 1000  # the most recent kept
+    huge = {"id": 1, "topic": "/lcm_in/" + "x" * 1_000_000, "encoding": "protobuf"}
+    publishing.message(connection, Message(TEXT, json.dumps({"op": "advertise", "channels": [huge]}).encode()))
+    assert len(json.loads(connection.said[-1])["message"]) < 1100  # a megabyte topic is not repeated whole
+    publishing.message(connection, Message(BINARY, b"", "longer than 2048 bytes"))
+    publishing.closed(connection)
+    assert not publishing._said and not publishing._channels
