@@ -93,7 +93,7 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         port = sock.getsockname()[1]
-    server = subprocess.Popen([sys.executable, "-m", "viewer_bridge.cli", "serve-render", "--port", str(port)],
+    server = subprocess.Popen([sys.executable, "-m", "viewer_bridge.cli.main", "serve-render", "--port", str(port)],
                               stderr=subprocess.PIPE, text=True)  # fmt: skip
     lines: list[str] = []
     assert server.stderr is not None

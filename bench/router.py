@@ -138,7 +138,7 @@ class Bridge:
         path.write_text(config)
         self.stats = folder / "stats.json"
         self.stats.unlink(missing_ok=True)
-        command = [sys.executable, "-m", "viewer_bridge.cli", "run", "-c", str(path), "--lcm-url", URL,
+        command = [sys.executable, "-m", "viewer_bridge.cli.main", "run", "-c", str(path), "--lcm-url", URL,
                    "--stats-json", str(self.stats), "--stats-period", "1"]  # fmt: skip
         preexec = (lambda: os.sched_setaffinity(0, {core})) if core is not None else None
         environment = dict(os.environ)

@@ -78,7 +78,7 @@ class Bridge:
 
     def __init__(self, folder: Path, config: str = "builtin:default", *args: str) -> None:
         self.stats = folder / f"stats-{time.monotonic_ns()}.json"
-        command = [sys.executable, "-m", "viewer_bridge.cli", "run", "-c", config, "--lcm-url", URL,
+        command = [sys.executable, "-m", "viewer_bridge.cli.main", "run", "-c", config, "--lcm-url", URL,
                    "--set", "foxglove.port=0", "--stats-json", str(self.stats), "--stats-period", "1", *args]  # fmt: skip
         self.process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True)
         self.lines: list[str] = []
@@ -456,7 +456,7 @@ def fault_render_client_leaves(folder: Path) -> float | None:
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    server = subprocess.Popen([sys.executable, "-m", "viewer_bridge.cli", "serve-render", "--port", str(port)],
+    server = subprocess.Popen([sys.executable, "-m", "viewer_bridge.cli.main", "serve-render", "--port", str(port)],
                               stderr=subprocess.DEVNULL)  # fmt: skip
     recovery = None
     try:

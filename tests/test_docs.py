@@ -183,10 +183,10 @@ def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The pages' folder, with `drake.lcmlog` recorded as docs/recording.md says, and the README
     tour's `demo.lcmlog` (so that any test here runs alone too)."""
     folder = tmp_path_factory.mktemp("docs")
-    subprocess.run([sys.executable, "-m", "viewer_bridge.cli", "demo", "--url", "file://demo.lcmlog?mode=w",
+    subprocess.run([sys.executable, "-m", "viewer_bridge.cli.main", "demo", "--url", "file://demo.lcmlog?mode=w",
                     "--duration", "1"], cwd=folder, check=True, timeout=300, capture_output=True)  # fmt: skip
     for name, mode in (("contacts", "w"), ("shapes", "a")):
-        subprocess.run([sys.executable, "-m", "viewer_bridge.cli", "example", name, "--duration", "1",
+        subprocess.run([sys.executable, "-m", "viewer_bridge.cli.main", "example", name, "--duration", "1",
                         "--lcm-url", f"file://drake.lcmlog?mode={mode}"], cwd=folder, check=True, timeout=300)  # fmt: skip
     return folder
 

@@ -26,7 +26,8 @@ COMMANDS = [
 
 @pytest.mark.parametrize(("module", "arguments", "extra"), COMMANDS, ids=[case[0] for case in COMMANDS])
 def test_a_command_without_its_extra_says_which_to_install(module: str, arguments: list[str], extra: str) -> None:
-    code = f"import sys; sys.modules[{module!r}] = None; from viewer_bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = (f"import sys; sys.modules[{module!r}] = None; from viewer_bridge.cli.main import main; "
+            "sys.exit(main(sys.argv[1:]))")  # fmt: skip
     result = subprocess.run(
         [sys.executable, "-c", code, *arguments, *(["--lcm-url", lcm_url(42)] if arguments[0] == "run" else [])],
         capture_output=True,
@@ -67,7 +68,7 @@ def test_the_built_in_config_runs_with_the_ros_and_foxglove_extras_alone() -> No
     """`viewer-bridge run` on its default config: ROS 2 and Foxglove routes, no ign, zenoh or renderer."""
     code = (
         "import sys\nfor name in ('zmq', 'zenoh', 'xxhash', 'moderngl'): sys.modules[name] = None\n"
-        "from viewer_bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+        "from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))"
     )
     arguments = ["run", "--demo", "--duration", "2", "--lcm-url", lcm_url(43), "--set", "foxglove.port=0"]
     result = subprocess.run([sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120)

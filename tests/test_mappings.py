@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from rosbags.typesys import Stores, get_typestore
 
-from viewer_bridge.cli import main
+from viewer_bridge.cli.main import main
 from viewer_bridge.errors import ConfigError
 from viewer_bridge.lcmcodec import GEOMETRY_DATA
 from viewer_bridge.mappings import format_names, load_tables, reference_markdown, tables

@@ -35,7 +35,7 @@ f 2//2 3//2 4//2
 def start_server(*args: str) -> tuple[subprocess.Popen[str], str]:
     """`viewer-bridge serve-render` on a free port, once it says it is ready, and the base URL it
     prints: the one Drake's RenderEngineGltfClientParams takes (every test here renders through it)."""
-    server = subprocess.Popen([sys.executable, "-m", "viewer_bridge.cli", "serve-render", "--port", "0", *args],
+    server = subprocess.Popen([sys.executable, "-m", "viewer_bridge.cli.main", "serve-render", "--port", "0", *args],
                               stderr=subprocess.PIPE, text=True)  # fmt: skip
     assert server.stderr is not None
     logged = []
@@ -262,7 +262,7 @@ def test_snapshot_of_a_drake_log_shows_the_scene(drake_log: Path, tmp_path: Path
     out = tmp_path / "snap.png"
     eye, target = "0.9,0.5,4", "0.9,0.5,0"  # from above the bodies
     result = subprocess.run(
-        [sys.executable, "-m", "viewer_bridge.cli", "snapshot", str(drake_log), str(out), "--role", "illustration",
+        [sys.executable, "-m", "viewer_bridge.cli.main", "snapshot", str(drake_log), str(out), "--role", "illustration",
          "--image", "label", "--camera", f"{eye},{target}", "--size", "320x240"],
         capture_output=True, text=True, timeout=60,
     )  # fmt: skip
@@ -361,6 +361,6 @@ def test_a_page_of_a_foreign_origin_may_not_post_renders() -> None:
     finally:
         server.terminate()
         server.wait(timeout=10)
-    refused = subprocess.run([sys.executable, "-m", "viewer_bridge.cli", "serve-render", "--allow-origin", "https://x/"],
+    refused = subprocess.run([sys.executable, "-m", "viewer_bridge.cli.main", "serve-render", "--allow-origin", "https://x/"],
                              capture_output=True, text=True, timeout=60)  # fmt: skip
     assert refused.returncode == 2 and "'https://x/' is no origin" in refused.stderr

@@ -26,7 +26,7 @@ from tests.lcmcodec.corpus import CORPUS, expected, generate_lcmgen
 from tests.peers import RosProbe
 from tests.ros_interfaces_corpus import BASE, DEFINITIONS, MAIN
 from viewer_bridge import ros_interfaces
-from viewer_bridge.cli import main
+from viewer_bridge.cli.main import main
 from viewer_bridge.errors import RosInterfaceError
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.lcmcodec.schema import Member, StructDef
@@ -374,7 +374,7 @@ def test_colcon_builds_packages_generated_from_lcm_files_and_rclpy_reads_the_bri
     lcm_types = _renamed_corpus(tmp_path / "lcmtypes")
     workspace = tmp_path / "ws"
     generated = subprocess.run(
-        [sys.executable, "-m", "viewer_bridge.cli", "ros-interfaces", "generate", ROBOT,
+        [sys.executable, "-m", "viewer_bridge.cli.main", "ros-interfaces", "generate", ROBOT,
          "--lcm-types", str(lcm_types), "-o", str(workspace / "src")],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip

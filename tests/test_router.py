@@ -378,7 +378,7 @@ def test_a_broken_config_exits_2_naming_file_line_and_field(
 ) -> None:
     path = write_config(tmp_path, text)
     result = subprocess.run(
-        [sys.executable, "-m", "viewer_bridge.cli", "run", "-c", str(path)],
+        [sys.executable, "-m", "viewer_bridge.cli.main", "run", "-c", str(path)],
         capture_output=True,
         text=True,
         timeout=60,
@@ -420,7 +420,7 @@ def test_a_camera_route_whose_interface_is_missing_is_refused_at_start_in_one_li
     """A camera's outputs are its ports', known from its images; what it may write is declared
     from its options, so the start-up check refuses before the first image (here: CameraInfo,
     written only because the options ask for it)."""
-    from viewer_bridge import cli
+    from viewer_bridge.cli import main as cli
     from viewer_bridge.transports import foxglove, ros2
 
     schema, message_class = foxglove.schema, ros2.message_class
@@ -546,7 +546,7 @@ def test_ros_args_are_passed_to_rclpy_like_any_node(probe: RosProbe, tmp_path: P
 
 def test_default_config_is_printed_and_valid() -> None:
     result = subprocess.run(
-        [sys.executable, "-m", "viewer_bridge.cli", "run", "--print-default-config"], capture_output=True, text=True
+        [sys.executable, "-m", "viewer_bridge.cli.main", "run", "--print-default-config"], capture_output=True, text=True
     )
     assert result.returncode == 0 and result.stdout == DEFAULT_CONFIG
     config = load_config(None)
@@ -606,7 +606,7 @@ def test_convert_writes_an_mcap_that_reads_back(drake_log: Path, tmp_path: Path)
 
     out = tmp_path / "drake.mcap"
     result = subprocess.run(
-        [sys.executable, "-m", "viewer_bridge.cli", "convert", str(drake_log), str(out)],
+        [sys.executable, "-m", "viewer_bridge.cli.main", "convert", str(drake_log), str(out)],
         capture_output=True,
         text=True,
     )
@@ -662,7 +662,7 @@ def test_a_log_replays_through_the_routes_and_the_bridge_stops_at_its_end(
     stats = tmp_path / "stats.json"
     config = write_config(tmp_path, EVERY_DRAW.replace("DRAKE_VIEWER_DRAW", "DRAKE_VIEWER_DRAW_ILLUSTRATION"))
     result = subprocess.run(
-        [sys.executable, "-m", "viewer_bridge.cli", "run", "-c", str(config), "--lcm-url", f"file://{drake_log}?speed=0",
+        [sys.executable, "-m", "viewer_bridge.cli.main", "run", "-c", str(config), "--lcm-url", f"file://{drake_log}?speed=0",
          "--stats-json", str(stats)],
         capture_output=True, text=True, timeout=60,
     )  # fmt: skip

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from tests.test_cli import run
+from tests.cli.test_cli import run
 from viewer_bridge.demo import demo_poses, demo_scene
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene

@@ -142,7 +142,7 @@ def test_a_log_record_on_the_console_keeps_a_url_whole() -> None:
 
 def run_bridge(*args: str, terminal: bool) -> tuple[int, str, str]:
     """`viewer-bridge run --demo` for a few seconds; stdout through a pseudo-terminal if asked."""
-    command = [sys.executable, "-m", "viewer_bridge.cli", "run", "--demo", "--lcm-url", lcm_url(30), "--set",
+    command = [sys.executable, "-m", "viewer_bridge.cli.main", "run", "--demo", "--lcm-url", lcm_url(30), "--set",
                "foxglove.port=0", "--duration", "4", "--stats-period", "1", *args]  # fmt: skip
     if not terminal:
         done = subprocess.run(command, capture_output=True, text=True, timeout=180)

@@ -32,7 +32,7 @@ def test_every_example_is_checked() -> None:
 def test_an_example_records_its_messages(name: str, tmp_path: Path) -> None:
     log = tmp_path / f"{name}.lcmlog"
     done = subprocess.run(
-        [sys.executable, "-m", "viewer_bridge.cli", "example", name, "--duration", "0.5", "--lcm-url",
+        [sys.executable, "-m", "viewer_bridge.cli.main", "example", name, "--duration", "0.5", "--lcm-url",
          f"file://{log}?mode=w"], capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
@@ -42,7 +42,7 @@ def test_an_example_records_its_messages(name: str, tmp_path: Path) -> None:
 
 
 def test_without_drake_one_line_names_the_install() -> None:
-    code = "import sys; sys.modules['pydrake'] = None; from viewer_bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = "import sys; sys.modules['pydrake'] = None; from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))"
     done = subprocess.run([sys.executable, "-c", code, "example", "shapes"], capture_output=True, text=True, timeout=60)
     assert done.returncode == 2 and not done.stdout
     assert done.stderr.splitlines() == [

@@ -110,7 +110,7 @@ def test_a_drake_simulation_reaches_ros_as_contact_markers_and_wrenches() -> Non
 
 
 def test_dump_decodes_contact_results() -> None:
-    from viewer_bridge.dump import as_text, describe
+    from viewer_bridge.cli.dump import as_text, describe
     from viewer_bridge.transports.lcm import LcmEvent
 
     event = LcmEvent("CONTACT_RESULTS", pydrake_results().encode(), 5)

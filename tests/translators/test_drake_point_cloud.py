@@ -10,13 +10,13 @@ from rclpy.serialization import deserialize_message
 from visualization_msgs.msg import MarkerArray
 
 from tests.formats.drake.test_point_cloud import pydrake_message
+from viewer_bridge.cli.log_convert import convert
 from viewer_bridge.config import load_config
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.tree import TreeState
-from viewer_bridge.log_convert import convert
 from viewer_bridge.scene import LinkPoses, PointCloud
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import Received

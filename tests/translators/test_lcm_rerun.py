@@ -14,8 +14,8 @@ import lcm
 import numpy as np
 from rerun.chunk import RrdReader
 
+from viewer_bridge.cli.log_convert import convert
 from viewer_bridge.config import load_config
-from viewer_bridge.log_convert import convert
 
 
 def _status(step: int) -> Any:

@@ -349,7 +349,7 @@ def test_convert_to_foxglove_mcap_carries_the_scene_and_the_transforms(drake_log
 
     out = tmp_path / "drake_foxglove.mcap"
     result = subprocess.run(
-        [sys.executable, "-m", "viewer_bridge.cli", "convert", str(drake_log), str(out), "--schema", "foxglove"],
+        [sys.executable, "-m", "viewer_bridge.cli.main", "convert", str(drake_log), str(out), "--schema", "foxglove"],
         capture_output=True,
         text=True,
     )

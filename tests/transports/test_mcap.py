@@ -264,7 +264,8 @@ def cli(*args: str) -> Any:
     import subprocess
     import sys
 
-    return subprocess.run([sys.executable, "-m", "viewer_bridge.cli", *args], capture_output=True, text=True, timeout=300)
+    command = [sys.executable, "-m", "viewer_bridge.cli.main", *args]
+    return subprocess.run(command, capture_output=True, text=True, timeout=300)
 
 
 def read_mcap(path: Path) -> dict[str, list[Any]]:

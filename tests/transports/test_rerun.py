@@ -17,13 +17,13 @@ import pytest
 import rerun as rr
 from rerun.chunk import RrdReader
 
+from viewer_bridge.cli.log_convert import convert
 from viewer_bridge.config import load_config
 from viewer_bridge.errors import ConvertError, TransportUnavailable
 from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.draw import poses_from_draw
 from viewer_bridge.formats.drake.load import decode_load, load_from_scene
 from viewer_bridge.lcmcodec import DRAW
-from viewer_bridge.log_convert import convert
 from viewer_bridge.router import Router
 from viewer_bridge.scene import Box, Capsule, Cylinder, Ellipsoid, MeshFile, Sphere, TriangleMesh, frame_name
 from viewer_bridge.transports.base import Received
@@ -122,7 +122,7 @@ def test_convert_refuses_as_for_mcap(drake_log: Path, drake_rrd: Path, tmp_path:
 def test_cli_convert_picks_rerun_by_extension(drake_log: Path, tmp_path: Path) -> None:
     out = tmp_path / "sim.rrd"
     done = subprocess.run(
-        [sys.executable, "-m", "viewer_bridge.cli", "convert", str(drake_log), str(out)],
+        [sys.executable, "-m", "viewer_bridge.cli.main", "convert", str(drake_log), str(out)],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr

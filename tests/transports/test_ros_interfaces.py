@@ -20,7 +20,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from tests.peers import RosProbe
 from viewer_bridge import ros_interfaces
-from viewer_bridge.cli import main
+from viewer_bridge.cli.main import main
 
 pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
 

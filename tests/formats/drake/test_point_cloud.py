@@ -166,7 +166,7 @@ def test_dump_decodes_a_point_cloud(tmp_path: Path) -> None:
     log = tmp_path / "cloud.lcmlog"
     write_log(log, [LcmEvent("DRAKE_POINT_CLOUD", pydrake_message(("kXYZs", "kRGBs"), count=3), 1)])
     result = subprocess.run(
-        [sys.executable, "-m", "viewer_bridge.cli", "dump", str(log), "--json"],
+        [sys.executable, "-m", "viewer_bridge.cli.main", "dump", str(log), "--json"],
         capture_output=True,
         text=True,
         check=False,

@@ -17,7 +17,7 @@ import numpy as np
 import yaml
 from rich.console import Console
 
-from viewer_bridge.arguments import (
+from viewer_bridge.cli.arguments import (
     IMAGE_SUFFIXES,
     Parser,
     byte_count,
@@ -33,10 +33,10 @@ from viewer_bridge.arguments import (
     regex,
     split_ros_args,
 )
+from viewer_bridge.cli.dump import as_json, as_text
 from viewer_bridge.commands import COMMAND_FLAG
 from viewer_bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
 from viewer_bridge.demo import run_demo
-from viewer_bridge.dump import as_json, as_text
 from viewer_bridge.errors import BridgeError, ConfigError, Interrupted, SceneError, UsageError
 from viewer_bridge.examples import EXAMPLES, drake_missing, run_example
 from viewer_bridge.lcm_url import log_to_write
@@ -432,7 +432,7 @@ def _lcm_url(config: BridgeConfig) -> str:
 
 
 def _convert(args: argparse.Namespace) -> int:
-    from viewer_bridge.log_convert import convert, is_rrd  # MCAP: the foxglove extra; .rrd: rerun
+    from viewer_bridge.cli.log_convert import convert, is_rrd  # MCAP: the foxglove extra; .rrd: rerun
 
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     # An .rrd file is a Rerun recording: builtin:rerun's routes unless a config is given.

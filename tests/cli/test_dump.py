@@ -8,7 +8,7 @@ import math
 import drake
 
 from tests.lcmcodec.corpus import CORPUS
-from viewer_bridge.dump import as_json, as_text, describe
+from viewer_bridge.cli.dump import as_json, as_text, describe
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.transports.lcm import LcmEvent
 

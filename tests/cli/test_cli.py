@@ -20,7 +20,7 @@ from tests.translators.test_lcm_generic import CORPUS, arm_status, lcmgen_corpus
 from viewer_bridge.lcmcodec import DRAW
 from viewer_bridge.transports.lcm import LcmEvent, read_log, write_log
 
-CLI = [sys.executable, "-m", "viewer_bridge.cli"]
+CLI = [sys.executable, "-m", "viewer_bridge.cli.main"]
 
 
 def run(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
@@ -131,7 +131,7 @@ def test_a_log_cut_short_is_read_to_its_last_whole_event_with_a_warning(drake_lo
 
 def test_run_without_the_ros_extra_names_the_install_that_fixes_it() -> None:
     # As `pip install viewer-bridge` without `[ros]`: rclpy cannot be imported.
-    code = "import sys; sys.modules['rclpy'] = None; from viewer_bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = "import sys; sys.modules['rclpy'] = None; from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))"
     result = subprocess.run(
         [sys.executable, "-c", code, "run", "--duration", "1", "--set", "foxglove.port=0"],
         capture_output=True,
@@ -148,7 +148,7 @@ BUGGY = (
     "import sys; from viewer_bridge.translators.drake_ros import DrakeToPoseArray\n"
     "def broken(self, *args, **kwargs): raise ValueError('a bug in a translator')\n"
     "DrakeToPoseArray.__init__ = broken\n"
-    "from viewer_bridge.cli import main; sys.exit(main(sys.argv[1:]))"
+    "from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))"
 )
 
 
@@ -404,7 +404,7 @@ def test_ros_settings_for_a_config_with_no_ros_route_are_reported(tmp_path: Path
 def test_version_and_defaults_in_every_help() -> None:
     version = run("--version")
     assert version.returncode == 0 and re.fullmatch(r"viewer-bridge \S+\n", version.stdout), version
-    serve = run("serve-render", "--help").stdout
+    serve = " ".join(run("serve-render", "--help").stdout.split())  # as read, whatever the width wrapped
     assert "(default: 8000)" in serve and "(default: 268435456)" in serve
     shot = run("snapshot", "--help").stdout
     assert "(default: 640x480)" in shot and "(default: 45.0)" in shot
