@@ -2,7 +2,7 @@
 is asked for (`Size`), and what they share: timing (`best_of`) and a frame of link poses to draw
 (`frame`).
 
-Only `viewer_bridge.scene` from the bridge: bench/load_targets.py imports this beside an older commit's
+Only `viewer_bridge.model.scene` from the bridge: bench/load_targets.py imports this beside an older commit's
 `bridge` too.
 """
 
@@ -16,7 +16,7 @@ from typing import TypeVar
 
 import numpy as np
 
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 
 
 @dataclass

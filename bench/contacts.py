@@ -26,15 +26,15 @@ from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 from tests.formats.drake.oracle import contact_results_to_lcm
-from viewer_bridge.contact import (
+from viewer_bridge.examples.scenes import demo_contact_results
+from viewer_bridge.formats.drake.contact import decode_contact_results
+from viewer_bridge.formats.ros.contact import contact_marker_array_cdr
+from viewer_bridge.model.contact import (
     FORCE_COLOR,
     MOMENT_COLOR,
     ContactDrawOptions,
     pressure_colors,
 )
-from viewer_bridge.examples.scenes import demo_contact_results
-from viewer_bridge.formats.drake.contact import decode_contact_results
-from viewer_bridge.formats.ros.contact import contact_marker_array_cdr
 
 
 def _arrow(

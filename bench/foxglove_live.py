@@ -33,7 +33,7 @@ from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from viewer_bridge.formats.foxglove.scene import scene_update
 from viewer_bridge.formats.foxglove.transforms import FrameTransformsEncoder
 from viewer_bridge.formats.ros.tf import FrameNames
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 from viewer_bridge.transports.base import PROTOBUF, MessageType, Publisher, Qos
 from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
 

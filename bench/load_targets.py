@@ -6,7 +6,7 @@ side (`base_calls`) uses only what both versions have, and each side imports the
 by its own names and paths, in the function that uses them. The package was `bridge` then (it
 is `viewer_bridge` since), and its `bridge/formats/ros.py` and `ros_tf.py` are
 `viewer_bridge/formats/ros/` here, its `drake.py` is `viewer_bridge/formats/drake/`. The scenes
-and frames both sides time are built by this module and `common.py` from `viewer_bridge.scene`:
+and frames both sides time are built by this module and `common.py` from `viewer_bridge.model.scene`:
 in the base side's process that name stands for the base commit's own `bridge.scene`, so that
 its code gets its own classes.
 """
@@ -23,8 +23,18 @@ from pathlib import Path
 
 from common import best_of, frame
 
-from viewer_bridge.scene import Box, Capsule, Cylinder, Ellipsoid, Geometry, Link, LinkPoses, Scene, Sphere
-from viewer_bridge.scene import Pose as ScenePose
+from viewer_bridge.model.scene import (
+    Box,
+    Capsule,
+    Cylinder,
+    Ellipsoid,
+    Geometry,
+    Link,
+    LinkPoses,
+    Scene,
+    Sphere,
+)
+from viewer_bridge.model.scene import Pose as ScenePose
 
 BASE_COMMIT = "65407f5"
 BASE_PACKAGE = "bridge"  # the import package's name at BASE_COMMIT
@@ -37,7 +47,7 @@ package = importlib.import_module(package_name)
 assert package.__file__.startswith(folder), package.__file__
 if package_name != "viewer_bridge":  # the base commit's scene classes, under the name this module imports
     sys.modules["viewer_bridge"] = package
-    sys.modules["viewer_bridge.scene"] = importlib.import_module(package_name + ".scene")
+    sys.modules["viewer_bridge.model.scene"] = importlib.import_module(package_name + ".scene")
 from load_targets import _time
 print(json.dumps(_time(side, links, repeat)))
 """

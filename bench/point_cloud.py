@@ -29,7 +29,7 @@ from sensor_msgs.msg import PointCloud2, PointField
 
 from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
-from viewer_bridge.scene import PointCloud, StampedPointCloud
+from viewer_bridge.model.scene import PointCloud, StampedPointCloud
 
 XYZ_RGB = struct.Struct("<fffI")  # PCL's PointXYZRGB word: 0x00RRGGBB
 XYZ_RGB_DRAKE = struct.Struct("<fff4B")  # PointCloudToLcm: r, g, b, 0

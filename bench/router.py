@@ -42,7 +42,7 @@ from common import Measure, Size
 
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
-from viewer_bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
+from viewer_bridge.model.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
 from viewer_bridge.transports.lcm import LcmBus
 
 os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")

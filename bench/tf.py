@@ -24,7 +24,7 @@ from translators import scene
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_in_link_frames_cdr
 from viewer_bridge.formats.ros.tf import FrameNames, TransformsEncoder
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 
 
 def rclpy_tf(poses: LinkPoses, stamp: tuple[int, int], frames: FrameNames) -> bytes:

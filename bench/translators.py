@@ -32,7 +32,7 @@ from tests.formats.ros.oracle import PoseStampedEncoder
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from viewer_bridge.formats.ros.markers import MarkerSpec, MarkerStream, marker_array_cdr, marker_specs
 from viewer_bridge.formats.ros.poses import PoseArrayEncoder
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 
 
 def reference_compose(

@@ -5,7 +5,7 @@ Run: .venv/bin/python docs/camera_images.py
 Drake renders viewer_bridge/examples/cameras.py (RenderEngineVtk) and ApplyCameraConfig publishes the
 three images as one zlib-compressed lcmt_image_array, on an in-process LCM; the bridge's own code
 reads it (`viewer_bridge.formats.drake.image`) and draws each image for a person to look at
-(`viewer_bridge.image.preview`: depth as grey, near is light; labels a colour each).
+(`viewer_bridge.model.image.preview`: depth as grey, near is light; labels a colour each).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))  # tests/ (the camera scene)
 
 from viewer_bridge.formats.drake.image import read_image_array, unpack  # noqa: E402
-from viewer_bridge.image import preview  # noqa: E402
+from viewer_bridge.model.image import preview  # noqa: E402
 
 GAP = 6  # white pixels between the pictures
 

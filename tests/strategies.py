@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from viewer_bridge.lcmcodec import CODECS, LcmMessage
 from viewer_bridge.lcmcodec.schema import Member, StructDef
-from viewer_bridge.scene import (
+from viewer_bridge.model.scene import (
     Box,
     Capsule,
     Cylinder,

@@ -22,7 +22,6 @@ from tests.formats.ign import oracle as ign_oracle
 from tests.formats.ros import oracle as ros_oracle
 from tests.formats.tree_viewer import oracle as tree_oracle
 from viewer_bridge import convert
-from viewer_bridge.contact import ContactDrawOptions
 from viewer_bridge.demo import DEMO_MESH, demo_poses, demo_scene
 from viewer_bridge.errors import DecodeError, SceneError
 from viewer_bridge.examples.scenes import demo_contact_results
@@ -39,9 +38,10 @@ from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr
 from viewer_bridge.formats.ros.shapes import shapes_cdr
 from viewer_bridge.formats.ros.tf import FrameNames
 from viewer_bridge.formats.tree_viewer.tree import scene_from_requests
-from viewer_bridge.image import Image, Layout
 from viewer_bridge.lcmcodec import CONTACT_RESULTS, DRAW
-from viewer_bridge.scene import PointCloud, Scene, StampedPointCloud
+from viewer_bridge.model.contact import ContactDrawOptions
+from viewer_bridge.model.image import Image, Layout
+from viewer_bridge.model.scene import PointCloud, Scene, StampedPointCloud
 
 LOAD = load_from_scene(demo_scene()).encode()
 SCENE = decode_load(LOAD)  # as the load carries it: float32 colours and dimensions

@@ -26,7 +26,7 @@ CODEC_TESTS = [
     "tests/formats/ros/test_image.py",
     "tests/formats/ign/test_poses.py",
     "tests/lcmcodec/test_schema.py",
-    "tests/test_pose_math.py",
+    "tests/model/test_pose_math.py",
 ]
 
 if os.environ.get("VIEWER_BRIDGE_SKIP_PROBE") == "1":  # only in the probe's own run, below

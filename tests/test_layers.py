@@ -16,25 +16,57 @@ PACKAGE = Path(__file__).resolve().parent.parent / "viewer_bridge"
 
 # The floors of docs/ARCHITECTURE.md, from the ground up: the longest matching prefix decides.
 LAYERS: dict[str, int] = {
-    "viewer_bridge": 1,  # the package's __init__ (a docstring, the version, lazy submodules)
+    # 1
+    "viewer_bridge": 1,
+    "viewer_bridge.model": 1,
     "viewer_bridge.extras": 1,
-    "viewer_bridge.errors": 1, "viewer_bridge.registry": 1, "viewer_bridge.resources": 1, "viewer_bridge.sim_time": 1,
-    "viewer_bridge.lru": 1, "viewer_bridge.status": 1, "viewer_bridge.commands": 1,
-    "viewer_bridge.scene": 2, "viewer_bridge.pose_math": 2, "viewer_bridge.lcmcodec": 2, "viewer_bridge.yamldoc": 2,
-    "viewer_bridge.cli.arguments": 2, "viewer_bridge.ros_interfaces": 2, "viewer_bridge.ros_builds": 2,
+    "viewer_bridge.errors": 1,
+    "viewer_bridge.registry": 1,
+    "viewer_bridge.resources": 1,
+    "viewer_bridge.model.sim_time": 1,
+    "viewer_bridge.lru": 1,
+    "viewer_bridge.status": 1,
+    "viewer_bridge.commands": 1,
+    "viewer_bridge.cli": 1,
+    # 2
+    "viewer_bridge.model.scene": 2,
+    "viewer_bridge.model.pose_math": 2,
+    "viewer_bridge.lcmcodec": 2,
+    "viewer_bridge.yamldoc": 2,
+    "viewer_bridge.cli.arguments": 2,
+    "viewer_bridge.ros_interfaces": 2,
+    "viewer_bridge.ros_builds": 2,
     "viewer_bridge.lcm_url": 2,
-    "viewer_bridge.lowering": 3, "viewer_bridge.contact": 3, "viewer_bridge.image": 3, "viewer_bridge.skipped": 3,
+    # 3
+    "viewer_bridge.model.lowering": 3,
+    "viewer_bridge.model.contact": 3,
+    "viewer_bridge.model.image": 3,
+    "viewer_bridge.model.skipped": 3,
+    # 4
     "viewer_bridge.mappings": 4,
+    # 5
     "viewer_bridge.formats": 5,
-    "viewer_bridge.transports": 6, "viewer_bridge.render": 6,
-    "viewer_bridge.convert": 6, "viewer_bridge.streams": 6,  # the facades over the formats
-    "viewer_bridge.translators": 7, "viewer_bridge.cli.dump": 7, "viewer_bridge.snapshot": 7, "viewer_bridge.demo": 7,
+    # 6
+    "viewer_bridge.transports": 6,
+    "viewer_bridge.render": 6,
+    "viewer_bridge.convert": 6,
+    "viewer_bridge.streams": 6,
+    # 7
+    "viewer_bridge.translators": 7,
+    "viewer_bridge.cli.dump": 7,
+    "viewer_bridge.snapshot": 7,
+    "viewer_bridge.demo": 7,
     "viewer_bridge.render_server": 7,
-    "viewer_bridge.config": 8, "viewer_bridge.examples": 8,
+    # 8
+    "viewer_bridge.config": 8,
+    "viewer_bridge.examples": 8,
+    # 9
     "viewer_bridge.router": 9,
+    # 10
     "viewer_bridge.cli.log_convert": 10,
-    "viewer_bridge.cli": 1,  # the folder's __init__: a docstring
-    "viewer_bridge.cli.main": 11, "viewer_bridge.cli.__main__": 11,
+    # 11
+    "viewer_bridge.cli.main": 11,
+    "viewer_bridge.cli.__main__": 11,
 }  # fmt: skip
 
 # What every translator family may share (translators/ modules that are no family).
@@ -58,7 +90,7 @@ def imports(path: Path) -> set[str]:
         if isinstance(node, ast.Import):
             found |= {alias.name for alias in node.names}
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            # `from viewer_bridge.formats import ros` names a module; `from viewer_bridge.scene import Scene` a name.
+            # `from viewer_bridge.formats import ros` names a module; `from viewer_bridge.model.scene import Scene` a name.
             found |= {f"{node.module}.{alias.name}" if _is_module(f"{node.module}.{alias.name}") else node.module
                       for alias in node.names}  # fmt: skip
     return {name for name in found if name == "viewer_bridge" or name.startswith("viewer_bridge.")}

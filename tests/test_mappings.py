@@ -11,8 +11,8 @@ from viewer_bridge.cli.main import main
 from viewer_bridge.errors import ConfigError
 from viewer_bridge.lcmcodec import GEOMETRY_DATA
 from viewer_bridge.mappings import format_names, load_tables, reference_markdown, tables
+from viewer_bridge.model.scene import SHAPE_KINDS, Box, Capsule, Cylinder, Ellipsoid, MeshFile, Sphere
 from viewer_bridge.resources import data_dir
-from viewer_bridge.scene import SHAPE_KINDS, Box, Capsule, Cylinder, Ellipsoid, MeshFile, Sphere
 from viewer_bridge.yamldoc import YamlDocument
 
 

@@ -146,7 +146,7 @@ def form(scene: bytes, **overrides: Any) -> dict[str, bytes]:
 
 def sample_gltf() -> bytes:
     from viewer_bridge.formats.gltf import write_gltf
-    from viewer_bridge.scene import Box, Geometry, Link, Pose, Scene
+    from viewer_bridge.model.scene import Box, Geometry, Link, Pose, Scene
 
     scene = Scene((Link("box", 0, (Geometry(Box((1.0, 1.0, 1.0)), Pose((0, 0, -3)), (1 / 255, 0, 0, 1)),)),))
     document = json.loads(write_gltf(scene))

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from viewer_bridge.formats.gltf import read_gltf, write_gltf
+from viewer_bridge.model.scene import Box, Capsule, Geometry, Link, Pose, Scene, Sphere
 from viewer_bridge.render import Camera, Renderer
 from viewer_bridge.render_server import BadRequest, parse_form
-from viewer_bridge.scene import Box, Capsule, Geometry, Link, Pose, Scene, Sphere
 
 
 def email_parse_form(content_type: str, body: bytes) -> dict[str, bytes]:

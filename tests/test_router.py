@@ -21,7 +21,7 @@ from tests.peers import BridgeProcess, RosProbe, write_config
 from viewer_bridge.config import DEFAULT_CONFIG, destination_name, load_config
 from viewer_bridge.errors import ConfigError
 from viewer_bridge.formats.drake.draw import DrawEncoder
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 from viewer_bridge.transports.base import Received
 from viewer_bridge.transports.lcm import LcmBus
 

@@ -31,7 +31,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any, Literal
 
-from viewer_bridge.contact import ContactDrawOptions
 from viewer_bridge.errors import SceneError
 from viewer_bridge.extras import missing, require
 from viewer_bridge.formats.drake.contact import decode_contact_results
@@ -52,10 +51,11 @@ from viewer_bridge.formats.ros.poses import PoseArrayEncoder, pose_array_arrays,
 from viewer_bridge.formats.ros.shapes import shapes_cdr
 from viewer_bridge.formats.ros.tf import WORLD, FrameNames, TransformsEncoder
 from viewer_bridge.formats.tree_viewer.requests import DEFAULT_PREFIX, draw_request, load_requests
-from viewer_bridge.image import Image, Layout, depth_rep117
 from viewer_bridge.lcmcodec import Buffer
-from viewer_bridge.scene import LinkPoses, Scene
-from viewer_bridge.sim_time import sec_nsec_from_ms
+from viewer_bridge.model.contact import ContactDrawOptions
+from viewer_bridge.model.image import Image, Layout, depth_rep117
+from viewer_bridge.model.scene import LinkPoses, Scene
+from viewer_bridge.model.sim_time import sec_nsec_from_ms
 
 # --- reading Drake's messages --------------------------------------------------------------------
 
@@ -183,7 +183,7 @@ def contacts_to_marker_array(
 ) -> bytes:
     """An `lcmt_contact_results_for_viz` as MarkerArray CDR, as meldis draws it: force and
     moment arrows, pressure-coloured hydroelastic surfaces. None: the default of
-    `viewer_bridge.contact.ContactDrawOptions`."""
+    `viewer_bridge.model.contact.ContactDrawOptions`."""
     drawing = ContactDrawOptions(
         **_given(
             force_scale=force_scale,

@@ -11,7 +11,7 @@ import numpy as np
 
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
-from viewer_bridge.scene import (
+from viewer_bridge.model.scene import (
     Box,
     Capsule,
     Cylinder,

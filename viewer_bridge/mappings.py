@@ -8,7 +8,7 @@ one rule, either
   `message`, another message type to write instead) and, per target field, terms read from the
   shape (`radius`, `2 * radius`, `size.x`, a literal `0`), or
 * lowered: `{as: capsule_parts}`: the shape is first rewritten by a named function in
-  `viewer_bridge.lowering` into shapes the table has direct rules for, or
+  `viewer_bridge.model.lowering` into shapes the table has direct rules for, or
 * unsupported: `{unsupported: "reason"}`: the target cannot express it; writing one raises a
   `SceneError` with the reason (counted by the router), never a silent drop.
 
@@ -32,9 +32,9 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from viewer_bridge.errors import ConfigError, SceneError
-from viewer_bridge.lowering import LOWERINGS
+from viewer_bridge.model.lowering import LOWERINGS
+from viewer_bridge.model.scene import SHAPE_KINDS, Pose, Shape, shape_kind
 from viewer_bridge.resources import data_dir
-from viewer_bridge.scene import SHAPE_KINDS, Pose, Shape, shape_kind
 from viewer_bridge.yamldoc import KeyPath, YamlDocument
 
 # A function that writes what a table's terms cannot (a mesh's vertices, say): the fields it sets.
@@ -468,7 +468,7 @@ def reference_markdown(format_names: Sequence[str]) -> str:
         "",
         "Generated from the tables in `mappings/` by `viewer-bridge mappings`; do not edit by hand.",
         "Terms read the scene's shape parameters (SI units, radius not diameter, full box lengths,",
-        "ellipsoid semi-axes); `as` names a lowering in `viewer_bridge/lowering.py`; an encoder is a small",
+        "ellipsoid semi-axes); `as` names a lowering in `viewer_bridge/model/lowering.py`; an encoder is a small",
         "function of the format module that fills what a table cannot (vertices, file bytes).",
     ]
     for format_name in format_names:

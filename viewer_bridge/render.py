@@ -25,7 +25,7 @@ import numpy as np
 from viewer_bridge.extras import missing
 from viewer_bridge.formats.gltf import GltfScene
 from viewer_bridge.lru import SizedLru
-from viewer_bridge.scene import FloatArray
+from viewer_bridge.model.scene import FloatArray
 
 try:
     import moderngl

@@ -5,7 +5,7 @@ same path as a render request (scene -> glTF -> renderer), so what a user sees i
 render server would draw. The default camera looks at the scene's middle from above and aside.
 
 With contacts (`--contacts`), the last `CONTACT_RESULTS` is drawn over the scene as meldis draws
-it: `viewer_bridge.contact.contact_scene`'s arrows as solid arrows, each hydroelastic surface in bands of
+it: `viewer_bridge.model.contact.contact_scene`'s arrows as solid arrows, each hydroelastic surface in bands of
 its pressure colours (the renderer colours whole meshes, so triangles are grouped by the colour
 of their mean pressure). `--hide REGEX` leaves out the links whose names match, e.g. the body
 that covers a contact surface.
@@ -21,16 +21,16 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from viewer_bridge.contact import ContactDrawOptions, ContactResults, contact_scene, pressure_colors
 from viewer_bridge.errors import SceneError
 from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.drake.draw import DrawDecoder
 from viewer_bridge.formats.drake.load import decode_load
 from viewer_bridge.formats.gltf import read_gltf, write_gltf
 from viewer_bridge.lcmcodec import CONTACT_RESULTS, DRAW, LOAD_ROBOT
-from viewer_bridge.lowering import arrow_mesh
+from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene, pressure_colors
+from viewer_bridge.model.lowering import arrow_mesh
+from viewer_bridge.model.scene import FloatArray, Geometry, Line, Link, Scene, TriangleMesh
 from viewer_bridge.render import Camera, Renderer, depth_mm, rgb8
-from viewer_bridge.scene import FloatArray, Geometry, Line, Link, Scene, TriangleMesh
 from viewer_bridge.transports.lcm import LcmEvent, Subscription, read_log
 
 

@@ -33,7 +33,7 @@ from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_cdr, ma
 from viewer_bridge.formats.ros.tf import FrameNames
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.requests import load_requests
-from viewer_bridge.scene import (
+from viewer_bridge.model.scene import (
     Box,
     Capsule,
     Cylinder,

@@ -11,8 +11,8 @@ import pytest
 
 from viewer_bridge.errors import GltfError
 from viewer_bridge.formats.gltf import read_gltf, write_gltf
-from viewer_bridge.lowering import triangle_mesh
-from viewer_bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere, TriangleMesh
+from viewer_bridge.model.lowering import triangle_mesh
+from viewer_bridge.model.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere, TriangleMesh
 
 
 def scene() -> Scene:

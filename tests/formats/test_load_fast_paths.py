@@ -28,8 +28,8 @@ from viewer_bridge.formats.ros.markers import marker_array_cdr
 from viewer_bridge.formats.ros.messages import from_cdr, to_cdr
 from viewer_bridge.formats.ros.shapes import shapes_cdr
 from viewer_bridge.formats.tree_viewer.requests import DECIMALS
-from viewer_bridge.lowering import _tessellated, triangle_mesh
-from viewer_bridge.scene import (
+from viewer_bridge.model.lowering import _tessellated, triangle_mesh
+from viewer_bridge.model.scene import (
     Box,
     Capsule,
     Cylinder,
@@ -122,12 +122,12 @@ def test_every_load_target_writes_the_recorded_values(tmp_path: Path, debian_ign
     Compared by value (`tests/formats/values.py`): composed poses differ in their last bits
     between CPUs and BLAS kernels. The `*_posed/marker_array` and `marker_stream_load` outputs
     were recorded again once world-frame marker poses were composed by `scene.PartsOnLinks`
-    (issue 15; `tests/test_scene.py` checks it against `Pose.compose`); the `*_posed/tree_viewer`
+    (issue 15; `tests/model/test_scene.py` checks it against `Pose.compose`); the `*_posed/tree_viewer`
     ones once settransform numbers were written to `DECIMALS` decimals (issue 15;
     `tree_viewer/test_requests.py` checks the rounding). The six `every_kind*/foxglove` and
     `every_kind*/ign_model*` outputs, "refused" before, were recorded once a geometry a target
     cannot write was skipped alone (issue 26): the point cloud is left out and the rest written
-    (`tests/test_skipped.py` checks them against the scene without the point cloud).
+    (`tests/model/test_skipped.py` checks them against the scene without the point cloud).
     """
     store = get_typestore(Stores.ROS2_JAZZY)
 

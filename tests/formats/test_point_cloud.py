@@ -13,7 +13,7 @@ from tests.optional import peer
 from viewer_bridge.errors import SceneError
 from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
-from viewer_bridge.scene import PointCloud, StampedPointCloud
+from viewer_bridge.model.scene import PointCloud, StampedPointCloud
 
 drake_lcmtypes = peer("drake")  # Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
 

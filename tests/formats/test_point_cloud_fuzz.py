@@ -20,7 +20,7 @@ from tests.lcmcodec.test_fuzz import BUFFERS_PER_DECODER, mutate
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
-from viewer_bridge.scene import StampedPointCloud
+from viewer_bridge.model.scene import StampedPointCloud
 
 
 def seeds() -> dict[str, bytes]:

@@ -40,7 +40,7 @@ from viewer_bridge.lcmcodec import (
     StructCodec,
     codec_for,
 )
-from viewer_bridge.scene import Scene
+from viewer_bridge.model.scene import Scene
 from viewer_bridge.transports.ign_discovery import STATISTICS_VERSION, WIRE_VERSION, Record, datagram
 
 Seeds = dict[str, list[bytes]]
@@ -288,7 +288,7 @@ def meldis_seeds() -> Seeds:
     from viewer_bridge.examples.scenes import demo_contact_results
     from viewer_bridge.formats.drake.point_cloud import cloud_to_lcm
     from viewer_bridge.formats.ros.point_cloud import cloud_to_cdr
-    from viewer_bridge.scene import PointCloud, StampedPointCloud
+    from viewer_bridge.model.scene import PointCloud, StampedPointCloud
 
     points = np.arange(30, dtype=np.float64).reshape(10, 3) / 10
     clouds = [StampedPointCloud(PointCloud(points), "world", 1000),
@@ -309,8 +309,8 @@ def image_seeds() -> Seeds:
 
     from viewer_bridge.formats.drake.image import images_to_lcm
     from viewer_bridge.formats.ros.image import LAYOUTS, image_to_cdr
-    from viewer_bridge.image import Image, Layout
     from viewer_bridge.lcmcodec import IMAGE_ARRAY
+    from viewer_bridge.model.image import Image, Layout
 
     rgba = np.arange(48, dtype=np.uint8).reshape(3, 4, 4)
     camera = [Image("rgb", 1000, Layout.RGBA, rgba),

@@ -18,13 +18,13 @@ from tests.formats.drake.test_contact import pydrake_results
 from tests.formats.ros.oracle import ARROW, DELETEALL, TRIANGLE_LIST
 from tests.peers import BridgeProcess, RosProbe
 from tests.test_router import LcmRecorder
-from viewer_bridge.contact import FORCE_COLOR, pressure_colors
 from viewer_bridge.examples.scenes import demo_contact_results
 from viewer_bridge.formats import ros
 from viewer_bridge.formats.ros.messages import from_cdr
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.tree import TreeState
-from viewer_bridge.scene import Line, Scene, TriangleMesh
+from viewer_bridge.model.contact import FORCE_COLOR, pressure_colors
+from viewer_bridge.model.scene import Line, Scene, TriangleMesh
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import Received
 

@@ -17,7 +17,7 @@ from tests.conftest import EXAMPLES, lcm_url, record_log
 from tests.drake_images import publish_with_drake
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.point_cloud import cloud_to_lcm
-from viewer_bridge.scene import LinkPoses, PointCloud, StampedPointCloud
+from viewer_bridge.model.scene import LinkPoses, PointCloud, StampedPointCloud
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.translators.types import RERUN_CHUNKS_TYPE
 from viewer_bridge.transports.base import Qos, Received

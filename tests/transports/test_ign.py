@@ -23,7 +23,7 @@ from tests.formats.ign.oracle import pose_v
 from tests.peers import BridgeProcess
 from tests.test_router import LcmRecorder
 from viewer_bridge.formats.ign.schema import MESSAGES
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 from viewer_bridge.transports.base import PROTOBUF, MessageType, Qos
 from viewer_bridge.transports.ign import IgnNode, IgnSettings, IgnTransport
 from viewer_bridge.transports.ign_discovery import WIRE_VERSION

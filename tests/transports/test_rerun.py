@@ -24,8 +24,17 @@ from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.draw import poses_from_draw
 from viewer_bridge.formats.drake.load import decode_load, load_from_scene
 from viewer_bridge.lcmcodec import DRAW
+from viewer_bridge.model.scene import (
+    Box,
+    Capsule,
+    Cylinder,
+    Ellipsoid,
+    MeshFile,
+    Sphere,
+    TriangleMesh,
+    frame_name,
+)
 from viewer_bridge.router import Router
-from viewer_bridge.scene import Box, Capsule, Cylinder, Ellipsoid, MeshFile, Sphere, TriangleMesh, frame_name
 from viewer_bridge.transports.base import Received
 from viewer_bridge.transports.lcm import LcmEvent
 from viewer_bridge.transports.rerun import RerunSettings, RerunTransport

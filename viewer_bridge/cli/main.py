@@ -42,8 +42,8 @@ from viewer_bridge.examples import EXAMPLES, drake_missing, run_example
 from viewer_bridge.lcm_url import log_to_write
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.mappings import format_names, reference_markdown
+from viewer_bridge.model.skipped import collecting
 from viewer_bridge.router import Router
-from viewer_bridge.skipped import collecting
 from viewer_bridge.status import ConsoleLog, LiveTable, LogLines, StatusView
 from viewer_bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 from viewer_bridge.transports.origins import ANY_ORIGIN, is_origin_pattern

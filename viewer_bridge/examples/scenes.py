@@ -5,15 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer_bridge.contact import (
+from viewer_bridge.formats.drake.draw import DrawEncoder
+from viewer_bridge.model.contact import (
     ContactBody,
     ContactResults,
     ContactSurface,
     HydroelasticContact,
     PointContacts,
 )
-from viewer_bridge.formats.drake.draw import DrawEncoder
-from viewer_bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere
+from viewer_bridge.model.scene import Box, Geometry, Link, LinkPoses, Pose, Scene, Sphere
 
 
 def small_scene() -> Scene:

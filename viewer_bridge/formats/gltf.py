@@ -7,7 +7,7 @@ RenderEngineGltfClient sends (docs/PROTOCOLS.md section 5). Everything is checke
 buffers before use; a document that does not hold together raises `GltfError` naming where.
 
 Writing (`write_gltf`) turns a scene into a self-contained glTF: one node per geometry with its
-world matrix, shapes tessellated with `viewer_bridge.lowering.triangle_mesh` (point clouds, triads and
+world matrix, shapes tessellated with `viewer_bridge.model.lowering.triangle_mesh` (point clouds, triads and
 lines have no triangles: `SceneError`).
 """
 
@@ -23,11 +23,11 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import GltfError
-from viewer_bridge.lowering import triangle_mesh
 from viewer_bridge.lru import SizedLru
-from viewer_bridge.pose_math import rotation_matrix
-from viewer_bridge.scene import FloatArray, Geometry, Link, Pose, Scene, TriangleMesh
-from viewer_bridge.skipped import per_geometry
+from viewer_bridge.model.lowering import triangle_mesh
+from viewer_bridge.model.pose_math import rotation_matrix
+from viewer_bridge.model.scene import FloatArray, Geometry, Link, Pose, Scene, TriangleMesh
+from viewer_bridge.model.skipped import per_geometry
 
 _COMPONENTS = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
 _WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
@@ -330,7 +330,7 @@ def _with_mesh(_: int, geometry: Geometry) -> tuple[Geometry, TriangleMesh]:
 def write_gltf(scene: Scene, binary: bool = False) -> bytes:
     """A scene as a self-contained glTF 2.0 document (`.gltf` JSON, or `.glb` when `binary`).
 
-    A geometry with no triangles to draw (a missing mesh file) is skipped (`viewer_bridge.skipped`)."""
+    A geometry with no triangles to draw (a missing mesh file) is skipped (`viewer_bridge.model.skipped`)."""
     document: dict[str, Any] = {
         "asset": {"version": "2.0", "generator": "viewer-bridge"},
         "scene": 0, "scenes": [{"nodes": []}], "nodes": [], "meshes": [], "materials": [],

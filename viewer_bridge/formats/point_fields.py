@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.scene import FloatArray, PointCloud
+from viewer_bridge.model.scene import FloatArray, PointCloud
 
 # The datatype codes of lcmt_point_cloud_field and sensor_msgs/PointField (equal in both specs).
 DATATYPES: dict[int, str] = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}

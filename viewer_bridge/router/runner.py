@@ -24,9 +24,9 @@ from typing import Any
 from viewer_bridge.commands import CommandPolicy
 from viewer_bridge.config import Route, destination_name
 from viewer_bridge.errors import BridgeError, Held
+from viewer_bridge.model.skipped import collecting
 from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
 from viewer_bridge.router.stats import RouteStats
-from viewer_bridge.skipped import collecting
 from viewer_bridge.translators import Output, Translator
 from viewer_bridge.transports.base import MessageTime, MessageType, Publisher, Received
 from viewer_bridge.transports.ros_names import ChannelNames

@@ -1,7 +1,7 @@
 """Drake's contact results (`CONTACT_RESULTS`, `lcmt_contact_results_for_viz`) to ROS 2, ign and Director.
 
 `drake_contacts_to_marker_array`: a MarkerArray per message (arrows, pressure-coloured
-surfaces; see `viewer_bridge.contact` for the drawing options), latched like the scene's markers.
+surfaces; see `viewer_bridge.model.contact` for the drawing options), latched like the scene's markers.
 `drake_contacts_to_wrenches`: a `geometry_msgs/WrenchStamped` per contact pair, all on the one
 destination topic. `drake_contacts_to_ign_contacts`: ign/gz `Contacts`.
 `drake_contacts_to_tree_viewer`: requests for Director's tree viewer (arrows as `line`s with a
@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from viewer_bridge.contact import ContactDrawOptions, ContactResults, contact_scene
 from viewer_bridge.formats import ros
 from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.ign.contact import contacts_message
@@ -21,7 +20,8 @@ from viewer_bridge.formats.ros.contact import WrenchEncoder, contact_marker_arra
 from viewer_bridge.formats.ros.tf import WORLD
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.requests import load_requests
-from viewer_bridge.sim_time import sec_nsec_from_us
+from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene
+from viewer_bridge.model.sim_time import sec_nsec_from_us
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.options import IgnOptions, MarkerOptions
 from viewer_bridge.translators.types import CONTACT_TYPE, ENVELOPE_TYPE, ign_type, ros_type
@@ -38,7 +38,7 @@ def contact_results(message: Received) -> ContactResults:
 
 
 class ContactMarkerOptions(MarkerOptions, ContactDrawOptions):
-    """How contacts are drawn (`viewer_bridge.contact.ContactDrawOptions`) and the marker table's options."""
+    """How contacts are drawn (`viewer_bridge.model.contact.ContactDrawOptions`) and the marker table's options."""
 
 
 class DrakeContactsToMarkerArray(Translator):

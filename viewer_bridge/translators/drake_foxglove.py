@@ -13,8 +13,8 @@ from typing import Any, Literal
 
 from viewer_bridge.formats.foxglove.scene import scene_update
 from viewer_bridge.formats.foxglove.transforms import FrameTransformsEncoder
-from viewer_bridge.scene import Scene
-from viewer_bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us
+from viewer_bridge.model.scene import Scene
+from viewer_bridge.model.sim_time import sec_nsec_from_ms, sec_nsec_from_us
 from viewer_bridge.translators.base import Output, Outputs
 from viewer_bridge.translators.drake_stream import DrawReader, PerLoadTranslator
 from viewer_bridge.translators.options import FrameOptions

@@ -15,7 +15,7 @@ from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.ign.model import model_bytes, model_v_bytes
 from viewer_bridge.formats.ign.poses import PosesEncoder, poses_from_pose_v
 from viewer_bridge.formats.ign.schema import MESSAGES
-from viewer_bridge.scene import Scene
+from viewer_bridge.model.scene import Scene
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.drake_stream import DrakeTranslator, DrawReader
 from viewer_bridge.translators.options import IgnOptions

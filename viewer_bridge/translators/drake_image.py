@@ -7,7 +7,7 @@ others are encoded) and a `CameraInfo` on `<port>/camera_info`, named as image_t
 them. A camera's ports are known only from its messages, so the outputs are added as ports
 appear (the router looks an output up by its index, and asks each for subscribers); the types
 they may have are declared from the options (`writes`), for the checks at load and start. An image
-that does not decode is counted as the route's error (`viewer_bridge.skipped.part_failed`); the other
+that does not decode is counted as the route's error (`viewer_bridge.model.skipped.part_failed`); the other
 images of the array still go out.
 
 `drake_images_to_foxglove`: the same as `foxglove.RawImage` on `<destination>/<port>/image`, by
@@ -40,7 +40,7 @@ from viewer_bridge.formats.ros.image import (
     image_from_cdr,
     image_to_cdr,
 )
-from viewer_bridge.image import (
+from viewer_bridge.model.image import (
     EncodedImage,
     FileFormat,
     Image,
@@ -50,7 +50,7 @@ from viewer_bridge.image import (
     depth_rep117,
     encode_file,
 )
-from viewer_bridge.skipped import part_failed
+from viewer_bridge.model.skipped import part_failed
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.options import CameraInfoOptions
 from viewer_bridge.translators.types import (

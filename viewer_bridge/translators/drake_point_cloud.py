@@ -19,7 +19,7 @@ from viewer_bridge.formats.ros.markers import marker_array_cdr
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.requests import geometry_command
-from viewer_bridge.scene import Geometry, Link, Pose, Scene, StampedPointCloud, Triad
+from viewer_bridge.model.scene import Geometry, Link, Pose, Scene, StampedPointCloud, Triad
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.drake_stream import DrawReader
 from viewer_bridge.translators.options import MarkerOptions

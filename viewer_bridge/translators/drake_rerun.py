@@ -24,7 +24,6 @@ from typing import Any
 import rerun as rr
 from pydantic import Field
 
-from viewer_bridge.contact import ContactDrawOptions
 from viewer_bridge.errors import BridgeError
 from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.drake.image import read_image_array, unpack
@@ -36,7 +35,8 @@ from viewer_bridge.formats.rerun.point_cloud import cloud_archetypes, frame_arro
 from viewer_bridge.formats.rerun.scene import scene_batches
 from viewer_bridge.formats.rerun.schema import encode_batches
 from viewer_bridge.formats.rerun.transforms import TransformsEncoder
-from viewer_bridge.skipped import part_failed
+from viewer_bridge.model.contact import ContactDrawOptions
+from viewer_bridge.model.skipped import part_failed
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.drake_stream import DrakeTranslator, DrawReader, role_of
 from viewer_bridge.translators.options import CameraInfoOptions, FrameOptions

@@ -13,7 +13,7 @@ from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_cdr
 from viewer_bridge.formats.ros.poses import PoseArrayEncoder, pose_array_arrays, poses_from_pose_array_cdr
 from viewer_bridge.formats.ros.shapes import shapes_cdr
 from viewer_bridge.lcmcodec import LINK_DATA
-from viewer_bridge.scene import Scene
+from viewer_bridge.model.scene import Scene
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.drake_stream import DrakeTranslator, DrawReader, PerLoadTranslator
 from viewer_bridge.translators.options import MarkerOptions

@@ -12,7 +12,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from viewer_bridge.formats.ign.schema import Package
 from viewer_bridge.formats.ros.tf import WORLD, FrameNames
-from viewer_bridge.image import Intrinsics
+from viewer_bridge.model.image import Intrinsics
 from viewer_bridge.translators.base import TranslatorOptions
 from viewer_bridge.translators.drake_stream import role_of
 from viewer_bridge.translators.types import ign_type

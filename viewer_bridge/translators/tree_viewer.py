@@ -17,7 +17,7 @@ from viewer_bridge.formats.tree_viewer.requests import (
 )
 from viewer_bridge.formats.tree_viewer.tree import TreeState
 from viewer_bridge.lcmcodec import VIEWER2_COMMS
-from viewer_bridge.scene import LinkPoses, Scene
+from viewer_bridge.model.scene import LinkPoses, Scene
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.drake_stream import DrakeTranslator
 from viewer_bridge.translators.options import MarkerOptions

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer_bridge.contact import ContactResults, HydroelasticContact
 from viewer_bridge.lcmcodec import CODECS, CONTACT_RESULTS, DRAW, LcmMessage
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.contact import ContactResults, HydroelasticContact
+from viewer_bridge.model.scene import LinkPoses
 
 POINT_PAIR = CODECS["drake.lcmt_point_pair_contact_info_for_viz"]
 SURFACE = CODECS["drake.lcmt_hydroelastic_contact_surface_for_viz"]

@@ -13,7 +13,7 @@ from tests.optional import peer
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder, poses_from_draw
 from viewer_bridge.lcmcodec import DRAW
-from viewer_bridge.scene import frame_name
+from viewer_bridge.model.scene import frame_name
 from viewer_bridge.transports.lcm import LcmEvent
 
 drake_lcmtypes = peer("drake")  # Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them

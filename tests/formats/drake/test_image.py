@@ -22,8 +22,8 @@ from viewer_bridge.formats.drake.image import (
     read_image_array,
     unpack,
 )
-from viewer_bridge.image import Image, Layout
 from viewer_bridge.lcmcodec import IMAGE_ARRAY
+from viewer_bridge.model.image import Image, Layout
 
 # Every test here builds or reads messages with Drake's own classes: a core-only run skips them all.
 drake_lcmtypes = pytest.importorskip("drake")

@@ -5,8 +5,8 @@ from __future__ import annotations
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 
 from viewer_bridge.formats.ros.tf import FrameNames
-from viewer_bridge.pose_math import xyzw_from_wxyz
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.pose_math import xyzw_from_wxyz
+from viewer_bridge.model.scene import LinkPoses
 
 
 def frame_transforms(poses: LinkPoses, stamp: tuple[int, int], frames: FrameNames) -> FrameTransforms:

@@ -11,7 +11,7 @@ from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
 from tests.formats.ros.test_image import padded
 from tests.pixels import sample_pixels
 from viewer_bridge.formats.foxglove.image import camera_calibration, compressed_image, raw_image
-from viewer_bridge.image import EncodedImage, Image, Intrinsics, Layout
+from viewer_bridge.model.image import EncodedImage, Image, Intrinsics, Layout
 
 IMAGES = {
     "rgba8": (Image("rgb", 0, Layout.RGBA, sample_pixels(np.uint8, (3, 5, 4))), "<u1"),

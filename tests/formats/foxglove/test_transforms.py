@@ -9,7 +9,7 @@ from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from tests.formats.foxglove.oracle import frame_transforms
 from viewer_bridge.formats.foxglove.transforms import FrameTransformsEncoder
 from viewer_bridge.formats.ros.tf import FrameNames
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 
 
 def _poses(names: tuple[str, ...], seed: int) -> LinkPoses:

@@ -10,9 +10,9 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.formats.ign.schema import MESSAGES
-from viewer_bridge.pose_math import xyzw_from_wxyz
-from viewer_bridge.scene import LinkPoses
-from viewer_bridge.sim_time import sec_nsec_from_ms
+from viewer_bridge.model.pose_math import xyzw_from_wxyz
+from viewer_bridge.model.scene import LinkPoses
+from viewer_bridge.model.sim_time import sec_nsec_from_ms
 
 
 def _set_stamp(time: Any, timestamp_ms: int) -> None:

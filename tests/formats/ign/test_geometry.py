@@ -10,7 +10,7 @@ from tests.formats.ign.oracle import xyz
 from viewer_bridge.errors import SceneError
 from viewer_bridge.formats.ign.model import model, scene_from_model
 from viewer_bridge.mappings import tables
-from viewer_bridge.scene import Box, Geometry, HalfSpace, Link, Scene
+from viewer_bridge.model.scene import Box, Geometry, HalfSpace, Link, Scene
 
 
 def test_geometry_type_codes_are_debians(debian_ign_msgs: ModuleType) -> None:

@@ -17,7 +17,7 @@ from viewer_bridge.errors import DecodeError, SceneError
 from viewer_bridge.formats.ign.model import model, model_v, scene_from_model
 from viewer_bridge.formats.ign.poses import poses_from_pose_v
 from viewer_bridge.formats.ign.schema import MESSAGES
-from viewer_bridge.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
+from viewer_bridge.model.scene import Box, Geometry, Link, LinkPoses, Pose, Scene
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
 

@@ -16,7 +16,7 @@ from tests.strategies import link_poses
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from viewer_bridge.formats.ign.poses import PosesEncoder, poses_from_pose_v
 from viewer_bridge.formats.ign.schema import MESSAGES
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
 

@@ -8,7 +8,7 @@ import numpy as np
 
 from tests.formats.ign.oracle import poses_stamped
 from viewer_bridge.formats.ign.schema import MESSAGES, spellings, type_name, wire_type_name
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 
 
 def test_our_fields_are_debians_fields(debian_ign_msgs: ModuleType) -> None:

@@ -12,7 +12,7 @@ import rerun as rr
 from rerun.chunk import Chunk
 
 from viewer_bridge.formats.rerun.chunks import Stamp, time_columns
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 
 
 def transforms_batch(path: str, poses: LinkPoses, frames: Callable[[str], str], world: str, stamp: Stamp) -> pa.RecordBatch:

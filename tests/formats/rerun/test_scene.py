@@ -7,7 +7,7 @@ import numpy as np
 from rerun.chunk import Chunk
 
 from viewer_bridge.formats.rerun.scene import scene_batches
-from viewer_bridge.scene import (
+from viewer_bridge.model.scene import (
     Box,
     Capsule,
     Cylinder,
@@ -21,7 +21,7 @@ from viewer_bridge.scene import (
     TriangleMesh,
     frame_name,
 )
-from viewer_bridge.skipped import SkippedGeometry, collecting
+from viewer_bridge.model.skipped import SkippedGeometry, collecting
 
 
 def _rows(scene: Scene) -> dict[str, dict[str, object]]:

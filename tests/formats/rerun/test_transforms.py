@@ -13,7 +13,7 @@ from tests.formats.rerun.oracle import transforms_batch
 from viewer_bridge.formats.rerun.chunks import Stamp
 from viewer_bridge.formats.rerun.schema import decode_batches, encode_batches
 from viewer_bridge.formats.rerun.transforms import TransformsEncoder
-from viewer_bridge.scene import frame_name
+from viewer_bridge.model.scene import frame_name
 
 sys.path.insert(0, str(Path(__file__).parents[3] / "bench"))
 from common import frame  # noqa: E402

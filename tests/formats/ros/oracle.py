@@ -13,7 +13,6 @@ from typing import Any
 
 import numpy as np
 
-from viewer_bridge.contact import ContactDrawOptions, ContactResults, contact_scene
 from viewer_bridge.formats.ros import MARKER_ARRAY, POSE_ARRAY, TF_MESSAGE
 from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, cdr_string, time_parts
 from viewer_bridge.formats.ros.markers import (
@@ -27,10 +26,11 @@ from viewer_bridge.formats.ros.messages import make
 from viewer_bridge.formats.ros.tables import TABLES
 from viewer_bridge.formats.ros.tf import FrameNames
 from viewer_bridge.mappings import ShapeRule
-from viewer_bridge.pose_math import pose_rows_xyzw
-from viewer_bridge.scene import Geometry, LinkPoses, Pose, Scene, Shape, link_poses_from_xyzw
-from viewer_bridge.sim_time import ms_from_sec_nsec
-from viewer_bridge.skipped import per_geometry
+from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene
+from viewer_bridge.model.pose_math import pose_rows_xyzw
+from viewer_bridge.model.scene import Geometry, LinkPoses, Pose, Scene, Shape, link_poses_from_xyzw
+from viewer_bridge.model.sim_time import ms_from_sec_nsec
+from viewer_bridge.model.skipped import per_geometry
 
 ARROW, TRIANGLE_LIST, DELETEALL = 0, 11, 3  # visualization_msgs/Marker's type and action numbers
 

@@ -22,7 +22,7 @@ from viewer_bridge.formats.ros.image import (
     image_to_cdr,
 )
 from viewer_bridge.formats.ros.messages import make, to_cdr
-from viewer_bridge.image import EncodedImage, Image, Intrinsics, Layout
+from viewer_bridge.model.image import EncodedImage, Image, Intrinsics, Layout
 
 serialization = peer("rclpy.serialization")
 sensor_msgs = peer("sensor_msgs.msg")

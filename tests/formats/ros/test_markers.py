@@ -18,7 +18,7 @@ from viewer_bridge.demo import TETRAHEDRON_OBJ
 from viewer_bridge.formats import ros
 from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_cdr
 from viewer_bridge.formats.ros.messages import from_cdr, to_rclpy
-from viewer_bridge.scene import Geometry, Link, LinkPoses, Pose, Scene, frame_name
+from viewer_bridge.model.scene import Geometry, Link, LinkPoses, Pose, Scene, frame_name
 
 serialization = peer("rclpy.serialization")
 markers_msgs = peer("visualization_msgs.msg")
@@ -144,7 +144,7 @@ def test_marker_ids_are_stable_across_loads(drake_capture: dict[str, Capture]) -
 
 
 def test_points_triads_and_lines_as_markers_both_paths_agree() -> None:
-    from viewer_bridge.scene import Line, PointCloud, Triad
+    from viewer_bridge.model.scene import Line, PointCloud, Triad
 
     cloud = PointCloud(np.array([[0.0, 0, 0], [1, 2, 3]]), np.array([[1.0, 0, 0], [0, 1, 0]]))
     line = Line(np.array([[0.0, 0, 0], [1, 0, 0]]), radius=0.0, closed=True)
@@ -155,7 +155,7 @@ def test_points_triads_and_lines_as_markers_both_paths_agree() -> None:
     assert (points.type, points.scale.x, [c.g for c in points.colors]) == (markers_msgs.Marker.POINTS, 0.01, [0.0, 1.0])
     assert triad.type == markers_msgs.Marker.LINE_LIST and [p.x for p in triad.points] == [0, 2, 0, 0, 0, 0]
     assert strip.type == markers_msgs.Marker.LINE_STRIP and len(strip.points) == 3 and strip.scale.x == 0.002
-    from viewer_bridge.skipped import collecting
+    from viewer_bridge.model.skipped import collecting
 
     with collecting() as skipped:
         ros_oracle.shapes(scene)

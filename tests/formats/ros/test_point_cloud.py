@@ -14,7 +14,7 @@ from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.ros import POINT_CLOUD2
 from viewer_bridge.formats.ros.messages import from_cdr, make, to_cdr
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
-from viewer_bridge.scene import StampedPointCloud
+from viewer_bridge.model.scene import StampedPointCloud
 
 
 @pytest.mark.parametrize(("colors", "normals"), [(False, False), (True, False), (True, True)])

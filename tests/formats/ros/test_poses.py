@@ -23,7 +23,7 @@ from viewer_bridge.formats.ros.poses import (
     pose_from_message,
     poses_from_pose_array_cdr,
 )
-from viewer_bridge.scene import LinkPoses, Pose
+from viewer_bridge.model.scene import LinkPoses, Pose
 
 geometry = peer("geometry_msgs.msg")
 serialization = peer("rclpy.serialization")

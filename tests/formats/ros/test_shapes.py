@@ -19,7 +19,7 @@ from viewer_bridge.formats import ros
 from viewer_bridge.formats.ros.messages import from_cdr, from_rclpy, make, to_cdr, to_rclpy
 from viewer_bridge.formats.ros.poses import PoseArrayEncoder
 from viewer_bridge.formats.ros.shapes import shape_from_message, shapes_cdr
-from viewer_bridge.scene import Geometry, Link, LinkPoses, MeshFile, Pose, Scene, frame_name
+from viewer_bridge.model.scene import Geometry, Link, LinkPoses, MeshFile, Pose, Scene, frame_name
 
 serialization = peer("rclpy.serialization")
 markers_msgs = peer("visualization_msgs.msg")
@@ -77,7 +77,7 @@ def mesh_vertices(message: Any) -> np.ndarray:
 
 
 def test_half_space_is_a_plane_and_reads_back() -> None:
-    from viewer_bridge.scene import HalfSpace
+    from viewer_bridge.model.scene import HalfSpace
 
     (posed,) = ros_oracle.shapes(Scene((Link("world", 0, (Geometry(HalfSpace(), Pose((0, 0, 1.0))),)),)))
     assert posed.typename == ros.PLANE and posed.shape.coef.tolist() == [0, 0, 1, 0]
@@ -100,8 +100,8 @@ def test_shape_messages_cdr_decodes_to_the_objects(drake_capture: dict[str, Capt
 
 
 def test_a_missing_mesh_file_is_skipped_alone_with_a_warning() -> None:
-    from viewer_bridge.scene import Box
-    from viewer_bridge.skipped import collecting
+    from viewer_bridge.model.scene import Box
+    from viewer_bridge.model.skipped import collecting
 
     scene = Scene((Link("l", 0, (Geometry(MeshFile("/nowhere/mesh.obj")), Geometry(Box((1.0, 2.0, 3.0))))),))
     with collecting() as skipped:
@@ -123,7 +123,7 @@ def test_a_missing_mesh_file_is_skipped_alone_with_a_warning() -> None:
 
 
 def test_review_fixes_times_and_mesh_indices() -> None:
-    from viewer_bridge.scene import TriangleMesh
+    from viewer_bridge.model.scene import TriangleMesh
 
     late = LinkPoses(
         2**31 * 1000, ("a",), np.zeros(1, np.int32), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]])

@@ -8,7 +8,7 @@ import pytest
 from tests.formats.ros.oracle import transforms_message
 from viewer_bridge.formats.ros.messages import to_cdr
 from viewer_bridge.formats.ros.tf import FrameNames, TransformsEncoder
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 
 
 def random_poses(count: int, seed: int) -> LinkPoses:

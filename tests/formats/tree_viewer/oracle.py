@@ -10,7 +10,7 @@ import orjson
 
 from viewer_bridge.formats.tree_viewer.envelope import encode, envelope
 from viewer_bridge.formats.tree_viewer.requests import DECIMALS, draw_request
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 
 
 def to_decimals(values: Any) -> list[float]:

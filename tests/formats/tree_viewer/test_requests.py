@@ -31,7 +31,7 @@ from viewer_bridge.formats.tree_viewer.requests import (
     settransform_values,
 )
 from viewer_bridge.lcmcodec import VIEWER2_COMMS
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
 

@@ -20,7 +20,7 @@ from viewer_bridge.formats.tree_viewer.envelope import (
 )
 from viewer_bridge.formats.tree_viewer.requests import load_requests
 from viewer_bridge.formats.tree_viewer.tree import TreeState, scene_from_requests
-from viewer_bridge.scene import Box, Geometry, Link, Pose, Scene
+from viewer_bridge.model.scene import Box, Geometry, Link, Pose, Scene
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]
 

@@ -36,7 +36,7 @@ from tests.zenoh_peers import (
 from viewer_bridge.config import load_config
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
-from viewer_bridge.scene import Box, Geometry, Link, LinkPoses, Scene
+from viewer_bridge.model.scene import Box, Geometry, Link, LinkPoses, Scene
 from viewer_bridge.transports.lcm import LcmBus
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]

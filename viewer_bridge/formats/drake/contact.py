@@ -14,16 +14,16 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from viewer_bridge.contact import (
+from viewer_bridge.errors import DecodeError
+from viewer_bridge.lcmcodec import CONTACT_RESULTS, Buffer, LcmMessage
+from viewer_bridge.model.contact import (
     ContactBody,
     ContactResults,
     ContactSurface,
     HydroelasticContact,
     PointContacts,
 )
-from viewer_bridge.errors import DecodeError
-from viewer_bridge.lcmcodec import CONTACT_RESULTS, Buffer, LcmMessage
-from viewer_bridge.scene import FloatArray, IntArray
+from viewer_bridge.model.scene import FloatArray, IntArray
 
 _TYPE = CONTACT_RESULTS.type_name
 

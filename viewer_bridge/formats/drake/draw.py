@@ -16,7 +16,7 @@ import numpy.typing as npt
 
 from viewer_bridge.errors import EncodeError
 from viewer_bridge.lcmcodec import DRAW, Buffer, LcmMessage
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 
 
 def poses_from_draw(message: LcmMessage) -> LinkPoses:

@@ -1,4 +1,4 @@
-"""Drake's `lcmt_image_array` <-> neutral images (`viewer_bridge.image`), docs/PROTOCOLS.md section 12.
+"""Drake's `lcmt_image_array` <-> neutral images (`viewer_bridge.model.image`), docs/PROTOCOLS.md section 12.
 
 Reading is two steps, so that a route that only passes JPEG or PNG bytes on never decodes them
 and a lazy route with no subscriber pays only for the first: `read_image_array` walks the
@@ -30,8 +30,8 @@ from PIL import Image as PilImage
 
 from viewer_bridge.errors import DecodeError, EncodeError
 from viewer_bridge.formats.drake.inflate import InflateError, inflate
-from viewer_bridge.image import EncodedImage, FileFormat, Image, Layout, Pixels
 from viewer_bridge.lcmcodec import HEADER, IMAGE, IMAGE_ARRAY, Buffer
+from viewer_bridge.model.image import EncodedImage, FileFormat, Image, Layout, Pixels
 
 TYPE_NAME = IMAGE_ARRAY.type_name
 NOT_COMPRESSED = int(IMAGE.constant("COMPRESSION_METHOD_NOT_COMPRESSED"))

@@ -21,7 +21,7 @@ import numpy as np
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec import GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, Buffer, LcmMessage
 from viewer_bridge.mappings import FormatTables
-from viewer_bridge.scene import (
+from viewer_bridge.model.scene import (
     FileContents,
     Geometry,
     InMemoryMesh,
@@ -33,7 +33,7 @@ from viewer_bridge.scene import (
     TriangleMesh,
     Vector3,
 )
-from viewer_bridge.skipped import per_geometry
+from viewer_bridge.model.skipped import per_geometry
 
 
 def _geometry_code(name: str) -> int:

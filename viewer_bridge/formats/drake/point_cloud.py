@@ -17,7 +17,7 @@ from viewer_bridge.formats.point_fields import (
     write_points,
 )
 from viewer_bridge.lcmcodec import POINT_CLOUD, POINT_CLOUD_FIELD, Buffer
-from viewer_bridge.scene import StampedPointCloud, frame_name
+from viewer_bridge.model.scene import StampedPointCloud, frame_name
 
 TYPE_NAME = POINT_CLOUD.type_name
 IS_BIGENDIAN = int(POINT_CLOUD.constant("IS_BIGENDIAN"))

@@ -1,4 +1,4 @@
-"""Neutral images (`viewer_bridge.image`) as Foxglove's `RawImage`, `CompressedImage` and `CameraCalibration`.
+"""Neutral images (`viewer_bridge.model.image`) as Foxglove's `RawImage`, `CompressedImage` and `CameraCalibration`.
 
 `RawImage` is written by hand on the protobuf wire, so that the rows are copied once (the head,
 then the rows, then the frame id: field order, as protobuf writes it). It has no byte-order flag:
@@ -16,7 +16,7 @@ import numpy as np
 
 from viewer_bridge.formats.protowire import key, length_delimited, varint, varint_field
 from viewer_bridge.formats.ros.image import encoding
-from viewer_bridge.image import NO_DISTORTION, NO_ROTATION, EncodedImage, Image, Intrinsics
+from viewer_bridge.model.image import NO_DISTORTION, NO_ROTATION, EncodedImage, Image, Intrinsics
 
 _FIXED32 = struct.Struct("<I")
 _PANEL_ENCODINGS = {"16SC1": "16UC1"}  # what the Image panel draws, for what it does not

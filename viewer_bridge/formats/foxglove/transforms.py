@@ -17,8 +17,8 @@ from viewer_bridge.formats.protowire import key as _key
 from viewer_bridge.formats.protowire import length_delimited as _length_delimited
 from viewer_bridge.formats.protowire import varint as _varint
 from viewer_bridge.formats.ros.tf import FrameNames
-from viewer_bridge.pose_math import xyzw_from_wxyz
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.pose_math import xyzw_from_wxyz
+from viewer_bridge.model.scene import LinkPoses
 
 
 def _transform_rows(poses: LinkPoses) -> np.ndarray[Any, Any]:

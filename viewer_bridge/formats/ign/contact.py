@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from viewer_bridge.contact import ContactResults
 from viewer_bridge.formats.ign.schema import MESSAGES
-from viewer_bridge.scene import FloatArray
+from viewer_bridge.model.contact import ContactResults
+from viewer_bridge.model.scene import FloatArray
 
 _LINK = 3  # Entity.Type.LINK
 

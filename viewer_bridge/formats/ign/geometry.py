@@ -17,7 +17,7 @@ import numpy as np
 from viewer_bridge.errors import SceneError
 from viewer_bridge.formats.ign.schema import MESSAGES
 from viewer_bridge.mappings import FormatTables, ShapeRule
-from viewer_bridge.scene import FileContents, InMemoryMesh, Line, Shape, TriangleMesh
+from viewer_bridge.model.scene import FileContents, InMemoryMesh, Line, Shape, TriangleMesh
 
 
 def _data_uri_obj(shape: TriangleMesh) -> dict[str, Any]:

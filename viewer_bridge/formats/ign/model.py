@@ -19,9 +19,9 @@ from viewer_bridge.errors import SceneError
 from viewer_bridge.formats import protowire as wire
 from viewer_bridge.formats.ign.geometry import fill_geometry, geometry_message, shape_from_geometry
 from viewer_bridge.formats.ign.schema import MESSAGES
-from viewer_bridge.pose_math import xyzw_from_wxyz
-from viewer_bridge.scene import Geometry, Link, Pose, Scene, Shape, pose_from_xyzw
-from viewer_bridge.skipped import per_geometry
+from viewer_bridge.model.pose_math import xyzw_from_wxyz
+from viewer_bridge.model.scene import Geometry, Link, Pose, Scene, Shape, pose_from_xyzw
+from viewer_bridge.model.skipped import per_geometry
 
 _ROBOT_NUM = "robot_num"  # kept in each Link's header data so that robot_num survives the trip
 

@@ -16,9 +16,9 @@ import numpy.typing as npt
 
 from viewer_bridge.formats import protowire as wire
 from viewer_bridge.formats.ign.schema import field_number
-from viewer_bridge.pose_math import pose_rows_xyzw
-from viewer_bridge.scene import FloatArray, LinkPoses, link_poses_from_xyzw
-from viewer_bridge.sim_time import ms_from_sec_nsec, sec_nsec_from_ms
+from viewer_bridge.model.pose_math import pose_rows_xyzw
+from viewer_bridge.model.scene import FloatArray, LinkPoses, link_poses_from_xyzw
+from viewer_bridge.model.sim_time import ms_from_sec_nsec, sec_nsec_from_ms
 
 _HEADER, _HEADER_STAMP = field_number("Pose_V", "header"), field_number("Header", "stamp")
 # The keys of Time.sec and Time.nsec, varints each left out when 0 (proto3).

@@ -1,6 +1,6 @@
 """Contact results as Rerun archetypes, in the world: one `Arrows3D` of forces (point contacts at
 their points, hydroelastic ones at their centroids), one of hydroelastic moments, and each
-hydroelastic surface a `Mesh3D` coloured per vertex by its pressure (`viewer_bridge.contact`'s
+hydroelastic surface a `Mesh3D` coloured per vertex by its pressure (`viewer_bridge.model.contact`'s
 colour map and scales, as every other target draws them).
 """
 
@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
-from viewer_bridge.contact import (
+from viewer_bridge.model.contact import (
     FORCE_COLOR,
     MOMENT_COLOR,
     ContactDrawOptions,

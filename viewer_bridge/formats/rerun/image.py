@@ -15,7 +15,7 @@ import numpy as np
 import rerun as rr
 
 from viewer_bridge.errors import SceneError
-from viewer_bridge.image import MILLIMETRES_PER_METRE, Image, Intrinsics, Layout
+from viewer_bridge.model.image import MILLIMETRES_PER_METRE, Image, Intrinsics, Layout
 
 __all__ = ["image_archetype", "pinhole"]
 

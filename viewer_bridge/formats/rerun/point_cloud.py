@@ -13,7 +13,7 @@ import numpy as np
 import rerun as rr
 
 from viewer_bridge.formats.ros.tf import WORLD
-from viewer_bridge.scene import LinkPoses, StampedPointCloud
+from viewer_bridge.model.scene import LinkPoses, StampedPointCloud
 
 __all__ = ["cloud_archetypes", "frame_arrows"]
 

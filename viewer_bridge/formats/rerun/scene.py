@@ -22,7 +22,7 @@ import rerun as rr
 from viewer_bridge.errors import SceneError
 from viewer_bridge.formats.rerun.chunks import entity_path, static_batch
 from viewer_bridge.mappings import FormatTables, ShapeRule
-from viewer_bridge.scene import (
+from viewer_bridge.model.scene import (
     Capsule,
     Geometry,
     InMemoryMesh,
@@ -35,7 +35,7 @@ from viewer_bridge.scene import (
     Triad,
     TriangleMesh,
 )
-from viewer_bridge.skipped import per_geometry
+from viewer_bridge.model.skipped import per_geometry
 
 __all__ = ["MEDIA_TYPES", "link_entity", "scene_batches"]
 

@@ -20,7 +20,7 @@ import rerun as rr
 from rerun.chunk import Chunk
 
 from viewer_bridge.formats.rerun.chunks import Stamp, time_columns
-from viewer_bridge.scene import LinkPoses
+from viewer_bridge.model.scene import LinkPoses
 
 __all__ = ["TransformsEncoder"]
 

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import DecodeError, EncodeError
-from viewer_bridge.sim_time import sec_nsec_from_ms, sec_nsec_from_us, us_from_sec_nsec
+from viewer_bridge.model.sim_time import sec_nsec_from_ms, sec_nsec_from_us, us_from_sec_nsec
 
 CDR_LE = b"\x00\x01\x00\x00"  # the encapsulation header: little-endian plain CDR
 U32 = struct.Struct("<I")

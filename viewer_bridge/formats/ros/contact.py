@@ -1,7 +1,7 @@
 """Contact results to ROS 2: a `visualization_msgs/MarkerArray` to look at, `geometry_msgs/WrenchStamped`s
 for controllers.
 
-The markers are the contact scene (`viewer_bridge.contact.contact_scene`) written by the marker table
+The markers are the contact scene (`viewer_bridge.model.contact.contact_scene`) written by the marker table
 (`mappings/ros.yaml`): an ARROW per force and per moment, a TRIANGLE_LIST per hydroelastic
 surface with a colour per vertex. The array starts with DELETEALL, so contacts that ended vanish.
 
@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from viewer_bridge.contact import ContactDrawOptions, ContactResults, contact_scene
 from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, cdr_string
 from viewer_bridge.formats.ros.markers import marker_array_cdr
+from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene
 
 
 def contact_marker_array_cdr(

@@ -1,4 +1,4 @@
-"""ROS 2's `sensor_msgs` images <-> neutral images (`viewer_bridge.image`), straight from and to CDR bytes.
+"""ROS 2's `sensor_msgs` images <-> neutral images (`viewer_bridge.model.image`), straight from and to CDR bytes.
 
 Written: `Image` (the pixels with their rows back to back, in their own byte order:
 `is_bigendian` says which, so nothing is swapped), `CompressedImage` (JPEG or PNG bytes passed on
@@ -21,7 +21,15 @@ import numpy as np
 
 from viewer_bridge.errors import DecodeError, EncodeError
 from viewer_bridge.formats.ros.cdr import CDR_TIME, U32, CdrReader, CdrWriter
-from viewer_bridge.image import NO_DISTORTION, NO_ROTATION, EncodedImage, Image, Intrinsics, Layout, Pixels
+from viewer_bridge.model.image import (
+    NO_DISTORTION,
+    NO_ROTATION,
+    EncodedImage,
+    Image,
+    Intrinsics,
+    Layout,
+    Pixels,
+)
 
 IMAGE = "sensor_msgs/msg/Image"
 COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"

@@ -26,9 +26,9 @@ from viewer_bridge.formats.ros.cdr import (
     payload_items,
 )
 from viewer_bridge.formats.ros.tables import TABLES
-from viewer_bridge.pose_math import PartsOnLinks, pose_rows_xyzw, wxyz_from_xyzw
-from viewer_bridge.scene import FloatArray, Geometry, LinkPoses, Pose, Scene
-from viewer_bridge.skipped import per_geometry
+from viewer_bridge.model.pose_math import PartsOnLinks, pose_rows_xyzw, wxyz_from_xyzw
+from viewer_bridge.model.scene import FloatArray, Geometry, LinkPoses, Pose, Scene
+from viewer_bridge.model.skipped import per_geometry
 
 
 class MarkerSpec(NamedTuple):

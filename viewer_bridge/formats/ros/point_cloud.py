@@ -22,7 +22,7 @@ from viewer_bridge.formats.point_fields import (
 )
 from viewer_bridge.formats.ros import POINT_CLOUD2
 from viewer_bridge.formats.ros.cdr import CDR_TIME, U32, CdrReader, CdrWriter, time_parts_from_us
-from viewer_bridge.scene import StampedPointCloud
+from viewer_bridge.model.scene import StampedPointCloud
 
 _TWO_U32 = struct.Struct("<II")
 _SMALLEST_POINT_FIELD = 13  # name (length + NUL), offset, datatype, count: never fewer bytes

@@ -2,7 +2,7 @@
 
 `PoseArrayEncoder`: draw -> PoseArray CDR, one buffer per pose count, no message per link;
 `pose_array_arrays` and `poses_from_pose_array_cdr` read it back (PoseArray carries no link
-names, so the caller gives them). Quaternion order is converted by `viewer_bridge.scene`
+names, so the caller gives them). Quaternion order is converted by `viewer_bridge.model.scene`
 (`pose_rows_xyzw`, `link_poses_from_xyzw`).
 """
 
@@ -17,9 +17,9 @@ import numpy as np
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.ros import POSE_ARRAY
 from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, FRONT_PADDING, U32, cdr_string_4, time_parts
-from viewer_bridge.pose_math import write_pose_rows_xyzw
-from viewer_bridge.scene import FloatArray, LinkPoses, Pose, link_poses_from_xyzw, pose_from_xyzw
-from viewer_bridge.sim_time import ms_from_sec_nsec
+from viewer_bridge.model.pose_math import write_pose_rows_xyzw
+from viewer_bridge.model.scene import FloatArray, LinkPoses, Pose, link_poses_from_xyzw, pose_from_xyzw
+from viewer_bridge.model.sim_time import ms_from_sec_nsec
 
 
 def pose_from_message(message: Any, what: str = "pose") -> Pose:

@@ -18,8 +18,8 @@ from viewer_bridge.formats.ros import MESH, PLANE, SOLID_PRIMITIVE
 from viewer_bridge.formats.ros.cdr import CDR_LE, U32, CdrWriter
 from viewer_bridge.formats.ros.tables import TABLES
 from viewer_bridge.mappings import ShapeRule
-from viewer_bridge.scene import Geometry, Scene, Shape, TriangleMesh
-from viewer_bridge.skipped import per_geometry
+from viewer_bridge.model.scene import Geometry, Scene, Shape, TriangleMesh
+from viewer_bridge.model.skipped import per_geometry
 
 
 def shapes_cdr(scene: Scene) -> list[tuple[str, bytes]]:

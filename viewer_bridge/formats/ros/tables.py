@@ -14,7 +14,7 @@ import numpy as np
 
 from viewer_bridge.errors import SceneError
 from viewer_bridge.mappings import FormatTables
-from viewer_bridge.scene import InMemoryMesh, Line, MeshFile, PointCloud, Triad, TriangleMesh
+from viewer_bridge.model.scene import InMemoryMesh, Line, MeshFile, PointCloud, Triad, TriangleMesh
 
 
 def _mesh_message(shape: TriangleMesh, options: dict[str, Any]) -> dict[str, Any]:

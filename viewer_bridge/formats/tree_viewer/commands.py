@@ -10,8 +10,8 @@ import numpy as np
 
 from viewer_bridge.errors import SceneError
 from viewer_bridge.formats.tree_viewer.requests import TABLES
-from viewer_bridge.pose_math import unit_quaternions
-from viewer_bridge.scene import FloatArray, Geometry, Line, PointCloud, Pose, Shape, TriangleMesh
+from viewer_bridge.model.pose_math import unit_quaternions
+from viewer_bridge.model.scene import FloatArray, Geometry, Line, PointCloud, Pose, Shape, TriangleMesh
 
 
 def pose_from_transform(value: Any, where: str) -> Pose:

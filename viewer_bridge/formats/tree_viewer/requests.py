@@ -18,7 +18,7 @@ import orjson
 
 from viewer_bridge.formats.tree_viewer.envelope import Request, encode, envelope
 from viewer_bridge.mappings import FormatTables
-from viewer_bridge.scene import (
+from viewer_bridge.model.scene import (
     FloatArray,
     Geometry,
     Line,
@@ -30,7 +30,7 @@ from viewer_bridge.scene import (
     Shape,
     TriangleMesh,
 )
-from viewer_bridge.skipped import per_geometry
+from viewer_bridge.model.skipped import per_geometry
 
 DEFAULT_PREFIX: tuple[str, ...] = ("drake",)
 

@@ -21,7 +21,7 @@ from viewer_bridge.formats.tree_viewer.envelope import (
     echo_time,
     request_timestamp,
 )
-from viewer_bridge.scene import Geometry, Link, LinkPoses, MeshFile, Pose, Scene
+from viewer_bridge.model.scene import Geometry, Link, LinkPoses, MeshFile, Pose, Scene
 
 Path = tuple[str, ...]
 

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from viewer_bridge.scene import LinkPoses, Pose, frame_name
+from viewer_bridge.model.scene import LinkPoses, Pose, frame_name
 
 
 def test_frame_names_follow_the_field_convention() -> None:

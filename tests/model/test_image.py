@@ -11,7 +11,7 @@ from PIL import Image as PilImage
 from tests.drake_images import publish_with_drake, read_with_drake
 from tests.pixels import sample_pixels
 from viewer_bridge.errors import EncodeError
-from viewer_bridge.image import Image, Layout, depth_from_rep117, depth_rep117, encode_file
+from viewer_bridge.model.image import Image, Layout, depth_from_rep117, depth_rep117, encode_file
 
 
 def test_depth_in_metres_is_drakes_division_with_rep117_sentinels() -> None:
@@ -79,7 +79,7 @@ def test_jpeg_leaves_alpha_out_and_float_depth_fits_no_file() -> None:
 
 
 def test_a_preview_is_rgb_bytes_with_sentinels_black_and_a_colour_per_label() -> None:
-    from viewer_bridge.image import preview
+    from viewer_bridge.model.image import preview
 
     depth = np.array([[[0], [500], [1000], [65535]]], np.uint16)
     shades = preview(Image("depth", 0, Layout.DEPTH, depth))

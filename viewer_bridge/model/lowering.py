@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from viewer_bridge.errors import SceneError
-from viewer_bridge.scene import (
+from viewer_bridge.model.scene import (
     Box,
     Capsule,
     Cylinder,

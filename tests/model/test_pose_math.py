@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from viewer_bridge.pose_math import PartsOnLinks, rotation_matrix, wxyz_from_xyzw, xyzw_from_wxyz
-from viewer_bridge.scene import Pose
+from viewer_bridge.model.pose_math import PartsOnLinks, rotation_matrix, wxyz_from_xyzw, xyzw_from_wxyz
+from viewer_bridge.model.scene import Pose
 
 
 def test_quaternion_orders_round_trip() -> None:

@@ -18,9 +18,11 @@ import numpy as np
 import numpy.typing as npt
 
 from viewer_bridge.errors import SceneError
-from viewer_bridge.pose_math import FloatArray as FloatArray  # the model's array types, defined below it
-from viewer_bridge.pose_math import IntArray as IntArray
-from viewer_bridge.pose_math import (
+from viewer_bridge.model.pose_math import (
+    FloatArray as FloatArray,  # the model's array types, defined below it
+)
+from viewer_bridge.model.pose_math import IntArray as IntArray
+from viewer_bridge.model.pose_math import (
     quaternion_product,
     rotation_matrix,
     unit_quaternions,

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from viewer_bridge.scene import FloatArray, Geometry, IntArray, Line, Link, Rgba, Scene, TriangleMesh
+from viewer_bridge.model.scene import FloatArray, Geometry, IntArray, Line, Link, Rgba, Scene, TriangleMesh
 
 
 @dataclass(frozen=True, eq=False, slots=True)

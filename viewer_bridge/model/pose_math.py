@@ -1,7 +1,7 @@
 """Batched pose maths for the scene model: quaternion order, pose rows, unit checks, composing.
 
 The numpy functions over many poses at once (N x 4 quaternions, N x 7 pose rows, parts fixed on
-links) that the formats' fast paths use every frame; the scene model itself (`viewer_bridge.scene`)
+links) that the formats' fast paths use every frame; the scene model itself (`viewer_bridge.model.scene`)
 keeps the types. Quaternions are w-first, as Drake writes them, except where a name says xyzw.
 The quaternion order is converted here and in `scene.Pose.quaternion_xyzw`, nowhere else.
 """

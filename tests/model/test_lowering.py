@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from viewer_bridge.errors import SceneError
-from viewer_bridge.lowering import LOWERINGS, capsule_parts, triangle_mesh
-from viewer_bridge.scene import (
+from viewer_bridge.model.lowering import LOWERINGS, capsule_parts, triangle_mesh
+from viewer_bridge.model.scene import (
     Box,
     Capsule,
     Cylinder,

@@ -18,8 +18,8 @@ from tests.cli.test_cli import run
 from viewer_bridge.demo import demo_poses, demo_scene
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
-from viewer_bridge.scene import Geometry, Link, MeshFile, Scene
-from viewer_bridge.skipped import collecting, per_geometry
+from viewer_bridge.model.scene import Geometry, Link, MeshFile, Scene
+from viewer_bridge.model.skipped import collecting, per_geometry
 from viewer_bridge.transports.lcm import LcmEvent, read_log, write_log
 
 GONE = "/nonexistent/viewer-bridge/gone.obj"
@@ -148,7 +148,7 @@ def test_targets_that_cannot_draw_a_point_cloud_write_the_rest_of_the_scene(tmp_
     from viewer_bridge.formats.foxglove.scene import scene_update
     from viewer_bridge.formats.ign.model import model_bytes, model_v_bytes
     from viewer_bridge.formats.ros.tf import FrameNames
-    from viewer_bridge.scene import PointCloud
+    from viewer_bridge.model.scene import PointCloud
 
     scene = every_kind(tmp_path)
     bare = Scene(

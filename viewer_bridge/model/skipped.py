@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from typing import TypeVar
 
 from viewer_bridge.errors import BridgeError, SceneError
-from viewer_bridge.scene import Geometry, Link
+from viewer_bridge.model.scene import Geometry, Link
 
 log = logging.getLogger("viewer_bridge")
 T = TypeVar("T")
