@@ -31,7 +31,7 @@ from typing import Any
 
 from common import Measure, Size, best_of  # bench/ is on sys.path when run as a script
 
-from viewer_bridge.config import DEFAULT_CONFIG
+from viewer_bridge.config.bridge import DEFAULT_CONFIG
 from viewer_bridge.formats.drake.image import images_to_lcm, read_image_array, unpack
 from viewer_bridge.formats.ros.image import image_to_cdr
 from viewer_bridge.transports.lcm import LcmBus

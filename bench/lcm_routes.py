@@ -31,7 +31,7 @@ from common import Measure, Size
 from router import URL, Bridge
 from zenoh_routes import _free_port, zenoh_session
 
-from viewer_bridge.config import BUILTIN_CONFIGS
+from viewer_bridge.config.bridge import BUILTIN_CONFIGS
 from viewer_bridge.transports.lcm import LcmBus
 
 CHANNELS = tuple(f"IIWA_STATUS_{index:02d}" for index in range(20))

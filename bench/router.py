@@ -246,7 +246,7 @@ _PER_DRAW_ROUTES = ("tf", "markers", "poses")
 
 def default_per_draw(policy: str) -> str:
     """The built-in default config's per-draw routes (TF, world-frame markers, poses), one policy."""
-    from viewer_bridge.config import load_config
+    from viewer_bridge.config.bridge import load_config
 
     routes = [route for route in load_config("builtin:default").routes if route.name in _PER_DRAW_ROUTES]
     lines = ["routes:"]

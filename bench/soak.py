@@ -39,7 +39,7 @@ from unittest import mock
 
 import numpy as np
 
-from viewer_bridge.config import DEFAULT_CONFIG
+from viewer_bridge.config.bridge import DEFAULT_CONFIG
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.model.scene import Box, Geometry, Link, LinkPoses, Pose, Scene

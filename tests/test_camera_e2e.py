@@ -20,7 +20,7 @@ from tests.drake_images import read_with_drake
 from tests.peers import BridgeProcess, RosProbe
 from tests.test_router import LcmRecorder
 from tests.translators.test_drake_image import assert_drake_reads, ros_test_image
-from viewer_bridge.config import DEFAULT_CONFIG
+from viewer_bridge.config.bridge import DEFAULT_CONFIG
 from viewer_bridge.examples.cameras import CAMERAS, FOV_Y_DEGREES
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]

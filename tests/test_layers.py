@@ -19,20 +19,21 @@ LAYERS: dict[str, int] = {
     # 1
     "viewer_bridge": 1,
     "viewer_bridge.model": 1,
+    "viewer_bridge.config": 1,
     "viewer_bridge.extras": 1,
     "viewer_bridge.errors": 1,
-    "viewer_bridge.registry": 1,
-    "viewer_bridge.resources": 1,
+    "viewer_bridge.config.registry": 1,
+    "viewer_bridge.config.resources": 1,
     "viewer_bridge.model.sim_time": 1,
     "viewer_bridge.lru": 1,
     "viewer_bridge.status": 1,
-    "viewer_bridge.commands": 1,
+    "viewer_bridge.config.commands": 1,
     "viewer_bridge.cli": 1,
     # 2
     "viewer_bridge.model.scene": 2,
     "viewer_bridge.model.pose_math": 2,
     "viewer_bridge.lcmcodec": 2,
-    "viewer_bridge.yamldoc": 2,
+    "viewer_bridge.config.yamldoc": 2,
     "viewer_bridge.cli.arguments": 2,
     "viewer_bridge.ros_interfaces": 2,
     "viewer_bridge.ros_builds": 2,
@@ -43,7 +44,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.model.image": 3,
     "viewer_bridge.model.skipped": 3,
     # 4
-    "viewer_bridge.mappings": 4,
+    "viewer_bridge.config.mappings": 4,
     # 5
     "viewer_bridge.formats": 5,
     # 6
@@ -58,7 +59,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.demo": 7,
     "viewer_bridge.render_server": 7,
     # 8
-    "viewer_bridge.config": 8,
+    "viewer_bridge.config.bridge": 8,
     "viewer_bridge.examples": 8,
     # 9
     "viewer_bridge.router": 9,

@@ -19,7 +19,7 @@ import drake as drake_lcmtypes
 import numpy as np
 import pytest
 
-from viewer_bridge.config import load_config
+from viewer_bridge.config.bridge import load_config
 from viewer_bridge.formats.ros.poses import pose_array_arrays
 from viewer_bridge.router import Router
 from viewer_bridge.translators import TRANSLATORS

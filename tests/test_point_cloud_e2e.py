@@ -16,7 +16,7 @@ from tests.conftest import lcm_url
 from tests.formats.drake.test_point_cloud import pydrake_publisher
 from tests.peers import BridgeProcess, RosProbe
 from tests.test_router import LcmRecorder
-from viewer_bridge.config import destination_name, load_config
+from viewer_bridge.config.bridge import destination_name, load_config
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 

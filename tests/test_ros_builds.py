@@ -24,7 +24,7 @@ from tests.conftest import lcm_url
 from tests.peers import RosProbe, wait_for
 from tests.ros_interfaces_corpus import ROUTER, ROUTER_DEFINITIONS
 from viewer_bridge import ros_interfaces
-from viewer_bridge.config import load_config
+from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import RosInterfaceError
 from viewer_bridge.ros_builds import BuildState, InterfaceBuilder
 from viewer_bridge.router import Router

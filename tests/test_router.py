@@ -18,7 +18,7 @@ import pytest
 from tests.conftest import DRAKE_SCENE_SCRIPT, SYNC_CHANNEL, lcm_url, publish_until
 from tests.formats import oracle
 from tests.peers import BridgeProcess, RosProbe, write_config
-from viewer_bridge.config import DEFAULT_CONFIG, destination_name, load_config
+from viewer_bridge.config.bridge import DEFAULT_CONFIG, destination_name, load_config
 from viewer_bridge.errors import ConfigError
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.model.scene import LinkPoses
@@ -678,7 +678,7 @@ def test_a_router_loads_its_lcm_types_once_naming_a_refused_type(
     """The config's lcm_types are loaded when the router is made (one library for its transports and
     translators); a recursive type is named once; a bad source stops the start with a BridgeError."""
     from tests.translators.test_lcm_generic import CORPUS
-    from viewer_bridge.config import BridgeConfig
+    from viewer_bridge.config.bridge import BridgeConfig
     from viewer_bridge.errors import BridgeError
     from viewer_bridge.router import Router
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from tests.formats.ign.oracle import pose_v
 from tests.fuzz.targets import DISCOVERY_ADVERTISED, DISCOVERY_ANY, DISCOVERY_SUBSCRIBED
-from viewer_bridge.config import BUILTIN_CONFIGS
+from viewer_bridge.config.bridge import BUILTIN_CONFIGS
 from viewer_bridge.examples.shapes import build_simulator
 from viewer_bridge.formats.drake.draw import poses_from_draw
 from viewer_bridge.formats.drake.load import decode_load

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from viewer_bridge.config import load_config
+from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import (
     ConfigError,
     DecodeError,

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from tests.fuzz.targets import TARGETS
-from viewer_bridge.config import load_config
+from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import ConfigError
 
 BENCH = Path(__file__).resolve().parents[2] / "bench" / "fuzz.py"

@@ -1,4 +1,4 @@
-"""Routes that write commands (viewer_bridge/commands.py, viewer_bridge/router/runner.py): only the
+"""Routes that write commands (viewer_bridge/config/commands.py, viewer_bridge/router/runner.py): only the
 channels the config allows, only fresh messages, and a bounded number of streams per route."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from typing import Any, ClassVar
 
 import pytest
 
-from viewer_bridge.commands import CommandPolicy
-from viewer_bridge.config import Route
+from viewer_bridge.config.bridge import Route
+from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, ConfigError, Held
 from viewer_bridge.router.runner import MAX_HELD_CHANNELS, OTHER_CHANNELS, RouteRunner
 from viewer_bridge.translators.base import Output, Outputs, Translator
@@ -91,7 +91,7 @@ def test_a_pattern_matches_the_whole_channel_name() -> None:
 
 
 def test_a_pattern_that_is_no_regular_expression_is_a_config_error(tmp_path: Any) -> None:
-    from viewer_bridge.config import load_config
+    from viewer_bridge.config.bridge import load_config
 
     path = tmp_path / "bridge.yaml"
     path.write_text("commands:\n  allow: ['IIWA_(']\nroutes: []\n")

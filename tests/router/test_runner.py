@@ -7,7 +7,7 @@ import re
 import time
 from typing import Any
 
-from viewer_bridge.config import Route
+from viewer_bridge.config.bridge import Route
 from viewer_bridge.router.flow import Message
 from viewer_bridge.transports.base import CallPublisher, Received
 
@@ -15,7 +15,7 @@ from viewer_bridge.transports.base import CallPublisher, Received
 def test_a_translator_crash_skips_that_message_only() -> None:
     import re
 
-    from viewer_bridge.config import Route
+    from viewer_bridge.config.bridge import Route
     from viewer_bridge.router.runner import RouteRunner
     from viewer_bridge.translators import Translator
 

@@ -21,7 +21,7 @@ from tests.drake_images import publish_with_drake, read_with_drake
 from tests.formats.drake.test_image import lcm_array, lcm_image, sample_pixels
 from tests.formats.ros.test_image import rclpy_image
 from viewer_bridge.cli.log_convert import convert
-from viewer_bridge.config import Route, destination_name, load_config
+from viewer_bridge.config.bridge import Route, destination_name, load_config
 from viewer_bridge.errors import ConfigError, DecodeError, EncodeError
 from viewer_bridge.formats.ros.image import LAYOUTS
 from viewer_bridge.model.skipped import collecting

@@ -11,7 +11,7 @@ from visualization_msgs.msg import MarkerArray
 
 from tests.formats.drake.test_point_cloud import pydrake_message
 from viewer_bridge.cli.log_convert import convert
-from viewer_bridge.config import load_config
+from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm

@@ -15,7 +15,7 @@ import numpy as np
 from rerun.chunk import RrdReader
 
 from viewer_bridge.cli.log_convert import convert
-from viewer_bridge.config import load_config
+from viewer_bridge.config.bridge import load_config
 
 
 def _status(step: int) -> Any:

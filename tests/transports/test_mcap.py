@@ -17,7 +17,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
 from tests.conftest import lcm_url
-from viewer_bridge.config import BridgeConfig
+from viewer_bridge.config.bridge import BridgeConfig
 from viewer_bridge.errors import ConfigError, TransportUnavailable
 from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.load import load_from_scene

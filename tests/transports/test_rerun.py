@@ -18,7 +18,7 @@ import rerun as rr
 from rerun.chunk import RrdReader
 
 from viewer_bridge.cli.log_convert import convert
-from viewer_bridge.config import load_config
+from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import ConvertError, TransportUnavailable
 from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.draw import poses_from_draw

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
-from viewer_bridge.config import BridgeConfig, Endpoint, Route
+from viewer_bridge.config.bridge import BridgeConfig, Endpoint, Route
 from viewer_bridge.errors import ConvertError, Interrupted
 from viewer_bridge.router import Router
 from viewer_bridge.status import Snapshot, held_of, routes_of

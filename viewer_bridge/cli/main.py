@@ -34,14 +34,14 @@ from viewer_bridge.cli.arguments import (
     split_ros_args,
 )
 from viewer_bridge.cli.dump import as_json, as_text
-from viewer_bridge.commands import COMMAND_FLAG
-from viewer_bridge.config import BUILTIN_CONFIGS, BridgeConfig, load_config
+from viewer_bridge.config.bridge import BUILTIN_CONFIGS, BridgeConfig, load_config
+from viewer_bridge.config.commands import COMMAND_FLAG
+from viewer_bridge.config.mappings import format_names, reference_markdown
 from viewer_bridge.demo import run_demo
 from viewer_bridge.errors import BridgeError, ConfigError, Interrupted, SceneError, UsageError
 from viewer_bridge.examples import EXAMPLES, drake_missing, run_example
 from viewer_bridge.lcm_url import log_to_write
 from viewer_bridge.lcmcodec.library import TypeLibrary
-from viewer_bridge.mappings import format_names, reference_markdown
 from viewer_bridge.model.skipped import collecting
 from viewer_bridge.router import Router
 from viewer_bridge.status import ConsoleLog, LiveTable, LogLines, StatusView

@@ -30,8 +30,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from viewer_bridge.commands import COMMAND_FLAG, CommandPolicy
-from viewer_bridge.config import BridgeConfig, Route
+from viewer_bridge.config.bridge import BridgeConfig, Route
+from viewer_bridge.config.commands import COMMAND_FLAG, CommandPolicy
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.router.echoes import Echoes
 from viewer_bridge.router.flow import InlineBudget

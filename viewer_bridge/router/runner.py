@@ -21,8 +21,8 @@ from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
-from viewer_bridge.commands import CommandPolicy
-from viewer_bridge.config import Route, destination_name
+from viewer_bridge.config.bridge import Route, destination_name
+from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, Held
 from viewer_bridge.model.skipped import collecting
 from viewer_bridge.router.flow import InlineBudget, Mailbox, Message

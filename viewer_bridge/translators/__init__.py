@@ -18,7 +18,7 @@ with an entry point in the group `viewer_bridge.translators` naming a `Translato
 
 from __future__ import annotations
 
-from viewer_bridge.registry import Registry
+from viewer_bridge.config.registry import Registry
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.load_cache import LoadCache
 

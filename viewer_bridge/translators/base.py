@@ -65,7 +65,7 @@ class Translator:
 
     `commands` marks a translator whose outputs command a robot-facing bus (the generic way back
     to LCM): the router writes only the destinations the config's `commands.allow` names, and
-    drops what is older than the route's `max_age_ms` (`viewer_bridge.commands`).
+    drops what is older than the route's `max_age_ms` (`viewer_bridge.config.commands`).
     """
 
     Options: ClassVar[type[TranslatorOptions]] = TranslatorOptions

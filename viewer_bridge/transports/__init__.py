@@ -7,7 +7,7 @@ subclass (see `viewer_bridge.transports.base`).
 
 from __future__ import annotations
 
-from viewer_bridge.registry import Registry
+from viewer_bridge.config.registry import Registry
 from viewer_bridge.transports.base import Transport
 
 TRANSPORTS: Registry[Transport] = Registry(

@@ -38,7 +38,7 @@ from urllib.parse import urlencode
 
 from pydantic import Field, field_validator
 
-from viewer_bridge.commands import CommandPolicy
+from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, TransportUnavailable
 from viewer_bridge.extras import missing
 from viewer_bridge.formats.foxglove.schema import schema

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from viewer_bridge.config.mappings import ShapeRule
 from viewer_bridge.formats.ros import MARKER_ARRAY, POSE_ARRAY, TF_MESSAGE
 from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, cdr_string, time_parts
 from viewer_bridge.formats.ros.markers import (
@@ -25,7 +26,6 @@ from viewer_bridge.formats.ros.markers import (
 from viewer_bridge.formats.ros.messages import make
 from viewer_bridge.formats.ros.tables import TABLES
 from viewer_bridge.formats.ros.tf import FrameNames
-from viewer_bridge.mappings import ShapeRule
 from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene
 from viewer_bridge.model.pose_math import pose_rows_xyzw
 from viewer_bridge.model.scene import Geometry, LinkPoses, Pose, Scene, Shape, link_poses_from_xyzw

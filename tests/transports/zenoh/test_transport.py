@@ -33,7 +33,7 @@ from tests.zenoh_peers import (
     decode,
     free_lcm_url,
 )
-from viewer_bridge.config import load_config
+from viewer_bridge.config.bridge import load_config
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.model.scene import Box, Geometry, Link, LinkPoses, Scene

@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
+from viewer_bridge.config.mappings import FormatTables
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec import GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, Buffer, LcmMessage
-from viewer_bridge.mappings import FormatTables
 from viewer_bridge.model.scene import (
     FileContents,
     Geometry,

@@ -19,9 +19,9 @@ import numpy as np
 import pyarrow as pa
 import rerun as rr
 
+from viewer_bridge.config.mappings import FormatTables, ShapeRule
 from viewer_bridge.errors import SceneError
 from viewer_bridge.formats.rerun.chunks import entity_path, static_batch
-from viewer_bridge.mappings import FormatTables, ShapeRule
 from viewer_bridge.model.scene import (
     Capsule,
     Geometry,

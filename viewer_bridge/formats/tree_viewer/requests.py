@@ -16,8 +16,8 @@ import numpy as np
 import numpy.typing as npt
 import orjson
 
+from viewer_bridge.config.mappings import FormatTables
 from viewer_bridge.formats.tree_viewer.envelope import Request, encode, envelope
-from viewer_bridge.mappings import FormatTables
 from viewer_bridge.model.scene import (
     FloatArray,
     Geometry,

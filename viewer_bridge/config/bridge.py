@@ -35,14 +35,14 @@ from pydantic import (
     model_validator,
 )
 
-from viewer_bridge.commands import CommandPolicy
+from viewer_bridge.config.commands import CommandPolicy
+from viewer_bridge.config.resources import data_dir
+from viewer_bridge.config.yamldoc import KeyPath, YamlDocument
 from viewer_bridge.errors import ConfigError, InvalidName, UnknownName
-from viewer_bridge.resources import data_dir
 from viewer_bridge.translators import TRANSLATORS, Translator, TranslatorOptions
 from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import MessageType, Transport, TransportSettings
 from viewer_bridge.transports.ros_names import ChannelNames, name_token
-from viewer_bridge.yamldoc import KeyPath, YamlDocument
 
 
 class _Strict(BaseModel):
