@@ -22,8 +22,8 @@ from tests.formats.ign import oracle as ign_oracle
 from tests.formats.ros import oracle as ros_oracle
 from tests.formats.tree_viewer import oracle as tree_oracle
 from viewer_bridge import convert
-from viewer_bridge.demo import DEMO_MESH, demo_poses, demo_scene
 from viewer_bridge.errors import DecodeError, SceneError
+from viewer_bridge.examples.demo import DEMO_MESH, demo_poses, demo_scene
 from viewer_bridge.examples.scenes import demo_contact_results
 from viewer_bridge.formats import ros
 from viewer_bridge.formats.drake.draw import DrawDecoder

@@ -93,7 +93,7 @@ NOT_RUN: list[tuple[str, str]] = [
      "runs the same commands against one"),
     (r"&\s*$", "starts a background process for the lines after it (docs/GZ_PEER.md)"),
     (r"\bcolcon build\b", "builds a workspace against a ROS 2 install (none here: the venv has its wheels): "
-     "tests/test_ros_interfaces.py builds generated packages and a C++ one with colcon against the wheels"),
+     "tests/ros_build/test_interfaces.py builds generated packages and a C++ one with colcon against the wheels"),
     (r"^rerun\b", "opens Rerun's viewer window: tests/transports/test_rerun_web.py opens its web viewer in Chromium"),
 ]  # fmt: skip
 

@@ -12,7 +12,7 @@ import pytest
 from tests.conftest import lcm_url
 from viewer_bridge import convert
 from viewer_bridge.errors import BridgeError, MissingExtra
-from viewer_bridge.extras import EXTRAS, missing, require
+from viewer_bridge.util.extras import EXTRAS, missing, require
 
 # (the module made missing, the command line's arguments, the extra the message must name)
 COMMANDS = [

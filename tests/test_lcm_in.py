@@ -24,8 +24,8 @@ from tests.conftest import lcm_url
 from tests.peers import BridgeProcess, RosProbe, wait_for
 from tests.test_router import LcmRecorder
 from tests.translators.test_lcm_generic import CORPUS, arm_status, flat, lcmgen_corpus, snake
-from viewer_bridge import ros_interfaces
 from viewer_bridge.lcmcodec.library import TypeLibrary
+from viewer_bridge.ros_build import interfaces as ros_interfaces
 from viewer_bridge.transports.ros2 import message_class
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]

@@ -23,7 +23,7 @@ import pytest
 from tests.conftest import lcm_url
 from tests.test_docs import blocks
 from viewer_bridge import convert
-from viewer_bridge.demo import demo_poses, demo_scene
+from viewer_bridge.examples.demo import demo_poses, demo_scene
 from viewer_bridge.formats.drake.draw import DrawEncoder
 
 # Building the wheel and installing it into a fresh venv may each take up to 900 s.
@@ -34,7 +34,7 @@ HEAVY = ["rclpy", "moderngl", "foxglove", "foxglove_schemas_protobuf", "zenoh", 
 # The README block's input, made with the installed package: the log its tour records
 # (`viewer-bridge demo --url 'file://demo.lcmlog?mode=w'`), here a load and one draw of the demo.
 SETUP = """
-from viewer_bridge.demo import demo_poses, demo_scene
+from viewer_bridge.examples.demo import demo_poses, demo_scene
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.transports.lcm import LcmEvent, write_log

@@ -32,7 +32,6 @@ from collections.abc import Sequence
 from typing import Any, Literal
 
 from viewer_bridge.errors import SceneError
-from viewer_bridge.extras import missing, require
 from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from viewer_bridge.formats.drake.image import read_image_array, unpack
@@ -56,6 +55,7 @@ from viewer_bridge.model.contact import ContactDrawOptions
 from viewer_bridge.model.image import Image, Layout, depth_rep117
 from viewer_bridge.model.scene import LinkPoses, Scene
 from viewer_bridge.model.sim_time import sec_nsec_from_ms
+from viewer_bridge.util.extras import missing, require
 
 # --- reading Drake's messages --------------------------------------------------------------------
 

@@ -186,7 +186,7 @@ def test_a_user_mistake_stays_one_line_under_debug(tmp_path: Path) -> None:
 
 def demo_log(path: Path, draws: int) -> Path:
     """A log of the demo scene: its load, then `draws` draws at 60 Hz."""
-    from viewer_bridge.demo import demo_poses, demo_scene
+    from viewer_bridge.examples.demo import demo_poses, demo_scene
     from viewer_bridge.formats.drake.draw import DrawEncoder
     from viewer_bridge.formats.drake.load import load_from_scene
 

@@ -20,8 +20,8 @@ from tests.conftest import Capture
 from tests.formats import load_outputs, values
 from tests.formats.ros import oracle as ros_oracle
 from tests.strategies import link_poses, poses, scenes
-from viewer_bridge.demo import TETRAHEDRON_OBJ
 from viewer_bridge.errors import SceneError
+from viewer_bridge.examples.demo import TETRAHEDRON_OBJ
 from viewer_bridge.formats import ros
 from viewer_bridge.formats.ign.model import model, model_bytes, model_v, model_v_bytes
 from viewer_bridge.formats.ros.markers import marker_array_cdr

@@ -56,8 +56,8 @@ from viewer_bridge.lcmcodec.library import LcmType, TypeLibrary
 from viewer_bridge.lcmcodec.rosmsg import map_to_ros
 from viewer_bridge.lcmcodec.schema import check_references, parse_lcm
 from viewer_bridge.model.skipped import collecting
-from viewer_bridge.render import Camera
-from viewer_bridge.render_server import BadRequest, parse_form, render_request
+from viewer_bridge.render.renderer import Camera
+from viewer_bridge.render.server import BadRequest, parse_form, render_request
 from viewer_bridge.translators.drake_ign import IgnPoseVToDrakeDraw
 from viewer_bridge.translators.drake_image import DrakeImagesToFoxglove, DrakeImagesToRos, RosImageToDrake
 from viewer_bridge.translators.tree_viewer import TreeViewerServer

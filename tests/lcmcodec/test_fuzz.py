@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from tests.formats.drake.oracle import contact_results_to_lcm
-from viewer_bridge.demo import demo_poses, demo_scene
 from viewer_bridge.errors import DecodeError
+from viewer_bridge.examples.demo import demo_poses, demo_scene
 from viewer_bridge.examples.scenes import demo_contact_results
 from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder

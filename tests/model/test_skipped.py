@@ -15,7 +15,7 @@ import numpy as np
 from PIL import Image
 
 from tests.cli.test_cli import run
-from viewer_bridge.demo import demo_poses, demo_scene
+from viewer_bridge.examples.demo import demo_poses, demo_scene
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.model.scene import Geometry, Link, MeshFile, Scene
@@ -112,7 +112,7 @@ def test_convert_to_foxglove_writes_the_scene_less_the_missing_mesh(tmp_path: Pa
 
 
 def test_snapshot_draws_every_other_geometry_and_names_the_missing_mesh(tmp_path: Path) -> None:
-    from viewer_bridge.snapshot import latest_scene, snapshot
+    from viewer_bridge.render.snapshot import latest_scene, snapshot
 
     out = tmp_path / "gone.png"
     log = recording(tmp_path)

@@ -141,7 +141,7 @@ def test_tree_viewer_gets_arrows_as_lines_with_heads() -> None:
 def test_snapshot_draws_arrows_and_pressure_bands() -> None:
     from PIL import Image
 
-    from viewer_bridge.snapshot import snapshot, with_contacts
+    from viewer_bridge.render.snapshot import snapshot, with_contacts
 
     results = demo_contact_results(4, (20, 20))
     scene = with_contacts(Scene(), results)

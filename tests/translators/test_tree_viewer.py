@@ -21,8 +21,8 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from tests.conftest import lcm_url
 from tests.peers import BridgeProcess, RosProbe, write_config
-from viewer_bridge.demo import DEMO_MESH
 from viewer_bridge.errors import BridgeError
+from viewer_bridge.examples.demo import DEMO_MESH
 from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.load import decode_load, load_from_scene
 from viewer_bridge.formats.tree_viewer import envelope

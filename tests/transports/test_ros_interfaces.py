@@ -19,8 +19,8 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_typestore
 
 from tests.peers import RosProbe
-from viewer_bridge import ros_interfaces
 from viewer_bridge.cli.main import main
+from viewer_bridge.ros_build import interfaces as ros_interfaces
 
 pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
 

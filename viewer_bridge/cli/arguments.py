@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import NoReturn
 
 from viewer_bridge.errors import UsageError
-from viewer_bridge.lcm_url import log_to_write
+from viewer_bridge.transports.lcm_url import log_to_write
 
 
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):

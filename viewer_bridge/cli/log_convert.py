@@ -39,7 +39,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from viewer_bridge.config.bridge import BridgeConfig, Endpoint, Route
 from viewer_bridge.errors import ConvertError, Interrupted
 from viewer_bridge.router import Router
-from viewer_bridge.status import Snapshot, held_of, routes_of
+from viewer_bridge.router.status import Snapshot, held_of, routes_of
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import LCM, MessageType, Received

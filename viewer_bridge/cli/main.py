@@ -37,15 +37,15 @@ from viewer_bridge.cli.dump import as_json, as_text
 from viewer_bridge.config.bridge import BUILTIN_CONFIGS, BridgeConfig, load_config
 from viewer_bridge.config.commands import COMMAND_FLAG
 from viewer_bridge.config.mappings import format_names, reference_markdown
-from viewer_bridge.demo import run_demo
 from viewer_bridge.errors import BridgeError, ConfigError, Interrupted, SceneError, UsageError
 from viewer_bridge.examples import EXAMPLES, drake_missing, run_example
-from viewer_bridge.lcm_url import log_to_write
+from viewer_bridge.examples.demo import run_demo
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.model.skipped import collecting
 from viewer_bridge.router import Router
-from viewer_bridge.status import ConsoleLog, LiveTable, LogLines, StatusView
+from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines, StatusView
 from viewer_bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
+from viewer_bridge.transports.lcm_url import log_to_write
 from viewer_bridge.transports.origins import ANY_ORIGIN, is_origin_pattern
 from viewer_bridge.transports.ros_names import ros_argument_problem
 
@@ -462,7 +462,7 @@ def _convert(args: argparse.Namespace) -> int:
 
 
 def _snapshot(args: argparse.Namespace) -> int:
-    from viewer_bridge.snapshot import (  # OpenGL only for this command
+    from viewer_bridge.render.snapshot import (  # OpenGL only for this command
         events_from,
         latest_contacts,
         latest_scene,
@@ -509,7 +509,7 @@ def _origin(text: str) -> str:
 
 
 def _serve_render(args: argparse.Namespace) -> int:
-    from viewer_bridge.render_server import make_server  # OpenGL only for this command
+    from viewer_bridge.render.server import make_server  # OpenGL only for this command
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
     try:
@@ -535,7 +535,7 @@ def _serve_render(args: argparse.Namespace) -> int:
 
 
 def _ros_interfaces(args: argparse.Namespace) -> int:
-    from viewer_bridge import ros_interfaces
+    from viewer_bridge.ros_build import interfaces as ros_interfaces
 
     say = lambda line: print(line, file=sys.stderr)  # noqa: E731
     if args.action == "generate":  # the LCM types' packages: the project's and Drake's, and --lcm-types'

@@ -19,7 +19,7 @@ from importlib.metadata import entry_points
 from typing import Generic, TypeVar, cast
 
 from viewer_bridge.errors import PluginError, UnknownName
-from viewer_bridge.extras import missing
+from viewer_bridge.util.extras import missing
 
 Entry = TypeVar("Entry")
 

@@ -36,7 +36,7 @@ from pydrake.multibody.tree import SpatialInertia
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
-from viewer_bridge.demo import DEMO_MESH, TETRAHEDRON_OBJ
+from viewer_bridge.examples.demo import DEMO_MESH, TETRAHEDRON_OBJ
 
 TEST_ROLES = (Role.kIllustration, Role.kProximity)
 EVERY_ROLE = (Role.kIllustration, Role.kProximity, Role.kPerception)

@@ -23,11 +23,11 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import GltfError
-from viewer_bridge.lru import SizedLru
 from viewer_bridge.model.lowering import triangle_mesh
 from viewer_bridge.model.pose_math import rotation_matrix
 from viewer_bridge.model.scene import FloatArray, Geometry, Link, Pose, Scene, TriangleMesh
 from viewer_bridge.model.skipped import per_geometry
+from viewer_bridge.util.lru import SizedLru
 
 _COMPONENTS = {5120: "i1", 5121: "u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
 _WIDTHS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}

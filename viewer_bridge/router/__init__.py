@@ -36,7 +36,7 @@ from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.router.echoes import Echoes
 from viewer_bridge.router.flow import InlineBudget
 from viewer_bridge.router.runner import PublisherFor, RouteRunner
-from viewer_bridge.status import LogLines, StatusView, counted
+from viewer_bridge.router.status import LogLines, StatusView, counted
 from viewer_bridge.translators import TRANSLATORS, LoadCache, Output, Translator
 from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import (

@@ -40,7 +40,6 @@ from pydantic import Field, field_validator
 
 from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, TransportUnavailable
-from viewer_bridge.extras import missing
 from viewer_bridge.formats.foxglove.schema import schema
 from viewer_bridge.transports.base import (
     CDR,
@@ -58,6 +57,7 @@ from viewer_bridge.transports.base import (
 from viewer_bridge.transports.foxglove_clients import CLIENT_ENCODINGS, MAX_CLIENT_CHANNELS, ClientPublishing
 from viewer_bridge.transports.foxglove_front import MAX_CLIENT_MESSAGE, MAX_CLIENTS, SubprotocolFront
 from viewer_bridge.transports.origins import FOXGLOVE_APPS, Origins, is_origin_pattern
+from viewer_bridge.util.extras import missing
 
 try:
     import foxglove

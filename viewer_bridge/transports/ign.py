@@ -33,7 +33,6 @@ from collections import Counter
 from collections.abc import Callable, Mapping
 
 from viewer_bridge.errors import InvalidName
-from viewer_bridge.extras import missing
 from viewer_bridge.formats.ign.schema import PACKAGES, Package, type_name, wire_type_name
 from viewer_bridge.transports.base import (
     PROTOBUF,
@@ -48,6 +47,7 @@ from viewer_bridge.transports.base import (
 )
 from viewer_bridge.transports.ign_discovery import HEARTBEAT_S, Callback, Discovery
 from viewer_bridge.transports.ign_environment import NodeEnvironment, read_environment
+from viewer_bridge.util.extras import missing
 
 try:
     import zmq

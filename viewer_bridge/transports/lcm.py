@@ -22,8 +22,8 @@ from pathlib import Path
 import lcm
 
 from viewer_bridge.errors import LogError, TransportUnavailable
-from viewer_bridge.lcm_url import log_to_write
 from viewer_bridge.transports import base
+from viewer_bridge.transports.lcm_url import log_to_write
 
 _log = logging.getLogger("viewer_bridge")
 # LCM's default (ttl=0 never leaves the host), or LCM_DEFAULT_URL as LCM's own tools read it, so

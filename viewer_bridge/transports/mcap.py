@@ -30,7 +30,6 @@ from typing import Literal, Protocol
 from rosbags.typesys import Stores, get_typestore
 
 from viewer_bridge.errors import InvalidName, TransportUnavailable
-from viewer_bridge.extras import missing
 from viewer_bridge.transports.base import (
     CDR,
     PROTOBUF,
@@ -45,6 +44,7 @@ from viewer_bridge.transports.base import (
     TransportSettings,
 )
 from viewer_bridge.transports.foxglove import FoxgloveContext, carried, require_schemas
+from viewer_bridge.util.extras import missing
 
 try:
     import foxglove

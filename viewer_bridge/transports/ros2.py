@@ -4,7 +4,7 @@ Publishers take CDR bytes (rclpy publishes them as they are) and subscriptions d
 bytes, so nothing here builds or reads a message: the formats do that. rclpy still needs a type's
 generated type support to publish it: a type whose interface package is missing, but whose
 definitions the router was given (`Shared.ros_definitions`), is built in the background
-(`viewer_bridge.ros_builds`); until it is importable its route's messages are dropped and counted
+(`viewer_bridge.ros_build.background`); until it is importable its route's messages are dropped and counted
 as `waiting_for_build`, then published. A source name that is a regular expression is matched
 against the graph once a second and subscribed as topics of the wanted type appear; a pattern of
 type `*` takes each topic whose type is a generated LCM type the router knows, building its
@@ -29,8 +29,7 @@ from typing import TYPE_CHECKING, Any
 from pydantic import field_validator
 
 from viewer_bridge.errors import Held, InvalidName, TransportUnavailable
-from viewer_bridge.extras import missing
-from viewer_bridge.ros_builds import BuildState, InterfaceBuilder
+from viewer_bridge.ros_build.background import BuildState, InterfaceBuilder
 from viewer_bridge.transports.base import (
     CDR,
     CallPublisher,
@@ -46,6 +45,7 @@ from viewer_bridge.transports.base import (
 )
 from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem, topic_problem
 from viewer_bridge.transports.topic_types import ANY, TopicTypes
+from viewer_bridge.util.extras import missing
 
 if TYPE_CHECKING:
     from rclpy.node import Node

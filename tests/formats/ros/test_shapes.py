@@ -13,8 +13,8 @@ from tests.formats import oracle
 from tests.formats.oracle import close
 from tests.formats.ros import oracle as ros_oracle
 from tests.optional import peer
-from viewer_bridge.demo import TETRAHEDRON_OBJ
 from viewer_bridge.errors import EncodeError, SceneError
+from viewer_bridge.examples.demo import TETRAHEDRON_OBJ
 from viewer_bridge.formats import ros
 from viewer_bridge.formats.ros.messages import from_cdr, from_rclpy, make, to_cdr, to_rclpy
 from viewer_bridge.formats.ros.poses import PoseArrayEncoder

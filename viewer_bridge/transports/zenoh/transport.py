@@ -27,7 +27,6 @@ from typing import TYPE_CHECKING, Any, Literal
 from pydantic import Field, ValidationInfo, field_validator
 
 from viewer_bridge.errors import InvalidName, TransportUnavailable
-from viewer_bridge.extras import missing
 from viewer_bridge.transports.base import (
     CDR,
     LCM,
@@ -44,6 +43,7 @@ from viewer_bridge.transports.base import (
 from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem
 from viewer_bridge.transports.topic_types import ANY, TopicTypes
 from viewer_bridge.transports.zenoh import keys
+from viewer_bridge.util.extras import missing
 
 if TYPE_CHECKING:
     import zenoh

@@ -20,8 +20,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from viewer_bridge import ros_interfaces
 from viewer_bridge.errors import BridgeError
+from viewer_bridge.ros_build import interfaces as ros_interfaces
 
 __all__ = ["BuildState", "BuildStatus", "InterfaceBuilder"]
 

@@ -1,4 +1,4 @@
-"""Interface packages built while the bridge runs (viewer_bridge/ros_builds.py), through the router.
+"""Interface packages built while the bridge runs (viewer_bridge/ros_build/background.py), through the router.
 
 A route to ROS 2 whose type is not built waits (its messages counted as `waiting_for_build`) while
 another route keeps flowing; once the package is built in the background the route publishes, and
@@ -23,10 +23,10 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from tests.conftest import lcm_url
 from tests.peers import RosProbe, wait_for
 from tests.ros_interfaces_corpus import ROUTER, ROUTER_DEFINITIONS
-from viewer_bridge import ros_interfaces
 from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import RosInterfaceError
-from viewer_bridge.ros_builds import BuildState, InterfaceBuilder
+from viewer_bridge.ros_build import interfaces as ros_interfaces
+from viewer_bridge.ros_build.background import BuildState, InterfaceBuilder
 from viewer_bridge.router import Router
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.translators.base import Output, Outputs, Translator

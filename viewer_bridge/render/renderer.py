@@ -22,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from viewer_bridge.extras import missing
 from viewer_bridge.formats.gltf import GltfScene
-from viewer_bridge.lru import SizedLru
 from viewer_bridge.model.scene import FloatArray
+from viewer_bridge.util.extras import missing
+from viewer_bridge.util.lru import SizedLru
 
 try:
     import moderngl

@@ -14,8 +14,8 @@ import pytest
 
 from viewer_bridge.formats.gltf import read_gltf, write_gltf
 from viewer_bridge.model.scene import Box, Capsule, Geometry, Link, Pose, Scene, Sphere
-from viewer_bridge.render import Camera, Renderer
-from viewer_bridge.render_server import BadRequest, parse_form
+from viewer_bridge.render.renderer import Camera, Renderer
+from viewer_bridge.render.server import BadRequest, parse_form
 
 
 def email_parse_form(content_type: str, body: bytes) -> dict[str, bytes]:

@@ -158,7 +158,7 @@ def sample_gltf() -> bytes:
 
 @pytest.fixture(scope="module")
 def renderer() -> Any:
-    from viewer_bridge.render_server import RenderThread
+    from viewer_bridge.render.server import RenderThread
 
     return RenderThread()
 
@@ -166,7 +166,7 @@ def renderer() -> Any:
 def test_a_good_request_renders_the_label(renderer: Any) -> None:
     from PIL import Image
 
-    from viewer_bridge.render_server import render_request
+    from viewer_bridge.render.server import render_request
 
     png = render_request(form(sample_gltf()), renderer.render)
     pixels = np.array(Image.open(io.BytesIO(png)))
@@ -187,7 +187,7 @@ def test_a_good_request_renders_the_label(renderer: Any) -> None:
     ],
 )
 def test_bad_forms_get_a_400_reason(renderer: Any, overrides: dict[str, Any], reason: str) -> None:
-    from viewer_bridge.render_server import BadRequest, render_request
+    from viewer_bridge.render.server import BadRequest, render_request
 
     with pytest.raises(BadRequest, match=reason):
         render_request(form(sample_gltf(), **overrides), renderer.render)
@@ -228,7 +228,7 @@ def mutate(document: dict[str, Any], rng: random.Random) -> dict[str, Any]:
 def test_10000_mutated_documents_and_forms_get_only_400s(renderer: Any) -> None:
     import resource
 
-    from viewer_bridge.render_server import BadRequest, render_request
+    from viewer_bridge.render.server import BadRequest, render_request
 
     rng = random.Random(11)
     base = json.loads(sample_gltf())
@@ -255,8 +255,8 @@ def test_10000_mutated_documents_and_forms_get_only_400s(renderer: Any) -> None:
 def test_snapshot_of_a_drake_log_shows_the_scene(drake_log: Path, tmp_path: Path) -> None:
     from PIL import Image
 
-    from viewer_bridge.render import Camera
-    from viewer_bridge.snapshot import latest_scene, look_at
+    from viewer_bridge.render.renderer import Camera
+    from viewer_bridge.render.snapshot import latest_scene, look_at
     from viewer_bridge.transports.lcm import read_log
 
     out = tmp_path / "snap.png"
@@ -311,7 +311,7 @@ def test_the_http_endpoint_answers_400_with_a_reason(render_url: str) -> None:
     assert caught.value.code == 400 and b"unsupported image_type 'normals'" in caught.value.read()
     document = json.loads(sample_gltf())
     document["buffers"][0]["uri"] = "file:///etc/passwd"
-    from viewer_bridge.render_server import BadRequest, parse_form, render_request
+    from viewer_bridge.render.server import BadRequest, parse_form, render_request
 
     with pytest.raises(BadRequest, match="only embedded data: URIs"):
         render_request(form(json.dumps(document).encode()), lambda *args: np.zeros((1, 1, 4)))

@@ -25,11 +25,11 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from tests.lcmcodec.corpus import CORPUS, expected, generate_lcmgen
 from tests.peers import RosProbe
 from tests.ros_interfaces_corpus import BASE, DEFINITIONS, MAIN
-from viewer_bridge import ros_interfaces
 from viewer_bridge.cli.main import main
 from viewer_bridge.errors import RosInterfaceError
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.lcmcodec.schema import Member, StructDef
+from viewer_bridge.ros_build import interfaces as ros_interfaces
 from viewer_bridge.transports.ros2 import message_class
 
 TYPES = sorted(DEFINITIONS)

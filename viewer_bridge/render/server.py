@@ -27,7 +27,7 @@ from PIL import Image
 
 from viewer_bridge.errors import GltfError
 from viewer_bridge.formats.gltf import read_gltf
-from viewer_bridge.render import Camera, Renderer, depth_mm, rgb8
+from viewer_bridge.render.renderer import Camera, Renderer, depth_mm, rgb8
 from viewer_bridge.transports.origins import OriginGate, Origins
 
 log = logging.getLogger("viewer_bridge")

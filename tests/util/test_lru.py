@@ -1,8 +1,8 @@
-"""viewer_bridge.lru: a map bounded by the sizes of its values."""
+"""viewer_bridge.util.lru: a map bounded by the sizes of its values."""
 
 from __future__ import annotations
 
-from viewer_bridge.lru import SizedLru
+from viewer_bridge.util.lru import SizedLru
 
 
 def test_the_least_recently_used_go_first_and_are_handed_back() -> None:

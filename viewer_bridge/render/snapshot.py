@@ -30,7 +30,7 @@ from viewer_bridge.lcmcodec import CONTACT_RESULTS, DRAW, LOAD_ROBOT
 from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene, pressure_colors
 from viewer_bridge.model.lowering import arrow_mesh
 from viewer_bridge.model.scene import FloatArray, Geometry, Line, Link, Scene, TriangleMesh
-from viewer_bridge.render import Camera, Renderer, depth_mm, rgb8
+from viewer_bridge.render.renderer import Camera, Renderer, depth_mm, rgb8
 from viewer_bridge.transports.lcm import LcmEvent, Subscription, read_log
 
 

@@ -17,7 +17,7 @@ from typing import Any
 from rich.console import Console
 
 from tests.conftest import lcm_url
-from viewer_bridge.status import ConsoleLog, LiveTable, LogLines
+from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines
 
 
 def route(messages_in: int, messages_out: int, state: str = "active", **counts: Any) -> dict[str, Any]:
@@ -203,7 +203,7 @@ def test_held_messages_show_once_per_kind_with_their_channels(caplog: Any) -> No
 
 
 def test_counts_are_singular_or_plural() -> None:
-    from viewer_bridge.status import counted
+    from viewer_bridge.router.status import counted
 
     assert [counted(n, "route") for n in (0, 1, 2)] == ["0 routes", "1 route", "2 routes"]
 
