@@ -206,6 +206,18 @@ def _until_logged(url: str, log: Path, mark: bytes) -> None:
 SYNC_CHANNEL = "TEST_SYNC"
 
 
+def read_line(stream: Any, what: str, timeout: float = 60.0) -> str:
+    """The next line a child writes on `stream` (a pipe), within `timeout` seconds, else an
+    AssertionError naming `what` was waited for: a child that hangs before writing it must fail
+    the test, not stall the run (`readline` alone never returns). Read on a thread of its own."""
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.append(stream.readline()), daemon=True)
+    reader.start()
+    reader.join(timeout)
+    assert lines, f"no {what} within {timeout:g} s"
+    return str(lines[0])
+
+
 def publish_until(
     url: str, mark: bytes, received: Callable[[], bool], timeout: float = 120, channel: str = SYNC_CHANNEL
 ) -> None:

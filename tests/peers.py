@@ -86,7 +86,8 @@ class BridgeProcess:
     def __init__(self, *args: str, env: Mapping[str, str] | None = None) -> None:
         # Never a fixed port: bridges may run side by side, and beside a user's own.
         command = [sys.executable, "-m", "viewer_bridge.cli.main", "run", "--set", "foxglove.port=0", *args]
-        self.process = subprocess.Popen(command, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
+        # stdout to nowhere: a pipe nobody reads fills (64 KiB) and then blocks the bridge for good.
+        self.process = subprocess.Popen(command, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env)
         self.lines: list[str] = []
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()

@@ -20,7 +20,7 @@ import drake as drake_lcmtypes
 import pytest
 from rclpy.serialization import serialize_message
 
-from tests.conftest import lcm_url
+from tests.conftest import lcm_url, read_line
 from tests.peers import BridgeProcess, RosProbe, wait_for
 from tests.test_router import LcmRecorder
 from tests.translators.test_lcm_generic import CORPUS, arm_status, flat, lcmgen_corpus, snake
@@ -222,12 +222,12 @@ def test_a_drake_lcm_subscriber_system_receives_a_command_a_ros_node_published()
     try:
         bridge.wait_for_line(" running (")
         assert drake.stdout is not None
-        assert drake.stdout.readline().strip() == "listening"
+        assert read_line(drake.stdout, "'listening' from the Drake subscriber").strip() == "listening"
         publisher = probe.publisher("/lcm_in/IIWA_COMMAND", "drake_lcm_msgs/msg/LcmtIiwaCommand")
         assert probe.wait_for(lambda: publisher.get_subscription_count() >= 1, 90)
         command = iiwa_command(123_456)
         publisher.publish(ros_from_lcm(command, message_class("drake_lcm_msgs/msg/LcmtIiwaCommand")))
-        received = json.loads(drake.stdout.readline())
+        received = json.loads(read_line(drake.stdout, "the command the Drake subscriber received", 90))
         assert drake.wait(timeout=60) == 0
     finally:
         if drake.poll() is None:

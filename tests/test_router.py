@@ -242,7 +242,7 @@ def test_late_subscriber_and_late_bridge_get_the_model(probe: RosProbe, tmp_path
         )  # the model came from the cache
     finally:
         drake.kill()
-        drake.wait()
+        drake.wait(timeout=60)
         recorder.close()
 
 

@@ -24,6 +24,8 @@ import zenoh
 import zenoh.ext
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from tests.conftest import read_line
+
 STORE = get_typestore(Stores.ROS2_JAZZY)
 
 
@@ -94,7 +96,7 @@ class RouterProcess:
             [sys.executable, "-c", _ROUTER_SCRIPT, str(self.port)], stdout=subprocess.PIPE, text=True
         )
         assert self.process.stdout is not None
-        assert self.process.stdout.readline().strip() == "router up"
+        assert read_line(self.process.stdout, "'router up' from the router process").strip() == "router up"
         return time.monotonic()
 
     def kill(self) -> None:

@@ -422,6 +422,50 @@ def test_the_front_serves_each_name_what_it_asked_for() -> None:
 
 
 
+def test_a_client_that_subscribes_before_its_channel_is_stored_is_counted(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The SDK advertises a channel the moment it is made, so a connected client may subscribe
+    before `publisher` has stored it: that subscriber must still be counted, or a lazy route
+    publishing there never wakes for it (one of two /lcm channels missed for good, under load).
+    The delay is injected: the client subscribes, and the SDK reports it, between the two."""
+    from viewer_bridge.transports import foxglove as module
+    from viewer_bridge.transports.base import PROTOBUF, MessageType, Qos
+
+    reported = threading.Event()
+    on_subscribe = module._Listener.on_subscribe
+
+    def reporting(listener: Any, client: Any, channel: Any) -> None:
+        on_subscribe(listener, client, channel)
+        reported.set()
+
+    monkeypatch.setattr(module._Listener, "on_subscribe", reporting)
+    transport = module.FoxgloveTransport(module.FoxgloveSettings(port=0))
+    client = FoxgloveClient(transport.port)
+    make_channel = module.FoxgloveContext.channel
+
+    def subscribed_as_made(context: Any, topic: str, message_type: MessageType, name: str) -> Any:
+        made = make_channel(context, topic, message_type, name)
+        client.subscribe(topic)  # waits for the advertisement, then subscribes
+        assert reported.wait(60), f"the SDK never reported the subscription to {topic}: {client.log()}"
+        return made
+
+    monkeypatch.setattr(module.FoxgloveContext, "channel", subscribed_as_made)
+    try:
+        publisher = transport.publisher("/t", MessageType("foxglove.FrameTransforms", PROTOBUF), Qos())
+        assert publisher.subscriber_count() == 1
+        publisher.publish(FrameTransforms().SerializeToString())
+        assert client.pump(60, lambda: "/t" in client.messages), client.log()
+        client.close()
+        client = None
+        deadline = time.monotonic() + 60  # the SDK reports the client gone on its own thread
+        while publisher.subscriber_count() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert publisher.subscriber_count() == 0
+    finally:
+        if client is not None:
+            client.close()
+        transport.close()
+
+
 def test_without_renaming_only_the_sdks_name_is_served() -> None:
     from websockets.exceptions import InvalidStatus
 

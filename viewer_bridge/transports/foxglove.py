@@ -176,16 +176,46 @@ class FoxgloveSettings(TransportSettings):
         return entries
 
 
+class _Subscribers:
+    """Which clients subscribe to each Foxglove channel, by channel id.
+
+    Kept apart from our publishers because the SDK advertises a channel the moment it is made:
+    a connected client may subscribe, and the SDK call `on_subscribe`, before `publisher` has
+    stored the channel it just made. Counted here, that subscription is not lost (a lazy route
+    asking its publisher would otherwise hear "nobody" for as long as that client stays).
+    """
+
+    def __init__(self) -> None:
+        self._clients: dict[int, set[int]] = {}  # channel id -> client ids
+        self._lock = threading.Lock()  # the SDK calls on its threads, routes ask on theirs
+
+    def add(self, channel_id: int, client: int) -> None:
+        with self._lock:
+            self._clients.setdefault(channel_id, set()).add(client)
+
+    def discard(self, channel_id: int, client: int) -> None:
+        with self._lock:
+            clients = self._clients.get(channel_id)
+            if clients is not None:
+                clients.discard(client)
+                if not clients:
+                    del self._clients[channel_id]
+
+    def count(self, channel_id: int) -> int:
+        with self._lock:
+            return len(self._clients.get(channel_id, ()))
+
+
 class _Channel:
     """A publisher on one Foxglove channel: its subscribers, and its last message when latched."""
 
-    def __init__(self, channel: foxglove.Channel, latched: bool) -> None:
+    def __init__(self, channel: foxglove.Channel, latched: bool, subscribers: _Subscribers) -> None:
         self.channel = channel
+        self.id = channel.id()
         self.latched = latched
         self.last: bytes | None = None
-        self.clients: set[int] = set()
         self.unsent = 0  # a channel logs to every client and file of its context: nothing stays unsent
-        self._lock = threading.Lock()
+        self._subscribers = subscribers
 
     def publish(self, data: bytes) -> None:
         if self.latched:
@@ -193,34 +223,29 @@ class _Channel:
         self.channel.log(data)
 
     def subscriber_count(self) -> int:
-        return len(self.clients)
+        return self._subscribers.count(self.id)
 
-    def subscribed(self, client: int) -> None:
-        with self._lock:
-            self.clients.add(client)
-        if self.last is not None:  # the late client gets the current state; others see it again
+    def subscribed(self) -> None:
+        """A client subscribed: it gets the current state (others see it again)."""
+        if self.last is not None:
             self.channel.log(self.last)
-
-    def unsubscribed(self, client: int) -> None:
-        with self._lock:
-            self.clients.discard(client)
 
 
 class _Listener(ServerListener):
     """Clients subscribing to and unsubscribing from channels (the SDK calls it on its threads)."""
 
-    def __init__(self, channels: dict[int, _Channel]) -> None:
+    def __init__(self, channels: dict[int, _Channel], subscribers: _Subscribers) -> None:
         self._channels = channels
+        self._subscribers = subscribers
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
+        self._subscribers.add(channel.id, client.id)  # counted even before `publisher` stores the channel
         found = self._channels.get(channel.id)
-        if found is not None:
-            found.subscribed(client.id)
+        if found is not None:  # not yet stored: nothing was published on it, nothing to send again
+            found.subscribed()
 
     def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
-        found = self._channels.get(channel.id)
-        if found is not None:
-            found.unsubscribed(client.id)
+        self._subscribers.discard(channel.id, client.id)
 
 
 class FoxgloveTransport(Transport):
@@ -238,6 +263,7 @@ class FoxgloveTransport(Transport):
         that publishes anyway is told why."""
         super().__init__(settings)
         self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
+        self._subscribers = _Subscribers()
         self.context = FoxgloveContext() if context is None else context
         self.clients = ClientPublishing(settings.max_client_channels) if settings.client_publish else None
         publishing = {"capabilities": [Capability.ClientPublish], "supported_encodings": list(CLIENT_ENCODINGS)}
@@ -247,7 +273,7 @@ class FoxgloveTransport(Transport):
                 host="127.0.0.1",  # behind the front, which holds the public port
                 port=0,
                 context=self.context.context,
-                server_listener=_Listener(self._channels),
+                server_listener=_Listener(self._channels, self._subscribers),
                 **(publishing if self.clients is not None and accept_commands else {}),  # type: ignore[arg-type]
             )
         except Exception as error:  # the SDK raises its own error types, e.g. for a port in use
@@ -299,7 +325,7 @@ class FoxgloveTransport(Transport):
 
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         channel = self.context.channel(name, message_type, "foxglove")
-        publisher = self._channels[channel.id()] = _Channel(channel, qos.latched)
+        publisher = self._channels[channel.id()] = _Channel(channel, qos.latched, self._subscribers)
         return publisher
 
     @property

@@ -60,7 +60,7 @@ class Matching:
         def declare(session: zenoh.Session) -> None:
             asker = session.declare_publisher(key)
             link.hold(asker)
-            link.hold(asker.declare_matching_listener(self._changed))
+            link.hold(asker.declare_matching_listener(link.calling(self._changed)))
 
         link.when_open(declare)
 
@@ -75,7 +75,7 @@ class LastValues:
         self.values: dict[str, bytes] = {}  # key -> payload; a dict store per message
 
         def declare(session: zenoh.Session) -> None:
-            link.hold(session.declare_queryable(f"{prefix}/**", self._answer))
+            link.hold(session.declare_queryable(f"{prefix}/**", link.calling(self._answer)))
 
         link.when_open(declare)
 

@@ -18,7 +18,7 @@ import json
 import logging
 import threading
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 import zenoh
 
@@ -88,11 +88,19 @@ def _reason(error: zenoh.ZError) -> str:
 
 
 Declare = Callable[[zenoh.Session], None]
+Event = TypeVar("Event")
+_CALLBACKS_DONE_S = 30.0  # how long `close` waits for callbacks still running (a stall, a busy core)
 
 
 class Link:
     """One Zenoh session: opened at `start`, or by a thread that tries every `retry_s` seconds
-    until it opens. What is declared through `when_open` is declared as soon as it can be."""
+    until it opens. What is declared through `when_open` is declared as soon as it can be.
+
+    Zenoh calls back on its own (Rust) threads. One that enters Python while the interpreter
+    finalises is ended by `pthread_exit`, which cannot unwind through Rust: the process aborts
+    (SIGABRT, "FATAL: exception not rethrown") after a clean stop. So every callback goes through
+    `calling`, and `close` ends them in order, before the interpreter exits: no new call, the
+    running ones finished, every entity undeclared, then the session closed."""
 
     def __init__(self, config: Callable[[], zenoh.Config], where: str, retry_s: float = 1.0) -> None:
         self._config = config  # a new Config per attempt: opening consumes it
@@ -104,6 +112,8 @@ class Link:
         self._transports: set[str] = set()
         self._lock = threading.Lock()
         self._stop = threading.Event()
+        self._calls = threading.Condition()  # guards `_running`, signals when a callback returns
+        self._running = 0  # callbacks inside Python now
         self._thread = threading.Thread(target=self._keep_opening, name="zenoh open", daemon=True)
 
     @property
@@ -112,7 +122,26 @@ class Link:
         return bool(self._transports)
 
     def hold(self, handle: object) -> None:
-        self._held.append(handle)
+        with self._lock:
+            self._held.append(handle)
+
+    def calling(self, callback: Callable[[Event], None]) -> Callable[[Event], None]:
+        """`callback` as Zenoh is to call it: not at all once `close` began, and counted while it
+        runs, so that `close` can wait for it."""
+
+        def guarded(event: Event) -> None:
+            with self._calls:
+                if self._stop.is_set():
+                    return
+                self._running += 1
+            try:
+                callback(event)
+            finally:
+                with self._calls:
+                    self._running -= 1
+                    self._calls.notify_all()
+
+        return guarded
 
     def when_open(self, declare: Declare) -> None:
         """Run `declare(session)` now if the session is open, else once it opens."""
@@ -143,7 +172,7 @@ class Link:
         if self._stop.is_set():  # closed while this attempt was under way
             session.close()  # type: ignore[no-untyped-call]
             return True
-        listener = session.info.declare_transport_events_listener(self._on_transport, history=True)
+        listener = session.info.declare_transport_events_listener(self.calling(self._on_transport), history=True)
         with self._lock:
             self.session = session
             self._held.append(listener)
@@ -167,15 +196,31 @@ class Link:
             _log.warning("Zenoh: cannot declare on %s: %s", self.where, error)
 
     def close(self) -> None:
-        self._stop.set()
+        """Stop delivering, let the running callbacks finish, undeclare, close the session."""
+        with self._calls:
+            self._stop.set()  # under the lock: no callback starts after this
         if self._thread.is_alive():
             self._thread.join(timeout=2)
+        with self._calls:
+            if not self._calls.wait_for(lambda: self._running == 0, timeout=_CALLBACKS_DONE_S):
+                _log.warning("Zenoh: %d callbacks still running at close (%s)", self._running, self.where)
         with self._lock:
             session, self.session = self.session, None
-            self._held.clear()
+            held, self._held = self._held, []
+        for handle in reversed(held):  # explicitly, not whenever the garbage collector drops them
+            _undeclare(handle)
         if session is not None:
             session.close()  # type: ignore[no-untyped-call]
 
+
+def _undeclare(handle: object) -> None:
+    undeclare = getattr(handle, "undeclare", None)
+    if undeclare is None:
+        return
+    try:
+        undeclare()
+    except zenoh.ZError as error:  # e.g. the router gone meanwhile: closing the session ends it anyway
+        _log.debug("Zenoh: undeclaring %r at close: %s", handle, error)
 
 __all__ = [
     "Declare",

@@ -287,7 +287,7 @@ class ZenohTransport(Transport):
         resolved, topic_type = self.resolve(topic), _topic_type(message_type)
         key = keys.data_key(self.domain, resolved, topic_type)
         token = self._token(keys.SUBSCRIBER, resolved, topic_type, qos)
-        on_sample = entities.ros_receiver(topic, message_type, delivers, self._errors)
+        on_sample = self.link.calling(entities.ros_receiver(topic, message_type, delivers, self._errors))
 
         def declare(session: zenoh.Session) -> None:
             self.link.hold(entities.declare_subscriber(session, key, qos, on_sample))
@@ -324,17 +324,18 @@ class ZenohTransport(Transport):
         graph_key = f"{keys.ADMIN_SPACE}/{self.domain}/**"
         prefix = self.settings.lcm_prefix
         latched = self._channels_latched
+        on_graph, on_lcm = self.link.calling(self.graph.on_sample), self.link.calling(self._on_lcm)
 
         def declare(session: zenoh.Session) -> None:
             token = dataclasses.replace(node_token, zid=str(session.zid()))
             self.link.hold(session.liveliness().declare_token(token.key()))
             self.link.hold(
-                session.liveliness().declare_subscriber(graph_key, self.graph.on_sample, history=True)
+                session.liveliness().declare_subscriber(graph_key, on_graph, history=True)
             )
             if self._channels:
-                self.link.hold(session.declare_subscriber(f"{prefix}/**", self._on_lcm))
+                self.link.hold(session.declare_subscriber(f"{prefix}/**", on_lcm))
                 if latched:  # what was sent before this bridge joined: each channel's last message
-                    entities.ask_last_values(session, prefix, self._on_lcm)
+                    entities.ask_last_values(session, prefix, on_lcm)
 
         self.link.when_open(declare)
         self.link.start()
