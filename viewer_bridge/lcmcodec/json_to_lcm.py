@@ -43,9 +43,9 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from viewer_bridge.errors import JsonValueError
+from viewer_bridge.lcmcodec.codegen import closure_min_sizes, element_min_size
 from viewer_bridge.lcmcodec.rosnames import field_name
-from viewer_bridge.lcmcodec.schema import INTEGER_RANGES, PRIMITIVE_FORMATS, Member, StructDef, nested_closure
-from viewer_bridge.lcmcodec.serde import _min_sizes, element_min_size
+from viewer_bridge.lcmcodec.schema import INTEGER_RANGES, PRIMITIVE_FORMATS, Member, StructDef
 
 __all__ = ["MESSAGE_LIMIT", "JsonEncoder", "compile_json_encoders"]
 
@@ -159,7 +159,7 @@ class JsonEncoder:
             self._sized = {member.name: [a for a in self._arrays if a.dims[0].size == member.name]
                            for member in self._lengths}  # fmt: skip
         self._children = children
-        self._min_sizes = min_sizes  # each type's fewest bytes of body (`serde._min_sizes`)
+        self._min_sizes = min_sizes  # each type's fewest bytes of body (`codegen.min_sizes`)
         self._steps: list[tuple[Member, Encode]] = [(member, self._step(member)) for member in struct_.members]
 
     def encode(self, value: object) -> bytes:
@@ -406,8 +406,7 @@ def compile_json_encoders(
 ) -> dict[str, JsonEncoder]:
     """The JSON -> LCM encoders of types `names` and of every type they nest (none may contain itself)."""
     encoders: dict[str, JsonEncoder] = {}
-    closure = nested_closure(structs, names)
-    min_sizes = _min_sizes({name: structs[name] for name in closure})
+    closure, min_sizes = closure_min_sizes(structs, names)
     for name in closure:  # children are looked up when used: any order will do
         encoders[name] = JsonEncoder(structs[name], fingerprints[name], encoders, min_sizes)
     return encoders

@@ -16,6 +16,8 @@ from __future__ import annotations
 import re
 
 __all__ = [
+    "MESSAGE_PATTERN",
+    "PACKAGE_PATTERN",
     "NameRefused",
     "constant_name",
     "field_name",
@@ -24,10 +26,10 @@ __all__ = [
     "ros_topic_for_channel",
 ]
 
-# rosidl_adapter's patterns for valid names.
-_PACKAGE = re.compile(r"(?!.*__)(?!.*_\Z)[a-z][a-z0-9_]*")  # each used with fullmatch: `$` takes "name\n"
-_MESSAGE = re.compile(r"[A-Z][A-Za-z0-9]*")
-_FIELD = _PACKAGE
+# rosidl_adapter's patterns for valid names (the one set of them: ros_build checks packages by them too).
+PACKAGE_PATTERN = re.compile(r"(?!.*__)(?!.*_\Z)[a-z][a-z0-9_]*")  # each used with fullmatch: `$` takes "name\n"
+MESSAGE_PATTERN = re.compile(r"[A-Z][A-Za-z0-9]*")
+_FIELD = PACKAGE_PATTERN
 _CONSTANT = re.compile(r"[A-Z]([A-Z0-9_]?[A-Z0-9]+)*")
 
 _WORD_START = re.compile(r"(?<=[a-z0-9])(?=[A-Z])")
@@ -71,7 +73,7 @@ def package_name(lcm_package: str) -> str:
         return NO_PACKAGE
     result = "_".join(_snake(word) for word in lcm_package.split(".")) + PACKAGE_SUFFIX
     result = _tidy(result)
-    if not _PACKAGE.fullmatch(result):
+    if not PACKAGE_PATTERN.fullmatch(result):
         raise NameRefused(f"package {lcm_package!r} has no valid ROS 2 name (got {result!r})")
     return result
 
@@ -79,7 +81,7 @@ def package_name(lcm_package: str) -> str:
 def message_name(struct_name: str) -> str:
     """The ROS 2 message name of LCM struct `struct_name` (`lcmt_iiwa_status` -> `LcmtIiwaStatus`)."""
     result = "".join(word[:1].upper() + word[1:] for word in struct_name.split("_"))
-    if not _MESSAGE.fullmatch(result):
+    if not MESSAGE_PATTERN.fullmatch(result):
         raise NameRefused(f"type {struct_name!r} has no valid ROS 2 message name (got {result!r})")
     return result
 
