@@ -14,6 +14,10 @@ The rules (docs/PROTOCOLS.md, "Any LCM type"):
 from __future__ import annotations
 
 import re
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from viewer_bridge.lcmcodec.schema import StructDef
 
 __all__ = [
     "MESSAGE_PATTERN",
@@ -21,6 +25,8 @@ __all__ = [
     "NameRefused",
     "constant_name",
     "field_name",
+    "field_names",
+    "field_path",
     "message_name",
     "package_name",
     "ros_topic_for_channel",
@@ -57,6 +63,33 @@ def field_name(name: str) -> str:
     if not _FIELD.fullmatch(result):
         raise NameRefused(f"field {name!r} has no valid ROS 2 name (got {result!r})")
     return result
+
+
+def field_names(struct: StructDef) -> dict[str, str]:
+    """Each member's name in a message's dict or JSON (`LcmType.to_json`, `from_json`): its ROS 2
+    field name. A struct with no ROS 2 form for them all (a name with none, two names with one)
+    keeps its LCM names, so that `viewer-bridge dump` still shows every field."""
+    try:
+        names = {member.name: field_name(member.name) for member in struct.members}
+    except NameRefused:
+        return {member.name: member.name for member in struct.members}
+    if len(set(names.values())) != len(names):
+        return {member.name: member.name for member in struct.members}
+    return names
+
+
+def field_path(path: str) -> str:
+    """A field path of LCM names (`where.frameId[2]`, as the LCM decoder's errors say it) in ROS 2
+    names (`where.frame_id[2]`); a part with no ROS 2 name (`<fingerprint>`) stays as it is."""
+    return ".".join(_path_part(part) for part in path.split("."))
+
+
+def _path_part(part: str) -> str:
+    name, bracket, indices = part.partition("[")
+    try:
+        return field_name(name) + bracket + indices
+    except NameRefused:
+        return part
 
 
 def constant_name(name: str) -> str:
