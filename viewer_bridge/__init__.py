@@ -14,10 +14,7 @@ Importing this package imports nothing else: each of those modules is imported w
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:  # the type checker sees the function; at run time it is imported when named
-    from viewer_bridge.typestore import lcm_types as lcm_types
+from typing import Any
 
 _SUBMODULES = ("convert", "errors", "streams")
 
