@@ -16,6 +16,8 @@ from hypothesis import HealthCheck, assume, given, settings
 import viewer_bridge
 from tests.lcmcodec.corpus import CORPUS, TRANSLATOR_CORPUS, expected, generate_lcmgen, lcmgen_messages
 from viewer_bridge.errors import DecodeError, EncodeError, JsonValueError
+from viewer_bridge.lcmcodec.library import LcmType
+from viewer_bridge.lcmcodec.schema import StructDef
 from viewer_bridge.typestore import LcmTypes, lcm_types
 
 ARM = "vbtest_lab.arm_status_t"
@@ -125,25 +127,30 @@ def _finite(value: Any) -> bool:
     return not isinstance(value, float) or math.isfinite(value)
 
 
+def _round_trips(store: LcmTypes, known: LcmType, structs: dict[str, StructDef], classes: dict[str, type]) -> None:
+    name = known.full_name
+
+    @settings(max_examples=30, deadline=None, suppress_health_check=list(HealthCheck))
+    @given(lcmgen_messages(known.definition, structs, classes))
+    def check(message: Any) -> None:
+        data = message.encode()
+        assert store.encode(store.decode(data, name)) == data
+        if known.refused is not None:
+            return
+        assert store.from_cdr(store.to_cdr(data, name), name) == data
+        value = store.to_dict(data, name)
+        assert _ints(value) == expected(type(message).decode(data), known.definition, structs)
+        assume(_finite(value))  # from_dict refuses what JSON cannot say: NaN and infinities
+        assert store.from_dict(json.loads(json.dumps(value)), name) == data
+
+    check()
+
+
 @pytest.mark.parametrize("corpus", [CORPUS, TRANSLATOR_CORPUS], ids=["lcmtypes_corpus", "translators_corpus"])
 def test_every_corpus_type_round_trips(corpus: Path, tmp_path_factory: pytest.TempPathFactory) -> None:
     classes = generate_lcmgen(tmp_path_factory.mktemp("lcmgen"), corpus)
     store = lcm_types(corpus, drake=False)
     structs = {name: store.library.get(name).definition for name in store.types}
+    assert classes
     for name in classes:
-        known = store.library.get(name)
-
-        @settings(max_examples=30, deadline=None, suppress_health_check=list(HealthCheck))
-        @given(lcmgen_messages(known.definition, structs, classes))
-        def check(message: Any) -> None:
-            data = message.encode()
-            assert store.encode(store.decode(data, name)) == data
-            if known.refused is not None:
-                return
-            assert store.from_cdr(store.to_cdr(data, name), name) == data
-            value = store.to_dict(data, name)
-            assert _ints(value) == expected(type(message).decode(data), known.definition, structs)
-            assume(_finite(value))  # from_dict refuses what JSON cannot say: NaN and infinities
-            assert store.from_dict(json.loads(json.dumps(value)), name) == data
-
-        check()
+        _round_trips(store, store.library.get(name), structs, classes)

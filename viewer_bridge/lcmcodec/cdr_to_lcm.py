@@ -32,19 +32,8 @@ from operator import itemgetter
 from typing import Any, NamedTuple
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.lcmcodec.codegen import (
-    U32_LE,
-    Buffer,
-    StructWriter,
-    bad_count,
-    call_child,
-    compile_generated,
-    element_min_size,
-    scalar_runs,
-    string_stop,
-    swapped,
-    truncated,
-)
+from viewer_bridge.lcmcodec import codegen
+from viewer_bridge.lcmcodec.codegen import U32_LE, Buffer, StructWriter, scalar_runs, string_stop
 from viewer_bridge.lcmcodec.rosnames import field_name
 from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
 
@@ -190,7 +179,7 @@ def _run_error(type_name: str, layout: tuple[tuple[str, int, int, bool], ...], v
     `layout` holds (field, offset in the run, size, is bool) per field."""
     for index, (field, start, size, is_bool) in enumerate(layout):
         if off + start + size > end:
-            return truncated(type_name, field, off + start, size, end)
+            return codegen.truncated(type_name, field, off + start, size, end)
         if values is not None and is_bool and values[index] > 1:
             return _not_bool(type_name, field, off + start, values[index])
     raise AssertionError("nothing wrong in the run")  # the caller found something
@@ -291,7 +280,7 @@ class _Generator(StructWriter):
             return
         out = self.out
         fixed = len(member.dims) == 1 and not member.dims[0].is_variable
-        element = max(element_min_size(member, self.min_sizes), 1)
+        element = max(codegen.element_min_size(member, self.min_sizes), 1)
         if fixed:
             out.line(f"n = {member.dims[0].count}")
         else:
@@ -338,7 +327,7 @@ class _Generator(StructWriter):
             self.out.line(f"off = _string(buf, off, end, out, {self.t}, {field})")
             return
         statement = f"off = {self.idents[member.type_name]}(buf, off, end, out)"
-        call_child(self.out, statement, "DecodeError", self.t, field)
+        codegen.call_child(self.out, statement, "DecodeError", self.t, field)
 
 
 def compile_encoders(
@@ -347,14 +336,14 @@ def compile_encoders(
     """The CDR -> LCM encoders of types `names` (none may contain itself; every nested type is in `structs`)."""
     helpers: dict[str, object] = {
         "DecodeError": DecodeError,
-        "_truncated": truncated,
+        "_truncated": codegen.truncated,
         "_run_error": _run_error,
         "_bools": _bools,
         "_length_error": _length_error,
-        "_bad_count": bad_count,
+        "_bad_count": codegen.bad_count,
         "_string": _string,
         "_U32_LE": U32_LE,
-        **{f"_swap{size}": swapped(size) for size in (2, 4, 8)},
+        **{f"_swap{size}": codegen.swapped(size) for size in (2, 4, 8)},
     }
-    bodies = compile_generated(structs, list(names), "C", _Generator, helpers, "<cdr -> lcm encoders>")
+    bodies = codegen.compile_generated(structs, list(names), "C", _Generator, helpers, "<cdr -> lcm encoders>")
     return {name: LcmEncoder(name, fingerprints[name], body, structs[name]) for name, body in bodies.items()}

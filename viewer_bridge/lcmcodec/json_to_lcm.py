@@ -7,8 +7,8 @@ nest themselves). What JSON may say, and what it must not (docs/PROTOCOLS.md, "A
 
 - The value is an object whose keys are the ROS 2 field names (`joint_position`, not LCM's
   `jointPosition`); a nested message is an object; every array is one flat list in row-major
-  order, as the ROS 2 message holds it; a byte array (`uint8[]`) is a list of 0..255 or a
-  base64 string.
+  order, as the ROS 2 message holds it; a byte array (`uint8[]`) is a list of 0..255, a
+  base64 string, or the `{"base64": ...}` or `{"utf8": ...}` object `LcmType.to_json` writes.
 - A missing field takes its zero value: 0, 0.0, false, "", an all-zero nested message, a fixed
   array of zeros, an empty variable array.
 - A missing length field is derived from the arrays it sizes (`num_joints` from the length of

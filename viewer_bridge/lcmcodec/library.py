@@ -138,8 +138,8 @@ class LcmType:
         message's field names, as the whole LCM message (fingerprint first).
 
         - An object per message, keys the ROS 2 field names (`joint_position`); arrays flat in
-          row-major order as the ROS 2 message holds them; a byte array a list of 0..255 or a
-          base64 string.
+          row-major order as the ROS 2 message holds them; a byte array a list of 0..255, a
+          base64 string, or the `{"base64": ...}` or `{"utf8": ...}` object `to_json` writes.
         - A missing field takes its zero value (0, false, "", an all-zero nested message, a fixed
           array of zeros, an empty variable array).
         - A missing length field is derived from the arrays it sizes (`num_joints` from
