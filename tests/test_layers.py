@@ -55,6 +55,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.render.renderer": 6,
     "viewer_bridge.convert": 6,
     "viewer_bridge.streams": 6,
+    "viewer_bridge.typestore": 6,
     # 7
     "viewer_bridge.translators": 7,
     "viewer_bridge.cli.dump": 7,

@@ -30,12 +30,12 @@ def test_a_labs_type_given_a_library_with_bytes_summarised() -> None:
     event = LcmEvent("LEFT_ARM", codec.encode(arm), 0)
     assert describe(event)["type"] is None  # the default library does not know it
     record = describe(event, library)
-    assert record["message"]["robotName"] == "left" and record["message"]["blob"]["bytes"] == 3
+    assert record["message"]["robot_name"] == "left" and record["message"]["blob"]["bytes"] == 3
     assert describe(event, library, bytes_summary=False)["message"]["blob"] == {"utf8": "abc"}
     text = as_text(event, library).splitlines()
     assert text[0].endswith("LEFT_ARM lab.robot.arm_state_t (" + str(len(event.data)) + " bytes)")
     assert "  blob: 3 bytes, CRC-32 352441c2" in text
-    assert "  tip:" in text and "    frameId: ''" in text
+    assert "  tip:" in text and "    frame_id: ''" in text
 
 
 def _refuse(constant: str) -> None:

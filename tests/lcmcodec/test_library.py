@@ -166,7 +166,8 @@ def test_to_json_summarises_bytes_unless_asked(library: TypeLibrary) -> None:
     data = status.packed_fingerprint + body + struct.pack(">i2f2b", 2, 0.5, -1.0, 3, -4) + PLAIN_TAIL
     record = status.to_json(data)
     assert record["timestamp"] == 5 and record["ok"] is True and record["value"] != record["value"]  # NaN kept
-    assert record["where"] == {"x": 1.0, "y": 2.0, "z": 3.0, "frameId": "ab"}
+    assert record["where"] == {"x": 1.0, "y": 2.0, "z": 3.0, "frame_id": "ab"}  # ROS 2 names, as from_json takes
+    assert record["fixed_shorts"] == [1, -2, 3]
     assert record["samples"] == [0.5, -1.0] and record["codes"] == [3, -4] and record["tags"] == ["a", ""]
     comms = TypeLibrary.load(drake=False).get("robotlocomotion.viewer2_comms_t")
     payload = b'{"a": 1}'
@@ -176,6 +177,7 @@ def test_to_json_summarises_bytes_unless_asked(library: TypeLibrary) -> None:
     encoded = message.encode()
     assert comms.to_json(encoded)["data"] == {"bytes": 8, "crc32": f"{zlib.crc32(payload):08x}"}
     assert comms.to_json(encoded, bytes_summary=False)["data"] == {"utf8": '{"a": 1}'}
+    assert comms.from_json(comms.to_json(encoded, bytes_summary=False)) == encoded  # exact inverses
     with pytest.raises(DecodeError, match="viewer2_comms_t"):
         comms.to_json(encoded[:-1])
 

@@ -16,48 +16,42 @@ including a NUL, the UTF-8 bytes and the NUL; a nested message inline; an empty 
 Bad input raises `DecodeError` naming the type, the field path and the byte offset: a wrong
 fingerprint, too few or too many bytes, a negative length, a count whose elements could not fit
 in the bytes that remain (checked before anything is allocated), a string without its NUL or not
-UTF-8. The reverse direction (CDR -> LCM) is `cdr_to_lcm`, compiled by the same `compile_generated`.
+UTF-8. The reverse direction (CDR -> LCM) is `cdr_to_lcm`, compiled by the same `codegen.compile_generated`.
 """
 
 from __future__ import annotations
 
 import struct
-import sys
-from array import array
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, Protocol
-
-import numpy as np
+from typing import Any
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef, nested_closure
-from viewer_bridge.lcmcodec.serde import (
-    _bad_count,
-    _min_sizes,
-    _string_error,
-    _truncated,
-    _Writer,
+from viewer_bridge.lcmcodec.codegen import (
+    Buffer,
+    StructWriter,
+    bad_count,
     call_child,
+    compile_generated,
     element_min_size,
+    string_stop,
+    swapped,
+    truncated,
 )
+from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
 
-__all__ = ["CDR_HEADER", "CdrTranscoder", "compile_generated", "compile_transcoders"]
+__all__ = ["CDR_HEADER", "CdrTranscoder", "compile_transcoders"]
 
-Buffer = bytes | bytearray | memoryview
 Chunks = list[Any]  # what b"".join takes: bytes, memoryviews, arrays, numpy arrays
 CDR_HEADER = b"\x00\x01\x00\x00"  # CDR_LE, no options
 # A float32 scalar moves as its raw bits ("I"): through a Python float a signalling NaN would turn quiet.
 _LE_CODES = {"int8_t": "b", "int16_t": "h", "int32_t": "i", "int64_t": "q", "float": "I", "double": "d",
              "boolean": "?", "byte": "B"}  # fmt: skip
 _BE_CODES = {name: "I" if name == "float" else code for name, (code, _) in PRIMITIVE_FORMATS.items()}
-_SWAP_CODES = {2: "H", 4: "I", 8: "Q"}  # an array typecode of each size: byteswap only needs the size
-_NUMPY_FROM = 256  # elements; below this Python's array module swaps faster than numpy's call overhead
 _BOOLS = bytes([0] + [1] * 255)  # LCM reads any non-zero byte as true; CDR wants 0 or 1
 _ZEROS = [bytes(n) for n in range(8)]
 _COUNT_AFTER_PAD = [struct.Struct(f"<{pad}xI") for pad in range(4)]  # a uint32 after `pad` zero bytes
-_U32_BE = struct.Struct(">I").unpack_from
 _FIELD_FINGERPRINT = "<fingerprint>"
 _VIEW_FROM = 4096  # bytes
 
@@ -89,40 +83,15 @@ class CdrTranscoder:
         return b"".join(out)
 
 
-def _swapped(size: int) -> Callable[[bytes | memoryview, int, int], object]:
-    """A function returning `count` elements of `size` bytes at `offset`, each byte-reversed."""
-    code = _SWAP_CODES[size]
-    dtype = np.dtype(f"u{size}")
-
-    def swap(buf: bytes | memoryview, offset: int, count: int) -> object:
-        if count < _NUMPY_FROM:
-            items = array(code)
-            items.frombytes(buf[offset : offset + count * size])
-            items.byteswap()
-            return items
-        return np.frombuffer(buf, dtype, count, offset).byteswap()
-
-    return swap
-
-
 def _string(
     buf: bytes | memoryview, off: int, end: int, out: Chunks, pos: int, type_name: str, field: str
 ) -> tuple[int, int]:
     """One string: LCM's big-endian length to CDR's little-endian one (both count the NUL)."""
-    if off + 4 > end:
-        raise _string_error(type_name, field, buf, off, end)
-    (length,) = _U32_BE(buf, off)
-    stop = off + 4 + length
-    if length == 0 or stop > end or buf[stop - 1] != 0:
-        raise _string_error(type_name, field, buf, off, end)
-    try:
-        str(buf[off + 4 : stop - 1], "utf-8")
-    except UnicodeDecodeError:
-        raise _string_error(type_name, field, buf, off, end) from None
+    stop = string_stop(buf, off, end, type_name, field)
     pad = -pos & 3
-    out.append(_COUNT_AFTER_PAD[pad].pack(length))
+    out.append(_COUNT_AFTER_PAD[pad].pack(stop - off - 4))
     out.append(buf[off + 4 : stop])
-    return stop, pos + pad + 4 + length
+    return stop, pos + pad + stop - off
 
 
 @lru_cache(maxsize=4096)
@@ -162,7 +131,7 @@ def _shared_count_error(type_name: str, fields: tuple[str, ...], off: int, count
     for index, field in enumerate(fields):
         start = off + index * count * size
         if count < 0 or start + count * size > end:
-            return _bad_count(type_name, field, start, count, size, end)
+            return bad_count(type_name, field, start, count, size, end)
     raise AssertionError("no sequence overflows")  # the caller checked that one does
 
 
@@ -171,25 +140,15 @@ def _check_count(type_name: str, field: str, off: int, end: int, shape: tuple[in
     count = 1
     for size in shape:
         if size < 0:
-            raise _bad_count(type_name, field, off, size, element, end)
+            raise bad_count(type_name, field, off, size, element, end)
         count *= size
     if count * element > end - off:
-        raise _bad_count(type_name, field, off, count, element, end)
+        raise bad_count(type_name, field, off, count, element, end)
     return count
 
 
-class _Generator:
+class _Generator(StructWriter):
     """Writes the LCM -> CDR function of one struct."""
-
-    def __init__(self, struct_: StructDef, idents: Mapping[str, str], min_sizes: Mapping[str, int], out: _Writer,
-                 formats: dict[str, object]) -> None:  # fmt: skip
-        self.struct = struct_
-        self.idents = idents
-        self.min_sizes = min_sizes
-        self.out = out
-        self.formats = formats  # names the generated code uses -> the struct.Structs behind them
-        self.ident = idents[struct_.full_name]
-        self.t = repr(struct_.full_name)
 
     def write(self) -> None:
         out = self.out
@@ -355,9 +314,6 @@ class _Generator:
             with out.indent():
                 self.element(member, f"'{member.name}[%d]' % i")
 
-    def index_of(self, name: str) -> int:
-        return next(index for index, member in enumerate(self.struct.members) if member.name == name)
-
     def element(self, member: Member, field: str) -> None:
         out = self.out
         if member.type_name == "string":
@@ -367,53 +323,25 @@ class _Generator:
         call_child(out, statement, "DecodeError", self.t, field)
 
 
-class _Writes(Protocol):
-    def write(self) -> None: ...
-
-
-_MakeGenerator = Callable[[StructDef, Mapping[str, str], Mapping[str, int], _Writer, dict[str, object]], _Writes]
-
-
-def compile_generated(
-    structs: Mapping[str, StructDef], names: list[str], prefix: str, generator: _MakeGenerator,
-    helpers: Mapping[str, object], filename: str,
-) -> dict[str, Callable[..., Any]]:  # fmt: skip
-    """Generate one function per type of `names` and of every type they nest (named `prefix` and a
-    number), with `generator`'s `write`, compile them together with `helpers` in their namespace,
-    and return those of `names`."""
-    needed = nested_closure(structs, names)
-    idents = {name: f"{prefix}{index}" for index, name in enumerate(needed)}
-    min_sizes = _min_sizes({name: structs[name] for name in needed})
-    out = _Writer()
-    formats: dict[str, object] = {}
-    for name in needed:
-        generator(structs[name], idents, min_sizes, out, formats).write()
-    namespace: dict[str, Any] = {**helpers, **formats}
-    exec(compile("\n".join(out.lines) + "\n", filename, "exec"), namespace)  # noqa: S102
-    return {name: namespace[idents[name]] for name in names}
-
-
 def compile_transcoders(
     structs: Mapping[str, StructDef], fingerprints: Mapping[str, bytes], names: Iterable[str]
 ) -> dict[str, CdrTranscoder]:
     """The transcoders of types `names` (none may contain itself; every nested type is in `structs`)."""
     helpers: dict[str, object] = {
         "DecodeError": DecodeError,
-        "_truncated": _truncated,
+        "_truncated": truncated,
         "_check_count": _check_count,
         "_string": _string,
         "_COUNT_AFTER_PAD": _COUNT_AFTER_PAD,
         "_ZEROS": _ZEROS,
-        "_bad_count": _bad_count,
+        "_bad_count": bad_count,
         "_glue": _glue,
         "_run_glue": _run_glue,
         "_shared_count_error": _shared_count_error,
         "_view": memoryview,
         "_BOOLS": _BOOLS,
-        **{f"_swap{size}": _swapped(size) for size in _SWAP_CODES},
+        **{f"_swap{size}": swapped(size) for size in (2, 4, 8)},
     }
     bodies = compile_generated(structs, list(names), "T", _Generator, helpers, "<lcm -> cdr transcoders>")
     return {name: CdrTranscoder(name, fingerprints[name], body) for name, body in bodies.items()}
 
-
-assert sys.byteorder == "little", "the swaps assume a little-endian host"  # noqa: S101

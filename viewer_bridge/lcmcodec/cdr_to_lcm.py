@@ -32,21 +32,19 @@ from operator import itemgetter
 from typing import Any, NamedTuple
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.lcmcodec.cdr import _swapped, compile_generated
+from viewer_bridge.lcmcodec import codegen
+from viewer_bridge.lcmcodec.codegen import U32_LE, Buffer, StructWriter, scalar_runs, string_stop
 from viewer_bridge.lcmcodec.rosnames import field_name
 from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
-from viewer_bridge.lcmcodec.serde import _truncated, _Writer, call_child, element_min_size
 
 __all__ = ["LcmEncoder", "compile_encoders"]
 
-Buffer = bytes | bytearray | memoryview
 _CDR_LE = b"\x00\x01"
 _HEADER = 4
 # How a scalar is read and written: as itself, except a float32, which goes as its raw bits (Python
 # would widen it to a double and back, which turns a signalling NaN into a quiet one).
 _CODES = {"int8_t": "b", "int16_t": "h", "int32_t": "i", "int64_t": "q", "float": "I", "double": "d",
           "boolean": "B", "byte": "B"}  # fmt: skip
-_U32_LE = struct.Struct("<I").unpack_from
 _U32_BE = struct.Struct(">I").pack
 _NOT_BOOL = bytes(range(2))  # what `translate` deletes from a bool array: anything left is not 0 or 1
 
@@ -181,7 +179,7 @@ def _run_error(type_name: str, layout: tuple[tuple[str, int, int, bool], ...], v
     `layout` holds (field, offset in the run, size, is bool) per field."""
     for index, (field, start, size, is_bool) in enumerate(layout):
         if off + start + size > end:
-            return _truncated(type_name, field, off + start, size, end)
+            return codegen.truncated(type_name, field, off + start, size, end)
         if values is not None and is_bool and values[index] > 1:
             return _not_bool(type_name, field, off + start, values[index])
     raise AssertionError("nothing wrong in the run")  # the caller found something
@@ -214,48 +212,17 @@ def _length_error(type_name: str, field: str, offset: int, count: int, names: tu
     return DecodeError(type_name, field, offset, f"has {count} elements, but {said}")
 
 
-def _too_many(type_name: str, field: str, offset: int, count: int, size: int, end: int) -> DecodeError:
-    return DecodeError(type_name, field, offset, f"count {count} needs at least {count * size} bytes, "
-                       f"{max(end - offset, 0)} remain")  # fmt: skip
-
-
 def _string(buf: Any, off: int, end: int, out: list[Any], type_name: str, field: str) -> int:
     """One string: CDR's little-endian length (counting the NUL) to LCM's big-endian one."""
     off += -off & 3
-    if off + 4 > end:
-        raise _truncated(type_name, field, off, 4, end)
-    length: int = _U32_LE(buf, off)[0]
-    start = off + 4
-    stop = start + length
-    if length == 0:
-        raise DecodeError(type_name, field, off, "string length 0 leaves no room for its NUL")
-    if stop > end:
-        raise _truncated(type_name, field, start, length, end)
-    if buf[stop - 1] != 0:
-        raise DecodeError(type_name, field, stop - 1, "string is not NUL-terminated")
-    text = bytes(buf[start : stop - 1])
-    try:
-        text.decode("utf-8")
-    except UnicodeDecodeError as error:
-        raise DecodeError(type_name, field, start + error.start, "invalid UTF-8") from None
-    out.append(_U32_BE(length))
-    out.append(text)
-    out.append(b"\0")
+    stop = string_stop(buf, off, end, type_name, field, U32_LE)
+    out.append(_U32_BE(stop - off - 4))
+    out.append(bytes(buf[off + 4 : stop]))
     return stop
 
 
-class _Generator:
+class _Generator(StructWriter):
     """Writes the CDR -> LCM function of one struct."""
-
-    def __init__(self, struct_: StructDef, idents: Mapping[str, str], min_sizes: Mapping[str, int],
-                 out: _Writer, formats: dict[str, object]) -> None:  # fmt: skip
-        self.struct = struct_
-        self.idents = idents
-        self.min_sizes = min_sizes
-        self.out = out
-        self.formats = formats  # names the generated code uses -> the objects behind them
-        self.ident = idents[struct_.full_name]
-        self.t = repr(struct_.full_name)
 
     def write(self) -> None:
         out = self.out
@@ -266,17 +233,11 @@ class _Generator:
                 with out.indent():
                     out.line(f"raise _truncated({self.t}, 'structure_needs_at_least_one_member', off, 1, end)")
                 out.line("off += 1")
-            run: list[tuple[int, Member]] = []
-            for index, member in enumerate(self.struct.members):
-                if member.type_name in PRIMITIVE_FORMATS and not member.dims:
-                    run.append((index, member))
-                    continue
-                if run:
+            for scalars, run in scalar_runs(self.struct):
+                if scalars:
                     self.scalars(run)
-                    run = []
-                self.member(index, member)
-            if run:
-                self.scalars(run)
+                else:
+                    self.member(*run[0])
             out.line("return off")
 
     def scalars(self, run: list[tuple[int, Member]]) -> None:
@@ -319,7 +280,7 @@ class _Generator:
             return
         out = self.out
         fixed = len(member.dims) == 1 and not member.dims[0].is_variable
-        element = max(element_min_size(member, self.min_sizes), 1)
+        element = max(codegen.element_min_size(member, self.min_sizes), 1)
         if fixed:
             out.line(f"n = {member.dims[0].count}")
         else:
@@ -345,7 +306,7 @@ class _Generator:
                 out.line(f"if n: off += -off & {size - 1}")
             out.line(f"if n * {size} > end - off:")
             with out.indent():
-                out.line(f"raise _too_many({self.t}, {ros!r}, off, n, {size}, end)")
+                out.line(f"raise _bad_count({self.t}, {ros!r}, off, n, {size}, end)")
             if member.type_name == "boolean":
                 out.line(f"out.append(_bools({self.t}, {ros!r}, buf, off, n))")
             elif size == 1:
@@ -356,20 +317,17 @@ class _Generator:
             return
         out.line(f"if n * {element} > end - off:")
         with out.indent():
-            out.line(f"raise _too_many({self.t}, {ros!r}, off, n, {element}, end)")
+            out.line(f"raise _bad_count({self.t}, {ros!r}, off, n, {element}, end)")
         out.line("for i in range(n):")
         with out.indent():
             self.element(member, f"'{ros}[%d]' % i")
-
-    def index_of(self, name: str) -> int:
-        return next(index for index, member in enumerate(self.struct.members) if member.name == name)
 
     def element(self, member: Member, field: str) -> None:
         if member.type_name == "string":
             self.out.line(f"off = _string(buf, off, end, out, {self.t}, {field})")
             return
         statement = f"off = {self.idents[member.type_name]}(buf, off, end, out)"
-        call_child(self.out, statement, "DecodeError", self.t, field)
+        codegen.call_child(self.out, statement, "DecodeError", self.t, field)
 
 
 def compile_encoders(
@@ -378,14 +336,14 @@ def compile_encoders(
     """The CDR -> LCM encoders of types `names` (none may contain itself; every nested type is in `structs`)."""
     helpers: dict[str, object] = {
         "DecodeError": DecodeError,
-        "_truncated": _truncated,
+        "_truncated": codegen.truncated,
         "_run_error": _run_error,
         "_bools": _bools,
         "_length_error": _length_error,
-        "_too_many": _too_many,
+        "_bad_count": codegen.bad_count,
         "_string": _string,
-        "_U32_LE": _U32_LE,
-        **{f"_swap{size}": _swapped(size) for size in (2, 4, 8)},
+        "_U32_LE": U32_LE,
+        **{f"_swap{size}": codegen.swapped(size) for size in (2, 4, 8)},
     }
-    bodies = compile_generated(structs, list(names), "C", _Generator, helpers, "<cdr -> lcm encoders>")
+    bodies = codegen.compile_generated(structs, list(names), "C", _Generator, helpers, "<cdr -> lcm encoders>")
     return {name: LcmEncoder(name, fingerprints[name], body, structs[name]) for name, body in bodies.items()}

@@ -7,8 +7,8 @@ nest themselves). What JSON may say, and what it must not (docs/PROTOCOLS.md, "A
 
 - The value is an object whose keys are the ROS 2 field names (`joint_position`, not LCM's
   `jointPosition`); a nested message is an object; every array is one flat list in row-major
-  order, as the ROS 2 message holds it; a byte array (`uint8[]`) is a list of 0..255 or a
-  base64 string.
+  order, as the ROS 2 message holds it; a byte array (`uint8[]`) is a list of 0..255, a
+  base64 string, or the `{"base64": ...}` or `{"utf8": ...}` object `LcmType.to_json` writes.
 - A missing field takes its zero value: 0, 0.0, false, "", an all-zero nested message, a fixed
   array of zeros, an empty variable array.
 - A missing length field is derived from the arrays it sizes (`num_joints` from the length of
@@ -43,9 +43,9 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from viewer_bridge.errors import JsonValueError
-from viewer_bridge.lcmcodec.rosnames import field_name
-from viewer_bridge.lcmcodec.schema import INTEGER_RANGES, PRIMITIVE_FORMATS, Member, StructDef, nested_closure
-from viewer_bridge.lcmcodec.serde import _min_sizes, element_min_size
+from viewer_bridge.lcmcodec.codegen import closure_min_sizes, element_min_size
+from viewer_bridge.lcmcodec.rosnames import field_names
+from viewer_bridge.lcmcodec.schema import INTEGER_RANGES, PRIMITIVE_FORMATS, Member, StructDef
 
 __all__ = ["MESSAGE_LIMIT", "JsonEncoder", "compile_json_encoders"]
 
@@ -147,8 +147,8 @@ class JsonEncoder:
         self.type_name = struct_.full_name
         self.packed_fingerprint = packed_fingerprint
         self.struct = struct_
-        self.names = {field_name(member.name): member for member in struct_.members}
-        self._ros = {member.name: field_name(member.name) for member in struct_.members}
+        self._ros = field_names(struct_)
+        self.names = {self._ros[member.name]: member for member in struct_.members}
         lengths = {dim.size for member in struct_.members for dim in member.dims if dim.is_variable}
         self._lengths = [member for member in struct_.members if member.name in lengths]
         self._arrays = [m for m in struct_.members if any(dim.is_variable for dim in m.dims)]
@@ -159,7 +159,7 @@ class JsonEncoder:
             self._sized = {member.name: [a for a in self._arrays if a.dims[0].size == member.name]
                            for member in self._lengths}  # fmt: skip
         self._children = children
-        self._min_sizes = min_sizes  # each type's fewest bytes of body (`serde._min_sizes`)
+        self._min_sizes = min_sizes  # each type's fewest bytes of body (`codegen.min_sizes`)
         self._steps: list[tuple[Member, Encode]] = [(member, self._step(member)) for member in struct_.members]
 
     def encode(self, value: object) -> bytes:
@@ -223,9 +223,7 @@ class JsonEncoder:
         if self._sized is not None:
             for name, arrays in self._sized.items():
                 for array in arrays if name not in known else ():
-                    items = value.get(self._ros[array.name], _MISSING)
-                    if type(items) is str and array.type_name == "byte":
-                        items = self._bytes(array, self._ros[array.name], items)
+                    items = self._bytes(array, self._ros[array.name], value.get(self._ros[array.name], _MISSING))
                     if type(items) is list:
                         known[name] = len(items)
                         derived_from[name] = self._ros[array.name]
@@ -234,9 +232,7 @@ class JsonEncoder:
         while changed:  # each round derives at least one more length, so it ends
             changed = False
             for array in self._arrays:
-                items = value.get(self._ros[array.name], _MISSING)
-                if type(items) is str and array.type_name == "byte":
-                    items = self._bytes(array, self._ros[array.name], items)
+                items = self._bytes(array, self._ros[array.name], value.get(self._ros[array.name], _MISSING))
                 if type(items) is not list:
                     continue
                 unknown = {dim.size for dim in array.dims if dim.is_variable and dim.size not in known}
@@ -265,9 +261,22 @@ class JsonEncoder:
             known.setdefault(member.name, 0)
         return known
 
-    def _bytes(self, member: Member, ros: str, text: str) -> list[int]:
+    def _bytes(self, member: Member, ros: str, items: Any) -> Any:
+        """A byte array given as text, as its list of 0..255: a base64 string (as Foxglove's
+        clients send it), or the `{"base64": ...}` or `{"utf8": ...}` object `to_json` writes.
+        Any other value (a list, a missing one), or any other member's, is returned as it is."""
+        if member.type_name != "byte":
+            return items
+        if type(items) is dict and len(items) == 1 and type(text := items.get("utf8")) is str:
+            error = _scalar_error("string", ros, text)
+            if error is not None:
+                raise _rehome(self.type_name, error)
+            return list(text.encode("utf-8"))
+        encoded = items.get("base64") if type(items) is dict and len(items) == 1 else items
+        if type(encoded) is not str:
+            return items
         try:
-            return list(base64.b64decode(text, validate=True))
+            return list(base64.b64decode(encoded, validate=True))
         except (binascii.Error, ValueError):
             raise JsonValueError(self.type_name, ros, "a byte array's string must be base64") from None
 
@@ -278,9 +287,7 @@ class JsonEncoder:
             if count and not fixed:
                 names = [self._ros[dim.size] if dim.is_variable else str(dim.count) for dim in member.dims]
                 raise JsonValueError("", ros, f"missing, but {self._said(names, shape)}")
-        elif type(items) is str and member.type_name == "byte":
-            items = self._bytes(member, ros, items)
-        elif type(items) is not list:
+        elif type(items := self._bytes(member, ros, items)) is not list:
             raise JsonValueError("", ros, f"expected an array, got {_kind(items)}")
         if items is not _MISSING and len(items) != count:
             names = [self._ros[dim.size] if dim.is_variable else str(dim.count) for dim in member.dims]
@@ -327,7 +334,7 @@ class JsonEncoder:
 
     def _step(self, member: Member) -> Encode:
         """The encoder of a member without dimensions (arrays go through `_array`)."""
-        ros = field_name(member.name)
+        ros = self._ros[member.name]
         type_name = member.type_name
         if type_name == "string":
             return lambda value, out: _string("" if value is _MISSING else value, ros, out)
@@ -406,8 +413,7 @@ def compile_json_encoders(
 ) -> dict[str, JsonEncoder]:
     """The JSON -> LCM encoders of types `names` and of every type they nest (none may contain itself)."""
     encoders: dict[str, JsonEncoder] = {}
-    closure = nested_closure(structs, names)
-    min_sizes = _min_sizes({name: structs[name] for name in closure})
+    closure, min_sizes = closure_min_sizes(structs, names)
     for name in closure:  # children are looked up when used: any order will do
         encoders[name] = JsonEncoder(structs[name], fingerprints[name], encoders, min_sizes)
     return encoders

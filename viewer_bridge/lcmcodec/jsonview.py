@@ -1,9 +1,10 @@
-"""Any decoded LCM message as plain JSON-ready values, for `viewer-bridge dump`.
+"""Any decoded LCM message as plain JSON-ready values: the form `LcmType.from_json` takes back.
 
-Numbers, strings and booleans stay themselves, nested structs become objects and arrays lists
-(nested for multi-dimensional ones). A byte array (an image's pixels, a blob) is summarised as
-its size and a CRC-32 unless the whole content is asked for, then it is text when it is UTF-8 (the
-tree viewer's JSON is) or base64.
+A message is an object whose keys are its ROS 2 field names (`rosnames.field_names`); numbers,
+strings and booleans stay themselves, a nested message is an object, and every array is one flat
+list in row-major order, as the ROS 2 message holds it. A byte array (an image's pixels, a blob)
+is summarised as its size and a CRC-32 unless the whole content is asked for, then it is
+`{"utf8": text}` when it is UTF-8 (the tree viewer's JSON is) or `{"base64": ...}`.
 """
 
 from __future__ import annotations
@@ -12,25 +13,42 @@ import base64
 import zlib
 from typing import Any
 
+from viewer_bridge.lcmcodec.rosnames import field_names
+from viewer_bridge.lcmcodec.schema import Member
 from viewer_bridge.lcmcodec.serde import LcmMessage
 
-__all__ = ["json_ready", "message_json"]
+__all__ = ["message_json"]
 
 
 def message_json(message: LcmMessage, *, bytes_summary: bool = True) -> dict[str, object]:
-    """Every field of `message`, JSON-ready."""
-    return {name: json_ready(getattr(message, name), bytes_summary) for name in message.field_names()}
+    """Every field of `message` under its JSON name, JSON-ready."""
+    definition = message._codec.definition
+    names = field_names(definition)
+    return {
+        names[member.name]: _member_json(getattr(message, member.name), member, bytes_summary)
+        for member in definition.members
+    }
 
 
-def json_ready(value: Any, bytes_summary: bool = True) -> Any:
-    """One decoded value (a message, a list, bytes, a number ...), JSON-ready."""
-    if isinstance(value, LcmMessage):
-        return message_json(value, bytes_summary=bytes_summary)
-    if isinstance(value, list | tuple):
-        return [json_ready(item, bytes_summary) for item in value]
-    if isinstance(value, bytes | bytearray):
-        return _bytes(bytes(value), bytes_summary)
-    return value
+def _member_json(value: Any, member: Member, summary: bool) -> Any:
+    if member.type_name == "byte" and member.dims:  # the innermost dimension is one `bytes`
+        rows = _flat(value, len(member.dims) - 1) if len(member.dims) > 1 else [value]
+        return _bytes(b"".join(map(bytes, rows)), summary)
+    if member.dims:
+        return [_value_json(item, summary) for item in _flat(value, len(member.dims))]
+    return _value_json(value, summary)
+
+
+def _value_json(value: Any, summary: bool) -> Any:
+    return message_json(value, bytes_summary=summary) if isinstance(value, LcmMessage) else value
+
+
+def _flat(value: Any, depth: int) -> list[Any]:
+    """The elements of `depth` levels of nested lists, in row-major order."""
+    items = list(value)
+    for _ in range(depth - 1):
+        items = [item for row in items for item in row]
+    return items
 
 
 def _bytes(value: bytes, summary: bool) -> dict[str, object]:

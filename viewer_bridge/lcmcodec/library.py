@@ -35,7 +35,7 @@ from viewer_bridge.lcmcodec.json_to_lcm import JsonEncoder, compile_json_encoder
 from viewer_bridge.lcmcodec.jsonview import message_json
 from viewer_bridge.lcmcodec.pymodule import structs_from_module
 from viewer_bridge.lcmcodec.rosmsg import RosMapping, map_to_ros
-from viewer_bridge.lcmcodec.rosnames import ros_topic_for_channel
+from viewer_bridge.lcmcodec.rosnames import field_path, ros_topic_for_channel
 from viewer_bridge.lcmcodec.schema import (
     Member,
     StructDef,
@@ -46,7 +46,7 @@ from viewer_bridge.lcmcodec.schema import (
 )
 from viewer_bridge.lcmcodec.serde import Buffer, StructCodec, compile_codecs
 
-__all__ = ["LcmType", "TypeLibrary", "ros_topic_for_channel"]
+__all__ = ["LcmType", "TypeLibrary", "ros_named", "ros_topic_for_channel"]
 
 _T = TypeVar("_T")
 _Compile = Callable[[Mapping[str, StructDef], Mapping[str, bytes], list[str]], dict[str, _T]]
@@ -98,12 +98,18 @@ class LcmType:
         return self._transcoder.transcode(data)
 
     def to_json(self, data: Buffer, *, bytes_summary: bool = True) -> dict[str, object]:
-        """Every field, JSON-ready; byte arrays as size and CRC-32 unless `bytes_summary` is False."""
+        """Every field, JSON-ready, in the form `from_json` takes back: keys the ROS 2 field names
+        (`joint_position`; a type with no ROS 2 form for its names keeps its LCM ones), arrays
+        flat in row-major order, nested messages as objects. A byte array is its size and CRC-32
+        unless `bytes_summary` is False, then `{"utf8": text}` or `{"base64": ...}`. Bad bytes:
+        `DecodeError`, its field path in the same names."""
         codec = self._library.codecs(self.full_name)[self.full_name]
         try:
             message = codec.decode(data)
         except RecursionError:  # a recursive type nested deeper than Python's stack
             raise DecodeError(self.full_name, "<message>", 0, "nested too deeply") from None
+        except DecodeError as error:
+            raise ros_named(error) from None
         return message_json(message, bytes_summary=bytes_summary)
 
     def from_cdr(self, data: Buffer) -> bytes:
@@ -132,8 +138,8 @@ class LcmType:
         message's field names, as the whole LCM message (fingerprint first).
 
         - An object per message, keys the ROS 2 field names (`joint_position`); arrays flat in
-          row-major order as the ROS 2 message holds them; a byte array a list of 0..255 or a
-          base64 string.
+          row-major order as the ROS 2 message holds them; a byte array a list of 0..255, a
+          base64 string, or the `{"base64": ...}` or `{"utf8": ...}` object `to_json` writes.
         - A missing field takes its zero value (0, false, "", an all-zero nested message, a fixed
           array of zeros, an empty variable array).
         - A missing length field is derived from the arrays it sizes (`num_joints` from
@@ -177,6 +183,7 @@ class TypeLibrary:
         self._structs = dict(structs)
         self._mapping: RosMapping = map_to_ros(self._structs)
         self._lock = threading.Lock()
+        self._codecs: dict[str, StructCodec] = {}  # every type's, compiled once: one class per type
         self._codec_sets: dict[str, dict[str, StructCodec]] = {}
         self._transcoders: dict[str, CdrTranscoder] = {}
         self._encoders: dict[str, LcmEncoder] = {}
@@ -296,13 +303,16 @@ class TypeLibrary:
         }
 
     def codecs(self, full_name: str) -> dict[str, StructCodec]:
-        """The LCM codecs of `full_name` and of every type it nests, generated together when first
-        asked for (so their message classes work together), NaN and infinities allowed."""
+        """The LCM codecs of `full_name` and of every type it nests, NaN and infinities allowed.
+        Each type's codec is generated once per library, when a type that needs it is first asked
+        for, and then shared: a nested type has one message class wherever it is nested."""
         with self._lock:
             if full_name not in self._codec_sets:
                 closure = self._closure(full_name)
                 fingerprints = {name: int.from_bytes(self._types[name].packed_fingerprint, "big") for name in closure}
-                self._codec_sets[full_name] = compile_codecs(closure, finite=False, fingerprints=fingerprints)
+                compiled = {name: self._codecs[name] for name in closure if name in self._codecs}
+                self._codecs.update(compile_codecs(closure, finite=False, fingerprints=fingerprints, compiled=compiled))
+                self._codec_sets[full_name] = {name: self._codecs[name] for name in closure}
             return self._codec_sets[full_name]
 
     def _transcoder(self, full_name: str) -> CdrTranscoder:
@@ -329,6 +339,11 @@ class TypeLibrary:
     def _closure(self, full_name: str) -> dict[str, StructDef]:
         """`full_name`'s definition and those of every type it nests, at any depth."""
         return {name: self._structs[name] for name in nested_closure(self._structs, [full_name])}
+
+
+def ros_named(error: DecodeError) -> DecodeError:
+    """`error` (the LCM reader's, naming LCM fields) with its field path in ROS 2 names."""
+    return DecodeError(error.type_name, field_path(error.field), error.offset, error.reason, error.unit)
 
 
 def _merge(structs: dict[str, StructDef], new: Mapping[str, StructDef]) -> None:

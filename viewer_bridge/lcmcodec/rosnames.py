@@ -14,20 +14,28 @@ The rules (docs/PROTOCOLS.md, "Any LCM type"):
 from __future__ import annotations
 
 import re
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from viewer_bridge.lcmcodec.schema import StructDef
 
 __all__ = [
+    "MESSAGE_PATTERN",
+    "PACKAGE_PATTERN",
     "NameRefused",
     "constant_name",
     "field_name",
+    "field_names",
+    "field_path",
     "message_name",
     "package_name",
     "ros_topic_for_channel",
 ]
 
-# rosidl_adapter's patterns for valid names.
-_PACKAGE = re.compile(r"(?!.*__)(?!.*_\Z)[a-z][a-z0-9_]*")  # each used with fullmatch: `$` takes "name\n"
-_MESSAGE = re.compile(r"[A-Z][A-Za-z0-9]*")
-_FIELD = _PACKAGE
+# rosidl_adapter's patterns for valid names (the one set of them: ros_build checks packages by them too).
+PACKAGE_PATTERN = re.compile(r"(?!.*__)(?!.*_\Z)[a-z][a-z0-9_]*")  # each used with fullmatch: `$` takes "name\n"
+MESSAGE_PATTERN = re.compile(r"[A-Z][A-Za-z0-9]*")
+_FIELD = PACKAGE_PATTERN
 _CONSTANT = re.compile(r"[A-Z]([A-Z0-9_]?[A-Z0-9]+)*")
 
 _WORD_START = re.compile(r"(?<=[a-z0-9])(?=[A-Z])")
@@ -57,6 +65,33 @@ def field_name(name: str) -> str:
     return result
 
 
+def field_names(struct: StructDef) -> dict[str, str]:
+    """Each member's name in a message's dict or JSON (`LcmType.to_json`, `from_json`): its ROS 2
+    field name. A struct with no ROS 2 form for them all (a name with none, two names with one)
+    keeps its LCM names, so that `viewer-bridge dump` still shows every field."""
+    try:
+        names = {member.name: field_name(member.name) for member in struct.members}
+    except NameRefused:
+        return {member.name: member.name for member in struct.members}
+    if len(set(names.values())) != len(names):
+        return {member.name: member.name for member in struct.members}
+    return names
+
+
+def field_path(path: str) -> str:
+    """A field path of LCM names (`where.frameId[2]`, as the LCM decoder's errors say it) in ROS 2
+    names (`where.frame_id[2]`); a part with no ROS 2 name (`<fingerprint>`) stays as it is."""
+    return ".".join(_path_part(part) for part in path.split("."))
+
+
+def _path_part(part: str) -> str:
+    name, bracket, indices = part.partition("[")
+    try:
+        return field_name(name) + bracket + indices
+    except NameRefused:
+        return part
+
+
 def constant_name(name: str) -> str:
     """The ROS 2 constant name of LCM constant `name`."""
     result = _snake(name).upper()
@@ -71,7 +106,7 @@ def package_name(lcm_package: str) -> str:
         return NO_PACKAGE
     result = "_".join(_snake(word) for word in lcm_package.split(".")) + PACKAGE_SUFFIX
     result = _tidy(result)
-    if not _PACKAGE.fullmatch(result):
+    if not PACKAGE_PATTERN.fullmatch(result):
         raise NameRefused(f"package {lcm_package!r} has no valid ROS 2 name (got {result!r})")
     return result
 
@@ -79,7 +114,7 @@ def package_name(lcm_package: str) -> str:
 def message_name(struct_name: str) -> str:
     """The ROS 2 message name of LCM struct `struct_name` (`lcmt_iiwa_status` -> `LcmtIiwaStatus`)."""
     result = "".join(word[:1].upper() + word[1:] for word in struct_name.split("_"))
-    if not _MESSAGE.fullmatch(result):
+    if not MESSAGE_PATTERN.fullmatch(result):
         raise NameRefused(f"type {struct_name!r} has no valid ROS 2 message name (got {result!r})")
     return result
 

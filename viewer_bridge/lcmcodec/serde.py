@@ -20,15 +20,19 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from viewer_bridge.errors import DecodeError, EncodeError
-from viewer_bridge.lcmcodec.schema import (
-    PRIMITIVE_FORMATS,
-    STRING_MIN_SIZE,
-    Member,
-    StructDef,
-    fingerprint,
+from viewer_bridge.lcmcodec.codegen import (
+    Buffer,
+    SourceWriter,
+    bad_count,
+    call_child,
+    element_min_size,
+    min_sizes,
+    scalar_runs,
+    string_error,
+    truncated,
 )
+from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef, fingerprint
 
-Buffer = bytes | bytearray | memoryview
 _FINGERPRINT_FIELD = "<fingerprint>"
 
 
@@ -155,23 +159,6 @@ def _flatten(value: Any, shape: Sequence[int], type_name: str, field: str) -> It
         yield from _flatten(row, shape[1:], type_name, f"{field}[{index}]")
 
 
-def _truncated(type_name: str, field: str, offset: int, need: int, end: int) -> DecodeError:
-    return DecodeError(
-        type_name, field, offset, f"truncated: needs {need} bytes, {max(end - offset, 0)} remain"
-    )
-
-
-def _bad_count(type_name: str, field: str, offset: int, count: int, size: int, end: int) -> DecodeError:
-    if count < 0:
-        return DecodeError(type_name, field, offset, f"negative count {count}")
-    return DecodeError(
-        type_name,
-        field,
-        offset,
-        f"count {count} needs at least {count * size} bytes, {end - offset} remain",
-    )
-
-
 _EMPTY_ROWS_LIMIT = 1 << 16  # lists an empty multi-dimensional array may have beyond the bytes left
 
 
@@ -210,25 +197,6 @@ def _element_path(index: int, shape: Sequence[int]) -> str:
     return "".join(f"[{i}]" for i in reversed(indices))
 
 
-def _string_error(type_name: str, field: str, buf: Buffer, offset: int, end: int) -> DecodeError:
-    """The precise error for the malformed string at `offset` (the generated code's slow path)."""
-    if offset + 4 > end:
-        return _truncated(type_name, field, offset, 4, end)
-    (length,) = _U32.unpack_from(buf, offset)
-    start = offset + 4
-    if length == 0:
-        return DecodeError(type_name, field, offset, "string length 0 leaves no room for its NUL")
-    if start + length > end:
-        return _truncated(type_name, field, start, length, end)
-    if buf[start + length - 1] != 0:
-        return DecodeError(type_name, field, start + length - 1, "string is not NUL-terminated")
-    try:
-        str(buf[start : start + length - 1], "utf-8")
-    except UnicodeDecodeError as error:
-        return DecodeError(type_name, field, start + error.start, "invalid UTF-8")
-    return DecodeError(type_name, field, offset, "malformed string")
-
-
 def _unexpected_fields(type_name: str, fields: Mapping[str, Any]) -> TypeError:
     """What a message class's constructor raises for keywords that are none of its members."""
     return TypeError(f"{type_name} has no member {', '.join(map(repr, fields))}")
@@ -247,89 +215,10 @@ def _ident(full_name: str) -> str:
     return full_name.replace("_", "__").replace(".", "_D")
 
 
-class _Writer:
-    def __init__(self) -> None:
-        self.lines: list[str] = []
-        self.depth = 0
-
-    def line(self, text: str) -> None:
-        self.lines.append("    " * self.depth + text)
-
-    def indent(self) -> _IndentScope:
-        return _IndentScope(self)
-
-
-class _IndentScope:
-    def __init__(self, writer: _Writer) -> None:
-        self.writer = writer
-
-    def __enter__(self) -> None:
-        self.writer.depth += 1
-
-    def __exit__(self, *exc: object) -> None:
-        self.writer.depth -= 1
-
-
-def _min_sizes(structs: Mapping[str, StructDef]) -> dict[str, int]:
-    """Smallest body of each type: the bound used to reject impossible counts up front."""
-    sizes: dict[str, int] = {}
-
-    def size_of(struct: StructDef, parents: tuple[str, ...]) -> int:
-        if struct.full_name in sizes:
-            return sizes[struct.full_name]
-        total = 0
-        for member in struct.members:
-            if any(dim.is_variable for dim in member.dims):
-                continue
-            count = math.prod(dim.count for dim in member.dims)
-            total += count * _element_min_size(member, structs, parents + (struct.full_name,), size_of)
-        sizes[struct.full_name] = total
-        return total
-
-    for definition in structs.values():
-        size_of(definition, ())
-    return sizes
-
-
-def _element_min_size(
-    member: Member,
-    structs: Mapping[str, StructDef],
-    parents: tuple[str, ...],
-    size_of: Callable[[StructDef, tuple[str, ...]], int],
-) -> int:
-    if member.type_name == "string":
-        return STRING_MIN_SIZE
-    if member.type_name in PRIMITIVE_FORMATS:
-        return PRIMITIVE_FORMATS[member.type_name][1]
-    if member.type_name in parents:
-        return 0
-    return size_of(structs[member.type_name], parents)
-
-
-def call_child(out: _Writer, statement: str, error_class: str, type_literal: str, field: str) -> None:
-    """Write `statement` (a child struct's codec) so that its error is re-homed under the type
-    `type_literal` (a Python literal) and `field` (an expression)."""
-    out.line("try:")
-    with out.indent():
-        out.line(statement)
-    out.line(f"except {error_class} as error:")
-    with out.indent():
-        out.line(f"raise error.within({type_literal}, {field}) from None")
-
-
-def element_min_size(member: Member, min_sizes: Mapping[str, int]) -> int:
-    """The fewest bytes one element of `member` takes (`min_sizes`: each struct's, from `_min_sizes`)."""
-    if member.type_name == "string":
-        return STRING_MIN_SIZE
-    if member.type_name in PRIMITIVE_FORMATS:
-        return PRIMITIVE_FORMATS[member.type_name][1]
-    return min_sizes[member.type_name]
-
-
 class _StructGenerator:
     """Writes the class, the decoder and the encoder of one struct."""
 
-    def __init__(self, struct: StructDef, min_sizes: Mapping[str, int], out: _Writer, finite: bool = True) -> None:
+    def __init__(self, struct: StructDef, min_sizes: Mapping[str, int], out: SourceWriter, finite: bool = True) -> None:
         self.struct = struct
         self.finite = finite
         self.min_sizes = min_sizes
@@ -414,17 +303,8 @@ class _StructGenerator:
 
     def groups(self) -> Iterator[list[Member] | Member]:
         """Runs of fixed-size scalar primitives (read with one struct call) and other members."""
-        run: list[Member] = []
-        for member in self.struct.members:
-            if member.type_name in PRIMITIVE_FORMATS and not member.dims:
-                run.append(member)
-                continue
-            if run:
-                yield run
-                run = []
-            yield member
-        if run:
-            yield run
+        for scalars, run in scalar_runs(self.struct):
+            yield [member for _, member in run] if scalars else run[0][1]
 
     def struct_name(self, members: list[Member]) -> str:
         fmt = ">" + "".join(PRIMITIVE_FORMATS[m.type_name][0] for m in members)
@@ -644,7 +524,7 @@ def _flatten_bytes(value: Any, shape: Sequence[int], type_name: str, field: str)
 
 def generate_source(structs: Mapping[str, StructDef], min_sizes: Mapping[str, int], finite: bool = True) -> str:
     """The Python source of every class, decoder and encoder for `structs`."""
-    out = _Writer()
+    out = SourceWriter()
     for definition in structs.values():
         generator = _StructGenerator(definition, min_sizes, out, finite)
         generator.write_class()
@@ -652,17 +532,24 @@ def generate_source(structs: Mapping[str, StructDef], min_sizes: Mapping[str, in
         generator.write_encoder()
         generator.write_formats()
         out.line("")
-    return "\n".join(out.lines) + "\n"
+    return out.source()
 
 
 def compile_codecs(
-    structs: Mapping[str, StructDef], *, finite: bool = True, fingerprints: Mapping[str, int] | None = None
+    structs: Mapping[str, StructDef],
+    *,
+    finite: bool = True,
+    fingerprints: Mapping[str, int] | None = None,
+    compiled: Mapping[str, StructCodec] | None = None,
 ) -> dict[str, StructCodec]:
     """Generate, compile and wrap the codecs of every struct in `structs`.
 
     `finite` refuses NaN and infinite floats (the viewer's messages never carry them); a generic
     type's decoder passes them through. `fingerprints` overrides computed ones (an lcm-gen'd
-    class's own, which is what its publisher writes)."""
+    class's own, which is what its publisher writes). `compiled`: codecs made earlier (with the
+    same `finite`) for some of `structs`, reused rather than generated again, so that a nested
+    type has one message class wherever it is nested."""
+    earlier = dict(compiled or {})
     # The helpers' names are capitalised or start with one underscore; every name the generated
     # code defines is `<ident>_<what>`, and `_ident` doubles each underscore of a type's name, so
     # none of those starts with a single one: no type's name can take a helper's (or a builtin's).
@@ -683,26 +570,34 @@ def compile_codecs(
         "_nest": _nest,
         "_flatten": _flatten,
         "_flatten_bytes": _flatten_bytes,
-        "_truncated": _truncated,
-        "_bad_count": _bad_count,
+        "_truncated": truncated,
+        "_bad_count": bad_count,
         "_check_finite": _check_finite,
         "_check_rows": _check_rows,
-        "_string_error": _string_error,
+        "_string_error": string_error,
         "_unexpected_fields": _unexpected_fields,
         "_ENCODE_ERRORS": _ENCODE_ERRORS,
     }
-    min_sizes = _min_sizes(structs)
-    source = generate_source(structs, min_sizes, finite)
+    for name, codec in earlier.items():  # what the new code calls of a type compiled before
+        ident = _ident(name)
+        namespace.update({f"{ident}_class": codec.message_class, f"{ident}_encode": codec._encode_body,
+                          f"{ident}_decode": codec._decode_body})  # fmt: skip
+    sizes = min_sizes(structs)
+    new = {name: definition for name, definition in structs.items() if name not in earlier}
+    source = generate_source(new, sizes, finite)
     exec(compile(source, "<lcm codecs generated from lcm types>", "exec"), namespace)  # noqa: S102
     codecs: dict[str, StructCodec] = {}
     for name, definition in structs.items():
+        if name in earlier:
+            codecs[name] = earlier[name]
+            continue
         ident = _ident(name)
         message_class: type[LcmMessage] = namespace[f"{ident}_class"]
         codec = StructCodec(
             definition=definition,
             message_class=message_class,
             fingerprint=(fingerprints or {}).get(name) or fingerprint(definition, structs),
-            min_size=min_sizes[name],
+            min_size=sizes[name],
             _encode_body=namespace[f"{ident}_encode"],
             _decode_body=namespace[f"{ident}_decode"],
         )

@@ -37,6 +37,7 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from viewer_bridge.errors import RosInterfaceError
+from viewer_bridge.lcmcodec.rosnames import MESSAGE_PATTERN, PACKAGE_PATTERN
 
 if TYPE_CHECKING:
     from rosbags.interfaces.typing import Typesdict
@@ -127,10 +128,8 @@ class Package:
         return tuple(f"msg/{message}.msg" for message, _ in self.messages)
 
 
-# rosidl_adapter's name rules (docs/PROTOCOLS.md, "Names"): checked here so that a bad name is
-# one line naming the type, before CMake is run.
-_PACKAGE_NAME = re.compile(r"(?!.*__)(?!.*_\Z)[a-z][a-z0-9_]*")  # fullmatch: `$` takes "name\n"
-_MESSAGE_NAME = re.compile(r"[A-Z][A-Za-z0-9]*")
+# rosidl_adapter's name rules (docs/PROTOCOLS.md, "Names", `lcmcodec.rosnames`): checked here so
+# that a bad name is one line naming the type, before CMake is run.
 
 
 def interface_package(name: str) -> Package:
@@ -153,7 +152,7 @@ def packages(definitions: Mapping[str, str]) -> list[Package]:
     depends: dict[str, set[str]] = {}
     for typename, text in sorted(definitions.items()):
         package, kind, message = (typename.split("/") + ["", ""])[:3]
-        if kind != "msg" or not _PACKAGE_NAME.fullmatch(package) or not _MESSAGE_NAME.fullmatch(message):
+        if kind != "msg" or not PACKAGE_PATTERN.fullmatch(package) or not MESSAGE_PATTERN.fullmatch(message):
             raise RosInterfaceError(f"{typename!r} is not a ROS 2 message name (package/msg/Name)")
         try:
             fields = get_types_from_msg(text, typename)[typename][1]
