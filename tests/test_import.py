@@ -1,6 +1,6 @@
 """`import viewer_bridge.convert` is light: a fresh interpreter that imports it has loaded none of
 the heavy modules its converters use and compiled no codec, and one call then still converts
-(the modules it needs are imported by the call)."""
+(the modules it needs are imported by the call, and only those)."""
 
 from __future__ import annotations
 
@@ -25,7 +25,8 @@ import viewer_bridge.convert as convert
 heavy = json.loads(sys.argv[1])
 loaded_at_import = [name for name in heavy if name in sys.modules]
 pose_array = convert.draw_to_pose_array(bytes.fromhex(sys.argv[2]), frame_id="map")
-print(json.dumps({"loaded_at_import": loaded_at_import, "pose_array": pose_array.hex()}))
+loaded_by_call = [name for name in heavy if name in sys.modules]
+print(json.dumps({"loaded_at_import": loaded_at_import, "loaded_by_call": loaded_by_call, "pose_array": pose_array.hex()}))
 """
 
 
@@ -35,5 +36,9 @@ def test_importing_convert_loads_nothing_heavy_and_a_call_still_converts() -> No
                             capture_output=True, text=True, check=True)  # fmt: skip
     report = json.loads(result.stdout)
     assert report["loaded_at_import"] == []
+    # A draw's PoseArray is written from the draw's arrays alone: no table, so no pydantic or
+    # yaml, and nothing of protobuf or images.
+    assert set(report["loaded_by_call"]) & {"pydantic", "yaml", "google.protobuf", "PIL"} == set()
+    assert {"numpy", "viewer_bridge.lcmcodec"} <= set(report["loaded_by_call"])  # the call did import
     expected = to_cdr(ros_oracle.pose_array(DrawDecoder().decode(draw), "map"))
     assert bytes.fromhex(report["pose_array"]) == expected
