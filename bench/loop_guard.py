@@ -23,7 +23,8 @@ from lcm_generic import iiwa_status
 
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.router.echoes import Echoes
-from viewer_bridge.transports.base import CallPublisher, MessageTime, Publisher, Received
+from viewer_bridge.shared import MessageTime
+from viewer_bridge.transports.base import CallPublisher, Publisher, Received
 
 
 def _nothing(_: object) -> None:

@@ -4,9 +4,13 @@ protobuf classes), on the demo scene: every Drake shape, two model instances, an
 
 from __future__ import annotations
 
+import ast
 import inspect
 import subprocess
 import sys
+import typing
+from collections.abc import Callable
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -21,7 +25,7 @@ from tests.formats.foxglove.oracle import frame_transforms
 from tests.formats.ign import oracle as ign_oracle
 from tests.formats.ros import oracle as ros_oracle
 from tests.formats.tree_viewer import oracle as tree_oracle
-from viewer_bridge import convert
+from viewer_bridge import convert, streams
 from viewer_bridge.errors import DecodeError, SceneError
 from viewer_bridge.examples.demo import DEMO_MESH, demo_poses, demo_scene
 from viewer_bridge.examples.scenes import demo_contact_results
@@ -54,7 +58,7 @@ def test_draw_to_pose_array_is_the_message_rclpy_reads() -> None:
     data = convert.draw_to_pose_array(DRAW_BYTES)
     assert data == to_cdr(ros_oracle.pose_array(POSES, "world"))
     assert deserialize_message(data, PoseArray).header.frame_id == "world"
-    assert convert.draw_to_pose_array(DRAW_BYTES, "map") == to_cdr(ros_oracle.pose_array(POSES, "map"))
+    assert convert.draw_to_pose_array(DRAW_BYTES, frame_id="map") == to_cdr(ros_oracle.pose_array(POSES, "map"))
 
 
 def test_draw_to_tf_frames_and_stamps_every_link() -> None:
@@ -94,7 +98,10 @@ def test_load_to_marker_array_places_the_markers_by_the_draw() -> None:
 
 
 def test_load_to_shapes_and_model_v_and_glb() -> None:
-    assert convert.load_to_shapes(LOAD) == shapes_cdr(SCENE)
+    shapes = convert.load_to_shapes(LOAD)
+    assert shapes == shapes_cdr(SCENE)
+    assert {shape.type for shape in shapes} == {ros.SOLID_PRIMITIVE, ros.MESH}  # the demo has no plane
+    assert all(isinstance(shape, convert.TypedCdr) and shape.cdr[:4] == b"\x00\x01\x00\x00" for shape in shapes)
     assert convert.load_to_model_v(LOAD, draw=DRAW_BYTES) == model_v(POSED).SerializeToString()
     glb = convert.load_to_glb(LOAD, draw=DRAW_BYTES)
     assert glb[:4] == b"glTF" and int.from_bytes(glb[8:12], "little") == len(glb)  # magic, total length
@@ -180,13 +187,61 @@ def test_a_misspelt_option_is_a_type_error() -> None:
         convert.draw_to_pose_v(DRAW_BYTES, mesage="Pose_V")  # type: ignore[call-arg]
 
 
+def public_functions(module: ModuleType) -> list[tuple[str, Callable[..., object]]]:
+    """The module's public functions, and the public methods (with `__init__`) of its public classes."""
+    found: list[tuple[str, Callable[..., object]]] = []
+    for name in module.__all__:
+        value = getattr(module, name)
+        if inspect.isfunction(value):
+            found.append((name, value))
+        elif inspect.isclass(value) and not issubclass(value, tuple):  # a NamedTuple's are generated
+            found += [(f"{name}.{method}", function) for method, function in inspect.getmembers(value, inspect.isfunction)
+                      if not method.startswith("_") or method == "__init__"]  # fmt: skip
+    return found
+
+
+def annotation_namespace(function: Callable[..., object]) -> dict[str, Any]:
+    """The globals of the function's module with the names it imports for the type checker only
+    (`if TYPE_CHECKING:`), so that every annotation it writes can be evaluated."""
+    module = sys.modules[function.__module__]
+    namespace = dict(vars(module))
+    for node in ast.parse(inspect.getsource(module)).body:
+        if isinstance(node, ast.If) and ast.unparse(node.test) == "TYPE_CHECKING":
+            exec(compile(ast.Module(body=node.body, type_ignores=[]), str(module.__file__), "exec"), namespace)
+    return namespace
+
+
+def hints(function: Callable[..., object]) -> dict[str, Any]:
+    """The function's parameter and return types, evaluated."""
+    return typing.get_type_hints(function, annotation_namespace(function))
+
+
+def mentions_any(hint: object) -> bool:
+    """Whether a type, or any type it is built of (`dict[str, Any]`, `list[X | Any]`), is `Any`."""
+    return hint is Any or any(mentions_any(argument) for argument in typing.get_args(hint))
+
+
+@pytest.mark.parametrize("module", [convert, streams])
+def test_no_public_signature_mentions_any(module: ModuleType) -> None:
+    functions = public_functions(module)
+    assert len(functions) > 10
+    with_any = [name for name, function in functions if any(map(mentions_any, hints(function).values()))]
+    assert with_any == []
+
+
+def test_mentions_any_finds_any_however_deep() -> None:
+    assert mentions_any(dict[str, list[int | Any]]) and not mentions_any(dict[str, list[int | None]])
+
+
 def test_every_option_is_keyword_only() -> None:
-    """Past the message's bytes (and `draw_to_pose_array`'s frame id, its contract), options are
-    named: a call cannot pass one in the wrong place by position."""
-    for name in convert.__all__:
-        parameters = list(inspect.signature(getattr(convert, name)).parameters.values())
+    """Past the message's bytes (and `cdr_to_rclpy`'s type name, which is no option), every
+    parameter is named: a call cannot pass an option in the wrong place by position."""
+    functions = public_functions(convert)
+    for name, function in functions:
+        parameters = list(inspect.signature(function).parameters.values())
         positional = [p.name for p in parameters if p.kind is not inspect.Parameter.KEYWORD_ONLY]
-        assert positional in (["data"], ["data", "frame_id"], ["data", "typename"]), name
+        assert positional in (["data"], ["data", "typename"]), name
+    assert sum(name.startswith(("draw_", "load_")) for name, _ in functions) == 13  # all of them were looked at
 
 
 def test_importing_the_facade_imports_no_optional_dependency() -> None:

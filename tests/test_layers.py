@@ -41,6 +41,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.ros_build.interfaces": 2,
     "viewer_bridge.ros_build.background": 2,
     "viewer_bridge.transports.lcm_url": 2,
+    "viewer_bridge.shared": 2,
     # 3
     "viewer_bridge.model.lowering": 3,
     "viewer_bridge.model.contact": 3,

@@ -8,7 +8,8 @@ import pytest
 from tests.peers import wait_for
 from viewer_bridge.router import echoes
 from viewer_bridge.router.echoes import Echoes, EchoGuard, GuardedPublisher
-from viewer_bridge.transports.base import CallPublisher, MessageTime, Received
+from viewer_bridge.shared import MessageTime
+from viewer_bridge.transports.base import CallPublisher, Received
 
 LCM_X = ("lcm", "X")
 

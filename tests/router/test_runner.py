@@ -113,8 +113,8 @@ def test_held_messages_are_counted_per_channel_said_once_and_the_other_channels_
 
     from viewer_bridge.errors import Held
     from viewer_bridge.router.runner import RouteRunner
+    from viewer_bridge.shared import Shared
     from viewer_bridge.translators import TRANSLATORS, Output
-    from viewer_bridge.transports.base import Shared
 
     shared = Shared()  # the project's types and Drake's
     published: dict[str, list[bytes]] = {}

@@ -9,9 +9,10 @@ import pytest
 from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.draw import DrawDecoder
 from viewer_bridge.formats.drake.load import load_from_scene
+from viewer_bridge.shared import Shared
 from viewer_bridge.translators import TRANSLATORS, LoadCache
 from viewer_bridge.translators.types import LOAD_TYPE
-from viewer_bridge.transports.base import Received, Shared
+from viewer_bridge.transports.base import Received
 
 
 def test_a_draw_read_by_several_translators_is_decoded_once(monkeypatch: pytest.MonkeyPatch) -> None:

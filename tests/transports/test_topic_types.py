@@ -9,7 +9,8 @@ import logging
 import pytest
 
 from viewer_bridge.lcmcodec.library import TypeLibrary
-from viewer_bridge.transports.base import CDR, MessageType, Shared
+from viewer_bridge.shared import Shared
+from viewer_bridge.transports.base import CDR, MessageType
 from viewer_bridge.transports.topic_types import TopicTypes
 
 ANY = MessageType("*", CDR)

@@ -37,17 +37,10 @@ from viewer_bridge.router.echoes import Echoes
 from viewer_bridge.router.flow import InlineBudget
 from viewer_bridge.router.runner import PublisherFor, RouteRunner
 from viewer_bridge.router.status import LogLines, StatusView, counted
+from viewer_bridge.shared import RosDefinitions, Shared, definitions_of
 from viewer_bridge.translators import TRANSLATORS, LoadCache, Output, Translator
 from viewer_bridge.transports import TRANSPORTS
-from viewer_bridge.transports.base import (
-    Publisher,
-    Qos,
-    Received,
-    RosDefinitions,
-    Shared,
-    Transport,
-    definitions_of,
-)
+from viewer_bridge.transports.base import Publisher, Qos, Received, Transport
 from viewer_bridge.transports.ros_names import ChannelNames
 
 log = logging.getLogger("viewer_bridge")

@@ -25,7 +25,8 @@ import time
 from collections import deque
 from collections.abc import Callable
 
-from viewer_bridge.transports.base import Deliver, MessageTime, Publisher, Received
+from viewer_bridge.shared import MessageTime
+from viewer_bridge.transports.base import Deliver, Publisher, Received
 
 WINDOW_S = 2.0  # how long a sent payload is waited for: a round trip through one bus, with room
 LIMIT = 10_000  # sends remembered per name at most: a flood forgets its oldest, memory never grows

@@ -27,8 +27,9 @@ from viewer_bridge.errors import BridgeError, Held
 from viewer_bridge.model.skipped import collecting
 from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
 from viewer_bridge.router.stats import RouteStats
+from viewer_bridge.shared import MessageTime
 from viewer_bridge.translators import Output, Translator
-from viewer_bridge.transports.base import MessageTime, MessageType, Publisher, Received
+from viewer_bridge.transports.base import MessageType, Publisher, Received
 from viewer_bridge.transports.ros_names import ChannelNames
 
 log = logging.getLogger("viewer_bridge")

@@ -18,7 +18,8 @@ from typing import Any, ClassVar
 
 from pydantic import BaseModel, ConfigDict
 
-from viewer_bridge.transports.base import MessageType, Received, Shared
+from viewer_bridge.shared import Shared
+from viewer_bridge.transports.base import MessageType, Received
 
 
 class TranslatorOptions(BaseModel):

@@ -13,8 +13,9 @@ Beside it, what meldis shows besides the scene, each at its message's sim time:
 `drake_point_cloud_to_rerun` (Points3D), `drake_draw_frames_to_rerun` (triads as Arrows3D),
 `drake_contacts_to_rerun` (force and moment arrows, pressure-coloured surfaces).
 
-Generic LCM channels (each numeric field as `Scalars` under `/lcm/<channel>/<field path>`) are
-to come as a translator of their own beside this one, reading the generic LCM message type.
+Generic LCM channels (each numeric field as `Scalars` under `/lcm/<channel>/<field path>`) have
+a translator of their own beside this one, reading the generic LCM message type
+(`viewer_bridge.translators.lcm_rerun`).
 """
 
 from __future__ import annotations

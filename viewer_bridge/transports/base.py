@@ -8,26 +8,24 @@ through `Transport`; which one a route uses is a word in the config, looked up i
 A message received once is one `Received`, handed to every subscription it matches, so a
 decoded form of it (`Received.decoded`) is computed once however many routes read it.
 
-A router makes its transports with `Transport.create(settings, shared)`: `Shared` holds what the
-transports (and translators) of one router share: its known LCM types, one Foxglove context for
-the live server and an MCAP file, and the receive time of the message being published
-(`MessageTime`), which a file stamps.
+A router makes its transports with `Transport.create(settings, shared)`, handing them what the
+transports and translators of one router share (`viewer_bridge.shared.Shared`).
 """
 
 from __future__ import annotations
 
-import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, Protocol, Self, TypeVar, cast
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, Self, TypeVar
 
 from pydantic import BaseModel, ConfigDict
 
+from viewer_bridge.shared import Shared
+
 if TYPE_CHECKING:
     from viewer_bridge.errors import BridgeError
-    from viewer_bridge.lcmcodec.library import TypeLibrary
 
 # Payload encodings, named as MCAP names message encodings where it has a name for them.
 LCM = "lcm"
@@ -111,79 +109,6 @@ class Received:
 
 
 Deliver = Callable[[Received], None]  # called on the transport's thread: hand over and return
-
-
-class MessageTime(threading.local):
-    """The receive time (microseconds) of the message whose outputs this thread publishes.
-
-    The router sets it before it publishes a translation's outputs, so a transport that stamps
-    what it writes (an MCAP file's log time) gives every output its message's receive time: the
-    log's own time offline, the bus's receive time live. One per router; each thread sees its own.
-    `channel` is that message's channel on its source (the loop guard remembers where a payload
-    it sends came from: `viewer_bridge.router.echoes`).
-    """
-
-    received_us: int = 0
-    channel: str = ""
-
-
-Made = TypeVar("Made")
-
-
-RosDefinitions = Callable[[str], Mapping[str, str]]
-"""`ros_definitions(package)`: the ROS 2 `.msg` definitions ("pkg/msg/Name" -> text) of the interface
-package `package` and of every package its types use (more is fine), or an empty mapping when it
-knows no such package. The ros transport builds a package it lacks from them (the router's LCM
-types give theirs: `definitions_of`)."""
-
-
-def definitions_of(lcm_types: TypeLibrary) -> RosDefinitions:
-    """The `RosDefinitions` of a type library: all of its definitions, worked out on the first ask."""
-    made: dict[str, str] = {}
-
-    def definitions(package: str) -> Mapping[str, str]:
-        if not made:
-            made.update(lcm_types.ros_definitions())
-        return made
-
-    return definitions
-
-
-class Shared:
-    """What the transports and translators of one router share: the `MessageTime`, the LCM types
-    it knows (`lcm_types`, loaded once at start from the config's `lcm_types`), the definitions of
-    the ROS 2 interface packages that may be built while it runs (`ros_definitions`, or None), and
-    whatever is made once per router on first ask (`get(FoxgloveContext)`: the live server and an
-    MCAP file log to one; `get(LoadCache)`: every route's last Drake load). Two routers share
-    nothing."""
-
-    def __init__(self, lcm_types: TypeLibrary | None = None, ros_definitions: RosDefinitions | None = None) -> None:
-        self.message_time = MessageTime()
-        self._lcm_types = lcm_types
-        self.ros_definitions = ros_definitions
-        self._made: dict[Callable[[], object], object] = {}
-        self._lock = threading.Lock()  # translators are made on the routes' threads
-
-    @property
-    def lcm_types(self) -> TypeLibrary:
-        """The router's known LCM types (without a router: the project's and Drake's, loaded on first ask)."""
-        if self._lcm_types is None:
-            from viewer_bridge.lcmcodec.library import TypeLibrary  # numpy and rosbags: only when asked
-
-            self._lcm_types = TypeLibrary.load()
-        return self._lcm_types
-
-    def get(self, make: Callable[[], Made]) -> Made:
-        """This router's one `make()`, made on the first ask."""
-        with self._lock:
-            if make not in self._made:
-                self._made[make] = make()
-            return cast(Made, self._made[make])
-
-    def provide(self, make: Callable[[], Made], made: Made) -> None:
-        """Have `get(make)` return `made` (e.g. a cache with the config's folder), before anyone asks."""
-        with self._lock:
-            self._made[make] = made
 
 
 @dataclass(frozen=True, slots=True)
@@ -329,14 +254,11 @@ __all__ = [
     "Exposure",
     "JSON",
     "LCM",
-    "Made",
-    "MessageTime",
     "MessageType",
     "PROTOBUF",
     "Publisher",
     "Qos",
     "Received",
-    "Shared",
     "Transport",
     "TransportSettings",
 ]

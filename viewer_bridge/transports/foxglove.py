@@ -41,6 +41,7 @@ from pydantic import Field, field_validator
 from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, TransportUnavailable
 from viewer_bridge.formats.foxglove.schema import schema
+from viewer_bridge.shared import Shared
 from viewer_bridge.transports.base import (
     CDR,
     PROTOBUF,
@@ -50,7 +51,6 @@ from viewer_bridge.transports.base import (
     Publisher,
     Qos,
     Received,
-    Shared,
     Transport,
     TransportSettings,
 )

@@ -30,16 +30,15 @@ from typing import Literal, Protocol
 from rosbags.typesys import Stores, get_typestore
 
 from viewer_bridge.errors import InvalidName, TransportUnavailable
+from viewer_bridge.shared import MessageTime, Shared
 from viewer_bridge.transports.base import (
     CDR,
     PROTOBUF,
     CallPublisher,
     Deliver,
-    MessageTime,
     MessageType,
     Publisher,
     Qos,
-    Shared,
     Transport,
     TransportSettings,
 )

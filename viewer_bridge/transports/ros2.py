@@ -30,6 +30,7 @@ from pydantic import field_validator
 
 from viewer_bridge.errors import Held, InvalidName, TransportUnavailable
 from viewer_bridge.ros_build.background import BuildState, InterfaceBuilder
+from viewer_bridge.shared import Shared
 from viewer_bridge.transports.base import (
     CDR,
     CallPublisher,
@@ -39,7 +40,6 @@ from viewer_bridge.transports.base import (
     Publisher,
     Qos,
     Received,
-    Shared,
     Transport,
     TransportSettings,
 )

@@ -15,7 +15,8 @@ import threading
 from collections.abc import Iterable
 from typing import TYPE_CHECKING
 
-from viewer_bridge.transports.base import CDR, Definition, MessageType, Shared
+from viewer_bridge.shared import Shared
+from viewer_bridge.transports.base import CDR, Definition, MessageType
 
 if TYPE_CHECKING:
     from viewer_bridge.lcmcodec.library import LcmType

@@ -7,6 +7,10 @@ CDR or an rclpy object; `cdr` writes and reads CDR directly, for the per-frame f
 `mappings/ros.yaml` (which shape becomes which message or marker) to its encoders.
 """
 
+from typing import NamedTuple
+
+WORLD = "world"  # Drake's name for the world link, and ROS's usual fixed frame
+
 # The message types this package writes and reads, each named once.
 POSE_ARRAY = "geometry_msgs/msg/PoseArray"
 MARKER_ARRAY = "visualization_msgs/msg/MarkerArray"
@@ -18,6 +22,13 @@ WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
 POINT_CLOUD2 = "sensor_msgs/msg/PointCloud2"
 
 
+class TypedCdr(NamedTuple):
+    """One message of several types as CDR, with its type's full name (`shape_msgs/msg/Mesh`)."""
+
+    type: str
+    cdr: bytes
+
+
 __all__ = [
     "MARKER_ARRAY",
     "MESH",
@@ -26,5 +37,7 @@ __all__ = [
     "POSE_ARRAY",
     "SOLID_PRIMITIVE",
     "TF_MESSAGE",
+    "WORLD",
     "WRENCH_STAMPED",
+    "TypedCdr",
 ]

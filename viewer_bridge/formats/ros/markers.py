@@ -271,7 +271,7 @@ class MarkerStream:
     (DELETEALL first), to be published once and latched.
     """
 
-    def __init__(self, scene: Scene, options: dict[str, Any] | None = None) -> None:
+    def __init__(self, scene: Scene, options: dict[str, object] | None = None) -> None:
         frame_id = str(marker_settings(options)["frame_id"])
         self._specs = marker_specs(scene, options)
         positions, wxyz = world_poses(scene, self._specs)

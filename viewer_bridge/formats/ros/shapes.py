@@ -15,14 +15,14 @@ import numpy as np
 
 from viewer_bridge.config.mappings import ShapeRule
 from viewer_bridge.errors import SceneError
-from viewer_bridge.formats.ros import MESH, PLANE, SOLID_PRIMITIVE
+from viewer_bridge.formats.ros import MESH, PLANE, SOLID_PRIMITIVE, TypedCdr
 from viewer_bridge.formats.ros.cdr import CDR_LE, U32, CdrWriter
 from viewer_bridge.formats.ros.tables import TABLES
 from viewer_bridge.model.scene import Geometry, Scene, Shape, TriangleMesh
 from viewer_bridge.model.skipped import per_geometry
 
 
-def shapes_cdr(scene: Scene) -> list[tuple[str, bytes]]:
+def shapes_cdr(scene: Scene) -> list[TypedCdr]:
     """Every geometry of the scene as shape_msgs CDR: (type name, bytes) per message, written
     from the table's values and the mesh arrays (no message objects).
 
@@ -34,7 +34,7 @@ def shapes_cdr(scene: Scene) -> list[tuple[str, bytes]]:
     # cached mesh, written once.
     written: dict[int, tuple[Shape, bytes]] = {}
 
-    def messages(_: int, geometry: Geometry) -> list[tuple[str, bytes]]:
+    def messages(_: int, geometry: Geometry) -> list[TypedCdr]:
         parts = []
         for rule, shape, _pose in table.expand(geometry.shape, geometry.pose):
             typename = rule.message or table.target
@@ -45,7 +45,7 @@ def shapes_cdr(scene: Scene) -> list[tuple[str, bytes]]:
             else:
                 data = _mesh_cdr(rule, shape)
                 written[id(shape)] = (shape, data)
-            parts.append((typename, data))
+            parts.append(TypedCdr(typename, data))
         return parts
 
     for link in scene.links:

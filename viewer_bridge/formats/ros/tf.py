@@ -16,11 +16,11 @@ import struct
 
 import numpy as np
 
+from viewer_bridge.formats.ros import WORLD
 from viewer_bridge.formats.ros.cdr import CDR_TIME, POSE_ITEM, U32, CdrWriter, payload_items
 from viewer_bridge.model.pose_math import write_pose_rows_xyzw
 from viewer_bridge.model.scene import LinkPoses, frame_name
 
-WORLD = "world"  # Drake's name for the world link, and ROS's usual fixed frame
 _TRANSFORM = struct.Struct("<7d")
 
 

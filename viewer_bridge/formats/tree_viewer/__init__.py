@@ -7,5 +7,13 @@ as requests (a load, a draw); `tree`: requests applied to a tree, answered as Di
 read back as a scene, with `commands` reading the geometry and transform objects in them.
 """
 
+# Kept free of imports: the facade (`viewer_bridge.convert`) names these at its own import.
 
-__all__: list[str] = []
+DEFAULT_PREFIX: tuple[str, ...] = ("drake",)  # where a scene hangs in the viewer's tree
+
+JsonObject = dict[str, object]
+"""A JSON object (a request as the tree viewer is sent it, its response): values are str, int,
+float, bool, None, and lists and objects of them. Typed `object` rather than as a recursive
+union, which `typing.get_type_hints` cannot resolve outside this module."""
+
+__all__ = ["DEFAULT_PREFIX", "JsonObject"]

@@ -17,6 +17,7 @@ import numpy.typing as npt
 import orjson
 
 from viewer_bridge.config.mappings import FormatTables
+from viewer_bridge.formats.tree_viewer import DEFAULT_PREFIX
 from viewer_bridge.formats.tree_viewer.envelope import Request, encode, envelope
 from viewer_bridge.model.scene import (
     FloatArray,
@@ -31,8 +32,6 @@ from viewer_bridge.model.scene import (
     TriangleMesh,
 )
 from viewer_bridge.model.skipped import per_geometry
-
-DEFAULT_PREFIX: tuple[str, ...] = ("drake",)
 
 
 def _mesh_data(shape: TriangleMesh) -> dict[str, Any]:

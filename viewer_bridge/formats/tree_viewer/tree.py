@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import RequestRejected, SceneError
+from viewer_bridge.formats.tree_viewer import JsonObject
 from viewer_bridge.formats.tree_viewer.commands import geometry_from_command, pose_from_transform
 from viewer_bridge.formats.tree_viewer.envelope import (
     ERROR_HANDLING_REQUEST,
@@ -53,7 +54,7 @@ class TreeState:
         self.timestamp_us = 0
         self.mesh_roots = [os.path.realpath(root) for root in mesh_roots]
 
-    def respond(self, request: Request) -> dict[str, Any]:
+    def respond(self, request: JsonObject) -> JsonObject:
         """Apply one request and answer it: status 0 or 1, or -3 / -4 with an `error` text."""
         try:
             return self.apply(request)
@@ -62,7 +63,7 @@ class TreeState:
         except SceneError as error:
             return {"timestamp": echo_time(request), "status": ERROR_HANDLING_REQUEST, "error": str(error)}
 
-    def apply(self, request: Request) -> dict[str, Any]:
+    def apply(self, request: JsonObject) -> JsonObject:
         """Apply one request; returns the response payload (status, missing_paths).
 
         Raises `RequestRejected` (-4) for an unknown command and `SceneError` (-3) for a bad one;

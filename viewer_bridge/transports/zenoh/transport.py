@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from pydantic import Field, ValidationInfo, field_validator
 
 from viewer_bridge.errors import InvalidName, TransportUnavailable
+from viewer_bridge.shared import Shared
 from viewer_bridge.transports.base import (
     CDR,
     LCM,
@@ -36,7 +37,6 @@ from viewer_bridge.transports.base import (
     Publisher,
     Qos,
     Received,
-    Shared,
     Transport,
     TransportSettings,
 )

@@ -1,0 +1,95 @@
+"""What the transports and translators of one router share, made by the router and handed to each.
+
+`Shared` sits below both transports and the router: a transport takes it in `Transport.create`,
+a translator in its constructor, and neither needs to know what the others keep in it. It holds
+three things of its own, none specific to Drake: the receive time of the message whose outputs
+are being published (`MessageTime`, which an MCAP file stamps), the LCM types the router knows,
+and the ROS 2 interface definitions the ros transport may build packages from. Everything else
+(one Foxglove context for the live server and an MCAP file, the Drake translators' load cache)
+is made once per router by whoever asks first, through `Shared.get(make)`, and is opaque here.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, TypeVar, cast
+
+if TYPE_CHECKING:
+    from viewer_bridge.lcmcodec.library import TypeLibrary
+
+
+class MessageTime(threading.local):
+    """The receive time (microseconds) of the message whose outputs this thread publishes.
+
+    The router sets it before it publishes a translation's outputs, so a transport that stamps
+    what it writes (an MCAP file's log time) gives every output its message's receive time: the
+    log's own time offline, the bus's receive time live. One per router; each thread sees its own.
+    `channel` is that message's channel on its source (the loop guard remembers where a payload
+    it sends came from: `viewer_bridge.router.echoes`).
+    """
+
+    received_us: int = 0
+    channel: str = ""
+
+
+Made = TypeVar("Made")
+
+
+RosDefinitions = Callable[[str], Mapping[str, str]]
+"""`ros_definitions(package)`: the ROS 2 `.msg` definitions ("pkg/msg/Name" -> text) of the interface
+package `package` and of every package its types use (more is fine), or an empty mapping when it
+knows no such package. The ros transport builds a package it lacks from them (the router's LCM
+types give theirs: `definitions_of`)."""
+
+
+def definitions_of(lcm_types: TypeLibrary) -> RosDefinitions:
+    """The `RosDefinitions` of a type library: all of its definitions, worked out on the first ask."""
+    made: dict[str, str] = {}
+
+    def definitions(package: str) -> Mapping[str, str]:
+        if not made:
+            made.update(lcm_types.ros_definitions())
+        return made
+
+    return definitions
+
+
+class Shared:
+    """What the transports and translators of one router share: the `MessageTime`, the LCM types
+    it knows (`lcm_types`, loaded once at start from the config's `lcm_types`), the definitions of
+    the ROS 2 interface packages that may be built while it runs (`ros_definitions`, or None), and
+    whatever is made once per router on first ask (`get(FoxgloveContext)`: the live server and an
+    MCAP file log to one; `get(LoadCache)`: every route's last Drake load). Two routers share
+    nothing."""
+
+    def __init__(self, lcm_types: TypeLibrary | None = None, ros_definitions: RosDefinitions | None = None) -> None:
+        self.message_time = MessageTime()
+        self._lcm_types = lcm_types
+        self.ros_definitions = ros_definitions
+        self._made: dict[Callable[[], object], object] = {}
+        self._lock = threading.Lock()  # translators are made on the routes' threads
+
+    @property
+    def lcm_types(self) -> TypeLibrary:
+        """The router's known LCM types (without a router: the project's and Drake's, loaded on first ask)."""
+        if self._lcm_types is None:
+            from viewer_bridge.lcmcodec.library import TypeLibrary  # numpy and rosbags: only when asked
+
+            self._lcm_types = TypeLibrary.load()
+        return self._lcm_types
+
+    def get(self, make: Callable[[], Made]) -> Made:
+        """This router's one `make()`, made on the first ask."""
+        with self._lock:
+            if make not in self._made:
+                self._made[make] = make()
+            return cast(Made, self._made[make])
+
+    def provide(self, make: Callable[[], Made], made: Made) -> None:
+        """Have `get(make)` return `made` (e.g. a cache with the config's folder), before anyone asks."""
+        with self._lock:
+            self._made[make] = made
+
+
+__all__ = ["Made", "MessageTime", "RosDefinitions", "Shared", "definitions_of"]
