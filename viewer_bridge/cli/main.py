@@ -17,6 +17,7 @@ import numpy as np
 import yaml
 from rich.console import Console
 
+from viewer_bridge.cli import lcm_types
 from viewer_bridge.cli.arguments import (
     IMAGE_SUFFIXES,
     Parser,
@@ -270,6 +271,7 @@ def _parser() -> argparse.ArgumentParser:
     interfaces.add_argument(
         "-o", "--output", type=Path, metavar="DIR", help="generate: the folder to write the packages to (a workspace's src/)"
     )
+    lcm_types.add_command(add)
     return parser
 
 
@@ -594,6 +596,7 @@ _HANDLERS = {
     "serve-render": _serve_render,
     "snapshot": _snapshot,
     "ros-interfaces": _ros_interfaces,
+    "lcm-types": lcm_types.run,
 }
 
 

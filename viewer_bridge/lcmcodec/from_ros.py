@@ -107,7 +107,7 @@ def load_ros_definitions(sources: Sequence[str]) -> tuple[dict[str, tuple[list[A
     the ROS 2 type names `sources` ask for: a type (`pkg/msg/Name` or `pkg/Name`), a package (all of
     its types), or a path (the types of its `.msg` files, named `pkg/msg/Name` from their place
     `.../pkg/msg/Name.msg`, or `.../pkg/Name.msg`)."""
-    from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     store = get_typestore(Stores.ROS2_JAZZY)
     wanted: list[str] = []
