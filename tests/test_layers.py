@@ -40,6 +40,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.cli.arguments": 2,
     "viewer_bridge.cli.lcm_types": 2,
     "viewer_bridge.lcmcodec.from_ros": 2,
+    "viewer_bridge.lcmcodec.ros_cdr": 2,
     "viewer_bridge.ros_build.interfaces": 2,
     "viewer_bridge.ros_build.background": 2,
     "viewer_bridge.transports.lcm_url": 2,
