@@ -57,6 +57,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.transports": 6,
     "viewer_bridge.render.renderer": 6,
     "viewer_bridge.convert": 6,
+    "viewer_bridge.bag_to_lcm": 6,
     "viewer_bridge.streams": 6,
     # 7
     "viewer_bridge.translators": 7,
@@ -71,6 +72,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.router": 9,
     # 10
     "viewer_bridge.cli.log_convert": 10,
+    "viewer_bridge.cli.bag_convert": 10,
     # 11
     "viewer_bridge.cli.main": 11,
     "viewer_bridge.cli.__main__": 11,

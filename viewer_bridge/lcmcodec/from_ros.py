@@ -10,6 +10,7 @@ CDR -> LCM transcoders from `RosStruct`s, the wire-level view kept beside each s
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,6 +22,7 @@ from viewer_bridge.lcmcodec.schema import StructDef, fingerprint, name_problem, 
 __all__ = [
     "LENGTH_SUFFIX",
     "LcmFromRos",
+    "definitions_from_msgdef",
     "RosField",
     "RosStruct",
     "load_ros_definitions",
@@ -280,3 +282,23 @@ def _constant_line(name: str, ros_type: str, value: Any) -> str:
     else:
         text = str(int(value))
     return f"    const {lcm_type} {name} = {text};"
+
+
+def definitions_from_msgdef(ros_type: str, text: str) -> dict[str, tuple[list[Any], list[Any]]]:
+    """The definitions in a `ros2msg` schema (as MCAP and rosbag2 store them): the type's `.msg`,
+    then for each type it nests a line of `=` and `MSG: pkg/Name` before that type's `.msg`."""
+    from rosbags.typesys import get_types_from_msg
+
+    found: dict[str, tuple[list[Any], list[Any]]] = {}
+    name = ros_type
+    for section in _SEPARATOR.split(text):
+        first, _, rest = section.strip("\n").partition("\n")
+        body = section
+        if first.startswith("MSG: "):
+            parts = first[5:].strip().split("/")
+            name, body = (f"{parts[0]}/msg/{parts[-1]}" if len(parts) == 2 else "/".join(parts)), rest
+        found.update(get_types_from_msg(body, name))
+    return found
+
+
+_SEPARATOR = re.compile(r"^={3,}[ \t]*$", re.MULTILINE)
