@@ -181,6 +181,27 @@ def _wstring(buf: Any, off: int, end: int, out: list[Any], type_name: str, field
     return start + 4 * count
 
 
+def _starts(phase: int, sizes: list[int]) -> list[int]:
+    """Where consecutive CDR primitives of `sizes` bytes start, counted from the first one's position,
+    when that position is `phase` modulo 8 (each is aligned to its size)."""
+    starts, position = [], phase
+    for size in sizes:
+        position += -position & (size - 1)
+        starts.append(position - phase)
+        position += size
+    return starts
+
+
+# The code of a run of scalars (n: its formats' name, t: the type's literal, v: its values): the
+# little-endian layout for the position modulo 8 read in one unpack, checked, written in one pack.
+_RUN = """k = off & 7
+if off + {n}_N[k] > end:
+    raise _run_problem({t}, {n}_L[k], None, off, end)
+{v}, = {n}_LE[k].unpack_from(buf, off)
+{check}out.append({n}.pack({v}))
+off += {n}_N[k]"""
+
+
 # --- the generator ----------------------------------------------------------------------------------
 
 
@@ -220,33 +241,22 @@ class _Generator:
         out = self.out
         name = f"{self.ident}_S{len(self.formats)}"
         self.formats[name] = struct.Struct(">" + "".join(_WIRE[f.base][2] for f in run))
+        sizes = [_WIRE[f.base][0] for f in run]
         readers, layouts = [], []
         for phase in range(8):
-            fmt, position, layout = "<", phase, []
-            for ros_field in run:
-                size, code, _ = _WIRE[ros_field.base]
-                pad = -position & (size - 1)
-                fmt += "x" * pad + code
-                layout.append((ros_field.name, ros_field.base, position + pad - phase))
-                position += pad + size
-            readers.append(struct.Struct(fmt))
-            layouts.append(tuple(layout))
+            starts = _starts(phase, sizes)
+            ends = [0] + [start + size for start, size in zip(starts, sizes, strict=True)][:-1]
+            codes = (f"{start - before}x{_WIRE[f.base][1]}" for start, before, f in zip(starts, ends, run, strict=True))
+            readers.append(struct.Struct("<" + "".join(codes)))
+            layouts.append(tuple((f.name, f.base, start) for f, start in zip(run, starts, strict=True)))
         self.formats[name + "_LE"] = readers
         self.formats[name + "_N"] = [reader.size for reader in readers]
         self.formats[name + "_L"] = layouts
         values = ", ".join(f"v{index}" for index in range(len(run)))
-        out.line("k = off & 7")
-        out.line(f"if off + {name}_N[k] > end:")
-        with out.indent():
-            out.line(f"raise _run_problem({self.t}, {name}_L[k], None, off, end)")
-        out.line(f"{values}{',' if len(run) == 1 else ''} = {name}_LE[k].unpack_from(buf, off)")
-        checks = [f"v{i} > {_LIMITS[f.base]}" for i, f in enumerate(run) if f.base in _LIMITS]
-        if checks:
-            out.line(f"if {' or '.join(checks)}:")
-            with out.indent():
-                out.line(f"raise _run_problem({self.t}, {name}_L[k], ({values},), off, end)")
-        out.line(f"out.append({name}.pack({values}))")
-        out.line(f"off += {name}_N[k]")
+        checks = " or ".join(f"v{i} > {_LIMITS[f.base]}" for i, f in enumerate(run) if f.base in _LIMITS)
+        check = f"if {checks}:\n    raise _run_problem({self.t}, {name}_L[k], ({values},), off, end)\n" if checks else ""
+        for line in _RUN.format(n=name, t=self.t, v=values, check=check).splitlines():
+            out.line(line)
 
     def field(self, ros_field: RosField) -> None:
         out = self.out
