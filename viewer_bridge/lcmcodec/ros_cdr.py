@@ -23,7 +23,7 @@ import numpy as np
 
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec.cdr import compile_generated
-from viewer_bridge.lcmcodec.cdr_to_lcm import LcmEncoder, _string
+from viewer_bridge.lcmcodec.cdr_to_lcm import LcmEncoder, _string, _too_many
 from viewer_bridge.lcmcodec.from_ros import LcmFromRos, RosField, RosStruct
 from viewer_bridge.lcmcodec.schema import StructDef
 from viewer_bridge.lcmcodec.serde import _truncated, _Writer, call_child
@@ -55,7 +55,7 @@ def compile_ros_encoders(mapping: LcmFromRos, ros_names: Iterable[str]) -> dict[
     by_lcm = {struct_.lcm_name: struct_ for struct_ in mapping.structs.values()}
     helpers: dict[str, object] = {"DecodeError": DecodeError, "_truncated": _truncated, "_string": _string,
                                   "_wstring": _wstring, "_count": _count, "_numbers": _numbers,
-                                  "_run_problem": _run_problem, "_too_many": _too_many}  # fmt: skip
+                                  "_run_problem": _run_problem, "_room": _room}  # fmt: skip
     lcm_names = [mapping.structs[name].lcm_name for name in names]
     generator = functools.partial(_Generator, by_lcm, _min_sizes(mapping.structs))
     bodies = compile_generated(mapping.lcm, lcm_names, "R", generator, helpers, "<ros cdr -> lcm encoders>")
@@ -93,9 +93,10 @@ def _element_min(ros_field: RosField, size_of: Any) -> int:
 # --- what the generated code calls -------------------------------------------------------------------
 
 
-def _too_many(type_name: str, field: str, offset: int, count: int, size: int, end: int) -> DecodeError:
-    return DecodeError(type_name, field, offset, f"count {count} needs at least {count * size} bytes, "
-                       f"{max(end - offset, 0)} remain")  # fmt: skip
+def _room(type_name: str, field: str, offset: int, count: int, size: int, end: int) -> None:
+    """Refuse `count` elements of at least `size` bytes each that cannot fit before `end`."""
+    if count * size > end - offset:
+        raise _too_many(type_name, field, offset, count, size, end)
 
 
 def _count(buf: Any, off: int, end: int, out: list[Any], type_name: str, field: str, bound: int) -> tuple[int, int]:
@@ -120,8 +121,7 @@ def _numbers(buf: Any, off: int, end: int, out: list[Any], type_name: str, field
         return off
     if size > 1:
         off += -off & (size - 1)
-    if count * size > end - off:
-        raise _too_many(type_name, field, off, count, size, end)
+    _room(type_name, field, off, count, size, end)
     if size == 1 and base != "bool":
         out.append(buf[off : off + count])
         return off + count
@@ -163,8 +163,7 @@ def _wstring(buf: Any, off: int, end: int, out: list[Any], type_name: str, field
         raise _truncated(type_name, field, off, 4, end)
     count: int = _U32_LE(buf, off)[0]
     start = off + 4
-    if count * 4 > end - start:
-        raise _too_many(type_name, field, start, count, 4, end)
+    _room(type_name, field, start, count, 4, end)
     units = np.frombuffer(buf, "<u4", count, start)
     wide = np.flatnonzero(units > 0xFFFF)
     if wide.size:
@@ -272,9 +271,7 @@ class _Generator:
             out.line(f"off = _numbers(buf, off, end, out, {self.t}, {name}, {ros_field.base!r}, n)")
             return
         element = max(_element_min(ros_field, self.min_sizes.__getitem__), 1)
-        out.line(f"if n * {element} > end - off:")
-        with out.indent():
-            out.line(f"raise _too_many({self.t}, {name}, off, n, {element}, end)")
+        out.line(f"_room({self.t}, {name}, off, n, {element}, end)")
         out.line("for i in range(n):")
         with out.indent():
             self.element(ros_field, f"'{ros_field.name}[%d]' % i")
