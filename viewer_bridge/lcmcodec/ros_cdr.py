@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import functools
 import struct
+from array import array
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -41,6 +42,10 @@ _WIRE: Mapping[str, tuple[int, str, str]] = {
 # numpy's names for the same: (CDR little-endian, LCM big-endian).
 _DTYPES = {name: (np.dtype(f"<{le}"), np.dtype(f">{be}")) for name, (_, le, be) in _WIRE.items()}
 _UINT64_LIMIT = 1 << 63
+# The primitives whose LCM form is their CDR bytes reversed (the same width, no check), by an array
+# typecode of their size: byteswap only needs the size.
+_SWAPS = {"int16": "H", "int32": "I", "int64": "Q", "float32": "I", "float64": "Q"}
+_NUMPY_FROM = 256  # elements
 _LIMITS = {"bool": 1, "uint64": _UINT64_LIMIT - 1}  # the largest value LCM takes, where CDR's type allows more
 _COUNT_LIMIT = (1 << 31) - 1  # LCM's int32_t length field
 _TEXT_MIN = {"string": 5, "wstring": 4}  # count and NUL; count only
@@ -55,7 +60,8 @@ def compile_ros_encoders(mapping: LcmFromRos, ros_names: Iterable[str]) -> dict[
     by_lcm = {struct_.lcm_name: struct_ for struct_ in mapping.structs.values()}
     helpers: dict[str, object] = {"DecodeError": DecodeError, "_truncated": _truncated, "_string": _string,
                                   "_wstring": _wstring, "_count": _count, "_numbers": _numbers,
-                                  "_run_problem": _run_problem, "_room": _room}  # fmt: skip
+                                  "_run_problem": _run_problem, "_room": _room,
+                                  "_strings": _strings}  # fmt: skip
     lcm_names = [mapping.structs[name].lcm_name for name in names]
     generator = functools.partial(_Generator, by_lcm, _min_sizes(mapping.structs))
     bodies = compile_generated(mapping.lcm, lcm_names, "R", generator, helpers, "<ros cdr -> lcm encoders>")
@@ -126,6 +132,12 @@ def _numbers(buf: Any, off: int, end: int, out: list[Any], type_name: str, field
         out.append(buf[off : off + count])
         return off + count
     little, big = _DTYPES[base]
+    if count < _NUMPY_FROM and base in _SWAPS:  # a few numbers: Python's array swaps faster than numpy's call
+        swapped = array(_SWAPS[base])
+        swapped.frombytes(buf[off : off + count * size])
+        swapped.byteswap()
+        out.append(swapped)
+        return off + count * size
     values = np.frombuffer(buf, little, count, off)
     if base in ("bool", "uint64"):
         bad = np.flatnonzero(values > _LIMITS[base])
@@ -134,6 +146,39 @@ def _numbers(buf: Any, off: int, end: int, out: list[Any], type_name: str, field
             raise _value_error(type_name, f"{field}[{index}]", off + index * size, base, int(values[index]))
     out.append(values.astype(big))
     return off + count * size
+
+
+def _strings(buf: Any, off: int, end: int, out: list[Any], type_name: str, field: str, count: int) -> int:
+    """`count` strings (a string array): CDR's little-endian lengths to LCM's big-endian ones, the
+    bytes (with their NUL) as slices, and one UTF-8 check of them all. Each ends in its NUL, so a
+    character cut at the end of one cannot pass as whole with the next. Whatever is wrong is found
+    and named by `_string`, run again on the element where it is."""
+    starts, first = [], len(out)
+    for index in range(count):
+        off += -off & 3
+        length = _U32_LE(buf, off)[0] if off + 4 <= end else 0
+        stop = off + 4 + length
+        if length == 0 or stop > end or buf[stop - 1] != 0:
+            raise _string_problem(buf, off, end, type_name, f"{field}[{index}]")
+        starts.append(off)
+        out.append(_U32_BE(length))
+        out.append(buf[off + 4 : stop])
+        off = stop
+    try:
+        str(b"".join(out[first + 1 :: 2]), "utf-8")
+    except UnicodeDecodeError:
+        for index, start in enumerate(starts):
+            _string(buf, start, end, [], type_name, f"{field}[{index}]")
+    return off
+
+
+def _string_problem(buf: Any, off: int, end: int, type_name: str, field: str) -> DecodeError:
+    """The error `_string` raises for the string at `off`, which is known to be wrong."""
+    try:
+        _string(buf, off, end, [], type_name, field)
+    except DecodeError as error:
+        return error
+    raise AssertionError(f"{field}: nothing wrong at {off}")
 
 
 def _value_error(type_name: str, field: str, offset: int, base: str, value: int) -> DecodeError:
@@ -269,6 +314,10 @@ class _Generator:
             out.line(f"n = {ros_field.count}")
         if ros_field.base in _WIRE:
             out.line(f"off = _numbers(buf, off, end, out, {self.t}, {name}, {ros_field.base!r}, n)")
+            return
+        if ros_field.base == "string":
+            out.line(f"_room({self.t}, {name}, off, n, 5, end)")
+            out.line(f"off = _strings(buf, off, end, out, {self.t}, {name}, n)")
             return
         element = max(_element_min(ros_field, self.min_sizes.__getitem__), 1)
         out.line(f"_room({self.t}, {name}, off, n, {element}, end)")
