@@ -123,3 +123,16 @@ def test_the_command_names_what_it_refuses(tmp_path: Path, capsys: pytest.Captur
     assert main(["lcm-types", "generate", "--ros-types", str(tmp_path), "-o", str(tmp_path / "out")]) == 1
     assert "lab/msg/Clash not mapped: field x's length field" in capsys.readouterr().err
     assert main(["lcm-types", "generate", "--ros-types", "no_such_msgs", "-o", str(tmp_path / "out")]) == 2
+
+
+def test_constants_are_what_lcm_gen_takes_or_a_comment(tmp_path: Path) -> None:
+    write_msg(tmp_path, "Consts", "float64 BIG=1e20\nfloat32 HUGE=1e39\nint64 LOW=-9223372036854775808\n"
+              "uint32 U=4294967295\nbyte B=255\nint32 x\n")  # fmt: skip
+    definitions, wanted = load_ros_definitions([str(tmp_path)])
+    mapping = map_ros_types(definitions, wanted)
+    text = mapping.texts["lab.Consts"]
+    assert "const double BIG = 1e20;" in text and "const int64_t U = 4294967295;" in text
+    assert "// float32 HUGE = 1e39 (no LCM constant: 1e39 is out of float's (float32's) range)" in text
+    mapping.write(tmp_path / "lcm")
+    done = lcm_gen_all(tmp_path / "lcm", tmp_path / "gen")
+    assert done.returncode == 0, done.stderr

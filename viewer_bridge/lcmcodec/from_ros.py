@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from viewer_bridge.errors import SchemaError
-from viewer_bridge.lcmcodec.schema import StructDef, fingerprint, name_problem, parse_lcm
+from viewer_bridge.lcmcodec.schema import StructDef, constant_problem, fingerprint, name_problem, parse_lcm
 
 __all__ = [
     "LENGTH_SUFFIX",
@@ -160,9 +160,13 @@ def map_ros_types(definitions: Definitions, names: Iterable[str]) -> LcmFromRos:
             result.refused[ros_name] = f"field {bad.name}: {bad.nested} is refused ({result.refused[bad.nested]})"
             continue
         text = lcm_text(struct, definitions[ros_name][0], pending)
+        try:  # what lcm-gen will read: parsed back, so that the fingerprint is of these very lines
+            (definition,) = parse_lcm(text, f"<{ros_name}>")
+        except SchemaError as error:  # a value no rule here foresaw: this type out, the others on
+            result.refused[ros_name] = f"its .lcm text does not parse: {error}"
+            continue
         result.structs[ros_name] = struct
         result.texts[struct.lcm_name] = text
-        (definition,) = parse_lcm(text, f"<{ros_name}>")
         result.lcm[struct.lcm_name] = definition
     return result
 
@@ -276,9 +280,10 @@ def _constant_line(name: str, ros_type: str, value: Any) -> str:
     if lcm_type is None or lcm_type == "string" or (ros_type == "uint64" and value > _INT64_MAX):
         return f"    // {ros_type} {name} = {value!r} (no LCM constant can hold it)"
     if lcm_type in ("float", "double"):
-        text = repr(float(value))
-        if text in ("nan", "inf", "-inf"):
-            return f"    // {ros_type} {name} = {text} (no LCM constant can hold it)"
+        text = repr(float(value)).replace("e+", "e")  # lcm-gen's lexer takes 1e20, not 1e+20
+        problem = constant_problem(lcm_type, float(value), text)
+        if problem:
+            return f"    // {ros_type} {name} = {text} (no LCM constant: {problem})"
     else:
         text = str(int(value))
     return f"    const {lcm_type} {name} = {text};"
