@@ -34,7 +34,9 @@ def test_a_bag_becomes_an_lcm_log_lcm_gen_reads(tmp_path: Path, capsys: pytest.C
     assert main(["convert", str(tmp_path / "bag.mcap"), str(out)]) == 2  # exists: not replaced without --force
 
 
-def test_topics_narrow_and_unmappable_and_bad_messages_are_reported(tmp_path: Path) -> None:
+def test_topics_narrow_and_unmappable_and_bad_messages_are_reported(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from mcap.writer import Writer
 
     store = typestore()
@@ -43,20 +45,27 @@ def test_topics_narrow_and_unmappable_and_bad_messages_are_reported(tmp_path: Pa
         writer = Writer(stream)
         writer.start(profile="ros2")
         clash = writer.register_schema("lab/msg/Clash", "ros2msg", b"float64[] x\nint32 x_length\n")
+        garbled = writer.register_schema("lab/msg/Garbled", "ros2msg", b"float64[ x\n")
         msgdef = store.generate_msgdef("sensor_msgs/msg/JointState", ros_version=2)[0]
         joints = writer.register_schema("sensor_msgs/msg/JointState", "ros2msg", msgdef.encode())
         channels = {topic: writer.register_channel(topic, "cdr", schema) for topic, schema in
-                    [("/clash", clash), ("/joints", joints), ("/other", joints)]}  # fmt: skip
+                    [("/clash", clash), ("/joints", joints), ("/other", joints), ("/garbled", garbled)]}  # fmt: skip
         good = serialized("sensor_msgs/msg/JointState", JOINTS)
         for index, (topic, data) in enumerate([("/clash", b"\x00\x01\x00\x00"), ("/joints", good),
                                                ("/joints", good[:-3]), ("/other", good), ("/joints", good)]):  # fmt: skip
             writer.add_message(channels[topic], log_time=index * 1000, data=data, publish_time=index * 1000)
         writer.finish()
-    result = bag_to_lcm(bag, tmp_path / "out.lcmlog", topics="/(clash|joints)")
+    result = bag_to_lcm(bag, tmp_path / "out.lcmlog", topics="/(clash|joints|garbled)")
     assert "x_length would collide" in result.skipped["/clash"]
+    assert "lab/msg/Garbled: its recorded definition does not parse" in result.skipped["/garbled"]
     assert result.written == {"/joints": 2} and result.bad == {"/joints": 1}
     assert "sensor_msgs/msg/JointState.effort" in result.first_error["/joints"]
     assert [event.channel for event in read_log(tmp_path / "out.lcmlog")] == ["joints", "joints"]
+    assert main(["convert", str(bag), str(tmp_path / "all.lcmlog")]) == 0
+    printed = capsys.readouterr()
+    assert "       1  /other -> other" in printed.out
+    assert "viewer-bridge convert: /clash left out: lab/msg/Clash: field x's length field" in printed.err
+    assert "/joints: 1 messages did not convert, the first: sensor_msgs/msg/JointState.effort" in printed.err
 
 
 def test_a_rosbag2_folder_converts_too(tmp_path: Path) -> None:

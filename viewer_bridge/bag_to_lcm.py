@@ -70,9 +70,9 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
         raise ConvertError(f"{bag} is not a ROS 2 bag rosbags can read: {error}") from None
     try:
         connections = [c for c in reader.connections if pattern is None or pattern.fullmatch(c.topic)]
-        definitions = _definitions(connections)
-        mapping = map_ros_types(definitions, dict.fromkeys(c.msgtype for c in connections))
-        chosen = _channels(connections, mapping.refused, result)
+        definitions, unreadable = _definitions(connections)
+        mapping = map_ros_types(definitions, [c.msgtype for c in connections if c.msgtype not in unreadable])
+        chosen = _channels(connections, {**mapping.refused, **unreadable}, result)
         if not chosen:
             reasons = "; ".join(f"{topic}: {why}" for topic, why in result.skipped.items()) or "no topic matches"
             raise ConvertError(f"no topic of {bag} maps onto LCM: {reasons}")
@@ -89,16 +89,22 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
     return result
 
 
-def _definitions(connections: list[Any]) -> dict[str, tuple[list[Any], list[Any]]]:
-    """The Jazzy store's definitions, overridden by those the bag recorded with its topics."""
-    from rosbags.typesys import Stores, get_typestore
+def _definitions(connections: list[Any]) -> tuple[dict[str, tuple[list[Any], list[Any]]], dict[str, str]]:
+    """The Jazzy store's definitions, overridden by those the bag recorded with its topics; and the
+    types whose recorded definition rosbags cannot parse, with why (not guessed from the store:
+    the bag's bytes follow the definition it recorded)."""
+    from rosbags.typesys import Stores, TypesysError, get_typestore
 
     definitions = dict(get_typestore(Stores.ROS2_JAZZY).fielddefs)
+    unreadable: dict[str, str] = {}
     for connection in connections:
         text = getattr(connection.msgdef, "data", "") or ""
         if text.strip():
-            definitions.update(definitions_from_msgdef(connection.msgtype, text))
-    return definitions
+            try:
+                definitions.update(definitions_from_msgdef(connection.msgtype, text))
+            except TypesysError as error:
+                unreadable[connection.msgtype] = f"its recorded definition does not parse: {error}"
+    return definitions, unreadable
 
 
 def _channels(connections: list[Any], refused: dict[str, str], result: BagConversion) -> list[Any]:

@@ -5,8 +5,9 @@ mapping, and run by the same `LcmEncoder` (header, trailing bytes). What differs
 itself: here the CDR is the ROS 2 type's, and LCM gets what ROS 2 does not send, a length field
 before each sequence, and wider integers for the unsigned ones LCM lacks. A run of scalars is one
 little-endian `struct` unpack (its padding chosen by the CDR position modulo 8) and one big-endian
-pack; a primitive array one numpy conversion (byte order and, for uint16/uint32, width); a byte
-array a slice. Nothing builds a Python message.
+pack; a primitive array one byte-swapped copy (Python's array when short, numpy when long or
+widened: uint16/uint32); a byte array a slice; a string array one pass with one UTF-8 check.
+Nothing builds a Python message.
 
 Errors are `DecodeError`s with the ROS 2 type, the field path and the byte offset (from the
 first byte after the 4-byte encapsulation header).
