@@ -11,6 +11,7 @@ import pytest
 
 from tests.lcmcodec.ros_bag import SAMPLES, lcmgen_decode, typestore, write_bag
 from tests.lcmcodec.test_from_ros import CUSTOM, lcm_gen_all
+from tests.optional import peer
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec.cdr_to_lcm import LcmEncoder
 from viewer_bridge.lcmcodec.from_ros import LcmFromRos, load_ros_definitions, map_ros_types
@@ -162,3 +163,26 @@ def test_bad_bools_scalars_and_wstrings_are_decode_errors(encoders: dict[str, Lc
         encoders["my_robot/msg/Note"].encode(note_cdr((0xD83D, 0x41)))
     with pytest.raises(DecodeError, match=r"more\[0\] at byte \d+: count 1 needs at least 4 bytes, 0 remain"):
         encoders["my_robot/msg/Note"].encode(note_cdr(())[:-4] + struct.pack("<I", 1))
+
+
+rclpy_serialization = peer("rclpy.serialization")
+ros_sensor_msgs = peer("sensor_msgs.msg")
+
+
+def test_rclpy_cdr_gives_the_same_lcm_bytes(encoders: dict[str, LcmEncoder]) -> None:
+    """ROS 2's own serializer (which pads a message to 4 bytes) against mcap-ros2-support's. No
+    sequence of 8-byte numbers is empty: rclpy's `serialize_message` then reports 4 bytes more per
+    such sequence than it writes (its size estimate), which are refused as trailing bytes."""
+    message = ros_sensor_msgs.JointState(name=JOINTS["name"], position=JOINTS["position"], velocity=[0.5, 0.25, 0.0],
+                                         effort=JOINTS["effort"])  # fmt: skip
+    message.header.stamp.sec, message.header.stamp.nanosec = 1_700_000_000, 123_456_789
+    message.header.frame_id = "base_link"
+    image = ros_sensor_msgs.Image(height=1, width=3, encoding="mono8", step=3, data=b"\x01\x02\x03")
+    for ros_type, ros_message, values in [
+        ("sensor_msgs/msg/JointState", message, {**JOINTS, "velocity": [0.5, 0.25, 0.0]}),
+        ("sensor_msgs/msg/Image", image, {"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""}, "height": 1,
+                                          "width": 3, "encoding": "mono8", "is_bigendian": 0, "step": 3,
+                                          "data": b"\x01\x02\x03"}),
+    ]:  # fmt: skip
+        ours = encoders[ros_type].encode(rclpy_serialization.serialize_message(ros_message))
+        assert ours == encoders[ros_type].encode(serialized(ros_type, values))
