@@ -14,7 +14,6 @@ alternating rounds.
 
 from __future__ import annotations
 
-import argparse
 import importlib
 import re
 import subprocess
@@ -74,49 +73,38 @@ def image(width: int, height: int) -> Any:
     return message
 
 
-def _header(header: Any, lcm_class: Any) -> Any:
-    lcm_header = type(lcm_class().header)()  # lcm-gen's std_msgs.Header class, renamed
-    lcm_header.stamp.sec, lcm_header.stamp.nanosec = header.stamp.sec, header.stamp.nanosec
-    lcm_header.frame_id = header.frame_id
-    return lcm_header
-
-
-def joint_state_baseline(cdr: bytes, lcm_class: Any) -> Callable[[], bytes]:
+def baseline(cdr: bytes, ros_class: Any, lcm_class: Any, fill: Callable[[Any, Any], None]) -> Callable[[], bytes]:
+    """rclpy's `deserialize_message`, then lcm-gen's class: its header from the ROS 2 one, the rest by `fill`."""
     from rclpy.serialization import deserialize_message
-    from sensor_msgs.msg import JointState
 
     def build() -> bytes:
-        ros = deserialize_message(cdr, JointState)
+        ros = deserialize_message(cdr, ros_class)
         message = lcm_class()
-        message.header = _header(ros.header, lcm_class)
-        message.name_length, message.name = len(ros.name), ros.name
-        for field in ("position", "velocity", "effort"):
-            values = getattr(ros, field)
-            setattr(message, f"{field}_length", len(values))
-            setattr(message, field, values)  # lcm-gen's encode takes array.array
+        message.header.stamp.sec, message.header.stamp.nanosec = ros.header.stamp.sec, ros.header.stamp.nanosec
+        message.header.frame_id = ros.header.frame_id
+        fill(ros, message)
         return message.encode()  # type: ignore[no-any-return]
 
     return build
 
 
-def image_baseline(cdr: bytes, lcm_class: Any) -> Callable[[], bytes]:
-    from rclpy.serialization import deserialize_message
-    from sensor_msgs.msg import Image
+def fill_joint_state(ros: Any, message: Any) -> None:
+    message.name_length, message.name = len(ros.name), ros.name
+    for field in ("position", "velocity", "effort"):
+        values = getattr(ros, field)
+        setattr(message, f"{field}_length", len(values))
+        setattr(message, field, values)  # lcm-gen's encode takes array.array
 
-    def build() -> bytes:
-        ros = deserialize_message(cdr, Image)
-        message = lcm_class()
-        message.header = _header(ros.header, lcm_class)
-        message.height, message.width, message.encoding = ros.height, ros.width, ros.encoding
-        message.is_bigendian, message.step = ros.is_bigendian, ros.step
-        message.data_length, message.data = len(ros.data), ros.data.tobytes()
-        return message.encode()  # type: ignore[no-any-return]
 
-    return build
+def fill_image(ros: Any, message: Any) -> None:
+    message.height, message.width, message.encoding = ros.height, ros.width, ros.encoding
+    message.is_bigendian, message.step = ros.is_bigendian, ros.step
+    message.data_length, message.data = len(ros.data), ros.data.tobytes()
 
 
 def measures(size: Size = Size.FULL) -> list[Measure]:
     from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import Image, JointState
 
     definitions, wanted = load_ros_definitions(TYPES)
     mapping = map_ros_types(definitions, wanted)
@@ -125,26 +113,21 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
         classes = lcmgen_classes(mapping, Path(folder))
     rows = []
     cdr = serialize_message(joint_state(7))
-    ours_call, baseline = partial(encoders[TYPES[0]].encode, cdr), joint_state_baseline(cdr, classes[TYPES[0]])
-    assert ours_call() == baseline()  # noqa: S101 (the row compares like with like)
-    ours, base = paired(ours_call, baseline, size)
+    ours_call = partial(encoders[TYPES[0]].encode, cdr)
+    theirs = baseline(cdr, JointState, classes[TYPES[0]], fill_joint_state)
+    assert ours_call() == theirs()  # noqa: S101 (the row compares like with like)
+    ours, base = paired(ours_call, theirs, size)
     rows.append(Measure("sensor_msgs/JointState (7 joints) CDR -> LCM, vs rclpy + lcm-gen", ours * 1e6, base * 1e6,
                         "us", "ratio >= 5x", base / ours >= 5))  # fmt: skip
     width, height = size.pick(full=(640, 480), quick=(640, 480), smoke=(8, 6))
     cdr = serialize_message(image(width, height))
-    ours_call, baseline = partial(encoders[TYPES[1]].encode, cdr), image_baseline(cdr, classes[TYPES[1]])
-    assert ours_call() == baseline()  # noqa: S101
-    ours, base = paired(ours_call, baseline, size)
+    ours_call, theirs = partial(encoders[TYPES[1]].encode, cdr), baseline(cdr, Image, classes[TYPES[1]], fill_image)
+    assert ours_call() == theirs()  # noqa: S101
+    ours, base = paired(ours_call, theirs, size)
     rows.append(Measure(f"sensor_msgs/Image ({width}x{height} rgb8) CDR -> LCM, vs rclpy + lcm-gen", ours * 1e6,
                         base * 1e6, "us", "ours <= baseline", ours <= base))  # fmt: skip
     return rows
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="fewer rounds")
-    print_measures(measures(Size.QUICK if parser.parse_args().quick else Size.FULL))
-
-
 if __name__ == "__main__":
-    main()
+    print_measures(measures(Size.QUICK if "--quick" in sys.argv[1:] else Size.FULL))
