@@ -123,6 +123,9 @@ def test_the_command_names_what_it_refuses(tmp_path: Path, capsys: pytest.Captur
     assert main(["lcm-types", "generate", "--ros-types", str(tmp_path), "-o", str(tmp_path / "out")]) == 1
     assert "lab/msg/Clash not mapped: field x's length field" in capsys.readouterr().err
     assert main(["lcm-types", "generate", "--ros-types", "no_such_msgs", "-o", str(tmp_path / "out")]) == 2
+    bad = write_msg(tmp_path / "bad", "Broken", "float64[ x\n")
+    assert main(["lcm-types", "generate", "--ros-types", str(bad), "-o", str(tmp_path / "out")]) == 2
+    assert f"{bad}: not a .msg definition rosbags reads" in capsys.readouterr().err
 
 
 def test_constants_are_what_lcm_gen_takes_or_a_comment(tmp_path: Path) -> None:

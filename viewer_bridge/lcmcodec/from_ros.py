@@ -109,7 +109,7 @@ def load_ros_definitions(sources: Sequence[str]) -> tuple[dict[str, tuple[list[A
     the ROS 2 type names `sources` ask for: a type (`pkg/msg/Name` or `pkg/Name`), a package (all of
     its types), or a path (the types of its `.msg` files, named `pkg/msg/Name` from their place
     `.../pkg/msg/Name.msg`, or `.../pkg/Name.msg`)."""
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+    from rosbags.typesys import Stores, TypesysError, get_types_from_msg, get_typestore
 
     store = get_typestore(Stores.ROS2_JAZZY)
     wanted: list[str] = []
@@ -122,7 +122,10 @@ def load_ros_definitions(sources: Sequence[str]) -> tuple[dict[str, tuple[list[A
                 raise SchemaError(source, 0, "no .msg files here")
             for file in files:
                 name = _msg_name(file)
-                custom.update(get_types_from_msg(file.read_text(), name))
+                try:
+                    custom.update(get_types_from_msg(file.read_text(), name))
+                except TypesysError as error:  # one line naming the file, as for a bad .lcm file
+                    raise SchemaError(str(file), 0, f"not a .msg definition rosbags reads: {error}") from None
                 wanted.append(name)
         elif "/" in source:
             parts = source.strip("/").split("/")
