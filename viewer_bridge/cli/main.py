@@ -17,6 +17,7 @@ import numpy as np
 import yaml
 from rich.console import Console
 
+from viewer_bridge.cli import bag_convert, lcm_types
 from viewer_bridge.cli.arguments import (
     IMAGE_SUFFIXES,
     Parser,
@@ -226,7 +227,7 @@ def _parser() -> argparse.ArgumentParser:
     convert = add(
         "convert", help="translate an LCM log into an MCAP file (ROS 2 or Foxglove) or a Rerun .rrd file"
     )
-    convert.add_argument("log", type=input_file, help="an .lcmlog file")
+    convert.add_argument("log", type=bag_convert.input_path, help="an .lcmlog file, or a ROS 2 bag (MCAP, rosbag2 folder)")
     convert.add_argument(
         "mcap", type=output_file(), help="the .mcap (or Rerun .rrd) file to write (written as NAME.partial until complete)"
     )
@@ -246,6 +247,8 @@ def _parser() -> argparse.ArgumentParser:
         metavar="REGEX",
         help="the channels written as /lcm/<channel> in their own type (any known LCM type); default: all",
     )
+    convert.add_argument("--topics", type=regex, metavar="REGEX", help="a ROS 2 bag in: the topics to convert (default all)")
+    convert.add_argument("--lcm-types-out", type=Path, metavar="DIR", help="a ROS 2 bag in: write the .lcm files here")
 
     interfaces = add(
         "ros-interfaces",
@@ -270,6 +273,7 @@ def _parser() -> argparse.ArgumentParser:
     interfaces.add_argument(
         "-o", "--output", type=Path, metavar="DIR", help="generate: the folder to write the packages to (a workspace's src/)"
     )
+    lcm_types.add_command(add)
     return parser
 
 
@@ -432,6 +436,8 @@ def _lcm_url(config: BridgeConfig) -> str:
 
 
 def _convert(args: argparse.Namespace) -> int:
+    if bag_convert.wanted(args):  # a ROS 2 bag into an LCM log
+        return bag_convert.run(args)
     from viewer_bridge.cli.log_convert import convert, is_rrd  # MCAP: the foxglove extra; .rrd: rerun
 
     logging.basicConfig(level=logging.INFO, format="%(message)s")
@@ -594,6 +600,7 @@ _HANDLERS = {
     "serve-render": _serve_render,
     "snapshot": _snapshot,
     "ros-interfaces": _ros_interfaces,
+    "lcm-types": lcm_types.run,
 }
 
 
