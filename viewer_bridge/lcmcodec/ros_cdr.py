@@ -24,11 +24,10 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.lcmcodec.cdr import compile_generated
-from viewer_bridge.lcmcodec.cdr_to_lcm import LcmEncoder, _string, _too_many
+from viewer_bridge.lcmcodec.cdr_to_lcm import LcmEncoder, string_to_lcm
+from viewer_bridge.lcmcodec.codegen import SourceWriter, bad_count, call_child, compile_generated, truncated
 from viewer_bridge.lcmcodec.from_ros import LcmFromRos, RosField, RosStruct
 from viewer_bridge.lcmcodec.schema import StructDef
-from viewer_bridge.lcmcodec.serde import _truncated, _Writer, call_child
 
 __all__ = ["compile_ros_encoders"]
 
@@ -59,7 +58,7 @@ def compile_ros_encoders(mapping: LcmFromRos, ros_names: Iterable[str]) -> dict[
     """The CDR -> LCM encoders of the mapped ROS 2 types `ros_names`, by ROS 2 name."""
     names = list(ros_names)
     by_lcm = {struct_.lcm_name: struct_ for struct_ in mapping.structs.values()}
-    helpers: dict[str, object] = {"DecodeError": DecodeError, "_truncated": _truncated, "_string": _string,
+    helpers: dict[str, object] = {"DecodeError": DecodeError, "_truncated": truncated, "_string": string_to_lcm,
                                   "_wstring": _wstring, "_count": _count, "_numbers": _numbers,
                                   "_run_problem": _run_problem, "_room": _room,
                                   "_strings": _strings}  # fmt: skip
@@ -103,7 +102,7 @@ def _element_min(ros_field: RosField, size_of: Any) -> int:
 def _room(type_name: str, field: str, offset: int, count: int, size: int, end: int) -> None:
     """Refuse `count` elements of at least `size` bytes each that cannot fit before `end`."""
     if count * size > end - offset:
-        raise _too_many(type_name, field, offset, count, size, end)
+        raise bad_count(type_name, field, offset, count, size, end)
 
 
 def _count(buf: Any, off: int, end: int, out: list[Any], type_name: str, field: str, bound: int) -> tuple[int, int]:
@@ -111,7 +110,7 @@ def _count(buf: Any, off: int, end: int, out: list[Any], type_name: str, field: 
     the LCM length field; returns the count and the offset after it."""
     off += -off & 3
     if off + 4 > end:
-        raise _truncated(type_name, field, off, 4, end)
+        raise truncated(type_name, field, off, 4, end)
     (count,) = _U32_LE(buf, off)
     if bound and count > bound:
         raise DecodeError(type_name, field, off, f"count {count} is above the sequence's bound {bound}")
@@ -169,14 +168,14 @@ def _strings(buf: Any, off: int, end: int, out: list[Any], type_name: str, field
         str(b"".join(out[first + 1 :: 2]), "utf-8")
     except UnicodeDecodeError:
         for index, start in enumerate(starts):
-            _string(buf, start, end, [], type_name, f"{field}[{index}]")
+            string_to_lcm(buf, start, end, [], type_name, f"{field}[{index}]")
     return off
 
 
 def _string_problem(buf: Any, off: int, end: int, type_name: str, field: str) -> DecodeError:
-    """The error `_string` raises for the string at `off`, which is known to be wrong."""
+    """The error `string_to_lcm` raises for the string at `off`, which is known to be wrong."""
     try:
-        _string(buf, off, end, [], type_name, field)
+        string_to_lcm(buf, off, end, [], type_name, field)
     except DecodeError as error:
         return error
     raise AssertionError(f"{field}: nothing wrong at {off}")
@@ -195,7 +194,7 @@ def _run_problem(type_name: str, layout: tuple[tuple[str, str, int], ...], value
     for index, (field, base, start) in enumerate(layout):
         size = _WIRE[base][0]
         if off + start + size > end:
-            return _truncated(type_name, field, off + start, size, end)
+            return truncated(type_name, field, off + start, size, end)
         if values is not None and values[index] > _LIMITS.get(base, values[index]):
             return _value_error(type_name, field, off + start, base, values[index])
     raise AssertionError("nothing wrong in the run")  # the caller found something
@@ -206,7 +205,7 @@ def _wstring(buf: Any, off: int, end: int, out: list[Any], type_name: str, field
     4 bytes (wchar_t), no terminator; to LCM as UTF-8 with its NUL."""
     off += -off & 3
     if off + 4 > end:
-        raise _truncated(type_name, field, off, 4, end)
+        raise truncated(type_name, field, off, 4, end)
     count: int = _U32_LE(buf, off)[0]
     start = off + 4
     _room(type_name, field, start, count, 4, end)
@@ -254,7 +253,7 @@ class _Generator:
     """Writes the CDR -> LCM function of one struct (the signature `compile_generated` calls)."""
 
     def __init__(self, by_lcm: Mapping[str, RosStruct], min_sizes: Mapping[str, int], struct_: StructDef,
-                 idents: Mapping[str, str], _lcm_min_sizes: Mapping[str, int], out: _Writer,
+                 idents: Mapping[str, str], _lcm_min_sizes: Mapping[str, int], out: SourceWriter,
                  formats: dict[str, object]) -> None:  # fmt: skip
         self.ros = by_lcm[struct_.full_name]
         self.by_lcm = by_lcm
