@@ -55,8 +55,8 @@ def test_dump_json_of_a_real_drake_log_has_every_field(drake_log: Path) -> None:
     }
     draw = next(r for r in records if r["type"] == "drake.lcmt_viewer_draw")
     assert draw["fingerprint"] == "414f0bfe5b2f4244"
-    assert (
-        len(draw["message"]["quaternion"])
+    assert (  # arrays flat and row-major, as in ROS 2's mapping: 4 numbers per link
+        len(draw["message"]["quaternion"]) // 4
         == draw["message"]["num_links"]
         == len(draw["message"]["link_name"])
     )
@@ -548,5 +548,5 @@ def test_dump_lcm_types_decodes_a_labs_own_type(
     assert drake["type"] == "drake.lcmt_iiwa_status"  # Drake's types with no flag, beside the corpus
     assert drake["message"]["joint_position_measured"] == [0.5, -0.25]
     assert lab["type"] == "vbtest_lab.arm_status_t"
-    assert lab["message"]["jointNames"] == ["shoulder", "elbow", "wrist ü"]
-    assert lab["message"]["toolTip"] == {"x": 0.5, "y": 0.25, "z": -0.125}
+    assert lab["message"]["joint_names"] == ["shoulder", "elbow", "wrist ü"]  # ROS 2's field names
+    assert lab["message"]["tool_tip"] == {"x": 0.5, "y": 0.25, "z": -0.125}
