@@ -33,9 +33,9 @@ class StatusView(Protocol):
         """The bridge is stopping: leave the last state on screen."""
 
 
-def counted(count: int, noun: str) -> str:
-    """`1 route`, `2 routes`: a count and its noun, singular or plural."""
-    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
+def counted(count: int, noun: str, plural: str | None = None) -> str:
+    """`1 route`, `2 routes`: a count and its noun, singular or plural (`noun` + s unless given)."""
+    return f"{count} {noun}" if count == 1 else f"{count} {plural or noun + 's'}"
 
 
 def routes_of(snapshot: Snapshot) -> dict[str, dict[str, Any]]:
