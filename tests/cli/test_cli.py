@@ -12,6 +12,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -350,6 +351,26 @@ def test_convert_exits_1_when_lcm_channels_match_nothing_or_nothing_is_written(t
         f"viewer-bridge convert: nothing written to {empty}: every message read was skipped (said above)"
     )
     assert not empty.exists() and not empty.with_name("empty.mcap.partial").exists()
+
+
+
+def test_an_unknown_type_is_said_once_for_the_router_and_counted_per_route(tmp_path: Path, caplog: Any) -> None:
+    """Two routes read a channel of no known type: one warning, and each route counts it."""
+    from viewer_bridge.cli.log_convert import convert
+    from viewer_bridge.config.bridge import BridgeConfig
+
+    routes = [
+        {"name": f"bus{i}", "source": {"transport": "lcm", "name": "(.*)"}, "translator": "lcm_to_ros",
+         "destination": {"transport": "ros", "name": f"/copy{i}/{{1:topic}}"}}
+        for i in (1, 2)
+    ]  # fmt: skip
+    log = tmp_path / "lab.lcmlog"
+    write_log(log, [LcmEvent("LAB_STATUS", b"12345678abc", i) for i in range(4)])
+    with caplog.at_level("WARNING", logger="viewer_bridge"):
+        done = convert(log, tmp_path / "out.mcap", BridgeConfig.model_validate({"routes": routes}), progress=False)
+    said = [record.getMessage() for record in caplog.records if "LAB_STATUS: fingerprint" in record.getMessage()]
+    assert len(said) == 1, said
+    assert done.skipped == {("LAB_STATUS", "unknown_type"): 4} and not done.written
 
 
 # --- one-line errors ------------------------------------------------------------------------------------
