@@ -551,8 +551,11 @@ def test_a_replayed_log_says_it_ended_and_the_stats_come_once_at_shutdown(tmp_pa
     live = run("run", "-c", "builtin:foxglove", "--set", "foxglove.port=0", "--lcm-url", lcm_url(4),
                "--demo", "--duration", "4", "--stats-period", "2")  # fmt: skip
     assert live.returncode == 0, live.stderr
-    # Every route of builtin:foxglove is lazy and has no client: each report is one line counting them.
-    assert sum(" routes quiet (" in line for line in live.stderr.splitlines()) == 2, live.stderr
+    # Every route of builtin:foxglove is lazy and has no client: each report is one line of those
+    # the demo feeds, with their in-rates, and no row.
+    waiting = [line for line in live.stderr.splitlines() if " waiting for a subscriber: " in line]
+    assert len(waiting) == 2 and " poses in " not in live.stderr, live.stderr
+    assert re.search(r"foxglove_scene in \d+\.\d/s \(idle_skipped \d+\)", waiting[-1]), waiting
 
 
 def test_demo_records_a_log_through_lcms_file_url(tmp_path: Path) -> None:

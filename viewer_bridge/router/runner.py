@@ -361,9 +361,7 @@ class RouteRunner:
         return "active"
 
     def snapshot(self) -> dict[str, Any]:
-        snapshot = self.stats.snapshot(
-            self.mailbox.dropped, len(self.mailbox), self.state(), self.mailbox.rate_skipped
-        )
+        snapshot = self.stats.snapshot(self.mailbox, self.state())
         # What the transport could not send, by the route that gave it (the publishers are shared
         # by name within a route only, so each is counted once).
         snapshot["unsent"] = sum(publisher.unsent for publisher in list(self._publishers.values()))
