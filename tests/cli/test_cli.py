@@ -327,8 +327,8 @@ def test_convert_says_what_it_wrote_as_the_file_reads_back(tmp_path: Path) -> No
     assert said == f"wrote {out}: {len(topics)} messages on {len(set(topics))} topics", result.stdout
     assert len(set(topics)) > 1
     assert (
-        "viewer-bridge convert: skipped: 10 messages on LAB_STATUS "
-        "(unknown type: --lcm-types names the folder of its .lcm files)"
+        "viewer-bridge convert: skipped: 10 messages on LAB_STATUS: "
+        "unknown_type, no known LCM type (--lcm-types names the folder of its .lcm files)"
     ) in result.stderr.splitlines()
 
 

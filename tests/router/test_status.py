@@ -229,7 +229,7 @@ def test_held_messages_show_once_per_kind_with_their_channels(caplog: Any) -> No
     assert [record.getMessage() for record in caplog.records] == [
         "route bus: in 12 out 0 errors 0 latency p50 - p99 - ms "
         "held: unknown_type 5 (MYSTERY, OTHER), waiting_for_build 7 (IIWA_STATUS)",
-        "legend: unknown_type: no known LCM type (--lcm-types names its .lcm files); "
+        "legend: unknown_type: no known LCM type (--lcm-types names the folder of its .lcm files); "
         "waiting_for_build: its ROS 2 interface is being built",
     ]
     out = io.StringIO()

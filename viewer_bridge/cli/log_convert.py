@@ -42,7 +42,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from viewer_bridge.config.bridge import BridgeConfig, Endpoint, Route
 from viewer_bridge.errors import ConvertError, Interrupted
 from viewer_bridge.router import Router
-from viewer_bridge.router.status import Snapshot, counted, routes_of
+from viewer_bridge.router.status import LEGEND, Snapshot, counted, routes_of
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import LCM, MessageType, Received
@@ -55,12 +55,6 @@ log = logging.getLogger("viewer_bridge")
 
 Format = Literal["mcap", "rrd"]
 FORMATS: dict[str, Format] = {".mcap": "mcap", ".rrd": "rrd"}  # by the output's extension
-# Why a channel's messages were held back, and what to do about it, by the kind the router counts.
-SKIPPED_BECAUSE = {
-    "unknown_type": "unknown type: --lcm-types names the folder of its .lcm files",
-    "refused_type": "its type cannot be a ROS 2 message",
-    "too_many_streams": "more streams than the route's max_streams",
-}
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,9 +98,10 @@ class Conversion:
         return f"wrote {self.path}: {counts}"
 
     def skipped_lines(self) -> list[str]:
-        """One line per channel and reason: `skipped: 10 messages on LAB_STATUS (unknown type: ...)`."""
+        """One line per channel and reason, in the live legend's words:
+        `skipped: 10 messages on LAB_STATUS: unknown_type, no known LCM type (--lcm-types ...)`."""
         return [
-            f"skipped: {counted(count, 'message')} on {channel} ({SKIPPED_BECAUSE.get(kind, kind.replace('_', ' '))})"
+            f"skipped: {counted(count, 'message')} on {channel}: {kind}" + (f", {LEGEND[kind]}" if kind in LEGEND else "")
             for (channel, kind), count in sorted(self.skipped.items())
         ]
 

@@ -42,8 +42,9 @@ OTHER_CHANNELS = "(other channels)"
 
 
 class SaidOnce:
-    """What a router's routes have said once between them (a held message's channel, kind and
-    reason): two routes reading one channel of an unknown type log it once, and each counts it."""
+    """What a router's routes have said once between them (a held message's channel and kind):
+    two routes reading one channel of an unknown type log it once, and each counts it. Bounded
+    as the held channels are (`MAX_HELD_CHANNELS` per route), times the few kinds."""
 
     def __init__(self) -> None:
         self._said: set[tuple[str, ...]] = set()
@@ -130,7 +131,7 @@ class RouteRunner:
         self._lanes: dict[tuple[str | None, ...], _Lane] = {}  # by the source's captured groups
         # By full name and type: lanes may share a topic, a channel's type may change (any LCM type).
         self._publishers: dict[tuple[str, MessageType], Publisher] = {}
-        self._said = SaidOnce() if said is None else said  # a held (channel, kind, reason) said once
+        self._said = SaidOnce() if said is None else said  # a held (channel, kind) said once
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"route {route.name}", daemon=True)
         self._logged: Counter[str] = Counter()
@@ -335,7 +336,7 @@ class RouteRunner:
         if channel not in self.stats.held and len(self.stats.held) >= MAX_HELD_CHANNELS:
             channel = OTHER_CHANNELS
         self.stats.held.setdefault(channel, Counter())[held.kind] += 1
-        if self._said.first(channel, held.kind, held.reason):
+        if self._said.first(channel, held.kind):
             log.warning("route %s: %s: %s (%s; counted, not said again)", self.route.name, channel, held.reason, held.kind)
 
     def _tell_source(self, message: Message, error: BridgeError) -> None:

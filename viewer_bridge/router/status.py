@@ -94,7 +94,7 @@ LEGEND = {
     "idle_skipped": "not translated: nobody subscribes (the newest per channel goes out when one does)",
     "stale": "older than max_age_ms when it would be sent",
     "not_allowed": "a command channel --allow-commands does not name",
-    "unknown_type": "no known LCM type (--lcm-types names its .lcm files)",
+    "unknown_type": "no known LCM type (--lcm-types names the folder of its .lcm files)",
     "refused_type": "a type ROS 2 cannot express",
     "waiting_for_build": "its ROS 2 interface is being built",
     "own_message": "the bridge's own message, come back",
