@@ -24,21 +24,17 @@ from tests.test_router import LcmRecorder
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
-CONFIG = """
-routes:
-  - name: relay_a
-    source: {transport: lcm, name: A}
+CONFIG = "routes:\n" + "".join(
+    f"""
+  - name: relay_{channel.lower()}
+    source: {{transport: lcm, name: {channel}}}
     translator: lcm_relay
-    destination: {transport: lcm, name: A_OUT}
-    rate: {policy: all}
-    qos: {depth: 10000}
-  - name: relay_b
-    source: {transport: lcm, name: B}
-    translator: lcm_relay
-    destination: {transport: lcm, name: B_OUT}
-    rate: {policy: all}
-    qos: {depth: 10000}
+    destination: {{transport: lcm, name: {channel}_OUT}}
+    rate: {{policy: all}}
+    qos: {{depth: 10000}}
 """
+    for channel in ("A", "B")
+)
 COUNT = 300  # messages per input channel
 
 

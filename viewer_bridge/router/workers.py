@@ -18,7 +18,6 @@ far. Only routes whose transports may be opened by several processes at once
 from __future__ import annotations
 
 import contextlib
-import json
 import logging
 import multiprocessing
 import os
@@ -34,7 +33,7 @@ from typing import Any
 
 from viewer_bridge.config.bridge import BridgeConfig, Route
 from viewer_bridge.errors import BridgeError, UsageError
-from viewer_bridge.router import Router
+from viewer_bridge.router import Router, stats
 from viewer_bridge.router.status import LogLines, StatusView, counted
 from viewer_bridge.transports import TRANSPORTS
 
@@ -258,7 +257,7 @@ class Workers:
         error counts summed, and the restarts as the errors of `workers`."""
         routes: dict[str, Any] = {}
         for worker in self._workers:
-            routes.update({name: stats for name, stats in worker.snapshot.items() if name != "transports"})
+            routes.update({name: counts for name, counts in worker.snapshot.items() if name != "transports"})
         merged: dict[str, Any] = {route.name: routes[route.name] for route in self.config.routes if route.name in routes}
         errors: dict[str, Counter[str]] = {}
         for worker in self._workers:
@@ -271,13 +270,8 @@ class Workers:
         return merged
 
     def report(self) -> None:
-        """The merged stats to the status view, and to the JSON file when asked for."""
-        snapshot = self.snapshot()
-        self.view.show(snapshot)
-        if self.stats_json is not None:
-            temporary = self.stats_json.with_suffix(".tmp")
-            temporary.write_text(json.dumps(snapshot, indent=2))
-            temporary.replace(self.stats_json)
+        """The routes' stats to the status view, and to the JSON file when asked for."""
+        stats.report(self.snapshot(), self.view, self.stats_json)
 
 
 class _Sender:
