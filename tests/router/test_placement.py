@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from viewer_bridge.config.bridge import BridgeConfig, load_config
-from viewer_bridge.errors import UsageError
+from viewer_bridge.errors import ConfigError, UsageError
 from viewer_bridge.router.workers import place
 
 
@@ -47,3 +49,20 @@ def test_the_config_says_how_many_workers() -> None:
     config = load_config(None)
     assert config.workers == 1
     assert BridgeConfig.model_validate({"workers": 4, "routes": [relay("a", "A")]}).workers == 4
+
+
+@pytest.mark.parametrize(
+    ("text", "where"),
+    [
+        ("workers: 0\nroutes: []\n", "bridge.yaml:1: workers: Input should be greater than or equal to 1"),
+        ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: lcm_relay\n"
+         "    destination: {transport: lcm, name: Y}\n    worker: -1\n",
+         "bridge.yaml:6: routes.0.worker: Input should be greater than or equal to 0"),
+    ],
+)  # fmt: skip
+def test_a_bad_count_or_pin_is_refused_at_load_with_its_line(tmp_path: Path, text: str, where: str) -> None:
+    path = tmp_path / "bridge.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as refused:
+        load_config(path)
+    assert where in str(refused.value)
