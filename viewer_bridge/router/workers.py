@@ -134,7 +134,8 @@ class Workers:
         except BaseException:
             self.close()
             raise
-        log.info("viewer-bridge: %s running", counted(len(self._workers), "worker"))
+        if not self._stop.is_set():
+            log.info("viewer-bridge: %s running", counted(len(self._workers), "worker"))
 
     def _spawn(self, worker: _Worker) -> None:
         receiver, sender = _CONTEXT.Pipe(duplex=False)
