@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -74,3 +75,36 @@ def test_the_built_in_config_runs_with_the_ros_and_foxglove_extras_alone() -> No
     result = subprocess.run([sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert " route poses: in " in result.stderr and "Traceback" not in result.stderr, result.stderr
+
+
+def blocked_but(extra: str) -> list[str]:
+    """The modules of every extra but `extra`: what a venv with the core and that extra lacks."""
+    return sorted(module for module, owner in EXTRAS.items() if owner != extra)
+
+
+# (the one extra installed, the command line's arguments, a line the command prints when it works)
+ONE_EXTRA = [
+    ("foxglove", ["run", "-c", "builtin:foxglove", "--demo", "--duration", "3", "--set", "foxglove.port=0"],
+     " routes running ("),
+    ("foxglove", ["convert", "LOG", "OUT"], "wrote OUT: "),
+    ("zenoh", ["run", "-c", "builtin:zenoh", "--duration", "1"], " routes running ("),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("extra", "arguments", "said"), ONE_EXTRA, ids=[" ".join(case[1][:3]) for case in ONE_EXTRA])
+def test_one_extra_alone_runs_its_built_in_config(tmp_path: Path, extra: str, arguments: list[str], said: str) -> None:
+    """No route needs a module of an extra the user did not ask for (e.g. the Rerun schema's pyarrow)."""
+    from tests.cli.test_cli import demo_log
+
+    names = {"LOG": str(demo_log(tmp_path / "demo.lcmlog", 10)), "OUT": str(tmp_path / "x.mcap")}
+    arguments = [names.get(word, word) for word in arguments]
+    if arguments[0] == "run":
+        arguments += ["--lcm-url", lcm_url(44)]
+    code = (
+        f"import sys\nfor name in {blocked_but(extra)!r}: sys.modules[name] = None\n"
+        "from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))"
+    )
+    result = subprocess.run([sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert said.replace("OUT", names["OUT"]) in result.stdout + result.stderr, result
+    assert "not installed" not in result.stderr and "Traceback" not in result.stderr, result.stderr

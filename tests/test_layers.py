@@ -38,6 +38,9 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.lcmcodec": 2,
     "viewer_bridge.config.yamldoc": 2,
     "viewer_bridge.cli.arguments": 2,
+    "viewer_bridge.cli.lcm_types": 2,
+    "viewer_bridge.lcmcodec.from_ros": 2,
+    "viewer_bridge.lcmcodec.ros_cdr": 2,
     "viewer_bridge.ros_build.interfaces": 2,
     "viewer_bridge.ros_build.background": 2,
     "viewer_bridge.transports.lcm_url": 2,
@@ -55,6 +58,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.transports": 6,
     "viewer_bridge.render.renderer": 6,
     "viewer_bridge.convert": 6,
+    "viewer_bridge.bag_to_lcm": 6,
     "viewer_bridge.streams": 6,
     "viewer_bridge.typestore": 6,
     # 7
@@ -70,6 +74,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.router": 9,
     # 10
     "viewer_bridge.cli.log_convert": 10,
+    "viewer_bridge.cli.bag_convert": 10,
     # 11
     "viewer_bridge.cli.main": 11,
     "viewer_bridge.cli.__main__": 11,

@@ -12,6 +12,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -55,8 +56,8 @@ def test_dump_json_of_a_real_drake_log_has_every_field(drake_log: Path) -> None:
     }
     draw = next(r for r in records if r["type"] == "drake.lcmt_viewer_draw")
     assert draw["fingerprint"] == "414f0bfe5b2f4244"
-    assert (
-        len(draw["message"]["quaternion"])
+    assert (  # arrays flat and row-major, as in ROS 2's mapping: 4 numbers per link
+        len(draw["message"]["quaternion"]) // 4
         == draw["message"]["num_links"]
         == len(draw["message"]["link_name"])
     )
@@ -292,6 +293,86 @@ def test_ctrl_c_during_convert_leaves_a_readable_partial_file_and_exits_130(tmp_
     assert not out.exists()
 
 
+
+# --- convert: says what it did -------------------------------------------------------------------------
+
+
+def test_convert_refuses_an_extension_it_does_not_write_unless_format_says(tmp_path: Path) -> None:
+    log = demo_log(tmp_path / "demo.lcmlog", 3)
+    bag = tmp_path / "x.bag"
+    refused = run("convert", str(log), str(bag))
+    assert refused.returncode == 2 and not refused.stdout, refused
+    assert refused.stderr == (
+        f"viewer-bridge convert: {bag}: convert writes .mcap (MCAP) or .rrd (Rerun) files: "
+        "name the output so, or say which with --format mcap|rrd\n"
+    )
+    assert not bag.exists()
+    chosen = run("convert", str(log), str(bag), "--format", "mcap")
+    assert chosen.returncode == 0, chosen.stderr
+    assert bag.read_bytes().startswith(b"\x89MCAP")
+
+
+def test_convert_says_what_it_wrote_as_the_file_reads_back(tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+
+    log = tmp_path / "lab.lcmlog"
+    unknown = [LcmEvent("LAB_STATUS", b"12345678abc", 2_000_000 + i) for i in range(10)]  # no known fingerprint
+    write_log(log, [*read_log(demo_log(tmp_path / "demo.lcmlog", 10)), *unknown])
+    out = tmp_path / "out.mcap"
+    result = run("convert", str(log), str(out))
+    assert result.returncode == 0, result.stderr  # other messages were written
+    with out.open("rb") as file:
+        topics = [channel.topic for _, channel, _ in make_reader(file).iter_messages()]
+    said = result.stdout.splitlines()[-1]
+    assert said == f"wrote {out}: {len(topics)} messages on {len(set(topics))} topics", result.stdout
+    assert len(set(topics)) > 1
+    assert (
+        "viewer-bridge convert: skipped: 10 messages on LAB_STATUS: "
+        "unknown_type, no known LCM type (--lcm-types names the folder of its .lcm files)"
+    ) in result.stderr.splitlines()
+
+
+def test_convert_exits_1_when_lcm_channels_match_nothing_or_nothing_is_written(tmp_path: Path) -> None:
+    log = demo_log(tmp_path / "demo.lcmlog", 3)
+    out = tmp_path / "out.mcap"
+    nomatch = run("convert", str(log), str(out), "--lcm-channels", "nomatch")
+    assert nomatch.returncode == 1, nomatch
+    assert nomatch.stderr.splitlines()[-1] == (
+        "viewer-bridge convert: --lcm-channels 'nomatch' matches no channel of the log "
+        "(its channels: DRAKE_VIEWER_DRAW, DRAKE_VIEWER_LOAD_ROBOT)"
+    )
+    assert nomatch.stdout.splitlines()[-1].startswith(f"wrote {out}: ")  # the Drake routes' topics, said first
+    lab = tmp_path / "lab.lcmlog"
+    write_log(lab, [LcmEvent("LAB_STATUS", b"12345678abc", 1)])
+    empty = tmp_path / "empty.mcap"
+    nothing = run("convert", str(lab), str(empty))
+    assert nothing.returncode == 1 and not nothing.stdout, nothing
+    assert nothing.stderr.splitlines()[-1] == (
+        f"viewer-bridge convert: nothing written to {empty}: every message read was skipped (said above)"
+    )
+    assert not empty.exists() and not empty.with_name("empty.mcap.partial").exists()
+
+
+
+def test_an_unknown_type_is_said_once_for_the_router_and_counted_per_route(tmp_path: Path, caplog: Any) -> None:
+    """Two routes read a channel of no known type: one warning, and each route counts it."""
+    from viewer_bridge.cli.log_convert import convert
+    from viewer_bridge.config.bridge import BridgeConfig
+
+    routes = [
+        {"name": f"bus{i}", "source": {"transport": "lcm", "name": "(.*)"}, "translator": "lcm_to_ros",
+         "destination": {"transport": "ros", "name": f"/copy{i}/{{1:topic}}"}}
+        for i in (1, 2)
+    ]  # fmt: skip
+    log = tmp_path / "lab.lcmlog"
+    write_log(log, [LcmEvent("LAB_STATUS", b"12345678abc", i) for i in range(4)])
+    with caplog.at_level("WARNING", logger="viewer_bridge"):
+        done = convert(log, tmp_path / "out.mcap", BridgeConfig.model_validate({"routes": routes}), progress=False)
+    said = [record.getMessage() for record in caplog.records if "LAB_STATUS: fingerprint" in record.getMessage()]
+    assert len(said) == 1, said
+    assert done.skipped == {("LAB_STATUS", "unknown_type"): 4} and not done.written
+
+
 # --- one-line errors ------------------------------------------------------------------------------------
 
 # (command words, a part of the message); LOG is a real log, MISSING a folder that does not exist.
@@ -323,6 +404,7 @@ MISTAKES = [
     # Settings a config would refuse, or that would do nothing with it.
     (["run", "--set", "foxglove.prot=9000"], "--set foxglove.prot=9000: foxglove.prot: unknown key 'prot' "
      "(did you mean 'port'?); known keys: host, port"),
+    (["run", "--set", "foxglove.port"], "--set 'foxglove.port': expected TRANSPORT.KEY=VALUE, e.g. foxglove.port=9000"),
     (["run", "--set", "ros.namespace=/sim 1"], "'/sim 1' is not a valid ROS 2 namespace"),
     (["run", "--set", "ros.node=9x"], "'9x' is not a valid ROS 2 node name: it starts with a digit"),
     # ROS arguments as rcl reads them, refused before rclpy sees them.
@@ -469,8 +551,11 @@ def test_a_replayed_log_says_it_ended_and_the_stats_come_once_at_shutdown(tmp_pa
     live = run("run", "-c", "builtin:foxglove", "--set", "foxglove.port=0", "--lcm-url", lcm_url(4),
                "--demo", "--duration", "4", "--stats-period", "2")  # fmt: skip
     assert live.returncode == 0, live.stderr
-    # Every route of builtin:foxglove is lazy and has no client: each report is one line counting them.
-    assert sum(" routes quiet (" in line for line in live.stderr.splitlines()) == 2, live.stderr
+    # Every route of builtin:foxglove is lazy and has no client: each report is one line of those
+    # the demo feeds, with their in-rates, and no row.
+    waiting = [line for line in live.stderr.splitlines() if " waiting for a subscriber: " in line]
+    assert len(waiting) == 2 and " poses in " not in live.stderr, live.stderr
+    assert re.search(r"foxglove_scene in \d+\.\d/s \(idle_skipped \d+\)", waiting[-1]), waiting
 
 
 def test_demo_records_a_log_through_lcms_file_url(tmp_path: Path) -> None:
@@ -548,5 +633,5 @@ def test_dump_lcm_types_decodes_a_labs_own_type(
     assert drake["type"] == "drake.lcmt_iiwa_status"  # Drake's types with no flag, beside the corpus
     assert drake["message"]["joint_position_measured"] == [0.5, -0.25]
     assert lab["type"] == "vbtest_lab.arm_status_t"
-    assert lab["message"]["jointNames"] == ["shoulder", "elbow", "wrist ü"]
-    assert lab["message"]["toolTip"] == {"x": 0.5, "y": 0.25, "z": -0.125}
+    assert lab["message"]["joint_names"] == ["shoulder", "elbow", "wrist ü"]  # ROS 2's field names
+    assert lab["message"]["tool_tip"] == {"x": 0.5, "y": 0.25, "z": -0.125}

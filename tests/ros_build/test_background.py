@@ -210,7 +210,7 @@ def test_a_route_waits_for_its_build_while_the_others_flow_then_publishes(
         f"ROS 2 interface package {BAD} not built: configuring {BAD} failed (exit 1); its log: {log}"
     ]
     said = [record.getMessage() for record in caplog.records]
-    assert f"building {ROUTER} (1 types) into {sys.prefix}" in said
+    assert f"building {ROUTER} (1 type) into {sys.prefix}" in said
     assert any(line.startswith(f"built {ROUTER} in ") for line in said)
 
 
@@ -242,7 +242,7 @@ def test_changed_definitions_rebuild_the_package_and_leave_nothing_of_the_old_on
     changed = {f"{ROUTER}/msg/Tally": "int64 count\n"}
     try:
         assert ros_interfaces.build(changed, log=print) == [ROUTER]
-        assert f"building {ROUTER} (1 types) into {sys.prefix}" in capsys.readouterr().out
+        assert f"building {ROUTER} (1 type) into {sys.prefix}" in capsys.readouterr().out
         assert (share / "msg" / "Tally.msg").exists() and not (share / "msg" / "Counter.msg").exists()
         assert ros_interfaces.build(changed) == []
     finally:

@@ -16,10 +16,22 @@ def test_mailbox_keeps_the_newest_per_channel_and_never_grows() -> None:
         latest.put(Message(Received("DRAW", bytes([index % 256]), index), match))
     latest.put(Message(Received("LOAD", b"load", 0), match))
     latest.put(Message(Received("DRAW", b"newest", 0), match))
-    assert len(latest) == 2 and latest.dropped == 1000
+    assert len(latest) == 2 and (latest.superseded, latest.mailbox_full, latest.dropped) == (1000, 0, 1000)
     assert [latest.take().received.data, latest.take().received.data] == [b"load", b"newest"]  # type: ignore[union-attr]
     fifo = Mailbox("all", 3)
     for index in range(5):
         fifo.put(Message(Received("DRAW", bytes([index]), index), match))
-    assert fifo.dropped == 2 and [fifo.take().received.data for _ in range(3)] == [b"\x02", b"\x03", b"\x04"]  # type: ignore[union-attr]
+    assert (fifo.superseded, fifo.mailbox_full, fifo.dropped) == (0, 2, 2)
+    assert [fifo.take().received.data for _ in range(3)] == [b"\x02", b"\x03", b"\x04"]  # type: ignore[union-attr]
     assert fifo.take() is None and not fifo.wait(0.01)
+
+
+def test_a_rate_limited_mailbox_counts_what_it_conflates_apart_from_drops() -> None:
+    import re
+
+    match = re.fullmatch("x", "x")
+    assert match is not None
+    limited = Mailbox("latest", 10, rate_limited=True)
+    for index in range(3):
+        limited.put(Message(Received("DRAW", bytes([index]), index), match))
+    assert (limited.rate_skipped, limited.superseded, limited.dropped) == (2, 0, 0)

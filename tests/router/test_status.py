@@ -25,7 +25,9 @@ def route(messages_in: int, messages_out: int, state: str = "active", **counts: 
     return {
         "state": state, "messages_in": messages_in, "messages_out": messages_out, "bytes_in": 0, "bytes_out": 0,
         "idle_skipped": counts.get("idle_skipped", 0), "errors": counts.get("errors", {}),
-        "warnings": counts.get("warnings", {}), "dropped": counts.get("dropped", 0),
+        "warnings": counts.get("warnings", {}), "superseded": counts.get("superseded", 0),
+        "mailbox_full": counts.get("mailbox_full", 0),
+        "dropped": counts.get("superseded", 0) + counts.get("mailbox_full", 0),
         "max_hz_skipped": counts.get("max_hz_skipped", 0), "queued": 0, "translate_ms": no_samples,
         "latency_ms": counts.get("latency_ms", no_samples), "unsent": counts.get("unsent", 0),
     }  # fmt: skip
@@ -61,8 +63,13 @@ def test_the_table_shows_busy_routes_with_rates_and_folds_the_quiet_ones() -> No
     assert 0 < float(rate_in) == float(rate_out) <= 30 / 0.5 and (total_in, total_out) == ("30", "30")
     assert (errors, warnings, p50, p99) == ("0", "2", "0.25", "1.50")
     assert rows["broken"][4] == "5"  # errors
-    assert "2 more routes quiet (1 idle: no subscriber; 1 without traffic): tf, empty" in last
+    # A lazy route with traffic and no subscriber: its in-rate, on a line of its own, not folded.
+    waiting = re.search(r"waiting for a subscriber: tf in (\d+\.\d)/s \(idle_skipped 30\)", last)
+    assert waiting and 0 < float(waiting.group(1)) <= 30 / 0.5, last
+    assert "1 more route without traffic: empty" in last
     assert "transport errors: lcm: 3 dropped by kernel" in last  # words, not a dict
+    legend = next(line for line in lines if line.startswith("legend: "))
+    assert legend.startswith("legend: idle_skipped: not translated: nobody subscribes"), legend
 
 
 def test_at_80_columns_every_number_is_whole_and_unsent_shows_in_the_row() -> None:
@@ -73,7 +80,7 @@ def test_at_80_columns_every_number_is_whole_and_unsent_shows_in_the_row() -> No
     busy = {"p50": 1234.5, "p99": 98765.25, "max": 1e5}
     time.sleep(0.5)  # rates per second over half a second
     table.show({
-        "foxglove_camera_images_unnamed": route(12345678, 1234567, latency_ms=busy, dropped=4567,
+        "foxglove_camera_images_unnamed": route(12345678, 1234567, latency_ms=busy, superseded=4567,
                                                 warnings={"skipped_geometry": 89}, errors={"DecodeError": 123456}),
         "poses": route(468, 357, unsent=357, latency_ms=busy),
     })  # fmt: skip
@@ -84,7 +91,7 @@ def test_at_80_columns_every_number_is_whole_and_unsent_shows_in_the_row() -> No
     assert "poses" in rows, "\n".join(lines)
     long_name = next(name for name in rows if name != "poses")
     assert long_name.endswith("…") and "foxglove_camera_images_unnamed".startswith(long_name[:-1])
-    for number in ("123456", "89", "4567"):  # err, warn, drop: never dropped (p99, in, out, p50 go first)
+    for number in ("123456", "89", "4567"):  # err, warn, superseded: never dropped (p99, in, out, p50 go first)
         assert number in rows[long_name], (number, rows[long_name])
     assert "357" in rows["poses"]  # unsent, in the route's own row
     every_cell = [cell for cells in rows.values() for cell in cells]
@@ -97,19 +104,20 @@ def test_at_80_columns_a_busy_demo_keeps_its_totals() -> None:
     latency = {"p50": 0.29, "p99": 148.25, "max": 150.0}
     table.show({"foxglove_transforms": route(46770, 46770), "poses": route(46770, 46769)})
     time.sleep(0.5)  # then 30 more: about 60 a second, as the demo sends
-    table.show({"foxglove_transforms": route(46800, 46800, latency_ms=latency, dropped=5),
+    table.show({"foxglove_transforms": route(46800, 46800, latency_ms=latency, mailbox_full=5),
                 "poses": route(46800, 46799, latency_ms=latency)})  # fmt: skip
     table.close()
     lines = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", out.getvalue()).splitlines()
     last = lines[max(i for i, line in enumerate(lines) if "┃ route" in line) :]
     assert max(map(len, last)) <= 80
     assert [h.strip() for h in last[0].strip("┃").split("┃")] == [
-        "route", "in/s", "out/s", "in", "out", "err", "drop", "p50", "p99"
-    ]  # fmt: skip
+        "route", "in/s", "out/s", "in", "out", "err", "mailbox_full", "p50"
+    ]  # fmt: skip  (p99 goes first, for the counter's long name)
     rows = {cells[0]: cells[1:] for cells in map(table_cells, last) if cells}
     foxglove = next(cells for name, cells in rows.items() if name.startswith("foxglove_tr"))
     assert foxglove[2:6] == ["46800", "46800", "0", "5"] and rows["poses"][3] == "46799"
     assert all(re.fullmatch(r"\d+(\.\d+)?|-", cell) for cells in rows.values() for cell in cells)
+    assert any(line.startswith("legend: mailbox_full: the oldest waiting message pushed out") for line in last)
 
 
 def test_log_lines_show_routes_with_traffic_and_count_the_rest(caplog: Any) -> None:
@@ -117,17 +125,44 @@ def test_log_lines_show_routes_with_traffic_and_count_the_rest(caplog: Any) -> N
         LogLines().show({
             "poses": route(3, 3, latency_ms={"p50": 0.25, "p99": 1.5, "max": 2.0}),
             "tf": route(2, 0, "idle: no subscriber", idle_skipped=2),
-            "slow": route(5, 2, warnings={"skipped_geometry": 1}, max_hz_skipped=3),
+            "slow": route(5, 2, warnings={"skipped_geometry": 1}, max_hz_skipped=3, superseded=1),
             "zenoh_poses": route(4, 4, unsent=4),
             "empty": route(0, 0),
             "transports": {"zenoh": {"errors": {"unsent_no_router": 4}}},
         })  # fmt: skip
     assert [record.getMessage() for record in caplog.records] == [
-        "route poses: in 3 out 3 errors 0 dropped 0 latency p50 0.25 p99 1.50 ms",
-        "route slow: in 5 out 2 errors 0 warnings 1 dropped 0 max_hz skipped 3 latency p50 - p99 - ms",
-        "route zenoh_poses: in 4 out 4 errors 0 dropped 0 not delivered 4 latency p50 - p99 - ms",
-        "2 more routes quiet (1 idle: no subscriber; 1 without traffic)",
+        "route poses: in 3 out 3 errors 0 latency p50 0.25 p99 1.50 ms",
+        "route slow: in 5 out 2 errors 0 warnings 1 superseded 1 max_hz_skipped 3 latency p50 - p99 - ms",
+        "route zenoh_poses: in 4 out 4 errors 0 unsent 4 latency p50 - p99 - ms",
+        "waiting for a subscriber: tf in 2.0/s (idle_skipped 2)".replace("2.0", said_rate(caplog.records)),
+        "1 more route without traffic",
         "transport errors: zenoh: 4 unsent no router",
+        "legend: superseded: a newer message on its channel came first (policy latest: the newest is sent); "
+        "max_hz_skipped: superseded while the route waited out its rate.max_hz (by design); "
+        "unsent: given to a transport that could not send it (a Zenoh session with no router); "
+        "idle_skipped: not translated: nobody subscribes (the newest per channel goes out when one does)",
+    ]
+
+
+def said_rate(records: list[logging.LogRecord]) -> str:
+    """The in-rate a waiting line said (it depends on the time since the view was made)."""
+    found = next(re.search(r" in (\d+\.\d)/s", record.getMessage()) for record in records
+                 if record.getMessage().startswith("waiting"))  # fmt: skip
+    assert found is not None
+    return found.group(1)
+
+
+def test_log_lines_explain_each_counter_once(caplog: Any) -> None:
+    """The legend after the lines names only counters not explained yet: a log is not repeated."""
+    lines = LogLines()
+    with caplog.at_level("INFO", logger="viewer_bridge"):
+        lines.show({"poses": route(3, 3, mailbox_full=1)})
+        lines.show({"poses": route(6, 6, mailbox_full=2)})
+        lines.show({"poses": route(9, 9, mailbox_full=2), "cmd": {**route(1, 0), "held": {"X": {"stale": 1}}}})
+    said = [record.getMessage() for record in caplog.records if record.getMessage().startswith("legend: ")]
+    assert said == [
+        "legend: mailbox_full: the oldest waiting message pushed out (policy all: qos.depth was full)",
+        "legend: stale: older than max_age_ms when it would be sent",
     ]
 
 
@@ -192,8 +227,10 @@ def test_held_messages_show_once_per_kind_with_their_channels(caplog: Any) -> No
     with caplog.at_level("INFO", logger="viewer_bridge"):
         LogLines().show({"bus": bus})
     assert [record.getMessage() for record in caplog.records] == [
-        "route bus: in 12 out 0 errors 0 dropped 0 latency p50 - p99 - ms "
-        "held: unknown_type 5 (MYSTERY, OTHER), waiting_for_build 7 (IIWA_STATUS)"
+        "route bus: in 12 out 0 errors 0 latency p50 - p99 - ms "
+        "held: unknown_type 5 (MYSTERY, OTHER), waiting_for_build 7 (IIWA_STATUS)",
+        "legend: unknown_type: no known LCM type (--lcm-types names the folder of its .lcm files); "
+        "waiting_for_build: its ROS 2 interface is being built",
     ]
     out = io.StringIO()
     table = LiveTable(Console(file=out, force_terminal=True, width=200, color_system=None))
@@ -217,7 +254,7 @@ def test_without_a_zenoh_router_the_routes_say_what_was_not_delivered() -> None:
     code, _, lines = run_bridge("-c", "builtin:zenoh", "--set", f"zenoh.connect=[tcp/127.0.0.1:{nowhere}]",
                                 terminal=False)  # fmt: skip
     assert code == 0, lines[-2000:]
-    poses = re.findall(r"route poses: in (\d+) out (\d+) errors 0 dropped \d+ not delivered (\d+)", lines)
+    poses = re.findall(r"route poses: in (\d+) out (\d+) errors 0(?: superseded \d+)? unsent (\d+)", lines)
     assert poses and int(poses[-1][2]) > 0, lines[-2000:]
     assert re.search(r"transport errors: zenoh: \d+ unsent no router", lines), lines[-2000:]
     assert "{'zenoh'" not in lines

@@ -79,7 +79,7 @@ def test_convert_carries_clouds_and_frames_of_a_log_into_an_mcap(tmp_path: Path)
         log,
         [LcmEvent("DRAKE_POINT_CLOUD_WRIST", cloud, 1), LcmEvent("DRAKE_DRAW_FRAMES", poses_of(("a",)), 2)],
     )
-    counts = convert(log, out, load_config(None), progress=False)
+    counts = convert(log, out, load_config(None), progress=False).messages
     assert counts == {"/drake/point_cloud/wrist": 1, "/drake/draw_frames": 1}
     with out.open("rb") as file:
         messages = {

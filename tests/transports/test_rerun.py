@@ -7,7 +7,7 @@ from __future__ import annotations
 import socket
 import subprocess
 import sys
-from collections import defaultdict
+from collections import Counter, defaultdict
 from datetime import timedelta
 from pathlib import Path
 from typing import Any
@@ -53,7 +53,11 @@ def rows_by_entity(path: Path) -> dict[str, list[dict[str, Any]]]:
 def drake_rrd(drake_log: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("rerun") / "drake.rrd"
     written = convert(drake_log, out, load_config("builtin:rerun"), progress=False)
-    assert written and not out.with_name("drake.rrd.partial").exists()
+    assert written.written and not out.with_name("drake.rrd.partial").exists()
+    # What `convert` says it wrote is what the file holds, less the SDK's own (/__properties).
+    ours = [chunk.entity_path for chunk in RrdReader(out).stream() if not chunk.entity_path.startswith("/__")]
+    assert written.chunks == dict(Counter(ours))
+    assert written.summary() == f"wrote {out}: {len(ours)} chunks, {len(set(ours))} entities"
     return out
 
 
@@ -146,7 +150,8 @@ def test_a_file_that_cannot_be_written_is_one_line(tmp_path: Path) -> None:
     with pytest.raises(TransportUnavailable, match=r"rerun.path\): No such file or directory$"):
         _transport(tmp_path, path=tmp_path / "missing" / "out.rrd")
     (tmp_path / "out.rrd").write_bytes(b"")
-    with pytest.raises(TransportUnavailable, match="exists"):
+    # What to type, on the command line where most runs start, and in a config.
+    with pytest.raises(TransportUnavailable, match=r"exists \(rerun.path\): .* --set rerun.overwrite=true \("):
         _transport(tmp_path, path=tmp_path / "out.rrd")
     with pytest.raises(TransportUnavailable, match="no sink"):
         _transport(tmp_path)

@@ -42,10 +42,11 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
 
 
-def fail(command: str, message: str) -> int:
-    """Report a mistake found after parsing as argparse reports its own; the exit status 2."""
+def fail(command: str, message: str, status: int = 2) -> int:
+    """Report a mistake found after parsing as argparse reports its own; the exit status (2: a
+    mistake in what was given; 1: a command that ran and could not do what was asked)."""
     print(f"viewer-bridge {command}: {message}", file=sys.stderr)
-    return 2
+    return status
 
 
 def regex(text: str) -> str:

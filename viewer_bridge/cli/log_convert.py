@@ -1,5 +1,5 @@
 """Offline: an LCM log through the router's translators into an MCAP file (Foxglove opens it), or
-into a Rerun `.rrd` file (the output's extension says which).
+into a Rerun `.rrd` file (the output's extension says which, or `output_format`'s `chosen`).
 
 The config's routes whose translator reads LCM messages and writes the chosen schema family
 become a router whose every route ends in the `mcap` transport (viewer_bridge/transports/mcap.py), and
@@ -17,6 +17,9 @@ existing file is replaced only when asked (`force`), and the MCAP is written as 
 renamed to `OUT` once complete. Stopped midway (`stop` set, e.g. by Ctrl-C), the MCAP is closed
 properly (readable, with what was written so far) and left as `OUT.partial`: `Interrupted` says
 how many messages it holds.
+
+What a conversion wrote comes back as a `Conversion`: its counts, and the channels it skipped
+and why, for the command line to say in one line each (`summary`, `skipped_lines`).
 """
 
 from __future__ import annotations
@@ -32,14 +35,14 @@ from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from viewer_bridge.config.bridge import BridgeConfig, Endpoint, Route
 from viewer_bridge.errors import ConvertError, Interrupted
 from viewer_bridge.router import Router
-from viewer_bridge.router.status import Snapshot, held_of, routes_of
+from viewer_bridge.router.status import LEGEND, Snapshot, counted, routes_of
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import LCM, MessageType, Received
@@ -49,6 +52,77 @@ if TYPE_CHECKING:
     from viewer_bridge.transports.mcap import Profile
 
 log = logging.getLogger("viewer_bridge")
+
+Format = Literal["mcap", "rrd"]
+FORMATS: dict[str, Format] = {".mcap": "mcap", ".rrd": "rrd"}  # by the output's extension
+
+
+@dataclass(frozen=True, slots=True)
+class Conversion:
+    """What a conversion wrote into `path` and what it skipped.
+
+    `messages`: per topic (MCAP) or per destination (Rerun); `chunks`: per entity path (Rerun);
+    `skipped`: messages held back, by (channel, kind); `channels`: the log's; `lcm_channels`: the
+    regex that narrowed the routes of any LCM type, if one did."""
+
+    path: Path
+    format: Format
+    messages: dict[str, int]
+    chunks: dict[str, int]
+    skipped: dict[tuple[str, str], int]
+    channels: tuple[str, ...]
+    lcm_channels: str | None = None
+
+    @property
+    def written(self) -> int:
+        return sum(self.messages.values())
+
+    def problem(self) -> str | None:
+        """Why the conversion did not do what was asked (one line), or None: `lcm_channels`
+        matched no channel of the log, or nothing was written."""
+        its = f"(its channels: {_listed(self.channels)})"
+        if self.lcm_channels is not None and not any(re.fullmatch(self.lcm_channels, c) for c in self.channels):
+            return f"--lcm-channels {self.lcm_channels!r} matches no channel of the log {its}"
+        if self.written:
+            return None
+        if self.skipped:
+            return f"nothing written to {self.path}: every message read was skipped (said above)"
+        return f"nothing written to {self.path}: no route reads a channel of the log {its}"
+
+    def summary(self) -> str:
+        """`wrote OUT: 120 messages on 6 topics` (an .rrd: its chunks and entities)."""
+        if self.format == "rrd":
+            counts = f"{counted(sum(self.chunks.values()), 'chunk')}, {counted(len(self.chunks), 'entity', 'entities')}"
+        else:
+            counts = f"{counted(self.written, 'message')} on {counted(len(self.messages), 'topic')}"
+        return f"wrote {self.path}: {counts}"
+
+    def skipped_lines(self) -> list[str]:
+        """One line per channel and reason, in the live legend's words:
+        `skipped: 10 messages on LAB_STATUS: unknown_type, no known LCM type (--lcm-types ...)`."""
+        return [
+            f"skipped: {counted(count, 'message')} on {channel}: {kind}" + (f", {LEGEND[kind]}" if kind in LEGEND else "")
+            for (channel, kind), count in sorted(self.skipped.items())
+        ]
+
+
+def _listed(names: tuple[str, ...], most: int = 8) -> str:
+    """Names for a line: the first `most`, and how many more."""
+    more = f" and {len(names) - most} more" if len(names) > most else ""
+    return (", ".join(names[:most]) or "none") + more
+
+
+def output_format(path: str | Path, chosen: Format | None = None) -> Format:
+    """What to write: `chosen`, else what the output's extension says; `ConvertError` for another."""
+    if chosen is not None:
+        return chosen
+    found = FORMATS.get(Path(path).suffix.lower())
+    if found is None:
+        raise ConvertError(
+            f"{path}: convert writes .mcap (MCAP) or .rrd (Rerun) files: "
+            "name the output so, or say which with --format mcap|rrd"
+        )
+    return found
 
 
 def convert(
@@ -61,35 +135,41 @@ def convert(
     config_name: str = "the config",
     stop: threading.Event | None = None,
     lcm_channels: str | None = None,
-) -> dict[str, int]:
+    output: Format | None = None,
+) -> Conversion:
     """Write the outputs of `config`'s LCM routes in the `schema` family for the log into an MCAP file
     (or, for an `.rrd` output, the routes that write Rerun chunks into a Rerun recording).
 
-    Returns messages written per topic. Bad messages are counted per route and reported, as
-    the live router does; they do not stop the conversion. Raises `ConvertError` before
-    anything is written when `mcap_path` is the log itself, exists (unless `force`), or no route
-    writes `schema`; `Interrupted` when `stop` is set midway. `lcm_channels`, a regex, narrows the
-    routes of any LCM type (`lcm_to_ros`: `/lcm/<channel>`) to the channels it fully matches.
+    Returns what was written (`Conversion`); a conversion that wrote nothing leaves no file. Bad
+    messages are counted per route and reported, as the live router does; they do not stop the
+    conversion. Raises `ConvertError` before anything is written when `mcap_path` is the log
+    itself, exists (unless `force`), has an extension of no format (unless `output` names one), or
+    no route writes `schema`; `Interrupted` when `stop` is set midway. `lcm_channels`, a regex,
+    narrows the routes of any LCM type (`lcm_to_ros`: `/lcm/<channel>`) to the channels it fully
+    matches.
     """
     target = Path(mcap_path)
-    _check_target(Path(log_path), target, force)
+    chosen = checked_output(Path(log_path), target, force, output)
     events = read_log(log_path)
     first = next(events, None)  # a file that is not an LCM log fails here, before anything is written
-    sink = _Sink.rerun(target) if is_rrd(target) else _Sink.mcap(target, schema)
+    sink = _Sink.rerun(target) if chosen == "rrd" else _Sink.mcap(target, schema)
     fitting = [route for route in config.routes if _reads_lcm(route) and sink.holds(route)]
     writes = _distinct([_narrowed(route, lcm_channels) for route in fitting])
     if not writes:
         raise ConvertError(f"no route of {config_name} reads LCM and writes {sink.what}")
     partial = target.with_name(target.name + ".partial")
-    router = Router(_into(config, writes, sink, partial), view=_RouteErrors())
+    errors = _RouteErrors()
+    router = Router(_into(config, writes, sink, partial), view=errors)
     written = router.transports[sink.transport]
     messages: Counter[str] = written.messages  # type: ignore[attr-defined]  # both file transports count
+    channels: set[str] = set()
     stop = stop or threading.Event()
     try:
         with _progress_bar(Path(log_path).stat().st_size, progress) as advance:
             for event in itertools.chain([first] if first is not None else [], events):
                 if stop.is_set():
                     break
+                channels.add(event.channel)
                 router.feed("lcm", Received(event.channel, event.data, event.timestamp_us))
                 advance(len(event.data) + len(event.channel) + 36)  # roughly one event record
     except BaseException:
@@ -99,13 +179,12 @@ def convert(
     router.close()  # the file complete; each route's errors reported
     if stop.is_set():
         raise Interrupted(sum(messages.values()), partial)
-    os.replace(partial, target)
-    return dict(messages)
-
-
-def is_rrd(path: str | Path) -> bool:
-    """Whether an output file is a Rerun recording (by its extension)."""
-    return Path(path).suffix.lower() == ".rrd"
+    if sum(messages.values()):
+        os.replace(partial, target)
+    else:  # an empty file would look like a result
+        partial.unlink(missing_ok=True)
+    chunks = dict(getattr(written, "chunks", {}))  # the rerun transport counts chunks per entity
+    return Conversion(target, chosen, dict(messages), chunks, errors.skipped, tuple(sorted(channels)), lcm_channels)
 
 
 @dataclass(frozen=True, slots=True)
@@ -199,20 +278,31 @@ def _into(config: BridgeConfig, routes: list[Route], sink: _Sink, path: Path) ->
 
 
 class _RouteErrors:
-    """The router's status view for convert: per route, its errors and warnings, and what it held
-    back (channels of no known type), once at the end (each was logged as it happened, the first
-    few in full)."""
+    """The router's status view for convert: per route, its errors and warnings, once at the end
+    (each was logged as it happened, the first few in full); and what the routes held back
+    (channels of no known type), by channel and kind, for `Conversion.skipped`."""
+
+    def __init__(self) -> None:
+        self.skipped: dict[tuple[str, str], int] = {}
 
     def show(self, snapshot: Snapshot) -> None:
         for name, stats in routes_of(snapshot).items():
             counts = Counter(stats["errors"]) + Counter(stats["warnings"])
             if counts:
                 log.warning("route %s: %s", name, dict(counts))
-            if held := held_of(stats):  # e.g. channels of no known type: not written
-                log.warning("route %s: not written: %s", name, held)
+            for channel, kinds in stats.get("held", {}).items():
+                for kind, count in kinds.items():  # each route sees every message of its channels: the most
+                    self.skipped[channel, kind] = max(count, self.skipped.get((channel, kind), 0))
 
     def close(self) -> None:
         pass
+
+
+def checked_output(log_path: Path, target: Path, force: bool, chosen: Format | None) -> Format:
+    """The format to write `target` in (`output_format`), once `target` is known to be no input
+    and no file to keep (`ConvertError` otherwise)."""
+    _check_target(log_path, target, force)
+    return output_format(target, chosen)
 
 
 def _check_target(log_path: Path, target: Path, force: bool) -> None:

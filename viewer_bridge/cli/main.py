@@ -17,6 +17,7 @@ import numpy as np
 import yaml
 from rich.console import Console
 
+from viewer_bridge.cli import bag_convert, lcm_types
 from viewer_bridge.cli.arguments import (
     IMAGE_SUFFIXES,
     Parser,
@@ -44,7 +45,7 @@ from viewer_bridge.examples.demo import run_demo
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.model.skipped import collecting
 from viewer_bridge.router import Router
-from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines, StatusView
+from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines, StatusView, counted
 from viewer_bridge.router.workers import Workers
 from viewer_bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 from viewer_bridge.transports.lcm_url import log_to_write
@@ -235,7 +236,7 @@ def _parser() -> argparse.ArgumentParser:
     convert = add(
         "convert", help="translate an LCM log into an MCAP file (ROS 2 or Foxglove) or a Rerun .rrd file"
     )
-    convert.add_argument("log", type=input_file, help="an .lcmlog file")
+    convert.add_argument("log", type=bag_convert.input_path, help="an .lcmlog file, or a ROS 2 bag (MCAP, rosbag2 folder)")
     convert.add_argument(
         "mcap", type=output_file(), help="the .mcap (or Rerun .rrd) file to write (written as NAME.partial until complete)"
     )
@@ -247,6 +248,11 @@ def _parser() -> argparse.ArgumentParser:
         help="ros2: CDR with ros2msg schemas; foxglove: Foxglove's protobuf SceneUpdate and FrameTransforms "
         "(in both, channels of any known LCM type as /lcm/<channel>, ros2msg and CDR)",
     )
+    convert.add_argument(
+        "--format",
+        choices=["mcap", "rrd"],
+        help="the file to write, for an output named other than .mcap or .rrd (default: its extension says)",
+    )
     convert.add_argument("--force", action="store_true", help="replace the output file if it exists")
     _lcm_types_option(convert)
     convert.add_argument(
@@ -255,6 +261,8 @@ def _parser() -> argparse.ArgumentParser:
         metavar="REGEX",
         help="the channels written as /lcm/<channel> in their own type (any known LCM type); default: all",
     )
+    convert.add_argument("--topics", type=regex, metavar="REGEX", help="a ROS 2 bag in: the topics to convert (default all)")
+    convert.add_argument("--lcm-types-out", type=Path, metavar="DIR", help="a ROS 2 bag in: write the .lcm files here")
 
     interfaces = add(
         "ros-interfaces",
@@ -279,6 +287,7 @@ def _parser() -> argparse.ArgumentParser:
     interfaces.add_argument(
         "-o", "--output", type=Path, metavar="DIR", help="generate: the folder to write the packages to (a workspace's src/)"
     )
+    lcm_types.add_command(add)
     return parser
 
 
@@ -420,9 +429,9 @@ def _status_view(quiet: bool) -> StatusView:
 def _with_setting(config: BridgeConfig, setting: str, config_name: str | None) -> BridgeConfig:
     """`TRANSPORT.KEY=VALUE` (the value read as YAML: 9000 is a number, true a bool) applied; a
     section of the config's own (`commands.max_age_ms=500`) is set the same way."""
-    name, _, value = setting.partition("=")
+    name, equals, value = setting.partition("=")
     transport, _, key = name.partition(".")
-    if not (transport and key and _):
+    if not (transport and key and equals):
         raise UsageError(f"--set {setting!r}: expected TRANSPORT.KEY=VALUE, e.g. foxglove.port=9000")
     if transport not in BridgeConfig.model_fields:
         _uses(config, transport, f"--set {setting}", config_name)
@@ -451,17 +460,20 @@ def _lcm_url(config: BridgeConfig) -> str:
 
 
 def _convert(args: argparse.Namespace) -> int:
-    from viewer_bridge.cli.log_convert import convert, is_rrd  # MCAP: the foxglove extra; .rrd: rerun
+    if bag_convert.wanted(args):  # a ROS 2 bag into an LCM log
+        return bag_convert.run(args)
+    from viewer_bridge.cli.log_convert import checked_output, convert  # MCAP: the foxglove extra; .rrd: rerun
 
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    written_as = checked_output(Path(args.log), Path(args.mcap), args.force, args.format)  # refused before any work
     # An .rrd file is a Rerun recording: builtin:rerun's routes unless a config is given.
-    config = _with_lcm_types(load_config(args.config or ("builtin:rerun" if is_rrd(args.mcap) else None)), args.lcm_types)
+    config = _with_lcm_types(load_config(args.config or ("builtin:rerun" if written_as == "rrd" else None)), args.lcm_types)
     # Ctrl-C (or a SIGTERM) stops after the message being converted: the MCAP is closed properly.
     stop = threading.Event()
     for signal_number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signal_number, lambda *_: stop.set())
     try:
-        written = convert(
+        done = convert(
             args.log,
             args.mcap,
             config,
@@ -471,13 +483,19 @@ def _convert(args: argparse.Namespace) -> int:
             config_name=args.config or "the built-in config",
             stop=stop,
             lcm_channels=args.lcm_channels,
+            output=written_as,
         )
     except Interrupted as interrupted:
         print(f"viewer-bridge convert: {interrupted}", file=sys.stderr)
         return 130
-    for topic, count in sorted(written.items()):
+    for line in done.skipped_lines():
+        print(f"viewer-bridge convert: {line}", file=sys.stderr)
+    for topic, count in sorted(done.messages.items()):
         print(f"{count:8d}  {topic}")
-    return 0
+    if done.written:
+        print(done.summary())
+    problem = done.problem()  # asked for and not done: exit 1, not a mistake in the arguments (2)
+    return 0 if problem is None else fail("convert", problem, status=1)
 
 
 def _snapshot(args: argparse.Namespace) -> int:
@@ -515,7 +533,8 @@ def _snapshot(args: argparse.Namespace) -> int:
         print(f"viewer-bridge snapshot: warning: {geometry}", file=sys.stderr)
     Path(args.out).write_bytes(picture)
     drawn = scene.geometry_count() - len(skipped)
-    print(f"wrote {args.out}: {len(scene.links)} links, {drawn} geometries ({len(skipped)} skipped)")
+    print(f"wrote {args.out}: {counted(len(scene.links), 'link')}, {counted(drawn, 'geometry', 'geometries')} "
+          f"({len(skipped)} skipped)")
     return 0
 
 
@@ -613,6 +632,7 @@ _HANDLERS = {
     "serve-render": _serve_render,
     "snapshot": _snapshot,
     "ros-interfaces": _ros_interfaces,
+    "lcm-types": lcm_types.run,
 }
 
 

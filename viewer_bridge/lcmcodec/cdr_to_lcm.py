@@ -212,7 +212,7 @@ def _length_error(type_name: str, field: str, offset: int, count: int, names: tu
     return DecodeError(type_name, field, offset, f"has {count} elements, but {said}")
 
 
-def _string(buf: Any, off: int, end: int, out: list[Any], type_name: str, field: str) -> int:
+def string_to_lcm(buf: Any, off: int, end: int, out: list[Any], type_name: str, field: str) -> int:
     """One string: CDR's little-endian length (counting the NUL) to LCM's big-endian one."""
     off += -off & 3
     stop = string_stop(buf, off, end, type_name, field, U32_LE)
@@ -341,7 +341,7 @@ def compile_encoders(
         "_bools": _bools,
         "_length_error": _length_error,
         "_bad_count": codegen.bad_count,
-        "_string": _string,
+        "_string": string_to_lcm,
         "_U32_LE": U32_LE,
         **{f"_swap{size}": codegen.swapped(size) for size in (2, 4, 8)},
     }

@@ -14,7 +14,7 @@ import struct
 import sys
 from array import array
 from collections.abc import Callable, Iterator, Mapping
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -265,8 +265,16 @@ class StructWriter:
         return next(index for index, member in enumerate(self.struct.members) if member.name == name)
 
 
+class _Writes(Protocol):
+    def write(self) -> None: ...
+
+
+# What writes one struct's function: a `StructWriter` class, or anything made the same way.
+MakeWriter = Callable[[StructDef, Mapping[str, str], Mapping[str, int], SourceWriter, dict[str, object]], _Writes]
+
+
 def compile_generated(
-    structs: Mapping[str, StructDef], names: list[str], prefix: str, generator: type[StructWriter],
+    structs: Mapping[str, StructDef], names: list[str], prefix: str, generator: MakeWriter,
     helpers: Mapping[str, object], filename: str,
 ) -> dict[str, Callable[..., Any]]:  # fmt: skip
     """Generate one function per type of `names` and of every type they nest (named `prefix` and a

@@ -577,9 +577,11 @@ def _build_all(
         pip = [python, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", *wheels]
         first_log.write_text("")
         _run(pip, f"pip install for {todo[0].name}", first_log)
+    from viewer_bridge.router.status import counted  # here: the router imports this module
+
     with tempfile.TemporaryDirectory(prefix="viewer-bridge-ros-") as temp:
         for package in todo:
-            say(f"building {package.name} ({len(package.messages)} types) into {root}")
+            say(f"building {package.name} ({counted(len(package.messages), 'type')}) into {root}")
             start = time.monotonic()
             path = log_path(root, package.name)
             path.write_text("")

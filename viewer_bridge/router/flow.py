@@ -41,11 +41,20 @@ class Mailbox:
         self._fifo: deque[Message] = deque()
         self._depth = depth
         self._ready = threading.Condition()
-        self.dropped = 0
+        # What the route could not keep up with, by what the user can change: `superseded`, a
+        # newer message on its channel came first (`latest`: only the newest matters);
+        # `mailbox_full`, the oldest pushed out at `qos.depth` (`all`: a deeper queue, or less load).
+        self.superseded = 0
+        self.mailbox_full = 0
         # With max_hz, a message superseded while the worker waits out the rate is skipped by
         # design: counted apart from drops (which say the bridge could not keep up).
         self._rate_limited = rate_limited
         self.rate_skipped = 0
+
+    @property
+    def dropped(self) -> int:
+        """Every message lost here for want of time: superseded and pushed out alike."""
+        return self.superseded + self.mailbox_full
 
     def put(self, message: Message) -> None:
         with self._ready:
@@ -55,12 +64,12 @@ class Mailbox:
                     if self._rate_limited:
                         self.rate_skipped += 1
                     else:
-                        self.dropped += 1
+                        self.superseded += 1
                 self._latest[message.channel] = message
             else:
                 if len(self._fifo) >= self._depth:
                     self._fifo.popleft()
-                    self.dropped += 1
+                    self.mailbox_full += 1
                 self._fifo.append(message)
             self._ready.notify()
 

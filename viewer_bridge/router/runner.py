@@ -42,6 +42,24 @@ MAX_HELD_CHANNELS = 1000
 OTHER_CHANNELS = "(other channels)"
 
 
+class SaidOnce:
+    """What a router's routes have said once between them (a held message's channel and kind):
+    two routes reading one channel of an unknown type log it once, and each counts it. Bounded
+    as the held channels are (`MAX_HELD_CHANNELS` per route), times the few kinds."""
+
+    def __init__(self) -> None:
+        self._said: set[tuple[str, ...]] = set()
+        self._lock = threading.Lock()  # routes hold messages on their own threads
+
+    def first(self, *key: str) -> bool:
+        """Whether `key` is said now for the first time."""
+        with self._lock:
+            if key in self._said:
+                return False
+            self._said.add(key)
+            return True
+
+
 class _Lane:
     """One stream of a route: its translator, the names it publishes on, what it skipped."""
 
@@ -89,10 +107,12 @@ class RouteRunner:
         rejected: Callable[[Received, BridgeError], None] | None = None,
         commands: CommandPolicy | None = None,
         names: ChannelNames | None = None,
+        said: SaidOnce | None = None,
     ) -> None:
         """`commands`: the policy of a route that writes commands (its destinations must be
         allowed; its messages expire after `max_age_ms`), or None for any other route. `names`:
-        the router's channels made into ROS name tokens (`{1:topic}`, `{1:channel}`)."""
+        the router's channels made into ROS name tokens (`{1:topic}`, `{1:channel}`). `said`: what
+        the router's routes have logged once (a held channel), or None for the route's own."""
         self.route = route
         self.commands = commands
         self._names = names
@@ -112,7 +132,7 @@ class RouteRunner:
         self._lanes: dict[tuple[str | None, ...], _Lane] = {}  # by the source's captured groups
         # By full name and type: lanes may share a topic, a channel's type may change (any LCM type).
         self._publishers: dict[tuple[str, MessageType], Publisher] = {}
-        self._held_logged: set[tuple[str, str]] = set()  # (channel, kind) said once
+        self._said = SaidOnce() if said is None else said  # a held (channel, kind) said once
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"route {route.name}", daemon=True)
         self._logged: Counter[str] = Counter()
@@ -317,8 +337,7 @@ class RouteRunner:
         if channel not in self.stats.held and len(self.stats.held) >= MAX_HELD_CHANNELS:
             channel = OTHER_CHANNELS
         self.stats.held.setdefault(channel, Counter())[held.kind] += 1
-        if (channel, held.kind) not in self._held_logged:
-            self._held_logged.add((channel, held.kind))
+        if self._said.first(channel, held.kind):
             log.warning("route %s: %s: %s (%s; counted, not said again)", self.route.name, channel, held.reason, held.kind)
 
     def _tell_source(self, message: Message, error: BridgeError) -> None:
@@ -344,9 +363,7 @@ class RouteRunner:
         return "active"
 
     def snapshot(self) -> dict[str, Any]:
-        snapshot = self.stats.snapshot(
-            self.mailbox.dropped, len(self.mailbox), self.state(), self.mailbox.rate_skipped
-        )
+        snapshot = self.stats.snapshot(self.mailbox, self.state())
         # What the transport could not send, by the route that gave it (the publishers are shared
         # by name within a route only, so each is counted once).
         snapshot["unsent"] = sum(publisher.unsent for publisher in list(self._publishers.values()))

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from viewer_bridge.router.flow import Mailbox
 from viewer_bridge.router.status import StatusView
 
 _SAMPLES = 4096  # latency and translate-time samples kept per route (a ring)
@@ -31,7 +32,9 @@ class RouteStats:
     translate_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
     latency_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
 
-    def snapshot(self, dropped: int, queued: int, state: str, max_hz_skipped: int = 0) -> dict[str, Any]:
+    def snapshot(self, mailbox: Mailbox, state: str) -> dict[str, Any]:
+        """The counters as `--stats-json` writes them; `dropped` is the sum of `superseded` and
+        `mailbox_full` (what it said before they were apart)."""
         return {
             "state": state,
             "messages_in": self.messages_in,
@@ -42,9 +45,11 @@ class RouteStats:
             "errors": dict(self.errors),
             "warnings": dict(self.warnings),
             "held": {channel: dict(kinds) for channel, kinds in sorted(self.held.items())},
-            "dropped": dropped,
-            "max_hz_skipped": max_hz_skipped,  # superseded while a rate-limited route waited
-            "queued": queued,
+            "superseded": mailbox.superseded,
+            "mailbox_full": mailbox.mailbox_full,
+            "dropped": mailbox.dropped,
+            "max_hz_skipped": mailbox.rate_skipped,  # superseded while a rate-limited route waited
+            "queued": len(mailbox),
             "translate_ms": _percentiles(self.translate_ms),
             "latency_ms": _percentiles(self.latency_ms),
         }

@@ -3,16 +3,19 @@
 The router hands a view a snapshot of every route's counters once per stats period
 (`Router.snapshot`); the view alone decides how it looks. On a terminal, `LiveTable` keeps one
 table on screen, a row per route that carries traffic or has a subscriber, with rates per second
-since the last snapshot, and folds the quiet routes into one line; it fits the terminal's width
-without cutting a number. Logs, CI and pipes get `LogLines`: a plain line per route with
-traffic (or losses), the same text every period, easy to grep, and a count of the quiet rest.
+since the last snapshot; lazy routes that receive traffic nobody subscribes to are one line
+(`waiting for a subscriber`, with their in-rates), the routes with no traffic another, and a
+legend explains the counters that appear; it fits the terminal's width without cutting a number.
+Logs, CI and pipes get `LogLines`: a plain line per route with traffic (or losses), the same
+text every period, easy to grep, the same two lines, and the legend of each counter the first
+time it appears.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any, Protocol
 
 from rich.console import Console, Group
@@ -33,9 +36,9 @@ class StatusView(Protocol):
         """The bridge is stopping: leave the last state on screen."""
 
 
-def counted(count: int, noun: str) -> str:
-    """`1 route`, `2 routes`: a count and its noun, singular or plural."""
-    return f"{count} {noun}" if count == 1 else f"{count} {noun}s"
+def counted(count: int, noun: str, plural: str | None = None) -> str:
+    """`1 route`, `2 routes`: a count and its noun, singular or plural (`noun` + s unless given)."""
+    return f"{count} {noun}" if count == 1 else f"{count} {plural or noun + 's'}"
 
 
 def routes_of(snapshot: Snapshot) -> dict[str, dict[str, Any]]:
@@ -78,54 +81,132 @@ def _ms(value: float | None) -> str:
     return "-" if value is None else f"{value:.2f}"
 
 
+# What a route could not carry, by cause, as the stats name them (0 is not shown).
+LOSSES = ("superseded", "mailbox_full", "max_hz_skipped", "unsent")
+
+# What each counter that may appear means, in a few words: the legend names those that appear
+# (docs/configuration.md, "Flow, errors and stats", says more of each). `held` kinds too.
+LEGEND = {
+    "superseded": "a newer message on its channel came first (policy latest: the newest is sent)",
+    "mailbox_full": "the oldest waiting message pushed out (policy all: qos.depth was full)",
+    "max_hz_skipped": "superseded while the route waited out its rate.max_hz (by design)",
+    "unsent": "given to a transport that could not send it (a Zenoh session with no router)",
+    "idle_skipped": "not translated: nobody subscribes (the newest per channel goes out when one does)",
+    "stale": "older than max_age_ms when it would be sent",
+    "not_allowed": "a command channel --allow-commands does not name",
+    "unknown_type": "no known LCM type (--lcm-types names the folder of its .lcm files)",
+    "refused_type": "a type ROS 2 cannot express",
+    "waiting_for_build": "its ROS 2 interface is being built",
+    "own_message": "the bridge's own message, come back",
+    "too_many_streams": "past the route's max_streams",
+}
+
+
 def is_shown(stats: dict[str, Any]) -> bool:
-    """A route worth a row: it lost or failed something, or it carries traffic (a lazy route:
-    for a subscriber). Idle lazy routes and routes nothing arrived on are folded into a line."""
-    if errors_of(stats) or stats["dropped"] or unsent_of(stats):
+    """A route worth a row: it lost or failed something, or it carries traffic for a subscriber.
+    Lazy routes waiting for a subscriber and routes nothing arrived on are a line each."""
+    if errors_of(stats) or any(stats.get(loss, 0) for loss in LOSSES):
         return True
     return bool(stats["state"] == "active" and (stats["messages_in"] > 0 or stats["messages_out"] > 0))
 
 
+def is_waiting(stats: dict[str, Any]) -> bool:
+    """A lazy route that receives traffic nobody subscribes to (and lost nothing)."""
+    return not is_shown(stats) and stats["state"] != "active"
+
+
+def waiting_line(routes: dict[str, dict[str, Any]], names: list[str], rates: dict[str, tuple[float, float]]) -> str:
+    """The routes waiting for a subscriber, each with its in-rate and what it did not translate."""
+    each = (f"{name} in {rates[name][0]:.1f}/s (idle_skipped {routes[name]['idle_skipped']})" for name in names)
+    return f"waiting for a subscriber: {', '.join(each)}"
+
+
 def quiet_line(routes: dict[str, dict[str, Any]], names: list[str], listed: bool) -> str:
-    """The routes without a row, counted (and named when `listed`)."""
-    idle = sum(1 for name in names if routes[name]["state"] != "active")
-    counts = f"{idle} idle: no subscriber; {len(names) - idle} without traffic"
-    more = " more" if len(names) < len(routes) else ""  # beside the rows shown, or all of them
-    return f"{len(names)}{more} {'route' if len(names) == 1 else 'routes'} quiet ({counts})" + (
-        f": {', '.join(names)}" if listed else ""
-    )
+    """The routes nothing arrived on, counted (and named when `listed`)."""
+    more = "more " if len(names) < len(routes) else ""  # beside the other lines, or all of them
+    return f"{counted(len(names), more + 'route')} without traffic" + (f": {', '.join(names)}" if listed else "")
+
+
+def legend(terms: Iterable[str]) -> str | None:
+    """One line explaining `terms` (counters of `LEGEND`), in its order; None for none."""
+    wanted = set(terms)
+    said = [f"{term}: {meaning}" for term, meaning in LEGEND.items() if term in wanted]
+    return "legend: " + "; ".join(said) if said else None
+
+
+def terms_of(routes: dict[str, dict[str, Any]]) -> list[str]:
+    """The counters a view of `routes` shows that a legend explains."""
+    terms = {loss for stats in routes.values() if is_shown(stats) for loss in LOSSES if stats.get(loss, 0)}
+    terms |= {kind for stats in routes.values() for kinds in stats.get("held", {}).values() for kind in kinds}
+    if any(is_waiting(stats) for stats in routes.values()):
+        terms.add("idle_skipped")
+    return sorted(terms)
+
+
+class Rates:
+    """Messages in and out per second of each route, since the previous snapshot."""
+
+    def __init__(self) -> None:
+        self._previous: dict[str, tuple[int, int]] = {}  # route -> (in, out) at the last snapshot
+        self._previous_at = time.monotonic()
+        self.elapsed = 0.0
+
+    def of(self, routes: dict[str, dict[str, Any]]) -> dict[str, tuple[float, float]]:
+        now = time.monotonic()
+        self.elapsed, self._previous_at = max(now - self._previous_at, 1e-9), now
+        rates = {}
+        for name, stats in routes.items():
+            now_in, now_out = stats["messages_in"], stats["messages_out"]
+            before_in, before_out = self._previous.get(name, (0, 0))
+            self._previous[name] = (now_in, now_out)
+            rates[name] = (now_in - before_in) / self.elapsed, (now_out - before_out) / self.elapsed
+        return rates
+
+
+def losses_of(stats: dict[str, Any]) -> str:
+    """A route's losses in words, those that are not 0: ` superseded 5 unsent 2`."""
+    return "".join(f" {loss} {stats[loss]}" for loss in LOSSES if stats.get(loss, 0))
 
 
 class LogLines:
-    """Each period, a log line per route that carries traffic or lost something, one counting the
-    quiet rest, and one for the transports' own errors: what a log or CI needs, not 30 idle lines."""
+    """Each period, a log line per route that carries traffic or lost something, one for the
+    routes waiting for a subscriber, one counting the routes with no traffic, one for the
+    transports' own errors, and a legend of the counters not explained yet in this run: what a
+    log or CI needs, not 30 idle lines."""
+
+    def __init__(self) -> None:
+        self._rates = Rates()
+        self._explained: set[str] = set()  # legend terms said already
 
     def show(self, snapshot: Snapshot) -> None:
         routes = routes_of(snapshot)
+        rates = self._rates.of(routes)
         for name, stats in routes.items():
             if not is_shown(stats):
                 continue
             latency = stats["latency_ms"]
             log.info(
-                "route %s: in %d out %d errors %d%s dropped %d%s%s latency p50 %s p99 %s ms%s%s",
+                "route %s: in %d out %d errors %d%s%s latency p50 %s p99 %s ms%s%s",
                 name,
                 stats["messages_in"],
                 stats["messages_out"],
                 errors_of(stats),
                 f" warnings {warnings_of(stats)}" if stats["warnings"] else "",
-                stats["dropped"],
-                f" not delivered {unsent_of(stats)}" if unsent_of(stats) else "",
-                f" max_hz skipped {stats['max_hz_skipped']}" if stats["max_hz_skipped"] else "",
+                losses_of(stats),
                 _ms(latency["p50"]),
                 _ms(latency["p99"]),
-                f" ({stats['state']}, {stats['idle_skipped']} not translated)" if stats["state"] != "active" else "",
+                f" ({stats['state']}, idle_skipped {stats['idle_skipped']})" if stats["state"] != "active" else "",
                 f" held: {held}" if (held := held_of(stats)) else "",
             )
-        quiet = [name for name, stats in routes.items() if not is_shown(stats)]
-        if quiet:
+        if waiting := [name for name, stats in routes.items() if is_waiting(stats)]:
+            log.info("%s", waiting_line(routes, waiting, rates))
+        if quiet := [name for name, stats in routes.items() if not is_shown(stats) and not is_waiting(stats)]:
             log.info("%s", quiet_line(routes, quiet, listed=False))
         if "transports" in snapshot:
             log.info("transport errors: %s", transports_line(snapshot["transports"]))
+        if said := legend(term for term in terms_of(routes) if term not in self._explained):
+            log.info("%s", said)
+            self._explained.update(terms_of(routes))
 
     def close(self) -> None:
         pass
@@ -143,15 +224,17 @@ COLUMNS: dict[str, Cell] = {
     "out": lambda stats, rates: str(stats["messages_out"]),
     "err": lambda stats, rates: str(errors_of(stats)),
     "warn": lambda stats, rates: str(warnings_of(stats)),
-    "drop": lambda stats, rates: str(stats["dropped"]),
+    "superseded": lambda stats, rates: str(stats.get("superseded", 0)),
+    "mailbox_full": lambda stats, rates: str(stats.get("mailbox_full", 0)),
+    "max_hz_skipped": lambda stats, rates: str(stats.get("max_hz_skipped", 0)),
     "unsent": lambda stats, rates: str(unsent_of(stats)),
     "p50": lambda stats, rates: _ms(stats["latency_ms"]["p50"]),
     "p99": lambda stats, rates: _ms(stats["latency_ms"]["p99"]),
 }
-ZERO_HIDDEN = ("warn", "drop", "unsent")  # shown only when some row has one
+ZERO_HIDDEN = ("warn", *LOSSES)  # shown only when some row has one
 OPTIONAL = ("p99", "in", "out", "p50")  # dropped first when the terminal is narrow
 ROUTE_MIN = 12  # characters of a route's name kept, at least, when the terminal is narrow
-STYLES = {"err": "bold red", "warn": "yellow", "drop": "yellow", "unsent": "bold red"}
+STYLES = {"err": "bold red", "warn": "yellow", "superseded": "yellow", "mailbox_full": "yellow", "unsent": "bold red"}
 
 
 class ConsoleLog(logging.Handler):
@@ -178,32 +261,27 @@ class LiveTable:
         self._console = console
         self._live = Live(Text("starting routes ..."), console=console, auto_refresh=False, transient=False)
         self._live.start()
-        self._previous: dict[str, tuple[int, int]] = {}  # route -> (in, out) at the last snapshot
-        self._previous_at = time.monotonic()
+        self._rates = Rates()
 
     def show(self, snapshot: Snapshot) -> None:
-        now = time.monotonic()
-        elapsed, self._previous_at = max(now - self._previous_at, 1e-9), now
         routes = routes_of(snapshot)
-        rates = {name: self._rates(name, stats, elapsed) for name, stats in routes.items()}
+        rates = self._rates.of(routes)
         shown = [name for name, stats in routes.items() if is_shown(stats)]
-        title = f"viewer-bridge: {counted(len(routes), 'route')} (rates over the last {elapsed:.1f} s; latency in ms)"
+        title = (f"viewer-bridge: {counted(len(routes), 'route')} "
+                 f"(rates over the last {self._rates.elapsed:.1f} s; latency in ms)")  # fmt: skip
         parts: list[Any] = [self._table(title, {name: routes[name] for name in shown}, rates)]
-        quiet = [name for name in routes if name not in shown]
-        if quiet:
+        if waiting := [name for name, stats in routes.items() if is_waiting(stats)]:
+            parts.append(Text(waiting_line(routes, waiting, rates)))
+        if quiet := [name for name in routes if name not in shown and name not in waiting]:
             parts.append(Text(quiet_line(routes, quiet, listed=True), style="dim"))
         for name, stats in routes.items():
             if held := held_of(stats):
                 parts.append(Text(f"{name} held back: {held}", style="yellow"))
         if "transports" in snapshot:
             parts.append(Text(f"transport errors: {transports_line(snapshot['transports'])}", style="red"))
+        if said := legend(terms_of(routes)):
+            parts.append(Text(said, style="dim"))
         self._live.update(Group(*parts), refresh=True)
-
-    def _rates(self, name: str, stats: dict[str, Any], elapsed: float) -> tuple[float, float]:
-        now_in, now_out = stats["messages_in"], stats["messages_out"]
-        before_in, before_out = self._previous.get(name, (0, 0))
-        self._previous[name] = (now_in, now_out)
-        return (now_in - before_in) / elapsed, (now_out - before_out) / elapsed
 
     def _table(self, title: str, routes: dict[str, dict[str, Any]], rates: dict[str, tuple[float, float]]) -> Table:
         cells = {

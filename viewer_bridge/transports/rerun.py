@@ -106,7 +106,8 @@ class RerunTransport(Transport):
         if settings.path is not None:
             if settings.path.exists() and not settings.overwrite:
                 raise TransportUnavailable(
-                    f"{settings.path} exists (rerun.path): give another file, or rerun.overwrite: true to replace it"
+                    f"{settings.path} exists (rerun.path): give another file, or replace it with "
+                    "--set rerun.overwrite=true (in a config: rerun.overwrite: true)"
                 )
             self.partial = settings.path.with_name(settings.path.name + ".partial")
             try:
@@ -135,6 +136,7 @@ class RerunTransport(Transport):
                 raise TransportUnavailable(f"rerun.web_port {self.web_port}: {error}") from None
         self._lock = threading.Lock()
         self.messages: Counter[str] = Counter()
+        self.chunks: Counter[str] = Counter()  # chunks sent per entity path (what `convert` reports)
 
     @property
     def grpc_url(self) -> str:
@@ -160,7 +162,7 @@ class RerunTransport(Transport):
 
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         prefix = "" if name.strip("/") == "" else "/" + name.strip("/")
-        stream, lock, messages = self.stream, self._lock, self.messages
+        stream, lock, messages, entities = self.stream, self._lock, self.messages, self.chunks
 
         def send(data: bytes) -> None:
             chunks = [chunk for batch in decode_batches(data) for chunk in Chunk.from_record_batch(batch)]
@@ -169,6 +171,7 @@ class RerunTransport(Transport):
             rr.send_chunks(chunks, recording=stream)
             with lock:
                 messages[name] += 1
+                entities.update(chunk.entity_path for chunk in chunks)
 
         return CallPublisher(send)
 

@@ -8,16 +8,22 @@ the translators build the batches, the transport hands them to the SDK's recordi
 
 Two timelines, named here once: `sim_time` (Drake's simulation time, a duration) and
 `receive_time` (when the bridge received the message, a timestamp).
+
+pyarrow (the rerun extra's) is imported by the two functions that use it, not at load: every
+translator module reads the names below through `translators/types.py`, and a route to Foxglove
+or Zenoh must not need the rerun extra.
 """
 
 from __future__ import annotations
 
 import struct
 from collections.abc import Iterable
-
-import pyarrow as pa
+from typing import TYPE_CHECKING
 
 from viewer_bridge.errors import DecodeError
+
+if TYPE_CHECKING:
+    import pyarrow as pa
 
 RERUN = "rerun"  # the encoding: Arrow IPC streams of Rerun chunks
 CHUNKS = "rerun.Chunks"
@@ -31,6 +37,7 @@ __all__ = ["CHUNKS", "RECEIVE_TIME", "RERUN", "SIM_TIME", "decode_batches", "enc
 
 def encode_batches(batches: Iterable[pa.RecordBatch]) -> bytes:
     """Record batches (each with a schema of its own) as one message's bytes."""
+    import pyarrow as pa
     parts: list[bytes] = []
     for batch in batches:
         sink = pa.BufferOutputStream()
@@ -43,6 +50,7 @@ def encode_batches(batches: Iterable[pa.RecordBatch]) -> bytes:
 
 def decode_batches(data: bytes) -> list[pa.RecordBatch]:
     """The record batches of a message; `DecodeError` naming the offset of a bad one."""
+    import pyarrow as pa
     batches, offset = [], 0
     view = memoryview(data)
     while offset < len(data):

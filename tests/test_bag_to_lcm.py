@@ -1,0 +1,81 @@
+"""`viewer-bridge convert BAG OUT.lcmlog`: a ROS 2 bag (MCAP by mcap-ros2-support, rosbag2 folder)
+into an LCM log that lcm-gen's Python reads back to the bag's values."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tests.lcmcodec.ros_bag import SAMPLES, lcmgen_decode, typestore, write_bag
+from tests.lcmcodec.test_from_ros import lcm_gen_all
+from tests.lcmcodec.test_ros_cdr import serialized
+from viewer_bridge.bag_to_lcm import bag_to_lcm, channel_of
+from viewer_bridge.cli.main import main
+from viewer_bridge.transports.lcm import read_log
+
+JOINTS = SAMPLES[0][2]
+
+
+def test_a_bag_becomes_an_lcm_log_lcm_gen_reads(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    write_bag(tmp_path / "bag.mcap")
+    out, types = tmp_path / "out.lcmlog", tmp_path / "types"
+    assert main(["convert", str(tmp_path / "bag.mcap"), str(out), "--lcm-types-out", str(types)]) == 0
+    printed = capsys.readouterr().out
+    assert "       2  /joint_states -> joint_states" in printed and "/camera/image -> camera/image" in printed
+    events = list(read_log(out))
+    assert [event.channel for event in events] == [channel_of(topic) for topic, _, _ in SAMPLES]
+    assert [event.timestamp_us for event in events] == [1_000_000 + index * 1000 for index in range(len(SAMPLES))]
+    assert lcm_gen_all(types, tmp_path / "gen").returncode == 0
+    decoded = lcmgen_decode(tmp_path / "gen" / "py", [("sensor_msgs.JointState", events[0].data),
+                                                      ("my_robot.Gripper", events[-1].data)])  # fmt: skip
+    assert decoded[0]["name"] == JOINTS["name"] and decoded[0]["effort"] == JOINTS["effort"]
+    assert decoded[1]["fingers"][1]["name"] == "thumb" and decoded[1]["ticks"] == 4_294_967_295
+    assert main(["convert", str(tmp_path / "bag.mcap"), str(out)]) == 2  # exists: not replaced without --force
+
+
+def test_topics_narrow_and_unmappable_and_bad_messages_are_reported(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from mcap.writer import Writer
+
+    store = typestore()
+    bag = tmp_path / "mixed.mcap"
+    with bag.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile="ros2")
+        clash = writer.register_schema("lab/msg/Clash", "ros2msg", b"float64[] x\nint32 x_length\n")
+        garbled = writer.register_schema("lab/msg/Garbled", "ros2msg", b"float64[ x\n")
+        msgdef = store.generate_msgdef("sensor_msgs/msg/JointState", ros_version=2)[0]
+        joints = writer.register_schema("sensor_msgs/msg/JointState", "ros2msg", msgdef.encode())
+        channels = {topic: writer.register_channel(topic, "cdr", schema) for topic, schema in
+                    [("/clash", clash), ("/joints", joints), ("/other", joints), ("/garbled", garbled)]}  # fmt: skip
+        good = serialized("sensor_msgs/msg/JointState", JOINTS)
+        for index, (topic, data) in enumerate([("/clash", b"\x00\x01\x00\x00"), ("/joints", good),
+                                               ("/joints", good[:-3]), ("/other", good), ("/joints", good)]):  # fmt: skip
+            writer.add_message(channels[topic], log_time=index * 1000, data=data, publish_time=index * 1000)
+        writer.finish()
+    result = bag_to_lcm(bag, tmp_path / "out.lcmlog", topics="/(clash|joints|garbled)")
+    assert "x_length would collide" in result.skipped["/clash"]
+    assert "lab/msg/Garbled: its recorded definition does not parse" in result.skipped["/garbled"]
+    assert result.written == {"/joints": 2} and result.bad == {"/joints": 1}
+    assert "sensor_msgs/msg/JointState.effort" in result.first_error["/joints"]
+    assert [event.channel for event in read_log(tmp_path / "out.lcmlog")] == ["joints", "joints"]
+    assert main(["convert", str(bag), str(tmp_path / "all.lcmlog")]) == 0
+    printed = capsys.readouterr()
+    assert "       1  /other -> other" in printed.out
+    assert "viewer-bridge convert: /clash left out: lab/msg/Clash: field x's length field" in printed.err
+    assert "/joints: 1 messages did not convert, the first: sensor_msgs/msg/JointState.effort" in printed.err
+
+
+def test_a_rosbag2_folder_converts_too(tmp_path: Path) -> None:
+    from rosbags.rosbag2 import Writer
+
+    store = typestore()
+    with Writer(tmp_path / "bag", version=9) as writer:
+        connection = writer.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=store)
+        writer.write(connection, 42_000, serialized("sensor_msgs/msg/JointState", JOINTS))
+    result = bag_to_lcm(tmp_path / "bag", tmp_path / "out.lcmlog")
+    assert result.written == {"/joint_states": 1}
+    [event] = read_log(tmp_path / "out.lcmlog")
+    assert (event.channel, event.timestamp_us) == ("joint_states", 42)

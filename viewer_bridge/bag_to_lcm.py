@@ -1,0 +1,151 @@
+"""A ROS 2 bag (an MCAP file, or a rosbag2 folder of .db3 or .mcap storage) -> an LCM log.
+
+Every topic of a type that maps onto LCM (docs/PROTOCOLS.md section 14) becomes a channel, its
+name the topic without the leading `/` (`/joint_states` -> `joint_states`, `/arm/state` ->
+`arm/state`); each message is converted by the compiled CDR -> LCM code and written with its log
+time (in microseconds, LCM's unit) as the event's timestamp, in the bag's order. The types come
+from the bag's own `ros2msg` definitions where it has them, else from the Jazzy store. A message
+that does not convert is counted per topic, not written, and the conversion goes on.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from viewer_bridge.errors import ConvertError, DecodeError
+from viewer_bridge.lcmcodec.from_ros import LcmFromRos, definitions_from_msgdef, map_ros_types
+from viewer_bridge.lcmcodec.ros_cdr import compile_ros_encoders
+from viewer_bridge.transports.lcm import LcmEvent, write_log
+
+__all__ = ["BagConversion", "bag_to_lcm", "channel_of", "is_ros_bag"]
+
+
+@dataclass
+class BagConversion:
+    """What a conversion did: messages written and refused per topic, and the topics left out."""
+
+    written: Counter[str] = field(default_factory=Counter)  # by topic
+    bad: Counter[str] = field(default_factory=Counter)  # by topic: messages that did not convert
+    first_error: dict[str, str] = field(default_factory=dict)  # by topic
+    skipped: dict[str, str] = field(default_factory=dict)  # topic -> why it has no channel
+    channels: dict[str, str] = field(default_factory=dict)  # topic -> LCM channel
+    lcm_files: list[Path] = field(default_factory=list)
+
+
+def is_ros_bag(path: str | Path) -> bool:
+    """A rosbag2 folder or an MCAP file (by its magic bytes), as opposed to an LCM log."""
+    path = Path(path)
+    if path.is_dir():
+        return True
+    with path.open("rb") as file:
+        return file.read(5) == b"\x89MCAP"
+
+
+def channel_of(topic: str) -> str:
+    """The LCM channel of a ROS 2 topic: the topic without its leading `/`."""
+    return topic[1:] if topic.startswith("/") else topic
+
+
+def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, lcm_types_out: str | Path | None = None,
+               force: bool = False) -> BagConversion:  # fmt: skip
+    """Convert the topics of `bag` (those whose name fully matches the regex `topics`, default all)
+    into the LCM log `out`; write the `.lcm` files of their types under `lcm_types_out` if given.
+    Raises `ConvertError` before writing anything when `out` exists (unless `force`) or no topic maps."""
+    from rosbags.rosbag2 import Reader, ReaderError
+
+    target = Path(out)
+    if target.exists() and not force:
+        raise ConvertError(f"{target} exists (--force replaces it)")
+    result = BagConversion()
+    pattern = re.compile(topics) if topics is not None else None
+    try:
+        reader = Reader(Path(bag))
+        reader.open()
+    except ReaderError as error:
+        raise ConvertError(f"{bag} is not a ROS 2 bag rosbags can read: {error}") from None
+    try:
+        connections = [c for c in reader.connections if pattern is None or pattern.fullmatch(c.topic)]
+        definitions, unreadable = _definitions(connections)
+        mapping = map_ros_types(definitions, [c.msgtype for c in connections if c.msgtype not in unreadable])
+        chosen = _channels(connections, {**mapping.refused, **unreadable}, result)
+        if not chosen:
+            reasons = "; ".join(f"{topic}: {why}" for topic, why in result.skipped.items()) or "no topic matches"
+            raise ConvertError(f"no topic of {bag} maps onto LCM: {reasons}")
+        encoders = compile_ros_encoders(mapping, dict.fromkeys(c.msgtype for c in chosen))
+        by_id = {c.id: (c.topic, result.channels[c.topic], encoders[c.msgtype]) for c in chosen}
+        events = _events(reader.messages(connections=chosen), by_id, result)
+        write_log(target, events)
+    finally:
+        reader.close()
+    if lcm_types_out is not None:  # the types of the topics written, and what they nest
+        keep = {mapping.structs[name].lcm_name for name in _nested(mapping, {c.msgtype for c in chosen})}
+        mapping.texts = {name: text for name, text in mapping.texts.items() if name in keep}
+        result.lcm_files = mapping.write(Path(lcm_types_out))
+    return result
+
+
+def _definitions(connections: list[Any]) -> tuple[dict[str, tuple[list[Any], list[Any]]], dict[str, str]]:
+    """The Jazzy store's definitions, overridden by those the bag recorded with its topics; and the
+    types whose recorded definition rosbags cannot parse, with why (not guessed from the store:
+    the bag's bytes follow the definition it recorded)."""
+    from rosbags.typesys import Stores, TypesysError, get_typestore
+
+    definitions = dict(get_typestore(Stores.ROS2_JAZZY).fielddefs)
+    unreadable: dict[str, str] = {}
+    for connection in connections:
+        text = getattr(connection.msgdef, "data", "") or ""
+        if text.strip():
+            try:
+                definitions.update(definitions_from_msgdef(connection.msgtype, text))
+            except TypesysError as error:
+                unreadable[connection.msgtype] = f"its recorded definition does not parse: {error}"
+    return definitions, unreadable
+
+
+def _channels(connections: list[Any], refused: dict[str, str], result: BagConversion) -> list[Any]:
+    """The connections that get a channel; the others' topics, with why, in `result.skipped`."""
+    chosen = []
+    owner: dict[str, str] = {}
+    for connection in connections:
+        topic, channel = connection.topic, channel_of(connection.topic)
+        if connection.msgtype in refused:
+            result.skipped[topic] = f"{connection.msgtype}: {refused[connection.msgtype]}"
+        elif owner.get(channel, topic) != topic:
+            result.skipped[topic] = f"its channel {channel} is already {owner[channel]}'s"
+        elif result.channels.get(topic) is None:
+            owner[channel] = topic
+            result.channels[topic] = channel
+            chosen.append(connection)
+        else:  # the same topic recorded twice (two connections): one channel
+            chosen.append(connection)
+    return chosen
+
+
+def _events(messages: Iterator[tuple[Any, int, bytes]], by_id: dict[int, Any], result: BagConversion) -> Iterator[LcmEvent]:
+    for connection, timestamp_ns, data in messages:
+        topic, channel, encoder = by_id[connection.id]
+        try:
+            lcm = encoder.encode(bytes(data))
+        except DecodeError as error:  # one bad message: counted, and the rest go on
+            result.bad[topic] += 1
+            result.first_error.setdefault(topic, str(error))
+            continue
+        result.written[topic] += 1
+        yield LcmEvent(channel, lcm, timestamp_ns // 1000)
+
+
+def _nested(mapping: LcmFromRos, names: set[str]) -> set[str]:
+    """`names` and every ROS 2 type they nest."""
+    found: set[str] = set()
+    pending = list(names)
+    while pending:
+        name = pending.pop()
+        if name not in found:
+            found.add(name)
+            pending.extend(f.nested for f in mapping.structs[name].fields if f.nested)
+    return found

@@ -1,0 +1,41 @@
+"""`viewer-bridge lcm-types generate`: ROS 2 message types as `.lcm` files that lcm-gen reads
+(docs/PROTOCOLS.md, "Any ROS 2 type, onto LCM")."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from viewer_bridge.errors import UsageError
+from viewer_bridge.lcmcodec.from_ros import load_ros_definitions, map_ros_types
+
+
+def add_command(add: Callable[..., argparse.ArgumentParser]) -> None:
+    """The `lcm-types` command's arguments, on the parser `add` makes."""
+    command = add("lcm-types", help="write ROS 2 message types as .lcm files (for lcm-gen)")
+    command.add_argument("action", choices=["generate"])
+    command.add_argument(
+        "--ros-types",
+        nargs="+",
+        required=True,
+        metavar="SRC",
+        help="ROS 2 types (pkg/msg/Name), packages of the Jazzy store (sensor_msgs), or .msg files and folders",
+    )
+    command.add_argument("-o", "--output", type=Path, required=True, metavar="DIR", help="where the .lcm files go")
+
+
+def run(args: Any) -> int:
+    """Write the files (`DIR/<package>/<Name>.lcm`), print each path; a type that cannot be
+    mapped is one line on stderr with its reason, and makes the exit status 1."""
+    if args.action != "generate":
+        raise UsageError(f"unknown action {args.action}")
+    definitions, wanted = load_ros_definitions(args.ros_types)
+    mapping = map_ros_types(definitions, wanted)
+    for path in mapping.write(args.output):
+        print(path)
+    for ros_name, reason in mapping.refused.items():
+        print(f"viewer-bridge lcm-types: {ros_name} not mapped: {reason}", file=sys.stderr)
+    return 1 if mapping.refused else 0
