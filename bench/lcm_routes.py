@@ -22,6 +22,7 @@ import os
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -128,8 +129,13 @@ def _messages_in(stats: dict[str, Any]) -> int:
     return max((r["messages_in"] for name, r in stats.items() if name != "transports"), default=0)
 
 
-def compare(seconds: float, rounds: int = 2) -> dict[str, dict[str, float]]:
-    """Both routes, `rounds` times interleaved; per figure, the better round."""
+Runner = Callable[[Path, float, str], dict[str, float]]  # (folder, seconds, Zenoh endpoint) -> figures
+
+
+def compare(seconds: float, rounds: int = 2, others: dict[str, Runner] | None = None) -> dict[str, dict[str, float]]:
+    """Both routes (and `others`, by name: bench/floor.py's floor), `rounds` times interleaved;
+    per figure, the better round."""
+    others = others or {}
     everywhere = os.sched_getaffinity(0)
     os.sched_setaffinity(0, {1})  # the publisher, the Zenoh router and the subscriber; the bridge gets CPU 0
     endpoint = f"tcp/127.0.0.1:{_free_port()}"
@@ -138,8 +144,11 @@ def compare(seconds: float, rounds: int = 2) -> dict[str, dict[str, float]]:
     try:
         with tempfile.TemporaryDirectory() as name:
             for _ in range(rounds):
-                for route in ("lcm_bus", "relay"):
-                    result = run(route, Path(name), seconds, endpoint)
+                for route in ("lcm_bus", "relay", *others):
+                    if route in others:
+                        result = others[route](Path(name), seconds, endpoint)
+                    else:
+                        result = run(route, Path(name), seconds, endpoint)
                     kept = best.setdefault(route, result)
                     for key, value in result.items():
                         kept[key] = (max if key == "delivered" else min)(kept[key], value)

@@ -94,6 +94,11 @@ def byte_count(text: str) -> int:
     return _whole(text, "a whole number of bytes", 1, None, "must be at least 1 byte")
 
 
+def worker_count(text: str) -> int:
+    """A number of worker processes: 1 to 256."""
+    return _whole(text, "a number of workers", 1, 256, "workers are 1 to 256")
+
+
 def _whole(text: str, what: str, low: int, high: int | None, rule: str) -> int:
     """`text` as a whole number from `low` to `high` (None: no limit); `rule` says the range."""
     try:

@@ -33,6 +33,7 @@ from viewer_bridge.cli.arguments import (
     positive,
     regex,
     split_ros_args,
+    worker_count,
 )
 from viewer_bridge.cli.dump import as_json, as_text
 from viewer_bridge.config.bridge import BUILTIN_CONFIGS, BridgeConfig, load_config
@@ -45,6 +46,7 @@ from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.model.skipped import collecting
 from viewer_bridge.router import Router
 from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines, StatusView, counted
+from viewer_bridge.router.workers import Workers
 from viewer_bridge.transports.lcm import DEFAULT_URL, LcmEvent, Subscription, read_log
 from viewer_bridge.transports.lcm_url import log_to_write
 from viewer_bridge.transports.origins import ANY_ORIGIN, is_origin_pattern
@@ -174,6 +176,13 @@ def _parser() -> argparse.ArgumentParser:
         "--duration", type=positive, metavar="S", help="stop after S seconds (default: until Ctrl-C)"
     )
     run.add_argument("--demo", action="store_true", help="also publish the demo scene on the LCM URL")
+    run.add_argument(
+        "--workers",
+        type=worker_count,
+        metavar="N",
+        help="run the routes on N worker processes, placed by their source (default: the config's "
+        "workers, 1: all in this process); a route's worker: K pins it; Ctrl-C exits 130",
+    )
     run.add_argument(
         "-q", "--quiet", action="store_true", help="print only warnings and errors (no route table or lines)"
     )
@@ -368,12 +377,22 @@ def _run(args: argparse.Namespace) -> int:
                 f"--demo: the routes would read the demo on {_lcm_url(config)}, a log LCM only writes; "
                 "record the demo itself with `viewer-bridge demo --url URL`"
             )
-        router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period, view=view)
+        workers = args.workers or config.workers
+        if workers > 1:  # the routes on worker processes, this one merging their stats
+            router: Router | Workers = Workers(config, workers, args.stats_json, args.stats_period, view)
+        else:
+            router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period, view=view)
     except BaseException:
         view.close()  # a live table leaves the screen before the error
         raise
+    signals: list[int] = []  # which stopped the bridge: Ctrl-C stops workers with exit code 130
+
+    def stop(number: int, _: object) -> None:
+        signals.append(number)
+        router.stop()
+
     for signal_number in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signal_number, lambda *_: router.stop())
+        signal.signal(signal_number, stop)
     stop_demo = threading.Event()
     demo = None
     router.start()  # subscribed before the demo's first message
@@ -388,7 +407,7 @@ def _run(args: argparse.Namespace) -> int:
         stop_demo.set()
         if demo is not None:
             demo.join(timeout=2)
-    return 0
+    return 130 if isinstance(router, Workers) and signal.SIGINT in signals else 0
 
 
 def _with_lcm_types(config: BridgeConfig, sources: list[str]) -> BridgeConfig:

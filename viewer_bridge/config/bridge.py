@@ -80,6 +80,9 @@ class Route(_Strict):
     # and publishers of their own; a message of one more is held (`too_many_streams`), so a bus
     # with 10,000 channel names cannot make 10,000 publishers.
     max_streams: int = Field(1000, ge=1)
+    # The worker process this route runs on when the bridge runs several (`workers`); None: placed
+    # by its source (`viewer_bridge.router.workers.place`).
+    worker: int | None = Field(None, ge=0)
     options: dict[str, Any] = {}
     _options: TranslatorOptions | None = PrivateAttr(None)
 
@@ -118,6 +121,8 @@ class BridgeConfig(BaseModel):
     drake_lcm_types: bool = True  # also Drake's own types (pydrake's `drake` module), when pydrake is installed
     # The LCM channels the way back (ros_to_lcm) may write, and how fresh a command must be.
     commands: CommandPolicy = CommandPolicy()
+    # Processes the routes run on (`--workers`); 1: the routes run in the bridge's own process.
+    workers: int = Field(1, ge=1, le=256)
     routes: list[Route]
     _settings: dict[str, TransportSettings] = PrivateAttr(default_factory=dict)
 
@@ -126,7 +131,7 @@ class BridgeConfig(BaseModel):
         document = (info.context or {}).get("document")
         check = _Checker(document if isinstance(document, YamlDocument) else None)
         for name, section in (self.model_extra or {}).items():
-            known = "a config key (load_cache, lcm_types, drake_lcm_types, commands, routes) nor a transport"
+            known = "a config key (load_cache, lcm_types, drake_lcm_types, commands, workers, routes) nor a transport"
             transport = check.transport(name, (name,), known)
             self._settings[name] = check.model(transport.Settings, section or {}, (name,))
         names = [route.name for route in self.routes]

@@ -22,7 +22,6 @@ this way to routes that end in an MCAP file).
 
 from __future__ import annotations
 
-import json
 import logging
 import threading
 import time
@@ -33,6 +32,7 @@ from typing import Any
 from viewer_bridge.config.bridge import BridgeConfig, Route
 from viewer_bridge.config.commands import COMMAND_FLAG, CommandPolicy
 from viewer_bridge.lcmcodec.library import TypeLibrary
+from viewer_bridge.router import stats
 from viewer_bridge.router.echoes import Echoes
 from viewer_bridge.router.flow import InlineBudget
 from viewer_bridge.router.runner import PublisherFor, RouteRunner, SaidOnce
@@ -256,9 +256,4 @@ class Router:
 
     def report(self) -> None:
         """The routes' stats to the status view, and to the JSON file when asked for."""
-        snapshot = self.snapshot()
-        self.view.show(snapshot)
-        if self.stats_json is not None:
-            temporary = self.stats_json.with_suffix(".tmp")
-            temporary.write_text(json.dumps(snapshot, indent=2))
-            temporary.replace(self.stats_json)
+        stats.report(self.snapshot(), self.view, self.stats_json)

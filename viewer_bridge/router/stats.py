@@ -3,13 +3,16 @@ translate time and latency of its recent messages (as percentiles in a snapshot)
 
 from __future__ import annotations
 
+import json
 from collections import Counter, deque
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from viewer_bridge.router.flow import Mailbox
+from viewer_bridge.router.status import StatusView
 
 _SAMPLES = 4096  # latency and translate-time samples kept per route (a ring)
 
@@ -58,3 +61,13 @@ def _percentiles(samples: deque[float]) -> dict[str, float | None]:
     values = np.fromiter(samples, dtype=np.float64)
     p50, p99 = np.percentile(values, [50, 99])
     return {"p50": round(float(p50), 4), "p99": round(float(p99), 4), "max": round(float(values.max()), 4)}
+
+
+def report(snapshot: dict[str, Any], view: StatusView, stats_json: Path | None) -> None:
+    """A snapshot to the status view, and to the JSON file when asked for (replaced whole, so a
+    reader never sees half of it)."""
+    view.show(snapshot)
+    if stats_json is not None:
+        temporary = stats_json.with_suffix(".tmp")
+        temporary.write_text(json.dumps(snapshot, indent=2))
+        temporary.replace(stats_json)

@@ -159,6 +159,10 @@ class Transport(ABC):
 
     Settings: ClassVar[type[TransportSettings]] = TransportSettings
     encodings: ClassVar[frozenset[str]]
+    # Whether several processes may open this transport with the same settings at once, each with
+    # its own view of the same traffic (a multicast bus, a ROS 2 graph): then the routes that use
+    # it may run on worker processes (`viewer_bridge.router.workers`). Not a server's port or a file.
+    several_processes: ClassVar[bool] = False
 
     def __init__(self, settings: TransportSettings) -> None:
         self.settings = settings

@@ -318,6 +318,7 @@ class LcmTransport(base.Transport):
 
     Settings = LcmSettings
     encodings = frozenset({base.LCM})
+    several_processes = True  # multicast: every process gets its own copy of each message
     settings: LcmSettings
 
     def __init__(self, settings: LcmSettings) -> None:

@@ -153,6 +153,7 @@ class RosTransport(Transport):
 
     Settings = RosSettings
     encodings = frozenset({CDR})
+    several_processes = True  # a node per process in one graph
 
     @classmethod
     def check_source(cls, name: str) -> None:

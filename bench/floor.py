@@ -1,0 +1,160 @@
+"""Benchmark: the floor, what any Python process pays to move an LCM message onto Zenoh, beside
+the bridge's routes doing the same.
+
+Run: .venv/bin/python bench/floor.py [--seconds 10]
+
+The floor is the least a Python process can do: `lcm.LCM.subscribe(".*")` and, in the callback,
+`put` of the bytes on a Zenoh publisher per channel (key lcm/<channel>), nothing else. It runs as
+a process of its own pinned to CPU 0, as the bridge does in bench/lcm_routes.py, under the same
+traffic (20 channels of lcmt_iiwa_status at 500 Hz each, a Zenoh router and a subscriber on the
+other core), and reads its CPU time per message from /proc/self/stat. The rows are the bridge's
+CPU per message on its `relay` (the bytes as they are) and `lcm_bus` (lcm_to_ros: transcoded to
+CDR) routes as multiples of the floor's, measured in the same run: what the router itself costs
+over the bare minimum, and so what one core can carry before `--workers` must share the load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import lcm
+from common import Measure, Size
+from lcm_routes import CHANNELS, RATE_HZ, Counting, compare, publish
+from router import URL
+from zenoh_routes import zenoh_session
+
+from viewer_bridge.transports.lcm import LcmBus
+
+
+def cpu_seconds() -> float:
+    """User + system CPU time of this process so far (/proc/self/stat fields 14 and 15)."""
+    fields = Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def serve(url: str, endpoint: str) -> None:
+    """The floor process: every LCM channel onto Zenoh; a line on stdin asks for its count and CPU."""
+    os.sched_setaffinity(0, {0})
+    session = zenoh_session("client", {"connect": [endpoint]})
+    publishers: dict[str, Any] = {}
+    received = [0]
+
+    def forward(channel: str, data: bytes) -> None:
+        publisher = publishers.get(channel)
+        if publisher is None:
+            publisher = publishers[channel] = session.declare_publisher(f"lcm/{channel}")
+        publisher.put(data)
+        received[0] += 1
+
+    bus = lcm.LCM(url)
+    bus.subscribe(".*", forward).set_queue_capacity(0)  # as the bridge's: no silent drop at 30 queued
+    stop = threading.Event()
+
+    def spin() -> None:
+        while not stop.is_set():
+            bus.handle_timeout(100)
+
+    thread = threading.Thread(target=spin, daemon=True)
+    thread.start()
+    print("ready", flush=True)
+    for _ in sys.stdin:
+        print(json.dumps({"count": received[0], "cpu": cpu_seconds()}), flush=True)
+    stop.set()
+    thread.join()
+    session.close()  # type: ignore[no-untyped-call]
+
+
+class Floor:
+    """The floor process, started and asked from here."""
+
+    def __init__(self, endpoint: str) -> None:
+        command = [sys.executable, __file__, "--serve", URL, endpoint]
+        self.process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        assert self.ask_line() == "ready"
+
+    def ask_line(self) -> str:
+        assert self.process.stdout is not None
+        return self.process.stdout.readline().strip()
+
+    def state(self) -> dict[str, float]:
+        assert self.process.stdin is not None
+        self.process.stdin.write("?\n")
+        self.process.stdin.flush()
+        return json.loads(self.ask_line())  # type: ignore[no-any-return]
+
+    def stop(self) -> None:
+        assert self.process.stdin is not None
+        self.process.stdin.close()
+        self.process.wait(timeout=20)
+
+
+def run_floor(folder: Path, seconds: float, endpoint: str) -> dict[str, float]:
+    """The floor under the traffic bench/lcm_routes.py gives the bridge; its figures as `run`'s."""
+    floor = Floor(endpoint)
+    subscriber = Counting(endpoint, "lcm")
+    bus = LcmBus(URL)
+    time.sleep(1.0)
+    publish(bus, 1.0)  # every channel's publisher appears
+    time.sleep(1.0)
+    subscriber.counting.set()
+    before = floor.state()
+    sent = publish(bus, seconds)
+    time.sleep(2.0)
+    after = floor.state()
+    subscriber.counting.clear()
+    floor.stop()
+    subscriber.close()
+    bus.close()
+    received = after["count"] - before["count"]
+    result = {
+        "delivered": 100.0 * subscriber.count / max(sent, 1),
+        "cpu_us_per_message": (after["cpu"] - before["cpu"]) / max(received, 1) * 1e6,
+        "sent": float(sent),
+    }
+    print(f"   floor    delivered {result['delivered']:6.2f}% of {sent} messages, floor CPU "
+          f"{result['cpu_us_per_message']:6.1f} us/message ({received:.0f} received)", flush=True)  # fmt: skip
+    return result
+
+
+def measures(size: Size = Size.FULL) -> list[Measure]:
+    """The bridge's CPU per message on its relay and lcm_bus routes, as multiples of the floor's."""
+    best = compare(size.pick(full=10.0, quick=4.0, smoke=0.5), size.pick(full=2, quick=1, smoke=1),
+                   others={"floor": run_floor})  # fmt: skip
+    floor = best["floor"]["cpu_us_per_message"]
+    setup = f"{len(CHANNELS)} channels at {RATE_HZ:g} Hz onto Zenoh, pinned to one core"
+    rows = [Measure(f"floor: CPU per message of a bare lcm.subscribe('.*') -> Zenoh put process, {setup}",
+                    floor, None, "us", "none (reported)", None)]  # fmt: skip
+    for route in ("relay", "lcm_bus"):
+        ratio = best[route]["cpu_us_per_message"] / max(floor, 1e-9)
+        rows.append(Measure(f"floor: bridge's {route} route CPU per message, as a multiple of the floor's, {setup}",
+                            ratio, 1.0, "x", "none (reported)", None))  # fmt: skip
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--serve", nargs=2, metavar=("URL", "ENDPOINT"), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.serve:
+        serve(*args.serve)
+        return
+    best = compare(args.seconds, args.rounds, others={"floor": run_floor})
+    floor = best["floor"]["cpu_us_per_message"]
+    print("\nbest of the rounds (CPU per message, and as a multiple of the floor's):")
+    for route, figures in best.items():
+        cpu = figures["cpu_us_per_message"]
+        print(f"   {route:<8} {cpu:7.1f} us  {cpu / floor:5.2f}x  delivered {figures['delivered']:.2f}%")
+
+
+if __name__ == "__main__":
+    main()

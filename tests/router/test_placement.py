@@ -1,0 +1,68 @@
+"""Where `--workers N` puts each route (`viewer_bridge.router.workers.place`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from viewer_bridge.config.bridge import BridgeConfig, load_config
+from viewer_bridge.errors import ConfigError, UsageError
+from viewer_bridge.router.workers import place
+
+
+def relay(name: str, source: str, worker: int | None = None, destination: str = "lcm") -> dict[str, object]:
+    route: dict[str, object] = {
+        "name": name, "source": {"transport": "lcm", "name": source}, "translator": "lcm_relay",
+        "destination": {"transport": destination, "name": f"{name}_OUT"},
+    }  # fmt: skip
+    return route if worker is None else {**route, "worker": worker}
+
+
+def placed(config: BridgeConfig, workers: int) -> list[list[str]]:
+    return [[route.name for route in routes] for routes in place(config, workers)]
+
+
+def test_routes_of_one_source_stay_together_and_groups_go_to_the_least_loaded_worker() -> None:
+    config = BridgeConfig.model_validate({"routes": [
+        relay("a1", "A"), relay("b", "B"), relay("a2", "A"), relay("c", "C"), relay("d", "D"),
+    ]})  # fmt: skip
+    assert placed(config, 2) == [["a1", "a2", "d"], ["b", "c"]]
+    assert placed(config, 3) == [["a1", "a2"], ["b", "d"], ["c"]]
+    assert placed(config, 1) == [["a1", "a2", "b", "c", "d"]]
+
+
+def test_a_pinned_route_runs_where_it_says_and_counts_for_the_balance() -> None:
+    config = BridgeConfig.model_validate({"routes": [relay("a", "A", worker=1), relay("b", "B"), relay("c", "C")]})
+    assert placed(config, 2) == [["b", "c"], ["a"]]  # b: a tie, the lower index
+    with pytest.raises(UsageError, match="route a: worker: 1, but the bridge runs 1 worker"):
+        place(config, 1)
+
+
+def test_a_route_through_a_transport_only_one_process_may_open_stays_on_worker_0() -> None:
+    # A Zenoh session may listen on a port of its own: the route is not spread.
+    config = BridgeConfig.model_validate({"routes": [relay("a", "A"), relay("z", "Z", destination="zenoh")]})
+    assert placed(config, 2) == [["z"], ["a"]]  # and the rest balanced around it
+
+
+def test_the_config_says_how_many_workers() -> None:
+    config = load_config(None)
+    assert config.workers == 1
+    assert BridgeConfig.model_validate({"workers": 4, "routes": [relay("a", "A")]}).workers == 4
+
+
+@pytest.mark.parametrize(
+    ("text", "where"),
+    [
+        ("workers: 0\nroutes: []\n", "bridge.yaml:1: workers: Input should be greater than or equal to 1"),
+        ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: lcm_relay\n"
+         "    destination: {transport: lcm, name: Y}\n    worker: -1\n",
+         "bridge.yaml:6: routes.0.worker: Input should be greater than or equal to 0"),
+    ],
+)  # fmt: skip
+def test_a_bad_count_or_pin_is_refused_at_load_with_its_line(tmp_path: Path, text: str, where: str) -> None:
+    path = tmp_path / "bridge.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as refused:
+        load_config(path)
+    assert where in str(refused.value)

@@ -1,0 +1,321 @@
+"""Worker processes: one config's routes over several processes (`viewer-bridge run --workers N`).
+
+One Python process translates on one core at a time (the GIL). With `workers: N` the routes are
+placed on N child processes by their source, and each child is an ordinary `Router` over its
+share of the config: it opens its own transports (an LCM multicast bus hands every process its
+own copy of each message), its own load cache and its own loop guard. The parent opens no
+transport: it starts the workers, merges the stats each one sends it once per period into the
+one status view and `--stats-json`, restarts a worker that dies (counted and logged; the others
+run on), and on Ctrl-C or SIGTERM stops them all and waits for them.
+
+Placement (`place`): a route pinned with `worker: K` runs on worker K. The others are grouped by
+source, transport and pattern (routes that read the same messages share one decode and one
+stream state, and stay together), and each group goes to the worker with the fewest routes so
+far. Only routes whose transports may be opened by several processes at once
+(`Transport.several_processes`: a bus, not a server's port or a file) leave worker 0.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import multiprocessing
+import os
+import signal
+import threading
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from multiprocessing.connection import Connection
+from multiprocessing.process import BaseProcess
+from pathlib import Path
+from typing import Any
+
+from viewer_bridge.config.bridge import BridgeConfig, Route
+from viewer_bridge.errors import BridgeError, UsageError
+from viewer_bridge.router import Router, stats
+from viewer_bridge.router.status import LogLines, StatusView, counted
+from viewer_bridge.transports import TRANSPORTS
+
+log = logging.getLogger("viewer_bridge")
+
+# spawn: a fresh interpreter per worker, never a fork of a parent that may hold threads and locks.
+_CONTEXT = multiprocessing.get_context("spawn")
+_POLL = 0.1  # seconds between the parent's looks at its workers
+_STOP_WAIT = 15.0  # seconds a stopping worker has to close its transports before it is killed
+_RESTART_DELAY_MAX = 10.0  # the longest wait before restarting a worker that keeps dying at start
+
+
+def place(config: BridgeConfig, workers: int) -> list[list[Route]]:
+    """The config's routes on `workers` processes (see the module's docstring); a list per worker."""
+    placed: list[list[Route]] = [[] for _ in range(workers)]
+    groups: dict[tuple[str, str], list[Route]] = {}
+    for route in config.routes:
+        if route.worker is not None:
+            if route.worker >= workers:
+                raise UsageError(
+                    f"route {route.name}: worker: {route.worker}, but the bridge runs {counted(workers, 'worker')} "
+                    f"(0 to {workers - 1}; --workers or the config's workers: sets how many)"
+                )
+            placed[route.worker].append(route)
+        elif _spreadable(route):
+            groups.setdefault((route.source.transport, route.source.name), []).append(route)
+        else:
+            placed[0].append(route)
+    for group in groups.values():
+        fewest = min(range(workers), key=lambda index: len(placed[index]))
+        placed[fewest].extend(group)
+    return placed
+
+
+def _spreadable(route: Route) -> bool:
+    """Whether a route may run outside worker 0: every process may open both of its transports."""
+    ends = (route.source.transport, route.destination.transport)
+    return all(TRANSPORTS.get(name).several_processes for name in ends)
+
+
+@dataclass
+class _Worker:
+    """One worker's slot: its routes, its current process, and what it last said."""
+
+    index: int
+    config: BridgeConfig  # the config with only this worker's routes
+    process: BaseProcess | None = None
+    connection: Connection | None = None  # the parent's end: snapshots and "started" arrive here
+    started: bool = False  # the current process has started its router
+    ever_started: bool = False
+    finished: bool = False  # it ended on its own, as a router ends when its replayed log has
+    failures: int = 0  # deaths in a row before it started: the wait before the next try doubles
+    restart_at: float | None = None
+    snapshot: dict[str, Any] = field(default_factory=dict)
+
+    def routes(self) -> str:
+        return ", ".join(route.name for route in self.config.routes)
+
+    def alive(self) -> bool:
+        return self.process is not None and self.process.exitcode is None
+
+
+class Workers:
+    """A config's routes on worker processes: `start`, `run`, `stop` as a `Router`'s."""
+
+    def __init__(
+        self,
+        config: BridgeConfig,
+        workers: int,
+        stats_json: str | Path | None = None,
+        stats_period: float = 5.0,
+        view: StatusView | None = None,
+    ) -> None:
+        self.config = config
+        self.stats_json = Path(stats_json) if stats_json else None
+        self.stats_period = stats_period
+        self.view = view or LogLines()
+        self.restarts = 0
+        self._stop = threading.Event()
+        self._started = False
+        self._workers = [
+            _Worker(index, config.model_copy(update={"routes": routes, "workers": 1}))
+            for index, routes in enumerate(place(config, workers))
+            if routes  # more workers than groups of routes: the rest have nothing to do
+        ]
+
+    def start(self) -> None:
+        """Start every worker and wait until each has started its router (subscribed), or raise
+        `BridgeError` if one ends before it did (it said why on stderr). Once: `run` calls it too."""
+        if self._started:
+            return
+        self._started = True
+        for worker in self._workers:
+            self._spawn(worker)
+        try:
+            while not self._stop.is_set() and not all(worker.started for worker in self._workers):
+                self._poll(restart=False)
+        except BaseException:
+            self.close()
+            raise
+        if not self._stop.is_set():
+            log.info("viewer-bridge: %s running", counted(len(self._workers), "worker"))
+
+    def _spawn(self, worker: _Worker) -> None:
+        receiver, sender = _CONTEXT.Pipe(duplex=False)
+        level = log.getEffectiveLevel()
+        process = _CONTEXT.Process(
+            target=_serve, args=(worker.index, worker.config, self.stats_period, sender, level),
+            name=f"viewer-bridge worker {worker.index}", daemon=False,
+        )  # fmt: skip
+        # The worker starts with SIGINT blocked (a signal mask survives fork and exec): a Ctrl-C
+        # at the terminal reaches the whole process group, and the parent alone decides what it
+        # means; it stops its workers with SIGTERM. Unblocked here at once: none is lost.
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            process.start()
+        finally:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+        sender.close()  # the worker's end: the parent keeps only its own, so a dead worker reads as EOF
+        worker.process, worker.connection, worker.started, worker.restart_at = process, receiver, False, None
+        log.info("viewer-bridge: worker %d (pid %s): %s", worker.index, process.pid, worker.routes())
+
+    def _poll(self, restart: bool = True) -> None:
+        """Read what the workers sent, and look after the dead ones (restarted if `restart`)."""
+        connections = [worker.connection for worker in self._workers if worker.connection is not None]
+        multiprocessing.connection.wait(connections, timeout=_POLL)
+        for worker in self._workers:
+            self._read(worker)
+            if worker.process is not None and worker.process.exitcode is not None:
+                self._ended(worker, restart)
+            elif worker.restart_at is not None and time.monotonic() >= worker.restart_at:
+                self._spawn(worker)
+
+    def _read(self, worker: _Worker) -> None:
+        """Every message waiting from a worker: `("started",)` once, then snapshots."""
+        while worker.connection is not None and worker.connection.poll():
+            try:
+                message = worker.connection.recv()
+            except (EOFError, OSError):  # the worker is gone; its exit is seen next
+                worker.connection.close()
+                worker.connection = None
+                return
+            if message == ("started",):
+                worker.started = worker.ever_started = True
+                worker.failures = 0
+            else:
+                worker.snapshot = message
+
+    def _ended(self, worker: _Worker, restart: bool) -> None:
+        """A worker's process has ended: finished, or died (restarted unless the start failed)."""
+        assert worker.process is not None
+        code = worker.process.exitcode
+        self._read(worker)
+        worker.process.close()
+        worker.process = None
+        if worker.connection is not None:
+            worker.connection.close()
+            worker.connection = None
+        if code == 0:
+            worker.finished = worker.started = True  # its source ended (a replayed log)
+            return
+        how = f"signal {-code}" if code is not None and code < 0 else f"exit code {code}"
+        if not (restart and worker.ever_started):
+            raise BridgeError(f"worker {worker.index} ({worker.routes()}) stopped before it started ({how})")
+        self.restarts += 1
+        worker.failures += 0 if worker.started else 1
+        delay = min(_RESTART_DELAY_MAX, 0.5 * 2 ** (worker.failures - 1)) if worker.failures else 0.0
+        log.warning("viewer-bridge: worker %d died (%s): restarting it%s (%s so far); the other workers run on",
+                    worker.index, how, f" in {delay:g} s" if delay else "",
+                    counted(self.restarts, "restart"))  # fmt: skip
+        worker.started = False
+        worker.restart_at = time.monotonic() + delay
+
+    def stop(self) -> None:
+        """Stop the workers and return from `run` (a signal handler calls it)."""
+        self._stop.set()
+
+    def run(self, duration: float | None = None) -> None:
+        """Serve until `stop()`, `duration` ends, or every worker has finished on its own."""
+        self.start()
+        deadline = None if duration is None else time.monotonic() + duration
+        next_report = time.monotonic() + self.stats_period
+        try:
+            while not self._stop.is_set() and (deadline is None or time.monotonic() < deadline):
+                if all(worker.finished for worker in self._workers):
+                    log.info("viewer-bridge: every worker has finished: stopping")
+                    break
+                self._poll()
+                if time.monotonic() >= next_report:
+                    next_report += self.stats_period
+                    self.report()
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Stop every worker (SIGTERM: each closes its router and sends its last stats), wait for
+        them (killed after `_STOP_WAIT` s), and write the last merged stats."""
+        for worker in self._workers:
+            if worker.alive():
+                assert worker.process is not None and worker.process.pid is not None
+                os.kill(worker.process.pid, signal.SIGTERM)
+        deadline = time.monotonic() + _STOP_WAIT
+        while any(worker.alive() for worker in self._workers):
+            if time.monotonic() >= deadline:
+                for worker in self._workers:
+                    if worker.alive():
+                        assert worker.process is not None
+                        log.warning("viewer-bridge: worker %d did not stop: killing it", worker.index)
+                        worker.process.kill()
+                        worker.process.join()
+            for worker in self._workers:
+                self._read(worker)  # a worker blocked writing its last stats must be read to end
+                if worker.process is not None:
+                    worker.process.join(_POLL / len(self._workers))
+        for worker in self._workers:
+            self._read(worker)
+        self.report()
+        self.view.close()
+
+    def snapshot(self) -> dict[str, Any]:
+        """Every worker's last stats as one router's: routes in the config's order, the transports'
+        error counts summed, and the restarts as the errors of `workers`."""
+        routes: dict[str, Any] = {}
+        for worker in self._workers:
+            routes.update({name: counts for name, counts in worker.snapshot.items() if name != "transports"})
+        merged: dict[str, Any] = {route.name: routes[route.name] for route in self.config.routes if route.name in routes}
+        errors: dict[str, Counter[str]] = {}
+        for worker in self._workers:
+            for name, entry in worker.snapshot.get("transports", {}).items():
+                errors.setdefault(name, Counter()).update(entry["errors"])
+        if self.restarts:
+            errors["workers"] = Counter(restarted=self.restarts)
+        if errors:
+            merged["transports"] = {name: {"errors": dict(counts)} for name, counts in errors.items()}
+        return merged
+
+    def report(self) -> None:
+        """The routes' stats to the status view, and to the JSON file when asked for."""
+        stats.report(self.snapshot(), self.view, self.stats_json)
+
+
+class _Sender:
+    """A worker's status view: each snapshot goes to the parent, which shows them merged."""
+
+    def __init__(self, connection: Connection) -> None:
+        self._connection = connection
+
+    def show(self, snapshot: dict[str, Any]) -> None:
+        with contextlib.suppress(OSError):  # the parent is gone: the watch on it stops this worker
+            self._connection.send(snapshot)
+
+    def close(self) -> None:
+        pass
+
+
+def _serve(index: int, config: BridgeConfig, stats_period: float, connection: Connection, level: int) -> None:
+    """A worker process: its routes' router, until SIGTERM or its parent ends."""
+    logging.basicConfig(level=level, format=f"%(asctime)s worker {index}: %(message)s", datefmt="%H:%M:%S")
+    try:
+        router = Router(config, stats_period=stats_period, view=_Sender(connection))
+    except BridgeError as error:
+        log.error("viewer-bridge run: %s", error)
+        raise SystemExit(2) from None
+    stopped = threading.Event()  # a worker exits 0 only when it ended on its own (its log replayed)
+
+    def stop(*_: object) -> None:
+        stopped.set()
+        router.stop()
+
+    signal.signal(signal.SIGTERM, stop)
+    parent = multiprocessing.parent_process()
+    if parent is not None:  # a parent killed outright leaves no worker behind
+        def orphaned() -> None:
+            parent.join()
+            stop()
+
+        threading.Thread(target=orphaned, daemon=True).start()
+    router.start()
+    connection.send(("started",))
+    router.run()
+    if stopped.is_set():
+        raise SystemExit(128 + signal.SIGTERM)
+
+
+__all__ = ["Workers", "place"]
