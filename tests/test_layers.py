@@ -32,6 +32,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.router.status": 1,
     "viewer_bridge.config.commands": 1,
     "viewer_bridge.cli": 1,
+    "viewer_bridge.ros_build.messages": 1,
     # 2
     "viewer_bridge.model.scene": 2,
     "viewer_bridge.model.pose_math": 2,
@@ -39,9 +40,12 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.config.yamldoc": 2,
     "viewer_bridge.cli.arguments": 2,
     "viewer_bridge.cli.lcm_types": 2,
+    "viewer_bridge.cli.ros_interfaces": 2,
     "viewer_bridge.lcmcodec.from_ros": 2,
     "viewer_bridge.lcmcodec.ros_cdr": 2,
     "viewer_bridge.ros_build.interfaces": 2,
+    "viewer_bridge.ros_build.packages": 2,
+    "viewer_bridge.ros_build.install": 2,
     "viewer_bridge.ros_build.background": 2,
     "viewer_bridge.transports.lcm_url": 2,
     "viewer_bridge.shared": 2,
@@ -52,6 +56,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.model.skipped": 3,
     # 4
     "viewer_bridge.config.mappings": 4,
+    "viewer_bridge.cli.mappings": 4,
     # 5
     "viewer_bridge.formats": 5,
     # 6
@@ -64,17 +69,24 @@ LAYERS: dict[str, int] = {
     # 7
     "viewer_bridge.translators": 7,
     "viewer_bridge.cli.dump": 7,
+    "viewer_bridge.cli.dump_command": 7,
+    "viewer_bridge.cli.demo": 7,
+    "viewer_bridge.cli.serve_render": 7,
+    "viewer_bridge.cli.snapshot": 7,
     "viewer_bridge.render.snapshot": 7,
     "viewer_bridge.examples.demo": 7,
     "viewer_bridge.render.server": 7,
     # 8
     "viewer_bridge.config.bridge": 8,
     "viewer_bridge.examples": 8,
+    "viewer_bridge.cli.example": 8,
     # 9
     "viewer_bridge.router": 9,
+    "viewer_bridge.cli.run": 9,
     # 10
     "viewer_bridge.cli.log_convert": 10,
     "viewer_bridge.cli.bag_convert": 10,
+    "viewer_bridge.cli.convert": 10,
     # 11
     "viewer_bridge.cli.main": 11,
     "viewer_bridge.cli.__main__": 11,

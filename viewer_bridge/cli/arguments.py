@@ -200,6 +200,23 @@ _ROS_SWITCHES = frozenset(
 )
 
 
+# What a command module's `add_command` is given: `add_parser` of the sub-commands, with the
+# options every command shares (--debug) already in.
+AddCommand = Callable[..., argparse.ArgumentParser]
+
+
+def lcm_types_option(command: argparse.ArgumentParser) -> None:
+    """`--lcm-types`, as the commands that decode LCM messages take it."""
+    command.add_argument(
+        "--lcm-types",
+        action="append",
+        default=[],
+        metavar="PATH_OR_MODULE",
+        help="LCM types to know besides the project's and Drake's: a .lcm file, a folder of them "
+        "(searched recursively) or an lcm-gen'd Python module by import name (repeatable)",
+    )
+
+
 def split_ros_args(words: Sequence[str]) -> tuple[list[str], list[str]]:
     """(the command's own words, the ROS arguments): each `--ros-args` section runs to `--` or the end.
 
@@ -235,6 +252,7 @@ def split_ros_args(words: Sequence[str]) -> tuple[list[str], list[str]]:
 
 
 __all__ = [
+    "AddCommand",
     "IMAGE_SUFFIXES",
     "MAX_IMAGE_SIDE",
     "Parser",
@@ -245,6 +263,7 @@ __all__ = [
     "image_size",
     "input_file",
     "lcm_source",
+    "lcm_types_option",
     "output_file",
     "port",
     "positive",

@@ -3,17 +3,16 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from viewer_bridge.cli.arguments import AddCommand
 from viewer_bridge.errors import UsageError
 from viewer_bridge.lcmcodec.from_ros import load_ros_definitions, map_ros_types
 
 
-def add_command(add: Callable[..., argparse.ArgumentParser]) -> None:
+def add_command(add: AddCommand) -> None:
     """The `lcm-types` command's arguments, on the parser `add` makes."""
     command = add("lcm-types", help="write ROS 2 message types as .lcm files (for lcm-gen)")
     command.add_argument("action", choices=["generate"])

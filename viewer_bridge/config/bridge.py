@@ -163,6 +163,10 @@ class BridgeConfig(BaseModel):
         """The same config with more LCM channels the way back may write (`--allow-commands`)."""
         return self.model_copy(update={"commands": self.commands.widened(patterns)}) if patterns else self
 
+    def with_lcm_types(self, sources: list[str]) -> BridgeConfig:
+        """The same config with more LCM types to know (`--lcm-types`) after its `lcm_types`."""
+        return self.model_copy(update={"lcm_types": [*self.lcm_types, *sources]}) if sources else self
+
     def with_settings(self, transport: str, **values: Any) -> BridgeConfig:
         """The same config with some of a transport's settings replaced (e.g. a command line's --lcm-url)."""
         data = self.model_dump()

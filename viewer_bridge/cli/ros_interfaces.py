@@ -1,0 +1,91 @@
+"""`viewer-bridge ros-interfaces`: ROS 2 interface packages (viewer_bridge/ros_build/) installed
+into the venv, shown, or generated for a colcon workspace."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from viewer_bridge.cli.arguments import AddCommand
+from viewer_bridge.errors import UsageError
+
+
+def add_command(add: AddCommand) -> None:
+    """The `ros-interfaces` command's arguments, on the parser `add` makes."""
+    interfaces = add(
+        "ros-interfaces",
+        help="build ROS 2 interface packages PyPI has no wheel for (tf2_msgs, LCM types) into the venv, "
+        "or write the LCM types' packages for a colcon workspace",
+    )
+    interfaces.add_argument("action", choices=["install", "status", "generate"])
+    interfaces.add_argument(
+        "names",
+        nargs="*",
+        metavar="NAME",
+        help="optional: the packages to install or show, or to generate with those they nest (default: all of them)",
+    )
+    interfaces.add_argument(
+        "--lcm-types",
+        action="append",
+        default=[],
+        metavar="SRC",
+        help="LCM types (.lcm files, folders, lcm-gen'd modules): install builds their *_lcm_msgs packages "
+        "instead of tf2_msgs; generate writes them beside the project's and Drake's (repeatable)",
+    )
+    interfaces.add_argument(
+        "-o", "--output", type=Path, metavar="DIR", help="generate: the folder to write the packages to (a workspace's src/)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Generate, install or show: the LCM types' packages with --lcm-types (or for generate),
+    else the Jazzy packages PyPI lacks (tf2_msgs)."""
+    from viewer_bridge.ros_build import interfaces as ros_interfaces
+
+    say = lambda line: print(line, file=sys.stderr)  # noqa: E731
+    if args.action == "generate":  # the LCM types' packages: the project's and Drake's, and --lcm-types'
+        if args.output is None:
+            raise UsageError("generate needs -o DIR")
+        documented = _lcm_ros_definitions(args.lcm_types, comments=True, warn=say)
+        for folder in ros_interfaces.generate_packages(documented, args.output, only=args.names or None):
+            print(folder)
+        return 0
+    if args.lcm_types:
+        definitions = _lcm_ros_definitions(args.lcm_types)
+        if args.action == "install":
+            ros_interfaces.build(definitions, log=say, only=args.names or None)
+        else:
+            chosen = ros_interfaces.packages(definitions)
+            digests = ros_interfaces.digests(chosen)
+            for package in chosen:
+                built = ros_interfaces.current(package, digests[package.name])
+                print(f"{package.name}: {'installed' if built else 'missing or outdated'} in {sys.prefix}")
+        return 0
+    unknown = [name for name in args.names if name not in ros_interfaces.INTERFACES]
+    if unknown:
+        known = ", ".join(ros_interfaces.INTERFACES)
+        raise UsageError(f"unknown interface package {', '.join(unknown)} (known: {known})")
+    if args.action == "status":
+        absent = ros_interfaces.missing()
+        for name in args.names or ros_interfaces.INTERFACES:
+            print(f"{name}: {'missing' if name in absent else 'installed'} in {sys.prefix}")
+        return 0
+    ros_interfaces.install(args.names or None, log=say)
+    return 0
+
+
+def _lcm_ros_definitions(
+    sources: Sequence[str], *, comments: bool = False, warn: Callable[[str], None] | None = None
+) -> dict[str, str]:
+    """The ROS 2 `.msg` definitions of the LCM types of `sources` (and the project's own), with
+    the `.lcm` files' comments when `comments` (for a workspace's files); `warn` hears each type
+    left out (no ROS 2 form) and the library's other warnings."""
+    from viewer_bridge.lcmcodec.library import TypeLibrary  # rosbags: only for this command
+
+    library = TypeLibrary.load(sources)
+    if warn is not None:
+        for warning in library.warnings:
+            warn(f"viewer-bridge ros-interfaces: {warning}")
+    return dict(library.ros_definitions(comments=comments))

@@ -1,0 +1,195 @@
+"""`viewer-bridge run`: the router, from a config and the command line's overrides of it."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+
+import yaml
+from rich.console import Console
+
+from viewer_bridge.cli.arguments import (
+    AddCommand,
+    lcm_source,
+    lcm_types_option,
+    output_file,
+    positive,
+    regex,
+    worker_count,
+)
+from viewer_bridge.config.bridge import BUILTIN_CONFIGS, BridgeConfig, load_config
+from viewer_bridge.config.commands import COMMAND_FLAG
+from viewer_bridge.errors import ConfigError, UsageError
+from viewer_bridge.examples.demo import run_demo
+from viewer_bridge.router import Router
+from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines, StatusView
+from viewer_bridge.router.workers import Workers
+from viewer_bridge.transports.lcm import DEFAULT_URL
+from viewer_bridge.transports.lcm_url import log_to_write
+
+
+def add_command(add: AddCommand) -> None:
+    """The `run` command's arguments, on the parser `add` makes (its --ros-args are split off
+    before parsing, by `main`)."""
+    run = add(
+        "run",
+        help="run the router: bridge Drake's LCM scene to ROS 2 (and back); --ros-args ... [--] as any ROS 2 node",
+    )
+    run.add_argument(
+        "-c", "--config", help="a YAML config (default: the built-in one, see --print-default-config)"
+    )
+    run.add_argument("--print-default-config", action="store_true", help="print the built-in config and exit")
+    run.add_argument(
+        "--print-config",
+        metavar="NAME",
+        help=f"print a built-in config ({', '.join(BUILTIN_CONFIGS)}) and exit; use it as -c builtin:NAME",
+    )
+    run.add_argument(
+        "--lcm-url",
+        type=lcm_source,
+        help="override the config's LCM URL (a log file or file://LOG?speed=S replays it)",
+    )
+    run.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="TRANSPORT.KEY=VALUE",
+        help="override a transport setting, e.g. foxglove.port=9000 or ros.namespace=/sim1, or the "
+        "commands section's, e.g. commands.max_age_ms=500 (repeatable)",
+    )
+    lcm_types_option(run)
+    run.add_argument(
+        COMMAND_FLAG,
+        action="append",
+        default=[],
+        type=regex,
+        metavar="REGEX",
+        help="LCM channels (a regular expression matched against the whole name) that ROS 2 and Foxglove "
+        "may command by publishing on /lcm_in/<channel> (repeatable; default: none, nothing is written)",
+    )
+    run.add_argument(
+        "--stats-json",
+        type=output_file(),
+        metavar="PATH",
+        help="write per-route stats as JSON every period and at exit",
+    )
+    run.add_argument(
+        "--stats-period", type=positive, default=5.0, metavar="S", help="seconds between stats lines"
+    )
+    run.add_argument(
+        "--duration", type=positive, metavar="S", help="stop after S seconds (default: until Ctrl-C)"
+    )
+    run.add_argument("--demo", action="store_true", help="also publish the demo scene on the LCM URL")
+    run.add_argument(
+        "--workers",
+        type=worker_count,
+        metavar="N",
+        help="run the routes on N worker processes, placed by their source (default: the config's "
+        "workers, 1: all in this process); a route's worker: K pins it; Ctrl-C exits 130",
+    )
+    run.add_argument(
+        "-q", "--quiet", action="store_true", help="print only warnings and errors (no route table or lines)"
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print a built-in config, or route until --duration, Ctrl-C or SIGTERM."""
+    if args.print_default_config or args.print_config:
+        name = args.print_config or "default"
+        if name not in BUILTIN_CONFIGS:
+            raise UsageError(f"no built-in config {name!r} (known: {', '.join(BUILTIN_CONFIGS)})")
+        print(BUILTIN_CONFIGS[name], end="")
+        return 0
+    view = _status_view(args.quiet)
+    try:
+        config = load_config(args.config).with_lcm_types(args.lcm_types).allowing_commands(args.allow_commands)
+        if args.lcm_url:
+            config = config.with_settings("lcm", url=args.lcm_url)
+        for setting in args.set:
+            config = _with_setting(config, setting, args.config)
+        if args.ros_args:
+            _uses(config, "ros", "--ros-args", args.config)
+            config = config.with_settings("ros", ros_args=args.ros_args)
+        if args.demo and log_to_write(_lcm_url(config)):
+            raise UsageError(
+                f"--demo: the routes would read the demo on {_lcm_url(config)}, a log LCM only writes; "
+                "record the demo itself with `viewer-bridge demo --url URL`"
+            )
+        workers = args.workers or config.workers
+        if workers > 1:  # the routes on worker processes, this one merging their stats
+            router: Router | Workers = Workers(config, workers, args.stats_json, args.stats_period, view)
+        else:
+            router = Router(config, stats_json=args.stats_json, stats_period=args.stats_period, view=view)
+    except BaseException:
+        view.close()  # a live table leaves the screen before the error
+        raise
+    signals: list[int] = []  # which stopped the bridge: Ctrl-C stops workers with exit code 130
+
+    def stop(number: int, _: object) -> None:
+        signals.append(number)
+        router.stop()
+
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, stop)
+    stop_demo = threading.Event()
+    demo = None
+    router.start()  # subscribed before the demo's first message
+    if args.demo:
+        demo = threading.Thread(
+            target=run_demo, args=(_lcm_url(config), None), kwargs={"stop": stop_demo}, daemon=True
+        )
+        demo.start()
+    try:
+        router.run(args.duration)
+    finally:
+        stop_demo.set()
+        if demo is not None:
+            demo.join(timeout=2)
+    return 130 if isinstance(router, Workers) and signal.SIGINT in signals else 0
+
+
+def _status_view(quiet: bool) -> StatusView:
+    """A live route table when stdout is a terminal; plain log lines on stderr otherwise."""
+    level = logging.WARNING if quiet else logging.INFO
+    if quiet or not sys.stdout.isatty():
+        logging.basicConfig(level=level, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
+        return LogLines()
+    console = Console()
+    logging.basicConfig(level=level, handlers=[ConsoleLog(console)])
+    return LiveTable(console)
+
+
+def _with_setting(config: BridgeConfig, setting: str, config_name: str | None) -> BridgeConfig:
+    """`TRANSPORT.KEY=VALUE` (the value read as YAML: 9000 is a number, true a bool) applied; a
+    section of the config's own (`commands.max_age_ms=500`) is set the same way."""
+    name, equals, value = setting.partition("=")
+    transport, _, key = name.partition(".")
+    if not (transport and key and equals):
+        raise UsageError(f"--set {setting!r}: expected TRANSPORT.KEY=VALUE, e.g. foxglove.port=9000")
+    if transport not in BridgeConfig.model_fields:
+        _uses(config, transport, f"--set {setting}", config_name)
+    try:
+        return config.with_settings(transport, **{key: yaml.safe_load(value)})
+    except ConfigError as error:
+        raise UsageError(f"--set {setting}: {error.key}: {error.reason}") from None
+
+
+def _uses(config: BridgeConfig, transport: str, option: str, config_name: str | None) -> None:
+    """Warn about an option for a transport that no route of the config uses: it does nothing.
+    (A warning, not a refusal: one command line may serve several configs, e.g. in scripts.)"""
+    used = config.transports()
+    if transport not in used:
+        print(
+            f"viewer-bridge run: warning: {option} does nothing: no route of "
+            f"{config_name or 'the built-in config'} uses the {transport} transport "
+            f"(its routes use: {', '.join(used) or 'none'})",
+            file=sys.stderr,
+        )
+
+
+def _lcm_url(config: BridgeConfig) -> str:
+    """Where the demo publishes: the config's LCM bus."""
+    return str(getattr(config.settings("lcm"), "url", DEFAULT_URL))
