@@ -63,7 +63,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.transports": 6,
     "viewer_bridge.render.renderer": 6,
     "viewer_bridge.convert": 6,
-    "viewer_bridge.bag_to_lcm": 6,
+    "viewer_bridge.cli.bag_to_lcm": 6,
     "viewer_bridge.streams": 6,
     "viewer_bridge.typestore": 6,
     # 7

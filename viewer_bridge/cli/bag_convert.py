@@ -1,4 +1,4 @@
-"""`viewer-bridge convert BAG OUT.lcmlog`: a ROS 2 bag into an LCM log (viewer_bridge/bag_to_lcm.py).
+"""`viewer-bridge convert BAG OUT.lcmlog`: a ROS 2 bag into an LCM log (viewer_bridge/cli/bag_to_lcm.py).
 `convert` comes here when its input is a ROS 2 bag (an MCAP file or a rosbag2 folder) and its
 output an `.lcmlog`; an LCM log in takes `log_convert`'s way."""
 
@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from viewer_bridge.bag_to_lcm import bag_to_lcm, is_ros_bag
+from viewer_bridge.cli.bag_to_lcm import bag_to_lcm, is_ros_bag
 from viewer_bridge.errors import UsageError
 
 

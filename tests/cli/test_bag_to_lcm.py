@@ -10,7 +10,7 @@ import pytest
 from tests.lcmcodec.ros_bag import SAMPLES, lcmgen_decode, typestore, write_bag
 from tests.lcmcodec.test_from_ros import lcm_gen_all
 from tests.lcmcodec.test_ros_cdr import serialized
-from viewer_bridge.bag_to_lcm import bag_to_lcm, channel_of
+from viewer_bridge.cli.bag_to_lcm import bag_to_lcm, channel_of
 from viewer_bridge.cli.main import main
 from viewer_bridge.transports.lcm import read_log
 
