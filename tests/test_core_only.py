@@ -85,3 +85,20 @@ def test_codec_tests_run_where_rclpy_and_pydrake_are_missing() -> None:
     assert counts.get("failed", 0) == 0 and counts["passed"] >= 20, result.stdout[-3000:]
     # What needs a peer is skipped, saying which; the rest ran.
     assert counts["skipped"] >= 5 and re.search(r"(needs|could not import '?)(rclpy|pydrake|drake)", result.stdout)
+
+
+def test_the_library_guides_type_store_section_runs_in_a_core_only_python(tmp_path: Path) -> None:
+    """docs/library.md's type store, as the docs test runs it (its substitutions), in a Python where
+    no extra can be imported: the store needs the core install alone."""
+    from tests.test_docs import blocks, substituted
+
+    page = (ROOT / "docs" / "library.md").read_text()
+    (block,) = [block for block in blocks(page, ("python",)) if "viewer_bridge.lcm_types(" in block]
+    script = tmp_path / "type_store.py"
+    script.write_text(substituted(block) + "\nprint('type store ok')\n")
+    environment = {**os.environ, "PYTHONPATH": f"{ROOT / 'tests' / 'core_only'}:{ROOT}", "VIEWER_BRIDGE_CORE_ONLY": "1"}
+    result = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=environment, capture_output=True,
+                            text=True, timeout=300)  # fmt: skip
+    assert result.returncode == 0 and "type store ok" in result.stdout, result.stderr[-3000:]
+    probe = subprocess.run([sys.executable, "-c", "import rclpy"], env=environment, capture_output=True, timeout=60)
+    assert probe.returncode != 0  # the extras really are out of reach there

@@ -174,6 +174,14 @@ class LcmType:
         return self._library._json_encoder(self.full_name)
 
 
+
+def _importable(module: str) -> bool:
+    """Whether `module` can be found (an import hook that refuses it counts as absent)."""
+    try:
+        return importlib.util.find_spec(module) is not None
+    except ImportError:
+        return False
+
 class TypeLibrary:
     """The known LCM types, by full name and by fingerprint."""
 
@@ -211,7 +219,7 @@ class TypeLibrary:
         contents is one naming both places."""
         structs: dict[str, StructDef] = dict(STRUCTS)
         declared: dict[str, bytes] = {}  # a class's own fingerprint, which its publisher writes
-        drake_found = drake and importlib.util.find_spec(DRAKE_MODULE) is not None
+        drake_found = drake and _importable(DRAKE_MODULE)
         modules: list[tuple[str, Path | None]] = [(DRAKE_MODULE, None)] if drake_found else []
         for source in sources:
             path = Path(source)
