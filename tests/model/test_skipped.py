@@ -49,7 +49,9 @@ def recording(folder: Path) -> Path:
 
 
 def counts(stdout: str) -> dict[str, int]:
-    return {line.split()[1]: int(line.split()[0]) for line in stdout.splitlines()}
+    """Messages per topic, from convert's table (its `wrote ...` summary line aside)."""
+    rows = [line.split() for line in stdout.splitlines()]
+    return {row[1]: int(row[0]) for row in rows if len(row) == 2 and row[0].isdigit()}
 
 
 def test_per_geometry_skips_the_one_that_fails_and_names_it() -> None:
