@@ -120,3 +120,18 @@ def rcl_accepts(flag: str, value: str) -> bool:
 def test_ros_arguments_are_refused_as_rcl_refuses_them(flag: str, value: str) -> None:
     problem = ros_argument_problem(flag, value)
     assert (problem is None) == rcl_accepts(flag, value), problem
+
+
+def test_channel_names_stay_bounded_and_never_guess_past_their_limit() -> None:
+    import pytest
+
+    from viewer_bridge.errors import Held
+    from viewer_bridge.transports.ros_names import ChannelNames
+
+    names = ChannelNames(limit=2)
+    assert [names.token(channel) for channel in ("A.B", "1ARM", "C.D")] == ["A_B", "n1ARM", "C_D"]
+    assert names.channel("A_B") == "A.B" and names.channel("n1ARM") == "1ARM"
+    assert names.channel("C_D") == "C_D"  # past the limit: not remembered, the token stands for itself
+    names.token("A-B")  # full, but A_B stands for A.B already: now for both, so refused
+    with pytest.raises(Held, match="A-B, A.B"):
+        names.channel("A_B")

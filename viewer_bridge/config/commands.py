@@ -16,6 +16,7 @@ cannot compare with its own.
 from __future__ import annotations
 
 import re
+from functools import cached_property
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
@@ -44,9 +45,14 @@ class CommandPolicy(BaseModel):
                 raise ValueError(f"{pattern!r} is not a regular expression: {error}") from None
         return allow
 
+    @cached_property
+    def _allowed(self) -> tuple[re.Pattern[str], ...]:
+        """The patterns, compiled once."""
+        return tuple(re.compile(pattern) for pattern in self.allow)
+
     def allows(self, channel: str) -> bool:
         """Whether the way back may write LCM `channel`."""
-        return any(re.fullmatch(pattern, channel) for pattern in self.allow)
+        return any(pattern.fullmatch(channel) for pattern in self._allowed)
 
     def widened(self, patterns: list[str]) -> CommandPolicy:
         """This policy with more channels allowed (`--allow-commands` on top of the config's)."""

@@ -33,8 +33,9 @@ class ChannelNames:
     """The channels whose names became ROS name tokens (`{1:topic}`: `A.B` -> `A_B`, `1ARM` ->
     `n1ARM`), so that the way back (`{1:channel}`) finds the channel a token stands for: the one
     channel seen with that token, else the token itself. Two channels with one token make the
-    token ambiguous: refused (`Held`), never a guess. Bounded: past `limit` channels, new ones are
-    not remembered (their tokens then stand for themselves)."""
+    token ambiguous: refused (`Held`), never a guess. Bounded: past `limit` channels, a new channel
+    is remembered only where its token is known already (so that the token stays ambiguous);
+    other tokens then stand for themselves."""
 
     def __init__(self, limit: int = 10_000) -> None:
         self._by_token: dict[str, set[str]] = {}
@@ -46,10 +47,14 @@ class ChannelNames:
         """`channel`'s token, remembered."""
         token = name_token(channel)
         with self._lock:
-            channels = self._by_token.setdefault(token, set())
-            if channel not in channels and self._count < self._limit:
-                channels.add(channel)
+            channels = self._by_token.get(token)
+            if channels is not None and channel in channels:
+                return token
+            if self._count < self._limit:
+                self._by_token.setdefault(token, set()).add(channel)
                 self._count += 1
+            elif channels:  # full, and the token stands for another channel too: say so, never guess
+                channels.add(channel)
         return token
 
     def channel(self, token: str) -> str:

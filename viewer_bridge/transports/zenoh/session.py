@@ -139,7 +139,8 @@ class Link:
             finally:
                 with self._calls:
                     self._running -= 1
-                    self._calls.notify_all()
+                    if self._stop.is_set() and self._running == 0:  # only `close` waits for this
+                        self._calls.notify_all()
 
         return guarded
 
@@ -169,14 +170,17 @@ class Link:
                 _log.warning("Zenoh: no session yet at %s (%s); trying again every %.0f s",
                              self.where, _reason(error), self._retry_s)  # fmt: skip
             return False
-        if self._stop.is_set():  # closed while this attempt was under way
+        listener = session.info.declare_transport_events_listener(self.calling(self._on_transport), history=True)
+        with self._lock:  # `close` sets the stop before it takes the session under this lock
+            closed = self._stop.is_set()
+            if not closed:
+                self.session = session
+                self._held.append(listener)
+                declares, self._declares = self._declares, []
+        if closed:  # closed while this attempt was under way: the session is no one's to close but ours
+            _undeclare(listener)
             session.close()  # type: ignore[no-untyped-call]
             return True
-        listener = session.info.declare_transport_events_listener(self.calling(self._on_transport), history=True)
-        with self._lock:
-            self.session = session
-            self._held.append(listener)
-            declares, self._declares = self._declares, []
         for declare in declares:
             self._run(declare, session)
         _log.info("Zenoh: session %s open at %s", session.zid(), self.where)
