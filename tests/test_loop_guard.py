@@ -143,7 +143,7 @@ def test_a_channel_carried_both_ways_on_the_same_names_does_not_echo(tmp_path: P
         assert wait_for(lambda: on_ros() == [1], 60), bridge.lines[-10:]
         assert wait_for(lambda: side.bridge_subscribed(f"/{A}"), 60), bridge.lines[-10:]
         bus.publish(A, command(2).encode())
-        assert wait_for(lambda: held(stats, "back", f"/{A}") == 1, 60), (stats_of(stats), bridge.lines[-10:])
+        assert wait_for(lambda: held(stats, "back", f"/{A}") >= 1, 60), (stats_of(stats), bridge.lines[-10:])
         assert wait_for(lambda: on_ros() == [1, 2], 60), on_ros()
         recorder.sync()
         assert recorder.messages[A] == [command(1).encode(), command(2).encode()]  # the test's own: no echo
@@ -165,6 +165,8 @@ def test_a_channel_carried_both_ways_on_the_same_names_does_not_echo(tmp_path: P
         recorder.close()
     final = stats_of(stats)
     assert (final["out"]["messages_out"], final["back"]["messages_out"]) == (2, 1)
-    assert final["back"]["held"] == {f"/{A}": {"own_message": 1}}
+    # `back` hears message 2 of its own, and message 1 too when its graph look found /A between the
+    # publisher's creation and the first publish (a thread switch under load): held either way.
+    assert final["back"]["held"] in ({f"/{A}": {"own_message": 1}}, {f"/{A}": {"own_message": 2}})
     assert final["out"]["held"] == {B: {"own_message": 1}}
     assert heard_on_ros() == [3] and on_ros() == [1, 2]
