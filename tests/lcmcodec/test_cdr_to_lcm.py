@@ -38,7 +38,7 @@ def _corpus_types(library: TypeLibrary) -> list[LcmType]:
 
 
 def _drake_types(library: TypeLibrary) -> list[LcmType]:
-    return [known for known in library.types() if known.source == "module drake" and known.ros_type]
+    return [known for known in library.types() if known.full_name.startswith("drake.") and known.ros_type]
 
 
 def _round_trips(known: LcmType, structs: Mapping[str, StructDef], classes: Mapping[str, type],

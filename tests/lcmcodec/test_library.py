@@ -29,13 +29,14 @@ def test_the_project_types_are_always_known_and_drakes_by_default() -> None:
     names = {known.full_name for known in with_drake.types()}
     drake_types = {f"drake.{name}" for name in dir(drake) if name.startswith("lcmt_")}
     assert len(drake_types) > 40 and drake_types <= names
-    status = with_drake.get("drake.lcmt_iiwa_status")
-    assert status.source == "module drake" and status.ros_type == "drake_lcm_msgs/msg/LcmtIiwaStatus"
-    assert status.packed_fingerprint == drake.lcmt_iiwa_status._get_packed_fingerprint()
+    status = with_drake.get("drake.lcmt_panda_status")  # one the project does not ship
+    assert status.source == "module drake" and status.ros_type == "drake_lcm_msgs/msg/LcmtPandaStatus"
+    assert status.packed_fingerprint == drake.lcmt_panda_status._get_packed_fingerprint()
     # Our own copy of a Drake type wins the source, and agrees with Drake's class.
-    draw = with_drake.get("drake.lcmt_viewer_draw")
-    assert "lcmtypes/lcmt_viewer_draw.lcm:" in draw.source
-    assert draw.packed_fingerprint == drake.lcmt_viewer_draw._get_packed_fingerprint()
+    for name in ("lcmt_viewer_draw", "lcmt_iiwa_status", "lcmt_iiwa_command", "lcmt_robot_plan"):
+        ours = with_drake.get(f"drake.{name}")
+        assert f"lcmtypes/{name}.lcm:" in ours.source
+        assert ours.packed_fingerprint == getattr(drake, name)._get_packed_fingerprint()
 
 
 def test_a_folder_is_searched_recursively_and_a_file_alone_works(library: TypeLibrary) -> None:

@@ -31,6 +31,13 @@ KNOWN_FINGERPRINTS = {
     "drake.lcmt_image_array": 0x1572A7D08D9022E6,
     "drake.lcmt_image": 0xBD7080D565EC47D1,
     "drake.lcmt_header": 0x124E586663318E54,
+    # Drake's drivers' and planners' types (docs/PROTOCOLS.md section 13): printed by pydrake's classes.
+    "drake.lcmt_iiwa_command": 0xDDC7C7738C815334,
+    "drake.lcmt_iiwa_status": 0xF16FB804284ABCA3,
+    "drake.lcmt_schunk_wsg_command": 0x4553BC1BFF499216,
+    "drake.lcmt_schunk_wsg_status": 0xEC6AEE3FC5AE4612,
+    "drake.lcmt_robot_state": 0x84CFB1722D58BD59,
+    "drake.lcmt_robot_plan": 0x0CD6AA5C6FC8B056,
 }
 # The types Drake's own Python package (pip drake) has classes for: their fingerprints must agree.
 PYDRAKE_TYPES = sorted(name for name in KNOWN_FINGERPRINTS if name.startswith("drake."))

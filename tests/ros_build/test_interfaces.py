@@ -273,8 +273,10 @@ def test_the_cli_generates_drakes_types_by_default_and_the_packages_named(
     assert main(["ros-interfaces", "generate", "-o", str(tmp_path / "all")]) == 0
     folders = capsys.readouterr().out.split()
     assert str(tmp_path / "all" / "drake_lcm_msgs") in folders
-    command = (tmp_path / "all" / "drake_lcm_msgs" / "msg" / "LcmtIiwaCommand.msg").read_text()
-    assert command.startswith("# LCM type drake.lcmt_iiwa_command\n")  # pydrake's class: no comments
+    command = (tmp_path / "all" / "drake_lcm_msgs" / "msg" / "LcmtPandaCommand.msg").read_text()
+    assert command.startswith("# LCM type drake.lcmt_panda_command\n")  # pydrake's class: no comments
+    iiwa = (tmp_path / "all" / "drake_lcm_msgs" / "msg" / "LcmtIiwaCommand.msg").read_text()
+    assert "int32 num_torques\n" in iiwa and "# Joint torques" in iiwa  # lcmtypes/'s file: its comments
     draw = (tmp_path / "all" / "drake_lcm_msgs" / "msg" / "LcmtViewerDraw.msg").read_text()
     assert "int64 timestamp  # simulation time in milliseconds\n" in draw  # lcmtypes/'s file: its comments
     lab = ["ros-interfaces", "generate", "lab_robot_lcm_msgs", "--lcm-types", str(CORPUS), "-o", str(tmp_path / "lab")]

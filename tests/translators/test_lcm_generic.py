@@ -188,7 +188,7 @@ def test_unknown_and_recursive_types_are_held_by_kind_and_named(
     assert refused.value.kind == "refused_type" and "vbtest_lab.tree_node_t" in str(refused.value)
     assert any("vbtest_lab.tree_node_t" in warning for warning in corpus.warnings)
     with pytest.raises(Held) as unknown:  # Drake's types are not loaded in this library
-        translator.observe(Received("IIWA", drake_lcmtypes.lcmt_iiwa_status().encode()))
+        translator.observe(Received("PANDA", drake_lcmtypes.lcmt_panda_status().encode()))
     assert unknown.value.kind == "unknown_type"
     assert translator.outputs == ()  # nothing announced for either
     message_type, _ = translate(corpus, arm_status(lcmgen_corpus).encode())  # the others go on
