@@ -41,7 +41,12 @@ class FoxgloveClient:
     """A minimal Foxglove WebSocket client: reads advertisements, subscribes, keeps payloads."""
 
     def __init__(self, port: int) -> None:
-        self._connection = connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS)  # type: ignore[arg-type]
+        # It reads only while a test pumps it: a test waiting meanwhile (on Drake, on a loaded
+        # machine, for tens of seconds) must not lose it. websockets' defaults would: past 16
+        # frames unread it stops reading the socket (max_queue), so the answer to its keepalive
+        # ping sent every 20 s is never read, and 20 s later it closes the connection (1011).
+        self._connection = connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS,  # type: ignore[arg-type]
+                                   ping_interval=None, max_queue=None)  # fmt: skip
         self.ws: ClientConnection = self._connection.__enter__()
         self.subprotocol: str | None = self.ws.subprotocol
         self.channels: dict[str, dict[str, Any]] = {}  # topic -> advertised channel
@@ -248,7 +253,11 @@ def test_a_drake_simulation_reaches_a_foxglove_client(client_kind: str, tmp_path
             # Drake sent its last draw once, over UDP: on a loaded machine the datagram can be lost
             # before the bridge reads it (counted as the LCM transport's dropped_by_kernel). The
             # same bytes again, until the client has them.
-            publish_until(url, draws[-1], lambda: client.pump(0.5, has_last_draw), 60, DRAW_CHANNEL)
+            try:
+                publish_until(url, draws[-1], lambda: client.pump(0.5, has_last_draw), 60, DRAW_CHANNEL)
+            except AssertionError:  # said with what the client and the bridge saw, not the bytes sent
+                raise AssertionError(f"the last draw (at {last.timestamp} ms) never reached the client: "
+                                     f"{client.log()}; the bridge: {bridge.lines[-10:]}") from None  # fmt: skip
         assert client.pump(60, lambda: bool(client.messages.get("/drake/illustration/scene"))), client.log()  # type: ignore[union-attr]
         assert client.subprotocol == subprotocol
         # A client that connects after the load still receives the whole scene.
