@@ -306,7 +306,7 @@ def throughput_run(
     started = time.monotonic()
     publisher.start()
     while publisher.is_alive():
-        time.sleep(1.0)
+        publisher.join(1.0)  # a line a second, and the last as soon as the run ends
         stats = bridge.snapshot()
         routes = [(name, stats[name]) for name in stats if name != "transports"]
         print(f"{time.monotonic() - started:6.1f} | {len(sent):>10} | " + " | ".join(
