@@ -58,9 +58,10 @@ def library_snippet() -> str:
     return blocks(section, ("python",))[0]
 
 
-# pip's byte-compiling of every module it installs is a sixth of the install's time, and nothing
-# here depends on it (what is imported is compiled then); nor on its check for a newer pip.
-PIP_QUICK = ["--quiet", "--no-compile", "--disable-pip-version-check"]
+# No check for a newer pip (a request to PyPI). Byte-compiling stays: skipped (--no-compile, a sixth
+# of the install's time), the first `run --demo` compiles numpy and the rest as it imports them,
+# and on a loaded machine its 2 s window then carried no draw.
+PIP_QUICK = ["--quiet", "--disable-pip-version-check"]
 
 
 def clean_env() -> dict[str, str]:
