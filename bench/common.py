@@ -9,6 +9,7 @@ Only `viewer_bridge.model.scene` from the bridge: bench/load_targets.py imports 
 from __future__ import annotations
 
 import enum
+import time
 import timeit
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -55,6 +56,17 @@ class Size(enum.Enum):
     def every_row(self) -> bool:
         """Whether the rows QUICK leaves out are measured (FULL and SMOKE)."""
         return self is not Size.QUICK
+
+
+def settle(done: Callable[[], bool], at_most: float) -> bool:
+    """A settling wait that ends once there is nothing left to wait for: until `done()`, at most
+    `at_most` seconds (checked every 20 ms); whether `done()` came."""
+    deadline = time.monotonic() + at_most
+    while not done():
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.02)
+    return True
 
 
 def best_of(fn: Callable[[], object], repeat: int = 5, number: int = 1) -> float:

@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import lcm
-from common import Measure, Size
+from common import Measure, Size, settle
 from lcm_routes import CHANNELS, RATE_HZ, Counting, compare, publish
 from router import URL
 from zenoh_routes import zenoh_session
@@ -107,7 +107,7 @@ def run_floor(folder: Path, seconds: float, endpoint: str) -> dict[str, float]:
     subscriber.counting.set()
     before = floor.state()
     sent = publish(bus, seconds)
-    time.sleep(2.0)
+    settle(lambda: subscriber.count >= sent, 2.0)  # what was queued drains: at most 2 s
     after = floor.state()
     subscriber.counting.clear()
     floor.stop()

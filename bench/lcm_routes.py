@@ -28,7 +28,7 @@ from typing import Any
 
 import drake as drake_lcmtypes
 import yaml
-from common import Measure, Size
+from common import Measure, Size, settle
 from router import URL, Bridge
 from zenoh_routes import _free_port, zenoh_session
 
@@ -108,7 +108,9 @@ def run(route: str, folder: Path, seconds: float, endpoint: str) -> dict[str, fl
     cpu_before = bridge.cpu_seconds()
     in_before = _messages_in(bridge.snapshot())
     sent = publish(bus, seconds)
-    time.sleep(2.0)  # what was queued drains (and the stats file is written again)
+    # What was queued drains, and the stats file is written again (every second): until the
+    # subscriber has every message and the stats count them all, at most 2 s.
+    settle(lambda: subscriber.count >= sent and _messages_in(bridge.snapshot()) - in_before >= sent, 2.0)
     cpu = bridge.cpu_seconds() - cpu_before
     received = _messages_in(bridge.snapshot()) - in_before
     subscriber.counting.clear()

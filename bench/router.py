@@ -38,7 +38,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
-from common import Measure, Size
+from common import Measure, Size, settle
 
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
@@ -130,6 +130,9 @@ def frame(names: tuple[str, ...], sequence: int) -> LinkPoses:
     return LinkPoses(sequence, names, np.ones(count, np.int32), positions, quaternions)
 
 
+DISCOVERY_S = 10.0  # at most, for the subscriber to see the bridge's node (it takes well under 1 s, unloaded)
+
+
 class Bridge:
     """`viewer-bridge run` as a process; `source` is the checkout whose `bridge` package runs."""
 
@@ -194,6 +197,11 @@ class Subscriber:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         threading.Thread(target=self.executor.spin, daemon=True).start()
+
+    def sees_bridge(self) -> bool:
+        """Whether DDS discovery has shown this node the bridge's (`viewer_bridge`, the default name):
+        the publishers the bridge makes with its first messages then match at once."""
+        return "viewer_bridge" in self.node.get_node_names()
 
     def close(self) -> None:
         import rclpy
@@ -286,7 +294,7 @@ def throughput_run(
     bridge = Bridge(config, folder, core=0, source=source)
     bus = LcmBus(URL)
     subscriber = Subscriber(SUBSCRIBED[config])
-    time.sleep(2.0)  # discovery
+    settle(subscriber.sees_bridge, DISCOVERY_S)
     bus.publish("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(the_scene).encode())
     time.sleep(0.5)
     sent: dict[int, int] = {}
@@ -298,7 +306,7 @@ def throughput_run(
     started = time.monotonic()
     publisher.start()
     while publisher.is_alive():
-        time.sleep(1.0)
+        publisher.join(1.0)  # a line a second, and the last as soon as the run ends
         stats = bridge.snapshot()
         routes = [(name, stats[name]) for name in stats if name != "transports"]
         print(f"{time.monotonic() - started:6.1f} | {len(sent):>10} | " + " | ".join(
@@ -475,7 +483,7 @@ def latency(folder: Path, seconds: float) -> None:
         bridge = Bridge(LATENCY[mode], folder, core=None)
         bus = LcmBus(URL)
         subscriber = Subscriber((("/bench/out", typename),))
-        time.sleep(2.0)
+        settle(subscriber.sees_bridge, DISCOVERY_S)
         sent: dict[int, int] = {}
         publish_at(bus, 100.0, seconds, names, sent)
         time.sleep(0.5)

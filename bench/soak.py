@@ -219,6 +219,13 @@ def wait_until(condition: Callable[[], bool], timeout: float = 20.0) -> float | 
     return None
 
 
+def discovered(subscriber: RosSubscriber, bridge: Bridge, timeout: float = 20.0) -> None:
+    """Until the subscriber sees the bridge's node in the ROS graph (DDS discovery), at most
+    `timeout` seconds: then the bridge's publishers, made with its first messages, match at once."""
+    wait_until(lambda: bridge.process.poll() is not None or "viewer_bridge" in subscriber.node.get_node_names(),
+               timeout)  # fmt: skip
+
+
 def pose_array_epoch(data: bytes) -> int:
     from viewer_bridge.formats.ros.poses import pose_array_arrays
 
@@ -235,7 +242,7 @@ def soak(folder: Path, minutes: float, rate_hz: float) -> dict[str, Any]:
     subscriber = RosSubscriber()
     subscriber.subscribe("/drake/poses", "geometry_msgs/msg/PoseArray")
     subscriber.subscribe("/tf", "tf2_msgs/msg/TFMessage")
-    time.sleep(2.0)  # discovery
+    discovered(subscriber, bridge)
     publisher = Publisher(rate_hz)
     rss_start = bridge.rss_mb()
     rss_warm = rss_start
@@ -262,7 +269,9 @@ def soak(folder: Path, minutes: float, rate_hz: float) -> dict[str, Any]:
         print(f"{minute:>4} " + " ".join(f"{row[key]:>{width}}" for key, width in widths.items())
               + f" {row['errors']:>6} {row['rss']:>7.1f}")  # fmt: skip
     publisher.kill()
-    time.sleep(1.5)
+    # Until the stats say every draw sent was read or dropped by the kernel, and none waits in a
+    # route (the file is written every second), at most 10 s: then the figures are final.
+    wait_until(lambda: _drained(bridge.snapshot(), publisher.sent), timeout=10.0)
     final = bridge.snapshot()
     bridge.stop()
     subscriber.close()
@@ -281,6 +290,13 @@ def soak(folder: Path, minutes: float, rate_hz: float) -> dict[str, Any]:
     return result
 
 
+def _drained(stats: dict[str, Any], sent: int) -> bool:
+    poses = stats.get("poses", {})
+    kernel = stats.get("transports", {}).get("lcm", {}).get("errors", {}).get("dropped_by_kernel", 0)
+    queued = sum(route.get("queued", 0) for name, route in stats.items() if name != "transports")
+    return bool(poses) and poses.get("messages_in", 0) + kernel >= sent and queued == 0
+
+
 # --- 2. faults ------------------------------------------------------------------------------------------
 
 
@@ -290,7 +306,7 @@ def fault_publisher_restart(folder: Path) -> float | None:
     subscriber = RosSubscriber()
     subscriber.subscribe("/drake/poses", "geometry_msgs/msg/PoseArray")
     subscriber.subscribe("/drake/markers", "visualization_msgs/msg/MarkerArray")
-    time.sleep(2.0)
+    discovered(subscriber, bridge)
     first = Publisher(200.0, epoch=1)
     wait_until(lambda: subscriber.topics["/drake/markers"].messages > 10)
     first.kill()
@@ -320,7 +336,7 @@ def fault_bridge_killed(folder: Path) -> float | None:
     subscriber = RosSubscriber()
     subscriber.subscribe("/drake/markers", "visualization_msgs/msg/MarkerArray")
     markers = subscriber.topics["/drake/markers"]
-    time.sleep(2.0)
+    discovered(subscriber, bridge)
     publisher = Publisher(200.0)
     wait_until(lambda: markers.messages > 10)
     bridge.kill()
@@ -344,7 +360,7 @@ def fault_subscriber_restart(folder: Path) -> float | None:
     bridge = Bridge(folder)
     first = RosSubscriber()
     first.subscribe("/drake/link_markers", "visualization_msgs/msg/MarkerArray", latched=True)
-    time.sleep(2.0)
+    discovered(first, bridge)
     publisher = Publisher(200.0)
     wait_until(lambda: first.topics["/drake/link_markers"].messages > 0)
     first.close()

@@ -29,8 +29,8 @@ from typing import Any
 
 import numpy as np
 import zenoh
-from common import Measure, Size
-from router import URL, Bridge, Subscriber, _draws_in, pose_array_sequence, publish_at, scene
+from common import Measure, Size, settle
+from router import DISCOVERY_S, URL, Bridge, Subscriber, _draws_in, pose_array_sequence, publish_at, scene
 
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.transports.lcm import LcmBus
@@ -91,7 +91,10 @@ def run(transport: str, folder: Path, seconds: float, endpoint: str) -> dict[str
     bridge = Bridge(config, folder, core=0)
     bus = LcmBus(URL)
     subscriber: Any = ZenohSubscriber(endpoint) if transport == "zenoh" else Subscriber(TOPICS)
-    time.sleep(2.0)  # discovery (DDS), the session's first routes (Zenoh)
+    if transport == "zenoh":
+        time.sleep(2.0)  # the session's first routes
+    else:
+        settle(subscriber.sees_bridge, DISCOVERY_S)  # DDS discovery
     bus.publish("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(the_scene).encode())
     time.sleep(0.5)
     sent: dict[int, int] = {}

@@ -21,6 +21,7 @@ import lcm
 import pytest
 
 import viewer_bridge.examples
+from tests.claims import lcm_port, ros_domain
 from tests.process_groups import ChildGroups
 from viewer_bridge.formats.drake.draw import poses_from_draw
 from viewer_bridge.formats.drake.load import decode_load
@@ -30,9 +31,10 @@ from viewer_bridge.transports.lcm import LcmEvent, read_log
 
 SCRIPTS = Path(sysconfig.get_paths()["purelib"]) / "bin"  # the lcm wheel's real binaries
 
-# ROS 2 traffic stays on this host, in a domain of this test process's own (before rclpy loads).
+# ROS 2 traffic stays on this host, in a domain of this test process's own (before rclpy loads):
+# no other test process on this machine has it while this one runs (tests/claims.py).
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 100)
+os.environ["ROS_DOMAIN_ID"] = str(ros_domain())
 
 
 # Where every peer is installed (`./dev test`), a skipped test is a failure: a test that skips
@@ -141,8 +143,9 @@ def _deadline_passed(item: pytest.Item, settings: Any) -> None:
 
 
 def lcm_url(offset: int = 0) -> str:
-    """A multicast URL of this test process's own (ttl=0 keeps it on this host)."""
-    return f"udpm://239.255.76.67:{7700 + (os.getpid() + 211 * offset) % 1000}?ttl=0"
+    """A multicast URL of this test process's own (ttl=0 keeps it on this host): its port, one of
+    a block no other test process on this machine has while this one runs (tests/claims.py)."""
+    return f"udpm://239.255.76.67:{lcm_port(offset)}?ttl=0"
 
 
 @pytest.fixture(scope="session")

@@ -2,12 +2,16 @@
 `LcmPublisherSystem` of `lcmt_iiwa_status` on IIWA_STATUS (every 10 ms) and one of
 `lcmt_robot_plan` on ROBOT_PLAN (every 100 ms), their values following sim time.
 
-Run as a script: `python tests/drake_robot_status.py URL SECONDS` (real time, then exits).
+Run as a script: `python tests/drake_robot_status.py URL SECONDS` (real time, then exits), or
+through `drive_until` (until a test's peers have what it waits for).
 """
 
 from __future__ import annotations
 
+import subprocess
 import sys
+import time
+from collections.abc import Callable
 from typing import Any
 
 import drake as drake_lcmtypes
@@ -75,6 +79,29 @@ def run(url: str, seconds: float) -> None:
     simulator = Simulator(builder.Build())
     simulator.set_target_realtime_rate(1.0)
     simulator.AdvanceTo(seconds)
+
+
+def drive_until(url: str, arrived: Callable[[], bool], timeout: float = 120.0) -> bool:
+    """Drake's driver publishing on `url` (a process of its own) until `arrived()`, then stopped;
+    whether it came true within `timeout` seconds.
+
+    Never for a fixed time: the bridge's lazy routes translate only once they see a subscriber,
+    and on a loaded machine discovery can take seconds (Fast DDS re-announces a participant it
+    missed every 3 s), so a run of fixed length may end before the subscriber matched and leave
+    it a few messages."""
+    driver = subprocess.Popen([sys.executable, __file__, url, str(timeout + 60)])
+    try:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if arrived():
+                return True
+            if driver.poll() is not None:
+                raise AssertionError(f"Drake's driver exited early ({driver.returncode})")
+            time.sleep(0.05)
+        return arrived()
+    finally:
+        driver.terminate()
+        driver.wait(timeout=30)
 
 
 if __name__ == "__main__":

@@ -75,6 +75,9 @@ class RosProbe:
 
     def close(self) -> None:
         self.executor.shutdown(timeout_sec=1)
+        # Its spin ends with its current wait: the node is destroyed after, never while the
+        # executor adds the node's entities to a wait set (rclpy's InvalidHandle on that thread).
+        self._thread.join(timeout=30)
         self.node.destroy_node()
         rclpy.shutdown(context=self.context)
 

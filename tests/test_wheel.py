@@ -58,6 +58,12 @@ def library_snippet() -> str:
     return blocks(section, ("python",))[0]
 
 
+# No check for a newer pip (a request to PyPI). Byte-compiling stays: skipped (--no-compile, a sixth
+# of the install's time), the first `run --demo` compiles numpy and the rest as it imports them,
+# and on a loaded machine its 2 s window then carried no draw.
+PIP_QUICK = ["--quiet", "--disable-pip-version-check"]
+
+
 def clean_env() -> dict[str, str]:
     """This process's environment without what points at the checkout or its venv."""
     return {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTHONHOME")}
@@ -85,7 +91,7 @@ def venv(tmp_path_factory: pytest.TempPathFactory, wheel: Path) -> Path:
     root = tmp_path_factory.mktemp("venv")
     created = run([sys.executable, "-m", "venv", str(root / "env")], root)
     assert created.returncode == 0, created.stderr
-    installed = run([str(root / "env/bin/python"), "-m", "pip", "install", "--quiet", str(wheel)], root)
+    installed = run([str(root / "env/bin/python"), "-m", "pip", "install", *PIP_QUICK, str(wheel)], root)
     assert installed.returncode == 0, installed.stderr
     return root / "env"
 
@@ -118,7 +124,7 @@ def test_a_missing_extra_is_one_line_naming_it(venv: Path, tmp_path: Path) -> No
 
 @pytest.mark.timeout(3000)  # and then every extra installed, and tf2_msgs compiled
 def test_the_bridge_runs_its_demo_with_every_extra(venv: Path, wheel: Path, tmp_path: Path) -> None:
-    installed = run([str(venv / "bin/python"), "-m", "pip", "install", "--quiet", f"{wheel}[all]"], tmp_path)
+    installed = run([str(venv / "bin/python"), "-m", "pip", "install", *PIP_QUICK, f"{wheel}[all]"], tmp_path)
     assert installed.returncode == 0, installed.stderr
     cli = str(venv / "bin/viewer-bridge")
     version = run([cli, "--version"], tmp_path)

@@ -36,8 +36,8 @@ def free_port() -> int:
 
 
 def free_lcm_url() -> str:
-    """An LCM bus of its own: a UDP port no socket holds now, so that no other test process's
-    traffic (tests/conftest.py's `lcm_url` ports are shared by every process) lands on it."""
+    """An LCM bus of its own: a UDP port no socket holds now (an ephemeral one: below the blocks
+    tests/claims.py gives each test process for `lcm_url`), so no other test's traffic lands on it."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
         probe.bind(("0.0.0.0", 0))
         return f"udpm://239.255.76.67:{probe.getsockname()[1]}?ttl=0"

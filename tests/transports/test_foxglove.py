@@ -41,7 +41,12 @@ class FoxgloveClient:
     """A minimal Foxglove WebSocket client: reads advertisements, subscribes, keeps payloads."""
 
     def __init__(self, port: int) -> None:
-        self._connection = connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS)  # type: ignore[arg-type]
+        # It reads only while a test pumps it: a test waiting meanwhile (on Drake, on a loaded
+        # machine, for tens of seconds) must not lose it. websockets' defaults would: past 16
+        # frames unread it stops reading the socket (max_queue), so the answer to its keepalive
+        # ping sent every 20 s is never read, and 20 s later it closes the connection (1011).
+        self._connection = connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS,  # type: ignore[arg-type]
+                                   ping_interval=None, max_queue=None)  # fmt: skip
         self.ws: ClientConnection = self._connection.__enter__()
         self.subprotocol: str | None = self.ws.subprotocol
         self.channels: dict[str, dict[str, Any]] = {}  # topic -> advertised channel
@@ -248,7 +253,11 @@ def test_a_drake_simulation_reaches_a_foxglove_client(client_kind: str, tmp_path
             # Drake sent its last draw once, over UDP: on a loaded machine the datagram can be lost
             # before the bridge reads it (counted as the LCM transport's dropped_by_kernel). The
             # same bytes again, until the client has them.
-            publish_until(url, draws[-1], lambda: client.pump(0.5, has_last_draw), 60, DRAW_CHANNEL)
+            try:
+                publish_until(url, draws[-1], lambda: client.pump(0.5, has_last_draw), 60, DRAW_CHANNEL)
+            except AssertionError:  # said with what the client and the bridge saw, not the bytes sent
+                raise AssertionError(f"the last draw (at {last.timestamp} ms) never reached the client: "
+                                     f"{client.log()}; the bridge: {bridge.lines[-10:]}") from None  # fmt: skip
         assert client.pump(60, lambda: bool(client.messages.get("/drake/illustration/scene"))), client.log()  # type: ignore[union-attr]
         assert client.subprotocol == subprotocol
         # A client that connects after the load still receives the whole scene.
@@ -341,7 +350,6 @@ def _listening_on_loopback_only(port: int) -> bool:
 
 def test_convert_to_foxglove_mcap_carries_the_scene_and_the_transforms(drake_log: Path, tmp_path: Path) -> None:
     import subprocess
-    import sys
 
     from mcap.reader import make_reader
 
@@ -507,7 +515,7 @@ def test_any_lcm_type_from_a_pydrake_diagram_reaches_a_foxglove_client_as_ros2ms
     and CDR, decoded by mcap-ros2-support from the schema the client was advertised."""
     from mcap_ros2._dynamic import generate_dynamic
 
-    from tests.drake_robot_status import PLAN_CHANNEL, STATUS_CHANNEL
+    from tests.drake_robot_status import PLAN_CHANNEL, STATUS_CHANNEL, drive_until
     from tests.translators.test_lcm_generic import assert_same
 
     connect_client, _ = CLIENTS[client_kind]
@@ -515,20 +523,27 @@ def test_any_lcm_type_from_a_pydrake_diagram_reaches_a_foxglove_client_as_ros2ms
     recorder = LcmRecorder(url)
     bridge = BridgeProcess("-c", "builtin:foxglove", "--lcm-url", url, "--stats-period", "1")
     topics = {STATUS_CHANNEL: "/lcm/IIWA_STATUS", PLAN_CHANNEL: "/lcm/ROBOT_PLAN"}
-    script = Path(__file__).parents[1] / "drake_robot_status.py"
-    client = None
+    client: Client | None = None
+
+    def arrived() -> bool:
+        nonlocal client
+        if client is None:  # each channel is advertised as it appears: connected once the driver publishes
+            if not recorder.messages.get(STATUS_CHANNEL):
+                return False
+            client = connect_client(port, *topics.values())
+        return client.pump(0.1, lambda: all(len(client.messages.get(t, [])) >= 10 for t in topics.values()))  # type: ignore[union-attr]
+
     try:
         port = foxglove_port(bridge)
-        drake = subprocess.Popen([sys.executable, str(script), url, "4.0"])
-        client = connect_client(port, *topics.values())  # each channel is advertised as it appears
-        assert drake.wait(timeout=120) == 0
-        recorder.sync()
-        assert client.pump(60, lambda: all(len(client.messages.get(t, [])) >= 10 for t in topics.values())), client.log()  # type: ignore[union-attr]
+        # The lazy routes wake once the client subscribes: the driver publishes until it has its share.
+        assert drive_until(url, arrived), client.log() if client is not None else "never connected"
+        recorder.sync()  # holds every message the driver sent
     finally:
         if client is not None:
             client.close()
         assert bridge.stop() == 0
         recorder.close()
+    assert client is not None
     for channel, lcm_class in ((STATUS_CHANNEL, drake_lcmtypes.lcmt_iiwa_status),
                                (PLAN_CHANNEL, drake_lcmtypes.lcmt_robot_plan)):  # fmt: skip
         advertised = client.channels[topics[channel]]
