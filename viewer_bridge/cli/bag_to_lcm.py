@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from viewer_bridge.cli.bag_salvage import SalvageReader, cut_reason
 from viewer_bridge.errors import ConvertError, DecodeError
 from viewer_bridge.lcmcodec.from_ros import LcmFromRos, definitions_from_msgdef, map_ros_types
 from viewer_bridge.lcmcodec.ros_cdr import compile_ros_encoders
@@ -35,6 +36,14 @@ class BagConversion:
     skipped: dict[str, str] = field(default_factory=dict)  # topic -> why it has no channel
     channels: dict[str, str] = field(default_factory=dict)  # topic -> LCM channel
     lcm_files: list[Path] = field(default_factory=list)
+    damaged: Counter[str] = field(default_factory=Counter)  # by topic: rows whose stored values are no message
+    first_damage: dict[str, str] = field(default_factory=dict)  # by topic
+    cut: str | None = None  # where the bag's readable part ends, when it ends before the bag does
+
+    @property
+    def complete(self) -> bool:
+        """Whether every message the bag stores was read (converted, or refused as a bad message)."""
+        return self.cut is None and not self.damaged
 
 
 def is_ros_bag(path: str | Path) -> bool:
@@ -55,19 +64,14 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
                force: bool = False) -> BagConversion:  # fmt: skip
     """Convert the topics of `bag` (those whose name fully matches the regex `topics`, default all)
     into the LCM log `out`; write the `.lcm` files of their types under `lcm_types_out` if given.
-    Raises `ConvertError` before writing anything when `out` exists (unless `force`) or no topic maps."""
-    from rosbags.rosbag2 import Reader, ReaderError
-
+    Raises `ConvertError` before writing anything when `out` exists (unless `force`) or no topic maps.
+    A damaged bag is converted as far as it can be read: `result.cut` and `result.damaged` say what was not."""
     target = Path(out)
     if target.exists() and not force:
         raise ConvertError(f"{target} exists (--force replaces it)")
     result = BagConversion()
     pattern = re.compile(topics) if topics is not None else None
-    try:
-        reader = Reader(Path(bag))
-        reader.open()
-    except ReaderError as error:
-        raise ConvertError(f"{bag} is not a ROS 2 bag rosbags can read: {error}") from None
+    reader = _open(Path(bag))
     try:
         connections = [c for c in reader.connections if pattern is None or pattern.fullmatch(c.topic)]
         definitions, unreadable = _definitions(connections)
@@ -78,7 +82,7 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
             raise ConvertError(f"no topic of {bag} maps onto LCM: {reasons}")
         encoders = compile_ros_encoders(mapping, dict.fromkeys(c.msgtype for c in chosen))
         by_id = {c.id: (c.topic, result.channels[c.topic], encoders[c.msgtype]) for c in chosen}
-        events = _events(reader.messages(connections=chosen), by_id, result)
+        events = _events(_readable(reader, chosen, result), by_id, result)
         write_log(target, events)
     finally:
         reader.close()
@@ -87,6 +91,46 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
         mapping.texts = {name: text for name, text in mapping.texts.items() if name in keep}
         result.lcm_files = mapping.write(Path(lcm_types_out))
     return result
+
+
+def _open(bag: Path) -> Any:
+    """rosbags' reader of `bag`; when it refuses a damaged bag (an MCAP file cut short, a `.db3`
+    with a damaged page), the reader of its readable part (`bag_salvage`)."""
+    from rosbags.rosbag2 import Reader, ReaderError
+
+    try:
+        reader = Reader(bag)
+        reader.open()
+        return reader
+    except ReaderError as error:
+        refused = error
+    salvage = SalvageReader(bag) if bag.is_dir() or is_ros_bag(bag) else None
+    if salvage is None or not salvage.connections:
+        unreadable = f"; nothing of it is readable: {salvage.cut}" if salvage is not None and salvage.cut else ""
+        raise ConvertError(f"{bag} is not a ROS 2 bag rosbags can read: {refused}{unreadable}") from None
+    return salvage
+
+
+def _readable(reader: Any, connections: list[Any], result: BagConversion) -> Iterator[tuple[Any, Any, Any]]:
+    """The reader's messages up to the first it cannot read: whatever it raises there (rosbags,
+    sqlite, a decompressor), the bag is unreadable from that point on; `result.cut` says why."""
+    messages = reader.messages(connections=connections)
+    count = 0
+    while True:
+        try:
+            message = next(messages)
+        except StopIteration:
+            break
+        except Exception as error:  # noqa: BLE001 - any reader's damage ends the readable part
+            result.cut = cut_reason(error)
+            break
+        count += 1
+        yield message
+    cut = getattr(reader, "cut", None)  # the salvage reader stops by itself and says where
+    if result.cut is None and cut is not None:
+        result.cut = cut
+    if result.cut is not None:
+        result.cut += f"; the {count} messages before it are converted, the rest is lost"
 
 
 def _definitions(connections: list[Any]) -> tuple[dict[str, tuple[list[Any], list[Any]]], dict[str, str]]:
@@ -129,6 +173,11 @@ def _channels(connections: list[Any], refused: dict[str, str], result: BagConver
 def _events(messages: Iterator[tuple[Any, int, bytes]], by_id: dict[int, Any], result: BagConversion) -> Iterator[LcmEvent]:
     for connection, timestamp_ns, data in messages:
         topic, channel, encoder = by_id[connection.id]
+        if type(timestamp_ns) is not int or not isinstance(data, bytes | memoryview):  # sqlite stores any type
+            result.damaged[topic] += 1
+            result.first_damage.setdefault(topic, f"a row holds {type(timestamp_ns).__name__} {timestamp_ns!r:.20} as "
+                                                  f"its time and {type(data).__name__} as its data")  # fmt: skip
+            continue
         try:
             lcm = encoder.encode(bytes(data))
         except DecodeError as error:  # one bad message: counted, and the rest go on
