@@ -174,5 +174,5 @@ def test_a_bag_with_nothing_readable_is_refused_with_why(tmp_path: Path, capsys:
     joint_states_mcap(whole, 3)
     (tmp_path / "stub.mcap").write_bytes(whole.read_bytes()[:12])
     assert main(["convert", str(tmp_path / "stub.mcap"), str(tmp_path / "out.lcmlog")]) == 2
-    assert "stub.mcap is not a ROS 2 bag rosbags can read" in capsys.readouterr().err
+    assert "stub.mcap holds no CDR topic that can be read" in capsys.readouterr().err
     assert not (tmp_path / "out.lcmlog").exists()

@@ -17,13 +17,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from viewer_bridge.cli.bag_salvage import SalvageReader, cut_reason
+from viewer_bridge.cli.bag_files import DirectReader, cut_reason
 from viewer_bridge.errors import ConvertError, DecodeError
 from viewer_bridge.lcmcodec.from_ros import LcmFromRos, definitions_from_msgdef, map_ros_types
 from viewer_bridge.lcmcodec.ros_cdr import compile_ros_encoders
 from viewer_bridge.transports.lcm import LcmEvent, write_log
 
 __all__ = ["BagConversion", "bag_to_lcm", "channel_of", "is_ros_bag"]
+
+# Messages up to this size are handed over as bytes (the encoders' kept layouts read bytes); a larger
+# one is read where the reader has it (a view into the file), and copied once, into its LCM message.
+_COPY_UP_TO = 16384
 
 
 @dataclass
@@ -84,6 +88,9 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
         by_id = {c.id: (c.topic, result.channels[c.topic], encoders[c.msgtype]) for c in chosen}
         events = _events(_readable(reader, chosen, result), by_id, result)
         write_log(target, events)
+        if result.cut is not None:
+            read = sum(result.written.values()) + sum(result.bad.values()) + sum(result.damaged.values())
+            result.cut += f"; the {read} messages before it are converted, the rest is lost"
     finally:
         reader.close()
     if lcm_types_out is not None:  # the types of the topics written, and what they nest
@@ -94,43 +101,38 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
 
 
 def _open(bag: Path) -> Any:
-    """rosbags' reader of `bag`; when it refuses a damaged bag (an MCAP file cut short, a `.db3`
-    with a damaged page), the reader of its readable part (`bag_salvage`)."""
+    """The reader of `bag`: an MCAP file's own (`bag_files`: in place, and as far as it is
+    readable); rosbags' for a rosbag2 folder (its metadata, any storage), and when it refuses a
+    damaged one (a `.db3` with a damaged page), the folder's files read directly."""
     from rosbags.rosbag2 import Reader, ReaderError
 
+    if bag.is_file():
+        direct = DirectReader(bag)
+        if not direct.connections:
+            raise ConvertError(f"{bag} holds no CDR topic that can be read: {direct.cut or 'none is recorded'}")
+        return direct
     try:
         reader = Reader(bag)
         reader.open()
         return reader
     except ReaderError as error:
         refused = error
-    salvage = SalvageReader(bag) if bag.is_dir() or is_ros_bag(bag) else None
-    if salvage is None or not salvage.connections:
-        unreadable = f"; nothing of it is readable: {salvage.cut}" if salvage is not None and salvage.cut else ""
+    direct = DirectReader(bag)
+    if not direct.connections:
+        unreadable = f"; nothing of it is readable: {direct.cut}" if direct.cut else ""
         raise ConvertError(f"{bag} is not a ROS 2 bag rosbags can read: {refused}{unreadable}") from None
-    return salvage
+    return direct
 
 
 def _readable(reader: Any, connections: list[Any], result: BagConversion) -> Iterator[tuple[Any, Any, Any]]:
     """The reader's messages up to the first it cannot read: whatever it raises there (rosbags,
     sqlite, a decompressor), the bag is unreadable from that point on; `result.cut` says why."""
-    messages = reader.messages(connections=connections)
-    count = 0
-    while True:
-        try:
-            message = next(messages)
-        except StopIteration:
-            break
-        except Exception as error:  # noqa: BLE001 - any reader's damage ends the readable part
-            result.cut = cut_reason(error)
-            break
-        count += 1
-        yield message
-    cut = getattr(reader, "cut", None)  # the salvage reader stops by itself and says where
-    if result.cut is None and cut is not None:
-        result.cut = cut
-    if result.cut is not None:
-        result.cut += f"; the {count} messages before it are converted, the rest is lost"
+    try:
+        yield from reader.messages(connections=connections)
+    except Exception as error:  # noqa: BLE001 - any reader's damage ends the readable part
+        result.cut = cut_reason(error)
+    if result.cut is None:
+        result.cut = getattr(reader, "cut", None)  # the direct reader stops by itself and says where
 
 
 def _definitions(connections: list[Any]) -> tuple[dict[str, tuple[list[Any], list[Any]]], dict[str, str]]:
@@ -170,22 +172,33 @@ def _channels(connections: list[Any], refused: dict[str, str], result: BagConver
     return chosen
 
 
-def _events(messages: Iterator[tuple[Any, int, bytes]], by_id: dict[int, Any], result: BagConversion) -> Iterator[LcmEvent]:
-    for connection, timestamp_ns, data in messages:
-        topic, channel, encoder = by_id[connection.id]
-        if type(timestamp_ns) is not int or not isinstance(data, bytes | memoryview):  # sqlite stores any type
-            result.damaged[topic] += 1
-            result.first_damage.setdefault(topic, f"a row holds {type(timestamp_ns).__name__} {timestamp_ns!r:.20} as "
-                                                  f"its time and {type(data).__name__} as its data")  # fmt: skip
-            continue
-        try:
-            lcm = encoder.encode(bytes(data))
-        except DecodeError as error:  # one bad message: counted, and the rest go on
-            result.bad[topic] += 1
-            result.first_error.setdefault(topic, str(error))
-            continue
-        result.written[topic] += 1
-        yield LcmEvent(channel, lcm, timestamp_ns // 1000)
+def _events(messages: Iterator[tuple[Any, Any, Any]], by_id: dict[int, Any], result: BagConversion) -> Iterator[LcmEvent]:
+    counts = dict.fromkeys((topic for topic, _, _ in by_id.values()), 0)  # per message; into `result` at the end
+    try:
+        for connection, timestamp_ns, data in messages:
+            topic, channel, encoder = by_id[connection.id]
+            if type(timestamp_ns) is not int or type(data) not in _DATA:  # sqlite keeps any type in any column
+                _damaged(result, topic, timestamp_ns, data)
+                continue
+            try:
+                lcm = encoder.encode(bytes(data) if len(data) <= _COPY_UP_TO else data)
+            except DecodeError as error:  # one bad message: counted, and the rest go on
+                result.bad[topic] += 1
+                result.first_error.setdefault(topic, str(error))
+                continue
+            counts[topic] += 1
+            yield LcmEvent(channel, lcm, timestamp_ns // 1000)
+    finally:
+        result.written.update({topic: count for topic, count in counts.items() if count})
+
+
+_DATA = (bytes, memoryview)
+
+
+def _damaged(result: BagConversion, topic: str, timestamp_ns: object, data: object) -> None:
+    result.damaged[topic] += 1
+    result.first_damage.setdefault(topic, f"a row holds {type(timestamp_ns).__name__} {timestamp_ns!r:.20} as its "
+                                          f"time and {type(data).__name__} as its data")  # fmt: skip
 
 
 def _nested(mapping: LcmFromRos, names: set[str]) -> set[str]:
