@@ -218,3 +218,32 @@ def test_rclpy_cdr_gives_the_same_lcm_bytes(encoders: dict[str, LcmEncoder]) -> 
     ]:  # fmt: skip
         ours = encoders[ros_type].encode(rclpy_serialization.serialize_message(ros_message))
         assert ours == encoders[ros_type].encode(serialized(ros_type, values))
+
+
+_HUGE = 0x7FFFFFFF
+_EMPTY_HEADER = b"\x00\x01\x00\x00" + struct.pack("<iII", 1, 2, 1) + b"\0\0\0\0"  # stamp, frame_id ""
+
+
+@pytest.mark.parametrize(
+    ("ros_type", "cdr", "field"),
+    [
+        ("sensor_msgs/msg/JointState", _EMPTY_HEADER + struct.pack("<I", _HUGE), "name"),
+        ("sensor_msgs/msg/JointState", _EMPTY_HEADER + struct.pack("<II", 0, _HUGE) + bytes(16), "position"),
+        ("my_robot/msg/Note", b"\x00\x01\x00\x00" + struct.pack("<I3sxI", 3, b"hi\0", _HUGE) + bytes(8), "note"),
+        ("my_robot/msg/Note", b"\x00\x01\x00\x00" + struct.pack("<I3sxIII", 3, b"hi\0", 0, _HUGE, 1), "more"),
+    ],
+)  # fmt: skip
+def test_a_count_of_2_31_elements_is_refused_before_anything_is_allocated(
+    encoders: dict[str, LcmEncoder], ros_type: str, cdr: bytes, field: str
+) -> None:
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        with pytest.raises(DecodeError) as caught:
+            encoders[ros_type].encode(cdr)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert caught.value.field == field and "2147483647" in caught.value.reason, caught.value
+    assert peak < 1 << 20
