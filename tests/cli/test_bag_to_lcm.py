@@ -12,6 +12,8 @@ from tests.lcmcodec.test_from_ros import lcm_gen_all
 from tests.lcmcodec.test_ros_cdr import serialized
 from viewer_bridge.cli.bag_to_lcm import bag_to_lcm, channel_of
 from viewer_bridge.cli.main import main
+from viewer_bridge.lcmcodec.from_ros import load_ros_definitions, map_ros_types
+from viewer_bridge.lcmcodec.ros_cdr import compile_ros_encoders
 from viewer_bridge.transports.lcm import read_log
 
 JOINTS = SAMPLES[0][2]
@@ -176,3 +178,53 @@ def test_a_bag_with_nothing_readable_is_refused_with_why(tmp_path: Path, capsys:
     assert main(["convert", str(tmp_path / "stub.mcap"), str(tmp_path / "out.lcmlog")]) == 2
     assert "stub.mcap holds no CDR topic that can be read" in capsys.readouterr().err
     assert not (tmp_path / "out.lcmlog").exists()
+
+
+def joints_mcap_as(path: Path, compression: str, count: int, chunk_size: int = 2048) -> None:
+    """`count` JointStates by mcap's own writer, chunks compressed as `compression` ("" for none,
+    "unchunked" for messages outside any chunk)."""
+    from mcap.writer import CompressionType, Writer
+
+    data = serialized("sensor_msgs/msg/JointState", JOINTS)
+    msgdef = typestore().generate_msgdef("sensor_msgs/msg/JointState", ros_version=2)[0]
+    kind = {"": CompressionType.NONE, "lz4": CompressionType.LZ4, "zstd": CompressionType.ZSTD}
+    with path.open("wb") as stream:
+        writer = Writer(stream, compression=kind.get(compression, CompressionType.NONE),
+                        use_chunking=compression != "unchunked", chunk_size=chunk_size)  # fmt: skip
+        writer.start(profile="ros2")
+        schema = writer.register_schema("sensor_msgs/msg/JointState", "ros2msg", msgdef.encode())
+        channel = writer.register_channel("/joint_states", "cdr", schema)
+        for index in range(count):
+            writer.add_message(channel, log_time=index * 1_000_000, data=data, publish_time=0)
+        writer.finish()
+
+
+@pytest.mark.parametrize("compression", ["", "lz4", "zstd", "unchunked"])
+def test_mcap_chunks_of_every_compression_and_none_read_alike(tmp_path: Path, compression: str) -> None:
+    joints_mcap_as(tmp_path / "bag.mcap", compression, 50)
+    result = bag_to_lcm(tmp_path / "bag.mcap", tmp_path / "out.lcmlog")
+    assert result.complete and result.written == {"/joint_states": 50}
+    events = list(read_log(tmp_path / "out.lcmlog"))
+    assert [event.timestamp_us // 1000 for event in events] == list(range(50))
+    definitions, wanted = load_ros_definitions(["sensor_msgs/msg/JointState"])
+    encoder = compile_ros_encoders(map_ros_types(definitions, wanted), wanted)["sensor_msgs/msg/JointState"]
+    assert {event.data for event in events} == {encoder.encode(serialized("sensor_msgs/msg/JointState", JOINTS))}
+
+
+def test_a_chunk_whose_crc_does_not_match_ends_the_readable_part(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from mcap.reader import make_reader
+
+    joints_mcap_as(tmp_path / "bag.mcap", "", 200)
+    data = bytearray((tmp_path / "bag.mcap").read_bytes())
+    with (tmp_path / "bag.mcap").open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    chunk = summary.chunk_indexes[2]
+    data[chunk.chunk_start_offset + chunk.chunk_length - 20] ^= 0xFF  # inside a message's numbers
+    (tmp_path / "bad.mcap").write_bytes(bytes(data))
+    assert main(["convert", str(tmp_path / "bad.mcap"), str(tmp_path / "out.lcmlog")]) == 1
+    before = chunk.message_start_time // 1_000_000
+    assert converted(tmp_path / "out.lcmlog") == list(range(before))
+    assert "bad.mcap: ValueError: a chunk's CRC-32 does not match its records" in damage_line(capsys.readouterr().err)
