@@ -18,6 +18,7 @@ This module imports `bridge` at its top on purpose: the fuzz runner imports it i
 
 from __future__ import annotations
 
+import functools
 import inspect
 import json
 import re
@@ -527,32 +528,23 @@ ROS_TYPES = ("sensor_msgs/msg/JointState", "my_robot/msg/Gripper", "my_robot/msg
 _ROS_MSGS = Path(__file__).resolve().parent.parent / "lcmcodec" / "ros_msgs"
 
 
+@functools.cache
 def _ros_encoders() -> tuple[dict[str, LcmEncoder], dict[str, LcmEncoder], TypeLibrary]:
     """The encoders of ROS_TYPES with their kept layouts and without, and the generated `.lcm`
-    types loaded as any LCM type is (the oracle: what is written must decode as its type)."""
+    types loaded as any LCM type is (the oracle: what is written must decode as its type). Made
+    at the first input, not at import: every other target's process imports this module too.
+    Under the fuzzer, the code generated for them is instrumented as well."""
     definitions, _ = load_ros_definitions([str(_ROS_MSGS)])
     mapping = map_ros_types(definitions, ROS_TYPES)
     folder = Path(tempfile.mkdtemp(prefix="fuzz-ros-lcm-"))
     mapping.write(folder)
-    return (compile_ros_encoders(mapping, ROS_TYPES), compile_ros_encoders(mapping, ROS_TYPES, keep_layouts=False),
-            TypeLibrary.load([str(folder)], drake=False))  # fmt: skip
-
-
-_ROS_KEPT, _ROS_GENERATED, _ROS_LCM = _ros_encoders()
-
-
-def _instrument_ros_code() -> None:
-    """Under the fuzzer, instrument the CDR -> LCM code generated for ROS_TYPES too."""
+    kept, generated = compile_ros_encoders(mapping, ROS_TYPES), compile_ros_encoders(mapping, ROS_TYPES, keep_layouts=False)
     atheris = sys.modules.get("atheris")
-    if atheris is None:
-        return
-    for encoder in _ROS_GENERATED.values():
+    for encoder in [*kept.values(), *generated.values()] if atheris is not None else ():
         for value in list(encoder._body.__globals__.values()):
             if inspect.isfunction(value) and value.__code__.co_filename.startswith("<ros cdr"):
                 atheris.instrument_func(value)
-
-
-_instrument_ros_code()
+    return kept, generated, TypeLibrary.load([str(folder)], drake=False)
 
 
 def ros_cdr_to_lcm(data: bytes) -> object:
@@ -560,13 +552,14 @@ def ros_cdr_to_lcm(data: bytes) -> object:
     a ROS 2 publisher holds it. Only `DecodeError` may come out (no IndexError, struct.error, nor an
     allocation for a count of 2^31 elements: the RSS limit catches one); what is taken is the same
     with the kept layouts as with the generated code alone, and is LCM of the type."""
+    kept, generated, library = _ros_encoders()
     name = ROS_TYPES[data[0] % len(ROS_TYPES)] if data else ROS_TYPES[0]
     cdr = data[1:]
-    lcm = _ROS_KEPT[name].encode(cdr)
-    if _ROS_GENERATED[name].encode(cdr) != lcm:
+    lcm = kept[name].encode(cdr)
+    if generated[name].encode(cdr) != lcm:
         raise AssertionError("the kept layout and the generated code disagree")
     if len(lcm) <= _ORACLE_DECODE_LIMIT:
-        _ROS_LCM.type_of(lcm).to_json(lcm)
+        library.type_of(lcm).to_json(lcm)
     return lcm
 
 
