@@ -7,7 +7,8 @@ The bags are MCAP files as rosbag2 records them (one chunked, uncompressed file;
 `serialize_message`): 640x480 rgb8 `sensor_msgs/Image`s, and 7-joint `sensor_msgs/JointState`s.
 The baseline converts the same bag as a hand-written converter would: rosbags' reader, rclpy's
 `deserialize_message`, lcm-gen's class of the generated `.lcm` file filled and encoded, the same LCM
-log writer. Files are in /dev/shm where there is one: the disk is shared, and not what is measured. Both run in this process in alternating rounds, the best of each; the first event of
+log writer. The files are in /dev/shm where there is one: the disk is shared, and not what is
+measured. Both run in this process in alternating rounds, the best of each; the first event of
 each output is checked to be the same bytes.
 """
 
