@@ -12,6 +12,8 @@ from tests.lcmcodec.test_from_ros import lcm_gen_all
 from tests.lcmcodec.test_ros_cdr import serialized
 from viewer_bridge.cli.bag_to_lcm import bag_to_lcm, channel_of
 from viewer_bridge.cli.main import main
+from viewer_bridge.lcmcodec.from_ros import load_ros_definitions, map_ros_types
+from viewer_bridge.lcmcodec.ros_cdr import compile_ros_encoders
 from viewer_bridge.transports.lcm import read_log
 
 JOINTS = SAMPLES[0][2]
@@ -79,3 +81,150 @@ def test_a_rosbag2_folder_converts_too(tmp_path: Path) -> None:
     assert result.written == {"/joint_states": 1}
     [event] = read_log(tmp_path / "out.lcmlog")
     assert (event.channel, event.timestamp_us) == ("joint_states", 42)
+
+
+def joint_states_mcap(path: Path, count: int) -> None:
+    """`count` JointStates a millisecond apart, in chunks of a few dozen messages."""
+    from mcap_ros2.writer import Writer
+
+    store = typestore()
+    with path.open("wb") as stream:
+        writer = Writer(stream, chunk_size=2048)
+        schema = writer.register_msgdef("sensor_msgs/msg/JointState",
+                                        store.generate_msgdef("sensor_msgs/msg/JointState", ros_version=2)[0])  # fmt: skip
+        for index in range(count):
+            message = {**JOINTS, "position": [float(index), 0.0, 0.0]}
+            writer.write_message("/joint_states", schema, message, log_time=index * 1_000_000, publish_time=0)
+        writer.finish()
+
+
+def converted(out: Path) -> list[int]:
+    """The log's event times, in milliseconds (the bag's message indices)."""
+    return [event.timestamp_us // 1000 for event in read_log(out)]
+
+
+def damage_line(stderr: str) -> str:
+    [line] = [line for line in stderr.splitlines() if "is damaged" in line]
+    return line
+
+
+def test_an_mcap_cut_mid_chunk_converts_its_whole_chunks_and_exits_1(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from mcap.reader import make_reader
+
+    whole = tmp_path / "whole.mcap"
+    joint_states_mcap(whole, 300)
+    with whole.open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None and len(summary.chunk_indexes) > 4
+    chunk = summary.chunk_indexes[len(summary.chunk_indexes) // 2]
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(whole.read_bytes()[: chunk.chunk_start_offset + chunk.chunk_length // 2])
+    assert main(["convert", str(cut), str(tmp_path / "out.lcmlog")]) == 1
+    before = chunk.message_start_time // 1_000_000  # the messages of the chunks before the cut one
+    assert converted(tmp_path / "out.lcmlog") == list(range(before))
+    line = damage_line(capsys.readouterr().err)
+    assert "cut.mcap: the file ends inside a record" in line and "cut short" in line
+    assert f"the {before} messages before it are converted" in line and "Traceback" not in line
+
+
+def rosbag2_db3(folder: Path, count: int) -> Path:
+    from rosbags.rosbag2 import Writer
+
+    data = serialized("sensor_msgs/msg/JointState", JOINTS)
+    with Writer(folder, version=9) as writer:
+        connection = writer.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=typestore())
+        for index in range(count):
+            writer.write(connection, index * 1_000_000, data)
+    [database] = folder.glob("*.db3")
+    return database
+
+
+def test_a_db3_with_a_damaged_page_converts_the_rows_before_it_and_exits_1(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    database = rosbag2_db3(tmp_path / "bag", 2000)
+    data = bytearray(database.read_bytes())
+    middle = len(data) // 2 // 4096 * 4096  # a page of the messages' table (SQLite's pages are 4 KiB)
+    data[middle : middle + 4096] = b"\xff" * 4096
+    database.write_bytes(bytes(data))
+    assert main(["convert", str(tmp_path / "bag"), str(tmp_path / "out.lcmlog")]) == 1
+    times = converted(tmp_path / "out.lcmlog")
+    assert 0 < len(times) < 2000 and times == list(range(len(times)))
+    line = damage_line(capsys.readouterr().err)
+    assert f"{database.name}: DatabaseError: database disk image is malformed" in line
+    assert f"the {len(times)} messages before it are converted, the rest is lost" in line
+
+
+def test_a_db3_row_that_holds_no_message_is_counted_and_the_rest_converts(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import sqlite3
+
+    database = rosbag2_db3(tmp_path / "bag", 20)
+    with sqlite3.connect(database) as connection:
+        connection.execute("UPDATE messages SET data = 'not bytes' WHERE id = 5")
+    assert main(["convert", str(tmp_path / "bag"), str(tmp_path / "out.lcmlog")]) == 1
+    assert converted(tmp_path / "out.lcmlog") == [index for index in range(20) if index != 4]
+    [line] = [line for line in capsys.readouterr().err.splitlines() if "damaged" in line]
+    assert "/joint_states: 1 rows of the bag are damaged, the first: a row holds int 4000000 as its time and str" in line
+
+
+def test_a_bag_with_nothing_readable_is_refused_with_why(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    whole = tmp_path / "whole.mcap"
+    joint_states_mcap(whole, 3)
+    (tmp_path / "stub.mcap").write_bytes(whole.read_bytes()[:12])
+    assert main(["convert", str(tmp_path / "stub.mcap"), str(tmp_path / "out.lcmlog")]) == 2
+    assert "stub.mcap holds no CDR topic that can be read" in capsys.readouterr().err
+    assert not (tmp_path / "out.lcmlog").exists()
+
+
+def joints_mcap_as(path: Path, compression: str, count: int, chunk_size: int = 2048) -> None:
+    """`count` JointStates by mcap's own writer, chunks compressed as `compression` ("" for none,
+    "unchunked" for messages outside any chunk)."""
+    from mcap.writer import CompressionType, Writer
+
+    data = serialized("sensor_msgs/msg/JointState", JOINTS)
+    msgdef = typestore().generate_msgdef("sensor_msgs/msg/JointState", ros_version=2)[0]
+    kind = {"": CompressionType.NONE, "lz4": CompressionType.LZ4, "zstd": CompressionType.ZSTD}
+    with path.open("wb") as stream:
+        writer = Writer(stream, compression=kind.get(compression, CompressionType.NONE),
+                        use_chunking=compression != "unchunked", chunk_size=chunk_size)  # fmt: skip
+        writer.start(profile="ros2")
+        schema = writer.register_schema("sensor_msgs/msg/JointState", "ros2msg", msgdef.encode())
+        channel = writer.register_channel("/joint_states", "cdr", schema)
+        for index in range(count):
+            writer.add_message(channel, log_time=index * 1_000_000, data=data, publish_time=0)
+        writer.finish()
+
+
+@pytest.mark.parametrize("compression", ["", "lz4", "zstd", "unchunked"])
+def test_mcap_chunks_of_every_compression_and_none_read_alike(tmp_path: Path, compression: str) -> None:
+    joints_mcap_as(tmp_path / "bag.mcap", compression, 50)
+    result = bag_to_lcm(tmp_path / "bag.mcap", tmp_path / "out.lcmlog")
+    assert result.complete and result.written == {"/joint_states": 50}
+    events = list(read_log(tmp_path / "out.lcmlog"))
+    assert [event.timestamp_us // 1000 for event in events] == list(range(50))
+    definitions, wanted = load_ros_definitions(["sensor_msgs/msg/JointState"])
+    encoder = compile_ros_encoders(map_ros_types(definitions, wanted), wanted)["sensor_msgs/msg/JointState"]
+    assert {event.data for event in events} == {encoder.encode(serialized("sensor_msgs/msg/JointState", JOINTS))}
+
+
+def test_a_chunk_whose_crc_does_not_match_ends_the_readable_part(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from mcap.reader import make_reader
+
+    joints_mcap_as(tmp_path / "bag.mcap", "", 200)
+    data = bytearray((tmp_path / "bag.mcap").read_bytes())
+    with (tmp_path / "bag.mcap").open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    chunk = summary.chunk_indexes[2]
+    data[chunk.chunk_start_offset + chunk.chunk_length - 20] ^= 0xFF  # inside a message's numbers
+    (tmp_path / "bad.mcap").write_bytes(bytes(data))
+    assert main(["convert", str(tmp_path / "bad.mcap"), str(tmp_path / "out.lcmlog")]) == 1
+    before = chunk.message_start_time // 1_000_000
+    assert converted(tmp_path / "out.lcmlog") == list(range(before))
+    assert "bad.mcap: ValueError: a chunk's CRC-32 does not match its records" in damage_line(capsys.readouterr().err)

@@ -64,6 +64,7 @@ def write_seeds(folder: Path) -> dict[str, int]:
     seeds.update(zenoh_seeds())
     seeds.update(foxglove_seeds())
     seeds.update(lcm_type_seeds())
+    seeds["ros_cdr_to_lcm"] = ros_cdr_seeds()
     for kind, inputs in seeds.items():
         (folder / kind).mkdir(parents=True, exist_ok=True)
         for data in inputs:
@@ -205,6 +206,20 @@ def _request(origin: str | None) -> bytes:
              "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==", "Sec-WebSocket-Version: 13",
              "Sec-WebSocket-Protocol: foxglove.websocket.v1, foxglove.sdk.v1"]  # fmt: skip
     return "\r\n".join(lines + ([f"Origin: {origin}"] if origin else []) + ["", ""]).encode()
+
+
+def ros_cdr_seeds() -> list[bytes]:
+    """CDR of each of the ROS 2 target's types (a type-choosing byte, then the CDR), as
+    mcap-ros2-support writes it (the test bag's messages) and, for the wstrings, as Fast DDS does."""
+    from tests.fuzz.targets import ROS_TYPES
+    from tests.lcmcodec.ros_bag import SAMPLES
+    from tests.lcmcodec.test_ros_cdr import note_cdr, serialized
+
+    seeds = [bytes([ROS_TYPES.index("my_robot/msg/Note")]) + note_cdr()]
+    for _, ros_type, message in SAMPLES:
+        if ros_type in ROS_TYPES:
+            seeds.append(bytes([ROS_TYPES.index(ros_type)]) + serialized(ros_type, message))
+    return seeds
 
 
 def lcm_type_seeds() -> Seeds:

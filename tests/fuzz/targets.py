@@ -18,6 +18,7 @@ This module imports `bridge` at its top on purpose: the fuzz runner imports it i
 
 from __future__ import annotations
 
+import functools
 import inspect
 import json
 import re
@@ -52,7 +53,10 @@ from viewer_bridge.formats.ign.model import scene_from_model
 from viewer_bridge.formats.ign.schema import MESSAGES
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr
 from viewer_bridge.lcmcodec import CODECS, LOAD_ROBOT, STRUCTS, VIEWER2_COMMS, StructCodec
+from viewer_bridge.lcmcodec.cdr_to_lcm import LcmEncoder
+from viewer_bridge.lcmcodec.from_ros import load_ros_definitions, map_ros_types
 from viewer_bridge.lcmcodec.library import LcmType, TypeLibrary
+from viewer_bridge.lcmcodec.ros_cdr import compile_ros_encoders
 from viewer_bridge.lcmcodec.rosmsg import map_to_ros
 from viewer_bridge.lcmcodec.schema import check_references, parse_lcm
 from viewer_bridge.model.skipped import collecting
@@ -514,6 +518,52 @@ def lcm_back_json(data: bytes) -> object:
 
 register(Target("lcm_back_cdr", lcm_back_cdr, (DecodeError,), ("lcm_back_cdr",)))
 register(Target("lcm_back_json", lcm_back_json, (JsonValueError,), ("lcm_back_json",)))
+
+
+# --- any ROS 2 type onto LCM: ROS 2 CDR -> LCM (docs/PROTOCOLS.md section 14) ----------------------------
+
+# Sequences of numbers, strings and structs, bounded ones, uint64, bools, wstrings, byte arrays.
+ROS_TYPES = ("sensor_msgs/msg/JointState", "my_robot/msg/Gripper", "my_robot/msg/Note", "nav_msgs/msg/Odometry",
+             "sensor_msgs/msg/Image")  # fmt: skip
+_ROS_MSGS = Path(__file__).resolve().parent.parent / "lcmcodec" / "ros_msgs"
+
+
+@functools.cache
+def _ros_encoders() -> tuple[dict[str, LcmEncoder], dict[str, LcmEncoder], TypeLibrary]:
+    """The encoders of ROS_TYPES with their kept layouts and without, and the generated `.lcm`
+    types loaded as any LCM type is (the oracle: what is written must decode as its type). Made
+    at the first input, not at import: every other target's process imports this module too.
+    Under the fuzzer, the code generated for them is instrumented as well."""
+    definitions, _ = load_ros_definitions([str(_ROS_MSGS)])
+    mapping = map_ros_types(definitions, ROS_TYPES)
+    folder = Path(tempfile.mkdtemp(prefix="fuzz-ros-lcm-"))
+    mapping.write(folder)
+    kept, generated = compile_ros_encoders(mapping, ROS_TYPES), compile_ros_encoders(mapping, ROS_TYPES, keep_layouts=False)
+    atheris = sys.modules.get("atheris")
+    for encoder in [*kept.values(), *generated.values()] if atheris is not None else ():
+        for value in list(encoder._body.__globals__.values()):
+            if inspect.isfunction(value) and value.__code__.co_filename.startswith("<ros cdr"):
+                atheris.instrument_func(value)
+    return kept, generated, TypeLibrary.load([str(folder)], drake=False)
+
+
+def ros_cdr_to_lcm(data: bytes) -> object:
+    """The first byte picks a type of ROS_TYPES, the rest is its CDR (header included) as a bag or
+    a ROS 2 publisher holds it. Only `DecodeError` may come out (no IndexError, struct.error, nor an
+    allocation for a count of 2^31 elements: the RSS limit catches one); what is taken is the same
+    with the kept layouts as with the generated code alone, and is LCM of the type."""
+    kept, generated, library = _ros_encoders()
+    name = ROS_TYPES[data[0] % len(ROS_TYPES)] if data else ROS_TYPES[0]
+    cdr = data[1:]
+    lcm = kept[name].encode(cdr)
+    if generated[name].encode(cdr) != lcm:
+        raise AssertionError("the kept layout and the generated code disagree")
+    if len(lcm) <= _ORACLE_DECODE_LIMIT:
+        library.type_of(lcm).to_json(lcm)
+    return lcm
+
+
+register(Target("ros_cdr_to_lcm", ros_cdr_to_lcm, (DecodeError,), ("ros_cdr_to_lcm",)))
 
 
 # --- the Foxglove front: what a client sends, read along; a request's head at the door -------------------

@@ -149,9 +149,41 @@ def test_bad_cdr_is_a_decode_error_naming_the_field(
     encoders: dict[str, LcmEncoder], ros_type: str, damage: Any, field: str, reason: str
 ) -> None:
     data = serialized(ros_type, JOINTS if ros_type.startswith("sensor") else GRIPPER)
+    encoders[ros_type].encode(data)  # its layout is kept: a damaged message of its size meets it first
     with pytest.raises(DecodeError) as caught:
         encoders[ros_type].encode(damage(data))
     assert caught.value.field == field and reason in caught.value.reason, caught.value
+
+
+def outcome(encoder: LcmEncoder, data: bytes) -> bytes | str:
+    try:
+        return encoder.encode(data)
+    except DecodeError as error:
+        return str(error)
+
+
+@pytest.mark.parametrize("ros_type", ["sensor_msgs/msg/JointState", "my_robot/msg/Gripper"])
+def test_kept_layouts_agree_with_the_generated_code(mapping: LcmFromRos, ros_type: str) -> None:
+    """A message of a kept layout's size, its bytes changed anywhere (counts, lengths, NULs, bools,
+    a uint64's top bit, a string's UTF-8), converts or fails as the generated code alone says."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    data = serialized(ros_type, JOINTS if ros_type.startswith("sensor") else GRIPPER)
+    [kept] = compile_ros_encoders(mapping, [ros_type]).values()
+    assert kept.encode(data) == kept.encode(data) and len(kept._layouts) == 1
+    generated = compile_ros_encoders(mapping, [ros_type], keep_layouts=False)[ros_type]
+
+    @given(st.lists(st.tuples(st.integers(0, len(data) - 1), st.integers(0, 255)), max_size=3))
+    @settings(max_examples=300, deadline=None)
+    def check(changes: list[tuple[int, int]]) -> None:
+        changed = bytearray(data)
+        for index, value in changes:
+            changed[index] = value
+        assert outcome(kept, bytes(changed)) == outcome(generated, bytes(changed))
+
+    check()
+    assert len(kept._layouts) == 1  # every message of that size met the kept layout first
 
 
 def test_bad_bools_scalars_and_wstrings_are_decode_errors(encoders: dict[str, LcmEncoder]) -> None:
@@ -186,3 +218,32 @@ def test_rclpy_cdr_gives_the_same_lcm_bytes(encoders: dict[str, LcmEncoder]) -> 
     ]:  # fmt: skip
         ours = encoders[ros_type].encode(rclpy_serialization.serialize_message(ros_message))
         assert ours == encoders[ros_type].encode(serialized(ros_type, values))
+
+
+_HUGE = 0x7FFFFFFF
+_EMPTY_HEADER = b"\x00\x01\x00\x00" + struct.pack("<iII", 1, 2, 1) + b"\0\0\0\0"  # stamp, frame_id ""
+
+
+@pytest.mark.parametrize(
+    ("ros_type", "cdr", "field"),
+    [
+        ("sensor_msgs/msg/JointState", _EMPTY_HEADER + struct.pack("<I", _HUGE), "name"),
+        ("sensor_msgs/msg/JointState", _EMPTY_HEADER + struct.pack("<II", 0, _HUGE) + bytes(16), "position"),
+        ("my_robot/msg/Note", b"\x00\x01\x00\x00" + struct.pack("<I3sxI", 3, b"hi\0", _HUGE) + bytes(8), "note"),
+        ("my_robot/msg/Note", b"\x00\x01\x00\x00" + struct.pack("<I3sxIII", 3, b"hi\0", 0, _HUGE, 1), "more"),
+    ],
+)  # fmt: skip
+def test_a_count_of_2_31_elements_is_refused_before_anything_is_allocated(
+    encoders: dict[str, LcmEncoder], ros_type: str, cdr: bytes, field: str
+) -> None:
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        with pytest.raises(DecodeError) as caught:
+            encoders[ros_type].encode(cdr)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert caught.value.field == field and "2147483647" in caught.value.reason, caught.value
+    assert peak < 1 << 20

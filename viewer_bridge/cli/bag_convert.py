@@ -36,7 +36,8 @@ def wanted(args: Any) -> bool:
 
 
 def run(args: Any) -> int:
-    """Convert; print messages per topic, then each topic left out and each with bad messages."""
+    """Convert; print messages per topic, then each topic left out and each with bad messages; a
+    damaged bag (cut short, rows that hold no message) exits 1, having converted what it could."""
     result = bag_to_lcm(args.log, args.mcap, topics=args.topics, lcm_types_out=args.lcm_types_out, force=args.force)
     for topic, channel in result.channels.items():
         print(f"{result.written[topic]:8d}  {topic} -> {channel}")
@@ -45,6 +46,12 @@ def run(args: Any) -> int:
     for topic, count in result.bad.items():
         print(f"viewer-bridge convert: {topic}: {count} messages did not convert, the first: {result.first_error[topic]}",
               file=sys.stderr)  # fmt: skip
+    for topic, count in result.damaged.items():
+        print(f"viewer-bridge convert: {topic}: {count} rows of the bag are damaged, the first: "
+              f"{result.first_damage[topic]}",
+              file=sys.stderr)  # fmt: skip
+    if result.cut is not None:
+        print(f"viewer-bridge convert: {args.log} is damaged: {result.cut}", file=sys.stderr)
     for path in result.lcm_files:
         print(path)
-    return 0
+    return 0 if result.complete else 1

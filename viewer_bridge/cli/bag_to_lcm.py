@@ -17,12 +17,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from viewer_bridge.cli.bag_files import DirectReader, cut_reason
 from viewer_bridge.errors import ConvertError, DecodeError
 from viewer_bridge.lcmcodec.from_ros import LcmFromRos, definitions_from_msgdef, map_ros_types
 from viewer_bridge.lcmcodec.ros_cdr import compile_ros_encoders
 from viewer_bridge.transports.lcm import LcmEvent, write_log
 
 __all__ = ["BagConversion", "bag_to_lcm", "channel_of", "is_ros_bag"]
+
+# Messages up to this size are handed over as bytes (the encoders' kept layouts read bytes); a larger
+# one is read where the reader has it (a view into the file), and copied once, into its LCM message.
+_COPY_UP_TO = 16384
 
 
 @dataclass
@@ -35,6 +40,14 @@ class BagConversion:
     skipped: dict[str, str] = field(default_factory=dict)  # topic -> why it has no channel
     channels: dict[str, str] = field(default_factory=dict)  # topic -> LCM channel
     lcm_files: list[Path] = field(default_factory=list)
+    damaged: Counter[str] = field(default_factory=Counter)  # by topic: rows whose stored values are no message
+    first_damage: dict[str, str] = field(default_factory=dict)  # by topic
+    cut: str | None = None  # where the bag's readable part ends, when it ends before the bag does
+
+    @property
+    def complete(self) -> bool:
+        """Whether every message the bag stores was read (converted, or refused as a bad message)."""
+        return self.cut is None and not self.damaged
 
 
 def is_ros_bag(path: str | Path) -> bool:
@@ -55,19 +68,14 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
                force: bool = False) -> BagConversion:  # fmt: skip
     """Convert the topics of `bag` (those whose name fully matches the regex `topics`, default all)
     into the LCM log `out`; write the `.lcm` files of their types under `lcm_types_out` if given.
-    Raises `ConvertError` before writing anything when `out` exists (unless `force`) or no topic maps."""
-    from rosbags.rosbag2 import Reader, ReaderError
-
+    Raises `ConvertError` before writing anything when `out` exists (unless `force`) or no topic maps.
+    A damaged bag is converted as far as it can be read: `result.cut` and `result.damaged` say what was not."""
     target = Path(out)
     if target.exists() and not force:
         raise ConvertError(f"{target} exists (--force replaces it)")
     result = BagConversion()
     pattern = re.compile(topics) if topics is not None else None
-    try:
-        reader = Reader(Path(bag))
-        reader.open()
-    except ReaderError as error:
-        raise ConvertError(f"{bag} is not a ROS 2 bag rosbags can read: {error}") from None
+    reader = _open(Path(bag))
     try:
         connections = [c for c in reader.connections if pattern is None or pattern.fullmatch(c.topic)]
         definitions, unreadable = _definitions(connections)
@@ -78,8 +86,11 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
             raise ConvertError(f"no topic of {bag} maps onto LCM: {reasons}")
         encoders = compile_ros_encoders(mapping, dict.fromkeys(c.msgtype for c in chosen))
         by_id = {c.id: (c.topic, result.channels[c.topic], encoders[c.msgtype]) for c in chosen}
-        events = _events(reader.messages(connections=chosen), by_id, result)
+        events = _events(_readable(reader, chosen, result), by_id, result)
         write_log(target, events)
+        if result.cut is not None:
+            read = sum(result.written.values()) + sum(result.bad.values()) + sum(result.damaged.values())
+            result.cut += f"; the {read} messages before it are converted, the rest is lost"
     finally:
         reader.close()
     if lcm_types_out is not None:  # the types of the topics written, and what they nest
@@ -87,6 +98,41 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
         mapping.texts = {name: text for name, text in mapping.texts.items() if name in keep}
         result.lcm_files = mapping.write(Path(lcm_types_out))
     return result
+
+
+def _open(bag: Path) -> Any:
+    """The reader of `bag`: an MCAP file's own (`bag_files`: in place, and as far as it is
+    readable); rosbags' for a rosbag2 folder (its metadata, any storage), and when it refuses a
+    damaged one (a `.db3` with a damaged page), the folder's files read directly."""
+    from rosbags.rosbag2 import Reader, ReaderError
+
+    if bag.is_file():
+        direct = DirectReader(bag)
+        if not direct.connections:
+            raise ConvertError(f"{bag} holds no CDR topic that can be read: {direct.cut or 'none is recorded'}")
+        return direct
+    try:
+        reader = Reader(bag)
+        reader.open()
+        return reader
+    except ReaderError as error:
+        refused = error
+    direct = DirectReader(bag)
+    if not direct.connections:
+        unreadable = f"; nothing of it is readable: {direct.cut}" if direct.cut else ""
+        raise ConvertError(f"{bag} is not a ROS 2 bag rosbags can read: {refused}{unreadable}") from None
+    return direct
+
+
+def _readable(reader: Any, connections: list[Any], result: BagConversion) -> Iterator[tuple[Any, Any, Any]]:
+    """The reader's messages up to the first it cannot read: whatever it raises there (rosbags,
+    sqlite, a decompressor), the bag is unreadable from that point on; `result.cut` says why."""
+    try:
+        yield from reader.messages(connections=connections)
+    except Exception as error:  # noqa: BLE001 - any reader's damage ends the readable part
+        result.cut = cut_reason(error)
+    if result.cut is None:
+        result.cut = getattr(reader, "cut", None)  # the direct reader stops by itself and says where
 
 
 def _definitions(connections: list[Any]) -> tuple[dict[str, tuple[list[Any], list[Any]]], dict[str, str]]:
@@ -126,17 +172,33 @@ def _channels(connections: list[Any], refused: dict[str, str], result: BagConver
     return chosen
 
 
-def _events(messages: Iterator[tuple[Any, int, bytes]], by_id: dict[int, Any], result: BagConversion) -> Iterator[LcmEvent]:
-    for connection, timestamp_ns, data in messages:
-        topic, channel, encoder = by_id[connection.id]
-        try:
-            lcm = encoder.encode(bytes(data))
-        except DecodeError as error:  # one bad message: counted, and the rest go on
-            result.bad[topic] += 1
-            result.first_error.setdefault(topic, str(error))
-            continue
-        result.written[topic] += 1
-        yield LcmEvent(channel, lcm, timestamp_ns // 1000)
+def _events(messages: Iterator[tuple[Any, Any, Any]], by_id: dict[int, Any], result: BagConversion) -> Iterator[LcmEvent]:
+    counts = dict.fromkeys((topic for topic, _, _ in by_id.values()), 0)  # per message; into `result` at the end
+    try:
+        for connection, timestamp_ns, data in messages:
+            topic, channel, encoder = by_id[connection.id]
+            if type(timestamp_ns) is not int or type(data) not in _DATA:  # sqlite keeps any type in any column
+                _damaged(result, topic, timestamp_ns, data)
+                continue
+            try:
+                lcm = encoder.encode(bytes(data) if len(data) <= _COPY_UP_TO else data)
+            except DecodeError as error:  # one bad message: counted, and the rest go on
+                result.bad[topic] += 1
+                result.first_error.setdefault(topic, str(error))
+                continue
+            counts[topic] += 1
+            yield LcmEvent(channel, lcm, timestamp_ns // 1000)
+    finally:
+        result.written.update({topic: count for topic, count in counts.items() if count})
+
+
+_DATA = (bytes, memoryview)
+
+
+def _damaged(result: BagConversion, topic: str, timestamp_ns: object, data: object) -> None:
+    result.damaged[topic] += 1
+    result.first_damage.setdefault(topic, f"a row holds {type(timestamp_ns).__name__} {timestamp_ns!r:.20} as its "
+                                          f"time and {type(data).__name__} as its data")  # fmt: skip
 
 
 def _nested(mapping: LcmFromRos, names: set[str]) -> set[str]:

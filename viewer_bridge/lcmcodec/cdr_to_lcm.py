@@ -25,6 +25,7 @@ after the 4-byte encapsulation header):
 
 from __future__ import annotations
 
+import functools
 import math
 import struct
 from collections.abc import Callable, Iterable, Mapping
@@ -37,7 +38,7 @@ from viewer_bridge.lcmcodec.codegen import U32_LE, Buffer, StructWriter, scalar_
 from viewer_bridge.lcmcodec.rosnames import field_name
 from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
 
-__all__ = ["LcmEncoder", "compile_encoders"]
+__all__ = ["Layout", "LcmEncoder", "compile_encoders", "items"]
 
 _CDR_LE = b"\x00\x01"
 _HEADER = 4
@@ -62,24 +63,29 @@ class LcmEncoder:
     names what is wrong."""
 
     def __init__(self, type_name: str, packed_fingerprint: bytes, body: Callable[[Any, int, int, list[Any]], int],
-                 definition: StructDef | None = None) -> None:  # fmt: skip
+                 learn: Callable[[bytes], Layout | None] | None = None) -> None:  # fmt: skip
         self.type_name = type_name
         self.packed_fingerprint = packed_fingerprint
         self._body = body
-        self._flat = definition if definition is not None and _numbers_only(definition) else None
-        self._layouts: dict[int, _Layout] = {}
+        self._learn = learn  # the layout of a message the generated code has passed, if the type has one
+        self._layouts: dict[int, Layout] = {}
 
     def encode(self, data: Buffer) -> bytes:
         """A whole CDR message (encapsulation header first) as the whole LCM message."""
         layout = self._layouts.get(len(data)) if type(data) is bytes else None
         if layout is not None:
-            read, key, expected, bools, write = layout
+            read, key, expected, bools, texts, write = layout
             values = read(data)
             if key(values) == expected and (bools is None or max(bools(values)) <= 1):
-                return self.packed_fingerprint + write(*values)
+                try:
+                    if texts is not None:  # joined by NULs: a character cut at the end of one is no whole one
+                        str(b"\0".join(texts(values)), "utf-8")
+                    return self.packed_fingerprint + write(*values)
+                except (UnicodeDecodeError, struct.error):  # or a uint64 from 2^63: the generated code names it
+                    pass
         lcm = self._encode(data)
-        if self._flat is not None and type(data) is bytes and len(self._layouts) < _LAYOUTS:
-            found = _layout(self._flat, data)
+        if self._learn is not None and type(data) is bytes and len(self._layouts) < _LAYOUTS:
+            found = self._learn(data)
             if found is not None:
                 self._layouts[len(data)] = found
         return lcm
@@ -110,19 +116,25 @@ _LAYOUTS = 16  # sizes kept per type (a robot sends one or two)
 _LAYOUT_VALUES = 256  # beyond this many numbers, the generated code's byte swap is faster
 
 
-class _Layout(NamedTuple):  # a tuple: unpacked at once on the fast path
+class Layout(NamedTuple):  # a tuple: unpacked at once on the fast path
+    """Where every value of the CDR messages of one size and shape is, kept once one has passed the
+    generated code: a message of that size whose `key` values are `expected` (header, counts,
+    lengths: the shape) has the same layout, and is valid if its `bools` are 0 or 1, its `texts`
+    UTF-8 and `write` takes every value."""
+
     read: Callable[[Buffer], tuple[Any, ...]]  # every value of the whole CDR message, header first
     key: Callable[[tuple[Any, ...]], tuple[Any, ...]]  # the header, counts and length fields
     expected: tuple[Any, ...]
-    bools: Callable[[tuple[Any, ...]], Any] | None
-    write: Callable[..., bytes]  # all of them again, as LCM: the header and counts as nothing ("0s")
+    bools: Callable[[tuple[Any, ...]], tuple[int, ...]] | None  # each must be 0 or 1
+    texts: Callable[[tuple[Any, ...]], tuple[bytes, ...]] | None  # each string's bytes: must be UTF-8
+    write: Callable[..., bytes]  # all of them again, as LCM (what LCM does not have as "0s": nothing)
 
 
 def _numbers_only(definition: StructDef) -> bool:
     return bool(definition.members) and all(member.type_name in PRIMITIVE_FORMATS for member in definition.members)
 
 
-def _layout(definition: StructDef, data: Buffer) -> _Layout | None:
+def _layout(definition: StructDef, data: bytes) -> Layout | None:
     """The layout of `data`, a valid CDR message of `definition` (numbers only), or None when it
     holds too many numbers (or too few to be worth it). The header and the sequence counts are
     read as bytes ("2s", "4s") so that the big-endian `struct` can take them and write nothing
@@ -161,13 +173,21 @@ def _layout(definition: StructDef, data: Buffer) -> _Layout | None:
         numbers += count
     if not 2 <= numbers <= _LAYOUT_VALUES:
         return None
-    return _Layout(
+    return Layout(
         read=struct.Struct(little).unpack_from,
         key=itemgetter(*key),
         expected=tuple(expected),
-        bools=itemgetter(*(bools * 2)) if bools else None,  # twice: a tuple even for one bool
+        bools=items(bools),
+        texts=None,
         write=struct.Struct(big).pack,
     )
+
+
+def items(indices: list[int]) -> Callable[[tuple[Any, ...]], tuple[Any, ...]] | None:
+    """The values at `indices` as a tuple, even for one (`itemgetter` gives that one alone); None for none."""
+    if not indices:
+        return None
+    return itemgetter(*(indices * 2)) if len(indices) == 1 else itemgetter(*indices)
 
 
 # --- what the generated code calls when something is wrong, or for whole values ----------------------
@@ -346,4 +366,9 @@ def compile_encoders(
         **{f"_swap{size}": codegen.swapped(size) for size in (2, 4, 8)},
     }
     bodies = codegen.compile_generated(structs, list(names), "C", _Generator, helpers, "<cdr -> lcm encoders>")
-    return {name: LcmEncoder(name, fingerprints[name], body, structs[name]) for name, body in bodies.items()}
+    return {name: LcmEncoder(name, fingerprints[name], body, _learner(structs[name])) for name, body in bodies.items()}
+
+
+def _learner(definition: StructDef) -> Callable[[bytes], Layout | None] | None:
+    """What finds the layout of a valid message of `definition`: only a type of numbers has one."""
+    return functools.partial(_layout, definition) if _numbers_only(definition) else None

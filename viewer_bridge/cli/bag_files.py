@@ -1,0 +1,266 @@
+"""A ROS 2 bag's storage files read directly, for `convert BAG OUT.lcmlog` (bag_to_lcm.py).
+
+An MCAP file is read here record by record from its start (mcap.dev's specification), mapped into
+memory: a message is a view into the file, so a byte of an image is copied once, into its LCM
+message (rosbags copies it five times: 2-3x slower on an image bag), and the messages come in
+the file's order, as they were recorded. A `.db3` is read row by row in the order it was written
+(Python's sqlite3). Both read up to the first record or row that is cut or damaged, and say in
+`cut` where they stopped: rosbags reads a whole bag or refuses it, and an MCAP file cut short (a
+recording killed mid-chunk: no summary, no end magic) or a `.db3` with a damaged page still hold
+messages. The reader gives what rosbags' does: connections, then `(connection, log time ns, data)`.
+"""
+
+from __future__ import annotations
+
+import os
+import sqlite3
+import struct
+import sys
+import zlib
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+__all__ = ["DirectReader", "cut_reason"]
+
+
+@dataclass(frozen=True)
+class MessageDefinition:
+    data: str  # the `ros2msg` text, as rosbags' `MessageDefinition.data`
+
+
+@dataclass(frozen=True)
+class Connection:
+    """A topic as rosbags' `Connection` gives what bag_to_lcm reads of it."""
+
+    id: int
+    topic: str
+    msgtype: str
+    msgdef: MessageDefinition
+
+
+class CutShort(Exception):
+    """A storage file that ends before its last record does."""
+
+
+def cut_reason(error: BaseException) -> str:
+    """What a reader's error says, in one line."""
+    text = " ".join(str(error).split()) or "no detail"
+    return text if isinstance(error, CutShort) else f"{type(error).__name__}: {text}"
+
+
+class DirectReader:
+    """The readable part of the MCAP files or `.db3` files of `bag` (an MCAP file or a rosbag2
+    folder). `connections` is every topic met before any damage; `messages` yields up to it and
+    then sets `cut` (None while nothing is cut)."""
+
+    def __init__(self, bag: Path) -> None:
+        self.files = _storage_files(bag)
+        self.cut: str | None = None
+        self.connections: list[Connection] = []
+        for _ in self._read(None):
+            pass
+        self.cut = None  # said again when the messages are read
+
+    def messages(self, connections: list[Any]) -> Iterator[tuple[Any, int, bytes | memoryview]]:
+        return self._read({connection.id for connection in connections})
+
+    def close(self) -> None:
+        """Nothing stays open between reads."""
+
+    def _read(self, wanted: set[int] | None) -> Iterator[tuple[Connection, int, bytes | memoryview]]:
+        """The messages of the connections `wanted` (None: none, the connections are found)."""
+        known: dict[tuple[str, str, str], Connection] = {}  # the same topic in several files: one connection
+        for path in self.files:
+            read = _db3 if path.suffix == ".db3" else _mcap
+            try:
+                yield from read(path, known, self.connections, wanted)
+            except Exception as error:  # noqa: BLE001 - whatever the damage, the rest of the bag is unreadable
+                self.cut = f"{path.name}: {cut_reason(error)}"
+                return
+
+
+def _storage_files(bag: Path) -> list[Path]:
+    """The storage files of a bag: itself, or a rosbag2 folder's `.mcap`/`.db3` files in their
+    order (`bag_0`, `bag_1`, ..., `bag_10`: by the number that ends the name)."""
+    if bag.is_file():
+        return [bag]
+
+    def order(path: Path) -> tuple[int, str]:
+        digits = path.stem.rsplit("_", 1)[-1]
+        return (int(digits) if digits.isdigit() else -1, path.name)
+
+    return sorted((p for p in bag.iterdir() if p.suffix in (".mcap", ".db3")), key=order)
+
+
+def _connection(known: dict[tuple[str, str, str], Connection], found: list[Connection], topic: str, msgtype: str,
+                definition: str) -> Connection:  # fmt: skip
+    key = (topic, msgtype, definition)
+    if key not in known:
+        known[key] = Connection(len(known), topic, msgtype, MessageDefinition(definition))
+        found.append(known[key])
+    return known[key]
+
+
+def _mcap(path: Path, known: dict[tuple[str, str, str], Connection], found: list[Connection],
+          wanted: set[int] | None) -> Iterator[tuple[Connection, int, bytes | memoryview]]:  # fmt: skip
+    """An MCAP file's messages in the file's order, each a view into the record read from the file:
+    a byte of an image is copied from the file once, and once more into its LCM message. The MCAP
+    records (mcap.dev's specification): opcode, uint64 length, content, all little-endian."""
+    schemas: dict[int, tuple[str, str]] = {}  # id -> (name, ros2msg text)
+    channels: dict[int, Connection] = {}
+    with path.open("rb") as stream:
+        if stream.read(len(_MAGIC)) != _MAGIC:
+            raise ValueError("it does not start with MCAP's magic bytes")
+        for op, record in _file_records(stream, os.fstat(stream.fileno()).st_size):
+            if op == _OP_CHUNK:
+                yield from _chunk_messages(_chunk_records(record), schemas, channels, known, found, wanted)
+            elif op == _OP_MESSAGE:
+                message = _message(record, 0, len(record), channels, wanted)
+                if message is not None:
+                    yield message
+            elif op == _OP_DATA_END:
+                return
+            else:
+                _definition(op, record, schemas, channels, known, found)
+
+
+def _chunk_messages(records: memoryview, schemas: dict[int, tuple[str, str]], channels: dict[int, Connection],
+                    known: dict[tuple[str, str, str], Connection], found: list[Connection],
+                    wanted: set[int] | None) -> Iterator[tuple[Connection, int, memoryview]]:  # fmt: skip
+    """The messages among a chunk's records, each a view into them; schemas and channels remembered."""
+    at, end = 0, len(records)
+    while at < end:  # a loop here, not a generator of records: a chunk may hold thousands of messages
+        if at + _RECORD.size > end:
+            raise ValueError(f"a chunk ends inside a record's opcode and length, at its byte {at}")
+        op, length = _RECORD.unpack_from(records, at)
+        start, at = at + _RECORD.size, at + _RECORD.size + length
+        if at > end:
+            raise ValueError(f"a chunk's record of {length} bytes runs past the chunk's end")
+        if op != _OP_MESSAGE:
+            _definition(op, records[start:at], schemas, channels, known, found)
+            continue
+        message = _message(records, start, at, channels, wanted)
+        if message is not None:
+            yield message
+
+
+def _message(records: memoryview, start: int, stop: int, channels: dict[int, Connection],
+             wanted: set[int] | None) -> tuple[Connection, int, memoryview] | None:  # fmt: skip
+    """The message record at `start` as (connection, log time, its data), if its channel is wanted."""
+    if not wanted or stop - start < _MESSAGE.size:
+        return None
+    channel_id, _, log_time, _ = _MESSAGE.unpack_from(records, start)
+    connection = channels.get(channel_id)
+    if connection is None or connection.id not in wanted:
+        return None
+    return connection, log_time, records[start + _MESSAGE.size : stop]
+
+
+def _file_records(stream: Any, size: int) -> Iterator[tuple[int, memoryview]]:
+    """The records of an MCAP file from where `stream` is, each read whole (a length past the
+    file's end is refused before anything is read: no allocation for a made-up length)."""
+    while True:
+        head = stream.read(_RECORD.size)
+        if not head:
+            return
+        at = stream.tell() - len(head)
+        if len(head) < _RECORD.size:
+            raise CutShort(f"the file ends inside a record, at byte {size}: it was cut short")
+        op, length = _RECORD.unpack(head)
+        if length > size - at - _RECORD.size:
+            raise CutShort(f"the file ends inside a record of {length} bytes at byte {at}: it was cut short")
+        yield op, memoryview(stream.read(length))
+
+
+def _definition(op: int, record: memoryview, schemas: dict[int, tuple[str, str]], channels: dict[int, Connection],
+                known: dict[tuple[str, str, str], Connection], found: list[Connection]) -> None:  # fmt: skip
+    """A schema or channel record, remembered; any other record but a message means nothing here."""
+    if op == _OP_SCHEMA:
+        (schema_id,) = _U16.unpack_from(record)
+        name, at = _string(record, 2)
+        encoding, at = _string(record, at)
+        text = bytes(_sized(record, at, 4)).decode("utf-8", "replace") if encoding == "ros2msg" else ""
+        schemas[schema_id] = (name, text)
+    elif op == _OP_CHANNEL:
+        channel_id, schema_id = _U16_U16.unpack_from(record)
+        topic, at = _string(record, 4)
+        encoding, _ = _string(record, at)
+        if encoding == "cdr" and schema_id in schemas:
+            channels[channel_id] = _connection(known, found, topic, *schemas[schema_id])
+
+
+_MAGIC = b"\x89MCAP0\r\n"
+_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_DATA_END = 0x03, 0x04, 0x05, 0x06, 0x0F
+_RECORD = struct.Struct("<BQ")
+_MESSAGE = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time; then the data
+_CHUNK = struct.Struct("<QQQI")  # start time, end time, uncompressed size, uncompressed CRC-32 (0: none)
+_U16, _U16_U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<HH"), struct.Struct("<I"), struct.Struct("<Q")
+
+
+def _chunk_records(chunk: memoryview) -> memoryview:
+    """A chunk's records, decompressed and checked against its size and CRC."""
+    _, _, size, crc = _CHUNK.unpack_from(chunk)
+    compression, at = _string(chunk, _CHUNK.size)
+    records = _sized(chunk, at, 8)
+    if compression == "zstd":
+        records = memoryview(_zstd().decompress(records))
+    elif compression == "lz4":
+        from lz4.frame import decompress  # type: ignore[import-untyped]  # rosbags' dependency
+
+        records = memoryview(decompress(records))
+    elif compression:
+        raise ValueError(f"a chunk is compressed as {compression!r}, which this reader does not know")
+    if len(records) != size:
+        raise ValueError(f"a chunk holds {len(records)} bytes where it says {size}")
+    if crc and zlib.crc32(records) != crc:
+        raise ValueError("a chunk's CRC-32 does not match its records")
+    return records
+
+
+def _zstd() -> Any:
+    if sys.version_info >= (3, 14):
+        from compression import zstd
+    else:
+        from backports import zstd  # rosbags' dependency
+    return zstd
+
+
+def _sized(record: memoryview, at: int, width: int) -> memoryview:
+    """The bytes after a uint32 (`width` 4) or uint64 (8) length at `at`."""
+    (length,) = (_U32 if width == 4 else _U64).unpack_from(record, at)
+    if at + width + length > len(record):
+        raise ValueError(f"a field of {length} bytes runs past its record")
+    return record[at + width : at + width + length]
+
+
+def _string(record: memoryview, at: int) -> tuple[str, int]:
+    """The uint32-prefixed UTF-8 string at `at`, and where it ends."""
+    data = _sized(record, at, 4)
+    return str(data, "utf-8", "replace"), at + 4 + len(data)
+
+
+def _db3(path: Path, known: dict[tuple[str, str, str], Connection], found: list[Connection],
+         wanted: set[int] | None) -> Iterator[tuple[Connection, int, bytes | memoryview]]:  # fmt: skip
+    database = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    try:
+        tables = {row[0] for row in database.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        definitions: dict[str, str] = {}
+        if "message_definitions" in tables:  # rosbag2's schema 4 on
+            query = "SELECT topic_type, encoding, encoded_message_definition FROM message_definitions"
+            definitions = {name: text for name, encoding, text in database.execute(query) if encoding == "ros2msg"}
+        topics = {}
+        for topic_id, topic, msgtype, serialization in database.execute(
+            "SELECT id, name, type, serialization_format FROM topics"
+        ):
+            if serialization == "cdr":
+                topics[topic_id] = _connection(known, found, topic, msgtype, definitions.get(msgtype, ""))
+        if not wanted:
+            return
+        for topic_id, stamp, data in database.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY id"):
+            connection = topics.get(topic_id)
+            if connection is not None and connection.id in wanted:
+                yield connection, stamp, data
+    finally:
+        database.close()
