@@ -358,8 +358,9 @@ def ros_topic_routes(patterns: Sequence[str], routes: Sequence[Route]) -> list[R
         return []
     used = dict.fromkeys(name for route in routes for name in (route.source.transport, route.destination.transport))
     graphs = [name for name in used if TRANSPORTS.get(name).ros_graph] or ["ros"]
+    alternatives = patterns[0] if len(patterns) == 1 else "|".join(f"(?:{pattern})" for pattern in patterns)
     # The whole topic is group 1: a stream (a lane, and its channel) per topic, whatever groups the patterns have.
-    source = "(" + "|".join(f"(?:{pattern})" if len(patterns) > 1 else pattern for pattern in patterns) + ")"
+    source = f"({alternatives})"
     return [
         Route(
             name=f"ros_topics_{transport}",

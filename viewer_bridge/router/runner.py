@@ -60,7 +60,7 @@ class SaidOnce:
             return True
 
 
-Endpoint = tuple[str, str]  # (transport, channel or topic)
+Place = tuple[str, str]  # (transport, channel or topic)
 
 
 class Destinations:
@@ -69,10 +69,10 @@ class Destinations:
     the routes' streams (`max_streams` each)."""
 
     def __init__(self) -> None:
-        self._owners: dict[Endpoint, Endpoint] = {}
+        self._owners: dict[Place, Place] = {}
         self._lock = threading.Lock()  # routes make lanes on their own threads
 
-    def claim(self, destination: Endpoint, source: Endpoint) -> Endpoint:
+    def claim(self, destination: Place, source: Place) -> Place:
         """The source that carries `destination`: `source` if it is the first to ask."""
         with self._lock:
             return self._owners.setdefault(destination, source)
