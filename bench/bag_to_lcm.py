@@ -25,7 +25,8 @@ from common import Measure, Size  # bench/ is on sys.path when run as a script
 from draw_codec import print_measures
 from ros_to_lcm import TYPES, fill_image, fill_joint_state, image, joint_state, lcmgen_classes
 
-from viewer_bridge.cli.bag_to_lcm import bag_to_lcm, channel_of
+from viewer_bridge.cli.bag_to_lcm import bag_to_lcm
+from viewer_bridge.lcmcodec.from_ros import lcm_channel
 from viewer_bridge.lcmcodec.from_ros import load_ros_definitions, map_ros_types
 from viewer_bridge.transports.lcm import LcmEvent, read_log, write_log
 
@@ -64,7 +65,7 @@ def baseline(bag: Path, out: Path, ros_class: Any, lcm_class: Any, fill: Callabl
             message.header.stamp.sec, message.header.stamp.nanosec = ros.header.stamp.sec, ros.header.stamp.nanosec
             message.header.frame_id = ros.header.frame_id
             fill(ros, message)
-            yield LcmEvent(channel_of(connection.topic), message.encode(), stamp // 1000)
+            yield LcmEvent(lcm_channel(connection.topic), message.encode(), stamp // 1000)
 
     with Reader(bag) as reader:
         write_log(out, events(reader))

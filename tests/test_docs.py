@@ -62,6 +62,8 @@ SUBSTITUTIONS: list[tuple[str, str, str]] = [
      "--host 127.0.0.1 --port {port} --max-upload 1000000", "the optional arguments, given; a free port"),
     (r"\./my_lcmtypes", str(ROOT / "tests" / "translators" / "lcm_corpus"), "a lab's types: the tests' corpus"),
     (r"\bmy_lab_lcm_msgs\b", "vbtest_lab_lcm_msgs", "the package of the tests' corpus (package vbtest_lab)"),
+    (r"\binstall/my_robot_msgs/share/my_robot_msgs/msg\b", str(ROOT / "tests/lcmcodec/ros_msgs/my_robot/msg"),
+     "a workspace's installed .msg files: the tests' custom package"),
     (r"\bmy_(lab|geo)\.", "vbtest_\\1.", "the LCM packages of the tests' corpus"),
     (r"rerun\.serve=true", "rerun.serve=true --set rerun.grpc_port=0 --set rerun.web_port=0",
      "free ports: a viewer or another bridge may be serving here"),

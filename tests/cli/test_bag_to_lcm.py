@@ -10,7 +10,8 @@ import pytest
 from tests.lcmcodec.ros_bag import SAMPLES, lcmgen_decode, typestore, write_bag
 from tests.lcmcodec.test_from_ros import lcm_gen_all
 from tests.lcmcodec.test_ros_cdr import serialized
-from viewer_bridge.cli.bag_to_lcm import bag_to_lcm, channel_of
+from viewer_bridge.cli.bag_to_lcm import bag_to_lcm
+from viewer_bridge.lcmcodec.from_ros import lcm_channel
 from viewer_bridge.cli.main import main
 from viewer_bridge.lcmcodec.from_ros import load_ros_definitions, map_ros_types
 from viewer_bridge.lcmcodec.ros_cdr import compile_ros_encoders
@@ -26,7 +27,7 @@ def test_a_bag_becomes_an_lcm_log_lcm_gen_reads(tmp_path: Path, capsys: pytest.C
     printed = capsys.readouterr().out
     assert "       2  /joint_states -> joint_states" in printed and "/camera/image -> camera/image" in printed
     events = list(read_log(out))
-    assert [event.channel for event in events] == [channel_of(topic) for topic, _, _ in SAMPLES]
+    assert [event.channel for event in events] == [lcm_channel(topic) for topic, _, _ in SAMPLES]
     assert [event.timestamp_us for event in events] == [1_000_000 + index * 1000 for index in range(len(SAMPLES))]
     assert lcm_gen_all(types, tmp_path / "gen").returncode == 0
     decoded = lcmgen_decode(tmp_path / "gen" / "py", [("sensor_msgs.JointState", events[0].data),

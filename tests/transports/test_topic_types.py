@@ -44,3 +44,11 @@ def test_any_type_leaves_other_types_alone_and_says_so_once(
             assert types.pick(ANY, "/lcm_in/POSES", [POSES]) is None
     [record] = [r for r in caplog.records if "/lcm_in/POSES" in r.getMessage()]
     assert POSES in record.getMessage() and "no generated LCM type" in record.getMessage()
+
+
+def test_every_type_takes_the_type_its_publishers_announce(types: TopicTypes) -> None:
+    every = MessageType("**", CDR)
+    assert types.pick(every, "/joint_states", ["sensor_msgs/msg/JointState"]) == MessageType(
+        "sensor_msgs/msg/JointState", CDR
+    )
+    assert types.pick(every, "/nothing", []) is None

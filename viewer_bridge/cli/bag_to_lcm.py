@@ -19,11 +19,11 @@ from typing import Any
 
 from viewer_bridge.cli.bag_files import DirectReader, cut_reason
 from viewer_bridge.errors import ConvertError, DecodeError
-from viewer_bridge.lcmcodec.from_ros import LcmFromRos, definitions_from_msgdef, map_ros_types
+from viewer_bridge.lcmcodec.from_ros import LcmFromRos, definitions_from_msgdef, lcm_channel, map_ros_types
 from viewer_bridge.lcmcodec.ros_cdr import compile_ros_encoders
 from viewer_bridge.transports.lcm import LcmEvent, write_log
 
-__all__ = ["BagConversion", "bag_to_lcm", "channel_of", "is_ros_bag"]
+__all__ = ["BagConversion", "bag_to_lcm", "is_ros_bag"]
 
 # Messages up to this size are handed over as bytes (the encoders' kept layouts read bytes); a larger
 # one is read where the reader has it (a view into the file), and copied once, into its LCM message.
@@ -57,11 +57,6 @@ def is_ros_bag(path: str | Path) -> bool:
         return True
     with path.open("rb") as file:
         return file.read(5) == b"\x89MCAP"
-
-
-def channel_of(topic: str) -> str:
-    """The LCM channel of a ROS 2 topic: the topic without its leading `/`."""
-    return topic[1:] if topic.startswith("/") else topic
 
 
 def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, lcm_types_out: str | Path | None = None,
@@ -158,7 +153,7 @@ def _channels(connections: list[Any], refused: dict[str, str], result: BagConver
     chosen = []
     owner: dict[str, str] = {}
     for connection in connections:
-        topic, channel = connection.topic, channel_of(connection.topic)
+        topic, channel = connection.topic, lcm_channel(connection.topic)  # the live routes' rule too
         if connection.msgtype in refused:
             result.skipped[topic] = f"{connection.msgtype}: {refused[connection.msgtype]}"
         elif owner.get(channel, topic) != topic:

@@ -71,6 +71,16 @@ def add_command(add: AddCommand) -> None:
         "may command by publishing on /lcm_in/<channel> (repeatable; default: none, nothing is written)",
     )
     run.add_argument(
+        "--ros-topics",
+        action="append",
+        default=[],
+        type=regex,
+        metavar="REGEX",
+        help="ROS 2 topics (a regular expression matched against the whole name, e.g. '/joint_states|/imu') "
+        "to carry onto LCM, each on the channel named by the topic without its leading / (repeatable; "
+        "default: none)",
+    )
+    run.add_argument(
         "--stats-json",
         type=output_file(),
         metavar="PATH",
@@ -105,7 +115,12 @@ def run(args: argparse.Namespace) -> int:
         return 0
     view = _status_view(args.quiet)
     try:
-        config = load_config(args.config).with_lcm_types(args.lcm_types).allowing_commands(args.allow_commands)
+        config = (
+            load_config(args.config)
+            .with_lcm_types(args.lcm_types)
+            .allowing_commands(args.allow_commands)
+            .with_ros_topics(args.ros_topics)
+        )
         if args.lcm_url:
             config = config.with_settings("lcm", url=args.lcm_url)
         for setting in args.set:

@@ -3,11 +3,16 @@
 A route names a source (a transport and a channel or topic, matched in full as a regular
 expression), a translator (`viewer_bridge.translators.TRANSLATORS`), a destination whose name is a
 template over the source's regex groups (`{1}`; `{1:lower}`; `{1:path}` turns `_PROXIMITY` into
-`/proximity` and `` into ``; `{1:topic}` makes any text a valid ROS name token), QoS, a rate
+`/proximity` and `` into ``; `{1:topic}` makes any text a valid ROS name token; `{1:lcm}` a ROS 2
+topic its LCM channel), QoS, a rate
 policy, `lazy`, and the translator's options. Each transport's settings are the top-level
 section named after it (`lcm:`, `ros:`, `ign:`, or a plugin's name), checked by its own model.
 `lcm_types:` names the LCM types the routes know besides the project's and Drake's (`.lcm` files,
 folders, lcm-gen'd modules; loaded once per router, `viewer_bridge.lcmcodec.library`).
+`ros_topics:` (and `--ros-topics`) names ROS 2 topics to carry onto LCM, each a regex matched in
+full: it makes one route per ROS graph transport the config uses (`ros_topics_<transport>`, `ros`
+when it uses none), source `(REGEX)`, translator `ros_topic_to_lcm`, destination LCM `{1:lcm}`
+(the topic without its leading `/`). Empty by default: nothing is carried unless named.
 The built-in configs (`-c builtin:NAME`; `default` bridges Drake's default channels to ROS 2
 under `/drake`) are the YAML files in `configs/`, shipped with the package and read like a user's.
 
@@ -39,6 +44,7 @@ from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.config.resources import data_dir
 from viewer_bridge.config.yamldoc import KeyPath, YamlDocument
 from viewer_bridge.errors import ConfigError, InvalidName, UnknownName
+from viewer_bridge.lcmcodec.from_ros import lcm_channel
 from viewer_bridge.translators import TRANSLATORS, Translator, TranslatorOptions
 from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import MessageType, Transport, TransportSettings
@@ -121,17 +127,33 @@ class BridgeConfig(BaseModel):
     drake_lcm_types: bool = True  # also Drake's own types (pydrake's `drake` module), when pydrake is installed
     # The LCM channels the way back (ros_to_lcm) may write, and how fresh a command must be.
     commands: CommandPolicy = CommandPolicy()
+    # ROS 2 topics to carry onto LCM (`--ros-topics` adds to these): regexes, each matched in full.
+    ros_topics: list[str] = []
     # Processes the routes run on (`--workers`); 1: the routes run in the bridge's own process.
     workers: int = Field(1, ge=1, le=256)
     routes: list[Route]
     _settings: dict[str, TransportSettings] = PrivateAttr(default_factory=dict)
+    _own_routes: list[Route] = PrivateAttr(default_factory=list)  # the routes but those ros_topics made
+
+    @field_validator("ros_topics")
+    @classmethod
+    def _regular_expressions(cls, patterns: list[str]) -> list[str]:
+        for pattern in patterns:
+            try:
+                re.compile(pattern)
+            except re.error as error:
+                raise ValueError(f"{pattern!r} is not a regular expression: {error}") from None
+        return patterns
 
     @model_validator(mode="after")
     def _check(self, info: ValidationInfo) -> BridgeConfig:
         document = (info.context or {}).get("document")
         check = _Checker(document if isinstance(document, YamlDocument) else None)
         for name, section in (self.model_extra or {}).items():
-            known = "a config key (load_cache, lcm_types, drake_lcm_types, commands, workers, routes) nor a transport"
+            known = (
+                "a config key (load_cache, lcm_types, drake_lcm_types, commands, ros_topics, workers, routes) "
+                "nor a transport"
+            )
             transport = check.transport(name, (name,), known)
             self._settings[name] = check.model(transport.Settings, section or {}, (name,))
         names = [route.name for route in self.routes]
@@ -141,6 +163,14 @@ class BridgeConfig(BaseModel):
                 raise check.error(
                     ("routes", index, "name"), f"route names must be unique: {route.name!r} again"
                 )
+        made = ros_topic_routes(self.ros_topics, self.routes)
+        for route in made:
+            check.route(route, ("ros_topics",))
+            if route.name in names:
+                at = ("routes", names.index(route.name), "name")
+                raise check.error(at, f"{route.name!r} is the name of the route ros_topics makes: rename this one")
+        self._own_routes = list(self.routes)
+        self.routes = [*self.routes, *made]
         for name in self.transports():  # a used transport without a section: is a setting required?
             if name not in self._settings:
                 self._settings[name] = check.model(TRANSPORTS.get(name).Settings, {}, (name,))
@@ -167,11 +197,20 @@ class BridgeConfig(BaseModel):
         """The same config with more LCM types to know (`--lcm-types`) after its `lcm_types`."""
         return self.model_copy(update={"lcm_types": [*self.lcm_types, *sources]}) if sources else self
 
+    def with_ros_topics(self, patterns: list[str]) -> BridgeConfig:
+        """The same config carrying more ROS 2 topics onto LCM (`--ros-topics`) after its `ros_topics`."""
+        return self._checked_again({"ros_topics": [*self.ros_topics, *patterns]}) if patterns else self
+
     def with_settings(self, transport: str, **values: Any) -> BridgeConfig:
         """The same config with some of a transport's settings replaced (e.g. a command line's --lcm-url)."""
-        data = self.model_dump()
-        data[transport] = {**(data.get(transport) or {}), **values}
-        try:  # checked again: a bad value is a ConfigError
+        current = self.model_dump().get(transport) or {}
+        return self._checked_again({transport: {**current, **values}})
+
+    def _checked_again(self, changes: dict[str, Any]) -> BridgeConfig:
+        """This config with `changes` to its top-level keys, checked again (a bad value is a
+        ConfigError); made from its own routes, so that `ros_topics` makes its routes anew."""
+        data = {**self.model_dump(), "routes": [route.model_dump() for route in self._own_routes], **changes}
+        try:
             return BridgeConfig.model_validate(data)
         except ValidationError as error:  # a section of the config's own (a transport's raises ConfigError)
             raise YamlDocument("<config>", "").validation_error(error, model=BridgeConfig) from None
@@ -278,6 +317,8 @@ class _Template(string.Formatter):
             return name_token(text) if self._names is None else self._names.token(text)
         if format_spec == "channel":  # a token back to the LCM channel it was made of: "A_B" -> "A.B"
             return text if self._names is None else self._names.channel(text)
+        if format_spec == "lcm":  # a ROS 2 topic as the LCM channel it is carried on: "/a/b" -> "a/b"
+            return lcm_channel(text)
         if format_spec:
             raise ValueError(f"unknown format spec {format_spec!r}")
         return text
@@ -290,7 +331,7 @@ def _check_template(template: str, groups: int) -> None:
     except (IndexError, KeyError, ValueError) as error:
         raise ValueError(
             f"destination name {template!r} does not fit a source with {groups} groups "
-            f"(use {{0}}..{{{groups}}}, with :lower, :path, :topic or :channel): {error}"
+            f"(use {{0}}..{{{groups}}}, with :lower, :path, :topic, :channel or :lcm): {error}"
         ) from None
 
 
@@ -304,6 +345,33 @@ def destination_name(template: str, match: re.Match[str], names: ChannelNames | 
     """The destination name for a message whose source name `match`ed (`names`: see `_Template`).
     Raises `Held` for a `:channel` that cannot be told."""
     return _Template(names).format(template, match.group(0), *match.groups())
+
+
+ROS_TOPICS_TRANSLATOR = "ros_topic_to_lcm"
+ROS_TOPIC_CHANNEL = "{1:lcm}"  # docs/PROTOCOLS.md section 14: /joint_states -> joint_states
+
+
+def ros_topic_routes(patterns: Sequence[str], routes: Sequence[Route]) -> list[Route]:
+    """The routes `ros_topics` makes: the topics any of `patterns` matches in full, onto LCM, from
+    each ROS graph transport `routes` use (DDS, rmw_zenoh), else from `ros`; none without patterns."""
+    if not patterns:
+        return []
+    used = dict.fromkeys(name for route in routes for name in (route.source.transport, route.destination.transport))
+    graphs = [name for name in used if TRANSPORTS.get(name).ros_graph] or ["ros"]
+    alternatives = patterns[0] if len(patterns) == 1 else "|".join(f"(?:{pattern})" for pattern in patterns)
+    # The whole topic is group 1: a stream (a lane, and its channel) per topic, whatever groups the patterns have.
+    source = f"({alternatives})"
+    return [
+        Route(
+            name=f"ros_topics_{transport}",
+            source=Endpoint(transport=transport, name=source),
+            translator=ROS_TOPICS_TRANSLATOR,
+            destination=Endpoint(transport="lcm", name=ROS_TOPIC_CHANNEL),
+            qos=Qos(depth=100),
+            rate=Rate(policy="all"),  # every message: a topic's samples, as a log of it would hold
+        )
+        for transport in graphs
+    ]
 
 
 def _builtin_configs() -> dict[str, str]:
@@ -343,4 +411,5 @@ __all__ = [
     "Route",
     "destination_name",
     "load_config",
+    "ros_topic_routes",
 ]

@@ -23,6 +23,7 @@ __all__ = [
     "LENGTH_SUFFIX",
     "LcmFromRos",
     "definitions_from_msgdef",
+    "lcm_channel",
     "RosField",
     "RosStruct",
     "load_ros_definitions",
@@ -96,6 +97,12 @@ class LcmFromRos:
             path.write_text(text)
             written.append(path)
         return written
+
+
+def lcm_channel(topic: str) -> str:
+    """The LCM channel a ROS 2 topic is carried on: the topic without its leading `/`
+    (`/joint_states` -> `joint_states`, `/arm/state` -> `arm/state`; LCM channels may hold `/`)."""
+    return topic.removeprefix("/")
 
 
 def lcm_full_name(ros_name: str) -> str:

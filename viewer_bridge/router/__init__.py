@@ -35,7 +35,7 @@ from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.router import stats
 from viewer_bridge.router.echoes import Echoes
 from viewer_bridge.router.flow import InlineBudget
-from viewer_bridge.router.runner import PublisherFor, RouteRunner, SaidOnce
+from viewer_bridge.router.runner import Destinations, PublisherFor, RouteRunner, SaidOnce
 from viewer_bridge.router.status import LogLines, StatusView, counted
 from viewer_bridge.shared import RosDefinitions, Shared, definitions_of
 from viewer_bridge.translators import TRANSLATORS, LoadCache, Output, Translator
@@ -111,6 +111,7 @@ class Router:
             route, make_translator, self._publisher_factory(route), self._inline, self.shared.message_time,
             source.rejected, self.config.commands if translator_class.commands else None,
             self.shared.get(ChannelNames), self.shared.get(SaidOnce),
+            self.shared.get(Destinations) if translator_class.exclusive else None,
         )
         translator = runner.prototype
         assert translator is not None

@@ -60,6 +60,24 @@ class SaidOnce:
             return True
 
 
+Place = tuple[str, str]  # (transport, channel or topic)
+
+
+class Destinations:
+    """Which stream each destination of an exclusive translator carries (`Translator.exclusive`):
+    the source (transport, channel) that first asked for it, across a router's routes. Bounded by
+    the routes' streams (`max_streams` each)."""
+
+    def __init__(self) -> None:
+        self._owners: dict[Place, Place] = {}
+        self._lock = threading.Lock()  # routes make lanes on their own threads
+
+    def claim(self, destination: Place, source: Place) -> Place:
+        """The source that carries `destination`: `source` if it is the first to ask."""
+        with self._lock:
+            return self._owners.setdefault(destination, source)
+
+
 class _Lane:
     """One stream of a route: its translator, the names it publishes on, what it skipped."""
 
@@ -108,13 +126,17 @@ class RouteRunner:
         commands: CommandPolicy | None = None,
         names: ChannelNames | None = None,
         said: SaidOnce | None = None,
+        destinations: Destinations | None = None,
     ) -> None:
         """`commands`: the policy of a route that writes commands (its destinations must be
         allowed; its messages expire after `max_age_ms`), or None for any other route. `names`:
         the router's channels made into ROS name tokens (`{1:topic}`, `{1:channel}`). `said`: what
-        the router's routes have logged once (a held channel), or None for the route's own."""
+        the router's routes have logged once (a held channel), or None for the route's own.
+        `destinations`: the router's, for a route whose translator is exclusive (each destination
+        carries one stream), else None."""
         self.route = route
         self.commands = commands
+        self._destinations = destinations
         self._names = names
         max_age_ms = route.max_age_ms if route.max_age_ms is not None else commands and commands.max_age_ms
         self._max_age_us = max_age_ms * 1000 if max_age_ms else None
@@ -244,14 +266,15 @@ class RouteRunner:
         lane = self._lanes.get(key)
         if lane is None:
             name = destination_name(self.route.destination.name, message.match, self._names)
-            self._admit(name)
+            self._admit(name, message.channel)
             translator, self.prototype = self.prototype or self._make_translator(), None
             lane = self._lanes[key] = _Lane(name, translator, self._publisher)
         return lane
 
-    def _admit(self, name: str) -> None:
-        """Raise `Held` when a new stream publishing on `name` may not have a lane: a command
-        destination not allowed, or one stream more than the route's `max_streams`."""
+    def _admit(self, name: str, channel: str) -> None:
+        """Raise `Held` when a new stream from `channel` publishing on `name` may not have a lane: a
+        command destination not allowed, one stream more than the route's `max_streams`, or an
+        exclusive destination another stream carries."""
         if self.commands is not None and not self.commands.allows(name):
             raise Held("not_allowed", self.commands.refusal(name))
         if len(self._lanes) >= self.route.max_streams:
@@ -259,6 +282,15 @@ class RouteRunner:
                 "too_many_streams",
                 f"the route carries {len(self._lanes)} streams already (its max_streams): not carried",
             )
+        if self._destinations is not None:
+            source, destination = self.route.source, self.route.destination
+            owner = self._destinations.claim((destination.transport, name), (source.transport, channel))
+            if owner != (source.transport, channel):
+                raise Held(
+                    "channel_taken",
+                    f"{destination.transport} {name} carries {owner[1]} (from {owner[0]}) already: "
+                    f"{channel} (from {source.transport}) is not carried there",
+                )
 
     def _expired(self, message: Message) -> Held | None:
         """Why a message is too old to send (older than the route's `max_age_ms` now), or None."""

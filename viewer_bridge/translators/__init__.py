@@ -6,8 +6,8 @@ and FrameTransforms), `drake_point_cloud` (point clouds both ways, DRAKE_DRAW_FR
 triads), `drake_ign` (<-> ign/gz protobuf), `drake_contact` (contact results to all three),
 `drake_image` (camera images <-> ROS 2, and to Foxglove), `tree_viewer` (Director's remote tree
 viewer, both sides), `drake_rerun` (Rerun's archetypes), `relay` (raw LCM onto another transport,
-unchanged), `lcm_generic` (any LCM type as its ROS 2 mapping, and back), `lcm_rerun` (any LCM type's
-numbers as Rerun scalars). Families share only these: `base`
+unchanged), `lcm_generic` (any LCM type as its ROS 2 mapping, and back), `ros_topics` (any ROS 2
+topic onto LCM), `lcm_rerun` (any LCM type's numbers as Rerun scalars). Families share only these: `base`
 (what a translator is), `types` (the message types, each named once), `options` (options to
 inherit: markers, frames, ign names), `drake_stream` (the decode-once draw, and
 `DrakeTranslator`, the base that follows Drake's load/draw stream) and `load_cache` (the last
@@ -33,6 +33,7 @@ _BUILTINS = {
     "lcm_relay": "relay:LcmRelay",
     "lcm_to_ros": "lcm_generic:LcmToRos",
     "ros_to_lcm": "lcm_generic:RosToLcm",
+    "ros_topic_to_lcm": "ros_topics:RosTopicToLcm",
     "drake_to_tf": "drake_tf:DrakeToTf",
     "drake_to_link_markers": "drake_tf:DrakeToLinkMarkers",
     "drake_to_scene_update": "drake_foxglove:DrakeToSceneUpdate",

@@ -67,6 +67,10 @@ class Translator:
     `commands` marks a translator whose outputs command a robot-facing bus (the generic way back
     to LCM): the router writes only the destinations the config's `commands.allow` names, and
     drops what is older than the route's `max_age_ms` (`viewer_bridge.config.commands`).
+
+    `exclusive` marks a translator each of whose destinations carries one source's stream (a
+    ROS 2 topic its own LCM channel): a stream for a destination that another stream of any of
+    the router's routes carries is held (`channel_taken`), the first kept.
     """
 
     Options: ClassVar[type[TranslatorOptions]] = TranslatorOptions
@@ -74,6 +78,7 @@ class Translator:
     outputs: tuple[Output, ...]
     replies: ClassVar[MessageType | None] = None
     commands: ClassVar[bool] = False
+    exclusive: ClassVar[bool] = False
 
     def __init__(
         self,

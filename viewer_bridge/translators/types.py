@@ -26,6 +26,7 @@ from viewer_bridge.lcmcodec import (
     VIEWER2_COMMS,
 )
 from viewer_bridge.transports.base import CARRIED_DEFINITION, CDR, LCM, PROTOBUF, MessageType
+from viewer_bridge.transports.topic_types import ANY, EVERY
 
 # Drake's LCM messages.
 LOAD_TYPE = MessageType(LOAD_ROBOT.type_name, LCM)
@@ -38,8 +39,10 @@ IMAGE_ARRAY_TYPE = MessageType(IMAGE_ARRAY.type_name, LCM)  # DRAKE_RGBD_CAMERA_
 # maps to: CDR of a type whose definition each instance's output carries (no installed package).
 ANY_LCM_TYPE = MessageType("*", LCM)
 LCM_AS_ROS_TYPE = MessageType("*", CDR, CARRIED_DEFINITION)
-# Any ROS 2 type, its name given per message by the transport (`ros_to_lcm`: the reverse routes).
-ANY_ROS_TYPE = MessageType("*", CDR)
+# Any generated LCM type's ROS 2 mapping, its name given per message by the transport (`ros_to_lcm`:
+# the reverse routes); and any ROS 2 type at all (`ros_topic_to_lcm`: `ros_topics`).
+ANY_ROS_TYPE = MessageType(ANY, CDR)
+EVERY_ROS_TYPE = MessageType(EVERY, CDR)
 # Director's tree viewer envelope (requests and responses alike).
 ENVELOPE_TYPE = MessageType(VIEWER2_COMMS.type_name, LCM)
 # Foxglove's protobuf schemas.

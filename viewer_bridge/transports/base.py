@@ -163,6 +163,9 @@ class Transport(ABC):
     # its own view of the same traffic (a multicast bus, a ROS 2 graph): then the routes that use
     # it may run on worker processes (`viewer_bridge.router.workers`). Not a server's port or a file.
     several_processes: ClassVar[bool] = False
+    # Whether its CDR sources are ROS 2 topics found in a ROS graph (DDS, rmw_zenoh): where
+    # `ros_topics` looks for the topics it carries onto LCM.
+    ros_graph: ClassVar[bool] = False
 
     def __init__(self, settings: TransportSettings) -> None:
         self.settings = settings

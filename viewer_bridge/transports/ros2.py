@@ -8,7 +8,8 @@ definitions the router was given (`Shared.ros_definitions`), is built in the bac
 as `waiting_for_build`, then published. A source name that is a regular expression is matched
 against the graph once a second and subscribed as topics of the wanted type appear; a pattern of
 type `*` takes each topic whose type is a generated LCM type the router knows, building its
-interface if it must (`viewer_bridge.transports.topic_types`). Every message delivered carries
+interface if it must, and one of type `**` any topic whose type is installed here but for those
+this node publishes on or that has no publisher yet (`viewer_bridge.transports.topic_types`). Every message delivered carries
 its topic's type (`Received.message_type`). rclpy is
 imported when the transport starts, not when a config that names it is checked, so the ROS 2
 wheels are needed only by bridges that use them.
@@ -44,7 +45,7 @@ from viewer_bridge.transports.base import (
     TransportSettings,
 )
 from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem, topic_problem
-from viewer_bridge.transports.topic_types import ANY, TopicTypes
+from viewer_bridge.transports.topic_types import EVERY, TopicTypes, found_in_graph
 from viewer_bridge.util.extras import missing
 
 if TYPE_CHECKING:
@@ -154,6 +155,7 @@ class RosTransport(Transport):
     Settings = RosSettings
     encodings = frozenset({CDR})
     several_processes = True  # a node per process in one graph
+    ros_graph = True
 
     @classmethod
     def check_source(cls, name: str) -> None:
@@ -204,7 +206,7 @@ class RosTransport(Transport):
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         for message_type in message_types:
-            if message_type.definition is not None or message_type.name == ANY:
+            if message_type.definition is not None or found_in_graph(message_type):
                 continue  # a type that carries its definition (any LCM type) waits for its build instead
             try:
                 message_class(message_type.name)
@@ -253,7 +255,7 @@ class RosTransport(Transport):
 
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
         """Raw bytes of the type from `pattern`: a topic, or a regex matched against the graph."""
-        if _PLAIN_TOPIC.fullmatch(pattern) and message_type.name != ANY:
+        if _PLAIN_TOPIC.fullmatch(pattern) and not found_in_graph(message_type):
             self._subscribe(pattern, message_type, qos, deliver)
         else:  # a regex, or a topic whose type the graph will say
             self._patterns.append((re.compile(pattern), message_type, qos, deliver))
@@ -303,8 +305,23 @@ class RosTransport(Transport):
             return
         for topic, types in self.node.get_topic_names_and_types():
             for pattern, wanted, qos, deliver in self._patterns:
-                if pattern.fullmatch(topic) and (found := self._types.pick(wanted, topic, types)) is not None:
+                if not pattern.fullmatch(topic) or (wanted.name == EVERY and not self._others_publish(topic)):
+                    continue
+                if (found := self._types.pick(wanted, topic, types)) is None:
+                    continue
+                try:
                     self._subscribe(topic, found, qos, deliver)
+                except (ImportError, AttributeError, ValueError):  # `**`: a type not installed here
+                    self._types.say(topic, found.name, "whose interface package is not installed here")
+
+    def _others_publish(self, topic: str) -> bool:
+        """Whether `topic` has publishers, none of them this node (nor a worker's node of the same
+        name): a topic known only by its subscribers may be one the bridge is about to publish."""
+        name, namespace = self.node.get_name(), self.node.get_namespace()
+        publishers = self.node.get_publishers_info_by_topic(topic)
+        return bool(publishers) and not any(
+            info.node_name == name and info.node_namespace == namespace for info in publishers
+        )
 
     def describe(self) -> str:
         return f"ROS 2 node {self.node.get_fully_qualified_name()}"

@@ -23,7 +23,13 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("viewer_bridge")
 
-ANY = "*"
+ANY = "*"  # any generated LCM type's ROS 2 mapping
+EVERY = "**"  # any ROS 2 type at all
+
+
+def found_in_graph(message_type: MessageType) -> bool:
+    """Whether a source of this type learns each topic's type from the graph (`*` and `**`)."""
+    return message_type.name in (ANY, EVERY)
 
 
 def ros_message_type(lcm_type: LcmType) -> MessageType:
@@ -54,6 +60,8 @@ class TopicTypes:
         """The type to subscribe `topic` with, of those its publishers announce
         (`pkg/msg/Name`), for a source of type `wanted`; None to leave it alone."""
         announced = list(announced)
+        if wanted.name == EVERY:
+            return MessageType(announced[0], CDR) if announced else None
         if wanted.name != ANY:
             return wanted if wanted.name in announced else None
         for name in announced:
@@ -61,17 +69,16 @@ class TopicTypes:
             if found is not None:
                 return found
         for name in announced:
-            self._say(topic, name)
+            self.say(topic, name, "no generated LCM type")
         return None
 
-    def _say(self, topic: str, name: str) -> None:
+    def say(self, topic: str, name: str, why: str) -> None:
+        """Say once why `topic` of type `name` is not subscribed."""
         with self._lock:
             if (topic, name) in self._said:
                 return
             self._said.add((topic, name))
-        log.warning(
-            "viewer-bridge: %s is of type %s, no generated LCM type: not subscribed (said once)", topic, name
-        )
+        log.warning("viewer-bridge: %s is of type %s, %s: not subscribed (said once)", topic, name, why)
 
 
-__all__ = ["ANY", "TopicTypes", "lcm_message_type", "ros_message_type"]
+__all__ = ["ANY", "EVERY", "TopicTypes", "found_in_graph", "lcm_message_type", "ros_message_type"]

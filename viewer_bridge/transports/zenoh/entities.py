@@ -246,11 +246,22 @@ class Graph:
     def subscribers(self, topic: str, dds_type: str) -> int:
         return self._subscribers[topic, dds_type]
 
-    def publishers(self) -> set[tuple[str, str]]:
-        """(topic, DDS type name) of every publisher the graph knows."""
+    def publishers(self) -> set[tuple[str, str, str]]:
+        """(topic, DDS type name, type hash) of every publisher the graph knows."""
+        return {(topic.topic, topic.dds_type, topic.type_hash) for _, topic in self._publisher_topics()}
+
+    def published_by(self, node: keys.NodeName) -> set[str]:
+        """The topics a node of this name and namespace publishes on (a bridge's workers share theirs)."""
+        return {
+            topic.topic
+            for token, topic in self._publisher_topics()
+            if (token.node.name, token.node.namespace) == (node.name, node.namespace)
+        }
+
+    def _publisher_topics(self) -> list[tuple[keys.Token, keys.TopicEntity]]:
         with self._lock:
             tokens = list(self._tokens.values())
-        return {(t.topic.topic, t.topic.dds_type) for t in tokens if t.kind == keys.PUBLISHER and t.topic}
+        return [(t, t.topic) for t in tokens if t.kind == keys.PUBLISHER and t.topic is not None]
 
 
 __all__ = [

@@ -7,7 +7,9 @@ One Zenoh session carries two kinds of route:
   under the namespace, `~` under the node). A source that is a regular expression is matched
   against the topics the graph's publishers announce, once a second; a source of type `*` takes
   each topic whose type is a generated LCM type the router knows (`transports.topic_types`, as
-  the ROS 2 transport does). Every message carries its topic's type (`Received.message_type`).
+  the ROS 2 transport does), and one of type `**` any topic, subscribed with the hash its publisher
+  announces, but for those this node publishes on. Every message carries its topic's type
+  (`Received.message_type`).
 - LCM types are raw LCM messages under `<lcm_prefix>/<channel>`: a source regex is matched
   against the channel, so two bridges join two LCM buses through a router.
 The session is `viewer_bridge.transports.zenoh.session`'s; eclipse-zenoh is imported when the
@@ -41,7 +43,7 @@ from viewer_bridge.transports.base import (
     TransportSettings,
 )
 from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem
-from viewer_bridge.transports.topic_types import ANY, TopicTypes
+from viewer_bridge.transports.topic_types import EVERY, TopicTypes, found_in_graph
 from viewer_bridge.transports.zenoh import keys
 from viewer_bridge.util.extras import missing
 
@@ -141,6 +143,7 @@ class ZenohTransport(Transport):
 
     Settings = ZenohSettings
     encodings = frozenset({CDR, LCM})
+    ros_graph = True  # rmw_zenoh's
     settings: ZenohSettings
 
     @classmethod
@@ -179,6 +182,7 @@ class ZenohTransport(Transport):
         self.graph: Graph = entities.Graph(self._errors)
         self._publishers: list[RosPublisher | LcmPublisher] = []
         self._topics: dict[str, list[Deliver]] = {}  # topic -> every route reading it
+        self._published: set[str] = set()  # the topics this node publishes on
         self._patterns: list[tuple[re.Pattern[str], MessageType, Qos, Deliver]] = []
         self._types = TopicTypes(Shared() if shared is None else shared)  # what a `*` pattern takes
         self._channels: list[tuple[re.Pattern[str], Deliver]] = []
@@ -225,7 +229,7 @@ class ZenohTransport(Transport):
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         for message_type in message_types:
-            if message_type.encoding == CDR and message_type.definition is None and message_type.name != ANY:
+            if message_type.encoding == CDR and message_type.definition is None and not found_in_graph(message_type):
                 try:
                     keys.topic_type(message_type.name)
                 except (KeyError, ValueError):
@@ -249,6 +253,7 @@ class ZenohTransport(Transport):
             )
         else:
             topic, topic_type = self.resolve(name), _topic_type(message_type)
+            self._published.add(topic)
             token = self._token(keys.PUBLISHER, topic, topic_type, qos)
             publisher = RosPublisher(
                 self.link, self.graph, keys.data_key(self.domain, topic, topic_type), token, qos
@@ -269,12 +274,16 @@ class ZenohTransport(Transport):
         if message_type.encoding == LCM:
             self._channels.append((re.compile(pattern), deliver))
             self._channels_latched = self._channels_latched or qos.latched
-        elif _PLAIN_TOPIC.fullmatch(pattern) and message_type.name != ANY:
+        elif _PLAIN_TOPIC.fullmatch(pattern) and not found_in_graph(message_type):
             self._subscribe_topic(pattern, message_type, qos, deliver)
         else:
             self._patterns.append((re.compile(pattern), message_type, qos, deliver))
 
-    def _subscribe_topic(self, topic: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
+    def _subscribe_topic(
+        self, topic: str, message_type: MessageType, qos: Qos, deliver: Deliver, type_hash: str | None = None
+    ) -> None:
+        """Subscribe `topic`; `type_hash`: the one its publisher announced (a type of any package,
+        which rosbags' store may not know), else the type's own."""
         from viewer_bridge.transports.zenoh import entities
 
         with self._lock:
@@ -284,7 +293,12 @@ class ZenohTransport(Transport):
                     delivers.append(deliver)
                 return
             delivers = self._topics[topic] = [deliver]
-        resolved, topic_type = self.resolve(topic), _topic_type(message_type)
+        resolved = self.resolve(topic)
+        topic_type = (
+            _topic_type(message_type)
+            if type_hash is None
+            else keys.TopicType(message_type.name, keys.dds_type_name(message_type.name), type_hash)
+        )
         key = keys.data_key(self.domain, resolved, topic_type)
         token = self._token(keys.SUBSCRIBER, resolved, topic_type, qos)
         on_sample = self.link.calling(entities.ros_receiver(topic, message_type, delivers, self._errors))
@@ -298,11 +312,14 @@ class ZenohTransport(Transport):
     def _discover(self) -> None:
         """Once a second: topics the graph's publishers announce that a source regex matches."""
         while not self._stop.wait(1.0):
-            for topic, dds_type in self.graph.publishers():
+            own = self.graph.published_by(self.node) | self._published
+            for topic, dds_type, type_hash in self.graph.publishers():
                 announced = [name] if (name := keys.ros_type_name(dds_type)) else []
                 for pattern, wanted, qos, deliver in self._patterns:
-                    if pattern.fullmatch(topic) and (found := self._types.pick(wanted, topic, announced)):
-                        self._subscribe_topic(topic, found, qos, deliver)
+                    if not pattern.fullmatch(topic) or (wanted.name == EVERY and topic in own):
+                        continue
+                    if found := self._types.pick(wanted, topic, announced):
+                        self._subscribe_topic(topic, found, qos, deliver, type_hash if wanted.name == EVERY else None)
 
     def _on_lcm(self, sample: zenoh.Sample) -> None:
         channel = str(sample.key_expr)[len(self.settings.lcm_prefix) + 1 :]
