@@ -26,8 +26,7 @@ from draw_codec import print_measures
 from ros_to_lcm import TYPES, fill_image, fill_joint_state, image, joint_state, lcmgen_classes
 
 from viewer_bridge.cli.bag_to_lcm import bag_to_lcm
-from viewer_bridge.lcmcodec.from_ros import lcm_channel
-from viewer_bridge.lcmcodec.from_ros import load_ros_definitions, map_ros_types
+from viewer_bridge.lcmcodec.from_ros import lcm_channel, load_ros_definitions, map_ros_types
 from viewer_bridge.transports.lcm import LcmEvent, read_log, write_log
 
 MB = 1e6

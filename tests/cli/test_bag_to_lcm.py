@@ -11,9 +11,8 @@ from tests.lcmcodec.ros_bag import SAMPLES, lcmgen_decode, typestore, write_bag
 from tests.lcmcodec.test_from_ros import lcm_gen_all
 from tests.lcmcodec.test_ros_cdr import serialized
 from viewer_bridge.cli.bag_to_lcm import bag_to_lcm
-from viewer_bridge.lcmcodec.from_ros import lcm_channel
 from viewer_bridge.cli.main import main
-from viewer_bridge.lcmcodec.from_ros import load_ros_definitions, map_ros_types
+from viewer_bridge.lcmcodec.from_ros import lcm_channel, load_ros_definitions, map_ros_types
 from viewer_bridge.lcmcodec.ros_cdr import compile_ros_encoders
 from viewer_bridge.transports.lcm import read_log
 
