@@ -35,6 +35,13 @@ def add_command(add: AddCommand) -> None:
         "instead of tf2_msgs; generate writes them beside the project's and Drake's (repeatable)",
     )
     interfaces.add_argument(
+        "-y",
+        "--yes",
+        action="store_true",
+        help="install: pip install the wheels a build needs (rclpy, rosidl's generators: about a hundred "
+        "distributions) without asking; without it, install asks when run in a terminal and refuses otherwise",
+    )
+    interfaces.add_argument(
         "-o", "--output", type=Path, metavar="DIR", help="generate: the folder to write the packages to (a workspace's src/)"
     )
 
@@ -55,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     if args.lcm_types:
         definitions = _lcm_ros_definitions(args.lcm_types)
         if args.action == "install":
-            ros_interfaces.build(definitions, log=say, only=args.names or None)
+            ros_interfaces.build(definitions, log=say, only=args.names or None, confirm=_confirm(args.yes))
         else:
             chosen = ros_interfaces.packages(definitions)
             digests = ros_interfaces.digests(chosen)
@@ -67,13 +74,34 @@ def run(args: argparse.Namespace) -> int:
     if unknown:
         known = ", ".join(ros_interfaces.INTERFACES)
         raise UsageError(f"unknown interface package {', '.join(unknown)} (known: {known})")
-    if args.action == "status":
+    if args.action == "status":  # the Jazzy packages PyPI lacks, then every other package built here
         absent = ros_interfaces.missing()
         for name in args.names or ros_interfaces.INTERFACES:
             print(f"{name}: {'missing' if name in absent else 'installed'} in {sys.prefix}")
+        if not args.names:
+            for name in ros_interfaces.built():
+                if name not in ros_interfaces.INTERFACES:
+                    print(f"{name}: installed (LCM types) in {sys.prefix}")
         return 0
-    ros_interfaces.install(args.names or None, log=say)
+    ros_interfaces.install(args.names or None, log=say, confirm=_confirm(args.yes))
     return 0
+
+
+def _confirm(yes: bool) -> Callable[[Sequence[str]], bool]:
+    """What `install` asks before pip installs the wheels a build needs: yes with --yes; the user
+    when standard input is a terminal; otherwise a refusal naming --yes (a script never installs
+    about a hundred distributions unasked)."""
+
+    def confirm(wheels: Sequence[str]) -> bool:
+        if yes:
+            return True
+        what = f"pip install {' '.join(wheels)} (and what they need) into {sys.prefix}"
+        if not sys.stdin.isatty():
+            raise UsageError(f"building needs {what}: run again with --yes to allow it")
+        answer = input(f"viewer-bridge ros-interfaces: {what}? [y/N] ")
+        return answer.strip().lower() in ("y", "yes")
+
+    return confirm
 
 
 def _lcm_ros_definitions(
