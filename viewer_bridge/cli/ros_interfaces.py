@@ -11,6 +11,12 @@ from pathlib import Path
 from viewer_bridge.cli.arguments import AddCommand
 from viewer_bridge.errors import UsageError
 
+# What generate says when pydrake is missing: the project ships only Drake's viewer types.
+DRAKE_LEFT_OUT = (
+    "viewer-bridge ros-interfaces: Drake's own LCM types (lcmt_iiwa_command, lcmt_iiwa_status, lcmt_robot_state "
+    "and the rest) left out: they come with pydrake's drake module, not installed: pip install 'viewer-bridge[drake]'"
+)
+
 
 def add_command(add: AddCommand) -> None:
     """The `ros-interfaces` command's arguments, on the parser `add` makes."""
@@ -50,14 +56,20 @@ def run(args: argparse.Namespace) -> int:
     """Generate, install or show: the LCM types' packages with --lcm-types (or for generate),
     else the Jazzy packages PyPI lacks (tf2_msgs)."""
     from viewer_bridge.ros_build import interfaces as ros_interfaces
+    from viewer_bridge.router.status import counted
 
-    say = lambda line: print(line, file=sys.stderr)  # noqa: E731
+    def say(line: str) -> None:
+        print(line, file=sys.stderr)
+
     if args.action == "generate":  # the LCM types' packages: the project's and Drake's, and --lcm-types'
         if args.output is None:
             raise UsageError("generate needs -o DIR")
         documented = _lcm_ros_definitions(args.lcm_types, comments=True, warn=say)
         for folder in ros_interfaces.generate_packages(documented, args.output, only=args.names or None):
             print(folder)
+            written = sorted(path.stem for path in (folder / "msg").glob("*.msg"))
+            say(f"viewer-bridge ros-interfaces: wrote {folder.name}: {counted(len(written), 'type')} "
+                f"({', '.join(written)})")  # fmt: skip
         return 0
     if args.lcm_types:
         definitions = _lcm_ros_definitions(args.lcm_types)
@@ -116,4 +128,6 @@ def _lcm_ros_definitions(
     if warn is not None:
         for warning in library.warnings:
             warn(f"viewer-bridge ros-interfaces: {warning}")
+        if library.drake_left_out:
+            warn(DRAKE_LEFT_OUT)
     return dict(library.ros_definitions(comments=comments))
