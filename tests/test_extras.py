@@ -47,8 +47,10 @@ def test_a_command_without_its_extra_says_which_to_install(module: str, argument
     [
         ("foxglove_schemas_protobuf", "convert.load_to_scene_update(b'')"),
         ("rclpy", "convert.cdr_to_rclpy(b'', 'geometry_msgs/msg/PoseArray')"),
+        ("visualization_msgs", "from viewer_bridge.formats.ros.messages import STORE, to_rclpy\n"
+                               "to_rclpy(STORE.types['visualization_msgs/msg/MarkerArray'](markers=[]))"),
     ],
-)
+)  # fmt: skip
 def test_a_converter_without_its_extra_says_which_to_install(module: str, call: str) -> None:
     code = f"import sys; sys.modules[{module!r}] = None\nfrom viewer_bridge import convert\n{call}"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
