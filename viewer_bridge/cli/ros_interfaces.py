@@ -109,7 +109,10 @@ def _confirm(yes: bool) -> Callable[[Sequence[str]], bool]:
             return True
         what = f"pip install {' '.join(wheels)} (and what they need) into {sys.prefix}"
         if not sys.stdin.isatty():
-            raise UsageError(f"building needs {what}: run again with --yes to allow it")
+            raise UsageError(
+                f"building needs {what}: run again with --yes to allow it, or pip install "
+                "'viewer-bridge[ros,ros-build]' first"
+            )
         answer = input(f"viewer-bridge ros-interfaces: {what}? [y/N] ")
         return answer.strip().lower() in ("y", "yes")
 

@@ -316,7 +316,9 @@ def _build_all(
             "viewer-bridge ros-interfaces install"
         )
     if wheels and confirm is not None and not confirm(wheels):
-        raise RosInterfaceError(f"building {todo[0].name} needs {' '.join(wheels)}: nothing installed")
+        raise RosInterfaceError(
+            f"building {todo[0].name} needs {len(wheels)} wheels not installed here: declined, nothing installed"
+        )
     if wheels:
         say(f"pip installing {' '.join(wheels)}")
         pip = [python, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", *wheels]
