@@ -80,8 +80,9 @@ def test_the_built_in_config_runs_with_the_ros_and_foxglove_extras_alone() -> No
 
 
 def test_the_built_in_config_with_ros_alone_leaves_its_foxglove_routes_out_saying_so() -> None:
-    """`[ros]` without `[foxglove]`: `viewer-bridge run` serves ROS 2, and says in one line what it
-    left out and which extra brings it; a config named with -c stays as strict as before."""
+    """`[ros]` (tf2_msgs built, as here) without `[foxglove]`: `viewer-bridge run` serves ROS 2, and
+    says in one line what it left out and which extra brings it; a config named with -c stays as
+    strict as before."""
     code = (f"import sys\nfor name in {blocked_but('ros')!r}: sys.modules[name] = None\n"
             "from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))")  # fmt: skip
     arguments = ["run", "--demo", "--duration", "4", "--lcm-url", lcm_url(46)]
