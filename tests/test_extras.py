@@ -47,8 +47,10 @@ def test_a_command_without_its_extra_says_which_to_install(module: str, argument
     [
         ("foxglove_schemas_protobuf", "convert.load_to_scene_update(b'')"),
         ("rclpy", "convert.cdr_to_rclpy(b'', 'geometry_msgs/msg/PoseArray')"),
+        ("visualization_msgs", "from viewer_bridge.formats.ros.messages import STORE, to_rclpy\n"
+                               "to_rclpy(STORE.types['visualization_msgs/msg/MarkerArray'](markers=[]))"),
     ],
-)
+)  # fmt: skip
 def test_a_converter_without_its_extra_says_which_to_install(module: str, call: str) -> None:
     code = f"import sys; sys.modules[{module!r}] = None\nfrom viewer_bridge import convert\n{call}"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
@@ -75,6 +77,26 @@ def test_the_built_in_config_runs_with_the_ros_and_foxglove_extras_alone() -> No
     result = subprocess.run([sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert " route poses: in " in result.stderr and "Traceback" not in result.stderr, result.stderr
+
+
+def test_the_built_in_config_with_ros_alone_leaves_its_foxglove_routes_out_saying_so() -> None:
+    """`[ros]` (tf2_msgs built, as here) without `[foxglove]`: `viewer-bridge run` serves ROS 2, and
+    says in one line what it left out and which extra brings it; a config named with -c stays as
+    strict as before."""
+    code = (f"import sys\nfor name in {blocked_but('ros')!r}: sys.modules[name] = None\n"
+            "from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))")  # fmt: skip
+    arguments = ["run", "--demo", "--duration", "4", "--lcm-url", lcm_url(46)]
+    result = subprocess.run([sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    (said,) = [line for line in result.stderr.splitlines() if "Foxglove" in line]
+    assert said.endswith("viewer-bridge: the built-in config's 6 Foxglove routes left out: they need foxglove, "
+                         "not installed: pip install 'viewer-bridge[foxglove]'"), said  # fmt: skip
+    assert "ROS 2 node /viewer_bridge)" in result.stderr and "Traceback" not in result.stderr, result.stderr
+    named = subprocess.run([sys.executable, "-c", code, *arguments[:1], "-c", "builtin:default", *arguments[1:]],
+                           capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert named.returncode == 2 and named.stderr.strip().splitlines()[-1].endswith(
+        "needs foxglove, not installed: pip install 'viewer-bridge[foxglove]'"
+    ), named.stderr
 
 
 def blocked_but(extra: str) -> list[str]:

@@ -6,22 +6,29 @@ With the core only, the README's library snippet runs (draw bytes -> PoseArray C
 tree viewer's request) and gives what this checkout gives, without importing any optional
 part; a transport whose extra is missing is refused in one line naming it. With `[all]`,
 the command line runs the bridge on its demo as `./dev run` does.
+
+Each extra alone (tests/extras_table.py's rows, which `python -m tests.extras_table` prints as a
+table): a copy of the core venv, that one extra installed from the same wheel, its headline
+command run. The core venv itself is never changed: what installs more works on a copy. The
+library guide (docs/library.md) runs top to bottom on the core install, and `ros-interfaces
+install` refuses there to pip install the ROS 2 wheels unasked.
 """
 
 from __future__ import annotations
 
 import json
-import os
 import re
 import subprocess
-import sys
 import zipfile
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from tests import extras_table
 from tests.conftest import lcm_url
-from tests.test_docs import blocks
+from tests.extras_table import run
+from tests.test_docs import blocks, substituted
 from viewer_bridge import convert
 from viewer_bridge.examples.demo import demo_poses, demo_scene
 from viewer_bridge.formats.drake.draw import DrawEncoder
@@ -58,42 +65,21 @@ def library_snippet() -> str:
     return blocks(section, ("python",))[0]
 
 
-# No check for a newer pip (a request to PyPI). Byte-compiling stays: skipped (--no-compile, a sixth
-# of the install's time), the first `run --demo` compiles numpy and the rest as it imports them,
-# and on a loaded machine its 2 s window then carried no draw.
-PIP_QUICK = ["--quiet", "--disable-pip-version-check"]
-
-
-def clean_env() -> dict[str, str]:
-    """This process's environment without what points at the checkout or its venv."""
-    return {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTHONHOME")}
-
-
-def run(command: list[str], cwd: Path, timeout: float = 900, **env: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        command, cwd=cwd, env={**clean_env(), **env}, capture_output=True, text=True, timeout=timeout, check=False
-    )
-
-
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("dist")
-    # --no-isolation: the build backend (hatchling, in the test extra) is already installed.
-    built = run([sys.executable, "-m", "build", "--wheel", "--no-isolation", "--outdir", str(out), str(ROOT)], out)
-    assert built.returncode == 0, built.stderr
-    (path,) = out.glob("viewer_bridge-*.whl")
-    return path
+    return extras_table.build_wheel(tmp_path_factory.mktemp("dist"))
 
 
 @pytest.fixture(scope="module")
 def venv(tmp_path_factory: pytest.TempPathFactory, wheel: Path) -> Path:
-    """A fresh venv with the wheel's core install (no extra)."""
-    root = tmp_path_factory.mktemp("venv")
-    created = run([sys.executable, "-m", "venv", str(root / "env")], root)
-    assert created.returncode == 0, created.stderr
-    installed = run([str(root / "env/bin/python"), "-m", "pip", "install", *PIP_QUICK, str(wheel)], root)
-    assert installed.returncode == 0, installed.stderr
-    return root / "env"
+    """A fresh venv with the wheel's core install (no extra); never changed (see `copy`)."""
+    return extras_table.core_venv(tmp_path_factory.mktemp("venv"), wheel)
+
+
+def copy(venv: Path, tmp_path: Path) -> Path:
+    """A copy of the core venv to install more into (run it as `python -m viewer_bridge`: its
+    console scripts name the core venv's interpreter)."""
+    return extras_table.clone(venv, tmp_path / "env")
 
 
 def test_the_wheel_ships_the_type_marker_and_the_data(wheel: Path) -> None:
@@ -124,15 +110,85 @@ def test_a_missing_extra_is_one_line_naming_it(venv: Path, tmp_path: Path) -> No
 
 @pytest.mark.timeout(3000)  # and then every extra installed, and tf2_msgs compiled
 def test_the_bridge_runs_its_demo_with_every_extra(venv: Path, wheel: Path, tmp_path: Path) -> None:
-    installed = run([str(venv / "bin/python"), "-m", "pip", "install", *PIP_QUICK, f"{wheel}[all]"], tmp_path)
+    env = copy(venv, tmp_path)
+    installed = run([str(env / "bin/python"), *extras_table.PIP_INSTALL, f"{wheel}[all]"], tmp_path)
     assert installed.returncode == 0, installed.stderr
-    cli = str(venv / "bin/viewer-bridge")
-    version = run([cli, "--version"], tmp_path)
+    cli = str(env / "bin/python"), "-m", "viewer_bridge"
+    version = run([*cli, "--version"], tmp_path)
     assert version.stdout.startswith("viewer-bridge "), version
-    interfaces = run([cli, "ros-interfaces", "install"], tmp_path)  # tf2_msgs, as ./dev run builds it
+    interfaces = run([*cli, "ros-interfaces", "install", "--yes"], tmp_path)  # tf2_msgs, as ./dev run builds it
     assert interfaces.returncode == 0, interfaces.stderr
     # ROS 2 traffic stays on this host, in this test process's domain (tests/conftest.py sets both).
-    demo = run([cli, "run", "--demo", "--duration", "2", "--lcm-url", lcm_url(41)], tmp_path, timeout=120)
+    # Six seconds: on a loaded machine the demo's first draws may take a few to arrive.
+    demo = run([*cli, "run", "--demo", "--duration", "6", "--lcm-url", lcm_url(41), "--set", "foxglove.port=0"],
+               tmp_path, timeout=300)  # fmt: skip
     assert demo.returncode == 0, demo.stderr
     assert "Traceback" not in demo.stderr
     assert " route poses: " in demo.stderr, demo.stderr
+
+
+OUTCOMES: list[extras_table.Outcome] = []
+
+
+@pytest.fixture(scope="module", autouse=True)
+def the_table() -> Iterator[None]:
+    """The rows' table, printed once they ran (`pytest -s` shows it; `python -m tests.extras_table`
+    prints the same for every row)."""
+    yield
+    if OUTCOMES:
+        print("\n" + extras_table.table(OUTCOMES))
+
+
+def test_every_extra_has_a_row() -> None:
+    """A new extra in pyproject.toml gets a row (a headline command), or a reason in NOT_ALONE."""
+    assert set(extras_table.ROWS) - {""} == set(extras_table.extras()) - set(extras_table.NOT_ALONE)
+
+
+@pytest.mark.parametrize("extra", list(extras_table.ROWS), ids=[name or "core" for name in extras_table.ROWS])
+@pytest.mark.timeout(3000)  # ros-build: pip installs rclpy's wheels and compiles tf2_msgs
+def test_one_extra_alone_runs_its_headline_command(extra: str, venv: Path, wheel: Path, tmp_path: Path) -> None:
+    row = extras_table.ROWS[extra]
+    outcome = extras_table.try_extra(row, wheel, venv, tmp_path, lcm_url(45))
+    OUTCOMES.append(outcome)
+    assert outcome.ok, f"{outcome.step.shown() if outcome.step else ''} exited {outcome.code}:\n{outcome.output[-4000:]}"
+    if extra:  # the extra's own distributions, and no other extra's
+        assert set(outcome.direct) <= set(outcome.added), outcome.added
+        others = {name for other, requirements in extras_table.extras().items() if other not in (extra, "all", "test")
+                  for name in extras_table.requirement_names(requirements)} - set(outcome.direct)  # fmt: skip
+        assert not others & set(outcome.added), others & set(outcome.added)
+
+
+def test_the_library_guide_runs_on_the_core_install(venv: Path, tmp_path: Path) -> None:
+    """docs/library.md's Python, top to bottom, where no extra is installed, in a folder with the
+    demo's log as the page says to write it; what needs `[ros]` says so as MissingExtra."""
+    python = str(venv / "bin/python")
+    demo = run([python, "-m", "viewer_bridge", "demo", "--url", "file://demo.lcmlog?mode=w", "--duration", "1"], tmp_path)
+    assert demo.returncode == 0, demo.stderr
+    page = (ROOT / "docs" / "library.md").read_text()
+    assert "viewer-bridge demo --url 'file://demo.lcmlog?mode=w' --duration 1" in page
+    script = tmp_path / "library.py"
+    script.write_text("\n".join(substituted(block) for block in blocks(page, ("python",))))
+    result = run([python, str(script)], tmp_path, timeout=600)
+    assert result.returncode == 0, result.stderr[-4000:]
+    assert "to_rclpy needs visualization_msgs, not installed: pip install 'viewer-bridge[ros]'\n" in result.stdout
+    assert "ModuleNotFoundError" not in result.stderr and "Traceback" not in result.stderr, result.stderr
+    assert run([python, "-c", "import rclpy"], tmp_path).returncode != 0  # no extra there indeed
+
+
+def test_ros_interfaces_install_never_pip_installs_unasked(venv: Path, tmp_path: Path) -> None:
+    """Where rclpy is missing, `ros-interfaces install` from a script (no terminal) refuses in one
+    line naming --yes, and the venv is as it was."""
+    env = copy(venv, tmp_path)
+    before = extras_table.distributions(env)
+    refused = subprocess.run(
+        [str(env / "bin/python"), "-m", "viewer_bridge", "ros-interfaces", "install"], cwd=tmp_path,
+        env=extras_table.clean_env(), stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert refused.returncode == 2, refused.stderr
+    assert refused.stderr.startswith("viewer-bridge ros-interfaces: building needs pip install ros-jazzy-rclpy ")
+    assert refused.stderr.endswith(
+        ": run again with --yes to allow it, or pip install 'viewer-bridge[ros,ros-build]' first\n"
+    )
+    assert refused.stderr.count("\n") == 1
+    assert extras_table.distributions(env) == before
+    assert not (env / "share" / "tf2_msgs").exists()

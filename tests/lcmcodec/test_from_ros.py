@@ -32,7 +32,9 @@ def lcm_gen_all(lcm_dir: Path, out: Path) -> subprocess.CompletedProcess[str]:
 def test_lcm_gen_takes_the_standard_sets_and_a_custom_package(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     sources = ["sensor_msgs", "geometry_msgs", "nav_msgs", "std_msgs", str(CUSTOM)]
     assert main(["lcm-types", "generate", "--ros-types", *sources, "-o", str(tmp_path / "lcm")]) == 0
-    written = capsys.readouterr().out.split()
+    said = capsys.readouterr()
+    written = said.out.split()
+    assert said.err == f"viewer-bridge lcm-types: wrote {len(written)} types into {tmp_path / 'lcm'}\n"
     assert str(tmp_path / "lcm" / "sensor_msgs" / "JointState.lcm") in written
     assert str(tmp_path / "lcm" / "my_robot" / "Gripper.lcm") in written
     assert str(tmp_path / "lcm" / "builtin_interfaces" / "Time.lcm") in written  # nested, from another package
@@ -121,7 +123,9 @@ def test_a_python_keyword_field_and_an_unknown_type_are_refused(tmp_path: Path) 
 def test_the_command_names_what_it_refuses(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     write_msg(tmp_path, "Clash", "float64[] x\nint32 x_length\n")
     assert main(["lcm-types", "generate", "--ros-types", str(tmp_path), "-o", str(tmp_path / "out")]) == 1
-    assert "lab/msg/Clash not mapped: field x's length field" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "lab/msg/Clash not mapped: field x's length field" in err
+    assert err.splitlines()[-1] == f"viewer-bridge lcm-types: wrote 0 types into {tmp_path / 'out'}, 1 type left out (above)"
     assert main(["lcm-types", "generate", "--ros-types", "no_such_msgs", "-o", str(tmp_path / "out")]) == 2
     bad = write_msg(tmp_path / "bad", "Broken", "float64[ x\n")
     assert main(["lcm-types", "generate", "--ros-types", str(bad), "-o", str(tmp_path / "out")]) == 2

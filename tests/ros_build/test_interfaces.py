@@ -295,6 +295,31 @@ def test_the_cli_generates_drakes_types_by_default_and_the_packages_named(
     assert "no LCM type maps to the package lab_arm_lcm_msgs (known: " in error and "lab_robot_lcm_msgs" in error
 
 
+def test_generate_says_which_types_it_wrote_and_that_drakes_own_need_pydrake(tmp_path: Path) -> None:
+    """Where pydrake is not installed, Drake's own types (lcmt_iiwa_command) are left out, in one
+    line naming the extra; each package written is named with its types."""
+    code = "import sys; sys.modules['drake'] = None\nfrom viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))"
+    result = subprocess.run([sys.executable, "-c", code, "ros-interfaces", "generate", "-o", str(tmp_path)],
+                            capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == [str(tmp_path / "drake_lcm_msgs"), str(tmp_path / "robotlocomotion_lcm_msgs")]
+    lines = result.stderr.splitlines()
+    assert lines[0] == (
+        "viewer-bridge ros-interfaces: Drake's own LCM types (lcmt_iiwa_command, lcmt_iiwa_status, lcmt_robot_state "
+        "and the rest) left out: they come with pydrake's drake module, not installed: pip install 'viewer-bridge[drake]'"
+    )
+    written = sorted(path.stem for path in (tmp_path / "drake_lcm_msgs" / "msg").glob("*.msg"))
+    assert "LcmtViewerDraw" in written and "LcmtIiwaCommand" not in written
+    assert lines[1] == f"viewer-bridge ros-interfaces: wrote drake_lcm_msgs: {len(written)} types ({', '.join(written)})"
+    assert lines[2:] == ["viewer-bridge ros-interfaces: wrote robotlocomotion_lcm_msgs: 1 type (Viewer2CommsT)"]
+    # With pydrake (this venv), nothing is said of Drake's types: they are written.
+    full = subprocess.run([sys.executable, "-m", "viewer_bridge", "ros-interfaces", "generate", "-o", str(tmp_path / "all")],
+                          capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert full.returncode == 0 and "left out" not in full.stderr, full.stderr
+    assert (tmp_path / "all" / "drake_lcm_msgs" / "msg" / "LcmtIiwaCommand.msg").is_file()
+    assert "wrote drake_lcm_msgs: " in full.stderr and "LcmtIiwaCommand" in full.stderr
+
+
 # The corpus's lab.robot and lab.geometry packages, renamed: the venv may hold lab_*_lcm_msgs built,
 # which must not be what the workspace's build is checked with.
 RENAMED = {"lab.": "vbws."}

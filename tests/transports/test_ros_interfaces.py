@@ -105,7 +105,12 @@ def test_a_second_install_does_nothing(capsys: pytest.CaptureFixture[str]) -> No
     assert time.monotonic() - start < 2
     assert capsys.readouterr().err == ""
     assert main(["ros-interfaces", "status"]) == 0
-    assert capsys.readouterr().out == f"tf2_msgs: installed in {sys.prefix}\n"
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == f"tf2_msgs: installed in {sys.prefix}"
+    # Then every other package built into the venv: the LCM types' (./dev test builds drake_lcm_msgs).
+    others = [name for name in ros_interfaces.built() if name != "tf2_msgs"]
+    assert "drake_lcm_msgs" in others
+    assert lines[1:] == [f"{name}: installed (LCM types) in {sys.prefix}" for name in others]
 
 
 def test_an_unknown_package_exits_2_naming_it(capsys: pytest.CaptureFixture[str]) -> None:

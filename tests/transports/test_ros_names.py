@@ -122,16 +122,29 @@ def test_ros_arguments_are_refused_as_rcl_refuses_them(flag: str, value: str) ->
     assert (problem is None) == rcl_accepts(flag, value), problem
 
 
-def test_channel_names_stay_bounded_and_never_guess_past_their_limit() -> None:
+def test_channel_names_give_one_channel_per_token_and_stay_bounded() -> None:
     import pytest
 
     from viewer_bridge.errors import Held
     from viewer_bridge.transports.ros_names import ChannelNames
 
-    names = ChannelNames(limit=2)
-    assert [names.token(channel) for channel in ("A.B", "1ARM", "C.D")] == ["A_B", "n1ARM", "C_D"]
+    names = ChannelNames(limit=3)
+    assert [names.token(channel) for channel in ("A.B", "1ARM", "A.B")] == ["A_B", "n1ARM", "A_B"]
+    with pytest.raises(Held) as refused:  # a second channel with the token of the first: never merged
+        names.token("A-B")
+    assert refused.value.kind == "name_collision"
+    assert str(refused.value) == (
+        "LCM channels A.B and A-B both become the ROS name A_B: A-B is not carried (A.B, seen first, keeps it; "
+        "rename one of them)"
+    )
+    with pytest.raises(Held, match="LCM channels A.B and A_B both"):  # the token's own name too
+        names.token("A_B")
     assert names.channel("A_B") == "A.B" and names.channel("n1ARM") == "1ARM"
-    assert names.channel("C_D") == "C_D"  # past the limit: not remembered, the token stands for itself
-    names.token("A-B")  # full, but A_B stands for A.B already: now for both, so refused
-    with pytest.raises(Held, match="A-B, A.B"):
-        names.channel("A_B")
+    assert names.channel("IIWA_COMMAND") == "IIWA_COMMAND"  # unseen: the token stands for itself
+    assert names.token("C.D") == "C_D"  # the third, and the last remembered
+    assert names.token("E_F") == "E_F"  # past the limit: a name that is a token already is carried
+    with pytest.raises(Held) as full:  # but none that would be renamed: it could merge unseen
+        names.token("G.H")
+    assert full.value.kind == "too_many_channels" and "G.H would be renamed G_H" in str(full.value)
+    with pytest.raises(Held, match="LCM channels C.D and C-D both"):
+        names.token("C-D")

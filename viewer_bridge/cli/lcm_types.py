@@ -28,13 +28,19 @@ def add_command(add: AddCommand) -> None:
 
 def run(args: Any) -> int:
     """Write the files (`DIR/<package>/<Name>.lcm`), print each path; a type that cannot be
-    mapped is one line on stderr with its reason, and makes the exit status 1."""
+    mapped is one line on stderr with its reason, and makes the exit status 1; a last line on
+    stderr counts what was written and left out."""
     if args.action != "generate":
         raise UsageError(f"unknown action {args.action}")
     definitions, wanted = load_ros_definitions(args.ros_types)
     mapping = map_ros_types(definitions, wanted)
-    for path in mapping.write(args.output):
+    from viewer_bridge.router.status import counted
+
+    written = mapping.write(args.output)
+    for path in written:
         print(path)
     for ros_name, reason in mapping.refused.items():
         print(f"viewer-bridge lcm-types: {ros_name} not mapped: {reason}", file=sys.stderr)
+    left_out = f", {counted(len(mapping.refused), 'type')} left out (above)" if mapping.refused else ""
+    print(f"viewer-bridge lcm-types: wrote {counted(len(written), 'type')} into {args.output}{left_out}", file=sys.stderr)
     return 1 if mapping.refused else 0

@@ -11,6 +11,12 @@ from pathlib import Path
 from viewer_bridge.cli.arguments import AddCommand
 from viewer_bridge.errors import UsageError
 
+# What generate says when pydrake is missing: the project ships only Drake's viewer types.
+DRAKE_LEFT_OUT = (
+    "viewer-bridge ros-interfaces: Drake's own LCM types (lcmt_iiwa_command, lcmt_iiwa_status, lcmt_robot_state "
+    "and the rest) left out: they come with pydrake's drake module, not installed: pip install 'viewer-bridge[drake]'"
+)
+
 
 def add_command(add: AddCommand) -> None:
     """The `ros-interfaces` command's arguments, on the parser `add` makes."""
@@ -35,6 +41,13 @@ def add_command(add: AddCommand) -> None:
         "instead of tf2_msgs; generate writes them beside the project's and Drake's (repeatable)",
     )
     interfaces.add_argument(
+        "-y",
+        "--yes",
+        action="store_true",
+        help="install: pip install the wheels a build needs (rclpy, rosidl's generators: about a hundred "
+        "distributions) without asking; without it, install asks when run in a terminal and refuses otherwise",
+    )
+    interfaces.add_argument(
         "-o", "--output", type=Path, metavar="DIR", help="generate: the folder to write the packages to (a workspace's src/)"
     )
 
@@ -43,19 +56,25 @@ def run(args: argparse.Namespace) -> int:
     """Generate, install or show: the LCM types' packages with --lcm-types (or for generate),
     else the Jazzy packages PyPI lacks (tf2_msgs)."""
     from viewer_bridge.ros_build import interfaces as ros_interfaces
+    from viewer_bridge.router.status import counted
 
-    say = lambda line: print(line, file=sys.stderr)  # noqa: E731
+    def say(line: str) -> None:
+        print(line, file=sys.stderr)
+
     if args.action == "generate":  # the LCM types' packages: the project's and Drake's, and --lcm-types'
         if args.output is None:
             raise UsageError("generate needs -o DIR")
         documented = _lcm_ros_definitions(args.lcm_types, comments=True, warn=say)
         for folder in ros_interfaces.generate_packages(documented, args.output, only=args.names or None):
             print(folder)
+            written = sorted(path.stem for path in (folder / "msg").glob("*.msg"))
+            say(f"viewer-bridge ros-interfaces: wrote {folder.name}: {counted(len(written), 'type')} "
+                f"({', '.join(written)})")  # fmt: skip
         return 0
     if args.lcm_types:
         definitions = _lcm_ros_definitions(args.lcm_types)
         if args.action == "install":
-            ros_interfaces.build(definitions, log=say, only=args.names or None)
+            ros_interfaces.build(definitions, log=say, only=args.names or None, confirm=_confirm(args.yes))
         else:
             chosen = ros_interfaces.packages(definitions)
             digests = ros_interfaces.digests(chosen)
@@ -67,13 +86,37 @@ def run(args: argparse.Namespace) -> int:
     if unknown:
         known = ", ".join(ros_interfaces.INTERFACES)
         raise UsageError(f"unknown interface package {', '.join(unknown)} (known: {known})")
-    if args.action == "status":
+    if args.action == "status":  # the Jazzy packages PyPI lacks, then every other package built here
         absent = ros_interfaces.missing()
         for name in args.names or ros_interfaces.INTERFACES:
             print(f"{name}: {'missing' if name in absent else 'installed'} in {sys.prefix}")
+        if not args.names:
+            for name in ros_interfaces.built():
+                if name not in ros_interfaces.INTERFACES:
+                    print(f"{name}: installed (LCM types) in {sys.prefix}")
         return 0
-    ros_interfaces.install(args.names or None, log=say)
+    ros_interfaces.install(args.names or None, log=say, confirm=_confirm(args.yes))
     return 0
+
+
+def _confirm(yes: bool) -> Callable[[Sequence[str]], bool]:
+    """What `install` asks before pip installs the wheels a build needs: yes with --yes; the user
+    when standard input is a terminal; otherwise a refusal naming --yes (a script never installs
+    about a hundred distributions unasked)."""
+
+    def confirm(wheels: Sequence[str]) -> bool:
+        if yes:
+            return True
+        what = f"pip install {' '.join(wheels)} (and what they need) into {sys.prefix}"
+        if not sys.stdin.isatty():
+            raise UsageError(
+                f"building needs {what}: run again with --yes to allow it, or pip install "
+                "'viewer-bridge[ros,ros-build]' first"
+            )
+        answer = input(f"viewer-bridge ros-interfaces: {what}? [y/N] ")
+        return answer.strip().lower() in ("y", "yes")
+
+    return confirm
 
 
 def _lcm_ros_definitions(
@@ -88,4 +131,6 @@ def _lcm_ros_definitions(
     if warn is not None:
         for warning in library.warnings:
             warn(f"viewer-bridge ros-interfaces: {warning}")
+        if library.drake_left_out:
+            warn(DRAKE_LEFT_OUT)
     return dict(library.ros_definitions(comments=comments))

@@ -115,8 +115,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     view = _status_view(args.quiet)
     try:
+        without = _foxglove_unless_installed() if args.config is None else None
         config = (
-            load_config(args.config)
+            load_config(args.config, without=without)
             .with_lcm_types(args.lcm_types)
             .allowing_commands(args.allow_commands)
             .with_ros_topics(args.ros_topics)
@@ -164,6 +165,36 @@ def run(args: argparse.Namespace) -> int:
         if demo is not None:
             demo.join(timeout=2)
     return 130 if isinstance(router, Workers) and signal.SIGINT in signals else 0
+
+
+def _foxglove_unless_installed() -> str | None:
+    """The built-in config serves ROS 2 and Foxglove. With `[ros]` alone, its Foxglove routes are
+    left out ("foxglove", said in one line naming the extra) and ROS 2 is served; a config the
+    user names (`-c`) runs as written, or stops naming what it lacks."""
+    from viewer_bridge.config.bridge import routes_on
+    from viewer_bridge.util.extras import EXTRAS
+
+    lacking = [module for module, extra in EXTRAS.items() if extra == "foxglove" and not _importable(module)]
+    if not lacking:
+        return None
+    routes = yaml.safe_load(BUILTIN_CONFIGS["default"])["routes"]
+    logging.getLogger(__name__).warning(
+        "viewer-bridge: the built-in config's %d Foxglove routes left out: they need %s, not installed: "
+        "pip install 'viewer-bridge[foxglove]'",
+        sum(routes_on(route, "foxglove") for route in routes),
+        lacking[0],
+    )
+    return "foxglove"
+
+
+def _importable(module: str) -> bool:
+    """Whether `module` can be found (one made missing, `sys.modules[name] = None`, counts as absent)."""
+    import importlib.util
+
+    try:
+        return importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):
+        return False
 
 
 def _status_view(quiet: bool) -> StatusView:

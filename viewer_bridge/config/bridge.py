@@ -384,8 +384,9 @@ BUILTIN_CONFIGS = _builtin_configs()
 DEFAULT_CONFIG = BUILTIN_CONFIGS["default"]
 
 
-def load_config(path: str | Path | None) -> BridgeConfig:
-    """The config in `path` (`builtin:NAME` for a built-in one), or the built-in default.
+def load_config(path: str | Path | None, *, without: str | None = None) -> BridgeConfig:
+    """The config in `path` (`builtin:NAME` for a built-in one), or the built-in default;
+    `without` a transport, the config less its routes on that transport and its section.
 
     Raises `ConfigError` with file:line:field.
     """
@@ -399,7 +400,17 @@ def load_config(path: str | Path | None) -> BridgeConfig:
         document = YamlDocument.read(path)
     if not isinstance(document.data, dict):
         raise ConfigError(document.path, 1, "", "the config must be a mapping with a 'routes' list")
+    if without is not None:
+        data = {key: value for key, value in document.data.items() if key != without}
+        data["routes"] = [route for route in data.get("routes") or [] if not routes_on(route, without)]
+        document.data = data
     return document.validate(BridgeConfig, context={"document": document})
+
+
+def routes_on(route: Any, transport: str) -> bool:
+    """Whether a route, as a config's YAML has it, reads or writes `transport`."""
+    ends = [route.get(end) for end in ("source", "destination")] if isinstance(route, dict) else []
+    return any(isinstance(end, dict) and end.get("transport") == transport for end in ends)
 
 
 __all__ = [
@@ -412,4 +423,5 @@ __all__ = [
     "destination_name",
     "load_config",
     "ros_topic_routes",
+    "routes_on",
 ]

@@ -186,9 +186,16 @@ class TypeLibrary:
     """The known LCM types, by full name and by fingerprint."""
 
     def __init__(
-        self, structs: Mapping[str, StructDef], fingerprints: Mapping[str, bytes], warnings: list[str]
+        self,
+        structs: Mapping[str, StructDef],
+        fingerprints: Mapping[str, bytes],
+        warnings: list[str],
+        drake_left_out: bool = False,
     ) -> None:
         self._structs = dict(structs)
+        # Drake's own types (lcmt_iiwa_command ...) were asked for but pydrake's `drake` module is
+        # not installed: only the project's copies of Drake's viewer types are known.
+        self.drake_left_out = drake_left_out
         self._mapping: RosMapping = map_to_ros(self._structs)
         self._lock = threading.Lock()
         self._codecs: dict[str, StructCodec] = {}  # every type's, compiled once: one class per type
@@ -252,7 +259,7 @@ class TypeLibrary:
                     f"{name} ({definition.where}): its class's fingerprint {fingerprints[name].hex()} is not "
                     f"the {computed.hex()} its description gives; using the class's"
                 )
-        return cls(structs, fingerprints, warnings)
+        return cls(structs, fingerprints, warnings, drake_left_out=drake and not drake_found)
 
     def for_data(self, data: Buffer, channel: str = "") -> LcmType | None:
         """The type whose fingerprint starts `data`, or None.

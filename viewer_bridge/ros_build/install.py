@@ -33,9 +33,13 @@ from viewer_bridge.ros_build.packages import (
 )
 
 __all__ = [
-    "APT_PACKAGES", "BUILD_WHEELS", "RUNTIME_WHEELS", "build", "current", "digests", "install", "log_path",
-    "missing", "uninstall",
+    "APT_PACKAGES", "BUILD_WHEELS", "RUNTIME_WHEELS", "Confirm", "build", "built", "current", "digests", "install",
+    "log_path", "missing", "uninstall",
 ]  # fmt: skip
+
+# Asked, with the wheels a build would pip install (their own dependencies come too), before pip
+# runs: True to go on; False or an exception to install nothing.
+Confirm = Callable[[Sequence[str]], bool]
 
 
 # What rclpy needs at run time, then what rosidl needs to generate and compile a package (the
@@ -88,6 +92,13 @@ def missing(prefix: str | Path = sys.prefix) -> list[str]:
     """The interface packages of INTERFACES that are not installed in the environment at `prefix`."""
     root = Path(prefix)
     return [name for name, interface in INTERFACES.items() if not _installed(name, interface.messages, root)]
+
+
+def built(prefix: str | Path = sys.prefix) -> list[str]:
+    """Every interface package this command built into the environment at `prefix` (tf2_msgs and
+    the LCM types' packages alike): those with a stamp of their sources, by name."""
+    share = Path(prefix) / "share"
+    return sorted(stamp.parent.name for stamp in share.glob("*/viewer-bridge-sources.sha256"))
 
 
 def digests(chosen: Sequence[Package]) -> dict[str, str]:
@@ -219,12 +230,13 @@ def install(
     prefix: str | Path = sys.prefix,
     jobs: int = 2,
     log: Callable[[str], None] | None = None,
+    confirm: Confirm | None = None,
 ) -> list[str]:
     """Build and install the interface packages `names` (default: all) that `prefix` lacks.
 
     Returns the names built; nothing is done when all are installed already. pip installs the
-    `ros-build` wheels first when some are missing. Raises RosInterfaceError, naming the failing
-    step and its log, when a tool is missing or a step fails.
+    `ros-build` wheels first when some are missing, once `confirm` (when given) agrees. Raises
+    RosInterfaceError, naming the failing step and its log, when a tool is missing or a step fails.
     """
     root = Path(prefix)
     wanted = list(INTERFACES) if names is None else list(dict.fromkeys(names))
@@ -239,7 +251,7 @@ def install(
     with _locked(root):
         absent = missing(root)  # again: another process may have built them meanwhile
         todo = [interface_package(name) for name in wanted if name in absent]
-        _build_all(todo, digests(todo), root, jobs, log)
+        _build_all(todo, digests(todo), root, jobs, log, confirm=confirm)
         still = sorted({package.name for package in todo} & set(missing(root)))
         if still:
             raise RosInterfaceError(f"{', '.join(still)} built but not found installed in {root}")
@@ -253,6 +265,7 @@ def build(
     log: Callable[[str], None] | None = None,
     only: Iterable[str] | None = None,
     install_wheels: bool = True,
+    confirm: Confirm | None = None,
 ) -> list[str]:
     """Build the interface packages of `definitions` into `prefix`, each that is not installed
     from the same sources already (see `digests`), each after the packages it uses.
@@ -261,7 +274,8 @@ def build(
     names built. Raises RosInterfaceError in one line naming the package and its build log when
     a build fails, or naming the folder when `prefix` cannot be written. `install_wheels=False`
     (a running bridge: what arrives on a bus must never install software) refuses, naming what
-    to install, where wheels the build needs are missing, instead of pip installing them.
+    to install, where wheels the build needs are missing, instead of pip installing them; with it,
+    `confirm` (when given) is asked first.
     """
     root = Path(prefix)
     chosen = closure(packages(definitions), only)
@@ -271,7 +285,7 @@ def build(
     _writable(root)
     with _locked(root):  # again once locked: another process may have built them meanwhile
         todo = [package for package in chosen if not current(package, wanted[package.name], root)]
-        _build_all(todo, wanted, root, jobs, log, install_wheels)
+        _build_all(todo, wanted, root, jobs, log, install_wheels, confirm)
     return [package.name for package in todo]
 
 
@@ -282,9 +296,10 @@ def _build_all(
     jobs: int,
     log: Callable[[str], None] | None,
     install_wheels: bool = True,
+    confirm: Confirm | None = None,
 ) -> None:
     """Build `todo` in order into `root` (the caller holds the lock), pip installing what is
-    missing (or, without `install_wheels`, refusing to)."""
+    missing once `confirm` agrees (or, without `install_wheels`, refusing to)."""
     if not todo:
         return
     say = log or (lambda _: None)
@@ -299,6 +314,10 @@ def _build_all(
             f"building {todo[0].name} needs {' '.join(wheels)}, not installed (the bridge installs nothing "
             "while it runs): pip install 'viewer-bridge[ros-build]', or build it beforehand with "
             "viewer-bridge ros-interfaces install"
+        )
+    if wheels and confirm is not None and not confirm(wheels):
+        raise RosInterfaceError(
+            f"building {todo[0].name} needs {len(wheels)} wheels not installed here: declined, nothing installed"
         )
     if wheels:
         say(f"pip installing {' '.join(wheels)}")

@@ -22,7 +22,9 @@ from viewer_bridge.ros_build.install import (
     APT_PACKAGES,
     BUILD_WHEELS,
     RUNTIME_WHEELS,
+    Confirm,
     build,
+    built,
     current,
     digests,
     install,
@@ -46,7 +48,7 @@ from viewer_bridge.ros_build.packages import (
 
 __all__ = [
     "APT_PACKAGES", "INTERFACES", "BUILD_WHEELS", "GENERATED_MARK", "RUNTIME_WHEELS", "WHEEL_INCLUDES_CMAKE",
-    "Interface", "Package", "build", "check_writable_package", "cmake_lists", "current", "digests",
+    "Confirm", "Interface", "Package", "build", "built", "check_writable_package", "cmake_lists", "current", "digests",
     "generate_packages", "install", "interface_package", "log_path", "message_text", "missing", "package_xml",
     "packages", "uninstall", "write_package",
 ]  # fmt: skip

@@ -99,6 +99,8 @@ LEGEND = {
     "waiting_for_build": "its ROS 2 interface is being built",
     "own_message": "the bridge's own message, come back",
     "too_many_streams": "past the route's max_streams",
+    "name_collision": "its channel makes the ROS name another channel has (a-b after a.b): not carried",
+    "too_many_channels": "past the 10,000 channels that have ROS names, one that would be renamed",
 }
 
 

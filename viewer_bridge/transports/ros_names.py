@@ -31,42 +31,46 @@ def name_token(text: str) -> str:
 
 class ChannelNames:
     """The channels whose names became ROS name tokens (`{1:topic}`: `A.B` -> `A_B`, `1ARM` ->
-    `n1ARM`), so that the way back (`{1:channel}`) finds the channel a token stands for: the one
-    channel seen with that token, else the token itself. Two channels with one token make the
-    token ambiguous: refused (`Held`), never a guess. Bounded: past `limit` channels, a new channel
-    is remembered only where its token is known already (so that the token stays ambiguous);
-    other tokens then stand for themselves."""
+    `n1ARM`), so that the way back (`{1:channel}`) finds the channel a token stands for: the
+    channel seen with that token, else the token itself.
+
+    One token, one channel: the first channel seen with a token keeps it, and another that makes
+    the same token (`A-B` after `A.B`) is refused (`Held`, kind `name_collision`, naming both),
+    never merged into the first one's topic. Bounded: past `limit` channels, a new one is carried
+    only when its name is a token already (`IIWA_STATUS`, which no other channel can be mistaken
+    for while nothing new is remembered); any other is refused (`too_many_channels`)."""
 
     def __init__(self, limit: int = 10_000) -> None:
-        self._by_token: dict[str, set[str]] = {}
-        self._count = 0
+        self._owner: dict[str, str] = {}  # token -> the channel that has it
         self._limit = limit
         self._lock = threading.Lock()
 
     def token(self, channel: str) -> str:
-        """`channel`'s token, remembered."""
+        """`channel`'s token, remembered; `Held` when another channel has that token already, or
+        when the names are full and `channel` is no token itself."""
         token = name_token(channel)
         with self._lock:
-            channels = self._by_token.get(token)
-            if channels is not None and channel in channels:
-                return token
-            if self._count < self._limit:
-                self._by_token.setdefault(token, set()).add(channel)
-                self._count += 1
-            elif channels:  # full, and the token stands for another channel too: say so, never guess
-                channels.add(channel)
-        return token
+            owner = self._owner.get(token)
+            if owner is None and len(self._owner) < self._limit:
+                self._owner[token] = owner = channel
+        if owner == channel or (owner is None and token == channel):
+            return token
+        if owner is None:
+            raise Held(
+                "too_many_channels",
+                f"{len(self._owner)} channels have ROS names already (the limit), and {channel} would be renamed "
+                f"{token}: not carried",
+            )
+        raise Held(
+            "name_collision",
+            f"LCM channels {owner} and {channel} both become the ROS name {token}: {channel} is not carried "
+            f"({owner}, seen first, keeps it; rename one of them)",
+        )
 
     def channel(self, token: str) -> str:
-        """The channel `token` stands for; `Held` (`ambiguous_channel`) when several do."""
+        """The channel `token` stands for: the one that has it, else the token itself."""
         with self._lock:
-            channels = sorted(self._by_token.get(token, ()))
-        if len(channels) > 1:
-            raise Held(
-                "ambiguous_channel",
-                f"{token} stands for the LCM channels {', '.join(channels)}: which one cannot be told, nothing is sent",
-            )
-        return channels[0] if channels else token
+            return self._owner.get(token, token)
 
 
 def topic_problem(name: str) -> str | None:

@@ -85,9 +85,18 @@ def from_cdr(data: bytes | memoryview, typename: str) -> Any:
 
 
 def to_rclpy(message: Any) -> Any:
-    """The same message as an rclpy message object (needs the ROS 2 message packages)."""
+    """The same message as an rclpy message object (needs the ROS 2 message packages: the `ros`
+    extra's, whose absence is a `MissingExtra` naming the pip command)."""
+    from viewer_bridge.util.extras import EXTRAS, missing
+
     package, _, name = message.__msgtype__.split("/")
-    cls = getattr(importlib.import_module(f"{package}.msg"), name)
+    try:
+        module = importlib.import_module(f"{package}.msg")
+    except ImportError as error:
+        if (error.name or "").partition(".")[0] in EXTRAS:  # a package of an extra (else: one built here)
+            raise missing(error, "to_rclpy") from None
+        raise
+    cls = getattr(module, name)
     values = {item.name: _rclpy_value(getattr(message, item.name)) for item in fields(message)}
     return cls(**values)
 
