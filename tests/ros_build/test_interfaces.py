@@ -296,8 +296,8 @@ def test_the_cli_generates_drakes_types_by_default_and_the_packages_named(
 
 
 def test_generate_says_which_types_it_wrote_and_that_drakes_own_need_pydrake(tmp_path: Path) -> None:
-    """Where pydrake is not installed, Drake's own types (lcmt_iiwa_command) are left out, in one
-    line naming the extra; each package written is named with its types."""
+    """Where pydrake is not installed, Drake's types the project does not ship (lcmt_panda_status)
+    are left out, in one line naming the extra; each package written is named with its types."""
     code = "import sys; sys.modules['drake'] = None\nfrom viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))"
     result = subprocess.run([sys.executable, "-c", code, "ros-interfaces", "generate", "-o", str(tmp_path)],
                             capture_output=True, text=True, timeout=300)  # fmt: skip
@@ -305,11 +305,12 @@ def test_generate_says_which_types_it_wrote_and_that_drakes_own_need_pydrake(tmp
     assert result.stdout.split() == [str(tmp_path / "drake_lcm_msgs"), str(tmp_path / "robotlocomotion_lcm_msgs")]
     lines = result.stderr.splitlines()
     assert lines[0] == (
-        "viewer-bridge ros-interfaces: Drake's own LCM types (lcmt_iiwa_command, lcmt_iiwa_status, lcmt_robot_state "
+        "viewer-bridge ros-interfaces: Drake's other LCM types (lcmt_panda_status, lcmt_scope, lcmt_allegro_command "
         "and the rest) left out: they come with pydrake's drake module, not installed: pip install 'viewer-bridge[drake]'"
     )
     written = sorted(path.stem for path in (tmp_path / "drake_lcm_msgs" / "msg").glob("*.msg"))
-    assert "LcmtViewerDraw" in written and "LcmtIiwaCommand" not in written
+    assert {"LcmtViewerDraw", "LcmtIiwaCommand", "LcmtSchunkWsgCommand"} <= set(written)  # shipped: step 7 of the tour
+    assert "LcmtPandaStatus" not in written
     assert lines[1] == f"viewer-bridge ros-interfaces: wrote drake_lcm_msgs: {len(written)} types ({', '.join(written)})"
     assert lines[2:] == ["viewer-bridge ros-interfaces: wrote robotlocomotion_lcm_msgs: 1 type (Viewer2CommsT)"]
     # With pydrake (this venv), nothing is said of Drake's types: they are written.

@@ -11,9 +11,10 @@ from pathlib import Path
 from viewer_bridge.cli.arguments import AddCommand
 from viewer_bridge.errors import UsageError
 
-# What generate says when pydrake is missing: the project ships only Drake's viewer types.
+# What generate says when pydrake is missing: the project ships Drake's viewer and driver types
+# (lcmtypes/), the others come with pydrake.
 DRAKE_LEFT_OUT = (
-    "viewer-bridge ros-interfaces: Drake's own LCM types (lcmt_iiwa_command, lcmt_iiwa_status, lcmt_robot_state "
+    "viewer-bridge ros-interfaces: Drake's other LCM types (lcmt_panda_status, lcmt_scope, lcmt_allegro_command "
     "and the rest) left out: they come with pydrake's drake module, not installed: pip install 'viewer-bridge[drake]'"
 )
 
