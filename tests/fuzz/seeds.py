@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from tests.formats.ign.oracle import pose_v
-from tests.fuzz.targets import DISCOVERY_ADVERTISED, DISCOVERY_ANY, DISCOVERY_SUBSCRIBED
+from tests.fuzz.targets import DISCOVERY_ADVERTISED, DISCOVERY_ANY, DISCOVERY_SUBSCRIBED, LCM_CODECS
 from viewer_bridge.config.bridge import BUILTIN_CONFIGS
 from viewer_bridge.examples.shapes import build_simulator
 from viewer_bridge.formats.drake.draw import poses_from_draw
@@ -65,6 +65,8 @@ def write_seeds(folder: Path) -> dict[str, int]:
     seeds.update(foxglove_seeds())
     seeds.update(lcm_type_seeds())
     seeds["ros_cdr_to_lcm"] = ros_cdr_seeds()
+    seeds["lcm_codecs"] = [bytes([index]) + data for index, codec in enumerate(LCM_CODECS)
+                           for data in seeds.get(codec.type_name, [])]  # fmt: skip
     for kind, inputs in seeds.items():
         (folder / kind).mkdir(parents=True, exist_ok=True)
         for data in inputs:
