@@ -24,7 +24,7 @@ from typing import Any
 from viewer_bridge.config.bridge import Route, destination_name
 from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, Held
-from viewer_bridge.model.skipped import collecting
+from viewer_bridge.model.skipped import Skipped, thread_collector
 from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
 from viewer_bridge.router.stats import RouteStats
 from viewer_bridge.shared import MessageTime
@@ -288,10 +288,11 @@ class RouteRunner:
         self._translate(lane, message)
 
     def _translate(self, lane: _Lane, message: Message, latency: bool = True) -> None:
+        skipped = thread_collector()
+        skipped.clear()  # what a translation that raised left there was no part of a message sent
         started = time.perf_counter()
         try:
-            with collecting() as skipped:
-                outputs = lane.translator.translate(message.received)
+            outputs = lane.translator.translate(message.received)
         except Held as held:
             self._held(message, held)
             return
@@ -303,11 +304,8 @@ class RouteRunner:
             self._error(f"crash:{type(error).__name__}", f"{message.channel}: {traceback.format_exc()}")
             return
         self.stats.translate_ms.append((time.perf_counter() - started) * 1e3)
-        for part in skipped:  # the rest of the message is translated
-            if isinstance(part, BridgeError):  # a part that failed (one image of an array): an error
-                self._error(type(part).__name__, f"{message.channel}: {part}")
-            else:  # a geometry a target cannot write: a warning
-                self._count(self.stats.warnings, "skipped_geometry", f"{message.channel}: {part}")
+        if skipped:
+            self._count_skipped(message, skipped)
         stale = self._expired(message)
         if stale is not None:  # a command held up (a stall, a busy core) is never sent late
             self._held(message, stale)
@@ -327,6 +325,16 @@ class RouteRunner:
             self.stats.bytes_out += len(payload)
         if outputs and latency:
             self.stats.latency_ms.append((time.time_ns() // 1000 - message.received.received_us) / 1e3)
+
+    def _count_skipped(self, message: Message, skipped: list[Skipped]) -> None:
+        """The parts of a translated message left out (the rest of it is sent), counted and let go."""
+        parts = skipped.copy()
+        skipped.clear()
+        for part in parts:
+            if isinstance(part, BridgeError):  # a part that failed (one image of an array): an error
+                self._error(type(part).__name__, f"{message.channel}: {part}")
+            else:  # a geometry a target cannot write: a warning
+                self._count(self.stats.warnings, "skipped_geometry", f"{message.channel}: {part}")
 
     def _held(self, message: Message, held: Held) -> None:
         """A message held back on purpose: counted per channel and kind, said once per both."""
