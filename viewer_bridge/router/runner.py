@@ -13,7 +13,6 @@ skips that message only.
 from __future__ import annotations
 
 import logging
-import re
 import threading
 import time
 import traceback
@@ -31,6 +30,7 @@ from viewer_bridge.shared import MessageTime
 from viewer_bridge.translators import Output, Translator
 from viewer_bridge.transports.base import MessageType, Publisher, Received
 from viewer_bridge.transports.ros_names import ChannelNames
+from viewer_bridge.util.channels import ChannelPattern
 
 log = logging.getLogger("viewer_bridge")
 
@@ -119,7 +119,7 @@ class RouteRunner:
         max_age_ms = route.max_age_ms if route.max_age_ms is not None else commands and commands.max_age_ms
         self._max_age_us = max_age_ms * 1000 if max_age_ms else None
         self._rejected = rejected  # the source transport's `rejected`: a sender may expect an answer
-        self.pattern = re.compile(route.source.name)
+        self.pattern = ChannelPattern(route.source.name)  # a channel's match, once
         self.mailbox = Mailbox(route.rate.policy, route.qos.depth, rate_limited=bool(route.rate.max_hz))
         self.stats = RouteStats()
         # A rate-limited route waits between messages: only its worker can do that.
