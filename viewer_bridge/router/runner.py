@@ -69,13 +69,19 @@ class _Lane:
         self.name = name
         self.translator = translator
         self._publisher = publisher
+        # Each output's publisher by index, while the output at that index is the same (a
+        # translator adds outputs as it goes): no name or key made per message.
+        self._made: dict[int, tuple[Output, Publisher]] = {}
         self.skipped: dict[str, Message] = {}  # newest per channel, while nobody listened (lazy)
         self.listened_now = True
         self._checked_at = float("-inf")
 
     def publisher(self, index: int) -> Publisher:
         output = self.translator.outputs[index]
-        return self._publisher(self.name + output.suffix, output)
+        made = self._made.get(index)
+        if made is None or made[0] is not output:
+            made = self._made[index] = (output, self._publisher(self.name + output.suffix, output))
+        return made[1]
 
     def listened(self) -> bool:
         """Whether any output has a subscriber, or its transport cannot tell (then: translate).
@@ -179,9 +185,11 @@ class RouteRunner:
     def _translated_inline(self, message: Message) -> bool:
         """Translate on the caller's thread when the route is idle and the budget allows."""
         inline = self._inline
-        if inline is None or len(self.mailbox) or not inline.allows() or not self._turn.acquire(False):
+        if inline is None or len(self.mailbox):
             return False
         started = time.perf_counter()
+        if not inline.allows(started) or not self._turn.acquire(False):
+            return False
         try:
             self.handle(message)
         finally:
