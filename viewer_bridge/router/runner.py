@@ -221,10 +221,19 @@ class RouteRunner:
                 continue
             # Taken under the turn: a message translated inline meanwhile is never overtaken.
             with self._turn:
-                message = self.mailbox.take()
-                if message is not None:
-                    next_due = time.monotonic() + period
-                    self.handle(message)
+                if period:
+                    message = self.mailbox.take()
+                    if message is not None:
+                        next_due = time.monotonic() + period
+                        self.handle(message)
+                else:
+                    self._drain()
+
+    def _drain(self) -> None:
+        """Every message waiting, for one wake-up of the worker: taken one at a time, so the
+        mailbox's policy applies to what arrives meanwhile (the newest per channel wins)."""
+        while not self._stop.is_set() and (message := self.mailbox.take()) is not None:
+            self.handle(message)
 
     def catch_up(self) -> None:
         """A lazy route's lanes that skipped messages and now have a subscriber translate them."""
@@ -318,8 +327,8 @@ class RouteRunner:
         if stale is not None:  # a command held up (a stall, a busy core) is never sent late
             self._held(message, stale)
             return
-        self._message_time.received_us = message.received.received_us  # what a file stamps its outputs with
-        self._message_time.channel = message.channel  # where they came from (the loop guard)
+        # Its receive time (what a file stamps its outputs with) and channel (the loop guard's origin).
+        self._message_time.message = message.received
         for index, payload in outputs:
             try:
                 lane.publisher(index).publish(payload)
