@@ -75,6 +75,8 @@ class _Lane:
         self.skipped: dict[str, Message] = {}  # newest per channel, while nobody listened (lazy)
         self.listened_now = True
         self._checked_at = float("-inf")
+        # Whether the translator keeps books on every message: most do not (no call per message).
+        self.observes = type(translator).observe is not Translator.observe
 
     def publisher(self, index: int) -> Publisher:
         output = self.translator.outputs[index]
@@ -126,6 +128,7 @@ class RouteRunner:
         self._max_age_us = max_age_ms * 1000 if max_age_ms else None
         self._rejected = rejected  # the source transport's `rejected`: a sender may expect an answer
         self.pattern = ChannelPattern(route.source.name)  # a channel's match, once
+        self._lazy = route.lazy
         self.mailbox = Mailbox(route.rate.policy, route.qos.depth, rate_limited=bool(route.rate.max_hz))
         self.stats = RouteStats()
         # A rate-limited route waits between messages: only its worker can do that.
@@ -287,8 +290,9 @@ class RouteRunner:
         """Translate and publish one message; errors are counted and reported, never raised."""
         try:
             lane = self._lane(message)
-            lane.translator.observe(message.received)
-            if self.route.lazy:
+            if lane.observes:
+                lane.translator.observe(message.received)
+            if self._lazy:
                 if not lane.listened():
                     lane.skip(message)
                     self.stats.idle_skipped += 1
@@ -323,9 +327,8 @@ class RouteRunner:
         self.stats.translate_ms.append((time.perf_counter() - started) * 1e3)
         if skipped:
             self._count_skipped(message, skipped)
-        stale = self._expired(message)
-        if stale is not None:  # a command held up (a stall, a busy core) is never sent late
-            self._held(message, stale)
+        if self._max_age_us is not None and (stale := self._expired(message)) is not None:
+            self._held(message, stale)  # a command held up (a stall, a busy core) is never sent late
             return
         # Its receive time (what a file stamps its outputs with) and channel (the loop guard's origin).
         self._message_time.message = message.received
