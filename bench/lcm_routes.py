@@ -13,6 +13,13 @@ Baseline, same run: the same channels through an `lcm_relay` route onto the same
 (the bytes as they are: no type lookup, no transcoding). Reported per route: delivered (messages
 that reached the subscriber, of those sent; the first second, while the lazy route wakes, left
 out) and the bridge's CPU time per message it received (user + system, /proc/PID/stat).
+
+Delivery at a rate (`--rate-hz`, per channel; issue 42's goal is 1500 Hz, 30,000 messages a
+second): the built-in zenoh config's `lcm_bus` to a Zenoh subscriber as above, and the built-in
+default config's `lcm_bus` (the ros transport: ROS 2 over DDS, drake_lcm_msgs built) to an rclpy
+subscriber on every topic (`--dds`; raw, so the count is not rclpy's deserialisation). The
+subscribers share the other core with the publisher and the Zenoh router, so at high rates what
+they keep up with bounds what is seen delivered.
 """
 
 from __future__ import annotations
@@ -37,6 +44,7 @@ from viewer_bridge.transports.lcm import LcmBus
 
 CHANNELS = tuple(f"IIWA_STATUS_{index:02d}" for index in range(20))
 RATE_HZ = 500.0  # per channel
+FAST_HZ = 1500.0  # per channel: issue 42's 30,000 messages a second
 RELAY = """\
   - name: relay
     source: {transport: lcm, name: "(IIWA_STATUS_.*)"}
@@ -81,10 +89,10 @@ def status_bytes() -> bytes:
     return message.encode()  # type: ignore[no-any-return]
 
 
-def publish(bus: LcmBus, seconds: float) -> int:
-    """Every channel at RATE_HZ for `seconds`, round-robin, paced by the clock; returns messages sent."""
+def publish(bus: LcmBus, seconds: float, rate_hz: float = RATE_HZ) -> int:
+    """Every channel at `rate_hz` for `seconds`, round-robin, paced by the clock; returns messages sent."""
     data = status_bytes()
-    period = 1.0 / (RATE_HZ * len(CHANNELS))
+    period = 1.0 / (rate_hz * len(CHANNELS))
     start = time.perf_counter()
     sent = 0
     while time.perf_counter() - start < seconds:
@@ -96,18 +104,63 @@ def publish(bus: LcmBus, seconds: float) -> int:
     return sent
 
 
-def run(route: str, folder: Path, seconds: float, endpoint: str) -> dict[str, float]:
+class DdsCounting:
+    """One rclpy subscriber (raw bytes) on every channel's topic, /lcm/<channel>; counts arrivals
+    while `counting` is set."""
+
+    def __init__(self) -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+
+        from viewer_bridge.transports.ros2 import message_class, qos_profile
+
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node("bench_lcm_routes", context=self.context)
+        self.counting = threading.Event()
+        self.count = 0
+        status = message_class("drake_lcm_msgs/msg/LcmtIiwaStatus")
+        for channel in CHANNELS:
+            self.node.create_subscription(status, f"/lcm/{channel}", self._arrived, qos_profile(1000), raw=True)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        threading.Thread(target=self.executor.spin, daemon=True).start()
+
+    def _arrived(self, data: bytes) -> None:
+        if self.counting.is_set():
+            self.count += 1
+
+    def close(self) -> None:
+        import rclpy
+
+        self.executor.shutdown(timeout_sec=1)
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+def dds_config() -> str:
+    """The built-in default config's `lcm_bus` route (LCM -> ROS 2 over DDS) as it ships, alone."""
+    [bus] = [r for r in yaml.safe_load(BUILTIN_CONFIGS["default"])["routes"] if r["name"] == "lcm_bus"]
+    return yaml.safe_dump({"routes": [bus]})
+
+
+def run(route: str, folder: Path, seconds: float, endpoint: str, rate_hz: float = RATE_HZ) -> dict[str, float]:
+    """`route` (relay, lcm_bus, or dds: lcm_bus onto ROS 2 over DDS) at `rate_hz` per channel."""
     domain = int(os.environ.get("ROS_DOMAIN_ID") or 0)
-    bridge = Bridge(bus_config(endpoint, route), folder, core=0)
-    subscriber = Counting(endpoint, "lcm" if route == "relay" else f"{domain}/lcm")
+    bridge = Bridge(dds_config() if route == "dds" else bus_config(endpoint, route), folder, core=0)
+    subscriber: Counting | DdsCounting = (
+        DdsCounting() if route == "dds" else Counting(endpoint, "lcm" if route == "relay" else f"{domain}/lcm")
+    )
     bus = LcmBus(URL)
     time.sleep(1.0)
-    publish(bus, 1.0)  # the lazy route wakes, each channel's publisher appears
-    time.sleep(1.0)
+    publish(bus, 1.0, rate_hz)  # the lazy route wakes, each channel's publisher appears
+    time.sleep(1.0 if route != "dds" else 2.0)  # DDS matching takes longer
     subscriber.counting.set()
     cpu_before = bridge.cpu_seconds()
     in_before = _messages_in(bridge.snapshot())
-    sent = publish(bus, seconds)
+    sent = publish(bus, seconds, rate_hz)
     # What was queued drains, and the stats file is written again (every second): until the
     # subscriber has every message and the stats count them all, at most 2 s.
     settle(lambda: subscriber.count >= sent and _messages_in(bridge.snapshot()) - in_before >= sent, 2.0)
@@ -134,8 +187,10 @@ def _messages_in(stats: dict[str, Any]) -> int:
 Runner = Callable[[Path, float, str], dict[str, float]]  # (folder, seconds, Zenoh endpoint) -> figures
 
 
-def compare(seconds: float, rounds: int = 2, others: dict[str, Runner] | None = None) -> dict[str, dict[str, float]]:
-    """Both routes (and `others`, by name: bench/floor.py's floor), `rounds` times interleaved;
+def compare(
+    seconds: float, rounds: int = 2, others: dict[str, Runner] | None = None, routes: tuple[str, ...] = ("lcm_bus", "relay")
+) -> dict[str, dict[str, float]]:
+    """`routes` (and `others`, by name: bench/floor.py's floor), `rounds` times interleaved;
     per figure, the better round."""
     others = others or {}
     everywhere = os.sched_getaffinity(0)
@@ -146,7 +201,7 @@ def compare(seconds: float, rounds: int = 2, others: dict[str, Runner] | None = 
     try:
         with tempfile.TemporaryDirectory() as name:
             for _ in range(rounds):
-                for route in ("lcm_bus", "relay", *others):
+                for route in (*routes, *others):
                     if route in others:
                         result = others[route](Path(name), seconds, endpoint)
                     else:
@@ -160,12 +215,28 @@ def compare(seconds: float, rounds: int = 2, others: dict[str, Runner] | None = 
     return best
 
 
+def delivery(seconds: float, rate_hz: float, dds: bool) -> dict[str, dict[str, float]]:
+    """The lcm_bus route onto Zenoh (and onto DDS with `dds`) at `rate_hz` per channel."""
+    others: dict[str, Runner] = {}
+    if dds:
+        others["dds"] = lambda folder, duration, endpoint: run("dds", folder, duration, endpoint, rate_hz)
+    zenoh: Runner = lambda folder, duration, endpoint: run("lcm_bus", folder, duration, endpoint, rate_hz)  # noqa: E731
+    return compare(seconds, 1, others={"zenoh": zenoh, **others}, routes=())
+
+
 def measures(size: Size = Size.FULL) -> list[Measure]:
-    """Issue 31's throughput goal: >= 99% delivered through `run`, with the bridge's CPU per message."""
+    """Issue 31's throughput goal: >= 99% delivered through `run`, with the bridge's CPU per message;
+    issue 42's: 30,000 messages a second >= 99.9% delivered onto Zenoh and onto DDS."""
     best = compare(size.pick(full=10.0, quick=4.0, smoke=0.5), size.pick(full=2, quick=1, smoke=1))
     ours, relay = best["lcm_bus"], best["relay"]
     setup = "20 channels of lcmt_iiwa_status at 500 Hz, Zenoh, bridge pinned"
+    fast = delivery(size.pick(full=10.0, quick=4.0, smoke=0.5), FAST_HZ, dds=True)
+    fast_setup = f"{FAST_HZ * len(CHANNELS):,.0f} lcmt_iiwa_status messages/s (20 channels), bridge pinned"
     return [
+        Measure(f"lcm_routes: delivered onto Zenoh, {fast_setup}", fast["zenoh"]["delivered"], None,
+                "%", ">= 99.9%", fast["zenoh"]["delivered"] >= 99.9),
+        Measure(f"lcm_routes: delivered onto ROS 2 over DDS (rclpy), {fast_setup}", fast["dds"]["delivered"], None,
+                "%", ">= 99.9%", fast["dds"]["delivered"] >= 99.9),
         Measure(f"lcm_routes: delivered, {setup} (baseline: raw relay)", ours["delivered"], relay["delivered"],
                 "%", ">= 99%", ours["delivered"] >= 99.0),
         Measure(f"lcm_routes: bridge CPU per message, {setup} (baseline: raw relay)", ours["cpu_us_per_message"],
@@ -177,9 +248,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--rate-hz", type=float, help=f"per channel: delivery at this rate (issue 42: {FAST_HZ:g})")
+    parser.add_argument("--dds", action="store_true", help="with --rate-hz: onto ROS 2 over DDS too")
     args = parser.parse_args()
-    print(f"20 channels of lcmt_iiwa_status at {RATE_HZ:g} Hz for {args.seconds:.0f} s, bridge pinned to CPU 0")
-    best = compare(args.seconds, args.rounds)
+    rate = args.rate_hz or RATE_HZ
+    print(f"20 channels of lcmt_iiwa_status at {rate:g} Hz for {args.seconds:.0f} s, bridge pinned to CPU 0")
+    best = delivery(args.seconds, args.rate_hz, args.dds) if args.rate_hz else compare(args.seconds, args.rounds)
     print("\nbest of the rounds:")
     for route, figures in best.items():
         print(f"   {route:<8} " + ", ".join(f"{key} {value:.4g}" for key, value in figures.items()))

@@ -48,7 +48,7 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
     known = library.get("drake.lcmt_iiwa_status")
     cdr = known.to_cdr(data)
     sending = MessageTime()
-    sending.channel = "X"
+    sending.message = Received("X", data)  # the message whose outputs are sent (what the runner sets)
     echoes = Echoes(sending)
     plain = CallPublisher(_nothing)
     guarded = echoes.publisher("ros", "/X", plain, "lcm", subscribed=True)

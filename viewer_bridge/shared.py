@@ -17,20 +17,29 @@ from typing import TYPE_CHECKING, TypeVar, cast
 
 if TYPE_CHECKING:
     from viewer_bridge.lcmcodec.library import TypeLibrary
+    from viewer_bridge.transports.base import Received
 
 
 class MessageTime(threading.local):
     """The receive time (microseconds) of the message whose outputs this thread publishes.
 
-    The router sets it before it publishes a translation's outputs, so a transport that stamps
-    what it writes (an MCAP file's log time) gives every output its message's receive time: the
-    log's own time offline, the bus's receive time live. One per router; each thread sees its own.
-    `channel` is that message's channel on its source (the loop guard remembers where a payload
-    it sends came from: `viewer_bridge.router.echoes`).
+    The router sets `message` before it publishes a translation's outputs (one store per message:
+    a thread-local's stores are dear), so a transport that stamps what it writes (an MCAP file's
+    log time) gives every output its message's receive time: the log's own time offline, the
+    bus's receive time live. One per router; each thread sees its own. `channel` is that message's
+    channel on its source (the loop guard remembers where a payload it sends came from:
+    `viewer_bridge.router.echoes`).
     """
 
-    received_us: int = 0
-    channel: str = ""
+    message: Received | None = None
+
+    @property
+    def received_us(self) -> int:
+        return 0 if self.message is None else self.message.received_us
+
+    @property
+    def channel(self) -> str:
+        return "" if self.message is None else self.message.channel
 
 
 Made = TypeVar("Made")

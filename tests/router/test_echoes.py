@@ -71,7 +71,7 @@ def test_only_names_both_published_and_read_are_guarded_and_the_origin_is_the_se
     offered: list[Received] = []
     back: list[tuple[Received, tuple[str, str]]] = []
     deliver = router_echoes.deliver("ros", offered.append, lambda message, origin: back.append((message, origin)))
-    sending.channel = "X"  # what the runner sets before it publishes a message's outputs
+    sending.message = Received("X", b"lcm")  # what the runner sets before it publishes a message's outputs
     guarded.publish(b"cdr")
     assert sent == [b"cdr"]
     echo, other, elsewhere = Received("/X", b"cdr"), Received("/X", b"cdr"), Received("/Y", b"cdr")

@@ -35,3 +35,21 @@ def test_a_rate_limited_mailbox_counts_what_it_conflates_apart_from_drops() -> N
     for index in range(3):
         limited.put(Message(Received("DRAW", bytes([index]), index), match))
     assert (limited.rate_skipped, limited.superseded, limited.dropped) == (2, 0, 0)
+
+
+def test_the_inline_budget_lets_a_thread_translate_up_to_its_share_then_recovers() -> None:
+    from viewer_bridge.router.flow import InlineBudget
+
+    budget = InlineBudget(share=0.5, window_s=0.2)  # a burst of 0.1 s, then half the time
+    now = 100.0
+    assert budget.allows(now)
+    budget.spent(now, now + 0.12)  # one translation longer than the burst
+    now += 0.12
+    assert not budget.allows(now)  # the worker takes the next messages
+    assert not budget.allows(now + 0.02)
+    now += 0.05
+    assert budget.allows(now)  # drained at half a second a second: inline again
+    for _ in range(1000):  # busy a third of the time: always inline
+        assert budget.allows(now)
+        budget.spent(now, now + 0.001)
+        now += 0.003

@@ -12,7 +12,8 @@ the router counts as an error of the route (by the error's type), and the other 
 
 Warnings and errors go to whoever collects them (`collecting`: the router counts them per route,
 `convert` and `snapshot` print them); with no collector they are logged. A context variable carries the
-collector, so that threads (a route's worker, a transport's thread) each count their own.
+collector, so that threads (a route's worker, a transport's thread) each count their own
+(`thread_collector`: the router's, one list a thread for all its messages).
 """
 
 from __future__ import annotations
@@ -58,6 +59,19 @@ def collecting() -> Iterator[list[Skipped]]:
         _collector.reset(token)
 
 
+def thread_collector() -> list[Skipped]:
+    """The list this thread collects skipped parts into, set for good on the first ask.
+
+    What the router's threads use, a list each, emptied before every translation and read after
+    it: `collecting` per message would cost more than a small translation (a generator and a
+    context variable set and reset). Inside a `collecting` block, that block's list."""
+    skipped = _collector.get()
+    if skipped is None:
+        skipped = []
+        _collector.set(skipped)
+    return skipped
+
+
 def per_geometry(link: Link, write: Callable[[int, Geometry], T]) -> list[T]:
     """`write(index, geometry)` for each geometry of the link; one that raises `SceneError` is
     skipped with a warning. `write` must change nothing before it raises (return, then add)."""
@@ -91,4 +105,5 @@ __all__ = [
     "log",
     "part_failed",
     "per_geometry",
+    "thread_collector",
 ]

@@ -10,10 +10,8 @@ load, which is on another channel), with `all` a FIFO of `qos.depth` that drops 
 
 from __future__ import annotations
 
-import math
 import re
 import threading
-import time
 from collections import OrderedDict, deque
 from dataclasses import dataclass
 
@@ -89,32 +87,48 @@ class Mailbox:
         return len(self._latest) + len(self._fifo)
 
 
+class _Bucket:
+    """One receiving thread's inline time: how full its bucket was at `at` (perf_counter seconds)."""
+
+    __slots__ = ("level", "at")
+
+    def __init__(self) -> None:
+        self.level = 0.0
+        self.at = 0.0
+
+
 class InlineBudget:
     """Whether a transport's thread may translate a message itself instead of waking a worker.
 
     Handing a message to a route's worker costs a wake-up and a GIL hand-off between two threads
     per message, which on a loaded core costs more than a quick translation. So the thread that
     received a message translates it at once when the route is idle, as long as that thread has
-    spent less than `share` of its recent time (decayed over `window_s`) translating inline.
-    Past that, the workers take over: the mailbox's policy (the newest wins) applies again instead
-    of a backlog building up in the transport's receive buffers.
+    spent less than `share` of its recent time translating inline: a leaky bucket per thread, which
+    each inline translation fills with its duration and which drains at `share` seconds a second;
+    inline while it holds less than `share * window_s` (a burst of that long, then `share` of the
+    time). Past that, the workers take over: the mailbox's policy (the newest wins) applies again
+    instead of a backlog building up in the transport's receive buffers.
     """
 
     def __init__(self, share: float = 0.5, window_s: float = 0.2) -> None:
-        self._share_s = share * window_s
-        self._window_s = window_s
-        self._threads = threading.local()  # each receiving thread's own decayed busy time
+        self._share = share
+        self._capacity = share * window_s
+        self._threads = threading.local()  # each receiving thread's own bucket
 
-    def _busy(self, now: float) -> float:
-        state = self._threads
-        busy: float = getattr(state, "busy", 0.0)
-        if busy:
-            busy *= math.exp((getattr(state, "at", now) - now) / self._window_s)
-        return busy
+    def _bucket(self) -> _Bucket:
+        try:
+            return self._threads.bucket  # type: ignore[no-any-return]
+        except AttributeError:
+            bucket = self._threads.bucket = _Bucket()
+            return bucket
 
-    def allows(self) -> bool:
-        return self._busy(time.perf_counter()) < self._share_s
+    def allows(self, now: float) -> bool:
+        """Whether this thread may translate inline at `now` (time.perf_counter())."""
+        bucket = self._bucket()
+        return bucket.level - (now - bucket.at) * self._share < self._capacity
 
     def spent(self, started: float, ended: float) -> None:
-        self._threads.busy = self._busy(ended) + (ended - started)
-        self._threads.at = ended
+        """This thread translated inline from `started` to `ended` (time.perf_counter())."""
+        bucket = self._bucket()
+        bucket.level = max(0.0, bucket.level - (ended - bucket.at) * self._share) + (ended - started)
+        bucket.at = ended

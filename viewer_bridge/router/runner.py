@@ -13,7 +13,6 @@ skips that message only.
 from __future__ import annotations
 
 import logging
-import re
 import threading
 import time
 import traceback
@@ -24,13 +23,14 @@ from typing import Any
 from viewer_bridge.config.bridge import Route, destination_name
 from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, Held
-from viewer_bridge.model.skipped import collecting
+from viewer_bridge.model.skipped import Skipped, thread_collector
 from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
 from viewer_bridge.router.stats import RouteStats
 from viewer_bridge.shared import MessageTime
 from viewer_bridge.translators import Output, Translator
 from viewer_bridge.transports.base import MessageType, Publisher, Received
 from viewer_bridge.transports.ros_names import ChannelNames
+from viewer_bridge.util.channels import ChannelPattern
 
 log = logging.getLogger("viewer_bridge")
 
@@ -87,13 +87,21 @@ class _Lane:
         self.name = name
         self.translator = translator
         self._publisher = publisher
+        # Each output's publisher by index, while the output at that index is the same (a
+        # translator adds outputs as it goes): no name or key made per message.
+        self._made: dict[int, tuple[Output, Publisher]] = {}
         self.skipped: dict[str, Message] = {}  # newest per channel, while nobody listened (lazy)
         self.listened_now = True
         self._checked_at = float("-inf")
+        # Whether the translator keeps books on every message: most do not (no call per message).
+        self.observes = type(translator).observe is not Translator.observe
 
     def publisher(self, index: int) -> Publisher:
         output = self.translator.outputs[index]
-        return self._publisher(self.name + output.suffix, output)
+        made = self._made.get(index)
+        if made is None or made[0] is not output:
+            made = self._made[index] = (output, self._publisher(self.name + output.suffix, output))
+        return made[1]
 
     def listened(self) -> bool:
         """Whether any output has a subscriber, or its transport cannot tell (then: translate).
@@ -141,7 +149,8 @@ class RouteRunner:
         max_age_ms = route.max_age_ms if route.max_age_ms is not None else commands and commands.max_age_ms
         self._max_age_us = max_age_ms * 1000 if max_age_ms else None
         self._rejected = rejected  # the source transport's `rejected`: a sender may expect an answer
-        self.pattern = re.compile(route.source.name)
+        self.pattern = ChannelPattern(route.source.name)  # a channel's match, once
+        self._lazy = route.lazy
         self.mailbox = Mailbox(route.rate.policy, route.qos.depth, rate_limited=bool(route.rate.max_hz))
         self.stats = RouteStats()
         # A rate-limited route waits between messages: only its worker can do that.
@@ -201,9 +210,11 @@ class RouteRunner:
     def _translated_inline(self, message: Message) -> bool:
         """Translate on the caller's thread when the route is idle and the budget allows."""
         inline = self._inline
-        if inline is None or len(self.mailbox) or not inline.allows() or not self._turn.acquire(False):
+        if inline is None or len(self.mailbox):
             return False
         started = time.perf_counter()
+        if not inline.allows(started) or not self._turn.acquire(False):
+            return False
         try:
             self.handle(message)
         finally:
@@ -235,10 +246,19 @@ class RouteRunner:
                 continue
             # Taken under the turn: a message translated inline meanwhile is never overtaken.
             with self._turn:
-                message = self.mailbox.take()
-                if message is not None:
-                    next_due = time.monotonic() + period
-                    self.handle(message)
+                if period:
+                    message = self.mailbox.take()
+                    if message is not None:
+                        next_due = time.monotonic() + period
+                        self.handle(message)
+                else:
+                    self._drain()
+
+    def _drain(self) -> None:
+        """Every message waiting, for one wake-up of the worker: taken one at a time, so the
+        mailbox's policy applies to what arrives meanwhile (the newest per channel wins)."""
+        while not self._stop.is_set() and (message := self.mailbox.take()) is not None:
+            self.handle(message)
 
     def catch_up(self) -> None:
         """A lazy route's lanes that skipped messages and now have a subscriber translate them."""
@@ -302,8 +322,9 @@ class RouteRunner:
         """Translate and publish one message; errors are counted and reported, never raised."""
         try:
             lane = self._lane(message)
-            lane.translator.observe(message.received)
-            if self.route.lazy:
+            if lane.observes:
+                lane.translator.observe(message.received)
+            if self._lazy:
                 if not lane.listened():
                     lane.skip(message)
                     self.stats.idle_skipped += 1
@@ -320,10 +341,11 @@ class RouteRunner:
         self._translate(lane, message)
 
     def _translate(self, lane: _Lane, message: Message, latency: bool = True) -> None:
+        skipped = thread_collector()
+        skipped.clear()  # what a translation that raised left there was no part of a message sent
         started = time.perf_counter()
         try:
-            with collecting() as skipped:
-                outputs = lane.translator.translate(message.received)
+            outputs = lane.translator.translate(message.received)
         except Held as held:
             self._held(message, held)
             return
@@ -335,17 +357,13 @@ class RouteRunner:
             self._error(f"crash:{type(error).__name__}", f"{message.channel}: {traceback.format_exc()}")
             return
         self.stats.translate_ms.append((time.perf_counter() - started) * 1e3)
-        for part in skipped:  # the rest of the message is translated
-            if isinstance(part, BridgeError):  # a part that failed (one image of an array): an error
-                self._error(type(part).__name__, f"{message.channel}: {part}")
-            else:  # a geometry a target cannot write: a warning
-                self._count(self.stats.warnings, "skipped_geometry", f"{message.channel}: {part}")
-        stale = self._expired(message)
-        if stale is not None:  # a command held up (a stall, a busy core) is never sent late
-            self._held(message, stale)
+        if skipped:
+            self._count_skipped(message, skipped)
+        if self._max_age_us is not None and (stale := self._expired(message)) is not None:
+            self._held(message, stale)  # a command held up (a stall, a busy core) is never sent late
             return
-        self._message_time.received_us = message.received.received_us  # what a file stamps its outputs with
-        self._message_time.channel = message.channel  # where they came from (the loop guard)
+        # Its receive time (what a file stamps its outputs with) and channel (the loop guard's origin).
+        self._message_time.message = message.received
         for index, payload in outputs:
             try:
                 lane.publisher(index).publish(payload)
@@ -359,6 +377,16 @@ class RouteRunner:
             self.stats.bytes_out += len(payload)
         if outputs and latency:
             self.stats.latency_ms.append((time.time_ns() // 1000 - message.received.received_us) / 1e3)
+
+    def _count_skipped(self, message: Message, skipped: list[Skipped]) -> None:
+        """The parts of a translated message left out (the rest of it is sent), counted and let go."""
+        parts = skipped.copy()
+        skipped.clear()
+        for part in parts:
+            if isinstance(part, BridgeError):  # a part that failed (one image of an array): an error
+                self._error(type(part).__name__, f"{message.channel}: {part}")
+            else:  # a geometry a target cannot write: a warning
+                self._count(self.stats.warnings, "skipped_geometry", f"{message.channel}: {part}")
 
     def _held(self, message: Message, held: Held) -> None:
         """A message held back on purpose: counted per channel and kind, said once per both."""

@@ -98,13 +98,16 @@ class Received:
         self.received_us = time.time_ns() // 1000 if received_us is None else received_us
         self.message_type = message_type
         self.origin = origin
-        self._decoded: dict[object, Any] = {}
+        self._decoded: dict[object, Any] | None = None  # made on the first decode: most messages have none
 
     def decoded(self, decoder: Callable[[Received], Decoded]) -> Decoded:
+        decoded = self._decoded
+        if decoded is None:
+            decoded = self._decoded = {}
         try:
-            return self._decoded[decoder]  # type: ignore[no-any-return]
+            return decoded[decoder]  # type: ignore[no-any-return]
         except KeyError:
-            value = self._decoded[decoder] = decoder(self)
+            value = decoded[decoder] = decoder(self)
             return value
 
 

@@ -24,6 +24,7 @@ import lcm
 from viewer_bridge.errors import LogError, TransportUnavailable
 from viewer_bridge.transports import base
 from viewer_bridge.transports.lcm_url import log_to_write
+from viewer_bridge.util.channels import ChannelPattern
 
 _log = logging.getLogger("viewer_bridge")
 # LCM's default (ttl=0 never leaves the host), or LCM_DEFAULT_URL as LCM's own tools read it, so
@@ -324,12 +325,12 @@ class LcmTransport(base.Transport):
     def __init__(self, settings: LcmSettings) -> None:
         super().__init__(settings)
         self.bus = open_bus(settings.url)
-        self._routes: list[tuple[re.Pattern[str], base.Deliver]] = []
+        self._routes: list[tuple[ChannelPattern, base.Deliver]] = []
 
     def subscribe(
         self, pattern: str, message_type: base.MessageType, qos: base.Qos, deliver: base.Deliver
     ) -> None:
-        self._routes.append((re.compile(pattern), deliver))
+        self._routes.append((ChannelPattern(pattern), deliver))
 
     def publisher(self, name: str, message_type: base.MessageType, qos: base.Qos) -> base.Publisher:
         bus = self.bus
