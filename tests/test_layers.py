@@ -90,6 +90,7 @@ LAYERS: dict[str, int] = {
     # 11
     "viewer_bridge.cli.main": 11,
     "viewer_bridge.cli.__main__": 11,
+    "viewer_bridge.__main__": 11,
 }  # fmt: skip
 
 # What every translator family may share (translators/ modules that are no family).

@@ -13,11 +13,20 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, TypeVar, cast
+from typing import TYPE_CHECKING, Protocol, TypeVar, cast
 
 if TYPE_CHECKING:
     from viewer_bridge.lcmcodec.library import TypeLibrary
-    from viewer_bridge.transports.base import Received
+
+
+class Timed(Protocol):
+    """What `MessageTime` reads of a received message (a transport's `Received`, from a layer above)."""
+
+    @property
+    def received_us(self) -> int: ...
+
+    @property
+    def channel(self) -> str: ...
 
 
 class MessageTime(threading.local):
@@ -31,7 +40,7 @@ class MessageTime(threading.local):
     `viewer_bridge.router.echoes`).
     """
 
-    message: Received | None = None
+    message: Timed | None = None
 
     @property
     def received_us(self) -> int:
