@@ -146,6 +146,8 @@ class Counter:
         self.node = Node("bench_workers", context=self.context)
         self.counting = threading.Event()
         self.counts = dict.fromkeys(topics, 0)
+        self.total = 0  # every message, counting or not
+        self.seen: set[str] = set()  # the routes whose topics have had a message (while not counting)
         for route, (topic, typename) in topics.items():
             self.node.create_subscription(message_class(typename), topic, self._counter(route), qos_profile(1000),
                                           raw=True)  # fmt: skip
@@ -155,8 +157,11 @@ class Counter:
 
     def _counter(self, route: str) -> Any:
         def count(_: bytes) -> None:
+            self.total += 1
             if self.counting.is_set():
                 self.counts[route] += 1
+            else:
+                self.seen.add(route)
 
         return count
 
@@ -169,6 +174,17 @@ class Counter:
         self.executor.shutdown(timeout_sec=1)
         self.node.destroy_node()
         rclpy.shutdown(context=self.context)
+
+
+def quiet(arrived: Any, at_most: float) -> None:
+    """Until `arrived()` (a count of arrivals) has not moved for 0.3 s, at most `at_most` seconds:
+    what the warm-up left queued has drained before the counted window starts."""
+    last, still = arrived(), time.monotonic()
+    deadline = still + at_most
+    while (now := time.monotonic()) < deadline and now - still < 0.3:
+        time.sleep(0.05)
+        if (count := arrived()) != last:
+            last, still = count, time.monotonic()
 
 
 def paced(publish: Any, count: int, rate_hz: float, seconds: float) -> int:
@@ -205,21 +221,28 @@ def draw_run(label: str, config: str, workers: int, pinned: bool, folder: Path, 
         bus = LcmBus(URL)
         settle(counter.sees_bridge, DISCOVERY_S)
         bus.publish("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(the_scene).encode())
-        paced(lambda i: bus.publish("DRAKE_VIEWER_DRAW", encoded[i % len(encoded)]), 0, DRAW_HZ, 1.0)  # warm-up
-        time.sleep(1.0)
+        # Warm-up (DDS matching, first allocations), until every route's topic has had a message:
+        # the subscriber may have seen one worker's node before the other's.
+        deadline = time.monotonic() + DISCOVERY_S
+        while True:
+            paced(lambda i: bus.publish("DRAKE_VIEWER_DRAW", encoded[i % len(encoded)]), 0, DRAW_HZ, min(1.0, seconds))
+            if len(counter.seen) == len(DRAW_TOPICS) or time.monotonic() > deadline:
+                break
+        quiet(lambda: counter.total, 3.0)
         counter.counting.set()
-        cpu_before, here_before = bridge.cpu_seconds(), time.process_time()
+        cpu_before, here_before, started = bridge.cpu_seconds(), time.process_time(), time.monotonic()
         sent = paced(lambda i: bus.publish("DRAKE_VIEWER_DRAW", encoded[i % len(encoded)]), 0, DRAW_HZ, seconds)
-        settle(lambda: min(counter.counts.values()) >= sent, 1.0)  # what was queued drains
+        settle(lambda: min(counter.counts.values()) >= sent, min(1.0, seconds))  # what was queued drains
         cpu, here = bridge.cpu_seconds() - cpu_before, time.process_time() - here_before
+        elapsed = time.monotonic() - started
         counter.counting.clear()
         stats = bridge.stop()
         counter.close()
         bus.close()
     finally:
         os.sched_setaffinity(0, everywhere)
-    result: dict[str, float] = {"sent": sent, "cpu_us_per_draw": cpu / max(sent, 1) * 1e6, "cores": cpu / seconds,
-                                "cores_here": here / seconds}  # fmt: skip
+    result: dict[str, float] = {"sent": sent, "cpu_us_per_draw": cpu / max(sent, 1) * 1e6, "cores": cpu / elapsed,
+                                "cores_here": here / elapsed}  # fmt: skip
     for route, count in counter.counts.items():
         result[route] = 100.0 * count / max(sent, 1)
         result[f"{route}_published"] = stats.get(route, {}).get("messages_out", 0)
@@ -308,11 +331,16 @@ class Samples:
         self.session = zenoh_session("client", {"connect": [endpoint]})
         self.counting = threading.Event()
         self.count = 0
+        self.total = 0  # every sample, counting or not
+        self.seen: set[str] = set()  # the keys that have had a sample (while not counting)
         self._held = self.session.declare_subscriber(f"{prefix}/**", self._arrived)
 
-    def _arrived(self, _: Any) -> None:
+    def _arrived(self, sample: Any) -> None:
+        self.total += 1
         if self.counting.is_set():
             self.count += 1
+        else:
+            self.seen.add(str(sample.key_expr))
 
     def close(self) -> None:
         del self._held
@@ -325,14 +353,17 @@ def bus_run(label: str, workers: int, folder: Path, seconds: float, endpoint: st
     bridge = Bridge(bus_config(endpoint, split=True), workers, folder, None)
     samples = Samples(endpoint, f"{domain}/lcm")
     publishers = Publishers()
-    time.sleep(1.0)
-    warm_up = publishers.publish(1.0)  # the lazy routes wake, each channel's publisher appears
-    time.sleep(1.0)
+    time.sleep(min(1.0, seconds))
+    warm_up, deadline = 0, time.monotonic() + 10.0
+    while len(samples.seen) < len(BUS_CHANNELS) and time.monotonic() < deadline:  # both halves' routes woke
+        warm_up += publishers.publish(min(1.0, seconds))  # the lazy routes wake, each channel's publisher appears
+    quiet(lambda: samples.total, 3.0)
     samples.counting.set()
     cpu_before, others_before = bridge.cpu_seconds(), publishers.cpu_seconds() + time.process_time()
+    started = time.monotonic()
     sent = publishers.publish(seconds)
-    settle(lambda: samples.count >= sent, 2.0)  # what was queued drains: at most 2 s
-    cpu = bridge.cpu_seconds() - cpu_before
+    settle(lambda: samples.count >= sent, min(2.0, seconds))  # what was queued drains
+    cpu, elapsed = bridge.cpu_seconds() - cpu_before, time.monotonic() - started
     others = publishers.cpu_seconds() + time.process_time() - others_before
     samples.counting.clear()
     stats = bridge.stop()
@@ -344,8 +375,8 @@ def bus_run(label: str, workers: int, folder: Path, seconds: float, endpoint: st
         "delivered": 100.0 * samples.count / max(sent, 1),
         "per_second": samples.count / seconds,
         "cpu_us_per_message": cpu / max(sent, 1) * 1e6,
-        "cores": cpu / seconds,
-        "cores_here": others / seconds,
+        "cores": cpu / elapsed,  # the window: publishing, then the drain
+        "cores_here": others / elapsed,
         "taken_in": 100.0 * received / max(warm_up + sent, 1),  # of the whole run's: the stats count from the start
     }
     result["score"] = result["per_second"]
