@@ -20,13 +20,20 @@ resource tracker `spawn` starts), over the publishing window:
 2. Small messages: 40 channels of `lcmt_iiwa_status` at 1500 Hz each (60,000 messages a second,
    from two publisher processes of 20 channels each) through the built-in zenoh config's
    `lcm_bus` route (`lcm_to_ros`) onto a Zenoh router in this process, and one Zenoh subscriber
-   here counting every sample. As it ships, `lcm_bus` is one route on a Zenoh session, which only
-   one process may open unless pinned: `place` keeps it on worker 0 and the second worker has
-   nothing to do. So the route is split in two by channel (channels 00-19 and 20-39), each half
-   pinned to a worker with `worker: K`; the baseline is the same split config with one worker.
-   Nothing is pinned: publishers, Zenoh router, subscriber and bridge share the two cores.
-   Reported: delivered (samples the subscriber got, of messages sent; the first second, while
-   the lazy routes wake, left out) and the bridge's CPU per message sent.
+   here counting every sample. As it ships, `lcm_bus` is one route (one source: one group) with a
+   Zenoh destination, which `place` keeps on worker 0 unless pinned (Zenoh is no
+   `several_processes` transport): the second worker would have nothing to do. So the route is
+   split in two by channel (channels 00-19 and 20-39), each half pinned to a worker with
+   `worker: K`; the baseline is the same split config with one worker. Each worker's LCM socket
+   still reads every message on the bus (LCM matches channels in the process). Nothing is
+   pinned: publishers, Zenoh router, subscriber and bridge share the two cores. Reported:
+   delivered (samples the subscriber got, of messages sent), the same a second (the publishers
+   reach fewer than 60,000 a second when the cores are short) and the bridge's CPU per message
+   sent.
+
+Before each counted window, a warm-up publishes until every route's topic (every channel's key)
+has had a message, and then until what it left queued has drained; the bridge's and this
+process's CPU shares are over the window and its drain.
 
 Each set-up runs `--rounds` times, interleaved, and keeps its better round whole (disturbances on
 a shared machine only lose messages): the one whose least delivered route delivered most (draws),
