@@ -1,6 +1,6 @@
 """What every bench script returns, so that `bench/all.py` can gather them into one table, what it
-is asked for (`Size`), and what they share: timing (`best_of`) and a frame of link poses to draw
-(`frame`).
+is asked for (`Size`), and what they share: timing (`best_of`), a frame of link poses to draw
+(`frame`) and the CPU time of a process with its children (`tree_cpu_seconds`).
 
 Only `viewer_bridge.model.scene` from the bridge: bench/load_targets.py imports this beside an older commit's
 `bridge` too.
@@ -9,10 +9,12 @@ Only `viewer_bridge.model.scene` from the bridge: bench/load_targets.py imports 
 from __future__ import annotations
 
 import enum
+import os
 import time
 import timeit
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TypeVar
 
 import numpy as np
@@ -89,3 +91,26 @@ def frame(links: int, seed: int = 0) -> LinkPoses:
         positions=rng.normal(size=(links, 3)),
         quaternions_wxyz=quaternions,
     )
+
+
+def tree_cpu_seconds(pid: int) -> float:
+    """User + system CPU seconds so far of process `pid` and every live descendant of it (its worker
+    processes), from /proc/PID/stat (fields 14 and 15): the difference of two calls is what the
+    tree spent between them, as long as no process of it ended in between."""
+    parents: dict[int, int] = {}
+    spent: dict[int, float] = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:  # it ended meanwhile
+            continue
+        parents[int(entry.name)] = int(fields[1])
+        spent[int(entry.name)] = (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    tree, grown = {pid}, True
+    while grown:
+        more = {child for child, parent in parents.items() if parent in tree} - tree
+        tree |= more
+        grown = bool(more)
+    return sum(spent.get(member, 0.0) for member in tree)

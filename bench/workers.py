@@ -1,0 +1,494 @@
+"""Benchmark: `viewer-bridge run --workers 2` against the same run with one worker (issue 42).
+
+Run: .venv/bin/python bench/workers.py [--seconds 10] [--rounds 2] [--only draws|bus]
+
+Two loads, each through the bridge as a process (`run -c FILE --workers N`), with its CPU time
+taken from /proc as the sum over the bridge and every process under it (its workers, and the
+resource tracker `spawn` starts), over the publishing window:
+
+1. Draws: a 1000-link scene, then 1000-link `lcmt_viewer_draw`s at 2 kHz, through the default
+   config's three per-draw routes (`tf`, world-frame `markers`, `poses`; policy `latest`, as they
+   ship) to raw rclpy subscribers that count what arrives on each topic. Set-ups, interleaved:
+   one worker pinned to CPU 0 with this process (publisher, subscribers) on CPU 1, as
+   bench/router.py runs it; one worker unpinned; two workers as `place` puts them (the routes are
+   grouped by source pattern: `tf` and `markers` share the scene pattern and go to worker 0,
+   `poses`, whose pattern is its own, to worker 1); two workers pinned with `worker: K`
+   (`markers` alone on 0, `tf` and `poses` on 1). Nothing is pinned in the unpinned and two-worker
+   set-ups: two workers need both cores, which the publisher and the subscribers share with them.
+   Reported per route: delivered (messages the subscriber got, of draws sent), and the bridge's
+   CPU per draw sent.
+2. Small messages: 40 channels of `lcmt_iiwa_status` at 1500 Hz each (60,000 messages a second,
+   from two publisher processes of 20 channels each) through the built-in zenoh config's
+   `lcm_bus` route (`lcm_to_ros`) onto a Zenoh router in this process, and one Zenoh subscriber
+   here counting every sample. As it ships, `lcm_bus` is one route (one source: one group) with a
+   Zenoh destination, which `place` keeps on worker 0 unless pinned (Zenoh is no
+   `several_processes` transport): the second worker would have nothing to do. So the route is
+   split in two by channel (channels 00-19 and 20-39), each half pinned to a worker with
+   `worker: K`; the baseline is the same split config with one worker. Each worker's LCM socket
+   still reads every message on the bus (LCM matches channels in the process). Nothing is
+   pinned: publishers, Zenoh router, subscriber and bridge share the two cores. Reported:
+   delivered (samples the subscriber got, of messages sent), the same a second (the publishers
+   reach fewer than 60,000 a second when the cores are short) and the bridge's CPU per message
+   sent.
+
+Before each counted window, a warm-up publishes until every route's topic (every channel's key)
+has had a message, and then until what it left queued has drained; the bridge's and this
+process's CPU shares are over the window and its drain.
+
+Each set-up runs `--rounds` times, interleaved, and keeps its better round whole (disturbances on
+a shared machine only lose messages): the one whose least delivered route delivered most (draws),
+or that delivered most messages a second.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import drake as drake_lcmtypes
+import lcm
+import yaml
+from common import Measure, Size, settle, tree_cpu_seconds
+from router import DEFAULT_LATEST, DISCOVERY_S, URL, frame, scene
+from zenoh_routes import _free_port, zenoh_session
+
+from viewer_bridge.config.bridge import BUILTIN_CONFIGS, load_config
+from viewer_bridge.formats.drake.draw import DrawEncoder
+from viewer_bridge.formats.drake.load import load_from_scene
+from viewer_bridge.router.workers import place
+from viewer_bridge.transports.lcm import LcmBus
+
+DRAW_HZ = 2000.0
+LINKS = 1000
+DRAW_TOPICS = {  # route -> (topic, type) its subscriber counts on
+    "poses": ("/drake/poses", "geometry_msgs/msg/PoseArray"),
+    "tf": ("/tf", "tf2_msgs/msg/TFMessage"),
+    "markers": ("/drake/markers", "visualization_msgs/msg/MarkerArray"),
+}
+SPLIT_DRAWS = {"markers": 0, "tf": 1, "poses": 1}  # worker: K of the pinned two-worker set-up
+
+BUS_CHANNELS = tuple(f"WORKERS_IIWA_{index:02d}" for index in range(40))
+BUS_HZ = 1500.0  # per channel
+BUS_PUBLISHERS = 2  # processes, each with its share of the channels
+BUS_HALVES = ("WORKERS_IIWA_[01][0-9]", "WORKERS_IIWA_[23][0-9]")  # the split lcm_bus routes' channels
+
+
+class Bridge:
+    """`viewer-bridge run -c FILE --workers N` as a process, on `cores` (None: any)."""
+
+    def __init__(self, config: str, workers: int, folder: Path, cores: set[int] | None) -> None:
+        path = folder / "workers.yaml"
+        path.write_text(config)
+        self.stats = folder / "stats.json"
+        self.stats.unlink(missing_ok=True)
+        command = [sys.executable, "-m", "viewer_bridge.cli.main", "run", "-c", str(path), "--lcm-url", URL,
+                   "--workers", str(workers), "--stats-json", str(self.stats), "--stats-period", "1"]  # fmt: skip
+        preexec = (lambda: os.sched_setaffinity(0, cores)) if cores is not None else None
+        self.process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, preexec_fn=preexec)
+        assert self.process.stderr is not None
+        self.placement: list[str] = []  # the parent's line per worker: its pid and its routes
+        ready = " running (" if workers == 1 else " running"
+        for line in self.process.stderr:
+            if ": worker " in line and " (pid " in line:
+                self.placement.append(line.split("viewer-bridge: ", 1)[-1].strip())
+            if ready in line and "worker " not in line.split("viewer-bridge:", 1)[0]:
+                break
+        else:
+            raise RuntimeError(f"the bridge ended before it ran (exit code {self.process.wait()})")
+        threading.Thread(target=self.process.stderr.read, daemon=True).start()
+
+    def cpu_seconds(self) -> float:
+        return tree_cpu_seconds(self.process.pid)
+
+    def stop(self) -> dict[str, Any]:
+        """Stop it (SIGINT, as Ctrl-C), and its last stats: written as it closes."""
+        self.process.send_signal(2)
+        self.process.wait(timeout=30)
+        return json.loads(self.stats.read_text())  # type: ignore[no-any-return]
+
+
+def with_workers(config: str, pins: dict[str, int]) -> str:
+    """`config` with `worker: K` on the routes named in `pins`."""
+    document = yaml.safe_load(config)
+    for route in document["routes"]:
+        if route["name"] in pins:
+            route["worker"] = pins[route["name"]]
+    return yaml.safe_dump(document, sort_keys=False)
+
+
+def placement(config: str, workers: int) -> str:
+    """Where `place` puts `config`'s routes: "worker 0: a, b; worker 1: c"."""
+    with tempfile.NamedTemporaryFile("w", suffix=".yaml") as file:
+        file.write(config)
+        file.flush()
+        placed = place(load_config(file.name), workers)
+    return "; ".join(f"worker {index}: {', '.join(route.name for route in routes) or 'nothing'}"
+                     for index, routes in enumerate(placed))  # fmt: skip
+
+
+# 1. Draws ------------------------------------------------------------------------------------
+
+
+class Counter:
+    """rclpy, raw: counts what arrives on each topic while `counting` is set."""
+
+    def __init__(self, topics: dict[str, tuple[str, str]]) -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.node import Node
+
+        from viewer_bridge.transports.ros2 import message_class, qos_profile
+
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node("bench_workers", context=self.context)
+        self.counting = threading.Event()
+        self.counts = dict.fromkeys(topics, 0)
+        self.total = 0  # every message, counting or not
+        self.seen: set[str] = set()  # the routes whose topics have had a message (while not counting)
+        for route, (topic, typename) in topics.items():
+            self.node.create_subscription(message_class(typename), topic, self._counter(route), qos_profile(1000),
+                                          raw=True)  # fmt: skip
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        threading.Thread(target=self.executor.spin, daemon=True).start()
+
+    def _counter(self, route: str) -> Any:
+        def count(_: bytes) -> None:
+            self.total += 1
+            if self.counting.is_set():
+                self.counts[route] += 1
+            else:
+                self.seen.add(route)
+
+        return count
+
+    def sees_bridge(self) -> bool:
+        return "viewer_bridge" in self.node.get_node_names()
+
+    def close(self) -> None:
+        import rclpy
+
+        self.executor.shutdown(timeout_sec=1)
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+def quiet(arrived: Any, at_most: float) -> None:
+    """Until `arrived()` (a count of arrivals) has not moved for 0.3 s, at most `at_most` seconds:
+    what the warm-up left queued has drained before the counted window starts."""
+    last, still = arrived(), time.monotonic()
+    deadline = still + at_most
+    while (now := time.monotonic()) < deadline and now - still < 0.3:
+        time.sleep(0.05)
+        if (count := arrived()) != last:
+            last, still = count, time.monotonic()
+
+
+def paced(publish: Any, count: int, rate_hz: float, seconds: float) -> int:
+    """`publish(i)` for i = 0, 1, ... at `rate_hz` for `seconds`, paced by sleeping (a spinning
+    publisher would take a core from the workers): whatever is due is sent, then a short sleep.
+    Returns how many were sent."""
+    start = time.perf_counter()
+    sent = 0
+    while (elapsed := time.perf_counter() - start) < seconds:
+        due = min(int(elapsed * rate_hz) + 1, count) if count else int(elapsed * rate_hz) + 1
+        while sent < due:
+            publish(sent)
+            sent += 1
+        time.sleep(0.0002)
+    return sent
+
+
+def draws(names: tuple[str, ...], how_many: int = 64) -> list[bytes]:
+    """`how_many` encoded draws, sent in turn (encoding each anew would cost the publisher 1/4 of a core)."""
+    encoder = DrawEncoder()
+    return [encoder.encode(frame(names, sequence)) for sequence in range(1, how_many + 1)]
+
+
+def draw_run(label: str, config: str, workers: int, pinned: bool, folder: Path, seconds: float) -> dict[str, float]:
+    """One bridge, 1000-link draws at 2 kHz: delivered per route, and CPU per draw."""
+    the_scene = scene(LINKS)
+    encoded = draws(tuple(link.name for link in the_scene.links))
+    everywhere = os.sched_getaffinity(0)
+    if pinned:
+        os.sched_setaffinity(0, {1})  # the publisher and the subscribers; the bridge gets CPU 0
+    try:
+        bridge = Bridge(config, workers, folder, {0} if pinned else None)
+        counter = Counter(DRAW_TOPICS)
+        bus = LcmBus(URL)
+        settle(counter.sees_bridge, DISCOVERY_S)
+        bus.publish("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(the_scene).encode())
+        # Warm-up (DDS matching, first allocations), until every route's topic has had a message:
+        # the subscriber may have seen one worker's node before the other's.
+        deadline = time.monotonic() + DISCOVERY_S
+        while True:
+            paced(lambda i: bus.publish("DRAKE_VIEWER_DRAW", encoded[i % len(encoded)]), 0, DRAW_HZ, min(1.0, seconds))
+            if len(counter.seen) == len(DRAW_TOPICS) or time.monotonic() > deadline:
+                break
+        quiet(lambda: counter.total, 3.0)
+        counter.counting.set()
+        cpu_before, here_before, started = bridge.cpu_seconds(), time.process_time(), time.monotonic()
+        sent = paced(lambda i: bus.publish("DRAKE_VIEWER_DRAW", encoded[i % len(encoded)]), 0, DRAW_HZ, seconds)
+        settle(lambda: min(counter.counts.values()) >= sent, min(1.0, seconds))  # what was queued drains
+        cpu, here = bridge.cpu_seconds() - cpu_before, time.process_time() - here_before
+        elapsed = time.monotonic() - started
+        counter.counting.clear()
+        stats = bridge.stop()
+        counter.close()
+        bus.close()
+    finally:
+        os.sched_setaffinity(0, everywhere)
+    result: dict[str, float] = {"sent": sent, "cpu_us_per_draw": cpu / max(sent, 1) * 1e6, "cores": cpu / elapsed,
+                                "cores_here": here / elapsed}  # fmt: skip
+    for route, count in counter.counts.items():
+        result[route] = 100.0 * count / max(sent, 1)
+        result[f"{route}_published"] = stats.get(route, {}).get("messages_out", 0)
+    result["score"] = min(result[route] for route in DRAW_TOPICS)
+    print(f"   {label:<36} sent {sent:6d}, delivered " + ", ".join(f"{route} {result[route]:5.1f}%" for route in DRAW_TOPICS)
+          + f"; bridge CPU {result['cpu_us_per_draw']:4.0f} us/draw ({result['cores']:.2f} cores; publisher and "
+          f"subscribers {result['cores_here']:.2f})"
+          + (f"  [{' | '.join(bridge.placement)}]" if bridge.placement else ""), flush=True)  # fmt: skip
+    return result
+
+
+DRAW_SETUPS = {  # label -> (config, workers, pinned to CPU 0)
+    "1 worker, pinned to CPU 0": (DEFAULT_LATEST, 1, True),
+    "1 worker, unpinned": (DEFAULT_LATEST, 1, False),
+    "2 workers, placed by source": (DEFAULT_LATEST, 2, False),
+    "2 workers, pinned by worker: K": (with_workers(DEFAULT_LATEST, SPLIT_DRAWS), 2, False),
+}
+
+
+# 2. Small messages ---------------------------------------------------------------------------
+
+
+def bus_config(endpoint: str, split: bool) -> str:
+    """The built-in zenoh config's `lcm_bus` route alone; `split`: two copies of it, one per half
+    of the channels, pinned to workers 0 and 1."""
+    [shipped] = [r for r in yaml.safe_load(BUILTIN_CONFIGS["zenoh"])["routes"] if r["name"] == "lcm_bus"]
+    routes = [shipped]
+    if split:
+        routes = [{**shipped, "name": f"lcm_bus_{index}", "worker": index,
+                   "source": {**shipped["source"], "name": f"({half})"}}
+                  for index, half in enumerate(BUS_HALVES)]  # fmt: skip
+    return yaml.safe_dump({"zenoh": {"connect": [endpoint]}, "routes": routes}, sort_keys=False)
+
+
+def status_bytes() -> bytes:
+    message = drake_lcmtypes.lcmt_iiwa_status()
+    message.num_joints = 7
+    for field in message.__slots__[2:]:
+        setattr(message, field, [0.1 * joint for joint in range(7)])
+    return message.encode()  # type: ignore[no-any-return]
+
+
+def publisher_child(url: str, channels: list[str], rate_hz: float) -> None:
+    """A publisher process: each line on stdin is a number of seconds to publish `channels` at
+    `rate_hz` each, round-robin; it answers with how many it sent."""
+    bus = lcm.LCM(url)
+    data = status_bytes()
+    for line in sys.stdin:
+        sent = paced(lambda i: bus.publish(channels[i % len(channels)], data), 0, rate_hz * len(channels),
+                     float(line))  # fmt: skip
+        print(sent, flush=True)
+
+
+class Publishers:
+    """`BUS_PUBLISHERS` publisher processes sharing `BUS_CHANNELS`, publishing together."""
+
+    def __init__(self) -> None:
+        shares = [BUS_CHANNELS[index::BUS_PUBLISHERS] for index in range(BUS_PUBLISHERS)]
+        self.processes = [
+            subprocess.Popen([sys.executable, __file__, "--publish", URL, ",".join(share), str(BUS_HZ)],
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+            for share in shares
+        ]  # fmt: skip
+
+    def publish(self, seconds: float) -> int:
+        for process in self.processes:
+            assert process.stdin is not None
+            process.stdin.write(f"{seconds}\n")
+            process.stdin.flush()
+        return sum(int(process.stdout.readline()) for process in self.processes if process.stdout is not None)
+
+    def cpu_seconds(self) -> float:
+        return sum(tree_cpu_seconds(process.pid) for process in self.processes)
+
+    def close(self) -> None:
+        for process in self.processes:
+            assert process.stdin is not None
+            process.stdin.close()
+            process.wait(timeout=10)
+
+
+class Samples:
+    """One Zenoh subscriber on every key under `prefix`; counts samples while `counting` is set."""
+
+    def __init__(self, endpoint: str, prefix: str) -> None:
+        self.session = zenoh_session("client", {"connect": [endpoint]})
+        self.counting = threading.Event()
+        self.count = 0
+        self.total = 0  # every sample, counting or not
+        self.seen: set[str] = set()  # the keys that have had a sample (while not counting)
+        self._held = self.session.declare_subscriber(f"{prefix}/**", self._arrived)
+
+    def _arrived(self, sample: Any) -> None:
+        self.total += 1
+        if self.counting.is_set():
+            self.count += 1
+        else:
+            self.seen.add(str(sample.key_expr))
+
+    def close(self) -> None:
+        del self._held
+        self.session.close()  # type: ignore[no-untyped-call]
+
+
+def bus_run(label: str, workers: int, folder: Path, seconds: float, endpoint: str) -> dict[str, float]:
+    """One bridge, 60,000 small messages a second: delivered, and CPU per message."""
+    domain = int(os.environ.get("ROS_DOMAIN_ID") or 0)
+    bridge = Bridge(bus_config(endpoint, split=True), workers, folder, None)
+    samples = Samples(endpoint, f"{domain}/lcm")
+    publishers = Publishers()
+    time.sleep(min(1.0, seconds))
+    warm_up, deadline = 0, time.monotonic() + 10.0
+    while len(samples.seen) < len(BUS_CHANNELS) and time.monotonic() < deadline:  # both halves' routes woke
+        warm_up += publishers.publish(min(1.0, seconds))  # the lazy routes wake, each channel's publisher appears
+    quiet(lambda: samples.total, 3.0)
+    samples.counting.set()
+    cpu_before, others_before = bridge.cpu_seconds(), publishers.cpu_seconds() + time.process_time()
+    started = time.monotonic()
+    sent = publishers.publish(seconds)
+    settle(lambda: samples.count >= sent, min(2.0, seconds))  # what was queued drains
+    cpu, elapsed = bridge.cpu_seconds() - cpu_before, time.monotonic() - started
+    others = publishers.cpu_seconds() + time.process_time() - others_before
+    samples.counting.clear()
+    stats = bridge.stop()
+    publishers.close()
+    samples.close()
+    received = sum(r["messages_in"] for name, r in stats.items() if name != "transports")
+    result = {
+        "sent": float(sent),
+        "delivered": 100.0 * samples.count / max(sent, 1),
+        "per_second": samples.count / seconds,
+        "cpu_us_per_message": cpu / max(sent, 1) * 1e6,
+        "cores": cpu / elapsed,  # the window: publishing, then the drain
+        "cores_here": others / elapsed,
+        "taken_in": 100.0 * received / max(warm_up + sent, 1),  # of the whole run's: the stats count from the start
+    }
+    result["score"] = result["per_second"]
+    print(f"   {label:<36} sent {sent:7d} ({sent / seconds:.0f}/s), delivered {result['delivered']:5.1f}% "
+          f"({result['per_second']:.0f}/s), the "
+          f"routes took in {result['taken_in']:.1f}% (whole run); bridge CPU {result['cpu_us_per_message']:5.1f} us/message "
+          f"({result['cores']:.2f} cores; publishers, Zenoh router and subscriber {result['cores_here']:.2f})"
+          + (f"  [{' | '.join(bridge.placement)}]" if bridge.placement else ""),
+          flush=True)  # fmt: skip
+    return result
+
+
+BUS_SETUPS = {"1 worker": 1, "2 workers, lcm_bus split and pinned": 2}
+
+
+# Both ----------------------------------------------------------------------------------------
+
+
+def keep(best: dict[str, dict[str, float]], label: str, result: dict[str, float]) -> None:
+    """`best[label]` is the better round, whole (its figures are not mixed with another round's): the
+    one that delivered more (draws: the least delivered route; small messages: per second)."""
+    if label not in best or result["score"] > best[label]["score"]:
+        best[label] = result
+
+
+def compare(seconds: float, rounds: int, parts: tuple[str, ...] = ("draws", "bus")) -> dict[str, dict[str, float]]:
+    """Every set-up of `parts`, `rounds` times interleaved; per figure, the better round."""
+    best: dict[str, dict[str, float]] = {}
+    with tempfile.TemporaryDirectory() as name:
+        folder = Path(name)
+        if "draws" in parts:
+            print(f"1. {LINKS}-link draws at {DRAW_HZ:g} Hz for {seconds:g} s, the default per-draw routes (latest); "
+                  f"placed by source: {placement(DEFAULT_LATEST, 2)}")  # fmt: skip
+            for _ in range(rounds):
+                for label, (config, workers, pinned) in DRAW_SETUPS.items():
+                    keep(best, label, draw_run(label, config, workers, pinned, folder, seconds))
+        if "bus" in parts:
+            endpoint = f"tcp/127.0.0.1:{_free_port()}"
+            print(f"2. {len(BUS_CHANNELS)} channels of lcmt_iiwa_status at {BUS_HZ:g} Hz each for {seconds:g} s "
+                  f"onto Zenoh; lcm_bus as shipped, 2 workers: {placement(bus_config(endpoint, False), 2)}; "
+                  f"split: {placement(bus_config(endpoint, True), 2)}")  # fmt: skip
+            router = zenoh_session("router", {"listen": [endpoint]})
+            try:
+                for _ in range(rounds):
+                    for label, workers in BUS_SETUPS.items():
+                        keep(best, label, bus_run(label, workers, folder, seconds, endpoint))
+            finally:
+                router.close()  # type: ignore[no-untyped-call]
+    return best
+
+
+def measures(size: Size = Size.FULL) -> list[Measure]:
+    """Issue 42: what a second worker buys, against one worker in the same run."""
+    best = compare(size.pick(full=10.0, quick=4.0, smoke=0.5), size.pick(full=2, quick=1, smoke=1))
+    rows = []
+    draws_setup = f"{LINKS}-link draws at {DRAW_HZ / 1000:g} kHz, default per-draw routes"
+    shared = "unpinned: publisher and subscribers share the 2 cores"
+    one = best["1 worker, unpinned"]
+    for label, how in (("2 workers, placed by source", "placed by source"), ("2 workers, pinned by worker: K", "pinned")):
+        two = best[label]
+        how = f"{how} ({placement(DRAW_SETUPS[label][0], 2)})"
+        for route in DRAW_TOPICS:
+            rows.append(Measure(f"workers: {route} delivered of draws sent, {draws_setup}, --workers 2 {how}, {shared} "
+                                "(baseline: --workers 1, unpinned)", two[route], one[route], "%",
+                                "none (reported)", None))  # fmt: skip
+        rows.append(Measure(f"workers: bridge CPU per draw sent (all its processes), {draws_setup}, --workers 2 {how}, "
+                            f"{shared} (baseline: --workers 1, unpinned)", two["cpu_us_per_draw"],
+                            one["cpu_us_per_draw"], "us", "none (reported)", None))  # fmt: skip
+    pinned = best["1 worker, pinned to CPU 0"]
+    rows.append(Measure(f"workers: poses / tf / markers delivered, {draws_setup}, --workers 1 pinned to CPU 0 as "
+                        "bench/router.py, publisher on CPU 1: the least of the three (baseline: --workers 1, unpinned)",
+                        min(pinned[route] for route in DRAW_TOPICS), min(one[route] for route in DRAW_TOPICS), "%",
+                        "none (reported)", None))  # fmt: skip
+    bus_setup = (f"{len(BUS_CHANNELS)} channels of lcmt_iiwa_status at {BUS_HZ:g} Hz ({len(BUS_CHANNELS) * BUS_HZ:,.0f}/s) "
+                 f"-> Zenoh, lcm_bus split in 2 routes by channel")  # fmt: skip
+    shared = f"unpinned: {BUS_PUBLISHERS} publisher processes, Zenoh router and subscriber share the 2 cores"
+    one, two = best["1 worker"], best["2 workers, lcm_bus split and pinned"]
+    rows.append(Measure(f"workers: delivered of messages sent, {bus_setup}, --workers 2 (a half pinned to each), "
+                        f"{shared} (baseline: --workers 1)", two["delivered"], one["delivered"], "%",
+                        "none (reported)", None))  # fmt: skip
+    rows.append(Measure("workers: messages delivered a second, same, --workers 2 (baseline: --workers 1)",
+                        two["per_second"], one["per_second"], "/s", "none (reported; the publishers slow down too)",
+                        None))  # fmt: skip
+    rows.append(Measure("workers: bridge CPU per message sent (all its processes), same, --workers 2 "
+                        "(baseline: --workers 1)", two["cpu_us_per_message"], one["cpu_us_per_message"], "us",
+                        "none (reported)", None))  # fmt: skip
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seconds", type=float, default=10.0)
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--only", choices=["draws", "bus"], help="one of the two loads")
+    parser.add_argument("--publish", nargs=3, metavar=("URL", "CHANNELS", "HZ"), help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.publish:
+        url, channels, rate = args.publish
+        publisher_child(url, channels.split(","), float(rate))
+        return
+    best = compare(args.seconds, args.rounds, (args.only,) if args.only else ("draws", "bus"))
+    print("\nbest of the rounds:")
+    for label, figures in best.items():
+        print(f"   {label:<36} " + ", ".join(f"{key} {value:.4g}" for key, value in figures.items()))
+
+
+if __name__ == "__main__":
+    main()
