@@ -114,3 +114,14 @@ def tree_cpu_seconds(pid: int) -> float:
         tree |= more
         grown = bool(more)
     return sum(spent.get(member, 0.0) for member in tree)
+
+
+def iiwa_status_bytes(joints: int = 7) -> bytes:
+    """An lcmt_iiwa_status of `joints` joints, as pydrake's class encodes it: the benches' small message."""
+    import drake
+
+    message = drake.lcmt_iiwa_status()
+    message.num_joints = joints
+    for field in message.__slots__[2:]:
+        setattr(message, field, [0.1 * joint for joint in range(joints)])
+    return message.encode()  # type: ignore[no-any-return]

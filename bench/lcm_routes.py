@@ -33,9 +33,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import drake as drake_lcmtypes
 import yaml
-from common import Measure, Size, settle
+from common import Measure, Size, iiwa_status_bytes, settle
 from router import URL, Bridge
 from zenoh_routes import _free_port, zenoh_session
 
@@ -81,17 +80,9 @@ class Counting:
         self.session.close()  # type: ignore[no-untyped-call]
 
 
-def status_bytes() -> bytes:
-    message = drake_lcmtypes.lcmt_iiwa_status()
-    message.num_joints = 7
-    for field in message.__slots__[2:]:
-        setattr(message, field, [0.1 * joint for joint in range(7)])
-    return message.encode()  # type: ignore[no-any-return]
-
-
 def publish(bus: LcmBus, seconds: float, rate_hz: float = RATE_HZ) -> int:
     """Every channel at `rate_hz` for `seconds`, round-robin, paced by the clock; returns messages sent."""
-    data = status_bytes()
+    data = iiwa_status_bytes()
     period = 1.0 / (rate_hz * len(CHANNELS))
     start = time.perf_counter()
     sent = 0

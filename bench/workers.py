@@ -53,10 +53,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-import drake as drake_lcmtypes
 import lcm
 import yaml
-from common import Measure, Size, settle, tree_cpu_seconds
+from common import Measure, Size, iiwa_status_bytes, settle, tree_cpu_seconds
 from router import DEFAULT_LATEST, DISCOVERY_S, URL, frame, scene
 from zenoh_routes import _free_port, zenoh_session
 
@@ -284,19 +283,11 @@ def bus_config(endpoint: str, split: bool) -> str:
     return yaml.safe_dump({"zenoh": {"connect": [endpoint]}, "routes": routes}, sort_keys=False)
 
 
-def status_bytes() -> bytes:
-    message = drake_lcmtypes.lcmt_iiwa_status()
-    message.num_joints = 7
-    for field in message.__slots__[2:]:
-        setattr(message, field, [0.1 * joint for joint in range(7)])
-    return message.encode()  # type: ignore[no-any-return]
-
-
 def publisher_child(url: str, channels: list[str], rate_hz: float) -> None:
     """A publisher process: each line on stdin is a number of seconds to publish `channels` at
     `rate_hz` each, round-robin; it answers with how many it sent."""
     bus = lcm.LCM(url)
-    data = status_bytes()
+    data = iiwa_status_bytes()
     for line in sys.stdin:
         sent = paced(lambda i: bus.publish(channels[i % len(channels)], data), 0, rate_hz * len(channels),
                      float(line))  # fmt: skip

@@ -40,7 +40,7 @@ from pydantic import (
     model_validator,
 )
 
-from viewer_bridge.config.commands import CommandPolicy
+from viewer_bridge.config.commands import CommandPolicy, regular_expressions
 from viewer_bridge.config.resources import data_dir
 from viewer_bridge.config.yamldoc import KeyPath, YamlDocument
 from viewer_bridge.errors import ConfigError, InvalidName, UnknownName
@@ -138,12 +138,7 @@ class BridgeConfig(BaseModel):
     @field_validator("ros_topics")
     @classmethod
     def _regular_expressions(cls, patterns: list[str]) -> list[str]:
-        for pattern in patterns:
-            try:
-                re.compile(pattern)
-            except re.error as error:
-                raise ValueError(f"{pattern!r} is not a regular expression: {error}") from None
-        return patterns
+        return regular_expressions(patterns)
 
     @model_validator(mode="after")
     def _check(self, info: ValidationInfo) -> BridgeConfig:

@@ -16,12 +16,28 @@ cannot compare with its own.
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from functools import cached_property
+from typing import TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 COMMAND_FLAG = "--allow-commands"
 DEFAULT_MAX_AGE_MS = 200.0
+
+
+Patterns = TypeVar("Patterns", bound=Sequence[str])
+
+
+def regular_expressions(patterns: Patterns) -> Patterns:
+    """`patterns`, each checked to compile: a ValueError naming the first that does not (a config's
+    validators turn it into a ConfigError with its line)."""
+    for pattern in patterns:
+        try:
+            re.compile(pattern)
+        except re.error as error:
+            raise ValueError(f"{pattern!r} is not a regular expression: {error}") from None
+    return patterns
 
 
 class CommandPolicy(BaseModel):
@@ -38,12 +54,7 @@ class CommandPolicy(BaseModel):
     @field_validator("allow")
     @classmethod
     def _regular_expressions(cls, allow: tuple[str, ...]) -> tuple[str, ...]:
-        for pattern in allow:
-            try:
-                re.compile(pattern)
-            except re.error as error:
-                raise ValueError(f"{pattern!r} is not a regular expression: {error}") from None
-        return allow
+        return regular_expressions(allow)
 
     @cached_property
     def _allowed(self) -> tuple[re.Pattern[str], ...]:
@@ -71,4 +82,4 @@ class CommandPolicy(BaseModel):
         )
 
 
-__all__ = ["COMMAND_FLAG", "DEFAULT_MAX_AGE_MS", "CommandPolicy"]
+__all__ = ["COMMAND_FLAG", "DEFAULT_MAX_AGE_MS", "CommandPolicy", "regular_expressions"]
