@@ -6,10 +6,12 @@ import contextlib
 import struct
 import tracemalloc
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import drake
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -224,3 +226,50 @@ def test_bytes_bytearray_and_memoryview_give_the_same_cdr(
     assert read_cdr(known.to_cdr(large), "lab_robot_lcm_msgs/msg/ArmStateT") == expected(
         type(arm).decode(large), known.definition, structs
     )
+
+
+# --- the swap scratch ------------------------------------------------------------------------------
+
+
+BIG_PAIR = "package big; struct pair_t { int32_t n; double a[n]; int16_t k; float b[n]; double c[n]; }"
+
+
+def test_long_arrays_of_one_message_do_not_share_scratch(tmp_path: Path) -> None:
+    """Long arrays are swapped into a reused scratch: two of one message take two parts of it,
+    and the next message's swaps do not touch what an earlier call returned. Both ways."""
+    (tmp_path / "pair.lcm").write_text(BIG_PAIR)
+    known = TypeLibrary.load([str(tmp_path / "pair.lcm")], drake=False).get("big.pair_t")
+    rng = np.random.default_rng(3)
+
+    def message(n: int) -> tuple[bytes, bytes]:
+        a, b, c = rng.normal(size=n), rng.normal(size=n).astype(np.float32), rng.normal(size=n)
+        lcm = known.packed_fingerprint + struct.pack(">i", n) + a.astype(">f8").tobytes() + struct.pack(">h", -2)
+        lcm += b.astype(">f4").tobytes() + c.astype(">f8").tobytes()
+        cdr = b"\0\1\0\0" + struct.pack("<iI", n, n) + a.astype("<f8").tobytes() + struct.pack("<h2xI", -2, n)
+        cdr += b.astype("<f4").tobytes() + struct.pack("<I", n)
+        cdr += bytes(-(len(cdr) - 4) & 7) + c.astype("<f8").tobytes()
+        return lcm, cdr
+
+    first_lcm, first_cdr = message(5000)
+    got = known.to_cdr(first_lcm)
+    assert got == first_cdr and known.from_cdr(got) == first_lcm
+    for n in (5000, 20000, 300):
+        lcm, cdr = message(n)
+        assert known.to_cdr(lcm) == cdr and known.from_cdr(cdr) == lcm
+    assert got == first_cdr
+
+
+def test_threads_swap_in_scratch_of_their_own(tmp_path: Path) -> None:
+    """Each thread has its own scratch: converting in parallel gives each message's own bytes."""
+    (tmp_path / "pair.lcm").write_text(BIG_PAIR)
+    known = TypeLibrary.load([str(tmp_path / "pair.lcm")], drake=False).get("big.pair_t")
+
+    def lcm(n: int, value: float) -> bytes:
+        doubles, floats = np.full(n, value, ">f8").tobytes(), np.full(n, value, ">f4").tobytes()
+        return known.packed_fingerprint + struct.pack(">i", n) + doubles + b"\0\1" + floats + doubles
+
+    messages = [lcm(3000 + 100 * index, float(index)) for index in range(8)]
+    want = [known.to_cdr(data) for data in messages]
+    with ThreadPoolExecutor(4) as pool:
+        for _ in range(20):
+            assert list(pool.map(known.to_cdr, messages)) == want

@@ -35,6 +35,7 @@ from viewer_bridge.lcmcodec.codegen import (
     call_child,
     compile_generated,
     element_min_size,
+    new_message,
     string_stop,
     swapped,
     truncated,
@@ -77,6 +78,7 @@ class CdrTranscoder:
                 f"fingerprint {found} is not {self.packed_fingerprint.hex()}" if end >= 8 else f"truncated: {end} bytes",
             )  # fmt: skip
         out: Chunks = [CDR_HEADER]
+        new_message()  # the previous message's swapped arrays were copied into its CDR
         offset, _ = self._body(buf, 8, end, out, 0)
         if offset != end:
             raise DecodeError(self.type_name, "<end>", offset, f"{end - offset} trailing bytes")
