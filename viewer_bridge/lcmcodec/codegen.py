@@ -125,7 +125,8 @@ class _Scratch(threading.local):
     once, the swapped copy and the joined output, made glibc give the memory back and fault it in
     again each time: 3 ms for `double[100000]` where a memcpy takes 0.03). The swapped elements
     never leave the codec: they are copied into the message's output by its join, so the next
-    message may write over them. Within one message each swap takes the next free bytes."""
+    message may write over them. Within one message each swap takes the next free bytes; a
+    thread's scratch stays as large as the most one of its messages has swapped."""
 
     def __init__(self) -> None:
         self.buffer = np.empty(0, np.uint8)
