@@ -53,6 +53,7 @@ from viewer_bridge.formats.ign.model import scene_from_model
 from viewer_bridge.formats.ign.schema import MESSAGES
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr
 from viewer_bridge.lcmcodec import CODECS, LOAD_ROBOT, STRUCTS, VIEWER2_COMMS, StructCodec
+from viewer_bridge.lcmcodec.cdr import CdrTranscoder, compile_transcoders
 from viewer_bridge.lcmcodec.cdr_to_lcm import LcmEncoder
 from viewer_bridge.lcmcodec.from_ros import load_ros_definitions, map_ros_types
 from viewer_bridge.lcmcodec.library import LcmType, TypeLibrary
@@ -346,10 +347,24 @@ def lcm_schema(data: bytes) -> object:
     return [mapping.ros2msg(name) for name in mapping.messages]
 
 
+_GENERATED_ONLY: dict[str, CdrTranscoder] = {}  # transcoders that keep no layout, by type
+
+
+def _generated_only(known: LcmType) -> CdrTranscoder:
+    """`known`'s transcoder that runs the generated code on every message."""
+    if known.full_name not in _GENERATED_ONLY:
+        closure = _GENERIC._closure(known.full_name)
+        fingerprints = {name: _GENERIC.get(name).packed_fingerprint for name in closure}
+        compiled = compile_transcoders(closure, fingerprints, [known.full_name], keep_layouts=False)
+        _GENERATED_ONLY[known.full_name] = compiled[known.full_name]
+    return _GENERATED_ONLY[known.full_name]
+
+
 def lcm_generic(data: bytes) -> object:
     """The first byte picks a type (or none: the bytes are a whole message of any known type); the
     rest is the message after its fingerprint. The CDR transcoder and the JSON decoder must agree
-    about whether it is valid."""
+    about whether it is valid, and the transcoder's kept layouts (messages of a size seen before)
+    must give the generated code's bytes."""
     choice = data[0] if data else 0
     if choice < len(GENERIC_TYPES):
         known = _GENERIC.get(GENERIC_TYPES[choice])
@@ -372,6 +387,8 @@ def lcm_generic(data: bytes) -> object:
         raise
     if cdr is None:
         raise AssertionError("the JSON decoder took a message the transcoder refuses")
+    if cdr != _generated_only(known).transcode(message):
+        raise AssertionError("a kept layout and the generated code give different CDR")
     return cdr
 
 

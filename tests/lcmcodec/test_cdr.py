@@ -6,10 +6,12 @@ import contextlib
 import struct
 import tracemalloc
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import drake
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -24,6 +26,7 @@ from tests.lcmcodec.corpus import (
     rosbags_reader,
 )
 from viewer_bridge.errors import DecodeError
+from viewer_bridge.lcmcodec.cdr import CdrTranscoder, compile_transcoders
 from viewer_bridge.lcmcodec.library import TypeLibrary
 
 CDR_TYPES = [
@@ -224,3 +227,130 @@ def test_bytes_bytearray_and_memoryview_give_the_same_cdr(
     assert read_cdr(known.to_cdr(large), "lab_robot_lcm_msgs/msg/ArmStateT") == expected(
         type(arm).decode(large), known.definition, structs
     )
+
+
+# --- kept layouts: the fast path -----------------------------------------------------------------
+
+
+def _transcoders(library: TypeLibrary, name: str) -> tuple[CdrTranscoder, CdrTranscoder]:
+    """The transcoder of `name` that keeps layouts, and one that only runs the generated code."""
+    closure = library._closure(name)
+    fingerprints = {each: library.get(each).packed_fingerprint for each in closure}
+    kept = compile_transcoders(closure, fingerprints, [name])[name]
+    return kept, compile_transcoders(closure, fingerprints, [name], keep_layouts=False)[name]
+
+
+def _outcome(transcoder: CdrTranscoder, data: bytes) -> bytes | str:
+    try:
+        return transcoder.transcode(data)
+    except DecodeError as error:
+        return str(error)
+
+
+@pytest.mark.parametrize("type_name", CDR_TYPES)
+def test_kept_layouts_give_the_generated_codes_bytes(
+    type_name: str, library: TypeLibrary, classes: dict[str, type]
+) -> None:
+    """Every message twice: the first teaches its layout, the second takes it; both are the
+    generated code's bytes, byte for byte."""
+    kept, generated = _transcoders(library, type_name)
+    structs = {t.full_name: t.definition for t in library.types()}
+
+    @settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+    @given(lcmgen_messages(library.get(type_name).definition, structs, classes))
+    def check(message: Any) -> None:
+        data = message.encode()
+        want = generated.transcode(data)
+        assert kept.transcode(data) == want
+        assert kept.transcode(data) == want
+        assert len(data) in kept._layouts or len(kept._layouts) == 16
+
+    check()
+
+
+def test_kept_layouts_agree_with_the_generated_code(library: TypeLibrary, classes: dict[str, type]) -> None:
+    """An arm_state_t (strings, bools, nested and multi-dimensional arrays) of a kept layout's
+    size, its bytes changed anywhere (lengths, NULs, UTF-8, bools, numbers), converts or fails as
+    the generated code alone says."""
+    kept, generated = _transcoders(library, "lab.robot.arm_state_t")
+    data = arm_state(classes).encode()
+    assert kept.transcode(data) == generated.transcode(data) and len(kept._layouts) == 1
+
+    @given(st.lists(st.tuples(st.integers(0, len(data) - 1), st.integers(0, 255)), max_size=3))
+    @settings(max_examples=400, deadline=None)
+    def check(changes: list[tuple[int, int]]) -> None:
+        changed = bytearray(data)
+        for index, value in changes:
+            changed[index] = value
+        assert _outcome(kept, bytes(changed)) == _outcome(generated, bytes(changed))
+
+    check()
+    assert len(kept._layouts) == 1  # every message of that size met the kept layout first
+
+
+def test_a_kept_layout_takes_only_messages_of_its_own_shape(library: TypeLibrary, classes: dict[str, type]) -> None:
+    """Two strings of lengths (1, 3) and (3, 1) make messages of one size: the second must not be
+    read with the first's layout; nor a bool byte 2 be copied as 2, nor a string become bad UTF-8."""
+    kept, generated = _transcoders(library, "lab.robot.arm_state_t")
+    arm = arm_state(classes)
+    arm.robotName, arm.labels = "a", [["abc", "bé"], ["", "d"]]
+    first = arm.encode()
+    arm.robotName, arm.labels = "abc", [["a", "bé"], ["", "d"]]
+    second = arm.encode()
+    assert len(first) == len(second)
+    for data in (first, second, first):
+        assert kept.transcode(data) == generated.transcode(data)
+    assert list(kept._layouts) == [len(first)]
+    flags = first.index(b"\1\0", first.index(b"\0\1\2") + 3)  # flags [True, False], after fixedBlob
+    true_as_two = first[:flags] + b"\2" + first[flags + 1 :]
+    assert kept.transcode(true_as_two) == kept.transcode(first) == generated.transcode(true_as_two)
+    name = first.index(b"a\0")
+    with pytest.raises(DecodeError, match="invalid UTF-8"):
+        kept.transcode(first[:name] + b"\xff" + first[name + 1 :])
+
+
+# --- the swap scratch ------------------------------------------------------------------------------
+
+
+BIG_PAIR = "package big; struct pair_t { int32_t n; double a[n]; int16_t k; float b[n]; double c[n]; }"
+
+
+def test_long_arrays_of_one_message_do_not_share_scratch(tmp_path: Path) -> None:
+    """Long arrays are swapped into a reused scratch: two of one message take two parts of it,
+    and the next message's swaps do not touch what an earlier call returned. Both ways."""
+    (tmp_path / "pair.lcm").write_text(BIG_PAIR)
+    known = TypeLibrary.load([str(tmp_path / "pair.lcm")], drake=False).get("big.pair_t")
+    rng = np.random.default_rng(3)
+
+    def message(n: int) -> tuple[bytes, bytes]:
+        a, b, c = rng.normal(size=n), rng.normal(size=n).astype(np.float32), rng.normal(size=n)
+        lcm = known.packed_fingerprint + struct.pack(">i", n) + a.astype(">f8").tobytes() + struct.pack(">h", -2)
+        lcm += b.astype(">f4").tobytes() + c.astype(">f8").tobytes()
+        cdr = b"\0\1\0\0" + struct.pack("<iI", n, n) + a.astype("<f8").tobytes() + struct.pack("<h2xI", -2, n)
+        cdr += b.astype("<f4").tobytes() + struct.pack("<I", n)
+        cdr += bytes(-(len(cdr) - 4) & 7) + c.astype("<f8").tobytes()
+        return lcm, cdr
+
+    first_lcm, first_cdr = message(5000)
+    got = known.to_cdr(first_lcm)
+    assert got == first_cdr and known.from_cdr(got) == first_lcm
+    for n in (5000, 20000, 300):
+        lcm, cdr = message(n)
+        assert known.to_cdr(lcm) == cdr and known.from_cdr(cdr) == lcm
+    assert got == first_cdr
+
+
+def test_threads_swap_in_scratch_of_their_own(tmp_path: Path) -> None:
+    """Each thread has its own scratch: converting in parallel gives each message's own bytes."""
+    (tmp_path / "pair.lcm").write_text(BIG_PAIR)
+    known = TypeLibrary.load([str(tmp_path / "pair.lcm")], drake=False).get("big.pair_t")
+
+    def lcm(n: int, value: float) -> bytes:
+        doubles, floats = np.full(n, value, ">f8").tobytes(), np.full(n, value, ">f4").tobytes()
+        return known.packed_fingerprint + struct.pack(">i", n) + doubles + b"\0\1" + floats + doubles
+
+    messages = [lcm(3000 + 100 * index, float(index)) for index in range(8)]
+    want = [known.to_cdr(data) for data in messages]
+    with ThreadPoolExecutor(4) as pool:
+        for _ in range(20):
+            assert list(pool.map(known.to_cdr, messages)) == want

@@ -23,9 +23,10 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import dataclass
-from functools import lru_cache
+from functools import lru_cache, partial
 from typing import Any
+
+import numpy as np
 
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec.codegen import (
@@ -35,10 +36,12 @@ from viewer_bridge.lcmcodec.codegen import (
     call_child,
     compile_generated,
     element_min_size,
+    new_message,
     string_stop,
     swapped,
     truncated,
 )
+from viewer_bridge.lcmcodec.lcm_layout import LAYOUT_BYTES, CdrLayout, learn_cdr_layout
 from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
 
 __all__ = ["CDR_HEADER", "CdrTranscoder", "compile_transcoders"]
@@ -54,18 +57,52 @@ _ZEROS = [bytes(n) for n in range(8)]
 _COUNT_AFTER_PAD = [struct.Struct(f"<{pad}xI") for pad in range(4)]  # a uint32 after `pad` zero bytes
 _FIELD_FINGERPRINT = "<fingerprint>"
 _VIEW_FROM = 4096  # bytes
+_LAYOUTS = 16  # sizes kept per type (a robot sends one or two)
+_frombuffer, _BYTE = np.frombuffer, np.dtype(np.uint8)  # looked up once: the fast path is a few calls
 
 
-@dataclass(frozen=True)
 class CdrTranscoder:
-    """The compiled LCM -> CDR path of one type."""
+    """The compiled LCM -> CDR path of one type.
 
-    type_name: str
-    packed_fingerprint: bytes
-    _body: Callable[[bytes | memoryview, int, int, Chunks, int], tuple[int, int]]
+    After a message has passed the generated code, its layout (`lcm_layout`) is kept by size: a
+    message of the same size and shape (fingerprint, length fields, string lengths) is one read
+    of those values, one comparison and one gather of its bytes. Anything else takes the
+    generated code, which finds and names what is wrong."""
+
+    def __init__(self, type_name: str, packed_fingerprint: bytes,
+                 body: Callable[[bytes | memoryview, int, int, Chunks, int], tuple[int, int]],
+                 learn: Callable[[bytes], CdrLayout | None] | None = None) -> None:  # fmt: skip
+        self.type_name = type_name
+        self.packed_fingerprint = packed_fingerprint
+        self._body = body
+        self._learn = learn  # the layout of a message the generated code has passed
+        self._layouts: dict[int, CdrLayout] = {}
 
     def transcode(self, data: Buffer) -> bytes:
         """A whole LCM message (fingerprint first) as CDR with its encapsulation header."""
+        if type(data) is bytes and (layout := self._layouts.get(len(data))) is not None:  # inline: a call less
+            read, key, expected, texts, tail, gather, bools = layout
+            values = read(data)
+            if (values if key is None else key(values)) == expected:
+                try:
+                    if texts is not None:  # joined by NULs: a character cut at the end of one is no whole one
+                        str(b"\0".join(texts(values)), "utf-8")
+                    moved = _frombuffer(data + tail, _BYTE)[gather]
+                    if bools is not None:  # LCM reads any byte but 0 as true, CDR writes 1
+                        moved[bools] = moved[bools] != 0
+                    cdr: bytes = moved.tobytes()
+                    return cdr
+                except UnicodeDecodeError:  # the generated code names it
+                    pass
+        cdr = self._transcode(data)
+        if self._learn is not None and type(data) is bytes and len(data) <= LAYOUT_BYTES and len(self._layouts) < _LAYOUTS:
+            found = self._learn(data)
+            if found is not None:
+                self._layouts[len(data)] = found
+        return cdr
+
+    def _transcode(self, data: Buffer) -> bytes:
+        """The generated code's way: every check, every error named."""
         # Small bytes are read as they are (slicing bytes is cheapest); anything else through a
         # flat byte view, so that a large byte array is copied once, into the result, not twice.
         buf = data if type(data) is bytes and len(data) < _VIEW_FROM else memoryview(data).cast("B")
@@ -77,6 +114,7 @@ class CdrTranscoder:
                 f"fingerprint {found} is not {self.packed_fingerprint.hex()}" if end >= 8 else f"truncated: {end} bytes",
             )  # fmt: skip
         out: Chunks = [CDR_HEADER]
+        new_message()  # the previous message's swapped arrays were copied into its CDR
         offset, _ = self._body(buf, 8, end, out, 0)
         if offset != end:
             raise DecodeError(self.type_name, "<end>", offset, f"{end - offset} trailing bytes")
@@ -324,9 +362,12 @@ class _Generator(StructWriter):
 
 
 def compile_transcoders(
-    structs: Mapping[str, StructDef], fingerprints: Mapping[str, bytes], names: Iterable[str]
-) -> dict[str, CdrTranscoder]:
-    """The transcoders of types `names` (none may contain itself; every nested type is in `structs`)."""
+    structs: Mapping[str, StructDef], fingerprints: Mapping[str, bytes], names: Iterable[str],
+    keep_layouts: bool = True,
+) -> dict[str, CdrTranscoder]:  # fmt: skip
+    """The transcoders of types `names` (none may contain itself; every nested type is in `structs`).
+    Each keeps the layouts of the messages it has converted unless `keep_layouts` is False: then
+    every message takes the generated code (as the first of each shape does)."""
     helpers: dict[str, object] = {
         "DecodeError": DecodeError,
         "_truncated": truncated,
@@ -343,5 +384,7 @@ def compile_transcoders(
         **{f"_swap{size}": swapped(size) for size in (2, 4, 8)},
     }
     bodies = compile_generated(structs, list(names), "T", _Generator, helpers, "<lcm -> cdr transcoders>")
-    return {name: CdrTranscoder(name, fingerprints[name], body) for name, body in bodies.items()}
+    return {name: CdrTranscoder(name, fingerprints[name], body,
+                                partial(learn_cdr_layout, structs, name) if keep_layouts else None)
+            for name, body in bodies.items()}  # fmt: skip
 

@@ -103,6 +103,7 @@ class LcmEncoder:
         buf = view[_HEADER:]
         end = total - _HEADER
         out: list[Any] = [self.packed_fingerprint]
+        codegen.new_message()  # the previous message's swapped arrays were copied into its LCM bytes
         offset = self._body(buf, 0, end, out)
         # rclpy pads the whole message to a multiple of 4 bytes: those few bytes are not content.
         if offset != end and not (end - offset < 4 and total % 4 == 0):
