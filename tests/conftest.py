@@ -23,6 +23,7 @@ import pytest
 import viewer_bridge.examples
 from tests.claims import lcm_port, ros_domain
 from tests.process_groups import ChildGroups
+from viewer_bridge.errors import MissingExtra
 from viewer_bridge.formats.drake.draw import poses_from_draw
 from viewer_bridge.formats.drake.load import decode_load
 from viewer_bridge.lcmcodec import DRAW, LOAD_ROBOT, SCHEMA_DIR, LcmMessage
@@ -50,11 +51,14 @@ collect_ignore_glob = ["formats/foxglove/*", "formats/test_load_fast_paths.py"] 
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Iterator[None]:
     outcome = yield
     report = outcome.get_result()  # type: ignore[attr-defined]
-    if CORE_ONLY and call.excinfo is not None and call.excinfo.errisinstance(ModuleNotFoundError):
-        # A peer imported where a test (or what it calls) needs it, absent here: that test is skipped.
+    if CORE_ONLY and call.excinfo is not None and call.excinfo.errisinstance((ModuleNotFoundError, MissingExtra)):
+        # A peer imported where a test (or what it calls) needs it, absent here: that test is skipped
+        # (a converter says so as MissingExtra, naming the module).
         path, line, _ = item.location
+        error = call.excinfo.value
         report.outcome = "skipped"
-        report.longrepr = (path, (line or 0) + 1, f"Skipped: needs {call.excinfo.value.name}")
+        needed = error.module if isinstance(error, MissingExtra) else error.name
+        report.longrepr = (path, (line or 0) + 1, f"Skipped: needs {needed}")
     _skip_fails(report)
 
 

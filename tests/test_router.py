@@ -362,7 +362,8 @@ BROKEN_CONFIGS = [
     ("ros:\n  node: viewer-bridge\nroutes: []\n", 2, "ros.node",
      "'viewer-bridge' is not a valid ROS 2 node name: it has characters a ROS name cannot hold: '-'"),
     ("routes: []\nzmq: {port: 1}\n", 2, "zmq",
-     "'zmq' is not a config key (load_cache, lcm_types, drake_lcm_types, commands, workers, routes) nor a transport"),
+     "'zmq' is not a config key (load_cache, lcm_types, drake_lcm_types, commands, ros_topics, workers, routes) "
+     "nor a transport"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n  - name: a\n    source: {transport: lcm, name: X}\n"
      "    translator: drake_to_clock\n    destination: {transport: ros, name: /c}\n", 6, "routes.1.name",
