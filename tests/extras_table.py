@@ -92,7 +92,7 @@ ROWS: dict[str, Row] = {
         Row("", (Step(("--version",), r"^viewer-bridge \d+\.\d+\.\d+$"), DEMO_LOG,
                  Step(("dump", "demo.lcmlog", "--channel", "DRAKE_VIEWER_LOAD_ROBOT"), r"DRAKE_VIEWER_LOAD_ROBOT"),
                  Step(("ros-interfaces", "generate", "-o", "src"),
-                      r"^viewer-bridge ros-interfaces: Drake's own LCM types .* pip install 'viewer-bridge\[drake\]'$"))),
+                      r"^viewer-bridge ros-interfaces: Drake's other LCM types .* pip install 'viewer-bridge\[drake\]'$"))),
         Row("ros", (_run_demo("ros.yaml", "poses"),
                     # The built-in config: /tf needs tf2_msgs, built with [ros-build]; one line says so.
                     Step(("run", "--demo", "--duration", "1", "--lcm-url", "LCM"), code=2,
