@@ -27,8 +27,10 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 TOP = Path(__file__).resolve().parent.parent
 CORPUS = TOP / ".fuzz-corpus"
@@ -51,45 +53,81 @@ class Report:
     seconds: float = 0.0
 
 
-def child(target_name: str, runs: int, timeout: int, rss_mb: int, corpus: Path, seeds: Path) -> None:
-    """In the fuzzing process: instrument the bridge, then hand the target to libFuzzer."""
+def zygote(names: list[str], runs: int, timeout: int, rss_mb: int, seeds: Path, logs: Path) -> None:
+    """In the one fuzzing process: instrument the bridge once, then fuzz each target in a fork.
+
+    Instrumenting and importing the bridge is most of a short run's cost (a few seconds of CPU,
+    the 2000 executions a fraction of one): paid once here, every target's fork inherits it. A
+    fork's libFuzzer output goes to `logs/<target>.log`; a line `<target> <exit status>` on
+    stdout says it ended."""
     import atheris
 
     with atheris.instrument_imports(include=["viewer_bridge"]):
         from tests.fuzz.targets import TARGETS
-    target = TARGETS[target_name]
+    for name in names:
+        pid = os.fork()
+        if pid == 0:
+            _fuzz_in_fork(TARGETS[name], name, runs, timeout, rss_mb, seeds / name, logs / f"{name}.log")
+        _, status = os.waitpid(pid, 0)
+        print(name, os.waitstatus_to_exitcode(status), flush=True)
+
+
+def _fuzz_in_fork(target: Any, name: str, runs: int, timeout: int, rss_mb: int, seeds: Path, log: Path) -> None:
+    """Hand `target` to libFuzzer (which ends this process), its output to `log`."""
+    import atheris
+
+    with log.open("wb") as output:
+        os.dup2(output.fileno(), 1)
+        os.dup2(output.fileno(), 2)
 
     def one_input(data: bytes) -> None:
         with contextlib.suppress(target.documented):  # a documented refusal: what the target promises
             target.run(data)
 
-    crash_prefix = f"{CORPUS}/{target_name}-"
-    atheris.Setup([sys.argv[0], f"-runs={runs}", f"-timeout={timeout}", f"-rss_limit_mb={rss_mb}",
-                   "-print_final_stats=1", f"-artifact_prefix={crash_prefix}", str(corpus), str(seeds)],
-                  one_input)  # fmt: skip
-    atheris.Fuzz()
-
-
-def run_target(name: str, runs: int, timeout: int, rss_mb: int, seeds: Path) -> Report:
     corpus = CORPUS / name
-    corpus.mkdir(parents=True, exist_ok=True)
-    kinds = _seed_kinds(name)
-    with tempfile.TemporaryDirectory() as seed_dir:
-        for kind in kinds:  # the target's seed kinds, flattened into one directory
-            for path in (seeds / kind).glob("*") if (seeds / kind).is_dir() else ():
-                (Path(seed_dir) / path.name).write_bytes(path.read_bytes())
+    crash_prefix = f"{CORPUS}/{name}-"
+    try:
+        atheris.Setup([sys.argv[0], f"-runs={runs}", f"-timeout={timeout}", f"-rss_limit_mb={rss_mb}",
+                       "-print_final_stats=1", f"-artifact_prefix={crash_prefix}", str(corpus), str(seeds)],
+                      one_input)  # fmt: skip
+        atheris.Fuzz()
+    finally:
+        os._exit(70)  # libFuzzer exits the process itself; returning here is a failure of the fork
+
+
+def run_targets(names: list[str], runs: int, timeout: int, rss_mb: int, seeds: Path) -> Iterator[Report]:
+    """Each target's report, as its run ends (every target in one fuzzing process: `zygote`)."""
+    with tempfile.TemporaryDirectory() as scratch:
+        per_target, logs = Path(scratch) / "seeds", Path(scratch) / "logs"
+        logs.mkdir()
+        for name in names:  # the target's seed kinds, flattened into one directory
+            (CORPUS / name).mkdir(parents=True, exist_ok=True)
+            (per_target / name).mkdir(parents=True)
+            for kind in _seed_kinds(name):
+                for path in (seeds / kind).glob("*") if (seeds / kind).is_dir() else ():
+                    (per_target / name / path.name).write_bytes(path.read_bytes())
+        command = [sys.executable, __file__, "--zygote", "--runs", str(runs), "--timeout", str(timeout),
+                   "--rss-mb", str(rss_mb), "--seeds", str(per_target), "--logs", str(logs), *names]  # fmt: skip
         started = time.monotonic()
-        process = subprocess.run(
-            [sys.executable, __file__, "--child", name, "--runs", str(runs), "--timeout", str(timeout),
-             "--rss-mb", str(rss_mb), "--seeds", seed_dir],
-            capture_output=True, text=True, cwd=TOP, env=dict(os.environ, PYTHONPATH=str(TOP)),
-        )  # fmt: skip
-    report = parse(name, process.stderr, runs)
+        with subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=TOP,
+                              env=dict(os.environ, PYTHONPATH=str(TOP))) as process:  # fmt: skip
+            assert process.stdout is not None and process.stderr is not None
+            for line in process.stdout:
+                name, status = line.split()
+                yield _report(name, (logs / f"{name}.log").read_text(errors="replace"), runs, int(status), started)
+                started = time.monotonic()
+            problem = process.stderr.read()
+        if process.returncode != 0:  # instrumenting or importing failed: no target ran
+            raise SystemExit(f"the fuzzing process failed (exit status {process.returncode}): {_last_lines(problem, 10)}")
+
+
+def _report(name: str, output: str, runs: int, status: int, started: float) -> Report:
+    report = parse(name, output, runs)
     report.seconds = time.monotonic() - started
     if not report.exec_per_s:  # libFuzzer's average is 0 for a run under a second
         report.exec_per_s = report.executions / report.seconds
-    if process.returncode != 0 and not report.finding:
-        report.finding = f"exit status {process.returncode}: " + _last_lines(process.stderr)
+    if status != 0 and not report.finding:
+        report.finding = f"exit status {status}: " + _last_lines(output)
     return report
 
 
@@ -139,11 +177,13 @@ def main() -> None:
     parser.add_argument("--timeout", type=int, default=10, help="seconds one input may take (a hang)")
     parser.add_argument("--rss-mb", type=int, default=2048, help="memory limit of a fuzzing process")
     parser.add_argument("--list", action="store_true", help="list the targets")
-    parser.add_argument("--child", help=argparse.SUPPRESS)
+    parser.add_argument("--zygote", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--seeds", help=argparse.SUPPRESS)
+    parser.add_argument("--logs", help=argparse.SUPPRESS)
+    parser.add_argument("names", nargs="*", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.child:
-        return child(args.child, args.runs, args.timeout, args.rss_mb, CORPUS / args.child, Path(args.seeds))
+    if args.zygote:
+        return zygote(args.names, args.runs, args.timeout, args.rss_mb, Path(args.seeds), Path(args.logs))
     from tests.fuzz.seeds import write_seeds
     from tests.fuzz.targets import TARGETS
 
@@ -156,8 +196,8 @@ def main() -> None:
     findings = 0
     with tempfile.TemporaryDirectory() as seeds:
         write_seeds(Path(seeds))
-        for name in names:
-            r = run_target(name, args.runs, args.timeout, args.rss_mb, Path(seeds))
+        for r in run_targets(names, args.runs, args.timeout, args.rss_mb, Path(seeds)):
+            name = r.target
             findings += bool(r.finding)
             print(f"{name:<52} {r.executions:>10} {r.exec_per_s:>7.0f} {r.cov:>6} {r.ft:>6} "
                   f"{f'{r.cov_last_10} / {r.ft_last_10}':>20} {r.peak_rss_mb:>6}MB  {r.finding or 'none'}",
