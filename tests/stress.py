@@ -1,11 +1,12 @@
 """The end-to-end test files, run again and again while both cores are kept busy: the races a quiet
 machine hides show up as failures here.
 
-Run: .venv/bin/python -m tests.stress N [pytest args]   (`./dev test --stress N [pytest args]`)
+Run: .venv/bin/python -m tests.stress N [--jobs J] [pytest args]   (`./dev test --stress N ...`)
 
 The files are those marked `e2e` (they start peers or bridges; see pyproject.toml's markers).
 Each round runs every file once, in a pytest process of its own, so a failure in one run cannot
-leak into the next; two `nice -n 19` busy loops take whatever CPU the tests leave, and are ended
+leak into the next; `--jobs J` runs J files at once (as `./dev test` runs two test processes
+side by side). Two `nice -n 19` busy loops take whatever CPU the tests leave, and are ended
 however the run ends. At the end, a table: file, runs, failures, slowest run; each failed run's
 output is kept in a log file the table names.
 """
@@ -19,6 +20,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -100,19 +102,27 @@ def _raise_on_termination(signum: int, frame: FrameType | None) -> None:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("rounds", type=int, help="how many times each file runs")
+    parser.add_argument("--jobs", type=int, default=1,
+                        help="files run at once (each a test process of its own, as `./dev test`'s workers)")  # fmt: skip
     parser.add_argument("pytest_args", nargs=argparse.REMAINDER, help="passed to every pytest run (e.g. a file)")
     args = parser.parse_args()
+    if "--jobs" in args.pytest_args:  # after N too (argparse's remainder takes everything after N)
+        at = args.pytest_args.index("--jobs")
+        args.jobs = int(args.pytest_args[at + 1])
+        del args.pytest_args[at : at + 2]
     signal.signal(signal.SIGTERM, _raise_on_termination)
     files = e2e_files(args.pytest_args)
     # Each file is run on its own; the other arguments (options, and their values) go to every run.
     options = [arg for arg in args.pytest_args if not (ROOT / arg.split("::")[0]).exists()]
     results = {path: FileRuns() for path in files}
     logs = Path(tempfile.mkdtemp(prefix="viewer-bridge-stress-"))
-    print(f"{len(files)} files x {args.rounds} rounds, {BUSY_LOOPS} busy loops; logs in {logs}", flush=True)
-    with busy_cores():
+    print(f"{len(files)} files x {args.rounds} rounds, {args.jobs} at once, {BUSY_LOOPS} busy loops; logs in {logs}",
+          flush=True)  # fmt: skip
+    with busy_cores(), ThreadPoolExecutor(args.jobs) as pool:
         for round_number in range(1, args.rounds + 1):
-            for path in files:
-                passed, seconds, log = run_file(path, options, logs, round_number)
+            runs_of_round = {path: pool.submit(run_file, path, options, logs, round_number) for path in files}
+            for path, run in runs_of_round.items():
+                passed, seconds, log = run.result()
                 runs = results[path]
                 runs.runs += 1
                 runs.slowest_s = max(runs.slowest_s, seconds)
