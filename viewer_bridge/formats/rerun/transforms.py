@@ -30,16 +30,17 @@ _TIMESTAMP = pa.timestamp("ns")
 _DURATION = pa.duration("ns")
 
 
-class _Values:
-    """An Arrow array as the SDK's `ComponentBatchLike` (what a `ComponentColumn` partitions)."""
+class _Rows(rr.ComponentColumn):
+    """A component column from its Arrow list array (a row per draw link: one instance in each),
+    made here with offsets made once per set of links: the SDK's own column would partition its
+    values again each time `Chunk.from_columns` reads it."""
 
-    __slots__ = ("array",)
-
-    def __init__(self, array: pa.Array) -> None:
-        self.array = array
+    def __init__(self, descriptor: rr.ComponentDescriptor, rows: pa.ListArray) -> None:
+        self.descriptor = descriptor
+        self.rows = rows
 
     def as_arrow_array(self) -> pa.Array:
-        return self.array
+        return self.rows
 
 
 class _Times:
@@ -80,14 +81,14 @@ class TransformsEncoder:
         self._descriptors = {name: column.component_descriptor() for name, column in sample.items()}
         self._kinds = {name: column.component_batch.as_arrow_array().type for name, column in sample.items()}
         self._names: tuple[str, ...] | None = None
-        self._offsets = np.zeros(1, dtype=np.int32)
+        self._offsets = pa.array(np.zeros(1, dtype=np.int32))
         self._frame_columns: list[rr.ComponentColumn] = []
         self._frames_size = 0
 
     def _frame_arrays(self, names: tuple[str, ...]) -> None:
-        """The columns that repeat while the link names do: the offsets of one instance per row, the
-        child and parent frames."""
-        self._offsets = np.arange(len(names) + 1, dtype=np.int32)
+        """What repeats while the link names do: the offsets of one instance per row, the child and
+        parent frame columns."""
+        self._offsets = pa.array(np.arange(len(names) + 1, dtype=np.int32))
         children = pa.array([self.frames(name) for name in names], pa.utf8())
         parents = pa.array([self.world_frame] * len(names), pa.utf8())
         self._frame_columns = [
@@ -97,7 +98,7 @@ class TransformsEncoder:
         self._frames_size = children.nbytes + parents.nbytes
 
     def _column(self, component: str, values: pa.Array) -> rr.ComponentColumn:
-        return rr.ComponentColumn(self._descriptors[component], _Values(values), offsets=self._offsets)
+        return _Rows(self._descriptors[component], pa.ListArray.from_arrays(self._offsets, values))
 
     def encode(self, poses: LinkPoses, stamp: Stamp) -> Chunks:
         if poses.names is not self._names and poses.names != self._names:  # one tuple while they repeat
