@@ -2,7 +2,7 @@
 
 (Not named rerun.py: bench/ is on the import path, and would shadow the SDK's `rerun`.)
 
-Run: .venv/bin/python bench/to_rerun.py [--seconds 10] [--quick]
+Run: .venv/bin/python bench/to_rerun.py [--seconds 10] [--quick] [--baseline-checkout PATH]
 
 `measures()` gives issues 34's and 42's goals as rows:
 
@@ -17,7 +17,9 @@ Run: .venv/bin/python bench/to_rerun.py [--seconds 10] [--quick]
 * (unless quick) the bridge as a process pinned to CPU 0 (this process, the publisher, pinned to
   the other core) with one `drake_to_rerun` route into an .rrd file, fed 1000-link draws over LCM
   at 1 kHz: its CPU time per draw (from /proc), and whether every draw is in the file (distinct
-  sim_time values, read back with Rerun's reader).
+  sim_time values, read back with Rerun's reader). With `--baseline-checkout PATH`, the same
+  live run follows with the bridge of another checkout (the code before a change), for a
+  before/after on the same machine in the same minutes.
 """
 
 from __future__ import annotations
@@ -184,11 +186,13 @@ def on_core(core: int) -> Iterator[None]:
         os.sched_setaffinity(0, before)
 
 
-def live(seconds: float, folder: Path) -> dict[str, float]:
-    """The bridge pinned to CPU 0, 1000-link draws at 1 kHz for `seconds`, into an .rrd file."""
+def live(seconds: float, folder: Path, checkout: Path | None = None) -> dict[str, float]:
+    """The bridge (of `checkout`, else this one) pinned to CPU 0, 1000-link draws at 1 kHz for
+    `seconds`, into an .rrd file."""
     names = frame(LINKS).names
     path = folder / "live.rrd"
-    bridge = Bridge(CONFIG.format(path=path), folder, core=0)
+    path.unlink(missing_ok=True)
+    bridge = Bridge(CONFIG.format(path=path), folder, core=0, source=checkout)
     bus = LcmBus(URL)
     time.sleep(2.0)  # the bridge's subscription joined (its start-up line came before)
     sent: dict[int, int] = {}
@@ -238,9 +242,9 @@ def recorded_draws(path: Path) -> set[int]:
     return times
 
 
-def live_measure(result: dict[str, float]) -> Measure:
+def live_measure(result: dict[str, float], whose: str = "") -> Measure:
     every = result["recorded"] == result["sent"]
-    return Measure(f"bridge CPU per draw into .rrd, 1000 links at 1 kHz (one core), {result['recorded']:.0f}/"
+    return Measure(f"bridge{whose} CPU per draw into .rrd, 1000 links at 1 kHz (one core), {result['recorded']:.0f}/"
                    f"{result['sent']:.0f} draws recorded", result["cpu_us"], None, "us",
                    "1 kHz, every draw", every and result["cpu_us"] < 1000.0)  # fmt: skip
 
@@ -257,14 +261,19 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--quick", action="store_true", help="only the in-process rows")
+    parser.add_argument("--baseline-checkout", type=Path, help="the live row again with this checkout's bridge")
     args = parser.parse_args()
     size = Size.QUICK if args.quick else Size.FULL
     with tempfile.TemporaryDirectory() as folder:
         rows = [cpu_measure(size, Path(folder)), calls_measure(size, Path(folder))]
         if not args.quick:
             result = live(args.seconds, Path(folder))
-            print(result)
+            print("this checkout:", result)
             rows.append(live_measure(result))
+            if args.baseline_checkout is not None:
+                before = live(args.seconds, Path(folder), args.baseline_checkout.resolve())
+                print(f"{args.baseline_checkout}:", before)
+                rows.append(live_measure(before, f" ({args.baseline_checkout})"))
     print_measures(rows)
 
 

@@ -95,7 +95,7 @@ class TransformsEncoder:
             self._column("Transform3D:child_frame", children),
             self._column("Transform3D:parent_frame", parents),
         ]
-        self._frames_size = children.nbytes + parents.nbytes
+        self._frames_size = children.nbytes + parents.nbytes  # once: nbytes walks the buffers
 
     def _column(self, component: str, values: pa.Array) -> rr.ComponentColumn:
         return _Rows(self._descriptors[component], pa.ListArray.from_arrays(self._offsets, values))
@@ -119,7 +119,7 @@ class TransformsEncoder:
                 *self._frame_columns,
             ],
         )
-        return Chunks([chunk], translations.nbytes + quaternions.nbytes + self._frames_size)
+        return Chunks([chunk], count * (3 + 4) * 4 + self._frames_size)  # float32 xyz and xyzw
 
     def _fixed_rows(self, component: str, values: npt.NDArray[np.float32]) -> pa.Array:
         """N x width floats as N fixed-size lists of the component's exact type (a nullable float
