@@ -20,7 +20,7 @@ from viewer_bridge.formats.drake.point_cloud import cloud_to_lcm
 from viewer_bridge.model.scene import LinkPoses, PointCloud, StampedPointCloud
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.translators.types import RERUN_CHUNKS_TYPE
-from viewer_bridge.transports.base import Qos, Received
+from viewer_bridge.transports.base import Qos, Received, hand_over
 from viewer_bridge.transports.lcm import read_log
 from viewer_bridge.transports.rerun import RerunSettings, RerunTransport
 
@@ -48,7 +48,7 @@ def test_drakes_images_reach_rerun_with_drakes_pixels(tmp_path: Path, compress: 
     transport = RerunTransport(RerunSettings(path=tmp_path / "images.rrd"))
     publisher = transport.publisher("/drake/cameras", RERUN_CHUNKS_TYPE, Qos())
     for _, payload in translator.translate(Received("DRAKE_RGBD_CAMERA_IMAGES_left", data)):
-        publisher.publish(payload)
+        hand_over(publisher, payload)
     transport.close()
     rows = _rows(tmp_path / "images.rrd")
     rgb = rows["/drake/cameras/left/rgb"]
@@ -68,7 +68,7 @@ def _through_file(tmp_path: Path, translator_name: str, channel: str, data: byte
     transport = RerunTransport(RerunSettings(path=tmp_path / "out.rrd"))
     publisher = transport.publisher(destination, RERUN_CHUNKS_TYPE, Qos())
     for _, payload in translator.translate(Received(channel, data)):
-        publisher.publish(payload)
+        hand_over(publisher, payload)
     transport.close()
     return _rows(tmp_path / "out.rrd")
 

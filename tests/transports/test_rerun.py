@@ -1,6 +1,8 @@
 """The rerun transport: `.rrd` files read back with Rerun's own reader (`rerun.chunk.RrdReader`)
-for a pydrake simulation's log converted by `viewer-bridge convert LOG OUT.rrd`, and its bad
-input: a viewer that is not there, a file that cannot be written, a port in use."""
+for a pydrake simulation's log converted by `viewer-bridge convert LOG OUT.rrd` and for draws
+through the router (the SDK's chunks handed over as they are, no bytes between), and its bad
+input: malformed draws and chunk bytes, a viewer that is not there, a file that cannot be
+written, a port in use."""
 
 from __future__ import annotations
 
@@ -19,23 +21,26 @@ from rerun.chunk import RrdReader
 
 from viewer_bridge.cli.log_convert import convert
 from viewer_bridge.config.bridge import load_config
-from viewer_bridge.errors import ConvertError, TransportUnavailable
+from viewer_bridge.errors import ConvertError, DecodeError, TransportUnavailable
 from viewer_bridge.examples.scenes import draw_of, small_scene
-from viewer_bridge.formats.drake.draw import poses_from_draw
+from viewer_bridge.formats.drake.draw import DrawEncoder, poses_from_draw
 from viewer_bridge.formats.drake.load import decode_load, load_from_scene
+from viewer_bridge.formats.rerun.schema import Chunks, encode_batches
 from viewer_bridge.lcmcodec import DRAW
 from viewer_bridge.model.scene import (
     Box,
     Capsule,
     Cylinder,
     Ellipsoid,
+    LinkPoses,
     MeshFile,
     Sphere,
     TriangleMesh,
     frame_name,
 )
 from viewer_bridge.router import Router
-from viewer_bridge.transports.base import Received
+from viewer_bridge.translators.types import RERUN_CHUNKS_TYPE
+from viewer_bridge.transports.base import CallPublisher, Qos, Received, ValuePublisher, hand_over
 from viewer_bridge.transports.lcm import LcmEvent
 from viewer_bridge.transports.rerun import RerunSettings, RerunTransport
 
@@ -170,6 +175,101 @@ def _free_port() -> int:
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         return int(probe.getsockname()[1])
+
+
+def _draws_router(out: Path) -> Router:
+    """A router with one drake_to_rerun route from LCM draws into the .rrd file `out`."""
+    return Router(
+        load_config("builtin:rerun").model_validate(
+            {
+                "lcm": {"url": "memq://"},
+                "rerun": {"path": out},
+                "routes": [
+                    {
+                        "name": "draws",
+                        "source": {"transport": "lcm", "name": "DRAKE_VIEWER_DRAW"},
+                        "translator": "drake_to_rerun",
+                        "destination": {"transport": "rerun", "name": "/drake"},
+                    }
+                ],
+            }
+        )
+    )
+
+
+def _random_draw(rng: np.random.Generator, step: int, links: int) -> LinkPoses:
+    quaternions = rng.normal(size=(links, 4))
+    quaternions /= np.linalg.norm(quaternions, axis=1, keepdims=True)
+    names = tuple(f"plant::arm{link % 3}::link {link}" for link in range(links))  # a space: one path part
+    return LinkPoses(step, names, np.zeros(links, np.int32), rng.normal(size=(links, 3)), quaternions)
+
+
+def test_every_draw_through_the_router_is_in_the_rrd_with_its_values(tmp_path: Path) -> None:
+    """Draws fed through the router (the SDK's chunks handed to the transport as they are), and
+    malformed ones between them: each good draw's every link is in the file at its sim time, with
+    its translation and rotation; each bad one is a counted DecodeError, and nothing else stops."""
+    rng, encoder, out = np.random.default_rng(42), DrawEncoder(), tmp_path / "draws.rrd"
+    router = _draws_router(out)
+    draws = [_random_draw(rng, step + 1, links=40) for step in range(60)]
+    for step, draw in enumerate(draws):
+        data = encoder.encode(draw)
+        router.feed("lcm", Received("DRAKE_VIEWER_DRAW", data))
+        if step % 20 == 0:
+            router.feed("lcm", Received("DRAKE_VIEWER_DRAW", data[: len(data) // 2]))  # cut short
+            router.feed("lcm", Received("DRAKE_VIEWER_DRAW", b"\x00" * 16))  # no load, no draw
+    stats = router.snapshot()["draws"]
+    router.close()
+    assert stats["errors"] == {"DecodeError": 6} and stats["messages_out"] == len(draws)
+    by_time: dict[int, dict[str, dict[str, Any]]] = defaultdict(dict)
+    for row in rows_by_entity(out)["/drake/transforms"]:
+        (child,) = row["Transform3D:child_frame"]
+        by_time[row["sim_time"] // timedelta(milliseconds=1)][child] = row
+    assert sorted(by_time) == [draw.timestamp_ms for draw in draws]  # every draw, once
+    for draw in draws:
+        frames = by_time[draw.timestamp_ms]
+        assert sorted(frames) == sorted(frame_name(name) for name in draw.names)
+        for index, name in enumerate(draw.names):
+            row = frames[frame_name(name)]
+            assert row["Transform3D:parent_frame"] == ["tf#/"]
+            assert np.allclose(row["Transform3D:translation"][0], draw.positions[index], atol=1e-6)
+            w, x, y, z = draw.quaternions_wxyz[index]
+            assert np.allclose(row["Transform3D:quaternion"][0], [x, y, z, w], atol=1e-6)
+
+
+def test_chunks_reach_a_publisher_that_takes_them_as_they_are_and_any_other_as_bytes() -> None:
+    """The router's hand-over: the same object to a publisher of its type (no bytes made), its
+    bytes to a publisher of bytes (a file, another process), which decode to the same rows."""
+    from viewer_bridge.translators import TRANSLATORS
+
+    translator = TRANSLATORS["drake_to_rerun"]({})
+    ((_, value),) = translator.translate(Received("DRAKE_VIEWER_DRAW", draw_of(small_scene(), 0.5)))
+    assert isinstance(value, Chunks) and value.size > 0
+    taken: list[Chunks] = []
+    hand_over(ValuePublisher(Chunks, taken.append), value)
+    assert taken == [value]
+    sent: list[bytes] = []
+    hand_over(CallPublisher(sent.append), value)
+    (data,) = sent
+    (chunk,), (decoded,) = value.chunks, Chunks.decode(data).chunks
+    assert decoded.entity_path == chunk.entity_path == "/transforms"
+    assert decoded.to_record_batch().to_pylist() == chunk.to_record_batch().to_pylist()
+
+
+def test_chunk_bytes_that_are_no_chunks_are_a_decode_error(tmp_path: Path) -> None:
+    """Where the chunks arrive as bytes (a publisher given bytes decodes them): a cut length, a
+    cut stream, and a record batch with no Rerun metadata are each a DecodeError naming where."""
+    import pyarrow as pa
+
+    plain = encode_batches([pa.record_batch({"x": [1.0, 2.0]})])
+    for data, where in ((b"\x01\x00", "length"), (plain[:-9], "stream"), (plain, "chunk")):
+        with pytest.raises(DecodeError, match=where):
+            Chunks.decode(data)
+    transport = _transport(tmp_path, path=tmp_path / "bad.rrd")
+    try:
+        with pytest.raises(DecodeError):
+            transport.publisher("/drake", RERUN_CHUNKS_TYPE, Qos()).publish(plain)
+    finally:
+        transport.close()
 
 
 def test_a_viewer_that_is_not_there_stops_nothing(tmp_path: Path) -> None:

@@ -28,7 +28,7 @@ from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
 from viewer_bridge.router.stats import RouteStats
 from viewer_bridge.shared import MessageTime
 from viewer_bridge.translators import Output, Translator
-from viewer_bridge.transports.base import MessageType, Publisher, Received
+from viewer_bridge.transports.base import MessageType, Publisher, Received, hand_over, size_of
 from viewer_bridge.transports.ros_names import ChannelNames
 from viewer_bridge.util.channels import ChannelPattern
 
@@ -366,7 +366,7 @@ class RouteRunner:
         self._message_time.message = message.received
         for index, payload in outputs:
             try:
-                lane.publisher(index).publish(payload)
+                hand_over(lane.publisher(index), payload)
             except Held as held:  # its interface is being built: counted on the channel, the rest goes on
                 self._held(message, held)
                 continue
@@ -374,7 +374,7 @@ class RouteRunner:
                 self._error(f"publish:{type(error).__name__}", f"{lane.name}: {error}")
                 continue
             self.stats.messages_out += 1
-            self.stats.bytes_out += len(payload)
+            self.stats.bytes_out += size_of(payload)
         if outputs and latency:
             self.stats.latency_ms.append((time.time_ns() // 1000 - message.received.received_us) / 1e3)
 

@@ -19,7 +19,7 @@ from typing import Any, ClassVar
 from pydantic import BaseModel, ConfigDict
 
 from viewer_bridge.shared import Shared
-from viewer_bridge.transports.base import MessageType, Received
+from viewer_bridge.transports.base import MessageType, Payload, Received
 
 
 class TranslatorOptions(BaseModel):
@@ -37,7 +37,7 @@ class Output:
     latched: bool = False
 
 
-Outputs = list[tuple[int, bytes]]  # (index into `outputs`, payload)
+Outputs = list[tuple[int, Payload]]  # (index into `outputs`, payload: bytes, or a `Value` for a transport in this process)
 Reply = Callable[[str, bytes], None]  # publish on the source's transport: (channel, bytes)
 
 

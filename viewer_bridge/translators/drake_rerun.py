@@ -29,12 +29,12 @@ from viewer_bridge.errors import BridgeError
 from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.drake.image import read_image_array, unpack
 from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm
-from viewer_bridge.formats.rerun.chunks import Stamp, entity_path, static_batch, timed_batch
+from viewer_bridge.formats.rerun.chunks import Stamp, entity_path, static_chunk, timed_chunk
 from viewer_bridge.formats.rerun.contact import contact_archetypes
 from viewer_bridge.formats.rerun.image import image_archetype, pinhole
 from viewer_bridge.formats.rerun.point_cloud import cloud_archetypes, frame_arrows
-from viewer_bridge.formats.rerun.scene import scene_batches
-from viewer_bridge.formats.rerun.schema import encode_batches
+from viewer_bridge.formats.rerun.scene import scene_chunks
+from viewer_bridge.formats.rerun.schema import Chunks
 from viewer_bridge.formats.rerun.transforms import TransformsEncoder
 from viewer_bridge.model.contact import ContactDrawOptions
 from viewer_bridge.model.skipped import part_failed
@@ -73,12 +73,12 @@ class DrakeToRerun(DrakeTranslator):
         scene, poses = self.drake.read(message)
         frames = self.options.frames(message.channel)
         root = (role_of(message.channel),)
-        batches = [] if scene is None else scene_batches(scene, root, frames)
+        parts = [] if scene is None else scene_chunks(scene, root, frames)
         if poses is not None:
             if self.encoder is None:  # one stream per translator: its role is its first channel's
                 self.encoder = TransformsEncoder(entity_path(*root, "transforms"), frames, frames.world_frame)
-            batches.append(self.encoder.encode(poses, Stamp.of(poses.timestamp_ms * 1000, message.received_us)))
-        return [(0, encode_batches(batches))] if batches else []
+            parts.append(self.encoder.encode(poses, Stamp.of(poses.timestamp_ms * 1000, message.received_us)))
+        return [(0, Chunks.joined(parts))] if parts else []
 
 
 _CAMERA_CHANNEL = "DRAKE_RGBD_CAMERA_IMAGES"
@@ -106,9 +106,9 @@ class DrakeImagesToRerun(Translator):
     def translate(self, message: Received) -> Outputs:
         suffix = message.channel.removeprefix(_CAMERA_CHANNEL).removeprefix("_")
         camera = self.options.camera or suffix or "camera"
-        batches = []
+        parts = []
         if self.options.camera_info is not None and not self._pinhole_sent:
-            batches.append(static_batch(entity_path(camera), [pinhole(self.options.camera_info.intrinsics())]))
+            parts.append(static_chunk(entity_path(camera), [pinhole(self.options.camera_info.intrinsics())]))
             self._pinhole_sent = True
         for packed in read_image_array(message.data).images:
             try:
@@ -118,8 +118,8 @@ class DrakeImagesToRerun(Translator):
                 part_failed(error)
                 continue
             stamp = Stamp.of(image.time_us, message.received_us)
-            batches.append(timed_batch(entity_path(camera, image.name), stamp, [archetype]))
-        return [(0, encode_batches(batches))] if batches else []
+            parts.append(timed_chunk(entity_path(camera, image.name), stamp, [archetype]))
+        return [(0, Chunks.joined(parts))] if parts else []
 
 
 class PointCloudOptions(TranslatorOptions):
@@ -139,8 +139,7 @@ class DrakePointCloudToRerun(Translator):
         stamped = cloud_from_lcm(message.data)
         name = message.channel.removeprefix("DRAKE_POINT_CLOUD").removeprefix("_").lower()
         stamp = Stamp.of(stamped.time_us, message.received_us)
-        batch = timed_batch(entity_path(name), stamp, cloud_archetypes(stamped, self.options.world_frame))
-        return [(0, encode_batches([batch]))]
+        return [(0, timed_chunk(entity_path(name), stamp, cloud_archetypes(stamped, self.options.world_frame)))]
 
 
 class DrawFramesOptions(TranslatorOptions):
@@ -162,7 +161,7 @@ class DrakeDrawFramesToRerun(DrawReader):
         name = message.channel.removeprefix("DRAKE_DRAW_FRAMES").removeprefix("_").lower()
         stamp = Stamp.of(poses.timestamp_ms * 1000, message.received_us)
         archetypes = frame_arrows(poses, self.options.length, self.options.world_frame)
-        return [(0, encode_batches([timed_batch(entity_path(name), stamp, archetypes)]))]
+        return [(0, timed_chunk(entity_path(name), stamp, archetypes))]
 
 
 class ContactOptions(TranslatorOptions, ContactDrawOptions):
@@ -187,12 +186,12 @@ class DrakeContactsToRerun(Translator):
         stamp = Stamp.of(results.timestamp_us, message.received_us)
         frame = rr.CoordinateFrame(self.options.world_frame)
         entities = contact_archetypes(results, self.options)
-        batches = [
-            timed_batch(entity_path(*name.split("/")), stamp, [frame, *archetypes])
+        parts = [
+            timed_chunk(entity_path(*name.split("/")), stamp, [frame, *archetypes])
             for name, archetypes in entities.items()
         ]
         surfaces = sum(name.startswith("surfaces/") for name in entities)
-        batches += [timed_batch(entity_path("surfaces", str(index)), stamp, [rr.Clear(recursive=False)])
-                    for index in range(surfaces, self._surfaces)]  # fmt: skip
+        parts += [timed_chunk(entity_path("surfaces", str(index)), stamp, [rr.Clear(recursive=False)])
+                  for index in range(surfaces, self._surfaces)]  # fmt: skip
         self._surfaces = surfaces
-        return [(0, encode_batches(batches))]
+        return [(0, Chunks.joined(parts))]

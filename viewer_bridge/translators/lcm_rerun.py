@@ -8,9 +8,9 @@ fingerprint names, per message (as `lcm_to_ros` reads it); an unknown one is hel
 
 from __future__ import annotations
 
-from viewer_bridge.formats.rerun.chunks import Stamp, entity_path, received_batch, timed_batch
+from viewer_bridge.formats.rerun.chunks import Stamp, entity_path, received_chunk, timed_chunk
 from viewer_bridge.formats.rerun.scalars import scalars_of, sim_time_us
-from viewer_bridge.formats.rerun.schema import encode_batches
+from viewer_bridge.formats.rerun.schema import Chunks
 from viewer_bridge.translators.base import Output, Outputs, Translator
 from viewer_bridge.translators.types import ANY_LCM_TYPE, RERUN_CHUNKS_TYPE
 from viewer_bridge.transports.base import Received
@@ -28,10 +28,10 @@ class LcmToRerunScalars(Translator):
         lcm_type = self.shared.lcm_types.type_of(message.data, message.channel)
         fields = lcm_type.to_json(message.data)
         sim_us = sim_time_us(fields)
-        batches = [
-            received_batch(entity_path(*path), message.received_us, [scalars])
+        parts = [
+            received_chunk(entity_path(*path), message.received_us, [scalars])
             if sim_us is None
-            else timed_batch(entity_path(*path), Stamp.of(sim_us, message.received_us), [scalars])
+            else timed_chunk(entity_path(*path), Stamp.of(sim_us, message.received_us), [scalars])
             for path, scalars in scalars_of(fields)
         ]
-        return [(0, encode_batches(batches))] if batches else []
+        return [(0, Chunks.joined(parts))] if parts else []

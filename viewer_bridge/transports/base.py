@@ -1,5 +1,11 @@
 """What every transport offers the router: bytes in, bytes out, and nothing of formats.
 
+Bytes, except within one process: a payload may be a `Value`, the encoded message as an object,
+for an encoding whose transport takes the object itself (Rerun's chunks, which its SDK takes
+as they are: no serialising them only to parse them back). `hand_over` gives a publisher the
+value when it takes one (`ValuePublisher`) and the value's bytes otherwise, so a value still
+reaches a file, a log or another process as bytes.
+
 A transport moves payloads named by a channel or topic. The router knows transports only
 through `Transport`; which one a route uses is a word in the config, looked up in
 `viewer_bridge.transports.TRANSPORTS`. A transport says which message types it can carry
@@ -18,7 +24,7 @@ import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, Protocol, Self, TypeVar
+from typing import TYPE_CHECKING, Any, ClassVar, Generic, Protocol, Self, TypeVar
 
 from pydantic import BaseModel, ConfigDict
 
@@ -131,6 +137,29 @@ class Qos:
     depth: int = 10
     reliable: bool = True
     latched: bool = False  # late subscribers get the last messages (ROS 2 TRANSIENT_LOCAL)
+
+
+class Value(ABC):
+    """An encoded message as an object, handed as it is to a transport in the router's process
+    that takes it, and as its bytes (`encode`) anywhere else; `decode` reads those bytes back.
+    `size` is about how many bytes of data it holds (what a route's `bytes_out` counts)."""
+
+    __slots__ = ()
+
+    @abstractmethod
+    def encode(self) -> bytes: ...
+
+    @classmethod
+    @abstractmethod
+    def decode(cls, data: bytes) -> Self:
+        """The value `data` encodes; a `BridgeError` (`DecodeError`) when it is malformed."""
+
+    @property
+    @abstractmethod
+    def size(self) -> int: ...
+
+
+Payload = bytes | Value  # what a translator gives the router for one output
 
 
 class Publisher(Protocol):
@@ -256,6 +285,42 @@ class CallPublisher:
         return None if self._count is None else self._count()
 
 
+ValueType = TypeVar("ValueType", bound=Value)
+
+
+class ValuePublisher(CallPublisher, Generic[ValueType]):
+    """A publisher that takes values of one type as they are (`publish_value`), for a transport
+    in the router's process; bytes it is given (from a publisher wrapping it, or a test) are
+    decoded into one first."""
+
+    __slots__ = ("kind", "publish_value")
+
+    def __init__(
+        self,
+        kind: type[ValueType],
+        publish_value: Callable[[ValueType], None],
+        count: Callable[[], int] | None = None,
+    ) -> None:
+        super().__init__(lambda data: publish_value(kind.decode(data)), count)
+        self.kind = kind
+        self.publish_value = publish_value
+
+
+def hand_over(publisher: Publisher, payload: Payload) -> None:
+    """Publish `payload`: a value as it is where the publisher takes its type, else as bytes."""
+    if isinstance(payload, Value):
+        if isinstance(publisher, ValuePublisher) and isinstance(payload, publisher.kind):
+            publisher.publish_value(payload)
+            return
+        payload = payload.encode()
+    publisher.publish(payload)
+
+
+def size_of(payload: Payload) -> int:
+    """About how many bytes `payload` holds (a value's data, without encoding it)."""
+    return payload.size if isinstance(payload, Value) else len(payload)
+
+
 __all__ = [
     "CDR",
     "CallPublisher",
@@ -266,9 +331,14 @@ __all__ = [
     "LCM",
     "MessageType",
     "PROTOBUF",
+    "Payload",
     "Publisher",
     "Qos",
     "Received",
     "Transport",
     "TransportSettings",
+    "Value",
+    "ValuePublisher",
+    "hand_over",
+    "size_of",
 ]

@@ -14,8 +14,9 @@
   closes (refused at start if `PATH` exists, unless `overwrite`).
 
 A route's destination name is the entity path its chunks are logged under (`/drake`), so the
-translators' chunks (`viewer_bridge.formats.rerun`) name entities from the root. The bytes are
-Arrow record batches (`viewer_bridge.formats.rerun.schema`) that go to the SDK's `send_chunks`.
+translators' chunks (`viewer_bridge.formats.rerun`) name entities from the root. The translators
+hand over the SDK's own chunks (a `Chunks` value, `viewer_bridge.formats.rerun.schema`), which go
+to the SDK's `send_chunks` as they are; a publisher given bytes decodes them into chunks first.
 """
 
 from __future__ import annotations
@@ -33,18 +34,17 @@ from urllib.parse import quote
 
 import rerun as rr
 import rerun.blueprint as rrb
-from rerun.chunk import Chunk
 
 from viewer_bridge.errors import BridgeError, InvalidName, TransportUnavailable
-from viewer_bridge.formats.rerun.schema import RERUN, decode_batches
+from viewer_bridge.formats.rerun.schema import RERUN, Chunks
 from viewer_bridge.transports.base import (
-    CallPublisher,
     Deliver,
     MessageType,
     Publisher,
     Qos,
     Transport,
     TransportSettings,
+    ValuePublisher,
 )
 
 VIEWER_URL = "rerun+http://127.0.0.1:9876/proxy"  # what `rerun` listens on by default
@@ -164,8 +164,8 @@ class RerunTransport(Transport):
         prefix = "" if name.strip("/") == "" else "/" + name.strip("/")
         stream, lock, messages, entities = self.stream, self._lock, self.messages, self.chunks
 
-        def send(data: bytes) -> None:
-            chunks = [chunk for batch in decode_batches(data) for chunk in Chunk.from_record_batch(batch)]
+        def send(value: Chunks) -> None:
+            chunks = value.chunks
             if prefix:
                 chunks = [chunk.with_entity_path(prefix + chunk.entity_path.rstrip("/")) for chunk in chunks]
             rr.send_chunks(chunks, recording=stream)
@@ -173,7 +173,7 @@ class RerunTransport(Transport):
                 messages[name] += 1
                 entities.update(chunk.entity_path for chunk in chunks)
 
-        return CallPublisher(send)
+        return ValuePublisher(Chunks, send)
 
     def describe(self) -> str:
         sinks = []

@@ -4,9 +4,8 @@ a geometry Rerun cannot show is skipped alone, with a named warning."""
 from __future__ import annotations
 
 import numpy as np
-from rerun.chunk import Chunk
 
-from viewer_bridge.formats.rerun.scene import scene_batches
+from viewer_bridge.formats.rerun.scene import scene_chunks
 from viewer_bridge.model.scene import (
     Box,
     Capsule,
@@ -26,8 +25,8 @@ from viewer_bridge.model.skipped import SkippedGeometry, collecting
 
 def _rows(scene: Scene) -> dict[str, dict[str, object]]:
     rows = {}
-    for batch in scene_batches(scene, ("drake",), frame_name):
-        (chunk,) = Chunk.from_record_batch(batch)
+    for part in scene_chunks(scene, ("drake",), frame_name):
+        (chunk,) = part.chunks
         assert chunk.is_static
         (rows[chunk.entity_path],) = chunk.to_record_batch().to_pylist()
     return rows

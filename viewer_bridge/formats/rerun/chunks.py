@@ -1,7 +1,7 @@
-"""Rerun archetypes -> chunks (Arrow record batches with Rerun's metadata), and how entities are named.
+"""Rerun archetypes -> chunks (the SDK's `Chunk`, as a `Chunks` message), and how entities are named.
 
-A chunk is one entity's rows: `static_batch` makes a static one (no timeline: a late viewer
-gets it and it holds at every time), `timed_batch` one row at a message's `Stamp` on both
+A chunk is one entity's rows: `static_chunk` makes a static one (no timeline: a late viewer
+gets it and it holds at every time), `timed_chunk` one row at a message's `Stamp` on both
 timelines. Entity paths are built from parts escaped by the SDK, so a link named `a b` or
 `x/y` stays one part.
 """
@@ -12,13 +12,12 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
-import pyarrow as pa
 import rerun as rr
 from rerun.chunk import Chunk
 
-from viewer_bridge.formats.rerun.schema import RECEIVE_TIME, SIM_TIME
+from viewer_bridge.formats.rerun.schema import RECEIVE_TIME, SIM_TIME, Chunks
 
-__all__ = ["Stamp", "entity_path", "received_batch", "static_batch", "timed_batch", "time_columns"]
+__all__ = ["Stamp", "entity_path", "received_chunk", "static_chunk", "time_columns", "timed_chunk"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -46,27 +45,30 @@ def time_columns(stamp: Stamp, rows: int = 1) -> list[rr.TimeColumn]:
     ]
 
 
-def _one_row(archetypes: Iterable[rr.AsComponents]) -> list[rr.ComponentColumn]:
-    """Each archetype's components as columns of one row (the whole batch of instances in it)."""
-    return [
-        rr.ComponentColumn(batch.component_descriptor(), batch, lengths=[len(batch.as_arrow_array())])
-        for archetype in archetypes
-        for batch in archetype.as_component_batches()
-    ]
+def _one_row(path: str, times: list[rr.TimeColumn], archetypes: Iterable[rr.AsComponents]) -> Chunks:
+    """A chunk of one row on `path` at `times`: each archetype's components as columns of that
+    row (the whole batch of instances in it)."""
+    columns, size = [], 0
+    for archetype in archetypes:
+        for batch in archetype.as_component_batches():
+            values = batch.as_arrow_array()
+            columns.append(rr.ComponentColumn(batch.component_descriptor(), batch, lengths=[len(values)]))
+            size += values.nbytes
+    return Chunks([Chunk.from_columns(path, times, columns)], size)
 
 
-def static_batch(path: str, archetypes: Iterable[rr.AsComponents]) -> pa.RecordBatch:
+def static_chunk(path: str, archetypes: Iterable[rr.AsComponents]) -> Chunks:
     """One static row of `archetypes` on the entity `path`."""
-    return Chunk.from_columns(path, [], _one_row(archetypes)).to_record_batch()
+    return _one_row(path, [], archetypes)
 
 
-def timed_batch(path: str, stamp: Stamp, archetypes: Iterable[rr.AsComponents]) -> pa.RecordBatch:
+def timed_chunk(path: str, stamp: Stamp, archetypes: Iterable[rr.AsComponents]) -> Chunks:
     """One row of `archetypes` on the entity `path`, at `stamp`."""
-    return Chunk.from_columns(path, time_columns(stamp), _one_row(archetypes)).to_record_batch()
+    return _one_row(path, time_columns(stamp), archetypes)
 
 
-def received_batch(path: str, received_us: int, archetypes: Iterable[rr.AsComponents]) -> pa.RecordBatch:
+def received_chunk(path: str, received_us: int, archetypes: Iterable[rr.AsComponents]) -> Chunks:
     """One row of `archetypes` on the entity `path`, on the receive_time timeline alone (for a
     message that carries no simulation time)."""
     column = rr.TimeColumn(RECEIVE_TIME, timestamp=np.full(1, received_us * 1000, dtype="datetime64[ns]"))
-    return Chunk.from_columns(path, [column], _one_row(archetypes)).to_record_batch()
+    return _one_row(path, [column], archetypes)

@@ -16,12 +16,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
 import rerun as rr
 
 from viewer_bridge.config.mappings import FormatTables, ShapeRule
 from viewer_bridge.errors import SceneError
-from viewer_bridge.formats.rerun.chunks import entity_path, static_batch
+from viewer_bridge.formats.rerun.chunks import entity_path, static_chunk
+from viewer_bridge.formats.rerun.schema import Chunks
 from viewer_bridge.model.scene import (
     Capsule,
     Geometry,
@@ -37,7 +37,7 @@ from viewer_bridge.model.scene import (
 )
 from viewer_bridge.model.skipped import per_geometry
 
-__all__ = ["MEDIA_TYPES", "link_entity", "scene_batches"]
+__all__ = ["MEDIA_TYPES", "link_entity", "scene_chunks"]
 
 # What Asset3D reads, by file extension (Rerun's MediaType names); other mesh files are skipped.
 MEDIA_TYPES = {
@@ -56,28 +56,28 @@ def link_entity(root: tuple[str, ...], link_name: str) -> str:
     return entity_path(*root, *link_name.split("::"))
 
 
-def scene_batches(scene: Scene, root: tuple[str, ...], frames: Callable[[str], str]) -> list[pa.RecordBatch]:
+def scene_chunks(scene: Scene, root: tuple[str, ...], frames: Callable[[str], str]) -> list[Chunks]:
     """Static chunks for every link with geometry to draw, and for each of its geometries."""
     table = TABLES["archetype"]
-    batches = []
+    chunks = []
     for link in scene.links:
         path, frame = link_entity(root, link.name), rr.CoordinateFrame(frames(link.name))
 
-        def geometry_batches(index: int, geometry: Geometry, path: str = path, frame: Any = frame) -> Any:
+        def geometry_chunks(index: int, geometry: Geometry, path: str = path, frame: Any = frame) -> list[Chunks]:
             parts = table.expand(geometry.shape, geometry.pose)
             return [
-                static_batch(
+                static_chunk(
                     f"{path}/{index}" if len(parts) == 1 else f"{path}/{index}/{part}",
                     [frame, *_archetypes(rule.type or "", _values(rule, shape), pose, geometry)],
                 )
                 for part, (rule, shape, pose) in enumerate(parts)
             ]
 
-        written = per_geometry(link, geometry_batches)
+        written = per_geometry(link, geometry_chunks)
         if written:
-            batches.append(static_batch(path, [frame]))
-            batches.extend(batch for parts in written for batch in parts)
-    return batches
+            chunks.append(static_chunk(path, [frame]))
+            chunks.extend(chunk for parts in written for chunk in parts)
+    return chunks
 
 
 def _archetypes(type_name: str, values: dict[str, Any], pose: Pose, geometry: Geometry) -> list[Any]:
