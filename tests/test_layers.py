@@ -25,6 +25,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.util": 1,
     "viewer_bridge.util.extras": 1,
     "viewer_bridge.errors": 1,
+    "viewer_bridge.payload": 1,
     "viewer_bridge.config.registry": 1,
     "viewer_bridge.config.resources": 1,
     "viewer_bridge.model.sim_time": 1,

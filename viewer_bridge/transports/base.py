@@ -1,10 +1,8 @@
 """What every transport offers the router: bytes in, bytes out, and nothing of formats.
 
-Bytes, except within one process: a payload may be a `Value`, the encoded message as an object,
-for an encoding whose transport takes the object itself (Rerun's chunks, which its SDK takes
-as they are: no serialising them only to parse them back). `hand_over` gives a publisher the
-value when it takes one (`ValuePublisher`) and the value's bytes otherwise, so a value still
-reaches a file, a log or another process as bytes.
+Bytes, except within one process: a payload may be a `Value` (`viewer_bridge.payload`), and
+`hand_over` gives a publisher the value when it takes one (`ValuePublisher`) and the value's
+bytes otherwise.
 
 A transport moves payloads named by a channel or topic. The router knows transports only
 through `Transport`; which one a route uses is a word in the config, looked up in
@@ -28,6 +26,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Generic, Protocol, Self, TypeVa
 
 from pydantic import BaseModel, ConfigDict
 
+from viewer_bridge.payload import Payload, Value, size_of
 from viewer_bridge.shared import Shared
 
 if TYPE_CHECKING:
@@ -137,29 +136,6 @@ class Qos:
     depth: int = 10
     reliable: bool = True
     latched: bool = False  # late subscribers get the last messages (ROS 2 TRANSIENT_LOCAL)
-
-
-class Value(ABC):
-    """An encoded message as an object, handed as it is to a transport in the router's process
-    that takes it, and as its bytes (`encode`) anywhere else; `decode` reads those bytes back.
-    `size` is about how many bytes of data it holds (what a route's `bytes_out` counts)."""
-
-    __slots__ = ()
-
-    @abstractmethod
-    def encode(self) -> bytes: ...
-
-    @classmethod
-    @abstractmethod
-    def decode(cls, data: bytes) -> Self:
-        """The value `data` encodes; a `BridgeError` (`DecodeError`) when it is malformed."""
-
-    @property
-    @abstractmethod
-    def size(self) -> int: ...
-
-
-Payload = bytes | Value  # what a translator gives the router for one output
 
 
 class Publisher(Protocol):
@@ -314,11 +290,6 @@ def hand_over(publisher: Publisher, payload: Payload) -> None:
             return
         payload = payload.encode()
     publisher.publish(payload)
-
-
-def size_of(payload: Payload) -> int:
-    """About how many bytes `payload` holds (a value's data, without encoding it)."""
-    return payload.size if isinstance(payload, Value) else len(payload)
 
 
 __all__ = [

@@ -23,7 +23,7 @@ from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Self
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.transports.base import Value
+from viewer_bridge.payload import Value
 
 if TYPE_CHECKING:
     import pyarrow as pa
