@@ -5,7 +5,6 @@ rmw_zenoh's design document. LCM across networks: two bridges, real pydrake on o
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import struct
 import threading
@@ -30,6 +29,8 @@ from tests.zenoh_peers import (
     data_key,
     decode,
     free_lcm_url,
+    stats_flags,
+    stats_of,
 )
 from viewer_bridge.config.bridge import load_config
 from viewer_bridge.formats.drake.draw import DrawEncoder
@@ -82,15 +83,7 @@ def on_the_wire(poses: LinkPoses) -> tuple[list[list[float]], list[list[float]]]
 
 
 def bridge(endpoint: str, *args: str, stats: Path | None = None) -> BridgeProcess:
-    statistics = ["--stats-json", str(stats), "--stats-period", "0.5"] if stats else []
-    return BridgeProcess(*args, "--set", f"zenoh.connect=[{endpoint}]", *statistics)
-
-
-def stats_of(path: Path) -> dict[str, Any]:
-    try:
-        return json.loads(path.read_text())  # type: ignore[no-any-return]
-    except (OSError, ValueError):
-        return {}
+    return BridgeProcess(*args, "--set", f"zenoh.connect=[{endpoint}]", *(stats_flags(stats) if stats else []))
 
 
 def zenoh_errors(path: Path) -> dict[str, int]:
