@@ -14,7 +14,7 @@ import os
 import subprocess
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -27,9 +27,8 @@ pytestmark = pytest.mark.e2e
 ANY_LCM = MessageType("*", LCM)
 
 
-def on_a_daemon(work: object) -> None:
+def on_a_daemon(work: Callable[[], object]) -> None:
     """`work()` on a daemon thread, as a route's worker would run it, waited for."""
-    assert callable(work)
     thread = threading.Thread(target=work, daemon=True)
     thread.start()
     thread.join(timeout=60)
