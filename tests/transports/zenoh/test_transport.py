@@ -382,7 +382,8 @@ def test_a_bridge_with_traffic_both_ways_stops_cleanly_every_time(router: Router
     """SIGINT while Zenoh calls back on its own threads (samples in, matching and graph events)
     and the routes publish: the process exits 0, every time. A callback entering Python while
     the interpreter finalises would abort it (-6, "FATAL: exception not rethrown"): `Link.close`
-    ends them first. The abort came in about one stop in eight under load; 8 stops."""
+    ends them first, and they are no daemons, so the interpreter waits for them at exit (the
+    loop that catches that abort: tests/transports/zenoh/test_exit.py). 8 stops."""
     url = free_lcm_url()
     peer = RmwZenohPeer(router.endpoint, DOMAIN)
     poses = peer.subscribe("/drake/poses", "geometry_msgs/msg/PoseArray")
