@@ -8,7 +8,6 @@ two topics for one channel keep the first."""
 
 from __future__ import annotations
 
-import json
 import re
 import sys
 from collections.abc import Iterator
@@ -24,7 +23,7 @@ from tests.lcmcodec.test_from_ros import lcm_gen_all
 from tests.peers import BridgeProcess, RosProbe, wait_for, write_config
 from tests.ros_interfaces_corpus import BASE, DEFINITIONS, MAIN
 from tests.test_router import LcmRecorder
-from tests.zenoh_peers import free_lcm_url
+from tests.zenoh_peers import free_lcm_url, stats_flags, stats_of
 from viewer_bridge.cli.main import main
 from viewer_bridge.ros_build import interfaces as ros_interfaces
 from viewer_bridge.transports.ros2 import message_class
@@ -122,13 +121,6 @@ def assert_decodes_to_published(
     assert without_lengths(decoded[1]) == JOINT_SAMPLE
 
 
-def stats_of(path: Path) -> dict[str, Any]:
-    try:
-        return dict(json.loads(path.read_text()))
-    except (OSError, ValueError):
-        return {}
-
-
 # --- DDS ---------------------------------------------------------------------------------------------
 
 
@@ -139,8 +131,7 @@ def test_rclpy_topics_reach_lcm_as_lcm_gen_reads_them_and_only_those_named(
     stats = tmp_path / "stats.json"
     recorder = LcmRecorder(url)
     bridge = BridgeProcess(
-        "--lcm-url", url, "--ros-topics", "/joint_states", "--ros-topics", "/lab/.*",
-        "--stats-json", str(stats), "--stats-period", "0.5",
+        "--lcm-url", url, "--ros-topics", "/joint_states", "--ros-topics", "/lab/.*", *stats_flags(stats)
     )  # fmt: skip
     probe = RosProbe("ros_topics_publisher")
     try:
@@ -170,7 +161,7 @@ def test_without_the_flag_nothing_is_carried(tmp_path: Path) -> None:
     url = free_lcm_url()
     stats = tmp_path / "stats.json"
     recorder = LcmRecorder(url)
-    bridge = BridgeProcess("--lcm-url", url, "--stats-json", str(stats), "--stats-period", "0.5")
+    bridge = BridgeProcess("--lcm-url", url, *stats_flags(stats))
     probe = RosProbe("ros_topics_unnamed")
     try:
         bridge.wait_for_line(" running (")
@@ -202,7 +193,7 @@ def test_topics_the_bridge_publishes_are_not_carried_back(tmp_path: Path) -> Non
     url = free_lcm_url()
     stats = tmp_path / "stats.json"
     recorder = LcmRecorder(url)
-    bridge = BridgeProcess("--lcm-url", url, "--ros-topics", ".*", "--stats-json", str(stats), "--stats-period", "0.5")
+    bridge = BridgeProcess("--lcm-url", url, "--ros-topics", ".*", *stats_flags(stats))
     probe = RosProbe("ros_topics_loop")
     bus = lcm.LCM(url)
     status = drake_lcmtypes.lcmt_iiwa_status()
@@ -316,7 +307,7 @@ def test_a_channel_two_topics_map_to_keeps_the_first_and_says_so_once(zenoh_rout
     stats = tmp_path / "stats.json"
     recorder = LcmRecorder(url)
     config = write_config(tmp_path, BOTH_GRAPHS.format(endpoint=zenoh_router.endpoint))
-    bridge = BridgeProcess("-c", str(config), "--lcm-url", url, "--stats-json", str(stats), "--stats-period", "0.5")
+    bridge = BridgeProcess("-c", str(config), "--lcm-url", url, *stats_flags(stats))
     probe = RosProbe("ros_topics_dds_dup")
     peer = RmwZenohPeer(zenoh_router.endpoint, 44, node="ros_topics_zenoh_dup")
     try:

@@ -17,6 +17,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import xxhash
@@ -41,6 +42,19 @@ def free_lcm_url() -> str:
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
         probe.bind(("0.0.0.0", 0))
         return f"udpm://239.255.76.67:{probe.getsockname()[1]}?ttl=0"
+
+
+def stats_flags(path: Path) -> list[str]:
+    """`viewer-bridge run`'s flags that have it write its stats to `path` twice a second."""
+    return ["--stats-json", str(path), "--stats-period", "0.5"]
+
+
+def stats_of(path: Path) -> dict[str, Any]:
+    """The stats the bridge wrote last to `path` ({} before the first, or while it writes)."""
+    try:
+        return dict(json.loads(path.read_text()))
+    except (OSError, ValueError):
+        return {}
 
 
 def _config(mode: str, **keys: Any) -> zenoh.Config:

@@ -5,7 +5,6 @@ rmw_zenoh's design document. LCM across networks: two bridges, real pydrake on o
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import struct
 import threading
@@ -30,6 +29,8 @@ from tests.zenoh_peers import (
     data_key,
     decode,
     free_lcm_url,
+    stats_flags,
+    stats_of,
 )
 from viewer_bridge.config.bridge import load_config
 from viewer_bridge.formats.drake.draw import DrawEncoder
@@ -82,15 +83,7 @@ def on_the_wire(poses: LinkPoses) -> tuple[list[list[float]], list[list[float]]]
 
 
 def bridge(endpoint: str, *args: str, stats: Path | None = None) -> BridgeProcess:
-    statistics = ["--stats-json", str(stats), "--stats-period", "0.5"] if stats else []
-    return BridgeProcess(*args, "--set", f"zenoh.connect=[{endpoint}]", *statistics)
-
-
-def stats_of(path: Path) -> dict[str, Any]:
-    try:
-        return json.loads(path.read_text())  # type: ignore[no-any-return]
-    except (OSError, ValueError):
-        return {}
+    return BridgeProcess(*args, "--set", f"zenoh.connect=[{endpoint}]", *(stats_flags(stats) if stats else []))
 
 
 def zenoh_errors(path: Path) -> dict[str, int]:
@@ -389,7 +382,8 @@ def test_a_bridge_with_traffic_both_ways_stops_cleanly_every_time(router: Router
     """SIGINT while Zenoh calls back on its own threads (samples in, matching and graph events)
     and the routes publish: the process exits 0, every time. A callback entering Python while
     the interpreter finalises would abort it (-6, "FATAL: exception not rethrown"): `Link.close`
-    ends them first. The abort came in about one stop in eight under load; 8 stops."""
+    ends them first, and they are no daemons, so the interpreter waits for them at exit (the
+    loop that catches that abort: tests/transports/zenoh/test_exit.py). 8 stops."""
     url = free_lcm_url()
     peer = RmwZenohPeer(router.endpoint, DOMAIN)
     poses = peer.subscribe("/drake/poses", "geometry_msgs/msg/PoseArray")

@@ -111,7 +111,7 @@ class LcmPublisher:
         self.unsent = 0  # published while no router (or peer) was connected
 
         def declare(session: zenoh.Session) -> None:
-            self._put = declare_put(session, key, Qos(qos.depth, qos.reliable))
+            self._put = link.calling(declare_put(session, key, Qos(qos.depth, qos.reliable)))
 
         link.when_open(declare)
 
@@ -150,7 +150,7 @@ class RosPublisher:
             declared = token(str(session.zid()))
             self._topic = declared.topic
             self._gid = keys.gid(declared.key())
-            self._put = declare_put(session, key, qos)
+            self._put = link.calling(declare_put(session, key, qos))
             link.hold(session.liveliness().declare_token(declared.key()))
 
         link.when_open(declare)

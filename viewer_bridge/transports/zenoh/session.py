@@ -18,7 +18,7 @@ import json
 import logging
 import threading
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any, TypeVar
+from typing import Any, ParamSpec, TypeVar
 
 import zenoh
 
@@ -88,19 +88,27 @@ def _reason(error: zenoh.ZError) -> str:
 
 
 Declare = Callable[[zenoh.Session], None]
-Event = TypeVar("Event")
-_CALLBACKS_DONE_S = 30.0  # how long `close` waits for callbacks still running (a stall, a busy core)
+Args = ParamSpec("Args")
+_CALLBACKS_DONE_S = 30.0  # how long `close` waits for calls still running (a stall, a busy core)
 
 
 class Link:
     """One Zenoh session: opened at `start`, or by a thread that tries every `retry_s` seconds
     until it opens. What is declared through `when_open` is declared as soon as it can be.
 
-    Zenoh calls back on its own (Rust) threads. One that enters Python while the interpreter
-    finalises is ended by `pthread_exit`, which cannot unwind through Rust: the process aborts
-    (SIGABRT, "FATAL: exception not rethrown") after a clean stop. So every callback goes through
-    `calling`, and `close` ends them in order, before the interpreter exits: no new call, the
-    running ones finished, every entity undeclared, then the session closed."""
+    zenoh-python runs each Python callback on a `threading.Thread` of its own, started when the
+    entity is declared, waiting in Rust for the next event. A thread that takes the GIL back
+    after the interpreter began finalising is ended by `pthread_exit`, which cannot unwind
+    through Rust: the process aborts (SIGABRT, "FATAL: exception not rethrown") after a clean
+    stop. Two things keep that from happening:
+    - `close` ends the calls in order: no new callback nor put (both go through `calling`), the
+      running ones finished, every entity undeclared, then the session closed (which ends each
+      callback thread's wait);
+    - every declare runs on a thread that is no daemon (`as_non_daemon`), so the callback
+      threads, which inherit that, are none either: the interpreter waits for them at exit
+      before it finalises. Declared on a daemon thread (a route's worker making its publisher,
+      the opener, discovery), they were daemons, and one still waking from its closed channel
+      when the interpreter finalised aborted it (1 stop in 13 under busy cores: issue 40)."""
 
     def __init__(self, config: Callable[[], zenoh.Config], where: str, retry_s: float = 1.0) -> None:
         self._config = config  # a new Config per attempt: opening consumes it
@@ -125,17 +133,18 @@ class Link:
         with self._lock:
             self._held.append(handle)
 
-    def calling(self, callback: Callable[[Event], None]) -> Callable[[Event], None]:
-        """`callback` as Zenoh is to call it: not at all once `close` began, and counted while it
-        runs, so that `close` can wait for it."""
+    def calling(self, call: Callable[Args, None]) -> Callable[Args, None]:
+        """`call` guarded: not made at all once `close` began, and counted while it runs, so that
+        `close` can wait for it. For callbacks (Zenoh calls them) and for puts (a thread of ours
+        calls into Zenoh with the GIL released, and must be out before the interpreter exits)."""
 
-        def guarded(event: Event) -> None:
+        def guarded(*args: Args.args, **kwargs: Args.kwargs) -> None:
             with self._calls:
                 if self._stop.is_set():
                     return
                 self._running += 1
             try:
-                callback(event)
+                call(*args, **kwargs)
             finally:
                 with self._calls:
                     self._running -= 1
@@ -170,7 +179,9 @@ class Link:
                 _log.warning("Zenoh: no session yet at %s (%s); trying again every %.0f s",
                              self.where, _reason(error), self._retry_s)  # fmt: skip
             return False
-        listener = session.info.declare_transport_events_listener(self.calling(self._on_transport), history=True)
+        listener = as_non_daemon(
+            lambda: session.info.declare_transport_events_listener(self.calling(self._on_transport), history=True)
+        )
         with self._lock:  # `close` sets the stop before it takes the session under this lock
             closed = self._stop.is_set()
             if not closed:
@@ -195,26 +206,55 @@ class Link:
 
     def _run(self, declare: Declare, session: zenoh.Session) -> None:
         try:
-            declare(session)
+            as_non_daemon(lambda: declare(session))
         except zenoh.ZError as error:  # a key Zenoh refuses: that entity is missing, the rest works
             _log.warning("Zenoh: cannot declare on %s: %s", self.where, error)
 
     def close(self) -> None:
-        """Stop delivering, let the running callbacks finish, undeclare, close the session."""
+        """Stop calling, let the running callbacks and puts finish, undeclare, close the session."""
         with self._calls:
-            self._stop.set()  # under the lock: no callback starts after this
-        if self._thread.is_alive():
-            self._thread.join(timeout=2)
+            self._stop.set()  # under the lock: no callback nor put starts after this
+        if self._thread.is_alive():  # an attempt under way: a daemon left inside `zenoh.open` at exit would abort it
+            self._thread.join(timeout=_CALLBACKS_DONE_S)
         with self._calls:
             if not self._calls.wait_for(lambda: self._running == 0, timeout=_CALLBACKS_DONE_S):
-                _log.warning("Zenoh: %d callbacks still running at close (%s)", self._running, self.where)
+                _log.warning("Zenoh: %d callbacks or puts still running at close (%s)", self._running, self.where)
         with self._lock:
             session, self.session = self.session, None
             held, self._held = self._held, []
-        for handle in reversed(held):  # explicitly, not whenever the garbage collector drops them
-            _undeclare(handle)
-        if session is not None:
-            session.close()  # type: ignore[no-untyped-call]
+        try:
+            for handle in reversed(held):  # explicitly, not whenever the garbage collector drops them
+                _undeclare(handle)
+        finally:  # whatever else failed: the session's close ends every callback thread's wait
+            if session is not None:
+                session.close()  # type: ignore[no-untyped-call]
+
+
+Done = TypeVar("Done")
+
+
+def as_non_daemon(work: Callable[[], Done]) -> Done:
+    """`work()`, on this thread unless it is a daemon, else on a thread that is not, waited for.
+
+    A thread inherits its daemon flag from the thread that starts it, and zenoh-python starts
+    the thread that delivers a callback inside the call that declares it."""
+    if not threading.current_thread().daemon:
+        return work()
+    done: list[Done] = []
+    failed: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            done.append(work())
+        except BaseException as error:  # raised again on the caller's thread
+            failed.append(error)
+
+    helper = threading.Thread(target=run, name="zenoh declare", daemon=False)
+    helper.start()
+    helper.join()
+    if failed:
+        raise failed[0]
+    return done[0]
 
 
 def _undeclare(handle: object) -> None:
@@ -225,10 +265,13 @@ def _undeclare(handle: object) -> None:
         undeclare()
     except zenoh.ZError as error:  # e.g. the router gone meanwhile: closing the session ends it anyway
         _log.debug("Zenoh: undeclaring %r at close: %s", handle, error)
+    except RuntimeError as error:  # in use on another thread ("Already borrowed"): the session's close ends it
+        _log.warning("Zenoh: undeclaring %r at close: %s", handle, error)
 
 __all__ = [
     "Declare",
     "Link",
+    "as_non_daemon",
     "ROUTER_ENDPOINT",
     "make_config",
     "overrides_from_env",
