@@ -269,6 +269,7 @@ def test_kept_layouts_agree_with_the_generated_code(library: TypeLibrary, classe
     kept, generated = _transcoders(library, "lab.robot.arm_state_t")
     data = arm_state(classes).encode()
     assert kept.transcode(data) == generated.transcode(data) and len(kept._layouts) == 1
+    assert kept._layouts[len(data)] is not None  # bools among sequences: gathered, then made 0 or 1
 
     assert_damage_agrees(kept.transcode, generated.transcode, data, changes=3, examples=400)
     assert len(kept._layouts) == 1  # every message of that size met the kept layout first
@@ -286,7 +287,7 @@ def test_a_kept_layout_takes_only_messages_of_its_own_shape(library: TypeLibrary
     assert len(first) == len(second)
     for data in (first, second, first):
         assert kept.transcode(data) == generated.transcode(data)
-    assert list(kept._layouts) == [len(first)]
+    assert list(kept._layouts) == [len(first)] and kept._layouts[len(first)] is not None
     flags = first.index(b"\1\0", first.index(b"\0\1\2") + 3)  # flags [True, False], after fixedBlob
     true_as_two = first[:flags] + b"\2" + first[flags + 1 :]
     assert kept.transcode(true_as_two) == kept.transcode(first) == generated.transcode(true_as_two)

@@ -229,7 +229,7 @@ class _Walk:
     def layout(self) -> Layout | None:
         """The layout these values make, or None when neither mover takes it."""
         values = sum(piece.values() for piece in self.pieces)
-        checked = any(piece.role in ("bool", "wide") for piece in self.pieces)
+        checked = not self.from_lcm and any(piece.role in ("bool", "wide") for piece in self.pieces)
         if not self.constants and values <= STRUCT_VALUES:
             return self.struct_layout()
         if not checked and (self.cdr if self.from_lcm else self.lcm) <= GATHER_BYTES:
