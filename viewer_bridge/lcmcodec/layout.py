@@ -130,7 +130,7 @@ class LayoutKeeper:
         return out
 
 
-def items(indices: list[int]) -> Callable[[tuple[Any, ...]], tuple[Any, ...]] | None:
+def _items(indices: list[int]) -> Callable[[tuple[Any, ...]], tuple[Any, ...]] | None:
     """The values at `indices` as a tuple, even for one (`itemgetter` gives that one alone); None for none."""
     if not indices:
         return None
@@ -263,10 +263,10 @@ class _Walk:
             index += piece.values()
         return Layout(
             read=struct.Struct("".join(reads)).unpack_from,
-            key=items(key),
+            key=_items(key),
             expected=tuple(self.expected) * (2 if len(key) == 1 else 1),
-            bools=items(bools) if not self.from_lcm else None,
-            texts=items(texts),
+            bools=_items(bools) if not self.from_lcm else None,
+            texts=_items(texts),
             prefix=self.prefix,
             write=struct.Struct("".join(writes)).pack,
             tail=b"",
@@ -305,7 +305,7 @@ class _Walk:
             key=itemgetter(*key) if texts else None,  # with a string: at least 3 values, a tuple
             expected=tuple(self.expected),
             bools=None,
-            texts=items(texts),
+            texts=_items(texts),
             prefix=b"",
             write=None,
             tail=bytes(tail),
