@@ -7,15 +7,17 @@ message, `rclpy.serialization.serialize_message`. For `drake.lcmt_iiwa_status` t
 is the real `drake_lcm_msgs/msg/LcmtIiwaStatus` when its interface package is built into the venv;
 until then it is `sensor_msgs/JointState` carrying three of the seven arrays (a lighter message
 than the real one, so the ratio is a lower bound), and the row says which. The same message
-converted again and again is what a kept layout (`lcm_layout`) serves: a robot's stream repeats
-its shape. The 100,000-element array is a type of one `double[n]` against lcm-gen's class and
-`std_msgs/Float64MultiArray`, against numpy byte-swapping the same 800 kB into a new array, and
-against a memcpy of them into new bytes (the floor of any conversion that hands out fresh bytes).
+converted again and again is what a kept layout (`viewer_bridge/lcmcodec/layout.py`) serves: a
+robot's stream repeats its shape. The 100,000-element array is a type of one `double[n]` against
+lcm-gen's class and `std_msgs/Float64MultiArray`, against numpy byte-swapping the same 800 kB into
+a new array, and against a memcpy of them into new bytes (the floor of any conversion that hands out fresh bytes).
 The way back (issue 32): `lcmt_iiwa_command` (7 joints, as Drake's driver takes it) from CDR to
 LCM bytes against rclpy's `deserialize_message` into the built `drake_lcm_msgs/LcmtIiwaCommand`
 and Drake's lcm-gen'd class filled from it and encoded; the 100,000 doubles against rclpy's
 `deserialize_message` of a `Float64MultiArray` and lcm-gen's class. Each row first checks that
-both sides give the same LCM bytes.
+both sides give the same LCM bytes. The floor rows put both iiwa conversions next to one bare
+`struct` unpack and pack of the same fields, nothing looked up or checked: what converting values
+through Python costs at the least, so what bounds the ratio to a hand-written bridge.
 Both sides of a row run in this process on the same bytes, in alternating rounds.
 """
 
@@ -23,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import struct
 import subprocess
 import sys
 import sysconfig
@@ -170,6 +173,11 @@ def reverse_measures(size: Size, library: TypeLibrary, big_library: TypeLibrary,
     ours, base = paired(partial(known.from_cdr, cdr), baseline, size)
     rows = [Measure("lcmt_iiwa_command (7 joints) CDR -> LCM, vs rclpy deserialize + lcm-gen", ours * 1e6,
                     base * 1e6, "us", "ratio >= 20x", base / ours >= 20)]  # fmt: skip
+    floor_way = bare_struct(cdr, "<2s2xqi4x7di4x7d", ">0sqi7di7d")
+    assert known.packed_fingerprint + floor_way() == lcm  # noqa: S101 (the floor does the same work)
+    ours, floor = paired(partial(known.from_cdr, cdr), floor_way, size)
+    rows.append(Measure("lcmt_iiwa_command CDR -> LCM, vs one bare struct unpack + pack of its fields (the floor)",
+                        ours * 1e6, floor * 1e6, "us", "ours <= 3x floor", ours <= 3 * floor))  # fmt: skip
     big_known = big_library.get("bench.big_array_t")
     big_cdr = big_known.to_cdr(big)
     values = lcmgen_class.decode(big).values
@@ -192,6 +200,10 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
     ours, base = paired(partial(known.to_cdr, data), baseline, size)
     rows.append(Measure(f"lcmt_iiwa_status (7 joints) -> CDR, vs lcm-gen + {rclpy_type}", ours * 1e6, base * 1e6,
                         "us", "ratio >= 20x", base / ours >= 20))  # fmt: skip
+    counts_as_padding = "".join("4x7d" if array == 0 else "8x7d" for array in range(7))
+    ours, floor = paired(partial(known.to_cdr, data), bare_struct(data, ">8sqi49d", "<0sqi" + counts_as_padding), size)
+    rows.append(Measure("lcmt_iiwa_status -> CDR, vs one bare struct unpack + pack of its fields (the floor)",
+                        ours * 1e6, floor * 1e6, "us", "ours <= 3x floor", ours <= 3 * floor))  # fmt: skip
     with tempfile.TemporaryDirectory() as folder:
         big_library, lcmgen_class, big = big_array(Path(folder))
         big_known = big_library.get("bench.big_array_t")
@@ -206,6 +218,13 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
                             "ms", "ours <= 3x memcpy", ours <= 3 * floor))  # fmt: skip
         rows += reverse_measures(size, library, big_library, lcmgen_class, big)
     return rows
+
+
+def bare_struct(data: bytes, read: str, write: str) -> Callable[[], bytes]:
+    """One `struct` unpack of every field and one pack the other way, nothing looked up or checked
+    (a sequence's count written as zeros): the floor of converting values through Python."""
+    unpack_from, pack = struct.Struct(read).unpack_from, struct.Struct(write).pack
+    return lambda: pack(*unpack_from(data))
 
 
 def _numpy_swap(data: bytes) -> Any:

@@ -26,8 +26,6 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from functools import lru_cache, partial
 from typing import Any
 
-import numpy as np
-
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec.codegen import (
     Buffer,
@@ -41,13 +39,12 @@ from viewer_bridge.lcmcodec.codegen import (
     swapped,
     truncated,
 )
-from viewer_bridge.lcmcodec.lcm_layout import LAYOUT_BYTES, CdrLayout, learn_cdr_layout
+from viewer_bridge.lcmcodec.layout import CDR_HEADER, Layout, LayoutKeeper, learn_lcm_layout
 from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
 
 __all__ = ["CDR_HEADER", "CdrTranscoder", "compile_transcoders"]
 
 Chunks = list[Any]  # what b"".join takes: bytes, memoryviews, arrays, numpy arrays
-CDR_HEADER = b"\x00\x01\x00\x00"  # CDR_LE, no options
 # A float32 scalar moves as its raw bits ("I"): through a Python float a signalling NaN would turn quiet.
 _LE_CODES = {"int8_t": "b", "int16_t": "h", "int32_t": "i", "int64_t": "q", "float": "I", "double": "d",
              "boolean": "?", "byte": "B"}  # fmt: skip
@@ -57,51 +54,30 @@ _ZEROS = [bytes(n) for n in range(8)]
 _COUNT_AFTER_PAD = [struct.Struct(f"<{pad}xI") for pad in range(4)]  # a uint32 after `pad` zero bytes
 _FIELD_FINGERPRINT = "<fingerprint>"
 _VIEW_FROM = 4096  # bytes
-_LAYOUTS = 16  # sizes kept per type (a robot sends one or two)
-_frombuffer, _BYTE = np.frombuffer, np.dtype(np.uint8)  # looked up once: the fast path is a few calls
 
 
-class CdrTranscoder:
+class CdrTranscoder(LayoutKeeper):
     """The compiled LCM -> CDR path of one type.
 
-    After a message has passed the generated code, its layout (`lcm_layout`) is kept by size: a
+    After a message has passed the generated code, its layout (`layout`) is kept by size: a
     message of the same size and shape (fingerprint, length fields, string lengths) is one read
-    of those values, one comparison and one gather of its bytes. Anything else takes the
-    generated code, which finds and names what is wrong."""
+    of those values, one comparison and one gather of its bytes (or one unpack and one pack, for
+    a type without sequences). Anything else takes the generated code, which finds and names
+    what is wrong."""
 
     def __init__(self, type_name: str, packed_fingerprint: bytes,
                  body: Callable[[bytes | memoryview, int, int, Chunks, int], tuple[int, int]],
-                 learn: Callable[[bytes], CdrLayout | None] | None = None) -> None:  # fmt: skip
+                 learn: Callable[[bytes], Layout | None] | None = None) -> None:  # fmt: skip
+        super().__init__(learn)
         self.type_name = type_name
         self.packed_fingerprint = packed_fingerprint
         self._body = body
-        self._learn = learn  # the layout of a message the generated code has passed
-        self._layouts: dict[int, CdrLayout] = {}
 
-    def transcode(self, data: Buffer) -> bytes:
-        """A whole LCM message (fingerprint first) as CDR with its encapsulation header."""
-        if type(data) is bytes and (layout := self._layouts.get(len(data))) is not None:  # inline: a call less
-            read, key, expected, texts, tail, gather, bools = layout
-            values = read(data)
-            if (values if key is None else key(values)) == expected:
-                try:
-                    if texts is not None:  # joined by NULs: a character cut at the end of one is no whole one
-                        str(b"\0".join(texts(values)), "utf-8")
-                    moved = _frombuffer(data + tail, _BYTE)[gather]
-                    if bools is not None:  # LCM reads any byte but 0 as true, CDR writes 1
-                        moved[bools] = moved[bools] != 0
-                    cdr: bytes = moved.tobytes()
-                    return cdr
-                except UnicodeDecodeError:  # the generated code names it
-                    pass
-        cdr = self._transcode(data)
-        if self._learn is not None and type(data) is bytes and len(data) <= LAYOUT_BYTES and len(self._layouts) < _LAYOUTS:
-            found = self._learn(data)
-            if found is not None:
-                self._layouts[len(data)] = found
-        return cdr
+    # A whole LCM message (fingerprint first) as CDR with its encapsulation header. `convert`
+    # itself, not a method calling it: the fast path is a few calls, one more shows.
+    transcode = LayoutKeeper.convert
 
-    def _transcode(self, data: Buffer) -> bytes:
+    def _convert(self, data: Buffer) -> bytes:
         """The generated code's way: every check, every error named."""
         # Small bytes are read as they are (slicing bytes is cheapest); anything else through a
         # flat byte view, so that a large byte array is copied once, into the result, not twice.
@@ -385,6 +361,6 @@ def compile_transcoders(
     }
     bodies = compile_generated(structs, list(names), "T", _Generator, helpers, "<lcm -> cdr transcoders>")
     return {name: CdrTranscoder(name, fingerprints[name], body,
-                                partial(learn_cdr_layout, structs, name) if keep_layouts else None)
+                                partial(learn_lcm_layout, structs, name) if keep_layouts else None)
             for name, body in bodies.items()}  # fmt: skip
 

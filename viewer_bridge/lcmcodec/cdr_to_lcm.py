@@ -29,16 +29,16 @@ import functools
 import math
 import struct
 from collections.abc import Callable, Iterable, Mapping
-from operator import itemgetter
-from typing import Any, NamedTuple
+from typing import Any
 
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec import codegen
 from viewer_bridge.lcmcodec.codegen import U32_LE, Buffer, StructWriter, scalar_runs, string_stop
+from viewer_bridge.lcmcodec.layout import Layout, LayoutKeeper, learn_lcm_layout
 from viewer_bridge.lcmcodec.rosnames import field_name
 from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
 
-__all__ = ["Layout", "LcmEncoder", "compile_encoders", "items"]
+__all__ = ["LcmEncoder", "compile_encoders"]
 
 _CDR_LE = b"\x00\x01"
 _HEADER = 4
@@ -50,45 +50,24 @@ _U32_BE = struct.Struct(">I").pack
 _NOT_BOOL = bytes(range(2))  # what `translate` deletes from a bool array: anything left is not 0 or 1
 
 
-class LcmEncoder:
+class LcmEncoder(LayoutKeeper):
     """The compiled CDR -> LCM path of one type.
 
-    For a type of numbers only (scalars and arrays of them, as robot commands are), the layout
-    of a message is fixed by its sequence counts: after a message has passed the generated code,
-    its layout is kept (by total size) as one little-endian `struct` that reads every number, the
-    positions of the header, counts and length fields with their values, and one
-    big-endian `struct`. A message of the same size whose header, counts and length fields are
-    those values has the same layout, so it is converted with one unpack, one comparison and one
-    pack (bools checked to be 0 or 1). Anything else takes the generated code, which finds and
-    names what is wrong."""
+    After a message has passed the generated code, its layout (`layout`) is kept by size: a
+    message of the same size and shape (header, counts, length fields, string lengths) is one
+    unpack of every value, one comparison, its bools and strings checked, and one pack. Anything
+    else takes the generated code, which finds and names what is wrong."""
 
     def __init__(self, type_name: str, packed_fingerprint: bytes, body: Callable[[Any, int, int, list[Any]], int],
                  learn: Callable[[bytes], Layout | None] | None = None) -> None:  # fmt: skip
+        super().__init__(learn)
         self.type_name = type_name
         self.packed_fingerprint = packed_fingerprint
         self._body = body
-        self._learn = learn  # the layout of a message the generated code has passed, if the type has one
-        self._layouts: dict[int, Layout] = {}
 
-    def encode(self, data: Buffer) -> bytes:
-        """A whole CDR message (encapsulation header first) as the whole LCM message."""
-        layout = self._layouts.get(len(data)) if type(data) is bytes else None
-        if layout is not None:
-            read, key, expected, bools, texts, write = layout
-            values = read(data)
-            if key(values) == expected and (bools is None or max(bools(values)) <= 1):
-                try:
-                    if texts is not None:  # joined by NULs: a character cut at the end of one is no whole one
-                        str(b"\0".join(texts(values)), "utf-8")
-                    return self.packed_fingerprint + write(*values)
-                except (UnicodeDecodeError, struct.error):  # or a uint64 from 2^63: the generated code names it
-                    pass
-        lcm = self._encode(data)
-        if self._learn is not None and type(data) is bytes and len(self._layouts) < _LAYOUTS:
-            found = self._learn(data)
-            if found is not None:
-                self._layouts[len(data)] = found
-        return lcm
+    # A whole CDR message (encapsulation header first) as the whole LCM message. `convert` itself,
+    # not a method calling it: the fast path is a few calls, one more shows.
+    encode = LayoutKeeper.convert
 
     def _encode(self, data: Buffer) -> bytes:
         """The generated code's way: every check, every error named."""
@@ -110,85 +89,7 @@ class LcmEncoder:
             raise DecodeError(self.type_name, "<end>", offset, f"{end - offset} trailing bytes")
         return b"".join(out)
 
-
-# --- the layouts of messages of numbers only ---------------------------------------------------------
-
-_LAYOUTS = 16  # sizes kept per type (a robot sends one or two)
-_LAYOUT_VALUES = 256  # beyond this many numbers, the generated code's byte swap is faster
-
-
-class Layout(NamedTuple):  # a tuple: unpacked at once on the fast path
-    """Where every value of the CDR messages of one size and shape is, kept once one has passed the
-    generated code: a message of that size whose `key` values are `expected` (header, counts,
-    lengths: the shape) has the same layout, and is valid if its `bools` are 0 or 1, its `texts`
-    UTF-8 and `write` takes every value."""
-
-    read: Callable[[Buffer], tuple[Any, ...]]  # every value of the whole CDR message, header first
-    key: Callable[[tuple[Any, ...]], tuple[Any, ...]]  # the header, counts and length fields
-    expected: tuple[Any, ...]
-    bools: Callable[[tuple[Any, ...]], tuple[int, ...]] | None  # each must be 0 or 1
-    texts: Callable[[tuple[Any, ...]], tuple[bytes, ...]] | None  # each string's bytes: must be UTF-8
-    write: Callable[..., bytes]  # all of them again, as LCM (what LCM does not have as "0s": nothing)
-
-
-def _numbers_only(definition: StructDef) -> bool:
-    return bool(definition.members) and all(member.type_name in PRIMITIVE_FORMATS for member in definition.members)
-
-
-def _layout(definition: StructDef, data: bytes) -> Layout | None:
-    """The layout of `data`, a valid CDR message of `definition` (numbers only), or None when it
-    holds too many numbers (or too few to be worth it). The header and the sequence counts are
-    read as bytes ("2s", "4s") so that the big-endian `struct` can take them and write nothing
-    ("0s"): one tuple goes from one `struct` to the other untouched."""
-    lengths = {dim.size for member in definition.members for dim in member.dims if dim.is_variable}
-    little, big = "<2s2x", ">0s"
-    key: list[int] = [0, 0]
-    expected: list[Any] = [_CDR_LE, _CDR_LE]
-    bools: list[int] = []
-    position, index, numbers = 0, 1, 0
-    for member in definition.members:
-        size = PRIMITIVE_FORMATS[member.type_name][1]
-        code = _CODES[member.type_name]
-        if member.dims and not (len(member.dims) == 1 and not member.dims[0].is_variable):
-            pad = -position & 3
-            little += "x" * pad + "4s"
-            big += "0s"
-            count_bytes = bytes(data[_HEADER + position + pad : _HEADER + position + pad + 4])
-            count = int.from_bytes(count_bytes, "little")
-            key.append(index)
-            expected.append(count_bytes)
-            position += pad + 4
-            index += 1
-        else:
-            count = member.dims[0].count if member.dims else 1
-        pad = -position & (size - 1) if count else 0
-        little += "x" * pad + f"{count}{code}"
-        big += f"{count}{code}"
-        if member.name in lengths:
-            key.append(index)
-            expected.append(struct.unpack_from(f"<{code}", data, _HEADER + position + pad)[0])
-        if member.type_name == "boolean":
-            bools.extend(range(index, index + count))
-        position += pad + count * size
-        index += count
-        numbers += count
-    if not 2 <= numbers <= _LAYOUT_VALUES:
-        return None
-    return Layout(
-        read=struct.Struct(little).unpack_from,
-        key=itemgetter(*key),
-        expected=tuple(expected),
-        bools=items(bools),
-        texts=None,
-        write=struct.Struct(big).pack,
-    )
-
-
-def items(indices: list[int]) -> Callable[[tuple[Any, ...]], tuple[Any, ...]] | None:
-    """The values at `indices` as a tuple, even for one (`itemgetter` gives that one alone); None for none."""
-    if not indices:
-        return None
-    return itemgetter(*(indices * 2)) if len(indices) == 1 else itemgetter(*indices)
+    _convert = _encode
 
 
 # --- what the generated code calls when something is wrong, or for whole values ----------------------
@@ -367,9 +268,6 @@ def compile_encoders(
         **{f"_swap{size}": codegen.swapped(size) for size in (2, 4, 8)},
     }
     bodies = codegen.compile_generated(structs, list(names), "C", _Generator, helpers, "<cdr -> lcm encoders>")
-    return {name: LcmEncoder(name, fingerprints[name], body, _learner(structs[name])) for name, body in bodies.items()}
-
-
-def _learner(definition: StructDef) -> Callable[[bytes], Layout | None] | None:
-    """What finds the layout of a valid message of `definition`: only a type of numbers has one."""
-    return functools.partial(_layout, definition) if _numbers_only(definition) else None
+    return {name: LcmEncoder(name, fingerprints[name], body,
+                             functools.partial(learn_lcm_layout, structs, name, fingerprint=fingerprints[name]))
+            for name, body in bodies.items()}  # fmt: skip

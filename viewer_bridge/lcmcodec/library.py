@@ -134,7 +134,8 @@ class LcmType:
         """
         if self.refused is not None:
             raise DecodeError(self.full_name, "<type>", 0, f"has no ROS 2 form: {self.refused}")
-        return self._encoder.encode(data)
+        self.from_cdr = self._encoder.encode  # type: ignore[method-assign]  # as `to_cdr`: a call less
+        return self.from_cdr(data)
 
     def from_json(self, value: object) -> bytes:
         """A JSON value (already parsed: dicts, lists, str, int, float, bool, None) with the ROS 2

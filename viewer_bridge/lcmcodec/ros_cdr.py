@@ -8,7 +8,7 @@ little-endian `struct` unpack (its padding chosen by the CDR position modulo 8) 
 pack; a primitive array one byte-swapped copy (Python's array when short, numpy when long or
 widened: uint16/uint32); a byte array a slice; a string array one pass with one UTF-8 check.
 Nothing builds a Python message. Once a message has passed that code, its layout is kept
-(`ros_layout`): the next of the same shape is one unpack and one pack.
+(`layout`): the next of the same shape is one unpack and one pack.
 
 Errors are `DecodeError`s with the ROS 2 type, the field path and the byte offset (from the
 first byte after the 4-byte encapsulation header).
@@ -28,7 +28,7 @@ from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec.cdr_to_lcm import LcmEncoder, string_to_lcm
 from viewer_bridge.lcmcodec.codegen import SourceWriter, bad_count, call_child, compile_generated, truncated
 from viewer_bridge.lcmcodec.from_ros import LcmFromRos, RosField, RosStruct
-from viewer_bridge.lcmcodec.ros_layout import learn_layout
+from viewer_bridge.lcmcodec.layout import learn_ros_layout
 from viewer_bridge.lcmcodec.schema import StructDef
 
 __all__ = ["compile_ros_encoders"]
@@ -58,7 +58,7 @@ _I32_BE = struct.Struct(">i").pack
 
 def compile_ros_encoders(mapping: LcmFromRos, ros_names: Iterable[str], keep_layouts: bool = True) -> dict[str, LcmEncoder]:
     """The CDR -> LCM encoders of the mapped ROS 2 types `ros_names`, by ROS 2 name. Each keeps the
-    layouts of the messages it has converted (`ros_layout`) unless `keep_layouts` is False: then
+    layouts of the messages it has converted (`layout`) unless `keep_layouts` is False: then
     every message takes the generated code (as the first of each shape does)."""
     names = list(ros_names)
     by_lcm = {struct_.lcm_name: struct_ for struct_ in mapping.structs.values()}
@@ -69,8 +69,10 @@ def compile_ros_encoders(mapping: LcmFromRos, ros_names: Iterable[str], keep_lay
     lcm_names = [mapping.structs[name].lcm_name for name in names]
     generator = functools.partial(_Generator, by_lcm, _min_sizes(mapping.structs))
     bodies = compile_generated(mapping.lcm, lcm_names, "R", generator, helpers, "<ros cdr -> lcm encoders>")
+    learners = {name: functools.partial(learn_ros_layout, mapping.structs, _WIRE, name, mapping.packed_fingerprint(name))
+                for name in names}  # fmt: skip
     return {name: LcmEncoder(name, mapping.packed_fingerprint(name), bodies[mapping.structs[name].lcm_name],
-                             functools.partial(learn_layout, mapping.structs, _WIRE, name) if keep_layouts else None)
+                             learners[name] if keep_layouts else None)
             for name in names}  # fmt: skip
 
 
