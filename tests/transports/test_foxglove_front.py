@@ -191,7 +191,8 @@ def test_the_front_checks_origins_even_when_it_renames_and_reads_nothing(foxglov
     transport = foxglove(accept_websocket_v1=False, client_publish=False)
     assert refused(transport.port, EVIL)[0] == 403
     open_client(transport.port, None).close()
-    assert refused(transport.port, None, "foxglove.websocket.v1")[0] == 400  # not renamed: the SDK refuses it
+    status, body = refused(transport.port, None, "foxglove.websocket.v1")
+    assert status == 400 and "sec-websocket-protocol" in body  # not renamed: the SDK's whole refusal, unread
 
 
 # --- The limits per client --------------------------------------------------------------------------------

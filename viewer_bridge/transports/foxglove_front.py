@@ -172,6 +172,7 @@ class _Outbound:
         self._stream = RelayedStream(hold_text_bytes)
         self._pending: list[bytes] = []  # frames of ours waiting for the end of the message under way
         self._lock = threading.Lock()  # one writer at a time on the target socket
+        self.framed = True  # false: the stream is no WebSocket's, passed as it comes
 
     def insert(self, make: Callable[[], bytes | None]) -> bool:
         """Put the frame `make` returns (called while no byte of the stream moves; None: nothing to
@@ -199,6 +200,9 @@ class _Outbound:
         """Send a chunk of the relayed stream on, with any frame of ours that waited put in where a
         message ends; a text message held back whole goes on unless `keep` says no to its payload."""
         with self._lock:
+            if not self.framed:
+                self._target.sendall(chunk)
+                return
             for piece in self._stream.feed(chunk, cut_first_end=bool(self._pending)):
                 if piece.text is None or keep is None or keep(piece.text):
                     self._target.sendall(piece.data)
@@ -348,6 +352,15 @@ class Connection:
         self._subscriptions = Resubscriptions()
         self._tally = tally
 
+    @property
+    def framed(self) -> bool:
+        """False once the SDK did not upgrade the connection: its bytes and the client's pass unread."""
+        return self._to_client.framed
+
+    @framed.setter
+    def framed(self, framed: bool) -> None:
+        self._to_client.framed = self._to_sdk.framed = framed
+
     def __repr__(self) -> str:
         return f"foxglove client {self.address}"
 
@@ -451,7 +464,7 @@ class _Relay:
             return self._ended == 2
 
     def _from_client(self, chunk: memoryview, messages: ClientMessages, reader: Reader | None) -> None:
-        read = messages.feed(chunk)
+        read = messages.feed(chunk) if self.connection.framed else []
         self.connection.forward(chunk, read)
         if reader is not None:
             for message in read:
@@ -546,10 +559,12 @@ class SubprotocolFront:
         with self._lock:
             self._relays.add(relay)
         try:
-            offered, rest = self._handshake(client, sdk, request)
+            offered, rest, upgraded = self._handshake(client, sdk, request)
             # The SDK's log names the relay's own address for this client: say which is which.
             log.info("foxglove client %s (subprotocols %s) is %s to the SDK's server",
                      address, ", ".join(offered) or "none", _address(sdk.getsockname()))  # fmt: skip
+            if not upgraded:  # a refusal's body and whatever follows are no WebSocket frames
+                connection.framed = False
             connection.relay(memoryview(rest))  # the SDK's first frames: from here on, its messages are tracked
         except (HandshakeError, OSError) as error:
             self._count("bad_handshake", error)
@@ -593,16 +608,17 @@ class SubprotocolFront:
         with self._lock:
             self._admitted -= 1
 
-    def _handshake(self, client: socket.socket, sdk: socket.socket, request: bytes) -> tuple[list[str], bytes]:
+    def _handshake(self, client: socket.socket, sdk: socket.socket, request: bytes) -> tuple[list[str], bytes, bool]:
         """Pass the client's request on and the SDK's answer head back, renamed for an older name;
-        the subprotocols the client offered, and what the SDK sent after its head. (What the
-        client sent after its request, `early`, goes on through its relay.)"""
+        the subprotocols the client offered, what the SDK sent after its head, and whether it
+        upgraded the connection (101). (What the client sent after its request, `early`, goes on
+        through its relay.)"""
         older = older_name_asked(request) if self._rename else None
         # None: the SDK's own name, or none it knows: the SDK answers as it does.
         sdk.sendall(request if older is None else naming(request, SDK_SUBPROTOCOL))
         answer, rest = read_head(sdk)
         client.sendall(answer if older is None else naming(answer, older))
-        return subprotocols(request), rest
+        return subprotocols(request), rest, answer.split(b" ", 2)[1:2] == [b"101"]
 
     def _pump(self, relay: _Relay, source: socket.socket, target: socket.socket, early: bytes = b"") -> None:
         reader = self._reader if source is relay.sockets[0] else None  # the client's side is read along
