@@ -1,6 +1,7 @@
 """Who may connect to the Foxglove server: the front's origin check (403) and its limits per
 client (503 past `max_clients`; channels and message size, refused with a status), against the
-`websockets` package's client, which sends an `Origin` header only when told to."""
+`websockets` package's client, which sends an `Origin` header only when told to. And the
+front's answer to the SDK's subscribe race, against a server of that package standing for the SDK."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import json
 import logging
 import socket
 import struct
+import threading
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -16,13 +18,19 @@ import pytest
 from pydantic import ValidationError
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import ClientConnection, connect
+from websockets.sync.server import ServerConnection, serve
 from websockets.typing import Origin, Subprotocol
 
 from tests.fuzz.targets import RecordingConnection
 from viewer_bridge.transports.base import CDR, MessageType, Qos, Received
 from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
 from viewer_bridge.transports.foxglove_clients import ClientPublishing
-from viewer_bridge.transports.foxglove_front import SubprotocolFront
+from viewer_bridge.transports.foxglove_front import (
+    MAX_SUBSCRIPTIONS,
+    RESUBSCRIBE_DELAYS,
+    Resubscriptions,
+    SubprotocolFront,
+)
 from viewer_bridge.transports.origins import FOXGLOVE_APPS, Origins
 from viewer_bridge.transports.websocket_frames import BINARY, TEXT, Message
 
@@ -183,7 +191,8 @@ def test_the_front_checks_origins_even_when_it_renames_and_reads_nothing(foxglov
     transport = foxglove(accept_websocket_v1=False, client_publish=False)
     assert refused(transport.port, EVIL)[0] == 403
     open_client(transport.port, None).close()
-    assert refused(transport.port, None, "foxglove.websocket.v1")[0] == 400  # not renamed: the SDK refuses it
+    status, body = refused(transport.port, None, "foxglove.websocket.v1")
+    assert status == 400 and "sec-websocket-protocol" in body  # not renamed: the SDK's whole refusal, unread
 
 
 # --- The limits per client --------------------------------------------------------------------------------
@@ -259,3 +268,132 @@ def test_what_a_client_leaves_behind_is_bounded_and_forgotten_when_it_goes() -> 
     publishing.message(connection, Message(BINARY, b"", "longer than 2048 bytes"))
     publishing.closed(connection)
     assert not publishing._said and not publishing._channels
+
+
+# --- A subscription the SDK refuses before it has listed the channel it advertised ---------------------
+
+
+class RacingSdk:
+    """Stands for the SDK's server at its race (foxglove_front.Resubscriptions): it advertises
+    channels 1 and 2, answers the first `refusals` subscriptions of channel 2 with the SDK's error
+    status as if the channel were not listed yet, and sends one message on each subscription it
+    takes. What it was asked is kept, the ops as received."""
+
+    def __init__(self, refusals: int, advertised: tuple[int, ...] = (1, 2)) -> None:
+        self.refusals = refusals
+        self.advertised = advertised
+        self.asked: list[dict[str, Any]] = []
+        self._server = serve(self._serve, "127.0.0.1", 0, subprotocols=[Subprotocol("foxglove.sdk.v1")],
+                             compression=None)  # fmt: skip  (the SDK's WebSocket library offers no compression)
+        self.port = self._server.socket.getsockname()[1]
+        threading.Thread(target=self._server.serve_forever, daemon=True).start()
+
+    def _serve(self, ws: ServerConnection) -> None:
+        ws.send(json.dumps({"op": "serverInfo", "name": "racing", "capabilities": []}))
+        channels = [{"id": each, "topic": f"/t{each}", "encoding": "json", "schemaName": "x", "schema": ""}
+                    for each in self.advertised]  # fmt: skip
+        ws.send(json.dumps({"op": "advertise", "channels": channels}))
+        for text in ws:
+            op = json.loads(text)
+            self.asked.append(op)
+            for subscription in op.get("subscriptions", []):
+                channel = subscription["channelId"]
+                if channel not in (1, 2) or (channel == 2 and self.refusals > 0):
+                    self.refusals -= channel == 2
+                    ws.send(json.dumps({"op": "status", "level": 2, "message": f"Unknown channel ID: {channel}"}))
+                else:
+                    ws.send(b"\x01" + struct.pack("<IQ", subscription["id"], 0) + f"on {channel}".encode())
+
+    def close(self) -> None:
+        self._server.shutdown()
+
+
+def until_data(ws: ClientConnection, subscription: int) -> list[str | bytes]:
+    """What a client receives up to the message data of `subscription`."""
+    received: list[str | bytes] = []
+    while not (received and isinstance(received[-1], bytes) and received[-1][1:5] == struct.pack("<I", subscription)):
+        received.append(ws.recv(timeout=WAIT))
+    return received
+
+
+@pytest.fixture
+def racing() -> Iterator[Callable[..., tuple[RacingSdk, SubprotocolFront]]]:
+    """Makes a RacingSdk and a front before it; closes both after the test."""
+    made: list[tuple[RacingSdk, SubprotocolFront]] = []
+
+    def make(refusals: int, advertised: tuple[int, ...] = (1, 2)) -> tuple[RacingSdk, SubprotocolFront]:
+        sdk = RacingSdk(refusals, advertised)
+        made.append((sdk, SubprotocolFront("127.0.0.1", 0, sdk.port)))
+        return made[-1]
+
+    yield make
+    for sdk, front in made:
+        front.close()
+        sdk.close()
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_a_subscription_the_sdk_refused_too_early_is_sent_again_and_the_client_never_sees_the_error(
+    racing: Callable[..., tuple[RacingSdk, SubprotocolFront]], name: str
+) -> None:
+    sdk, front = racing(refusals=1)
+    with connect(f"ws://127.0.0.1:{front.port}", subprotocols=[Subprotocol(name)], open_timeout=WAIT) as ws:
+        assert json.loads(ws.recv(timeout=WAIT))["op"] == "serverInfo"
+        assert json.loads(ws.recv(timeout=WAIT))["op"] == "advertise"
+        # Both at once, the moment they are advertised, as the app subscribes.
+        ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": 1}, {"id": 8, "channelId": 2}]}))
+        received = until_data(ws, 8)
+    assert received[-1] == b"\x01" + struct.pack("<IQ", 8, 0) + b"on 2"
+    assert not [each for each in received if isinstance(each, str)]  # the error status was held back
+    assert sdk.asked[1] == {"op": "subscribe", "subscriptions": [{"id": 8, "channelId": 2}]}  # the front's, masked
+    assert front.errors() == {"resubscribed": 1}
+
+
+def test_after_its_last_attempt_the_status_reaches_the_client(
+    racing: Callable[..., tuple[RacingSdk, SubprotocolFront]],
+) -> None:
+    sdk, front = racing(refusals=len(RESUBSCRIBE_DELAYS) + 2)  # the last refuses the client's own second subscribe
+    with connect(f"ws://127.0.0.1:{front.port}", subprotocols=[Subprotocol("foxglove.sdk.v1")], open_timeout=WAIT) as ws:
+        ws.recv(timeout=WAIT), ws.recv(timeout=WAIT)  # serverInfo, advertise
+        ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 8, "channelId": 2}]}))
+        status = json.loads(ws.recv(timeout=WAIT))
+        assert status == {"op": "status", "level": 2, "message": "Unknown channel ID: 2"}
+        # The client subscribing again itself is a new subscription: the front tries again for it.
+        ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 8, "channelId": 2}]}))
+        received = until_data(ws, 8)
+    assert not [each for each in received if isinstance(each, str)]
+    assert len(sdk.asked) == 1 + len(RESUBSCRIBE_DELAYS) + 1 + 1
+    assert front.errors() == {"resubscribed": len(RESUBSCRIBE_DELAYS) + 1}
+
+
+def test_a_channel_never_advertised_or_unsubscribed_meanwhile_gets_the_sdks_answer(
+    racing: Callable[..., tuple[RacingSdk, SubprotocolFront]],
+) -> None:
+    sdk, front = racing(refusals=1, advertised=(1,))
+    with connect(f"ws://127.0.0.1:{front.port}", subprotocols=[Subprotocol("foxglove.sdk.v1")], open_timeout=WAIT) as ws:
+        ws.recv(timeout=WAIT), ws.recv(timeout=WAIT)  # serverInfo, advertise of channel 1 alone
+        ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 8, "channelId": 2}, {"id": 9, "channelId": 3}]}))
+        answers = [json.loads(ws.recv(timeout=WAIT))["message"] for _ in range(2)]
+        ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": 1}]}))
+        until_data(ws, 7)  # everything before it has been through the front
+    assert answers == ["Unknown channel ID: 2", "Unknown channel ID: 3"]
+    assert len(sdk.asked) == 2 and front.errors() == {}
+
+
+def test_what_a_client_leaves_for_resubscribing_is_bounded() -> None:
+    subscriptions = Resubscriptions()
+    for index in range(3 * MAX_SUBSCRIPTIONS):
+        subscribe = {"op": "subscribe", "subscriptions": [{"id": index, "channelId": index}]}
+        subscriptions.client_said(json.dumps(subscribe).encode())
+        subscriptions.server_said(json.dumps({"op": "advertise", "channels": [{"id": index}]}).encode())
+    assert len(subscriptions._subscriptions) == len(subscriptions._advertised) == MAX_SUBSCRIPTIONS
+    oldest, newest = (json.dumps({"op": "status", "level": 2, "message": f"Unknown channel ID: {channel}"}).encode()
+                      for channel in (0, 3 * MAX_SUBSCRIPTIONS - 1))  # fmt: skip
+    assert subscriptions.server_said(oldest) is None  # forgotten: its status passes
+    assert subscriptions.server_said(newest) == (3 * MAX_SUBSCRIPTIONS - 1, RESUBSCRIBE_DELAYS[0])
+    for junk in (b"\xff", b"[]", b'{"op": "subscribe", "subscriptions": [{"id": true, "channelId": -1}, 5]}',
+                 b'{"op": "unsubscribe", "subscriptionIds": "all"}', b"[" * 100_000):  # fmt: skip
+        subscriptions.client_said(junk)
+        assert subscriptions.server_said(junk) is None
+    subscriptions.client_said(b'{"op": "unsubscribe", "subscriptionIds": [%d]}' % (3 * MAX_SUBSCRIPTIONS - 1))
+    assert subscriptions.server_said(newest) is None  # nothing of the client's left to send again

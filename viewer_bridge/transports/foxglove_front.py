@@ -13,7 +13,10 @@ the handshake only:
 
 - the front listens on the public address; the SDK listens on 127.0.0.1 at a port of its own;
 - every client connection is relayed to the SDK byte for byte, both ways (WebSocket frames, their
-  masks and any negotiated extension stay end to end between the client and the SDK);
+  masks and any negotiated extension stay end to end between the client and the SDK), but for
+  one repair of a race in the SDK: a subscription it refused because it had not yet listed a
+  channel it had already advertised is sent again, and its error status held back
+  (`Resubscriptions`);
 - a request that offers `foxglove.websocket.v1` but not `foxglove.sdk.v1` reaches the SDK asking
   for `foxglove.sdk.v1`, and the SDK's answer reaches the client naming `foxglove.websocket.v1`
   again (a WebSocket client refuses an answer that names a subprotocol it did not offer).
@@ -44,14 +47,17 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
+import os
+import re
 import socket
 import threading
 from collections import Counter
-from typing import Protocol
+from collections.abc import Callable
+from typing import Any, Protocol, TypeGuard, TypeVar
 
 from viewer_bridge.errors import HandshakeError, HttpRefusal
 from viewer_bridge.transports.origins import FOXGLOVE_APPS, OriginGate, Origins
-from viewer_bridge.transports.websocket_frames import ClientMessages, Message, MessageEnds, text_frame
+from viewer_bridge.transports.websocket_frames import TEXT, ClientMessages, Message, RelayedStream, text_frame
 
 log = logging.getLogger(__name__)
 
@@ -64,6 +70,13 @@ MAX_CLIENT_MESSAGE = 16 * 1024 * 1024  # a client's message read along up to thi
 MAX_CLIENTS = 32  # clients connected at once (foxglove.max_clients); one more is answered 503
 INJECT_WAIT_SECONDS = 5.0  # a frame of ours waits this long for a client stream busy sending; then it is dropped
 MAX_PENDING = 1024 * 1024  # bytes of our frames waiting for the end of one of the SDK's messages; more are dropped
+MAX_SDK_TEXT = 8 * 1024 * 1024  # a text message of the SDK's read (held back until whole); longer: passed unread
+MAX_SUBSCRIPTIONS = 4096  # subscriptions, and channels advertised, remembered per client (Resubscriptions)
+RESUBSCRIBE_DELAYS = (0.0, 0.01, 0.05, 0.25, 1.0)  # seconds before each attempt to subscribe again
+_UNKNOWN_CHANNEL = b"Unknown channel ID: "  # the SDK's words (ConnectedClient::on_subscribe)
+_UNKNOWN_CHANNEL_TEXT = re.compile(r"Unknown channel ID: ([0-9]{1,10})")
+_ERROR_LEVEL = 2  # a status's level: 0 info, 1 warning, 2 error
+_V = TypeVar("_V")
 _PROTOCOL_HEADER = b"sec-websocket-protocol"
 _REASONS = {403: "Forbidden", 503: "Service Unavailable"}
 
@@ -150,29 +163,29 @@ def _shut_down(connection: socket.socket) -> None:
         connection.shutdown(socket.SHUT_RDWR)
 
 
-class Connection:
-    """One relayed client, as a `Reader` sees it: its address, and `send_text` to answer it alone."""
+class _Outbound:
+    """One direction of a relayed connection, into which the front puts frames of its own, each
+    where a message of the relayed stream ends (never inside one)."""
 
-    def __init__(self, address: str, client: socket.socket) -> None:
-        self.address = address
-        self._client = client
-        self._ends = MessageEnds()  # where the SDK's messages to this client end
-        self._pending: list[bytes] = []  # frames of ours waiting for the end of the SDK's message under way
-        self._lock = threading.Lock()  # one writer at a time on the client's socket
+    def __init__(self, target: socket.socket, hold_text_bytes: int = 0) -> None:
+        self._target = target
+        self._stream = RelayedStream(hold_text_bytes)
+        self._pending: list[bytes] = []  # frames of ours waiting for the end of the message under way
+        self._lock = threading.Lock()  # one writer at a time on the target socket
+        self.framed = True  # false: the stream is no WebSocket's, passed as it comes
 
-    def __repr__(self) -> str:
-        return f"foxglove client {self.address}"
-
-    def send_text(self, text: str) -> bool:
-        """Put a text frame into this client's stream at the next end of one of the SDK's messages;
-        False when it cannot (the stream stayed busy for INJECT_WAIT_SECONDS, MAX_PENDING bytes of
-        ours wait already, or the client is gone)."""
+    def insert(self, make: Callable[[], bytes | None]) -> bool:
+        """Put the frame `make` returns (called while no byte of the stream moves; None: nothing to
+        put) in at the stream's next message end; False when it cannot (the stream stayed busy for
+        INJECT_WAIT_SECONDS, MAX_PENDING bytes of ours wait already, or the socket is gone)."""
         if not self._lock.acquire(timeout=INJECT_WAIT_SECONDS):
             return False
         try:
-            frame = text_frame(text)
-            if self._ends.between:
-                self._client.sendall(frame)
+            frame = make()
+            if frame is None:
+                return True
+            if self._stream.between:
+                self._target.sendall(frame)
             elif sum(map(len, self._pending)) + len(frame) > MAX_PENDING:
                 return False
             else:
@@ -183,17 +196,221 @@ class Connection:
         finally:
             self._lock.release()
 
-    def relay(self, chunk: memoryview) -> None:
-        """Send a chunk of the SDK's stream on to the client, with any frame of ours that waited
-        inserted where the SDK's message under way ends."""
+    def relay(self, chunk: memoryview, keep: Callable[[bytes], bool] | None = None) -> None:
+        """Send a chunk of the relayed stream on, with any frame of ours that waited put in where a
+        message ends; a text message held back whole goes on unless `keep` says no to its payload."""
         with self._lock:
-            end = self._ends.feed(chunk)
-            if self._pending and end is not None:
-                self._client.sendall(chunk[:end])
-                self._client.sendall(b"".join(self._pending))
-                self._pending.clear()
-                chunk = chunk[end:]
-            self._client.sendall(chunk)
+            if not self.framed:
+                self._target.sendall(chunk)
+                return
+            for piece in self._stream.feed(chunk, cut_first_end=bool(self._pending)):
+                if piece.text is None or keep is None or keep(piece.text):
+                    self._target.sendall(piece.data)
+                if piece.ends_message and self._pending:
+                    self._target.sendall(b"".join(self._pending))
+                    self._pending.clear()
+
+
+def _json_object(payload: bytes) -> dict[str, Any]:
+    """A JSON text's object, or {} for anything else (what is malformed is the SDK's to answer)."""
+    try:
+        value = json.loads(payload)
+    except (ValueError, RecursionError):
+        return {}
+    return value if isinstance(value, dict) else {}
+
+
+def _ids(value: object) -> list[int]:
+    """The ids (u32) of a JSON list, others left out."""
+    return [each for each in value if _is_id(each)] if isinstance(value, list) else []
+
+
+def _is_id(value: object) -> TypeGuard[int]:
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value < 1 << 32
+
+
+class Resubscriptions:
+    """One client's subscriptions, sent to the SDK again when it refused one only because it had
+    not yet listed a channel it had already advertised to that client.
+
+    The SDK's order (foxglove-sdk, rust/foxglove/src/websocket/connected_client.rs, in 0.30.3 as
+    on its main branch): `ConnectedClient::advertise_channels` sends the `advertise` message first
+    and adds the channels to that client's channel map after it; `ConnectedClient::on_subscribe`
+    drops each subscription whose channel is not in that map, answers the client with an error
+    status "Unknown channel ID: N" and never calls the server listener's `on_subscribe`. A client
+    that subscribes the moment it reads the advertise (Foxglove's app does) wins that race when
+    the advertising thread is preempted between those two steps, as on a loaded machine: its
+    panel stays empty, and a lazy route of ours never hears of its subscriber.
+
+    So the front remembers, per client, the subscriptions it sends (subscription id -> channel id)
+    and the channels the SDK advertised to it and did not unadvertise, at most MAX_SUBSCRIPTIONS
+    of each (past that the oldest are forgotten); an unsubscribe forgets its subscriptions. When
+    the SDK answers that status for a channel that is both, the front holds the status back
+    (a whole message: the client's stream stays well formed) and sends the client's
+    subscriptions of that channel again, as a subscribe op of its own between two of the client's
+    messages, after the next of RESUBSCRIBE_DELAYS (the map is filled a moment later). The client
+    never sees an error that was not its own; after the last attempt the status reaches it.
+
+    Reading the SDK's stream for this costs little: only its text messages (JSON, rare) are read,
+    up to MAX_SDK_TEXT (a longer one passes unread: its channels are not known as advertised);
+    binary message data passes as views of the bytes received, never copied. The SDK's WebSocket
+    library (tungstenite 0.29, through tokio-tungstenite, built without compression) negotiates
+    no extension, so its frames have RSV1 clear; one that had it would pass unread.
+
+    The SDK answers the same words to message data a client publishes on a client channel it has
+    not advertised (`on_message_data`). Should that id also be a server channel the client
+    subscribed to, the subscription is sent again (the SDK then warns that it is already
+    subscribed) where the error would have been.
+    """
+
+    def __init__(self) -> None:
+        self._subscriptions: dict[int, int] = {}  # subscription id -> channel id, oldest first
+        self._attempts: dict[int, int] = {}  # subscription id -> times sent again
+        self._advertised: dict[int, None] = {}  # channel ids advertised, oldest first (an ordered set)
+        self._lock = threading.Lock()  # the client's thread writes, the SDK's thread reads
+
+    def client_said(self, payload: bytes) -> None:
+        """Read a text message of the client's: remember its subscriptions, forget those it ends."""
+        if b'"subscribe"' not in payload and b'"unsubscribe"' not in payload:  # parsing only what can matter
+            return
+        message = _json_object(payload)
+        with self._lock:
+            if message.get("op") == "subscribe" and isinstance(message.get("subscriptions"), list):
+                for entry in message["subscriptions"]:
+                    if isinstance(entry, dict) and _is_id(entry.get("id")) and _is_id(entry.get("channelId")):
+                        self._remember(self._subscriptions, entry["id"], entry["channelId"])
+                        self._attempts.pop(entry["id"], None)
+            elif message.get("op") == "unsubscribe":
+                for subscription in _ids(message.get("subscriptionIds")):
+                    self._subscriptions.pop(subscription, None)
+                    self._attempts.pop(subscription, None)
+
+    def server_said(self, payload: bytes) -> tuple[int, float] | None:
+        """Read a text message of the SDK's to this client. For the status that refused a
+        subscription of a channel advertised to it: the channel, and how long to wait before
+        sending its subscriptions again (the status is then not passed on); else None."""
+        if b'"advertise"' not in payload and b'"unadvertise"' not in payload and _UNKNOWN_CHANNEL not in payload:
+            return None
+        message = _json_object(payload)
+        op = message.get("op")
+        with self._lock:
+            if op == "advertise" and isinstance(message.get("channels"), list):
+                for channel in message["channels"]:
+                    if isinstance(channel, dict) and _is_id(channel.get("id")):
+                        self._remember(self._advertised, channel["id"], None)
+            elif op == "unadvertise":
+                for channel in _ids(message.get("channelIds")):
+                    self._advertised.pop(channel, None)
+            elif op == "status" and message.get("level") == _ERROR_LEVEL and isinstance(message.get("message"), str):
+                return self._retry(message["message"])
+        return None
+
+    def _retry(self, text: str) -> tuple[int, float] | None:
+        found = _UNKNOWN_CHANNEL_TEXT.fullmatch(text)
+        channel = int(found[1]) if found else -1
+        if channel not in self._advertised:
+            return None
+        waiting = [each for each, subscribed in self._subscriptions.items() if subscribed == channel
+                   and self._attempts.get(each, 0) < len(RESUBSCRIBE_DELAYS)]  # fmt: skip
+        if not waiting:
+            return None
+        attempt = min(self._attempts.get(each, 0) for each in waiting)
+        for each in waiting:
+            self._attempts[each] = self._attempts.get(each, 0) + 1
+        return channel, RESUBSCRIBE_DELAYS[attempt]
+
+    def subscribe_op(self, channel: int) -> tuple[str, int] | None:
+        """The subscribe op of the client's subscriptions of `channel` it has not ended, and how
+        many they are; None when it has ended them all."""
+        with self._lock:
+            entries = [{"id": each, "channelId": channel} for each, subscribed in self._subscriptions.items()
+                       if subscribed == channel]  # fmt: skip
+        if not entries:
+            return None
+        return json.dumps({"op": "subscribe", "subscriptions": entries}), len(entries)
+
+    @staticmethod
+    def _remember(kept: dict[int, _V], key: int, value: _V) -> None:
+        """Keep `key` as the newest entry of `kept`, the oldest forgotten past MAX_SUBSCRIPTIONS."""
+        kept.pop(key, None)
+        kept[key] = value
+        if len(kept) > MAX_SUBSCRIPTIONS:
+            del kept[next(iter(kept))]
+
+
+class Connection:
+    """One relayed client, as a `Reader` sees it: its address, and `send_text` to answer it alone.
+    Both directions of its bytes go through it: what the SDK sends to be read just enough for
+    `Resubscriptions`, what the client sends for its subscriptions."""
+
+    def __init__(
+        self, address: str, client: socket.socket, sdk: socket.socket, tally: Callable[[str, int], None] | None = None
+    ) -> None:
+        self.address = address
+        self._to_client = _Outbound(client, MAX_SDK_TEXT)
+        self._to_sdk = _Outbound(sdk)
+        self._subscriptions = Resubscriptions()
+        self._tally = tally
+
+    @property
+    def framed(self) -> bool:
+        """False once the SDK did not upgrade the connection: its bytes and the client's pass unread."""
+        return self._to_client.framed
+
+    @framed.setter
+    def framed(self, framed: bool) -> None:
+        self._to_client.framed = self._to_sdk.framed = framed
+
+    def __repr__(self) -> str:
+        return f"foxglove client {self.address}"
+
+    def send_text(self, text: str) -> bool:
+        """Put a text frame into this client's stream at the next end of one of the SDK's messages;
+        False when it cannot (the stream stayed busy for INJECT_WAIT_SECONDS, MAX_PENDING bytes of
+        ours wait already, or the client is gone)."""
+        frame = text_frame(text)
+        return self._to_client.insert(lambda: frame)
+
+    def relay(self, chunk: memoryview) -> None:
+        """Send a chunk of the SDK's stream on to the client (frames of ours go in between its
+        messages; a status of a subscription the SDK refused too early is held back)."""
+        self._to_client.relay(chunk, self._passes)
+
+    def forward(self, chunk: memoryview, read: list[Message]) -> None:
+        """Send a chunk of the client's stream on to the SDK; `read`: the messages it completed
+        (read before the bytes go on, so that the SDK cannot answer a subscription not yet known)."""
+        for message in read:
+            if message.opcode == TEXT and message.skipped is None:
+                self._subscriptions.client_said(message.payload)
+        self._to_sdk.relay(chunk)
+
+    def _passes(self, text: bytes) -> bool:
+        """Whether a text message of the SDK's goes on to the client (see `Resubscriptions`)."""
+        retry = self._subscriptions.server_said(text)
+        if retry is None:
+            return True
+        # On a thread of its own: the SDK's stream to the client never waits for the client's to the SDK.
+        timer = threading.Timer(retry[1], self._resubscribe, args=(retry[0],))
+        timer.daemon = True
+        timer.start()
+        return False
+
+    def _resubscribe(self, channel: int) -> None:
+        sent = 0
+
+        def frame() -> bytes | None:  # asked while the client's stream stands still: never after its unsubscribe
+            nonlocal sent
+            op = self._subscriptions.subscribe_op(channel)
+            if op is None:
+                return None
+            text, sent = op
+            return text_frame(text, mask=os.urandom(4))  # a client's frame: masked
+
+        if self._to_sdk.insert(frame) and sent:
+            log.debug("%s: the SDK refused a subscription of channel %d it had advertised but not yet listed; "
+                      "sent again", self, channel)  # fmt: skip
+            if self._tally is not None:
+                self._tally("resubscribed", sent)
 
 
 class Reader(Protocol):
@@ -209,9 +426,9 @@ class Reader(Protocol):
 class _Relay:
     """One client connection and its connection to the SDK, relayed both ways by two threads."""
 
-    def __init__(self, client: socket.socket, sdk: socket.socket, connection: Connection | None = None) -> None:
+    def __init__(self, client: socket.socket, sdk: socket.socket, connection: Connection) -> None:
         self.sockets = (client, sdk)
-        self.connection = connection  # set when the client's messages are read along
+        self.connection = connection
         self._ended = 0
         self._lock = threading.Lock()
 
@@ -223,33 +440,35 @@ class _Relay:
         early: bytes = b"",
         max_message_bytes: int = MAX_CLIENT_MESSAGE,
     ) -> bool:
-        """Copy `source` to `target` until `source` ends; True when both directions have ended.
-        From the client with a `reader`, each whole message goes to it too (`early`: what the
-        client sent with its handshake, relayed already; a message longer than
-        `max_message_bytes` is handed over as skipped); from the SDK with a `connection`,
-        through it (frames of ours go in between messages)."""
+        """Copy `source` to `target` through the connection until `source` ends; True when both
+        directions have ended. From the client (`early` first: what it sent with its handshake),
+        its text messages are read, and with a `reader` each whole message goes to it too (one
+        longer than `max_message_bytes` handed over as skipped)."""
         buffer = bytearray(CHUNK)
         view = memoryview(buffer)
-        connection, to_client = self.connection, source is self.sockets[1]
-        messages = ClientMessages(max_message_bytes, "foxglove.max_client_message_bytes") if reader is not None else None
-        if messages is not None and reader is not None and connection is not None:
-            for message in messages.feed(early):
-                _read(reader, connection, message)
+        from_client = source is self.sockets[0]
+        messages = ClientMessages(max_message_bytes, "foxglove.max_client_message_bytes", binary=reader is not None)
         try:
+            if from_client and early:
+                self._from_client(memoryview(early), messages, reader)
             while received := source.recv_into(buffer):
-                if to_client and connection is not None:
-                    connection.relay(view[:received])
+                if from_client:
+                    self._from_client(view[:received], messages, reader)
                 else:
-                    target.sendall(view[:received])
-                if messages is not None and reader is not None and connection is not None:
-                    for message in messages.feed(view[:received]):
-                        _read(reader, connection, message)
+                    self.connection.relay(view[:received])
             target.shutdown(socket.SHUT_WR)  # the other direction may still carry a close frame
         except OSError:  # a reset or a close on either side ends both directions
             self.abort()
         with self._lock:
             self._ended += 1
             return self._ended == 2
+
+    def _from_client(self, chunk: memoryview, messages: ClientMessages, reader: Reader | None) -> None:
+        read = messages.feed(chunk) if self.connection.framed else []
+        self.connection.forward(chunk, read)
+        if reader is not None:
+            for message in read:
+                _read(reader, self.connection, message)
 
     def abort(self) -> None:
         """Wake both pumps (they see the connection end); the sockets close when both have."""
@@ -335,19 +554,18 @@ class SubprotocolFront:
             self._count("sdk_unreachable", error)
             client.close()
             return
-        connection = Connection(address, client) if self._reader is not None else None
+        connection = Connection(address, client, sdk, self._tally)
         relay = _Relay(client, sdk, connection)
         with self._lock:
             self._relays.add(relay)
         try:
-            offered, rest = self._handshake(client, sdk, request, early)
+            offered, rest, upgraded = self._handshake(client, sdk, request)
             # The SDK's log names the relay's own address for this client: say which is which.
             log.info("foxglove client %s (subprotocols %s) is %s to the SDK's server",
                      address, ", ".join(offered) or "none", _address(sdk.getsockname()))  # fmt: skip
-            if connection is not None:
-                connection.relay(memoryview(rest))  # the SDK's first frames: from here on, its messages are tracked
-            else:
-                client.sendall(rest)
+            if not upgraded:  # a refusal's body and whatever follows are no WebSocket frames
+                connection.framed = False
+            connection.relay(memoryview(rest))  # the SDK's first frames: from here on, its messages are tracked
         except (HandshakeError, OSError) as error:
             self._count("bad_handshake", error)
             self._forget(relay)
@@ -390,17 +608,17 @@ class SubprotocolFront:
         with self._lock:
             self._admitted -= 1
 
-    def _handshake(
-        self, client: socket.socket, sdk: socket.socket, request: bytes, early: bytes
-    ) -> tuple[list[str], bytes]:
+    def _handshake(self, client: socket.socket, sdk: socket.socket, request: bytes) -> tuple[list[str], bytes, bool]:
         """Pass the client's request on and the SDK's answer head back, renamed for an older name;
-        the subprotocols the client offered, and what the SDK sent after its head."""
+        the subprotocols the client offered, what the SDK sent after its head, and whether it
+        upgraded the connection (101). (What the client sent after its request, `early`, goes on
+        through its relay.)"""
         older = older_name_asked(request) if self._rename else None
         # None: the SDK's own name, or none it knows: the SDK answers as it does.
-        sdk.sendall((request if older is None else naming(request, SDK_SUBPROTOCOL)) + early)
+        sdk.sendall(request if older is None else naming(request, SDK_SUBPROTOCOL))
         answer, rest = read_head(sdk)
         client.sendall(answer if older is None else naming(answer, older))
-        return subprotocols(request), rest
+        return subprotocols(request), rest, answer.split(b" ", 2)[1:2] == [b"101"]
 
     def _pump(self, relay: _Relay, source: socket.socket, target: socket.socket, early: bytes = b"") -> None:
         reader = self._reader if source is relay.sockets[0] else None  # the client's side is read along
@@ -412,7 +630,7 @@ class SubprotocolFront:
             self._relays.discard(relay)
             self._admitted -= 1
         relay.close()
-        if self._reader is not None and relay.connection is not None:
+        if self._reader is not None:
             try:
                 self._reader.closed(relay.connection)
             except Exception:
@@ -423,6 +641,11 @@ class SubprotocolFront:
             self._errors[kind] += 1
         log.warning("foxglove client connection dropped (%s): %s", kind.replace("_", " "), error)
 
+    def _tally(self, kind: str, count: int) -> None:
+        """Count what the front did for a client that is no error of the client's (no log line)."""
+        with self._lock:
+            self._errors[kind] += count
+
     def clients(self) -> int:
         """Clients admitted and not yet gone."""
         with self._lock:
@@ -430,7 +653,9 @@ class SubprotocolFront:
 
     def errors(self) -> dict[str, int]:
         """Connections dropped or refused before they were relayed, by kind (`bad_handshake`,
-        `sdk_unreachable`, `origin_refused`, `too_many_clients`)."""
+        `sdk_unreachable`, `origin_refused`, `too_many_clients`); and `resubscribed`: clients'
+        subscriptions the SDK refused before it had listed their channel, sent again
+        (`Resubscriptions`)."""
         with self._lock:
             return dict(self._errors)
 
@@ -453,10 +678,14 @@ __all__ = [
     "MAX_CLIENT_MESSAGE",
     "MAX_HEAD",
     "MAX_PENDING",
+    "MAX_SDK_TEXT",
+    "MAX_SUBSCRIPTIONS",
     "OLDER_NAMES",
+    "RESUBSCRIBE_DELAYS",
     "Connection",
     "Reader",
     "Receiving",
+    "Resubscriptions",
     "SDK_SUBPROTOCOL",
     "SubprotocolFront",
     "foxglove_gate",

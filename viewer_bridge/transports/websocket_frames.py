@@ -8,15 +8,16 @@ followed by continuation frames (opcode 0), the last with FIN. Control frames (o
 9 ping, 10 pong) are never fragmented and may come between the fragments of a message.
 
 Two readers of a byte stream fed in whatever chunks the socket gives: `ClientMessages` returns
-each complete data message a client sent, unmasked; `MessageEnds` only finds where the server's
-messages end, so that a frame of the relay's own (`text_frame`) can go between two of them.
+each complete data message a client sent, unmasked; `RelayedStream` cuts a stream being relayed
+where its messages end, so that a frame of the relay's own (`text_frame`) can go between two of
+them, and holds back short text messages whole, so that the relay can read one and drop it.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["BINARY", "TEXT", "ClientMessages", "Message", "MessageEnds", "text_frame", "unmask"]
+__all__ = ["BINARY", "TEXT", "ClientMessages", "Message", "Piece", "RelayedStream", "text_frame", "unmask"]
 
 CONTINUATION, TEXT, BINARY = 0, 1, 2
 _FIN, _RSV1, _MASKED = 0x80, 0x40, 0x80
@@ -30,6 +31,15 @@ class Message:
     opcode: int
     payload: bytes
     skipped: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Piece:
+    """Bytes of a relayed stream, to send on as they are, in order."""
+
+    data: bytes | memoryview
+    ends_message: bool  # the stream's bytes up to here end with a whole message: a frame may follow
+    text: bytes | None = None  # when `data` is a text message held back whole: its payload (it may be dropped)
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,11 +86,13 @@ class ClientMessages:
     `feed(chunk)` returns the messages that chunk completed. A message longer than `max_bytes`
     or compressed (RSV1, a negotiated extension) is skipped whole, its bytes dropped as they
     come; it is returned once as a `Message` whose `skipped` says why (naming `limit_name`, the
-    setting of `max_bytes`, when it was too long).
+    setting of `max_bytes`, when it was too long). With `binary` false, binary messages are
+    dropped as they come, never returned (a reader of text messages only).
     """
 
-    def __init__(self, max_bytes: int, limit_name: str = "") -> None:
+    def __init__(self, max_bytes: int, limit_name: str = "", *, binary: bool = True) -> None:
         self.max_bytes = max_bytes
+        self._read = (TEXT, BINARY) if binary else (TEXT,)
         self._too_long = f"longer than {max_bytes} bytes" + (f" ({limit_name})" if limit_name else "")
         self._buffer = bytearray()  # bytes not yet consumed: a partial header or payload
         self._opcode: int | None = None  # the data message under way (None: none, or skipped)
@@ -107,7 +119,7 @@ class ClientMessages:
                 self._drop = header.length
                 continue
             if header.opcode != CONTINUATION:  # a new message (opcodes 3 to 7 are reserved: dropped)
-                self._opcode = header.opcode if header.opcode in (TEXT, BINARY) else None
+                self._opcode = header.opcode if header.opcode in self._read else None
                 self._parts, self._joined = [], 0
                 if header.rsv1 and self._opcode is not None:
                     messages.append(Message(self._opcode, b"", "compressed (an extension the bridge does not read)"))
@@ -131,49 +143,89 @@ class ClientMessages:
         return messages
 
 
-class MessageEnds:
-    """Where the messages of a server's byte stream (unmasked frames) end, fed chunk by chunk."""
+class RelayedStream:
+    """A relayed byte stream, fed chunk by chunk, cut into the pieces a relay sends on in order.
 
-    def __init__(self) -> None:
-        self._header = bytearray()  # a header cut by a chunk's end
+    Most bytes pass as views of the chunk they came in, never copied (binary message data is most
+    of the traffic). A piece is cut where a message ends when the relay asks (`cut_first_end`: a
+    frame of its own waits to go in there), and around each text frame this reader holds back:
+    one with FIN, unmasked and uncompressed (no RSV1), starting a message, of at most
+    `hold_bytes`. Such a frame is returned whole, with its payload, once its last byte has come:
+    the relay reads it and may drop it (a whole message: what the other end gets stays well
+    formed). A frame header cut by a chunk's end is held back until the rest of it comes, so that
+    a held frame is never partly sent.
+    """
+
+    def __init__(self, hold_bytes: int = 0) -> None:
+        self.hold_bytes = hold_bytes
+        self._header = bytearray()  # the header under way, cut by a chunk's end
+        self._carried = 0  # of its bytes, those that came in earlier chunks
         self._left = 0  # payload bytes of the current frame still to come
+        self._held: bytearray | None = None  # the text frame held back, as far as it has come
+        self._held_header = 0  # the size of its header
         self._in_message = False  # between the fragments of a data message
-        self._frame_ends_message = False
 
     @property
     def between(self) -> bool:
-        """True when everything fed so far ends with a whole message (a frame may go in here)."""
-        return self._left == 0 and not self._header and not self._in_message
+        """True when the pieces returned so far end with a whole message (a frame may go in now)."""
+        return not self._in_message and (self._left == 0 or self._held is not None)
 
-    def feed(self, chunk: memoryview) -> int | None:
-        """Consume `chunk`; the offset in it just after its first message end, or None."""
-        first: int | None = None
-        at, size = 0, len(chunk)
+    def feed(self, chunk: memoryview, cut_first_end: bool = False) -> list[Piece]:
+        """Consume `chunk`; its bytes in pieces (those held back come in a later call's pieces)."""
+        pieces: list[Piece] = []
+        self._carried = len(self._header)
+        start = header_at = at = 0  # start: the first byte in no piece yet; header_at: where the header began
+        cut = not cut_first_end  # True once no cut is wanted
+        size = len(chunk)
         while at < size:
             if self._left:
                 taken = min(self._left, size - at)
+                if self._held is not None:
+                    self._held += chunk[at : at + taken]
                 self._left -= taken
                 at += taken
             else:
-                needed = self._header_bytes_needed()
-                taken = min(needed, size - at)
+                if not self._header:
+                    header_at = at
+                taken = min(self._header_bytes_needed(), size - at)
                 self._header += chunk[at : at + taken]
                 at += taken
                 header = _header(self._header)
                 if header is None or len(self._header) < header.size:
                     continue
-                self._header.clear()
-                self._left = header.length
-                if header.opcode < 8:  # data: a message ends with its frame that has FIN
-                    self._in_message = not header.fin
-                    self._frame_ends_message = header.fin
-                else:  # control: ends no message of its own between fragments
-                    self._frame_ends_message = not self._in_message
-            if self._left == 0 and not self._header and self._frame_ends_message:
-                self._frame_ends_message = False
-                if first is None:
-                    first = at
-        return first
+                start = self._begin_frame(header, chunk, start, header_at, at, pieces)
+            if self._left == 0 and not self._header:  # a frame's last byte
+                if self._held is not None:
+                    pieces.append(Piece(bytes(self._held), True, bytes(self._held[self._held_header :])))
+                    self._held, start = None, at
+                elif not cut and not self._in_message:
+                    pieces.append(Piece(chunk[start:at], True))
+                    start, cut = at, True
+        end = start if self._held is not None else header_at if self._header else size
+        if end > start:
+            pieces.append(Piece(chunk[start:end], not self._in_message and self._left == 0))
+        return pieces
+
+    def _begin_frame(
+        self, header: _Header, chunk: memoryview, start: int, header_at: int, at: int, pieces: list[Piece]
+    ) -> int:
+        """Take a whole header: hold its frame back, or pass it (with the part of it an earlier
+        chunk brought); the new start of the bytes in no piece yet."""
+        self._left = header.length
+        holds = (header.opcode == TEXT and header.fin and not header.rsv1 and not header.mask
+                 and not self._in_message and header.length <= self.hold_bytes)  # fmt: skip
+        if holds:
+            if header_at > start:  # what came before it ends a message: a text frame starts one
+                pieces.append(Piece(chunk[start:header_at], True))
+            self._held, self._held_header = bytearray(self._header), header.size
+            start = at
+        elif self._carried:  # the header began in an earlier chunk, before any byte of this one
+            pieces.append(Piece(bytes(self._header[: self._carried]), False))
+        self._carried = 0
+        self._header.clear()
+        if header.opcode < 8:  # data: a message ends with its frame that has FIN
+            self._in_message = not header.fin
+        return start
 
     def _header_bytes_needed(self) -> int:
         """How many more bytes the header under way may take (at least the next one)."""
@@ -185,14 +237,16 @@ class MessageEnds:
         return size - have
 
 
-def text_frame(text: str) -> bytes:
-    """One unmasked, unfragmented text frame (a server's) carrying `text`."""
+def text_frame(text: str, mask: bytes = b"") -> bytes:
+    """One unfragmented text frame carrying `text`: a server's (unmasked), or with a 4-byte
+    `mask` a client's (its payload masked, as a server requires of every client frame)."""
     payload = text.encode()
     count = len(payload)
+    masked = _MASKED if mask else 0
     if count < 126:
-        head = bytes([_FIN | TEXT, count])
+        head = bytes([_FIN | TEXT, masked | count])
     elif count < 1 << 16:
-        head = bytes([_FIN | TEXT, 126]) + count.to_bytes(2, "big")
+        head = bytes([_FIN | TEXT, masked | 126]) + count.to_bytes(2, "big")
     else:
-        head = bytes([_FIN | TEXT, 127]) + count.to_bytes(8, "big")
-    return head + payload
+        head = bytes([_FIN | TEXT, masked | 127]) + count.to_bytes(8, "big")
+    return head + mask + unmask(payload, mask)
