@@ -11,7 +11,8 @@ once-per-load SceneUpdate of a 1000-geometry scene.
 Then the live server: from `publish` of those bytes to a WebSocket client's receipt, a client
 connected straight to the SDK's server (the baseline: what the SDK costs alone) beside clients
 connected through our front (viewer_bridge/transports/foxglove_front.py) with either subprotocol name,
-and through the front of a read-only server (no client publishing: nothing read along).
+and through the front of a read-only server (no client publishing: it reads along only the
+subscriptions, and the SDK's text messages, to send again one the SDK refused too early).
 Two figures each: one message at a time (publish, wait for it: the latency), and a burst of
 messages back to back (the time per message when the relay is kept busy).
 """
@@ -104,7 +105,7 @@ def live_paths(payload: bytes, count: int, rounds: int = 5) -> dict[str, tuple[f
     """(one at a time, in a burst) seconds per message for each way of reaching the server, the
     best of `rounds` alternating rounds (this machine's load drifts). The default server reads
     along what clients send (client publishing) and tracks where the SDK's messages end; a
-    read-only one (`client_publish: false`) only relays."""
+    read-only one (`client_publish: false`) reads along only what repairs a refused subscription."""
     transport = FoxgloveTransport(FoxgloveSettings(port=0))
     read_only = FoxgloveTransport(FoxgloveSettings(port=0, client_publish=False))
     try:
