@@ -6,9 +6,10 @@ Each target (tests/fuzz/targets.py: the LCM codecs of every schema, Drake's load
 decoders, the tree viewer's request path, the ign protobuf paths, ign discovery datagrams, the
 glTF reader, the render server's form parser, contact results and point clouds both ways, the
 config loader, rmw_zenoh's data keys, liveliness tokens and attachments, what a Foxglove client
-sends through the front (its byte stream and its framed messages), a request's head and origin at
-the front's door, and the allowed-origin matcher) runs in a process of its
-own under libFuzzer, with the bridge's modules instrumented for coverage, for `--runs`
+sends through the front (its byte stream and its framed messages), what the SDK sends back
+through the front's relay, a request's head and origin at the front's door, and the
+allowed-origin matcher) runs under libFuzzer in a process of its own
+(a fork of one process that instrumented the bridge's modules for coverage once), for `--runs`
 executions. Its corpus is kept in `.fuzz-corpus/<target>/` across runs and seeded from a real
 Drake capture (tests/fuzz/seeds.py). A finding is an exception outside the target's documented
 error types, a crash, an input slower than `--timeout` seconds (a hang) or the process passing

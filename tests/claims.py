@@ -68,3 +68,13 @@ def lcm_port(offset: int) -> int:
         found = claim("lcm-ports", LCM_BLOCKS, pid)
         _lcm_block = found if found is not None else LCM_BLOCKS[pid % len(LCM_BLOCKS)]
     return LCM_FIRST_PORT + LCM_BLOCK * _lcm_block + offset
+
+
+def tcp_port(offset: int) -> int:
+    """A TCP port for a server a test starts long after choosing it: port `offset` of this
+    process's LCM block (TCP and UDP numbers are apart). A free port asked of the kernel when
+    the module loads is an ephemeral one, which any outgoing connection on the machine may take
+    before the test binds it (the docs tests' servers start minutes after collection); the
+    block is above the ephemeral range and no other test process's."""
+    return lcm_port(offset)
+

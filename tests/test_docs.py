@@ -22,7 +22,6 @@ from __future__ import annotations
 import os
 import re
 import signal
-import socket
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -31,6 +30,7 @@ from typing import IO
 
 import pytest
 
+from tests.claims import tcp_port
 from tests.conftest import lcm_url
 
 pytestmark = pytest.mark.slow
@@ -39,14 +39,8 @@ PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 LCM = lcm_url(31)  # this test's own LCM bus: the default one is shared by the machine
 
 
-def _free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
-PORT = _free_port()  # for servers the pages run on a fixed port
-ZENOH_PORT = _free_port()  # for the Zenoh router the Zenoh guide opens
+PORT = tcp_port(98)  # for servers the pages run on a fixed port
+ZENOH_PORT = tcp_port(99)  # for the Zenoh router the Zenoh guide opens
 
 # (what the page says, as a regex; what runs instead (`{lcm}`, `{port}`, `{zenoh_port}` filled in
 # as it runs), a newline between several commands; why). Applied to Python blocks too.

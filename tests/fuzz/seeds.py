@@ -189,12 +189,25 @@ def foxglove_seeds() -> Seeds:
     return {
         "foxglove_client_messages": [b"\x00" + record for record in records] + [b"\x03" + every],
         "foxglove_client_stream": [b"\x00" + _frames(record) for record in records] + [b"\x10" + _frames(every)],
+        "foxglove_sdk_stream": [b"\x00" + _sdk_frames(texts, data), b"\x06" + _sdk_frames(texts, data)],
         "foxglove_handshake": [b"\x40" + _request(origin) for origin in
                                (None, "https://app.foxglove.dev", "http://localhost:3000", "https://evil.example",
                                 "https://viewer.lab.example", "http://[::1]:8080")],  # fmt: skip
         "origin_match": [b"https://*.lab.example\0https://viewer.lab.example", b"http://[::1]:*\0http://[::1]:8080",
                          b"*\0https://evil.example/x", b"https://*:*\0HTTPS://A:1"],  # fmt: skip
     }
+
+
+def _sdk_frames(texts: list[str], data: bytes) -> bytes:
+    """What the SDK sends a client: text messages (a refused subscription's status among them)
+    and message data, as unmasked frames (a 16-bit length for the longer ones)."""
+    refused = json.dumps({"op": "status", "level": 2, "message": "Unknown channel ID: 2"})
+    frames = b""
+    for opcode, payload in [(0x81, text.encode()) for text in [*texts, refused]] + [(0x82, data)]:
+        length = len(payload)
+        frames += bytes([opcode]) + (bytes([length]) if length < 126 else bytes([126]) + length.to_bytes(2, "big"))
+        frames += payload
+    return frames
 
 
 def _frames(records: bytes) -> bytes:

@@ -82,7 +82,14 @@ from viewer_bridge.transports.foxglove_front import (
 from viewer_bridge.transports.ign_discovery import ANY_TYPE, Discovery, Record, is_tcp_address
 from viewer_bridge.transports.ign_environment import NodeEnvironment
 from viewer_bridge.transports.origins import FOXGLOVE_APPS, Origins, origin_matches
-from viewer_bridge.transports.websocket_frames import BINARY, TEXT, ClientMessages, Message, unmask
+from viewer_bridge.transports.websocket_frames import (
+    BINARY,
+    TEXT,
+    ClientMessages,
+    Message,
+    RelayedStream,
+    unmask,
+)
 from viewer_bridge.transports.zenoh import keys as zenoh_keys
 
 
@@ -738,6 +745,33 @@ def origin_match(data: bytes) -> object:
 
 
 register(Target("foxglove_client_stream", foxglove_client_stream, (), ("foxglove_client_stream",)))
+
+
+SDK_TEXT_HELD = 4096  # the front holds back up to MAX_SDK_TEXT; a smaller limit reaches both sides of it
+
+
+def foxglove_sdk_stream(data: bytes) -> object:
+    """What the SDK sends a client, through the front's relay (`RelayedStream`): the first byte
+    picks the size of each read (1 + 8 x the byte: 1 to 2041 bytes, so that a long stream is not
+    always read byte by byte); every other read asks for a cut at the next message end. Every
+    byte must pass on in order, nothing held back but one frame under way, and a text frame held
+    back whole must end with the payload it is read as."""
+    chunk, stream = 1 + 8 * (data[0] if data else 0), data[1:]
+    relayed = RelayedStream(SDK_TEXT_HELD)
+    out = bytearray()
+    for index, start in enumerate(range(0, len(stream), chunk)):
+        for piece in relayed.feed(memoryview(stream)[start : start + chunk], cut_first_end=index % 2 == 1):
+            if piece.text is not None and not bytes(piece.data).endswith(piece.text):
+                raise AssertionError("a held text frame's payload is not its last bytes")
+            out += piece.data
+    if not stream.startswith(out):
+        raise AssertionError("relayed bytes differ from the stream's, or came out of order")
+    if len(stream) - len(out) > SDK_TEXT_HELD + 14:  # a held frame (14: the longest header)
+        raise AssertionError(f"{len(stream) - len(out)} bytes held back at the end")
+    return out
+
+
+register(Target("foxglove_sdk_stream", foxglove_sdk_stream, (), ("foxglove_sdk_stream",)))
 register(Target("foxglove_client_messages", foxglove_client_messages, (), ("foxglove_client_messages",)))
 register(Target("foxglove_handshake", foxglove_handshake, (HandshakeError,), ("foxglove_handshake",)))
 register(Target("origin_match", origin_match, (), ("origin_match",)))
