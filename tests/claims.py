@@ -77,4 +77,3 @@ def tcp_port(offset: int) -> int:
     before the test binds it (the docs tests' servers start minutes after collection); the
     block is above the ephemeral range and no other test process's."""
     return lcm_port(offset)
-
