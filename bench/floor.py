@@ -11,6 +11,13 @@ other core), and reads its CPU time per message from /proc/self/stat. The rows a
 CPU per message on its `relay` (the bytes as they are) and `lcm_bus` (lcm_to_ros: transcoded to
 CDR) routes as multiples of the floor's, measured in the same run: what the router itself costs
 over the bare minimum, and so what one core can carry before `--workers` must share the load.
+
+At issue 42's rate (30,000 messages a second, bench/lcm_routes.py's delivery rows) the floor runs
+again, onto Zenoh and onto ROS 2 over DDS (an rclpy publisher per channel, the LCM bytes published
+as they are as serialised messages: about the size of their CDR, 412 bytes against 468), to the
+same subscribers as the bridge's rows: what a bare Python process on the same core delivers there.
+Those rows say how much of what the bridge's rows miss this machine's one core leaves to any
+Python process.
 """
 
 from __future__ import annotations
@@ -22,12 +29,13 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import lcm
 from common import Measure, Size, settle
-from lcm_routes import CHANNELS, RATE_HZ, Counting, compare, publish
+from lcm_routes import CHANNELS, FAST_HZ, RATE_HZ, Counting, DdsCounting, compare, publish
 from router import URL
 from zenoh_routes import zenoh_session
 
@@ -40,18 +48,43 @@ def cpu_seconds() -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def serve(url: str, endpoint: str) -> None:
-    """The floor process: every LCM channel onto Zenoh; a line on stdin asks for its count and CPU."""
-    os.sched_setaffinity(0, {0})
+def zenoh_publisher(endpoint: str) -> tuple[Callable[[str], Callable[[bytes], Any]], Callable[[], Any]]:
+    """(a publish function per channel, on key lcm/<channel>; close)."""
     session = zenoh_session("client", {"connect": [endpoint]})
-    publishers: dict[str, Any] = {}
+    return (lambda channel: session.declare_publisher(f"lcm/{channel}").put), session.close
+
+
+def dds_publisher() -> tuple[Callable[[str], Callable[[bytes], Any]], Callable[[], Any]]:
+    """(a publish function per channel, rclpy on /lcm/<channel> as the bridge's lcm_bus; close)."""
+    import rclpy
+    from rclpy.node import Node
+
+    from viewer_bridge.transports.ros2 import message_class, qos_profile
+
+    rclpy.init()
+    node = Node("bench_floor")
+    status = message_class("drake_lcm_msgs/msg/LcmtIiwaStatus")
+
+    def close() -> None:
+        node.destroy_node()  # type: ignore[no-untyped-call]
+        rclpy.shutdown()
+
+    return (lambda channel: node.create_publisher(status, f"/lcm/{channel}", qos_profile(100)).publish), close
+
+
+def serve(url: str, endpoint: str, target: str) -> None:
+    """The floor process: every LCM channel onto `target` (zenoh or dds); a line on stdin asks for
+    its count and CPU."""
+    os.sched_setaffinity(0, {0})
+    publisher_for, close = dds_publisher() if target == "dds" else zenoh_publisher(endpoint)
+    publishers: dict[str, Callable[[bytes], Any]] = {}
     received = [0]
 
     def forward(channel: str, data: bytes) -> None:
-        publisher = publishers.get(channel)
-        if publisher is None:
-            publisher = publishers[channel] = session.declare_publisher(f"lcm/{channel}")
-        publisher.put(data)
+        put = publishers.get(channel)
+        if put is None:
+            put = publishers[channel] = publisher_for(channel)
+        put(data)
         received[0] += 1
 
     bus = lcm.LCM(url)
@@ -69,14 +102,14 @@ def serve(url: str, endpoint: str) -> None:
         print(json.dumps({"count": received[0], "cpu": cpu_seconds()}), flush=True)
     stop.set()
     thread.join()
-    session.close()  # type: ignore[no-untyped-call]
+    close()
 
 
 class Floor:
     """The floor process, started and asked from here."""
 
-    def __init__(self, endpoint: str) -> None:
-        command = [sys.executable, __file__, "--serve", URL, endpoint]
+    def __init__(self, endpoint: str, target: str) -> None:
+        command = [sys.executable, __file__, "--serve", URL, endpoint, target]
         self.process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         assert self.ask_line() == "ready"
 
@@ -96,17 +129,20 @@ class Floor:
         self.process.wait(timeout=20)
 
 
-def run_floor(folder: Path, seconds: float, endpoint: str) -> dict[str, float]:
-    """The floor under the traffic bench/lcm_routes.py gives the bridge; its figures as `run`'s."""
-    floor = Floor(endpoint)
-    subscriber = Counting(endpoint, "lcm")
+def run_floor(
+    folder: Path, seconds: float, endpoint: str, rate_hz: float = RATE_HZ, target: str = "zenoh"
+) -> dict[str, float]:
+    """The floor under the traffic bench/lcm_routes.py gives the bridge (`rate_hz` per channel, onto
+    `target`: zenoh or dds); its figures as `run`'s."""
+    floor = Floor(endpoint, target)
+    subscriber: Counting | DdsCounting = DdsCounting() if target == "dds" else Counting(endpoint, "lcm")
     bus = LcmBus(URL)
     time.sleep(1.0)
-    publish(bus, 1.0)  # every channel's publisher appears
-    time.sleep(1.0)
+    publish(bus, 1.0, rate_hz)  # every channel's publisher appears
+    time.sleep(1.0 if target == "zenoh" else 2.0)  # DDS matching takes longer
     subscriber.counting.set()
     before = floor.state()
-    sent = publish(bus, seconds)
+    sent = publish(bus, seconds, rate_hz)
     settle(lambda: subscriber.count >= sent, 2.0)  # what was queued drains: at most 2 s
     after = floor.state()
     subscriber.counting.clear()
@@ -119,15 +155,25 @@ def run_floor(folder: Path, seconds: float, endpoint: str) -> dict[str, float]:
         "cpu_us_per_message": (after["cpu"] - before["cpu"]) / max(received, 1) * 1e6,
         "sent": float(sent),
     }
-    print(f"   floor    delivered {result['delivered']:6.2f}% of {sent} messages, floor CPU "
+    print(f"   floor ({target}) delivered {result['delivered']:6.2f}% of {sent} messages, floor CPU "
           f"{result['cpu_us_per_message']:6.1f} us/message ({received:.0f} received)", flush=True)  # fmt: skip
     return result
 
 
+def at_rate(rate_hz: float) -> dict[str, Callable[[Path, float, str], dict[str, float]]]:
+    """The floor onto Zenoh and onto DDS at `rate_hz` per channel, as `compare`'s other runners."""
+
+    def runner(target: str) -> Callable[[Path, float, str], dict[str, float]]:
+        return lambda folder, seconds, endpoint: run_floor(folder, seconds, endpoint, rate_hz, target)
+
+    return {target: runner(target) for target in ("zenoh", "dds")}
+
+
 def measures(size: Size = Size.FULL) -> list[Measure]:
-    """The bridge's CPU per message on its relay and lcm_bus routes, as multiples of the floor's."""
-    best = compare(size.pick(full=10.0, quick=4.0, smoke=0.5), size.pick(full=2, quick=1, smoke=1),
-                   others={"floor": run_floor})  # fmt: skip
+    """The bridge's CPU per message on its relay and lcm_bus routes, as multiples of the floor's;
+    what the floor delivers at issue 42's 30,000 messages a second."""
+    seconds = size.pick(full=10.0, quick=4.0, smoke=0.5)
+    best = compare(seconds, size.pick(full=2, quick=1, smoke=1), others={"floor": run_floor})
     floor = best["floor"]["cpu_us_per_message"]
     setup = f"{len(CHANNELS)} channels at {RATE_HZ:g} Hz onto Zenoh, pinned to one core"
     rows = [Measure(f"floor: CPU per message of a bare lcm.subscribe('.*') -> Zenoh put process, {setup}",
@@ -136,6 +182,13 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
         ratio = best[route]["cpu_us_per_message"] / max(floor, 1e-9)
         rows.append(Measure(f"floor: bridge's {route} route CPU per message, as a multiple of the floor's, {setup}",
                             ratio, 1.0, "x", "none (reported)", None))  # fmt: skip
+    fast = compare(seconds, 1, others=at_rate(FAST_HZ), routes=())
+    for target, name in (("zenoh", "Zenoh"), ("dds", "ROS 2 over DDS (rclpy)")):
+        setup = f"{FAST_HZ * len(CHANNELS):,.0f} lcmt_iiwa_status messages/s (20 channels) onto {name}, pinned"
+        rows.append(Measure(f"floor: delivered by the bare process, {setup}", fast[target]["delivered"], None, "%",
+                            "none: what any Python process on the core carries (lcm_routes' 99.9% rows)", None))  # fmt: skip
+        rows.append(Measure(f"floor: its CPU per message, {setup}", fast[target]["cpu_us_per_message"], None,
+                            "us", "none (reported)", None))  # fmt: skip
     return rows
 
 
@@ -143,10 +196,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--serve", nargs=2, metavar=("URL", "ENDPOINT"), help=argparse.SUPPRESS)
+    parser.add_argument("--rate-hz", type=float, help=f"per channel: the floor alone at this rate (issue 42: {FAST_HZ:g})")
+    parser.add_argument("--serve", nargs=3, metavar=("URL", "ENDPOINT", "TARGET"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.serve:
         serve(*args.serve)
+        return
+    if args.rate_hz:
+        for target, figures in compare(args.seconds, 1, others=at_rate(args.rate_hz), routes=()).items():
+            print(f"   {target:<8} " + ", ".join(f"{key} {value:.4g}" for key, value in figures.items()))
         return
     best = compare(args.seconds, args.rounds, others={"floor": run_floor})
     floor = best["floor"]["cpu_us_per_message"]

@@ -182,3 +182,32 @@ def test_a_lazy_generic_route_announces_each_channels_topic_before_anyone_listen
         ("/lcm/IIWA_STATUS", "drake_lcm_msgs/msg/LcmtIiwaStatus"),
     ]
     assert not published and runner.stats.idle_skipped == 2  # nothing translated: nobody listens
+
+
+def test_a_route_keeping_every_message_translates_inline_past_the_budget_and_fills_it() -> None:
+    from tests.router.test_commands import PassThrough
+    from viewer_bridge.router.flow import InlineBudget
+    from viewer_bridge.router.runner import RouteRunner
+
+    class Slow(PassThrough):
+        def translate(self, message: Received) -> Any:
+            time.sleep(0.15)  # longer than the budget's burst (0.1 s): one translation fills it
+            return super().translate(message)
+
+    budget = InlineBudget(share=0.5, window_s=0.2)
+    sent: dict[str, list[bytes]] = {"all": [], "latest": []}
+
+    def runner(policy: str) -> RouteRunner:
+        route = Route.model_validate(
+            {"name": policy, "source": {"transport": "lcm", "name": "X"}, "translator": "lcm_relay",
+             "destination": {"transport": "lcm", "name": f"/{policy}"}, "rate": {"policy": policy}}
+        )  # fmt: skip
+        return RouteRunner(route, lambda: Slow({}), lambda name, output: CallPublisher(sent[policy].append),
+                           inline=budget)  # fmt: skip
+
+    every, newest = runner("all"), runner("latest")  # their workers are not started: what is not inline waits
+    every.offer(Received("X", b"1", 0))
+    assert not budget.allows(time.perf_counter())  # its inline time counts in the thread's budget
+    every.offer(Received("X", b"2", 0))  # past the budget, still inline
+    newest.offer(Received("X", b"3", 0))  # past the budget: handed over, to be conflated
+    assert sent == {"all": [b"1", b"2"], "latest": []} and (len(every.mailbox), len(newest.mailbox)) == (0, 1)
