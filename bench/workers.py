@@ -178,7 +178,7 @@ class Counter:
         import rclpy
 
         self.executor.shutdown(timeout_sec=1)
-        self.node.destroy_node()
+        self.node.destroy_node()  # type: ignore[no-untyped-call]
         rclpy.shutdown(context=self.context)
 
 
@@ -443,6 +443,7 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
         rows.append(Measure(f"workers: bridge CPU per draw sent (all its processes), {draws_setup}, --workers 2 {how}, "
                             f"{shared} (baseline: --workers 1, unpinned)", two["cpu_us_per_draw"],
                             one["cpu_us_per_draw"], "us", "none (reported)", None))  # fmt: skip
+        rows.append(whole_run(f"{draws_setup}, --workers 2 {how} (baseline: --workers 1, unpinned)", two, one))
     pinned = best["1 worker, pinned to CPU 0"]
     rows.append(Measure(f"workers: poses / tf / markers delivered, {draws_setup}, --workers 1 pinned to CPU 0 as "
                         "bench/router.py, publisher on CPU 1: the least of the three (baseline: --workers 1, unpinned)",
@@ -461,7 +462,18 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
     rows.append(Measure("workers: bridge CPU per message sent (all its processes), same, --workers 2 "
                         "(baseline: --workers 1)", two["cpu_us_per_message"], one["cpu_us_per_message"], "us",
                         "none (reported)", None))  # fmt: skip
+    rows.append(whole_run("same, --workers 2 (baseline: --workers 1)", two, one))
     return rows
+
+
+def whole_run(setup: str, two: dict[str, float], one: dict[str, float]) -> Measure:
+    """The CPU the whole run used, the bridge's processes and everything else it needs (publishers,
+    subscribers, the Zenoh router), in cores: near the machine's 2, the cores, not the bridge,
+    bound what a second worker can add."""
+    return Measure(f"workers: CPU the whole run used (bridge + publishers + subscribers), in cores of the "
+                   f"machine's {os.cpu_count()}, {setup}", two["cores"] + two["cores_here"],
+                   one["cores"] + one["cores_here"], "cores", "none: where it nears the cores, they bound it",
+                   None)  # fmt: skip
 
 
 def main() -> None:
