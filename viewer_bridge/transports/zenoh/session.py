@@ -120,8 +120,13 @@ class Link:
         self._transports: set[str] = set()
         self._lock = threading.Lock()
         self._stop = threading.Event()
-        self._calls = threading.Condition()  # guards `_running`, signals when a callback returns
+        # Guards `_running` and `_closing`; its condition signals `close` when the last call returns.
+        # A plain lock taken with `with` in C, and a plain flag: on every put (about 0.3 us a put
+        # against 0.75 us through the condition's own methods and the event's `is_set`).
+        self._calls_lock = threading.Lock()
+        self._calls = threading.Condition(self._calls_lock)
         self._running = 0  # callbacks inside Python now
+        self._closing = False  # set by `close` under `_calls_lock`: no callback nor put starts after it
         self._thread = threading.Thread(target=self._keep_opening, name="zenoh open", daemon=True)
 
     @property
@@ -138,17 +143,19 @@ class Link:
         `close` can wait for it. For callbacks (Zenoh calls them) and for puts (a thread of ours
         calls into Zenoh with the GIL released, and must be out before the interpreter exits)."""
 
+        lock = self._calls_lock
+
         def guarded(*args: Args.args, **kwargs: Args.kwargs) -> None:
-            with self._calls:
-                if self._stop.is_set():
+            with lock:
+                if self._closing:
                     return
                 self._running += 1
             try:
                 call(*args, **kwargs)
             finally:
-                with self._calls:
+                with lock:
                     self._running -= 1
-                    if self._stop.is_set() and self._running == 0:  # only `close` waits for this
+                    if self._closing and self._running == 0:  # only `close` waits for this
                         self._calls.notify_all()
 
         return guarded
@@ -212,8 +219,9 @@ class Link:
 
     def close(self) -> None:
         """Stop calling, let the running callbacks and puts finish, undeclare, close the session."""
-        with self._calls:
-            self._stop.set()  # under the lock: no callback nor put starts after this
+        with self._calls_lock:
+            self._closing = True  # no callback nor put starts after this
+        self._stop.set()
         if self._thread.is_alive():  # an attempt under way: a daemon left inside `zenoh.open` at exit would abort it
             self._thread.join(timeout=_CALLBACKS_DONE_S)
         with self._calls:
