@@ -14,7 +14,7 @@ over the bare minimum, and so what one core can carry before `--workers` must sh
 
 At issue 42's rate (30,000 messages a second, bench/lcm_routes.py's delivery rows) the floor runs
 again, onto Zenoh and onto ROS 2 over DDS (an rclpy publisher per channel, the LCM bytes published
-as they are as serialised messages: about the size of their CDR, 412 bytes against 468), to the
+as they are as serialised messages: about the size of their CDR, 412 bytes against 460), to the
 same subscribers as the bridge's rows: what a bare Python process on the same core delivers there.
 Those rows say how much of what the bridge's rows miss this machine's one core leaves to any
 Python process.
