@@ -266,6 +266,18 @@ def test_cdr_to_iiwa_command_gives_the_generated_codes_bytes() -> None:
     _assert_agrees(command.from_cdr, keeper._convert, huge)
 
 
+def test_a_program_beyond_its_bound_leaves_the_python_movers_bounds_to_say(tmp_path: Path) -> None:
+    """2000 one-letter strings: a program of more than `PROGRAM_BYTES`; no program is kept, and the
+    bytes are the generated code's both ways."""
+    (tmp_path / "words.lcm").write_text("package words; struct words_t { int32_t n; string words[n]; }")
+    words = TypeLibrary.load([str(tmp_path / "words.lcm")], drake=False).get("words.words_t")
+    lcm = words.packed_fingerprint + struct.pack(">i", 2000) + b"".join(struct.pack(">I2s", 2, b"a\0") for _ in range(2000))
+    cdr = words._transcoder._convert(lcm)
+    assert words.to_cdr(lcm) == words.to_cdr(lcm) == cdr and words.from_cdr(cdr) == words.from_cdr(cdr) == lcm
+    assert type(words._transcoder._layouts[len(lcm)]) is not MoveProgram
+    assert type(words._encoder._layouts[len(cdr)]) is not MoveProgram
+
+
 # --- the build hook -----------------------------------------------------------------------------------------
 
 

@@ -11,30 +11,44 @@ position follows from the ones before it), so it is converted without the genera
 
 One walk, in the order both wire formats share (LCM and CDR both write fields in declaration
 order; CDR adds alignment, sequence counts and its header), gives a list of values, each with its
-input and output offset and `struct` code. It compiles to one of two movers:
+input and output offset, size and `struct` code. It compiles to a *move program* for the compiled
+mover (`_mover.c`, a C extension `hatch_build.py` builds with the interpreter's own compiler
+settings): the output's template (its prefix, CDR's sequence counts that LCM does not carry, zero
+padding), the input bytes that must equal the kept shape values (comparing the raw bytes is
+comparing the values: both are read the same way), the checks below, and runs of values copied
+with their bytes reversed (LCM is big-endian, CDR here little-endian), widened into the
+template's zeros (a CDR unsigned integer as LCM's next signed one). The C mover checks the
+program against its sizes on every call and the message's size against the program: no input
+reads or writes out of bounds. Why C: `lcmt_iiwa_status` -> CDR took 1.2-1.4 us through the
+Python movers below, and one bare `struct` unpack and pack of its 51 values alone takes 0.85 us,
+so Python could not come near 20x lcm-gen + rclpy (13.7-20 us); the program takes 0.4-0.5 us, most
+of it the call of `convert` itself (`bench/lcm_generic.py`, loaded 2-core machine).
+
+Built without a compiler (the build warned), the extension is missing and `COMPILED_MOVER` is
+False; the walk then compiles to one of two Python movers, the same bytes:
 - one `struct` that reads every value and one that writes them (`prefix + write(*values)`), when
   the output holds nothing but those values, zero padding and a prefix (CDR -> LCM; LCM -> CDR
   without sequences) and there are at most `STRUCT_VALUES` values;
 - otherwise a gather of bytes, `(message + tail)[gather]` with numpy, where `tail` holds the
-  constants (a CDR sequence's count, which LCM does not carry, is one). A gather makes no Python
-  object per number: for `lcmt_iiwa_status` (49 doubles) a bare gather took 0.70 us where one
-  bare unpack and pack of the same values took 0.98 us (one run, loaded machine), and the struct
-  pair could not put the counts between the values. A gather checks no value, so a layout whose
-  input values need checking (CDR bools, a uint64 that LCM's int64 cannot hold) has no gather.
+  constants (a CDR sequence's count is one). A gather makes no Python object per number, and
+  checks no value: a layout whose input values need checking (CDR bools, a uint64 that LCM's
+  int64 cannot hold) has no gather.
 
-Checks on the fast path: the shape values (read by one `struct`) equal the kept ones; each CDR
-bool is 0 or 1; every string is UTF-8 (one decode of them all, joined by NULs: a character cut at
-the end of one cannot pass as whole with the next); a uint64 below 2^63 (the "q" pack raises).
-LCM reads any bool byte but 0 as true and CDR writes 1: an LCM bool is read by "?" or set to
-`!= 0` after the gather. Anything else takes the generated code, which finds and names it: a
-truncated message has another size (a layout is kept by size), a count claiming 2^31 elements is
-a shape value that differs, so both meet the generated code's typed `DecodeError`.
+Checks on the fast path: the shape values equal the kept ones; each CDR bool is 0 or 1; every
+string is UTF-8 (as `str(text, "utf-8")` says: the C mover checks ASCII itself and hands anything
+else to Python's decoder; the Python movers decode all strings joined by NULs, so a character cut
+at the end of one cannot pass as whole with the next); a uint64 is below 2^63 (its top byte below
+0x80; the "q" pack raises). LCM reads any bool byte but 0 as true and CDR writes 1: an LCM bool
+becomes `!= 0`. Anything else takes the generated code, which finds and names it: a truncated
+message has another size (a layout is kept by size), a count claiming 2^31 elements is a shape
+value that differs, so both meet the generated code's typed `DecodeError`.
 
 Bounds: messages above `LAYOUT_BYTES` have no layout (the generated code copies each array once,
-a layout twice); the struct pair takes at most `STRUCT_VALUES` values (beyond it, the generated
-code's one byte swap per array is faster), a gather at most `GATHER_BYTES` output bytes (its
-index is 8 bytes per byte). Each converter keeps at most `LAYOUTS` sizes: at most 16 layouts of
-at most 4096 × 8 bytes of index, or 256 values of `struct` format, per type and direction.
+a layout twice); a program takes at most `PROGRAM_BYTES` (a record or two of 20-28 bytes per
+piece, an array being one piece and a string three: many short strings take more, and then the
+Python movers' bounds apply). The struct pair takes at most `STRUCT_VALUES` values (beyond it, the
+generated code's one byte swap per array is faster), a gather at most `GATHER_BYTES` output bytes
+(its index is 8 bytes per byte). Each converter keeps at most `LAYOUTS` sizes per type and direction.
 """
 
 from __future__ import annotations
@@ -69,6 +83,7 @@ LAYOUTS: Final = 16  # sizes kept per type (a robot sends one or two)
 LAYOUT_BYTES: Final = 16384
 STRUCT_VALUES: Final = 256
 GATHER_BYTES: Final = 4096
+PROGRAM_BYTES: Final = 65536  # a few records per value: a message of many short strings or structs takes most
 CDR_HEADER: Final = b"\x00\x01\x00\x00"  # little-endian CDR, no options
 _FINGERPRINT = 8
 _CDR_LE = b"\x00\x01"
@@ -257,8 +272,8 @@ class _Walk:
 
     def layout(self) -> Layout | None:
         """The layout these values make, or None when no mover takes it."""
-        if COMPILED_MOVER:
-            return self.program()
+        if COMPILED_MOVER and len(program := self.program()) <= PROGRAM_BYTES:
+            return program
         values = sum(piece.values() for piece in self.pieces)
         checked = not self.from_lcm and any(piece.role in ("bool", "wide") for piece in self.pieces)
         if not self.constants and values <= STRUCT_VALUES:
@@ -357,7 +372,10 @@ class _Walk:
         for piece in self.pieces:
             span = piece.number * piece.size_in
             if piece.role == "shape":
-                checks.append((_EQUAL, piece.at_in, span, 1, len(expected)))
+                if checks and checks[-1][0] == _EQUAL and checks[-1][1] + checks[-1][2] == piece.at_in:
+                    checks[-1] = (_EQUAL, checks[-1][1], checks[-1][2] + span, 1, checks[-1][4])  # one comparison
+                else:
+                    checks.append((_EQUAL, piece.at_in, span, 1, len(expected)))
                 expected += self.data[piece.at_in : piece.at_in + span]
             elif piece.role == "text":
                 checks.append((_UTF8, piece.at_in, span, 1, 0))
