@@ -136,29 +136,23 @@ static int passes(const Program *program, const unsigned char *input) {
 }
 
 /* One element's bytes reversed: GCC and clang make each width one load, one bswap, one store. */
+#define REVERSE_AS(type, bswap)                                                                  \
+    do {                                                                                         \
+        type value;                                                                              \
+        memcpy(&value, from, sizeof value);                                                      \
+        value = bswap(value);                                                                    \
+        memcpy(to, &value, sizeof value);                                                        \
+        return;                                                                                  \
+    } while (0)
+
 static void reverse(unsigned char *to, const unsigned char *from, uint32_t width) {
 #if defined(__GNUC__)
-    if (width == 8) {
-        uint64_t value;
-        memcpy(&value, from, 8);
-        value = __builtin_bswap64(value);
-        memcpy(to, &value, 8);
-        return;
-    }
-    if (width == 4) {
-        uint32_t value;
-        memcpy(&value, from, 4);
-        value = __builtin_bswap32(value);
-        memcpy(to, &value, 4);
-        return;
-    }
-    if (width == 2) {
-        uint16_t value;
-        memcpy(&value, from, 2);
-        value = __builtin_bswap16(value);
-        memcpy(to, &value, 2);
-        return;
-    }
+    if (width == 8)
+        REVERSE_AS(uint64_t, __builtin_bswap64);
+    if (width == 4)
+        REVERSE_AS(uint32_t, __builtin_bswap32);
+    if (width == 2)
+        REVERSE_AS(uint16_t, __builtin_bswap16);
 #endif
     for (uint32_t index = 0; index < width; index++)
         to[index] = from[width - 1 - index];
