@@ -83,7 +83,7 @@ LAYOUTS: Final = 16  # sizes kept per type (a robot sends one or two)
 LAYOUT_BYTES: Final = 16384
 STRUCT_VALUES: Final = 256
 GATHER_BYTES: Final = 4096
-PROGRAM_BYTES: Final = 65536  # a few records per value: a message of many short strings or structs takes most
+PROGRAM_BYTES: Final = 65536  # a record or two per array or string part: many short strings take more
 CDR_HEADER: Final = b"\x00\x01\x00\x00"  # little-endian CDR, no options
 _FINGERPRINT = 8
 _CDR_LE = b"\x00\x01"
@@ -121,8 +121,11 @@ class MoveProgram(bytes):
 
 Layout = PythonLayout | MoveProgram
 _UNSEEN: Final[Any] = object()
-# `_mover.c`'s check kinds and run flags.
+# `_mover.c`'s records: a check (kind, at, count, step, arg), its kinds; a run (in_at, out_at,
+# count, in_step, out_step, width, flags), its flags.
+_Check = tuple[int, int, int, int, int]
 _EQUAL, _AT_MOST, _UTF8 = 0, 1, 2
+_Run = tuple[int, int, int, int, int, int, int]
 _SWAP, _NONZERO = 1, 2
 
 
@@ -366,8 +369,8 @@ class _Walk:
         template = bytearray(self.prefix + bytes(self.cdr if self.from_lcm else self.lcm))
         for at, constant in self.constants:
             template[start + at : start + at + len(constant)] = constant
-        checks: list[tuple[int, int, int, int, int]] = []
-        runs: list[tuple[int, int, int, int, int, int, int]] = []
+        checks: list[_Check] = []
+        runs: list[_Run] = []
         expected = bytearray()
         for piece in self.pieces:
             span = piece.number * piece.size_in
@@ -389,7 +392,7 @@ class _Walk:
         words = [len(self.data), len(template), len(checks), len(runs), *(w for row in (*checks, *runs) for w in row)]
         return MoveProgram(struct.pack(f"={len(words)}I", *words) + template + expected)
 
-    def run(self, piece: _Value, start: int) -> tuple[int, int, int, int, int, int, int]:
+    def run(self, piece: _Value, start: int) -> _Run:
         """A piece's elements as a run: (in_at, out_at, count, in_step, out_step, width, flags). A
         wider output value (an unsigned CDR integer as LCM's next signed one) keeps the
         template's zeros in its high bytes: the first ones in big-endian LCM."""
@@ -409,7 +412,7 @@ class _Walk:
         return big_endian[::-1] if self.from_lcm else big_endian
 
 
-def _add_run(runs: list[tuple[int, int, int, int, int, int, int]], run: tuple[int, int, int, int, int, int, int]) -> None:
+def _add_run(runs: list[_Run], run: _Run) -> None:
     """`run` after `runs`, as part of the last one when it goes on from it (a fixed array after its
     struct's numbers of the same type)."""
     if runs:
