@@ -19,10 +19,12 @@ comparing the values: both are read the same way), the checks below, and runs of
 with their bytes reversed (LCM is big-endian, CDR here little-endian), widened into the
 template's zeros (a CDR unsigned integer as LCM's next signed one). The C mover checks the
 program against its sizes on every call and the message's size against the program: no input
-reads or writes out of bounds. Why C: `lcmt_iiwa_status` -> CDR took 1.2-1.4 us through the
+reads or writes out of bounds. Why C: `lcmt_iiwa_status` -> CDR took 1.2-1.5 us through the
 Python movers below, and one bare `struct` unpack and pack of its 51 values alone takes 0.85 us,
-so Python could not come near 20x lcm-gen + rclpy (13.7-20 us); the program takes 0.4-0.5 us, most
-of it the call of `convert` itself (`bench/lcm_generic.py`, loaded 2-core machine).
+so Python could not come near 20x lcm-gen + rclpy (15-19 us); through its program it takes
+0.27-0.45 us (35-37x; the move itself 0.14 us, a third of it the new `bytes`), CDR ->
+`lcmt_iiwa_command` 0.21 us against 0.82 us (38x), one run each of `bench/lcm_generic.py` on the
+2-core machine, quiet then.
 
 Built without a compiler (the build warned), the extension is missing and `COMPILED_MOVER` is
 False; the walk then compiles to one of two Python movers, the same bytes:
