@@ -44,8 +44,8 @@ static uint32_t word(const unsigned char *record, int index) {
     return value;
 }
 
-/* Whether `count` elements of `width` bytes, `step` apart from `at`, fit in `size` bytes (64-bit
- * sums of 32-bit values: no overflow). */
+/* Whether `count` elements of `width` bytes, `step` apart from `at`, fit in `size` bytes. Each is
+ * below 2^32, so the sum is at most (2^32 - 1)^2 + 2 (2^32 - 1) = 2^64 - 1: no overflow. */
 static int fits(uint64_t at, uint64_t count, uint64_t step, uint64_t width, uint64_t size) {
     return count == 0 || at + (count - 1) * step + width <= size;
 }
