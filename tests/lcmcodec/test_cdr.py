@@ -241,6 +241,7 @@ def _transcoders(library: TypeLibrary, name: str) -> tuple[CdrTranscoder, CdrTra
     return kept, compile_transcoders(closure, fingerprints, [name], keep_layouts=False)[name]
 
 
+@pytest.mark.usefixtures("mover")
 @pytest.mark.parametrize("type_name", CDR_TYPES)
 def test_kept_layouts_give_the_generated_codes_bytes(
     type_name: str, library: TypeLibrary, classes: dict[str, type]
@@ -262,6 +263,7 @@ def test_kept_layouts_give_the_generated_codes_bytes(
     check()
 
 
+@pytest.mark.usefixtures("mover")
 def test_kept_layouts_agree_with_the_generated_code(library: TypeLibrary, classes: dict[str, type]) -> None:
     """An arm_state_t (strings, bools, nested and multi-dimensional arrays) of a kept layout's
     size, its bytes changed anywhere (lengths, NULs, UTF-8, bools, numbers), converts or fails as
@@ -275,6 +277,7 @@ def test_kept_layouts_agree_with_the_generated_code(library: TypeLibrary, classe
     assert len(kept._layouts) == 1  # every message of that size met the kept layout first
 
 
+@pytest.mark.usefixtures("mover")
 def test_a_kept_layout_takes_only_messages_of_its_own_shape(library: TypeLibrary, classes: dict[str, type]) -> None:
     """Two strings of lengths (1, 3) and (3, 1) make messages of one size: the second must not be
     read with the first's layout; nor a bool byte 2 be copied as 2, nor a string become bad UTF-8."""

@@ -11,30 +11,46 @@ position follows from the ones before it), so it is converted without the genera
 
 One walk, in the order both wire formats share (LCM and CDR both write fields in declaration
 order; CDR adds alignment, sequence counts and its header), gives a list of values, each with its
-input and output offset and `struct` code. It compiles to one of two movers:
+input and output offset, size and `struct` code. It compiles to a *move program* for the compiled
+mover (`_mover.c`, a C extension `hatch_build.py` builds with the interpreter's own compiler
+settings): the output's template (its prefix, CDR's sequence counts that LCM does not carry, zero
+padding), the input bytes that must equal the kept shape values (comparing the raw bytes is
+comparing the values: both are read the same way), the checks below, and runs of values copied
+with their bytes reversed (LCM is big-endian, CDR here little-endian), widened into the
+template's zeros (a CDR unsigned integer as LCM's next signed one). The C mover checks the
+program against its sizes on every call and the message's size against the program: no input
+reads or writes out of bounds. Why C: `lcmt_iiwa_status` -> CDR took 1.2-1.5 us through the
+Python movers below, and one bare `struct` unpack and pack of its 51 values alone takes 0.85 us,
+so Python could not come near 20x lcm-gen + rclpy (15-19 us); through its program it takes
+0.27-0.45 us (35-37x; the move itself 0.14 us, a third of it the new `bytes`), CDR ->
+`lcmt_iiwa_command` 0.21 us against 0.82 us (38x), one run each of `bench/lcm_generic.py` on the
+2-core machine, quiet then.
+
+Built without a compiler (the build warned), the extension is missing and `COMPILED_MOVER` is
+False; the walk then compiles to one of two Python movers, the same bytes:
 - one `struct` that reads every value and one that writes them (`prefix + write(*values)`), when
   the output holds nothing but those values, zero padding and a prefix (CDR -> LCM; LCM -> CDR
   without sequences) and there are at most `STRUCT_VALUES` values;
 - otherwise a gather of bytes, `(message + tail)[gather]` with numpy, where `tail` holds the
-  constants (a CDR sequence's count, which LCM does not carry, is one). A gather makes no Python
-  object per number: for `lcmt_iiwa_status` (49 doubles) a bare gather took 0.70 us where one
-  bare unpack and pack of the same values took 0.98 us (one run, loaded machine), and the struct
-  pair could not put the counts between the values. A gather checks no value, so a layout whose
-  input values need checking (CDR bools, a uint64 that LCM's int64 cannot hold) has no gather.
+  constants (a CDR sequence's count is one). A gather makes no Python object per number, and
+  checks no value: a layout whose input values need checking (CDR bools, a uint64 that LCM's
+  int64 cannot hold) has no gather.
 
-Checks on the fast path: the shape values (read by one `struct`) equal the kept ones; each CDR
-bool is 0 or 1; every string is UTF-8 (one decode of them all, joined by NULs: a character cut at
-the end of one cannot pass as whole with the next); a uint64 below 2^63 (the "q" pack raises).
-LCM reads any bool byte but 0 as true and CDR writes 1: an LCM bool is read by "?" or set to
-`!= 0` after the gather. Anything else takes the generated code, which finds and names it: a
-truncated message has another size (a layout is kept by size), a count claiming 2^31 elements is
-a shape value that differs, so both meet the generated code's typed `DecodeError`.
+Checks on the fast path: the shape values equal the kept ones; each CDR bool is 0 or 1; every
+string is UTF-8 (as `str(text, "utf-8")` says: the C mover checks ASCII itself and hands anything
+else to Python's decoder; the Python movers decode all strings joined by NULs, so a character cut
+at the end of one cannot pass as whole with the next); a uint64 is below 2^63 (its top byte below
+0x80; the "q" pack raises). LCM reads any bool byte but 0 as true and CDR writes 1: an LCM bool
+becomes `!= 0`. Anything else takes the generated code, which finds and names it: a truncated
+message has another size (a layout is kept by size), a count claiming 2^31 elements is a shape
+value that differs, so both meet the generated code's typed `DecodeError`.
 
 Bounds: messages above `LAYOUT_BYTES` have no layout (the generated code copies each array once,
-a layout twice); the struct pair takes at most `STRUCT_VALUES` values (beyond it, the generated
-code's one byte swap per array is faster), a gather at most `GATHER_BYTES` output bytes (its
-index is 8 bytes per byte). Each converter keeps at most `LAYOUTS` sizes: at most 16 layouts of
-at most 4096 × 8 bytes of index, or 256 values of `struct` format, per type and direction.
+a layout twice); a program takes at most `PROGRAM_BYTES` (a record or two of 20-28 bytes per
+piece, an array being one piece and a string three: many short strings take more, and then the
+Python movers' bounds apply). The struct pair takes at most `STRUCT_VALUES` values (beyond it, the
+generated code's one byte swap per array is faster), a gather at most `GATHER_BYTES` output bytes
+(its index is 8 bytes per byte). Each converter keeps at most `LAYOUTS` sizes per type and direction.
 """
 
 from __future__ import annotations
@@ -43,7 +59,7 @@ import math
 import struct
 from collections.abc import Callable, Mapping
 from operator import itemgetter
-from typing import Any, Final, NamedTuple
+from typing import Any, Final, NamedTuple, final
 
 import numpy as np
 
@@ -51,12 +67,25 @@ from viewer_bridge.lcmcodec.codegen import Buffer
 from viewer_bridge.lcmcodec.from_ros import RosField, RosStruct
 from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
 
-__all__ = ["LAYOUTS", "Layout", "LayoutKeeper", "learn_lcm_layout", "learn_ros_layout"]
+try:
+    from viewer_bridge.lcmcodec._mover import move as _move
+
+    COMPILED_MOVER = True  # programs are built (the tests turn it off to run the Python movers)
+except ImportError:  # built without a compiler (hatch_build.py warned): the Python movers
+    COMPILED_MOVER = False
+
+    def _move(program: Buffer, data: Buffer, /) -> bytes | None:  # no program is built: never called
+        return None
+
+
+__all__ = ["COMPILED_MOVER", "LAYOUTS", "Layout", "LayoutKeeper", "MoveProgram", "PythonLayout", "learn_lcm_layout",
+           "learn_ros_layout"]  # fmt: skip
 
 LAYOUTS: Final = 16  # sizes kept per type (a robot sends one or two)
 LAYOUT_BYTES: Final = 16384
 STRUCT_VALUES: Final = 256
 GATHER_BYTES: Final = 4096
+PROGRAM_BYTES: Final = 65536  # a record or two per array or string part: many short strings take more
 CDR_HEADER: Final = b"\x00\x01\x00\x00"  # little-endian CDR, no options
 _FINGERPRINT = 8
 _CDR_LE = b"\x00\x01"
@@ -69,7 +98,7 @@ Wire = Mapping[str, tuple[int, str, str]]
 _frombuffer, _BYTE = np.frombuffer, np.dtype(np.uint8)  # looked up once: the fast path is a few calls
 
 
-class Layout(NamedTuple):  # a tuple: unpacked at once on the fast path
+class PythonLayout(NamedTuple):  # a tuple: unpacked at once on the fast path
     """How the messages of one size and shape convert: a message whose `key` values (of `read`'s
     tuple; the whole tuple when `key` is None) are `expected` has this layout, and is valid when
     its `bools` are 0 or 1 and its `texts` UTF-8. Its output is `prefix + write(*values)`, or,
@@ -87,7 +116,19 @@ class Layout(NamedTuple):  # a tuple: unpacked at once on the fast path
     normalize: np.ndarray[Any, np.dtype[np.intp]] | None  # the output positions of LCM bools
 
 
+@final  # final: `type(layout) is MoveProgram` tells mypy the other case is a PythonLayout
+class MoveProgram(bytes):
+    """A layout as a program of the compiled mover (`_mover.c` says what its bytes hold)."""
+
+
+Layout = PythonLayout | MoveProgram
 _UNSEEN: Final[Any] = object()
+# `_mover.c`'s records: a check (kind, at, count, step, arg), its kinds; a run (in_at, out_at,
+# count, in_step, out_step, width, flags), its flags.
+_Check = tuple[int, int, int, int, int]
+_EQUAL, _AT_MOST, _UTF8 = 0, 1, 2
+_Run = tuple[int, int, int, int, int, int, int]
+_SWAP, _NONZERO = 1, 2
 
 
 class LayoutKeeper:
@@ -106,21 +147,9 @@ class LayoutKeeper:
     def convert(self, data: Buffer) -> bytes:
         """`data` converted: through its kept layout when it has one, else the generated code."""
         if type(data) is bytes and (layout := self._layouts.get(len(data))) is not None:  # inline: a call less
-            read, key, expected, bools, texts, prefix, write, tail, gather, normalize = layout
-            values = read(data)
-            if (values if key is None else key(values)) == expected and (bools is None or max(bools(values)) <= 1):
-                try:
-                    if texts is not None:  # joined by NULs: a character cut at the end of one is no whole one
-                        str(b"\0".join(texts(values)), "utf-8")
-                    if write is not None:
-                        return prefix + write(*values)
-                    moved = _frombuffer(data + tail, _BYTE)[gather]
-                    if normalize is not None:  # LCM reads any byte but 0 as true, CDR writes 1
-                        moved[normalize] = moved[normalize] != 0
-                    out: bytes = moved.tobytes()
-                    return out
-                except (UnicodeDecodeError, struct.error):  # or a uint64 from 2^63: the generated code names it
-                    pass
+            moved = _move(layout, data) if type(layout) is MoveProgram else _python_move(layout, data)
+            if moved is not None:
+                return moved
         out = self._convert(data)
         if self._learn is not None and type(data) is bytes:
             kept = self._layouts.get(len(data), _UNSEEN)
@@ -128,6 +157,26 @@ class LayoutKeeper:
             if kept is not None and (kept is not _UNSEEN or len(self._layouts) < LAYOUTS):
                 self._layouts[len(data)] = self._learn(data)
         return out
+
+
+def _python_move(layout: PythonLayout, data: bytes) -> bytes | None:
+    """`data` converted by a Python layout, or None when it does not fit (the generated code says why)."""
+    read, key, expected, bools, texts, prefix, write, tail, gather, normalize = layout
+    values = read(data)
+    if (values if key is None else key(values)) != expected or (bools is not None and max(bools(values)) > 1):
+        return None
+    try:
+        if texts is not None:  # joined by NULs: a character cut at the end of one is no whole one
+            str(b"\0".join(texts(values)), "utf-8")
+        if write is not None:
+            return prefix + write(*values)
+    except (UnicodeDecodeError, struct.error):  # or a uint64 from 2^63
+        return None
+    moved = _frombuffer(data + tail, _BYTE)[gather]
+    if normalize is not None:  # LCM reads any byte but 0 as true, CDR writes 1
+        moved[normalize] = moved[normalize] != 0
+    out: bytes = moved.tobytes()
+    return out
 
 
 def _items(indices: list[int]) -> Callable[[tuple[Any, ...]], tuple[Any, ...]] | None:
@@ -227,7 +276,9 @@ class _Walk:
         self.shape(("B", 1), ("B", 1))  # the NUL
 
     def layout(self) -> Layout | None:
-        """The layout these values make, or None when neither mover takes it."""
+        """The layout these values make, or None when no mover takes it."""
+        if COMPILED_MOVER and len(program := self.program()) <= PROGRAM_BYTES:
+            return program
         values = sum(piece.values() for piece in self.pieces)
         checked = not self.from_lcm and any(piece.role in ("bool", "wide") for piece in self.pieces)
         if not self.constants and values <= STRUCT_VALUES:
@@ -242,7 +293,7 @@ class _Walk:
         self.pieces.append(_Value(size, "s", 1, 0, None, 0, 0, "shape"))
         self.expected.append(self.data[:size])
 
-    def struct_layout(self) -> Layout:
+    def struct_layout(self) -> PythonLayout:
         reads, writes = [">" if self.from_lcm else "<"], ["<" if self.from_lcm else ">"]
         read_to = write_to = index = 0
         key: list[int] = []
@@ -261,7 +312,7 @@ class _Walk:
             indices = list(range(index, index + piece.values()))
             {"shape": key, "text": texts, "bool": bools}.get(piece.role, []).extend(indices)
             index += piece.values()
-        return Layout(
+        return PythonLayout(
             read=struct.Struct("".join(reads)).unpack_from,
             key=_items(key),
             expected=tuple(self.expected) * (2 if len(key) == 1 else 1),
@@ -274,7 +325,7 @@ class _Walk:
             normalize=None,
         )
 
-    def gather_layout(self) -> Layout:
+    def gather_layout(self) -> PythonLayout:
         end = self.cdr if self.from_lcm else self.lcm
         prefix = self.prefix
         tail = bytearray(b"\0" + prefix)
@@ -300,7 +351,7 @@ class _Walk:
                     gather[at : at + piece.size_out] = self.moved(piece, element)
                     if piece.role == "bool":
                         normalize.append(at)
-        return Layout(
+        return PythonLayout(
             read=struct.Struct("".join(reads)).unpack_from,
             key=itemgetter(*key) if texts else None,  # with a string: at least 3 values, a tuple
             expected=tuple(self.expected),
@@ -313,6 +364,45 @@ class _Walk:
             normalize=np.array(normalize, np.intp) if normalize else None,
         )
 
+    def program(self) -> MoveProgram:
+        """The compiled mover's program: the output's template (prefix, constants, zeros), the
+        input's checks (shape values, CDR bools, texts, wide integers) and its runs of values."""
+        start = len(self.prefix)
+        template = bytearray(self.prefix + bytes(self.cdr if self.from_lcm else self.lcm))
+        for at, constant in self.constants:
+            template[start + at : start + at + len(constant)] = constant
+        checks: list[_Check] = []
+        runs: list[_Run] = []
+        expected = bytearray()
+        for piece in self.pieces:
+            span = piece.number * piece.size_in
+            if piece.role == "shape":
+                if checks and checks[-1][0] == _EQUAL and checks[-1][1] + checks[-1][2] == piece.at_in:
+                    checks[-1] = (_EQUAL, checks[-1][1], checks[-1][2] + span, 1, checks[-1][4])  # one comparison
+                else:
+                    checks.append((_EQUAL, piece.at_in, span, 1, len(expected)))
+                expected += self.data[piece.at_in : piece.at_in + span]
+            elif piece.role == "text":
+                checks.append((_UTF8, piece.at_in, span, 1, 0))
+            elif piece.role == "bool" and not self.from_lcm:  # CDR: 0 or 1
+                checks.append((_AT_MOST, piece.at_in, piece.number, 1, 1))
+            elif piece.role == "wide":  # below 2^63: its top byte below 0x80 (little-endian: the last)
+                top = 0 if self.from_lcm else piece.size_in - 1
+                checks.append((_AT_MOST, piece.at_in + top, piece.number, piece.size_in, 0x7F))
+            if piece.code_out is not None and piece.number:
+                _add_run(runs, self.run(piece, start))
+        words = [len(self.data), len(template), len(checks), len(runs), *(w for row in (*checks, *runs) for w in row)]
+        return MoveProgram(struct.pack(f"={len(words)}I", *words) + template + expected)
+
+    def run(self, piece: _Value, start: int) -> _Run:
+        """A piece's elements as a run: (in_at, out_at, count, in_step, out_step, width, flags). A
+        wider output value (an unsigned CDR integer as LCM's next signed one) keeps the
+        template's zeros in its high bytes: the first ones in big-endian LCM."""
+        widened = piece.size_out - piece.size_in if not self.from_lcm else 0
+        flags = _NONZERO if piece.role == "bool" and self.from_lcm else _SWAP if piece.size_in > 1 else 0
+        return (piece.at_in, start + piece.at_out + widened, piece.number, piece.size_in, piece.size_out,
+                piece.size_in, flags)  # fmt: skip
+
     def moved(self, piece: _Value, element: int) -> list[int]:
         """The input indices of one element's output bytes: reversed between the two byte
         orders, zero-extended when the output is wider (only unsigned CDR integers widen)."""
@@ -322,6 +412,17 @@ class _Walk:
             big_endian.reverse()
         big_endian = [len(self.data)] * (piece.size_out - piece.size_in) + big_endian
         return big_endian[::-1] if self.from_lcm else big_endian
+
+
+def _add_run(runs: list[_Run], run: _Run) -> None:
+    """`run` after `runs`, as part of the last one when it goes on from it (a fixed array after its
+    struct's numbers of the same type)."""
+    if runs:
+        in_at, out_at, count, in_step, out_step, width, flags = runs[-1]
+        if run[:2] == (in_at + count * in_step, out_at + count * out_step) and run[3:] == runs[-1][3:]:
+            runs[-1] = (in_at, out_at, count + run[2], in_step, out_step, width, flags)
+            return
+    runs.append(run)
 
 
 # --- the walks over the two kinds of type ------------------------------------------------------------
