@@ -31,17 +31,25 @@ def extension_path(root: Path) -> Path:
 def compile_mover(source: Path, target: Path) -> str | None:
     """Compiles the mover at `source` into `target`: None when done, else why not."""
     compiler = shlex.split(os.environ.get("CC") or str(sysconfig.get_config_var("CC") or "cc"))
+    # Written beside the target, then renamed over it: a process that has the old module loaded
+    # (a test run while a wheel is built from this tree) keeps its file, never a half-written one.
+    written = target.with_name(f".{target.name}.{os.getpid()}")
     command = [*compiler, "-O2", "-fPIC", "-shared", "-I" + sysconfig.get_paths()["include"],
-               str(source), "-o", str(target)]  # fmt: skip
+               str(source), "-o", str(written)]  # fmt: skip
     if sys.platform == "darwin":  # the interpreter provides Python's symbols when it loads the module
         command[-2:-2] = ["-undefined", "dynamic_lookup"]
+    why = None
     try:
         done = subprocess.run(command, capture_output=True, text=True, check=False)
+        if done.returncode != 0:
+            why = f"{shlex.join(command)} exited with {done.returncode}: {done.stderr.strip()}".strip(": ")
     except OSError as error:
-        return f"{shlex.join(command)}: {error}"
-    if done.returncode != 0:
+        why = f"{shlex.join(command)}: {error}"
+    if why is not None:
+        written.unlink(missing_ok=True)
         target.unlink(missing_ok=True)  # no stale module from an earlier build
-        return f"{shlex.join(command)} exited with {done.returncode}: {done.stderr.strip()}".strip(": ")
+        return why
+    os.replace(written, target)
     return None
 
 

@@ -176,8 +176,11 @@ def test_the_mover_takes_any_buffer_and_refuses_what_is_not_one() -> None:
 def test_the_compiled_mover_is_built_and_used_here() -> None:
     """This checkout is installed with its build hook (or `python hatch_build.py` ran): the
     extension imports, and a kept layout is its program. No silent fallback to Python here."""
-    assert importlib.import_module("viewer_bridge.lcmcodec._mover").move is not None
+    built = importlib.import_module("viewer_bridge.lcmcodec._mover")
+    assert built.move is not None
     assert layout.COMPILED_MOVER
+    source = Path(layout.__file__).with_name("_mover.c")
+    assert Path(built.__file__).stat().st_mtime >= source.stat().st_mtime, "stale build: run python hatch_build.py"
     status = TypeLibrary.load().get("drake.lcmt_iiwa_status")
     data = _status(7).encode()
     assert status.to_cdr(data) == status.to_cdr(data)

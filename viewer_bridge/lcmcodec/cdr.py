@@ -60,10 +60,10 @@ class CdrTranscoder(LayoutKeeper):
     """The compiled LCM -> CDR path of one type.
 
     After a message has passed the generated code, its layout (`layout`) is kept by size: a
-    message of the same size and shape (fingerprint, length fields, string lengths) is one read
-    of those values, one comparison and one gather of its bytes (or one unpack and one pack, for
-    a type without sequences). Anything else takes the generated code, which finds and names
-    what is wrong."""
+    message of the same size and shape (fingerprint, length fields, string lengths) is one call
+    of the compiled mover, which compares those values and moves the bytes (without a compiler,
+    the same in Python). Anything else takes the generated code, which finds and names what is
+    wrong."""
 
     def __init__(self, type_name: str, packed_fingerprint: bytes,
                  body: Callable[[bytes | memoryview, int, int, Chunks, int], tuple[int, int]],

@@ -8,7 +8,7 @@ little-endian `struct` unpack (its padding chosen by the CDR position modulo 8) 
 pack; a primitive array one byte-swapped copy (Python's array when short, numpy when long or
 widened: uint16/uint32); a byte array a slice; a string array one pass with one UTF-8 check.
 Nothing builds a Python message. Once a message has passed that code, its layout is kept
-(`layout`): the next of the same shape is one unpack and one pack.
+(`layout`): the next of the same shape is one call of the compiled mover.
 
 Errors are `DecodeError`s with the ROS 2 type, the field path and the byte offset (from the
 first byte after the 4-byte encapsulation header).
