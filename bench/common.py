@@ -93,6 +93,14 @@ def frame(links: int, seed: int = 0) -> LinkPoses:
     )
 
 
+def machine_busy_seconds() -> float:
+    """CPU seconds the whole machine has been busy so far, every core summed (/proc/stat's first
+    line: all but idle and iowait): processes, and the kernel's interrupt and softirq time that no
+    process's own CPU time holds (moving packets over loopback, for one)."""
+    user, nice, system, idle, iowait, irq, softirq, steal = (int(f) for f in Path("/proc/stat").read_text().split()[1:9])
+    return (user + nice + system + irq + softirq + steal) / os.sysconf("SC_CLK_TCK")
+
+
 def tree_cpu_seconds(pid: int) -> float:
     """User + system CPU seconds so far of process `pid` and every live descendant of it (its worker
     processes), from /proc/PID/stat (fields 14 and 15): the difference of two calls is what the
