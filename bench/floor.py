@@ -34,8 +34,8 @@ from pathlib import Path
 from typing import Any
 
 import lcm
-from common import Measure, Size, settle
-from lcm_routes import CHANNELS, FAST_HZ, RATE_HZ, Counting, DdsCounting, compare, publish
+from common import DdsCounter, Measure, Size, settle
+from lcm_routes import CHANNELS, FAST_HZ, RATE_HZ, Counting, compare, dds_counter, publish
 from router import URL
 from zenoh_routes import zenoh_session
 
@@ -135,7 +135,7 @@ def run_floor(
     """The floor under the traffic bench/lcm_routes.py gives the bridge (`rate_hz` per channel, onto
     `target`: zenoh or dds); its figures as `run`'s."""
     floor = Floor(endpoint, target)
-    subscriber: Counting | DdsCounting = DdsCounting() if target == "dds" else Counting(endpoint, "lcm")
+    subscriber: Counting | DdsCounter = dds_counter() if target == "dds" else Counting(endpoint, "lcm")
     bus = LcmBus(URL)
     time.sleep(1.0)
     publish(bus, 1.0, rate_hz)  # every channel's publisher appears

@@ -26,7 +26,6 @@ figure (the route's messages out, of those sent) says what the bridge did.
 from __future__ import annotations
 
 import argparse
-import multiprocessing
 import os
 import tempfile
 import threading
@@ -36,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from common import Measure, Size, iiwa_status_bytes, settle
+from common import DdsCounter, Measure, Size, iiwa_status_bytes, settle
 from router import URL, Bridge
 from zenoh_routes import _free_port, zenoh_session
 
@@ -97,65 +96,9 @@ def publish(bus: LcmBus, seconds: float, rate_hz: float = RATE_HZ) -> int:
     return sent
 
 
-class DdsCounting:
-    """One rclpy subscriber (raw bytes) on every channel's topic, /lcm/<channel>, in a process of
-    its own (on this process's core): in this one it would share the GIL with the publisher, and
-    at 30,000 messages a second that, not the bridge, bounded what was seen delivered. It counts
-    arrivals while `counting` is set."""
-
-    def __init__(self) -> None:
-        spawn = multiprocessing.get_context("spawn")  # rclpy's state is not forked
-        self.counting = spawn.Event()
-        self._count = spawn.Value("q", 0, lock=False)  # written by the subscriber's one thread only
-        self._stop = spawn.Event()
-        ready = spawn.Event()
-        self._process = spawn.Process(target=_count_dds, args=(self.counting, self._count, self._stop, ready))
-        self._process.start()
-        if not ready.wait(60):
-            self.close()
-            raise RuntimeError("the rclpy subscriber process did not start within 60 s")
-
-    @property
-    def count(self) -> int:
-        return int(self._count.value)
-
-    def close(self) -> None:
-        self._stop.set()
-        self._process.join(10)
-        if self._process.is_alive():
-            self._process.kill()
-
-
-def _count_dds(counting: Any, count: Any, stop: Any, ready: Any) -> None:
-    """The subscriber process of `DdsCounting`. It takes the raw messages itself, every waiting
-    one of each subscription in turn, then sleeps a millisecond: an executor's `spin_once` costs
-    tens of microseconds a message, and on the core it shares with the 30,000-a-second publisher
-    that, not the bridge, bounded what was seen delivered."""
-    import rclpy
-    from rclpy.node import Node
-
-    from viewer_bridge.transports.ros2 import message_class, qos_profile
-
-    rclpy.init()
-    node = Node("bench_lcm_routes")
-    status = message_class("drake_lcm_msgs/msg/LcmtIiwaStatus")
-    subscriptions = [
-        node.create_subscription(status, f"/lcm/{channel}", lambda _: None, qos_profile(1000), raw=True).handle
-        for channel in CHANNELS
-    ]
-    ready.set()
-    while not stop.is_set():
-        taken = 0
-        for subscription in subscriptions:
-            with subscription:
-                while subscription.take_message(status, True) is not None:
-                    taken += 1
-        if taken and counting.is_set():
-            count.value += taken
-        if not taken:
-            time.sleep(0.001)
-    node.destroy_node()  # type: ignore[no-untyped-call]
-    rclpy.shutdown()
+def dds_counter() -> DdsCounter:
+    """A raw rclpy subscriber on every channel's topic, /lcm/<channel>, in a process of its own."""
+    return DdsCounter({channel: (f"/lcm/{channel}", "drake_lcm_msgs/msg/LcmtIiwaStatus") for channel in CHANNELS})
 
 
 def dds_config() -> str:
@@ -168,8 +111,8 @@ def run(route: str, folder: Path, seconds: float, endpoint: str, rate_hz: float 
     """`route` (relay, lcm_bus, or dds: lcm_bus onto ROS 2 over DDS) at `rate_hz` per channel."""
     domain = int(os.environ.get("ROS_DOMAIN_ID") or 0)
     bridge = Bridge(dds_config() if route == "dds" else bus_config(endpoint, route), folder, core=0)
-    subscriber: Counting | DdsCounting = (
-        DdsCounting() if route == "dds" else Counting(endpoint, "lcm" if route == "relay" else f"{domain}/lcm")
+    subscriber: Counting | DdsCounter = (
+        dds_counter() if route == "dds" else Counting(endpoint, "lcm" if route == "relay" else f"{domain}/lcm")
     )
     bus = LcmBus(URL)
     time.sleep(1.0)

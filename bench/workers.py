@@ -55,7 +55,15 @@ from typing import Any
 
 import lcm
 import yaml
-from common import Measure, Size, iiwa_status_bytes, machine_busy_seconds, settle, tree_cpu_seconds
+from common import (
+    DdsCounter,
+    Measure,
+    Size,
+    iiwa_status_bytes,
+    machine_busy_seconds,
+    settle,
+    tree_cpu_seconds,
+)
 from router import DEFAULT_LATEST, DISCOVERY_S, URL, frame, scene
 from zenoh_routes import _free_port, zenoh_session
 
@@ -136,52 +144,6 @@ def placement(config: str, workers: int) -> str:
 # 1. Draws ------------------------------------------------------------------------------------
 
 
-class Counter:
-    """rclpy, raw: counts what arrives on each topic while `counting` is set."""
-
-    def __init__(self, topics: dict[str, tuple[str, str]]) -> None:
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.node import Node
-
-        from viewer_bridge.transports.ros2 import message_class, qos_profile
-
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.node = Node("bench_workers", context=self.context)
-        self.counting = threading.Event()
-        self.counts = dict.fromkeys(topics, 0)
-        self.total = 0  # every message, counting or not
-        self.seen: set[str] = set()  # the routes whose topics have had a message (while not counting)
-        for route, (topic, typename) in topics.items():
-            self.node.create_subscription(message_class(typename), topic, self._counter(route), qos_profile(1000),
-                                          raw=True)  # fmt: skip
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        threading.Thread(target=self.executor.spin, daemon=True).start()
-
-    def _counter(self, route: str) -> Any:
-        def count(_: bytes) -> None:
-            self.total += 1
-            if self.counting.is_set():
-                self.counts[route] += 1
-            else:
-                self.seen.add(route)
-
-        return count
-
-    def sees_bridge(self) -> bool:
-        return "viewer_bridge" in self.node.get_node_names()
-
-    def close(self) -> None:
-        import rclpy
-
-        self.executor.shutdown(timeout_sec=1)
-        self.node.destroy_node()  # type: ignore[no-untyped-call]
-        rclpy.shutdown(context=self.context)
-
-
 def quiet(arrived: Any, at_most: float) -> None:
     """Until `arrived()` (a count of arrivals) has not moved for 0.3 s, at most `at_most` seconds:
     what the warm-up left queued has drained before the counted window starts."""
@@ -223,7 +185,7 @@ def draw_run(label: str, config: str, workers: int, pinned: bool, folder: Path, 
         os.sched_setaffinity(0, {1})  # the publisher and the subscribers; the bridge gets CPU 0
     try:
         bridge = Bridge(config, workers, folder, {0} if pinned else None)
-        counter = Counter(DRAW_TOPICS)
+        counter = DdsCounter(DRAW_TOPICS)
         bus = LcmBus(URL)
         settle(counter.sees_bridge, DISCOVERY_S)
         bus.publish("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(the_scene).encode())
@@ -236,11 +198,13 @@ def draw_run(label: str, config: str, workers: int, pinned: bool, folder: Path, 
                 break
         quiet(lambda: counter.total, 3.0)
         counter.counting.set()
-        cpu_before, here_before, started = bridge.cpu_seconds(), time.process_time(), time.monotonic()
+        cpu_before, started = bridge.cpu_seconds(), time.monotonic()
+        here_before = tree_cpu_seconds(os.getpid()) - cpu_before  # the publisher and the subscriber process
         machine_before = machine_busy_seconds()
         sent = paced(lambda i: bus.publish("DRAKE_VIEWER_DRAW", encoded[i % len(encoded)]), 0, DRAW_HZ, seconds)
         settle(lambda: min(counter.counts.values()) >= sent, min(1.0, seconds))  # what was queued drains
-        cpu, here = bridge.cpu_seconds() - cpu_before, time.process_time() - here_before
+        cpu_after = bridge.cpu_seconds()
+        cpu, here = cpu_after - cpu_before, tree_cpu_seconds(os.getpid()) - cpu_after - here_before
         machine = machine_busy_seconds() - machine_before
         elapsed = time.monotonic() - started
         counter.counting.clear()
