@@ -8,8 +8,9 @@ resource tracker `spawn` starts), over the publishing window:
 
 1. Draws: a 1000-link scene, then 1000-link `lcmt_viewer_draw`s at 2 kHz, through the default
    config's three per-draw routes (`tf`, world-frame `markers`, `poses`; policy `latest`, as they
-   ship) to raw rclpy subscribers that count what arrives on each topic. Set-ups, interleaved:
-   one worker pinned to CPU 0 with this process (publisher, subscribers) on CPU 1, as
+   ship) to raw rclpy subscribers, in a process of their own (`common.DdsCounter`), that count
+   what arrives on each topic. Set-ups, interleaved: one worker pinned to CPU 0 with this process
+   (the publisher) and the subscribers' on CPU 1, as
    bench/router.py runs it; one worker unpinned; two workers as `place` puts them (the routes are
    grouped by source pattern: `tf` and `markers` share the scene pattern and go to worker 0,
    `poses`, whose pattern is its own, to worker 1); two workers pinned with `worker: K`
