@@ -540,8 +540,8 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
                             passthrough, "us", "ratio >= 0.67 (<= 1.5x passthrough)",
                             ours <= 1.5 * passthrough))  # fmt: skip
     everything = at_2k["all"]
-    # A `policy: all` route translates inline, so past what the core carries the draws wait in the
-    # socket's buffer and the kernel drops there: those count as lost for every route.
+    # A quick `policy: all` route translates inline, so past what the core carries draws may wait in
+    # the socket's buffer and the kernel drops there: those count as lost for every route.
     unread = max(0, everything["sent"] - everything["received"])
     dropped = sum(everything[f"{name}_dropped"] for name in _PER_DRAW_ROUTES) + unread * len(_PER_DRAW_ROUTES)
     rows.append(Measure("router: default per-draw routes, 2 kHz x 1000 links, policy all: lost (dropped in the "

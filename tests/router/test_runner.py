@@ -184,30 +184,75 @@ def test_a_lazy_generic_route_announces_each_channels_topic_before_anyone_listen
     assert not published and runner.stats.idle_skipped == 2  # nothing translated: nobody listens
 
 
-def test_a_route_keeping_every_message_translates_inline_past_the_budget_and_fills_it() -> None:
+def budget_test_runner(policy: str, seconds: float, sent: list[bytes], budget: Any) -> Any:
+    """A route of `policy` whose translation takes `seconds`, publishing into `sent`, on `budget`;
+    its worker is not started: what is not translated inline waits in its mailbox."""
     from tests.router.test_commands import PassThrough
-    from viewer_bridge.router.flow import InlineBudget
     from viewer_bridge.router.runner import RouteRunner
 
-    class Slow(PassThrough):
+    class Timed(PassThrough):
         def translate(self, message: Received) -> Any:
-            time.sleep(0.15)  # longer than the budget's burst (0.1 s): one translation fills it
+            if seconds:
+                time.sleep(seconds)
             return super().translate(message)
 
+    route = Route.model_validate(
+        {"name": policy, "source": {"transport": "lcm", "name": "X"}, "translator": "lcm_relay",
+         "destination": {"transport": "lcm", "name": f"/{policy}"}, "rate": {"policy": policy}}
+    )  # fmt: skip
+    return RouteRunner(route, lambda: Timed({}), lambda name, output: CallPublisher(sent.append), inline=budget)
+
+
+def fill(budget: Any) -> None:
+    """The calling thread has translated inline for a second: past its budget's share."""
+    now = time.perf_counter()
+    budget.spent(now - 1.0, now)
+    assert not budget.allows(time.perf_counter())
+
+
+def test_a_quick_route_keeping_every_message_translates_inline_past_the_budget_and_fills_it() -> None:
+    from viewer_bridge.router.flow import InlineBudget
+
     budget = InlineBudget(share=0.5, window_s=0.2)
-    sent: dict[str, list[bytes]] = {"all": [], "latest": []}
+    every: list[bytes] = []
+    newest: list[bytes] = []
+    quick = budget_test_runner("all", 0.0, every, budget)
+    latest = budget_test_runner("latest", 0.0, newest, budget)
+    fill(budget)
+    quick.offer(Received("X", b"1", 0))  # past the budget, still inline
+    latest.offer(Received("X", b"2", 0))  # past the budget: handed over, to be conflated
+    assert (every, newest) == ([b"1"], []) and (len(quick.mailbox), len(latest.mailbox)) == (0, 1)
 
-    def runner(policy: str) -> RouteRunner:
-        route = Route.model_validate(
-            {"name": policy, "source": {"transport": "lcm", "name": "X"}, "translator": "lcm_relay",
-             "destination": {"transport": "lcm", "name": f"/{policy}"}, "rate": {"policy": policy}}
-        )  # fmt: skip
-        return RouteRunner(route, lambda: Slow({}), lambda name, output: CallPublisher(sent[policy].append),
-                           inline=budget)  # fmt: skip
 
-    every, newest = runner("all"), runner("latest")  # their workers are not started: what is not inline waits
-    every.offer(Received("X", b"1", 0))
+def test_a_slow_route_keeping_every_message_keeps_to_the_budget() -> None:
+    """A translation over `QUICK_S` (1000-link markers) would hold the receiving thread from the
+    quick routes beside it: past the budget it hands over, as a `latest` route does."""
+    from viewer_bridge.router.flow import InlineBudget
+
+    budget = InlineBudget(share=0.5, window_s=0.2)
+    sent: list[bytes] = []
+    slow = budget_test_runner("all", 0.15, sent, budget)  # 0.15 s: more than the budget's burst, too
+    slow.offer(Received("X", b"1", 0))  # the budget allowed it: inline, and measured slow
     assert not budget.allows(time.perf_counter())  # its inline time counts in the thread's budget
-    every.offer(Received("X", b"2", 0))  # past the budget, still inline
-    newest.offer(Received("X", b"3", 0))  # past the budget: handed over, to be conflated
-    assert sent == {"all": [b"1", b"2"], "latest": []} and (len(every.mailbox), len(newest.mailbox)) == (0, 1)
+    slow.offer(Received("X", b"2", 0))
+    assert sent == [b"1"] and len(slow.mailbox) == 1
+
+
+def test_one_slow_translation_does_not_make_a_quick_route_keep_to_the_budget() -> None:
+    """The cost is the recent translations' mean: one outlier (a preempted thread) among quick
+    translations leaves the route inline past the budget."""
+    from viewer_bridge.router.flow import InlineBudget
+
+    budget = InlineBudget(share=0.5, window_s=0.2)
+    sent: list[bytes] = []
+    route = budget_test_runner("all", 0.0, sent, budget)
+    for index in range(50):
+        route.offer(Received("X", bytes([index]), 0))
+    route._cost_s += 0.0005  # one translation 5 ms long moves a mean of 10 by 0.5 ms: over QUICK_S
+    fill(budget)
+    for index in range(50, 110):  # handed over, until the mean of what the worker translates falls back
+        route.offer(Received("X", bytes([index]), 0))
+        while (message := route.mailbox.take()) is not None:
+            route.handle(message)
+    route.offer(Received("X", b"inline", 0))
+    assert sent[-1] == b"inline" and len(sent) == 111 and not budget.allows(time.perf_counter())

@@ -107,8 +107,8 @@ class InlineBudget:
     each inline translation fills with its duration and which drains at `share` seconds a second;
     inline while it holds less than `share * window_s` (a burst of that long, then `share` of the
     time). Past that, the workers take over: the mailbox's policy (the newest wins) applies again
-    instead of a backlog building up in the transport's receive buffers. A `policy: all` route
-    asks no budget (`RouteRunner`: it has no newer message to prefer) but fills it.
+    instead of a backlog building up in the transport's receive buffers. A quick `policy: all`
+    route asks no budget (`RouteRunner`: it has no newer message to prefer) but fills it.
     """
 
     def __init__(self, share: float = 0.5, window_s: float = 0.2) -> None:

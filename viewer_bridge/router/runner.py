@@ -40,6 +40,9 @@ _LISTENERS_CHECK_S = 0.25  # how often a lazy route asks its publishers whether 
 # flood of new channel names (a hostile peer's topics) cannot grow the stats without bound.
 MAX_HELD_CHANNELS = 1000
 OTHER_CHANNELS = "(other channels)"
+# A `policy: all` route whose translations take less than this on average translates inline
+# past the thread's budget: a few wake-ups' worth (20-60 us each on the 2-core test VM).
+QUICK_S = 100e-6
 
 
 class SaidOnce:
@@ -155,14 +158,17 @@ class RouteRunner:
         self.stats = RouteStats()
         # A rate-limited route waits between messages: only its worker can do that.
         self._inline = None if route.rate.max_hz else inline
-        # A route that keeps every message (`policy: all`) gains nothing from its worker when the
-        # receiving thread is busy: each message is translated all the same, the hand-off adds a
-        # wake-up and a GIL switch, and the FIFO drops its oldest sooner than the socket's buffer
-        # would (the kernel's drops are counted too: `dropped_by_kernel`). At 30,000 messages a
-        # second on one core that hand-off was what the core could not carry (92-97% delivered
-        # against 100% inline). So it translates inline whenever it is idle; its time still fills
-        # the thread's budget, so `latest` routes on that thread hand over and conflate.
-        self._inline_always = route.rate.policy == "all"
+        # A route that keeps every message (`policy: all`) and translates it quickly gains nothing
+        # from its worker when the receiving thread is busy: each message is translated all the
+        # same, and the hand-off's wake-up and GIL switch cost about as much as the translation. At
+        # 30,000 messages a second on one core that hand-off was what the core could not carry
+        # (92-97% delivered against 100% inline). So such a route translates inline whenever it
+        # is idle, while its recent translations took less than `QUICK_S` on average; its time
+        # still fills the thread's budget, so the other routes on that thread hand over. A slow one
+        # (1000-link markers: hundreds of microseconds) keeps the budget: inline always, it held
+        # the receiving thread so long that the quick routes beside it lost draws in the kernel.
+        self._keeps_every = route.rate.policy == "all"
+        self._cost_s = 0.0  # recent translations' mean (inline or on the worker): one outlier does not decide
         self._turn = threading.Lock()  # held by whichever thread translates for this route
         self._make_translator = make_translator
         self._publisher_for = publisher_for
@@ -221,7 +227,8 @@ class RouteRunner:
         if inline is None or len(self.mailbox):
             return False
         started = time.perf_counter()
-        if not (self._inline_always or inline.allows(started)) or not self._turn.acquire(False):
+        quick = self._keeps_every and self._cost_s < QUICK_S
+        if not (quick or inline.allows(started)) or not self._turn.acquire(False):
             return False
         try:
             self.handle(message)
@@ -364,7 +371,9 @@ class RouteRunner:
         except Exception as error:  # a bug in a translator: report it, keep serving
             self._error(f"crash:{type(error).__name__}", f"{message.channel}: {traceback.format_exc()}")
             return
-        self.stats.translate_ms.append((time.perf_counter() - started) * 1e3)
+        spent = time.perf_counter() - started
+        self.stats.translate_ms.append(spent * 1e3)
+        self._cost_s += (spent - self._cost_s) * 0.1
         if skipped:
             self._count_skipped(message, skipped)
         if self._max_age_us is not None and (stale := self._expired(message)) is not None:
