@@ -27,7 +27,7 @@ import threading
 from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
-from pydantic import field_validator
+from pydantic import Field, field_validator
 
 from viewer_bridge.errors import Held, InvalidName, TransportUnavailable
 from viewer_bridge.ros_build.background import BuildState, InterfaceBuilder
@@ -44,6 +44,7 @@ from viewer_bridge.transports.base import (
     Transport,
     TransportSettings,
 )
+from viewer_bridge.transports.fastdds_profile import shared_memory_profile
 from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem, topic_problem
 from viewer_bridge.transports.topic_types import EVERY, TopicTypes, found_in_graph
 from viewer_bridge.util.extras import missing
@@ -91,6 +92,9 @@ class RosSettings(TransportSettings):
     namespace: str = ""  # relative topic names resolve under it; absolute ones (/tf) do not
     use_sim_time: bool = False
     ros_args: list[str] = []  # what follows `--ros-args` on the command line: remaps, -p, ...
+    # Fast DDS: the participant's shared-memory segment, unless the user gave Fast DDS a profile of
+    # their own; 0 leaves Fast DDS's 512 KiB (see `viewer_bridge.transports.fastdds_profile`).
+    shared_memory_mb: int = Field(default=32, ge=0, le=4096)
 
     @field_validator("node")
     @classmethod
@@ -181,12 +185,13 @@ class RosTransport(Transport):
             raise missing(error, "the ros transport") from None
         self._context = Context()
         # Global arguments, as any ROS 2 node takes them: `-r __ns:=/sim1`, `-p use_sim_time:=true`.
-        rclpy.init(context=self._context, args=["viewer-bridge", "--ros-args", *settings.ros_args])
         # An override beats the command line: set use_sim_time only when the config asks for it.
         overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, True)] if settings.use_sim_time else []
-        self.node = Node(
-            settings.node, namespace=settings.namespace, context=self._context, parameter_overrides=overrides
-        )
+        with shared_memory_profile(settings.shared_memory_mb):  # read as the node makes the participant
+            rclpy.init(context=self._context, args=["viewer-bridge", "--ros-args", *settings.ros_args])
+            self.node = Node(
+                settings.node, namespace=settings.namespace, context=self._context, parameter_overrides=overrides
+            )
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self.node)
         self._patterns: list[tuple[re.Pattern[str], MessageType, Qos, Deliver]] = []
