@@ -15,6 +15,7 @@ participant, from the file `FASTRTPS_DEFAULT_PROFILES_FILE` names (and `DEFAULT_
 in the working directory): `shared_memory_profile` names a file of ours only around that moment,
 then removes the variable and the file, so nothing the bridge starts later inherits them.
 
+Fast DDS zeroes the segment whole when it makes it: the size asked is memory the process holds.
 The profile lists the transports Fast DDS would use anyway, shared memory and UDPv4. Under
 `ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST` rmw_fastrtps adds its own pair after them and keeps
 discovery on this host as always; the range and static peers are the middleware's, untouched.
