@@ -65,7 +65,7 @@ from common import (
     settle,
     tree_cpu_seconds,
 )
-from router import DEFAULT_LATEST, DISCOVERY_S, URL, frame, scene
+from router import DEFAULT_ALL, DEFAULT_LATEST, DISCOVERY_S, URL, frame, scene
 from zenoh_routes import _free_port, zenoh_session
 
 from viewer_bridge.config.bridge import BUILTIN_CONFIGS, load_config
@@ -219,6 +219,7 @@ def draw_run(label: str, config: str, workers: int, pinned: bool, folder: Path, 
     for route, count in counter.counts.items():
         result[route] = 100.0 * count / max(sent, 1)
         result[f"{route}_published"] = stats.get(route, {}).get("messages_out", 0)
+        result[f"{route}_p99_ms"] = stats.get(route, {}).get("latency_ms", {}).get("p99", float("nan"))  # the route's last 4096
     result["score"] = min(result[route] for route in DRAW_TOPICS)
     print(f"   {label:<36} sent {sent:6d}, delivered " + ", ".join(f"{route} {result[route]:5.1f}%" for route in DRAW_TOPICS)
           + f"; bridge CPU {result['cpu_us_per_draw']:4.0f} us/draw ({result['cores']:.2f} cores; publisher and "
@@ -232,6 +233,9 @@ DRAW_SETUPS = {  # label -> (config, workers, pinned to CPU 0)
     "1 worker, unpinned": (DEFAULT_LATEST, 1, False),
     "2 workers, placed by source": (DEFAULT_LATEST, 2, False),
     "2 workers, pinned by worker: K": (with_workers(DEFAULT_LATEST, SPLIT_DRAWS), 2, False),
+    # The same with `policy: all` (every draw kept, up to 1000 waiting): whether two workers carry
+    # every draw when a late one may wait, where `latest` gives up the older of two at each stall.
+    "2 workers, pinned by worker: K, policy all": (with_workers(DEFAULT_ALL, SPLIT_DRAWS), 2, False),
 }
 
 
@@ -414,6 +418,14 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
                             f"{shared} (baseline: --workers 1, unpinned)", two["cpu_us_per_draw"],
                             one["cpu_us_per_draw"], "us", "none (reported)", None))  # fmt: skip
         rows.extend(whole_run(f"{draws_setup}, --workers 2 {how} (baseline: --workers 1, unpinned)", two, one))
+    latest, every = best["2 workers, pinned by worker: K"], best["2 workers, pinned by worker: K, policy all"]
+    for route in DRAW_TOPICS:
+        rows.append(Measure(f"workers: {route} delivered of draws sent, {draws_setup} with `policy: all` (every draw "
+                            f"kept, up to 1000 waiting), --workers 2 pinned, {shared} (baseline: the same with "
+                            "`latest`, as shipped)", every[route], latest[route], "%", "none (reported)", None))
+        rows.append(Measure(f"workers: {route} latency LCM receive -> published, p99 of its last 4096 draws, same, `policy: all` "
+                            "(baseline: `latest`)", every[f"{route}_p99_ms"], latest[f"{route}_p99_ms"], "ms",
+                            "none (reported: what keeping every draw costs)", None))  # fmt: skip
     pinned = best["1 worker, pinned to CPU 0"]
     rows.append(Measure(f"workers: poses / tf / markers delivered, {draws_setup}, --workers 1 pinned to CPU 0 as "
                         "bench/router.py, publisher on CPU 1: the least of the three (baseline: --workers 1, unpinned)",
