@@ -8,7 +8,8 @@ resource tracker `spawn` starts), over the publishing window:
 
 1. Draws: a 1000-link scene, then 1000-link `lcmt_viewer_draw`s at 2 kHz, through the default
    config's three per-draw routes (`tf`, world-frame `markers`, `poses`; policy `latest`, as they
-   ship) to raw rclpy subscribers, in a process of their own (`common.DdsCounter`), that count
+   ship; `ros.shared_memory_mb: 32`, as docs/ros2.md advises for 248 kB MarkerArrays at 2 kHz) to
+   raw rclpy subscribers, in a process of their own (`common.DdsCounter`), that count
    what arrives on each topic. Set-ups, interleaved: one worker pinned to CPU 0 with this process
    (the publisher) and the subscribers' on CPU 1, as
    bench/router.py runs it; one worker unpinned; two workers as `place` puts them (the routes are
@@ -85,6 +86,9 @@ DRAW_TOPICS = {  # route -> (topic, type) its subscriber counts on
     "markers": ("/drake/markers", "visualization_msgs/msg/MarkerArray"),
 }
 SPLIT_DRAWS = {"markers": 0, "tf": 1, "poses": 1}  # worker: K of the pinned two-worker set-up
+# The draws' 248 kB MarkerArrays at 2 kHz need a larger Fast DDS shared-memory segment than its own
+# (docs/ros2.md, bench/dds_segment.py); every draws set-up has it.
+LARGE_MESSAGES = "ros: {shared_memory_mb: 32}\n"
 
 BUS_CHANNELS = tuple(f"WORKERS_IIWA_{index:02d}" for index in range(40))
 BUS_HZ = 1500.0  # per channel
@@ -201,7 +205,7 @@ def draw_run(label: str, config: str, workers: int, pinned: bool, folder: Path, 
     if pinned:
         os.sched_setaffinity(0, {1})  # the publisher and the subscribers; the bridge gets CPU 0
     try:
-        bridge = Bridge(config, workers, folder, {0} if pinned else None)
+        bridge = Bridge(LARGE_MESSAGES + config, workers, folder, {0} if pinned else None)
         routes = routes_of(config)
         counter = DdsCounter({route: DRAW_TOPICS[route] for route in routes})
         bus = LcmBus(URL)
@@ -426,7 +430,7 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
     """Issue 42: what a second worker buys, against one worker in the same run."""
     best = compare(size.pick(full=10.0, quick=4.0, smoke=0.5), size.pick(full=2, quick=1, smoke=1))
     rows = []
-    draws_setup = f"{LINKS}-link draws at {DRAW_HZ / 1000:g} kHz, default per-draw routes"
+    draws_setup = f"{LINKS}-link draws at {DRAW_HZ / 1000:g} kHz, default per-draw routes, ros.shared_memory_mb 32"
     shared = "unpinned: publisher and subscribers share the 2 cores"
     one = best["1 worker, unpinned"]
     for label, how in (("2 workers, placed by source", "placed by source"), ("2 workers, pinned by worker: K", "pinned")):

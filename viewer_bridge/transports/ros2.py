@@ -92,9 +92,10 @@ class RosSettings(TransportSettings):
     namespace: str = ""  # relative topic names resolve under it; absolute ones (/tf) do not
     use_sim_time: bool = False
     ros_args: list[str] = []  # what follows `--ros-args` on the command line: remaps, -p, ...
-    # Fast DDS: the participant's shared-memory segment, unless the user gave Fast DDS a profile of
-    # their own; 0 leaves Fast DDS's 512 KiB (see `viewer_bridge.transports.fastdds_profile`).
-    shared_memory_mb: int = Field(default=32, ge=0, le=4096)
+    # Fast DDS: a shared-memory segment of this many MiB for the node's participant, for large
+    # messages at high rates, unless the user gave Fast DDS a profile of their own; 0 (the default)
+    # leaves Fast DDS's own 512 KiB (see `viewer_bridge.transports.fastdds_profile`).
+    shared_memory_mb: int = Field(default=0, ge=0, le=4096)
 
     @field_validator("node")
     @classmethod
