@@ -1,6 +1,7 @@
 """What every bench script returns, so that `bench/all.py` can gather them into one table, what it
-is asked for (`Size`), and what they share: timing (`best_of`), a frame of link poses to draw
-(`frame`) and the CPU time of a process with its children (`tree_cpu_seconds`).
+is asked for (`Size`), and what they share: timing (`best_of`), a publisher's pace (`paced`), a
+frame of link poses to draw (`frame`) and the CPU time of a process with its children
+(`tree_cpu_seconds`).
 
 Only `viewer_bridge.model.scene` from the bridge: bench/load_targets.py imports this beside an older commit's
 `bridge` too.
@@ -70,6 +71,21 @@ def settle(done: Callable[[], bool], at_most: float) -> bool:
             return False
         time.sleep(0.02)
     return True
+
+
+def paced(publish: Any, count: int, rate_hz: float, seconds: float) -> int:
+    """`publish(i)` for i = 0, 1, ... at `rate_hz` for `seconds`, paced by sleeping (a spinning
+    publisher would take a core from what it measures): whatever is due is sent, then a short sleep.
+    Returns how many were sent."""
+    start = time.perf_counter()
+    sent = 0
+    while (elapsed := time.perf_counter() - start) < seconds:
+        due = min(int(elapsed * rate_hz) + 1, count) if count else int(elapsed * rate_hz) + 1
+        while sent < due:
+            publish(sent)
+            sent += 1
+        time.sleep(0.0002)
+    return sent
 
 
 def best_of(fn: Callable[[], object], repeat: int = 5, number: int = 1) -> float:

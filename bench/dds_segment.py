@@ -19,7 +19,7 @@ import multiprocessing
 import time
 from typing import Any
 
-from common import DdsCounter, Measure, Size, settle
+from common import DdsCounter, Measure, Size, paced, settle
 from router import DISCOVERY_S, frame, scene
 
 TOPICS = {  # key -> (topic, type)
@@ -63,14 +63,13 @@ def publisher_child(megabytes: int, seconds: float, start: Any, published: Any) 
     each = [data[key] for key in TOPICS]
     transport.start()
     start.wait(60)
-    began, sent = time.perf_counter(), 0
-    while (elapsed := time.perf_counter() - began) < seconds:
-        while sent < int(elapsed * RATE_HZ) + 1:
-            for index, publisher in enumerate(publishers):
-                publisher.publish(each[index][sent % 32])
-                published[index] += 1
-            sent += 1
-        time.sleep(max(0.0002, sent / RATE_HZ - (time.perf_counter() - began)))
+
+    def publish(sent: int) -> None:
+        for index, publisher in enumerate(publishers):
+            publisher.publish(each[index][sent % 32])
+            published[index] += 1
+
+    paced(publish, 0, RATE_HZ, seconds)
     time.sleep(1.0)  # what is in flight arrives before the transport closes
     transport.close()
 

@@ -66,6 +66,7 @@ from common import (
     Size,
     iiwa_status_bytes,
     machine_busy_seconds,
+    paced,
     settle,
     tree_cpu_seconds,
 )
@@ -174,21 +175,6 @@ def quiet(arrived: Any, at_most: float) -> None:
         time.sleep(0.05)
         if (count := arrived()) != last:
             last, still = count, time.monotonic()
-
-
-def paced(publish: Any, count: int, rate_hz: float, seconds: float) -> int:
-    """`publish(i)` for i = 0, 1, ... at `rate_hz` for `seconds`, paced by sleeping (a spinning
-    publisher would take a core from the workers): whatever is due is sent, then a short sleep.
-    Returns how many were sent."""
-    start = time.perf_counter()
-    sent = 0
-    while (elapsed := time.perf_counter() - start) < seconds:
-        due = min(int(elapsed * rate_hz) + 1, count) if count else int(elapsed * rate_hz) + 1
-        while sent < due:
-            publish(sent)
-            sent += 1
-        time.sleep(0.0002)
-    return sent
 
 
 def draws(names: tuple[str, ...], how_many: int = 64) -> list[bytes]:
