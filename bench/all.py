@@ -102,7 +102,11 @@ def run_script(name: str, size: Size) -> tuple[list[Measure], str | None]:
     except Exception:  # any failure of one script is reported with the others' results
         traceback.print_exc()
         return [], "failed (its traceback is above)"
-    print(f"--- bench/{name}.py: {len(rows)} rows in {time.monotonic() - started:.1f} s", file=sys.stderr, flush=True)
+    print(
+        f"--- bench/{name}.py: {len(rows)} rows in {time.monotonic() - started:.1f} s",
+        file=sys.stderr,
+        flush=True,
+    )
     if not rows:
         return rows, "returned no row"
     unmeasured = [row.name for row in rows if not math.isfinite(row.ours)]
@@ -110,10 +114,14 @@ def run_script(name: str, size: Size) -> tuple[list[Measure], str | None]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     sizes = parser.add_mutually_exclusive_group()
     sizes.add_argument("--quick", action="store_true", help="fewer repeats and shorter runs")
-    sizes.add_argument("--smoke", action="store_true", help="every row at tiny sizes: only checks that each is produced")
+    sizes.add_argument(
+        "--smoke", action="store_true", help="every row at tiny sizes: only checks that each is produced"
+    )
     parser.add_argument("--only", nargs="*", help="these scripts only (file names without .py)")
     parser.add_argument("--write-docs", action="store_true", help="write the table into docs/benchmarks.md")
     args = parser.parse_args()

@@ -30,7 +30,8 @@ from viewer_bridge.lcmcodec.from_ros import lcm_channel, load_ros_definitions, m
 from viewer_bridge.transports.lcm import LcmEvent, read_log, write_log
 
 MB = 1e6
-RAM = Path("/dev/shm")  # the bags and logs in memory: the conversion is measured, not the disk (others share it)
+# the bags and logs in memory: the conversion is measured, not the disk (others share it)
+RAM = Path("/dev/shm")
 GOAL_MB_S = 100.0  # the image bag
 
 
@@ -61,7 +62,10 @@ def baseline(bag: Path, out: Path, ros_class: Any, lcm_class: Any, fill: Callabl
         for connection, stamp, data in reader.messages():
             ros = deserialize_message(bytes(data), ros_class)
             message = lcm_class()
-            message.header.stamp.sec, message.header.stamp.nanosec = ros.header.stamp.sec, ros.header.stamp.nanosec
+            message.header.stamp.sec, message.header.stamp.nanosec = (
+                ros.header.stamp.sec,
+                ros.header.stamp.nanosec,
+            )
             message.header.frame_id = ros.header.frame_id
             fill(ros, message)
             yield LcmEvent(lcm_channel(connection.topic), message.encode(), stamp // 1000)
@@ -99,13 +103,18 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
              [joint_state(7)] * states, JointState, fill_joint_state, "ratio >= 5x", None),
         ]  # fmt: skip
         for name, what, topic, ros_type, messages, ros_class, fill, goal, limit in bags:
-            bag, mine, theirs = folder / f"{name}.mcap", folder / f"{name}.lcmlog", folder / f"{name}_base.lcmlog"
+            bag, mine, theirs = (
+                folder / f"{name}.mcap",
+                folder / f"{name}.lcmlog",
+                folder / f"{name}_base.lcmlog",
+            )
             write_bag(bag, topic, ros_type, messages)
             megabytes = bag.stat().st_size / MB
             ours_best = base_best = float("inf")
             for _ in range(size.pick(full=3, quick=2, smoke=1)):  # alternating rounds: the load drifts
                 ours_best = min(ours_best, seconds(lambda: ours(bag, mine)))  # noqa: B023 (called at once)
-                base_best = min(base_best, seconds(lambda: baseline(bag, theirs, ros_class, classes[ros_type], fill)))  # noqa: B023
+                base_seconds = seconds(lambda: baseline(bag, theirs, ros_class, classes[ros_type], fill))  # noqa: B023
+                base_best = min(base_best, base_seconds)
             assert next(iter(read_log(mine))) == next(iter(read_log(theirs)))  # noqa: S101 (like with like)
             ms_per_mb, base_ms_per_mb = ours_best * 1000 / megabytes, base_best * 1000 / megabytes
             met = ms_per_mb <= limit if limit is not None else base_ms_per_mb / ms_per_mb >= 5

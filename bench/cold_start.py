@@ -53,7 +53,9 @@ def median_per_draw(translator: Translator, draws: list[bytes], count: int, slee
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--draws", type=int, default=600)
     args = parser.parse_args()
     os.sched_setaffinity(0, {0})

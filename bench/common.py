@@ -114,7 +114,9 @@ def machine_busy_seconds() -> float:
     """CPU seconds the whole machine has been busy so far, every core summed (/proc/stat's first
     line: all but idle and iowait): processes, and the kernel's interrupt and softirq time that no
     process's own CPU time holds (moving packets over loopback, for one)."""
-    user, nice, system, idle, iowait, irq, softirq, steal = (int(f) for f in Path("/proc/stat").read_text().split()[1:9])
+    user, nice, system, idle, iowait, irq, softirq, steal = (
+        int(f) for f in Path("/proc/stat").read_text().split()[1:9]
+    )
     return (user + nice + system + irq + softirq + steal) / os.sysconf("SC_CLK_TCK")
 
 

@@ -76,7 +76,9 @@ def _cell(values: list[float], unit: str) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("other", type=Path, help="the other checkout (a git worktree)")
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--only", nargs="*")

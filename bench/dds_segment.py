@@ -106,7 +106,9 @@ def compare(seconds: float, rounds: int) -> dict[str, dict[str, float]]:
     for _ in range(rounds):
         for label, megabytes in SEGMENTS.items():
             result = run(label, megabytes, seconds)
-            if label not in best or min(result[key] for key in TOPICS) > min(best[label][key] for key in TOPICS):
+            if label not in best or min(result[key] for key in TOPICS) > min(
+                best[label][key] for key in TOPICS
+            ):
                 best[label] = result
     return best
 
@@ -115,16 +117,24 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
     best = compare(size.pick(full=8.0, quick=4.0, smoke=0.5), size.pick(full=2, quick=1, smoke=1))
     ours, theirs = best["32 MiB"], best["512 KiB (Fast DDS's own)"]
     return [
-        Measure(f"dds_segment: {key} messages an rclpy subscriber got of those published, 1000-link scene's three "
-                "per-draw topics at 2 kHz from one node, ros.shared_memory_mb: 32 (baseline: 0, the default: "
-                "Fast DDS's own 512 KiB segment)", ours[key], theirs[key], "%", ">= 99.9",
-                ours[key] >= 99.9)  # fmt: skip
+        Measure(
+            f"dds_segment: {key} messages an rclpy subscriber got of those published, 1000-link scene's three "
+            "per-draw topics at 2 kHz from one node, ros.shared_memory_mb: 32 (baseline: 0, the default: "
+            "Fast DDS's own 512 KiB segment)",
+            ours[key],
+            theirs[key],
+            "%",
+            ">= 99.9",
+            ours[key] >= 99.9,
+        )  # fmt: skip
         for key in TOPICS
     ]
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--seconds", type=float, default=8.0)
     parser.add_argument("--rounds", type=int, default=2)
     args = parser.parse_args()

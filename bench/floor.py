@@ -184,7 +184,9 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
                             ratio, 1.0, "x", "none (reported)", None))  # fmt: skip
     fast = compare(seconds, 1, others=at_rate(FAST_HZ), routes=())
     for target, name in (("zenoh", "Zenoh"), ("dds", "ROS 2 over DDS (rclpy)")):
-        setup = f"{FAST_HZ * len(CHANNELS):,.0f} lcmt_iiwa_status messages/s (20 channels) onto {name}, pinned"
+        setup = (
+            f"{FAST_HZ * len(CHANNELS):,.0f} lcmt_iiwa_status messages/s (20 channels) onto {name}, pinned"
+        )
         rows.append(Measure(f"floor: delivered by the bare process, {setup}", fast[target]["delivered"], None, "%",
                             "none: what any Python process on the core carries (lcm_routes' 99.9% rows)", None))  # fmt: skip
         rows.append(Measure(f"floor: its CPU per message, {setup}", fast[target]["cpu_us_per_message"], None,
@@ -193,10 +195,14 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--rate-hz", type=float, help=f"per channel: the floor alone at this rate (issue 42: {FAST_HZ:g})")
+    parser.add_argument(
+        "--rate-hz", type=float, help=f"per channel: the floor alone at this rate (issue 42: {FAST_HZ:g})"
+    )
     parser.add_argument("--serve", nargs=3, metavar=("URL", "ENDPOINT", "TARGET"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.serve:

@@ -113,7 +113,11 @@ def live_paths(payload: bytes, count: int, rounds: int = 5) -> dict[str, tuple[f
         publisher = transport.publisher("/bench", message_type, Qos())
         relay_only = read_only.publisher("/bench", message_type, Qos())
         paths = {  # name: (publisher, port, subprotocol)
-            "SDK server alone, foxglove.sdk.v1 (baseline)": (publisher, transport.server.port, "foxglove.sdk.v1"),
+            "SDK server alone, foxglove.sdk.v1 (baseline)": (
+                publisher,
+                transport.server.port,
+                "foxglove.sdk.v1",
+            ),
             "through the front, foxglove.sdk.v1": (publisher, transport.port, "foxglove.sdk.v1"),
             "through the front, foxglove.websocket.v1": (publisher, transport.port, "foxglove.websocket.v1"),
             "read-only server's front, .websocket.v1": (relay_only, read_only.port, "foxglove.websocket.v1"),
@@ -164,8 +168,9 @@ def main() -> None:
 
     load = scene(args.links)
     once = seconds_per_call(lambda: scene_update(load, frames).SerializeToString(), args.budget)
-    print(f"\nload -> foxglove.SceneUpdate bytes, {load.geometry_count()} geometries: {once * 1e3:.2f} ms (once per load)")
-
+    print(
+        f"\nload -> foxglove.SceneUpdate bytes, {load.geometry_count()} geometries: {once * 1e3:.2f} ms (once per load)"
+    )
 
     for links in (10, args.links):  # a small message (mostly the hop's wake-ups) and a big one
         payload = encoder.encode(decoder.decode(DrawEncoder().encode(frame(links))), stamp)
@@ -174,6 +179,7 @@ def main() -> None:
         print(f"  {'path':44} {'one at a time':>14} {'in a burst':>12}")
         for name, (single, burst) in live_paths(payload, args.messages).items():
             print(f"  {name:44} {single * 1e6:11.1f} us {burst * 1e6:9.1f} us")
+
 
 if __name__ == "__main__":
     main()

@@ -73,7 +73,9 @@ def zygote(names: list[str], runs: int, timeout: int, rss_mb: int, seeds: Path, 
         print(name, os.waitstatus_to_exitcode(status), flush=True)
 
 
-def _fuzz_in_fork(target: Any, name: str, runs: int, timeout: int, rss_mb: int, seeds: Path, log: Path) -> None:
+def _fuzz_in_fork(
+    target: Any, name: str, runs: int, timeout: int, rss_mb: int, seeds: Path, log: Path
+) -> None:
     """Hand `target` to libFuzzer (which ends this process), its output to `log`."""
     import atheris
 
@@ -115,11 +117,15 @@ def run_targets(names: list[str], runs: int, timeout: int, rss_mb: int, seeds: P
             assert process.stdout is not None and process.stderr is not None
             for line in process.stdout:
                 name, status = line.split()
-                yield _report(name, (logs / f"{name}.log").read_text(errors="replace"), runs, int(status), started)
+                yield _report(
+                    name, (logs / f"{name}.log").read_text(errors="replace"), runs, int(status), started
+                )
                 started = time.monotonic()
             problem = process.stderr.read()
         if process.returncode != 0:  # instrumenting or importing failed: no target ran
-            raise SystemExit(f"the fuzzing process failed (exit status {process.returncode}): {_last_lines(problem, 10)}")
+            raise SystemExit(
+                f"the fuzzing process failed (exit status {process.returncode}): {_last_lines(problem, 10)}"
+            )
 
 
 def _report(name: str, output: str, runs: int, status: int, started: float) -> Report:
@@ -172,7 +178,9 @@ def _last_lines(text: str, count: int = 3) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--runs", type=int, default=1_000_000, help="executions per target")
     parser.add_argument("--only", nargs="*", help="these targets only")
     parser.add_argument("--timeout", type=int, default=10, help="seconds one input may take (a hang)")

@@ -80,9 +80,7 @@ def live(seconds: float) -> dict[str, float]:
         bridge = Bridge(CONFIG, Path(folder), core=0)
         received = []
         node = IgnNode()
-        node.subscribe(
-            "/bench/pose_v", "gz.msgs.Pose_V", lambda topic, data, us: received.append(len(data))
-        )
+        node.subscribe("/bench/pose_v", "gz.msgs.Pose_V", lambda topic, data, us: received.append(len(data)))
         node.start()
         bus = LcmBus(bench_router.URL)
         time.sleep(2.0)

@@ -139,7 +139,8 @@ def iiwa_command_baseline(cdr: bytes) -> Callable[[], bytes]:
         ros = deserialize_message(cdr, LcmtIiwaCommand)
         message = drake.lcmt_iiwa_command()
         message.utime, message.num_joints, message.num_torques = ros.utime, ros.num_joints, ros.num_torques
-        message.joint_position, message.joint_torque = ros.joint_position, ros.joint_torque  # encode takes arrays
+        # encode takes arrays
+        message.joint_position, message.joint_torque = ros.joint_position, ros.joint_torque
         return message.encode()  # type: ignore[no-any-return]
 
     return build
@@ -201,7 +202,9 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
     rows.append(Measure(f"lcmt_iiwa_status (7 joints) -> CDR, vs lcm-gen + {rclpy_type}", ours * 1e6, base * 1e6,
                         "us", "ratio >= 20x", base / ours >= 20))  # fmt: skip
     counts_as_padding = "".join("4x7d" if array == 0 else "8x7d" for array in range(7))
-    ours, floor = paired(partial(known.to_cdr, data), bare_struct(data, ">8sqi49d", "<0sqi" + counts_as_padding), size)
+    ours, floor = paired(
+        partial(known.to_cdr, data), bare_struct(data, ">8sqi49d", "<0sqi" + counts_as_padding), size
+    )
     rows.append(Measure("lcmt_iiwa_status -> CDR, vs one bare struct unpack + pack of its fields (the floor)",
                         ours * 1e6, floor * 1e6, "us", "ours <= 3x floor", ours <= 3 * floor))  # fmt: skip
     with tempfile.TemporaryDirectory() as folder:
@@ -238,7 +241,9 @@ def _memcpy(data: bytes) -> bytes:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--quick", action="store_true", help="fewer rounds")
     print_measures(measures(Size.QUICK if parser.parse_args().quick else Size.FULL))
 

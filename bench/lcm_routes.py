@@ -98,7 +98,9 @@ def publish(bus: LcmBus, seconds: float, rate_hz: float = RATE_HZ) -> int:
 
 def dds_counter() -> DdsCounter:
     """A raw rclpy subscriber on every channel's topic, /lcm/<channel>, in a process of its own."""
-    return DdsCounter({channel: (f"/lcm/{channel}", "drake_lcm_msgs/msg/LcmtIiwaStatus") for channel in CHANNELS})
+    return DdsCounter(
+        {channel: (f"/lcm/{channel}", "drake_lcm_msgs/msg/LcmtIiwaStatus") for channel in CHANNELS}
+    )
 
 
 def dds_config() -> str:
@@ -107,12 +109,16 @@ def dds_config() -> str:
     return yaml.safe_dump({"routes": [bus]})
 
 
-def run(route: str, folder: Path, seconds: float, endpoint: str, rate_hz: float = RATE_HZ) -> dict[str, float]:
+def run(
+    route: str, folder: Path, seconds: float, endpoint: str, rate_hz: float = RATE_HZ
+) -> dict[str, float]:
     """`route` (relay, lcm_bus, or dds: lcm_bus onto ROS 2 over DDS) at `rate_hz` per channel."""
     domain = int(os.environ.get("ROS_DOMAIN_ID") or 0)
     bridge = Bridge(dds_config() if route == "dds" else bus_config(endpoint, route), folder, core=0)
     subscriber: Counting | DdsCounter = (
-        dds_counter() if route == "dds" else Counting(endpoint, "lcm" if route == "relay" else f"{domain}/lcm")
+        dds_counter()
+        if route == "dds"
+        else Counting(endpoint, "lcm" if route == "relay" else f"{domain}/lcm")
     )
     bus = LcmBus(URL)
     time.sleep(1.0)
@@ -147,14 +153,19 @@ def run(route: str, folder: Path, seconds: float, endpoint: str, rate_hz: float 
 def _messages(stats: dict[str, Any]) -> tuple[int, int]:
     """The route's messages in and out so far (the busiest route's)."""
     routes = [r for name, r in stats.items() if name != "transports"]
-    return max((r["messages_in"] for r in routes), default=0), max((r["messages_out"] for r in routes), default=0)
+    return max((r["messages_in"] for r in routes), default=0), max(
+        (r["messages_out"] for r in routes), default=0
+    )
 
 
 Runner = Callable[[Path, float, str], dict[str, float]]  # (folder, seconds, Zenoh endpoint) -> figures
 
 
 def compare(
-    seconds: float, rounds: int = 2, others: dict[str, Runner] | None = None, routes: tuple[str, ...] = ("lcm_bus", "relay")
+    seconds: float,
+    rounds: int = 2,
+    others: dict[str, Runner] | None = None,
+    routes: tuple[str, ...] = ("lcm_bus", "relay"),
 ) -> dict[str, dict[str, float]]:
     """`routes` (and `others`, by name: bench/floor.py's floor), `rounds` times interleaved;
     per figure, the better round."""
@@ -213,15 +224,21 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--rate-hz", type=float, help=f"per channel: delivery at this rate (issue 42: {FAST_HZ:g})")
+    parser.add_argument(
+        "--rate-hz", type=float, help=f"per channel: delivery at this rate (issue 42: {FAST_HZ:g})"
+    )
     parser.add_argument("--dds", action="store_true", help="with --rate-hz: onto ROS 2 over DDS too")
     args = parser.parse_args()
     rate = args.rate_hz or RATE_HZ
     print(f"20 channels of lcmt_iiwa_status at {rate:g} Hz for {args.seconds:.0f} s, bridge pinned to CPU 0")
-    best = delivery(args.seconds, args.rate_hz, args.dds) if args.rate_hz else compare(args.seconds, args.rounds)
+    best = (
+        delivery(args.seconds, args.rate_hz, args.dds) if args.rate_hz else compare(args.seconds, args.rounds)
+    )
     print("\nbest of the rounds:")
     for route, figures in best.items():
         print(f"   {route:<8} " + ", ".join(f"{key} {value:.4g}" for key, value in figures.items()))

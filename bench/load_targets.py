@@ -55,7 +55,13 @@ print(json.dumps(_time(side, links, repeat)))
 
 def scene(links: int) -> Scene:
     """One primitive per link, cycling through the shapes (a 1000-link load has 1000 geometries)."""
-    shapes = [Box((0.1, 0.2, 0.3)), Sphere(0.05), Cylinder(0.04, 0.3), Capsule(0.03, 0.2), Ellipsoid((0.1, 0.2, 0.3))]
+    shapes = [
+        Box((0.1, 0.2, 0.3)),
+        Sphere(0.05),
+        Cylinder(0.04, 0.3),
+        Capsule(0.03, 0.2),
+        Ellipsoid((0.1, 0.2, 0.3)),
+    ]
     names = frame(links).names
     geometry = [Geometry(shape, ScenePose((0.1, 0.0, 0.0)), (0.5, 0.5, 0.5, 1.0)) for shape in shapes]
     return Scene(tuple(Link(name, index % 7, (geometry[index % 5],)) for index, name in enumerate(names)))

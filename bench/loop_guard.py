@@ -69,7 +69,9 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--quick", action="store_true", help="fewer rounds")
     print_measures(measures(Size.QUICK if parser.parse_args().quick else Size.FULL))
 

@@ -49,7 +49,10 @@ def lcmgen_classes(mapping: LcmFromRos, folder: Path) -> dict[str, Any]:
                    check=True)  # fmt: skip
     sys.path.insert(0, str(folder / "py"))
     try:
-        return {ros: getattr(importlib.import_module(f"bench_{ros.split('/')[0]}"), ros.split("/")[-1]) for ros in TYPES}
+        return {
+            ros: getattr(importlib.import_module(f"bench_{ros.split('/')[0]}"), ros.split("/")[-1])
+            for ros in TYPES
+        }
     finally:
         sys.path.remove(str(folder / "py"))
 
@@ -73,14 +76,19 @@ def image(width: int, height: int) -> Any:
     return message
 
 
-def baseline(cdr: bytes, ros_class: Any, lcm_class: Any, fill: Callable[[Any, Any], None]) -> Callable[[], bytes]:
+def baseline(
+    cdr: bytes, ros_class: Any, lcm_class: Any, fill: Callable[[Any, Any], None]
+) -> Callable[[], bytes]:
     """rclpy's `deserialize_message`, then lcm-gen's class: its header from the ROS 2 one, the rest by `fill`."""
     from rclpy.serialization import deserialize_message
 
     def build() -> bytes:
         ros = deserialize_message(cdr, ros_class)
         message = lcm_class()
-        message.header.stamp.sec, message.header.stamp.nanosec = ros.header.stamp.sec, ros.header.stamp.nanosec
+        message.header.stamp.sec, message.header.stamp.nanosec = (
+            ros.header.stamp.sec,
+            ros.header.stamp.nanosec,
+        )
         message.header.frame_id = ros.header.frame_id
         fill(ros, message)
         return message.encode()  # type: ignore[no-any-return]
@@ -124,7 +132,10 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
                             base * 1e6, "us", f"ratio >= {goal}x", base / ours >= goal))  # fmt: skip
     width, height = size.pick(full=(640, 480), quick=(640, 480), smoke=(8, 6))
     cdr = serialize_message(image(width, height))
-    ours_call, theirs = partial(encoders[TYPES[1]].encode, cdr), baseline(cdr, Image, classes[TYPES[1]], fill_image)
+    ours_call, theirs = (
+        partial(encoders[TYPES[1]].encode, cdr),
+        baseline(cdr, Image, classes[TYPES[1]], fill_image),
+    )
     assert ours_call() == theirs()  # noqa: S101
     ours, base = paired(ours_call, theirs, size)
     rows.append(Measure(f"sensor_msgs/Image ({width}x{height} rgb8) CDR -> LCM, vs rclpy + lcm-gen", ours * 1e6,

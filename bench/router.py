@@ -263,7 +263,8 @@ def default_per_draw(policy: str) -> str:
                   f"    source: {{transport: lcm, name: {json.dumps(route.source.name)}}}",
                   f"    translator: {route.translator}",
                   f"    destination: {{transport: ros, name: {json.dumps(route.destination.name)}}}",
-                  f"    qos: {{depth: {1000 if policy == 'all' else route.qos.depth}}}",  # all: room for bursts
+                  # all: room for bursts
+                  f"    qos: {{depth: {1000 if policy == 'all' else route.qos.depth}}}",
                   f"    rate: {{policy: {policy}}}"]  # fmt: skip
     return "\n".join(lines) + "\n"
 
@@ -274,10 +275,16 @@ _DEFAULT_TOPICS = (("/drake/poses", "geometry_msgs/msg/PoseArray"), ("/tf", "tf2
 
 SUBSCRIBED = {  # what this process subscribes to, raw, for each set-up: the per-draw outputs
     PASSTHROUGH: (("/bench/bytes", "std_msgs/msg/UInt8MultiArray"),),
-    THROUGHPUT: (("/bench/poses", "geometry_msgs/msg/PoseArray"), ("/bench/markers", "visualization_msgs/msg/MarkerArray")),
+    THROUGHPUT: (
+        ("/bench/poses", "geometry_msgs/msg/PoseArray"),
+        ("/bench/markers", "visualization_msgs/msg/MarkerArray"),
+    ),
     POSES: (("/bench/poses", "geometry_msgs/msg/PoseArray"),),
     WORLD_MARKERS: (("/bench/markers", "visualization_msgs/msg/MarkerArray"),),
-    TF_SETUP: (("/tf", "tf2_msgs/msg/TFMessage"), ("/bench/link_markers", "visualization_msgs/msg/MarkerArray")),
+    TF_SETUP: (
+        ("/tf", "tf2_msgs/msg/TFMessage"),
+        ("/bench/link_markers", "visualization_msgs/msg/MarkerArray"),
+    ),
     TF_ONLY: (("/tf", "tf2_msgs/msg/TFMessage"),),
     DEFAULT_ALL: _DEFAULT_TOPICS,
     DEFAULT_LATEST: _DEFAULT_TOPICS,
@@ -389,11 +396,16 @@ def _floor_child(sizes: tuple[int, ...], rate_hz: float, seconds: float) -> None
     rclpy.init()
     node = rclpy.create_node("bench_floor")
     kind = message_class("std_msgs/msg/UInt8MultiArray")
-    publishers = [node.create_publisher(kind, f"/bench/floor{index}", qos_profile(10)) for index, _ in enumerate(sizes)]
+    publishers = [
+        node.create_publisher(kind, f"/bench/floor{index}", qos_profile(10)) for index, _ in enumerate(sizes)
+    ]
     # UInt8MultiArray CDR: encapsulation, an empty layout (no dims, data_offset 0), then the bytes.
     messages = [b"\0\1\0\0" + struct.pack("<3I", 0, 0, size - 16) + bytes(size - 16) for size in sizes]
     deadline = time.monotonic() + 10
-    while any(publisher.get_subscription_count() == 0 for publisher in publishers) and time.monotonic() < deadline:
+    while (
+        any(publisher.get_subscription_count() == 0 for publisher in publishers)
+        and time.monotonic() < deadline
+    ):
         time.sleep(0.05)
     time.sleep(1.0)  # matching settles
     period, started, cpu_before = 1.0 / rate_hz, time.monotonic(), time.process_time()

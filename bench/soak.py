@@ -120,7 +120,9 @@ class Bridge:
 class Publisher:
     """Drake's side: a load, then draws at `rate_hz`, on a thread; `epoch` marks who sent them."""
 
-    def __init__(self, rate_hz: float, epoch: int = 1, send_load: bool = True, load_every_s: float = 60.0) -> None:
+    def __init__(
+        self, rate_hz: float, epoch: int = 1, send_load: bool = True, load_every_s: float = 60.0
+    ) -> None:
         self.the_scene = scene()
         self.names = tuple(link.name for link in self.the_scene.links)
         self.bus = LcmBus(URL)
@@ -254,7 +256,9 @@ def soak(folder: Path, minutes: float, rate_hz: float) -> dict[str, Any]:
         time.sleep(max(0.0, started + min(minute, minutes) * 60 - time.monotonic()))
         stats = bridge.snapshot()
         poses, tf = stats.get("poses", {}), stats.get("tf", {})
-        errors = sum(sum(route.get("errors", {}).values()) for name, route in stats.items() if name != "transports")
+        errors = sum(
+            sum(route.get("errors", {}).values()) for name, route in stats.items() if name != "transports"
+        )
         kernel = stats.get("transports", {}).get("lcm", {}).get("errors", {}).get("dropped_by_kernel", 0)
         row = {
             "sent": publisher.sent, "in": poses.get("messages_in", 0), "poses_out": poses.get("messages_out", 0),
@@ -265,7 +269,15 @@ def soak(folder: Path, minutes: float, rate_hz: float) -> dict[str, Any]:
         if minute == 1:
             rss_warm = row["rss"]
         rows.append(row)
-        widths = {"sent": 8, "in": 9, "poses_out": 9, "tf_out": 8, "delivered": 9, "conflated": 9, "kernel": 6}
+        widths = {
+            "sent": 8,
+            "in": 9,
+            "poses_out": 9,
+            "tf_out": 8,
+            "delivered": 9,
+            "conflated": 9,
+            "kernel": 6,
+        }
         print(f"{minute:>4} " + " ".join(f"{row[key]:>{width}}" for key, width in widths.items())
               + f" {row['errors']:>6} {row['rss']:>7.1f}")  # fmt: skip
     publisher.kill()
@@ -277,7 +289,9 @@ def soak(folder: Path, minutes: float, rate_hz: float) -> dict[str, Any]:
     subscriber.close()
     last = rows[-1]
     growth = last["rss"] - rss_warm
-    errors = sum(sum(route.get("errors", {}).values()) for name, route in final.items() if name != "transports")
+    errors = sum(
+        sum(route.get("errors", {}).values()) for name, route in final.items() if name != "transports"
+    )
     result = {"sent": publisher.sent, "loads": publisher.loads, "received": final.get("poses", {}).get("messages_in", 0),
               "published": final.get("poses", {}).get("messages_out", 0) + final.get("tf", {}).get("messages_out", 0),
               "delivered": subscriber.topics["/drake/poses"].messages + subscriber.topics["/tf"].messages,
@@ -463,7 +477,9 @@ def fault_director_viewer_restart(folder: Path) -> float | None:
     viewer.stop()
     client.stop()
     bus.close()
-    print(f"   Director viewer restarted empty: MISSING_PATHS, the client resent, OK again after {_ms(recovery)}")
+    print(
+        f"   Director viewer restarted empty: MISSING_PATHS, the client resent, OK again after {_ms(recovery)}"
+    )
     return recovery
 
 
@@ -488,7 +504,9 @@ def fault_render_client_leaves(folder: Path) -> float | None:
     finally:
         server.terminate()
         server.wait(timeout=10)
-    print(f"   render client left mid-upload: the next request rendered {_ms(recovery)} later (render included)")
+    print(
+        f"   render client left mid-upload: the next request rendered {_ms(recovery)} later (render included)"
+    )
     return recovery
 
 
@@ -505,7 +523,9 @@ def _render_form() -> tuple[bytes, str]:
 
     from viewer_bridge.formats.gltf import write_gltf
 
-    the_scene = Scene((Link("box", 0, (Geometry(Box((1.0, 1.0, 1.0)), Pose((0, 0, -3)), (1 / 255, 0, 0, 1)),)),))
+    the_scene = Scene(
+        (Link("box", 0, (Geometry(Box((1.0, 1.0, 1.0)), Pose((0, 0, -3)), (1 / 255, 0, 0, 1)),)),)
+    )
     document = json.loads(write_gltf(the_scene))
     document["cameras"] = [{"type": "perspective", "perspective": {"yfov": 1.0, "znear": 0.01, "zfar": 10}}]
     document["nodes"].append({"camera": 0, "matrix": np.eye(4).reshape(-1).tolist()})
@@ -515,10 +535,15 @@ def _render_form() -> tuple[bytes, str]:
               "width": b"64", "height": b"48", "near": b"0.01", "far": b"10", "focal_x": b"56", "focal_y": b"56",
               "center_x": b"31.5", "center_y": b"23.5"}  # fmt: skip
     boundary = "soakboundary"
-    body = b"".join(
-        f'--{boundary}\r\nContent-Disposition: form-data; name="{name}"\r\n\r\n'.encode() + value + b"\r\n"
-        for name, value in fields.items()
-    ) + f"--{boundary}--\r\n".encode()
+    body = (
+        b"".join(
+            f'--{boundary}\r\nContent-Disposition: form-data; name="{name}"\r\n\r\n'.encode()
+            + value
+            + b"\r\n"
+            for name, value in fields.items()
+        )
+        + f"--{boundary}--\r\n".encode()
+    )
     return body, f"multipart/form-data; boundary={boundary}"
 
 
@@ -566,7 +591,9 @@ def _ms(seconds: float | None) -> str:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--minutes", type=float, default=10.0, help="length of the soak")
     parser.add_argument("--rate", type=float, default=1000.0, help="draws per second in the soak")
     parser.add_argument("--only", choices=["soak", "faults"])

@@ -165,7 +165,9 @@ def calls_measure(size: Size, folder: Path) -> Measure:
     def per_link() -> None:
         decoded = decoder.decode(draw)
         baseline.set_time("sim_time", duration=decoded.timestamp_ms / 1000)
-        for path, position, (w, x, y, z) in zip(paths, decoded.positions, decoded.quaternions_wxyz, strict=True):
+        for path, position, (w, x, y, z) in zip(
+            paths, decoded.positions, decoded.quaternions_wxyz, strict=True
+        ):
             baseline.log(path, rr.Transform3D(translation=position, quaternion=(x, y, z, w)))
 
     with bridge_side(folder) as ours:
@@ -204,7 +206,8 @@ def live(seconds: float, folder: Path, checkout: Path | None = None) -> dict[str
 
     taken_in = [-1]
 
-    def caught_up() -> bool:  # nothing more came in since the last look, and all of it went out or was counted
+    # nothing more came in since the last look, and all of it went out or was counted
+    def caught_up() -> bool:
         stats = bridge.snapshot().get("rerun", {})
         if not stats or stats["messages_in"] != taken_in[0]:
             taken_in[0] = stats.get("messages_in", -1)
@@ -258,10 +261,14 @@ def measures(size: Size = Size.FULL, seconds: float = 10.0) -> list[Measure]:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--quick", action="store_true", help="only the in-process rows")
-    parser.add_argument("--baseline-checkout", type=Path, help="the live row again with this checkout's bridge")
+    parser.add_argument(
+        "--baseline-checkout", type=Path, help="the live row again with this checkout's bridge"
+    )
     args = parser.parse_args()
     size = Size.QUICK if args.quick else Size.FULL
     with tempfile.TemporaryDirectory() as folder:

@@ -230,7 +230,11 @@ def load_measures(size: Size = Size.FULL, links: int = 1000) -> list[Measure]:
     for name, ours in best.items():
         is_draw = name == "settransform"
         goal = SETTRANSFORM_GOAL if is_draw else LOAD_GOAL
-        label = f"draw -> tree viewer settransform, {links} links" if is_draw else f"load -> {name}, {links} geometries"
+        label = (
+            f"draw -> tree viewer settransform, {links} links"
+            if is_draw
+            else f"load -> {name}, {links} geometries"
+        )
         unit_goal = f"<= {goal * 1e6:.0f} us" if is_draw else f"<= {goal * 1e3:.0f} ms"
         rows.append(Measure(label, ours * 1e3, baseline[name] * 1e3, "ms", unit_goal, ours <= goal))
     return rows

@@ -183,7 +183,9 @@ def draws(names: tuple[str, ...], how_many: int = 64) -> list[bytes]:
     return [encoder.encode(frame(names, sequence)) for sequence in range(1, how_many + 1)]
 
 
-def draw_run(label: str, config: str, workers: int, pinned: bool, folder: Path, seconds: float) -> dict[str, float]:
+def draw_run(
+    label: str, config: str, workers: int, pinned: bool, folder: Path, seconds: float
+) -> dict[str, float]:
     """One bridge, 1000-link draws at 2 kHz: delivered per route, and CPU per draw."""
     the_scene = scene(LINKS)
     encoded = draws(tuple(link.name for link in the_scene.links))
@@ -201,7 +203,12 @@ def draw_run(label: str, config: str, workers: int, pinned: bool, folder: Path, 
         # the subscriber may have seen one worker's node before the other's.
         deadline = time.monotonic() + DISCOVERY_S
         while True:
-            paced(lambda i: bus.publish("DRAKE_VIEWER_DRAW", encoded[i % len(encoded)]), 0, DRAW_HZ, min(1.0, seconds))
+            paced(
+                lambda i: bus.publish("DRAKE_VIEWER_DRAW", encoded[i % len(encoded)]),
+                0,
+                DRAW_HZ,
+                min(1.0, seconds),
+            )
             if len(counter.seen) == len(routes) or time.monotonic() > deadline:
                 break
         quiet(lambda: counter.total, 3.0)
@@ -209,7 +216,9 @@ def draw_run(label: str, config: str, workers: int, pinned: bool, folder: Path, 
         cpu_before, started = bridge.cpu_seconds(), time.monotonic()
         here_before = tree_cpu_seconds(os.getpid()) - cpu_before  # the publisher and the subscriber process
         machine_before = machine_busy_seconds()
-        sent = paced(lambda i: bus.publish("DRAKE_VIEWER_DRAW", encoded[i % len(encoded)]), 0, DRAW_HZ, seconds)
+        sent = paced(
+            lambda i: bus.publish("DRAKE_VIEWER_DRAW", encoded[i % len(encoded)]), 0, DRAW_HZ, seconds
+        )
         settle(lambda: min(counter.counts.values()) >= sent, min(1.0, seconds))  # what was queued drains
         cpu_after = bridge.cpu_seconds()
         cpu, here = cpu_after - cpu_before, tree_cpu_seconds(os.getpid()) - cpu_after - here_before
@@ -337,7 +346,8 @@ def bus_run(label: str, workers: int, folder: Path, seconds: float, endpoint: st
     time.sleep(min(1.0, seconds))
     warm_up, deadline = 0, time.monotonic() + 10.0
     while len(samples.seen) < len(BUS_CHANNELS) and time.monotonic() < deadline:  # both halves' routes woke
-        warm_up += publishers.publish(min(1.0, seconds))  # the lazy routes wake, each channel's publisher appears
+        # the lazy routes wake, each channel's publisher appears
+        warm_up += publishers.publish(min(1.0, seconds))
     quiet(lambda: samples.total, 3.0)
     samples.counting.set()
     cpu_before, others_before = bridge.cpu_seconds(), publishers.cpu_seconds() + time.process_time()
@@ -360,7 +370,8 @@ def bus_run(label: str, workers: int, folder: Path, seconds: float, endpoint: st
         "cores": cpu / elapsed,  # the window: publishing, then the drain
         "cores_here": others / elapsed,
         "machine_cores": machine / elapsed,
-        "taken_in": 100.0 * received / max(warm_up + sent, 1),  # of the whole run's: the stats count from the start
+        # of the whole run's: the stats count from the start
+        "taken_in": 100.0 * received / max(warm_up + sent, 1),
     }
     result["score"] = result["per_second"]
     print(f"   {label:<36} sent {sent:7d} ({sent / seconds:.0f}/s), delivered {result['delivered']:5.1f}% "
@@ -386,7 +397,9 @@ def keep(best: dict[str, dict[str, float]], label: str, result: dict[str, float]
         best[label] = result
 
 
-def compare(seconds: float, rounds: int, parts: tuple[str, ...] = ("draws", "bus")) -> dict[str, dict[str, float]]:
+def compare(
+    seconds: float, rounds: int, parts: tuple[str, ...] = ("draws", "bus")
+) -> dict[str, dict[str, float]]:
     """Every set-up of `parts`, `rounds` times interleaved; per figure, the better round."""
     best: dict[str, dict[str, float]] = {}
     with tempfile.TemporaryDirectory() as name:
@@ -416,10 +429,15 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
     """Issue 42: what a second worker buys, against one worker in the same run."""
     best = compare(size.pick(full=10.0, quick=4.0, smoke=0.5), size.pick(full=2, quick=1, smoke=1))
     rows = []
-    draws_setup = f"{LINKS}-link draws at {DRAW_HZ / 1000:g} kHz, default per-draw routes, ros.shared_memory_mb 32"
+    draws_setup = (
+        f"{LINKS}-link draws at {DRAW_HZ / 1000:g} kHz, default per-draw routes, ros.shared_memory_mb 32"
+    )
     shared = "unpinned: publisher and subscribers share the 2 cores"
     one = best["1 worker, unpinned"]
-    for label, how in (("2 workers, placed by source", "placed by source"), ("2 workers, pinned by worker: K", "pinned")):
+    for label, how in (
+        ("2 workers, placed by source", "placed by source"),
+        ("2 workers, pinned by worker: K", "pinned"),
+    ):
         two = best[label]
         how = f"{how} ({placement(DRAW_SETUPS[label][0], 2)})"
         for route in DRAW_TOPICS:
@@ -429,17 +447,37 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
         rows.append(Measure(f"workers: bridge CPU per draw sent (all its processes), {draws_setup}, --workers 2 {how}, "
                             f"{shared} (baseline: --workers 1, unpinned)", two["cpu_us_per_draw"],
                             one["cpu_us_per_draw"], "us", "none (reported)", None))  # fmt: skip
-        rows.extend(whole_run(f"{draws_setup}, --workers 2 {how} (baseline: --workers 1, unpinned)", two, one))
+        rows.extend(
+            whole_run(f"{draws_setup}, --workers 2 {how} (baseline: --workers 1, unpinned)", two, one)
+        )
     alone, both = best["poses + tf, 1 worker"], best["poses + tf, 2 workers, placed by source"]
     for route in routes_of(POSES_AND_TF):
-        rows.append(Measure(f"workers: {route} delivered of draws sent, {draws_setup} without markers (poses and TF), "
-                            f"--workers 2 placed by source ({placement(POSES_AND_TF, 2)}), {shared} (baseline: "
-                            "--workers 1, unpinned)", both[route], alone[route], "%", ">= 99.5", both[route] >= 99.5))
+        rows.append(
+            Measure(
+                f"workers: {route} delivered of draws sent, {draws_setup} without markers (poses and TF), "
+                f"--workers 2 placed by source ({placement(POSES_AND_TF, 2)}), {shared} (baseline: "
+                "--workers 1, unpinned)",
+                both[route],
+                alone[route],
+                "%",
+                ">= 99.5",
+                both[route] >= 99.5,
+            )
+        )
     latest, every = best["2 workers, pinned by worker: K"], best["2 workers, pinned by worker: K, policy all"]
     for route in DRAW_TOPICS:
-        rows.append(Measure(f"workers: {route} delivered of draws sent, {draws_setup} with `policy: all` (every draw "
-                            f"kept, up to 1000 waiting), --workers 2 pinned, {shared} (baseline: the same with "
-                            "`latest`, as shipped)", every[route], latest[route], "%", "none (reported)", None))
+        rows.append(
+            Measure(
+                f"workers: {route} delivered of draws sent, {draws_setup} with `policy: all` (every draw "
+                f"kept, up to 1000 waiting), --workers 2 pinned, {shared} (baseline: the same with "
+                "`latest`, as shipped)",
+                every[route],
+                latest[route],
+                "%",
+                "none (reported)",
+                None,
+            )
+        )
         rows.append(Measure(f"workers: {route} latency LCM receive -> published, p99 of its last 4096 draws, same, "
                             "`policy: all` (baseline: `latest`)", every[f"{route}_p99_ms"], latest[f"{route}_p99_ms"], "ms",
                             "none (reported: what keeping every draw costs)", None))  # fmt: skip
@@ -480,7 +518,9 @@ def whole_run(setup: str, two: dict[str, float], one: dict[str, float]) -> list[
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--only", choices=["draws", "bus"], help="one of the two loads")

@@ -60,7 +60,9 @@ def main() -> None:
     draw = ImageDraw.Draw(image)
     font = ImageFont.truetype(FONT, 15)
     placed = boxes(draw, font)
-    arrows = {(room(module), room(name)) for module, names in GRAPH.items() for name in names if name in GRAPH}
+    arrows = {
+        (room(module), room(name)) for module, names in GRAPH.items() for name in names if name in GRAPH
+    }
     for source, target in sorted(arrows):
         if source != target:
             (x0, y0, x1, _), (u0, _, u1, v1) = placed[source], placed[target]

@@ -51,7 +51,11 @@ collect_ignore_glob = ["formats/foxglove/*", "formats/test_load_fast_paths.py"] 
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Iterator[None]:
     outcome = yield
     report = outcome.get_result()  # type: ignore[attr-defined]
-    if CORE_ONLY and call.excinfo is not None and call.excinfo.errisinstance((ModuleNotFoundError, MissingExtra)):
+    if (
+        CORE_ONLY
+        and call.excinfo is not None
+        and call.excinfo.errisinstance((ModuleNotFoundError, MissingExtra))
+    ):
         # A peer imported where a test (or what it calls) needs it, absent here: that test is skipped
         # (a converter says so as MissingExtra, naming the module).
         path, line, _ = item.location
@@ -103,7 +107,8 @@ LONGEST_FIRST = (
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     rank = {path: index for index, path in enumerate(LONGEST_FIRST)}
-    items.sort(key=lambda item: rank.get(item.nodeid.split("::")[0], len(rank)))  # stable: the rest as collected
+    # stable: the rest as collected
+    items.sort(key=lambda item: rank.get(item.nodeid.split("::")[0], len(rank)))
 
 
 @pytest.fixture(autouse=True)
@@ -268,7 +273,9 @@ def drake_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     pytest.importorskip("pydrake")  # the simulation's (a core-only run skips the tests of Drake's traffic)
     folder = tmp_path_factory.mktemp("drake")
     url = lcm_url()
-    return record_log(folder / "drake.lcmlog", url, [sys.executable, str(DRAKE_SCENE_SCRIPT), url, str(folder)])
+    return record_log(
+        folder / "drake.lcmlog", url, [sys.executable, str(DRAKE_SCENE_SCRIPT), url, str(folder)]
+    )
 
 
 @pytest.fixture(scope="session")

@@ -104,7 +104,8 @@ ROWS: dict[str, Row] = {
                                         r"Foxglove WebSocket server ws://127\.0\.0\.1:\d+(.|\n)*foxglove_scene in [1-9]"),
                          Step(("convert", "demo.lcmlog", "demo.mcap"), r"wrote demo\.mcap: \d+ messages"))),
         Row("zenoh", (Step(("run", "-c", "builtin:zenoh", "--demo", "--duration", "6", "--lcm-url", "LCM"),
-                           r"Zenoh client(.|\n)* route poses: in [1-9]\d* out [1-9]"),)),  # translated; no router here
+                           # translated; no router here
+                           r"Zenoh client(.|\n)* route poses: in [1-9]\d* out [1-9]"),)),
         Row("ign", (_run_demo("builtin:ign", "pose_v", "--set", "ign.ip=127.0.0.1"),)),
         Row("render", (DEMO_LOG, Step(("snapshot", "demo.lcmlog", "demo.png"), r"wrote demo\.png: \d+ links?"))),
         Row("rerun", (DEMO_LOG, Step(("convert", "demo.lcmlog", "demo.rrd"), r"wrote demo\.rrd: "))),
@@ -128,7 +129,9 @@ def normalized(name: str) -> str:
 
 
 def requirement_names(requirements: Sequence[str]) -> list[str]:
-    names = [normalized(re.split(r"[\s<>=!~;\[]", requirement, maxsplit=1)[0]) for requirement in requirements]
+    names = [
+        normalized(re.split(r"[\s<>=!~;\[]", requirement, maxsplit=1)[0]) for requirement in requirements
+    ]
     return [name for name in names if name != "viewer-bridge"]
 
 
@@ -138,15 +141,25 @@ def clean_env(**more: str) -> dict[str, str]:
     return {**{k: v for k, v in os.environ.items() if k not in dropped}, **more}
 
 
-def run(command: Sequence[str], cwd: Path, timeout: float = 900, **env: str) -> subprocess.CompletedProcess[str]:
+def run(
+    command: Sequence[str], cwd: Path, timeout: float = 900, **env: str
+) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        list(command), cwd=cwd, env=clean_env(**env), capture_output=True, text=True, timeout=timeout, check=False
+        list(command),
+        cwd=cwd,
+        env=clean_env(**env),
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        check=False,
     )
 
 
 def _checked(result: subprocess.CompletedProcess[str], what: str) -> subprocess.CompletedProcess[str]:
     if result.returncode != 0:
-        raise RuntimeError(f"{what} exited {result.returncode}:\n{result.stdout[-3000:]}\n{result.stderr[-3000:]}")
+        raise RuntimeError(
+            f"{what} exited {result.returncode}:\n{result.stdout[-3000:]}\n{result.stderr[-3000:]}"
+        )
     return result
 
 
@@ -233,15 +246,21 @@ def try_extra(row: Row, wheel: Path, core: Path, work: Path, lcm: str) -> Outcom
         failed = (result.returncode != step.code or "Traceback" in output
                   or not re.search(step.expect, output, re.MULTILINE))  # fmt: skip
         if failed:
-            return Outcome(row.extra, added, direct, step, result.returncode, time.monotonic() - started, output)
+            return Outcome(
+                row.extra, added, direct, step, result.returncode, time.monotonic() - started, output
+            )
     return Outcome(row.extra, added, direct, None, 0, time.monotonic() - started, output)
 
 
 def table(outcomes: Sequence[Outcome]) -> str:
-    lines = ["| extra | what pip added to the core | command | exit code | seconds |", "|---|---|---|---|---|"]
+    lines = [
+        "| extra | what pip added to the core | command | exit code | seconds |",
+        "|---|---|---|---|---|",
+    ]
     for outcome in outcomes:
         row = ROWS[outcome.extra]
-        steps = [step for step in row.steps if step is not DEMO_LOG or not row.extra]  # the rows' shared setup
+        # the rows' shared setup
+        steps = [step for step in row.steps if step is not DEMO_LOG or not row.extra]
         shown = outcome.step.shown() if outcome.step else "`; `".join(step.shown() for step in steps)
         status = str(outcome.code) + ("" if outcome.ok else " (FAILED)")
         extra = f"`[{outcome.extra}]`" if outcome.extra else "core"
@@ -250,8 +269,12 @@ def table(outcomes: Sequence[Outcome]) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tests.extras_table", description=__doc__.split("\n\n")[0])
-    parser.add_argument("extras", nargs="*", help="the extras to try, `core` for none (default: the core and every extra)")
+    parser = argparse.ArgumentParser(
+        prog="python -m tests.extras_table", description=__doc__.split("\n\n")[0]
+    )
+    parser.add_argument(
+        "extras", nargs="*", help="the extras to try, `core` for none (default: the core and every extra)"
+    )
     parser.add_argument("--work", type=Path, help="the folder to build in (default: a new temporary one)")
     args = parser.parse_args(argv)
     import tempfile
@@ -264,7 +287,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     outcomes = []
     for offset, extra in enumerate(chosen):
         started = time.monotonic()
-        outcome = try_extra(ROWS[extra], wheel, core, work / "rows", f"udpm://239.255.76.67:{7300 + offset}?ttl=0")
+        outcome = try_extra(
+            ROWS[extra], wheel, core, work / "rows", f"udpm://239.255.76.67:{7300 + offset}?ttl=0"
+        )
         print(f"[{extra or 'core'}] {'ok' if outcome.ok else 'FAILED'} in {time.monotonic() - started:.0f} s",
               file=sys.stderr)  # fmt: skip
         if not outcome.ok:

@@ -90,7 +90,9 @@ class BridgeProcess:
         # Never a fixed port: bridges may run side by side, and beside a user's own.
         command = [sys.executable, "-m", "viewer_bridge.cli.main", "run", "--set", "foxglove.port=0", *args]
         # stdout to nowhere: a pipe nobody reads fills (64 KiB) and then blocks the bridge for good.
-        self.process = subprocess.Popen(command, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env)
+        self.process = subprocess.Popen(
+            command, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env
+        )
         self.lines: list[str] = []
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()

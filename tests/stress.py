@@ -51,7 +51,9 @@ def e2e_files(pytest_args: list[str]) -> list[str]:
         cwd=ROOT, capture_output=True, text=True, check=False,
     )  # fmt: skip
     if listed.returncode not in (0, 5):  # 5: none collected, reported below
-        raise SystemExit(f"collecting the {MARKER} tests failed:\n{listed.stdout[-3000:]}{listed.stderr[-3000:]}")
+        raise SystemExit(
+            f"collecting the {MARKER} tests failed:\n{listed.stdout[-3000:]}{listed.stderr[-3000:]}"
+        )
     files = dict.fromkeys(line.split("::")[0] for line in listed.stdout.splitlines() if "::" in line)
     if not files:
         raise SystemExit(f"no test marked {MARKER} among {' '.join(pytest_args) or 'the suite'}")
@@ -100,11 +102,15 @@ def _raise_on_termination(signum: int, frame: FrameType | None) -> None:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("rounds", type=int, help="how many times each file runs")
     parser.add_argument("--jobs", type=int, default=1,
                         help="files run at once (each a test process of its own, as `./dev test`'s workers)")  # fmt: skip
-    parser.add_argument("pytest_args", nargs=argparse.REMAINDER, help="passed to every pytest run (e.g. a file)")
+    parser.add_argument(
+        "pytest_args", nargs=argparse.REMAINDER, help="passed to every pytest run (e.g. a file)"
+    )
     args = parser.parse_args()
     if "--jobs" in args.pytest_args:  # after N too (argparse's remainder takes everything after N)
         at = args.pytest_args.index("--jobs")

@@ -35,5 +35,7 @@ def test_every_bench_script_produces_its_rows_at_smoke_size() -> None:
     table_rows = re.findall(r"^\| (\w+) \| ", run.stdout, flags=re.MULTILINE)
     for script in scripts:
         assert int(counts[script]) > 0
-        assert table_rows.count(script) == int(counts[script]), f"bench/{script}.py: its rows are not in the table"
+        assert table_rows.count(script) == int(counts[script]), (
+            f"bench/{script}.py: its rows are not in the table"
+        )
     assert "`bench/all.py --smoke`" in run.stdout

@@ -10,8 +10,10 @@ from tests.claims import LCM_BLOCK, claim, lcm_port
 from tests.conftest import read_line
 
 ROOT = Path(__file__).resolve().parent.parent
-HOLDER = ("import sys; from pathlib import Path; from tests.claims import claim; "
-          "print(claim('test', range(1000, 1003), 0, Path(sys.argv[1])), flush=True); sys.stdin.read()")
+HOLDER = (
+    "import sys; from pathlib import Path; from tests.claims import claim; "
+    "print(claim('test', range(1000, 1003), 0, Path(sys.argv[1])), flush=True); sys.stdin.read()"
+)
 
 
 def holder(folder: Path) -> tuple[subprocess.Popen[str], int]:

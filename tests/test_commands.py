@@ -24,7 +24,10 @@ from viewer_bridge.transports.ros2 import message_class
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
-TYPES = {"IIWA_COMMAND": "drake_lcm_msgs/msg/LcmtIiwaCommand", "WSG_COMMAND": "drake_lcm_msgs/msg/LcmtSchunkWsgCommand"}
+TYPES = {
+    "IIWA_COMMAND": "drake_lcm_msgs/msg/LcmtIiwaCommand",
+    "WSG_COMMAND": "drake_lcm_msgs/msg/LcmtSchunkWsgCommand",
+}
 ROUTES = {"ros": "lcm_in", "foxglove": "foxglove_lcm_in"}
 
 
@@ -61,7 +64,9 @@ def held(stats: Path, route: str, channel: str) -> int:
     [(), ("IIWA_COMMAND|WSG_COMMAND",), ("WSG_COMMAND",)],
     ids=["default", "both-named", "wsg-only"],
 )
-def test_only_the_named_channels_are_commanded_from_ros_and_foxglove(allow: tuple[str, ...], tmp_path: Path) -> None:
+def test_only_the_named_channels_are_commanded_from_ros_and_foxglove(
+    allow: tuple[str, ...], tmp_path: Path
+) -> None:
     url = lcm_url(91)
     stats = tmp_path / "stats.json"
     recorder = LcmRecorder(url)
@@ -77,10 +82,14 @@ def test_only_the_named_channels_are_commanded_from_ros_and_foxglove(allow: tupl
         client = connected(foxglove_port(bridge))
         (info,) = client.seen("serverInfo")
         assert ("clientPublish" in info["capabilities"]) == bool(allow), info  # offered only when it can land
-        publishers = {channel: probe.publisher(f"/lcm_in/{channel}", typename) for channel, typename in TYPES.items()}
+        publishers = {
+            channel: probe.publisher(f"/lcm_in/{channel}", typename) for channel, typename in TYPES.items()
+        }
         assert probe.wait_for(lambda: all(p.get_subscription_count() >= 1 for p in publishers.values()), 90)
         for channel, typename in TYPES.items():
-            client.send(op="advertise", name=channel, topic=f"/lcm_in/{channel}", encoding="json", schemaName=typename)
+            client.send(
+                op="advertise", name=channel, topic=f"/lcm_in/{channel}", encoding="json", schemaName=typename
+            )
         assert client.pump(WAIT, lambda: len(client.seen("advertised")) == 2), client.log()  # type: ignore[union-attr]
 
         sent: dict[str, list[Any]] = {channel: [] for channel in TYPES}
@@ -108,7 +117,9 @@ def test_only_the_named_channels_are_commanded_from_ros_and_foxglove(allow: tupl
             else:
                 assert arrived == [], channel
                 refusal = next(text for text in statuses(client) if f"/lcm_in/{channel}" in text)
-                assert f"LCM channel {channel} may not be commanded" in refusal and "--allow-commands" in refusal
+                assert (
+                    f"LCM channel {channel} may not be commanded" in refusal and "--allow-commands" in refusal
+                )
         assert not [text for text in statuses(client) if any(f"/lcm_in/{c} " in text for c in allowed)]
     finally:
         if client is not None:

@@ -58,12 +58,16 @@ def test_draw_to_pose_array_is_the_message_rclpy_reads() -> None:
     data = convert.draw_to_pose_array(DRAW_BYTES)
     assert data == to_cdr(ros_oracle.pose_array(POSES, "world"))
     assert deserialize_message(data, PoseArray).header.frame_id == "world"
-    assert convert.draw_to_pose_array(DRAW_BYTES, frame_id="map") == to_cdr(ros_oracle.pose_array(POSES, "map"))
+    assert convert.draw_to_pose_array(DRAW_BYTES, frame_id="map") == to_cdr(
+        ros_oracle.pose_array(POSES, "map")
+    )
 
 
 def test_draw_to_tf_frames_and_stamps_every_link() -> None:
     data = convert.draw_to_tf(DRAW_BYTES, frame_prefix="proximity/")
-    assert data == to_cdr(ros_oracle.transforms_message(POSES, (1, 250_000_000), FrameNames("world", "proximity/")))
+    assert data == to_cdr(
+        ros_oracle.transforms_message(POSES, (1, 250_000_000), FrameNames("world", "proximity/"))
+    )
     stamped = convert.draw_to_tf(DRAW_BYTES, world_frame="map", stamp=(7, 8))
     assert stamped == to_cdr(ros_oracle.transforms_message(POSES, (7, 8), FrameNames("map")))
 
@@ -76,7 +80,9 @@ def test_draw_to_pose_v_is_what_protobuf_writes(message: Any) -> None:
 
 def test_draw_to_tree_viewer_is_the_request_director_is_sent() -> None:
     request = convert.draw_to_tree_viewer(DRAW_BYTES)
-    assert tree_oracle.reference(POSES, ("drake",)) == tree_oracle.reference(POSES, ("drake",), request["timestamp"])
+    assert tree_oracle.reference(POSES, ("drake",)) == tree_oracle.reference(
+        POSES, ("drake",), request["timestamp"]
+    )
     commands = request["settransform"]
     assert [command["path"] for command in commands] == [["drake", "1", name] for name in POSES.names]
     assert [command["transform"]["translation"] for command in commands] == [
@@ -101,7 +107,9 @@ def test_load_to_shapes_and_model_v_and_glb() -> None:
     shapes = convert.load_to_shapes(LOAD)
     assert shapes == shapes_cdr(SCENE)
     assert {shape.type for shape in shapes} == {ros.SOLID_PRIMITIVE, ros.MESH}  # the demo has no plane
-    assert all(isinstance(shape, convert.TypedCdr) and shape.cdr[:4] == b"\x00\x01\x00\x00" for shape in shapes)
+    assert all(
+        isinstance(shape, convert.TypedCdr) and shape.cdr[:4] == b"\x00\x01\x00\x00" for shape in shapes
+    )
     assert convert.load_to_model_v(LOAD, draw=DRAW_BYTES) == model_v(POSED).SerializeToString()
     glb = convert.load_to_glb(LOAD, draw=DRAW_BYTES)
     assert glb[:4] == b"glTF" and int.from_bytes(glb[8:12], "little") == len(glb)  # magic, total length
@@ -129,7 +137,9 @@ def test_contacts_to_marker_array_takes_the_drawing_options() -> None:
     data = CONTACT_RESULTS.encode(contact_results_to_lcm(results))
     drawing = ContactDrawOptions(force_scale=0.05, surfaces=False)
     expected = to_cdr(ros_oracle.contact_marker_array(results, drawing, {"frame_id": "map"}))
-    assert convert.contacts_to_marker_array(data, force_scale=0.05, surfaces=False, frame_id="map") == expected
+    assert (
+        convert.contacts_to_marker_array(data, force_scale=0.05, surfaces=False, frame_id="map") == expected
+    )
 
 
 def test_point_clouds_both_ways() -> None:
@@ -155,13 +165,18 @@ def test_images_to_numpy_and_ros() -> None:
     rgb = image_from_cdr(ros_images["rgb"])
     assert (rgb.frame_id, rgb.time_us, rgb.image.layout) == ("cam", 2_000_000, Layout.RGB)
     assert np.array_equal(rgb.image.pixels, rgba[:, :, :3])
-    assert np.array_equal(image_from_cdr(ros_images["depth"]).image.pixels, np.full((4, 3, 1), 1.5, np.float32))
+    assert np.array_equal(
+        image_from_cdr(ros_images["depth"]).image.pixels, np.full((4, 3, 1), 1.5, np.float32)
+    )
 
 
 def test_pose_array_to_draw_takes_the_names_from_the_load() -> None:
     pose_array = convert.draw_to_pose_array(DRAW_BYTES)
     assert convert.pose_array_to_draw(pose_array, load=LOAD) == DRAW_BYTES
-    assert convert.pose_array_to_draw(pose_array, link_names=POSES.names, robot_nums=[1] * len(POSES)) == DRAW_BYTES
+    assert (
+        convert.pose_array_to_draw(pose_array, link_names=POSES.names, robot_nums=[1] * len(POSES))
+        == DRAW_BYTES
+    )
     unnamed = DrawDecoder().decode(convert.pose_array_to_draw(pose_array))
     assert unnamed.names == tuple(f"pose_{index}" for index in range(len(POSES)))
     with pytest.raises(SceneError, match="8 poses, 2 link names"):
@@ -207,7 +222,9 @@ def annotation_namespace(function: Callable[..., object]) -> dict[str, Any]:
     namespace = dict(vars(module))
     for node in ast.parse(inspect.getsource(module)).body:
         if isinstance(node, ast.If) and ast.unparse(node.test) == "TYPE_CHECKING":
-            exec(compile(ast.Module(body=node.body, type_ignores=[]), str(module.__file__), "exec"), namespace)
+            exec(
+                compile(ast.Module(body=node.body, type_ignores=[]), str(module.__file__), "exec"), namespace
+            )
     return namespace
 
 
@@ -241,7 +258,8 @@ def test_every_option_is_keyword_only() -> None:
         parameters = list(inspect.signature(function).parameters.values())
         positional = [p.name for p in parameters if p.kind is not inspect.Parameter.KEYWORD_ONLY]
         assert positional in (["data"], ["data", "typename"]), name
-    assert sum(name.startswith(("draw_", "load_")) for name, _ in functions) == 13  # all of them were looked at
+    # all of them were looked at
+    assert sum(name.startswith(("draw_", "load_")) for name, _ in functions) == 13
 
 
 def test_importing_the_facade_imports_no_optional_dependency() -> None:

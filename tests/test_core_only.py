@@ -39,7 +39,9 @@ def pytest_run(*args: str, core_only: bool, **env: str) -> subprocess.CompletedP
     environment = {**os.environ, **env, "PYTHONPATH": str(ROOT)}
     environment.pop("VIEWER_BRIDGE_CORE_ONLY", None)
     if core_only:
-        environment.update(VIEWER_BRIDGE_CORE_ONLY="1", PYTHONPATH=f"{ROOT / 'tests' / 'core_only'}{os.pathsep}{ROOT}")
+        environment.update(
+            VIEWER_BRIDGE_CORE_ONLY="1", PYTHONPATH=f"{ROOT / 'tests' / 'core_only'}{os.pathsep}{ROOT}"
+        )
     return subprocess.run(
         [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", "-rs", *args],
         cwd=ROOT,
@@ -81,10 +83,14 @@ def test_the_core_only_python_cannot_import_the_peers() -> None:
 def test_codec_tests_run_where_rclpy_and_pydrake_are_missing() -> None:
     result = pytest_run(*CODEC_TESTS, "-m", "not slow", core_only=True)
     assert result.returncode == 0, result.stdout[-3000:]
-    counts = {kind: int(number) for number, kind in re.findall(r"(\d+) (passed|skipped|failed)", result.stdout)}
+    counts = {
+        kind: int(number) for number, kind in re.findall(r"(\d+) (passed|skipped|failed)", result.stdout)
+    }
     assert counts.get("failed", 0) == 0 and counts["passed"] >= 20, result.stdout[-3000:]
     # What needs a peer is skipped, saying which; the rest ran.
-    assert counts["skipped"] >= 5 and re.search(r"(needs|could not import '?)(rclpy|pydrake|drake)", result.stdout)
+    assert counts["skipped"] >= 5 and re.search(
+        r"(needs|could not import '?)(rclpy|pydrake|drake)", result.stdout
+    )
 
 
 def test_the_library_guides_type_store_section_runs_in_a_core_only_python(tmp_path: Path) -> None:
@@ -96,9 +102,15 @@ def test_the_library_guides_type_store_section_runs_in_a_core_only_python(tmp_pa
     (block,) = [block for block in blocks(page, ("python",)) if "viewer_bridge.lcm_types(" in block]
     script = tmp_path / "type_store.py"
     script.write_text(substituted(block) + "\nprint('type store ok')\n")
-    environment = {**os.environ, "PYTHONPATH": f"{ROOT / 'tests' / 'core_only'}:{ROOT}", "VIEWER_BRIDGE_CORE_ONLY": "1"}
+    environment = {
+        **os.environ,
+        "PYTHONPATH": f"{ROOT / 'tests' / 'core_only'}:{ROOT}",
+        "VIEWER_BRIDGE_CORE_ONLY": "1",
+    }
     result = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=environment, capture_output=True,
                             text=True, timeout=300)  # fmt: skip
     assert result.returncode == 0 and "type store ok" in result.stdout, result.stderr[-3000:]
-    probe = subprocess.run([sys.executable, "-c", "import rclpy"], env=environment, capture_output=True, timeout=60)
+    probe = subprocess.run(
+        [sys.executable, "-c", "import rclpy"], env=environment, capture_output=True, timeout=60
+    )
     assert probe.returncode != 0  # the extras really are out of reach there

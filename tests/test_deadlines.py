@@ -75,7 +75,9 @@ def test_a_hung_test_fails_by_name_with_every_stack_and_leaves_no_child(tmp_path
     # The first test's children were ended at its teardown, the second's when its deadline passed:
     # shells and their own children alike.
     everyone = [pid for family in families for pid in family]
-    assert wait_until(lambda: not any(alive(pid) for pid in everyone)), [pid for pid in everyone if alive(pid)]
+    assert wait_until(lambda: not any(alive(pid) for pid in everyone)), [
+        pid for pid in everyone if alive(pid)
+    ]
 
 
 def test_a_group_that_ignores_sigterm_is_killed_after_the_grace() -> None:

@@ -138,7 +138,9 @@ def adapted(command: str) -> list[str]:
     result = []
     for each in substituted(command).split("\n"):
         missing = [option for marker, option in RUN_DEFAULTS if marker not in each]
-        result.append(re.sub(r"\bviewer-bridge run\b(?! --print)", " ".join(["viewer-bridge run", *missing]), each))
+        result.append(
+            re.sub(r"\bviewer-bridge run\b(?! --print)", " ".join(["viewer-bridge run", *missing]), each)
+        )
     return result
 
 

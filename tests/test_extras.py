@@ -19,18 +19,30 @@ from viewer_bridge.util.extras import EXTRAS, missing, require
 COMMANDS = [
     ("rclpy", ["run", "--duration", "1", "--set", "foxglove.port=0"], "ros"),
     ("zmq", ["run", "-c", "builtin:ign", "--duration", "1"], "ign"),
-    ("foxglove", ["run", "-c", "builtin:foxglove", "--duration", "1", "--set", "foxglove.port=0"], "foxglove"),
+    (
+        "foxglove",
+        ["run", "-c", "builtin:foxglove", "--duration", "1", "--set", "foxglove.port=0"],
+        "foxglove",
+    ),
     ("zenoh", ["run", "-c", "builtin:zenoh", "--duration", "1"], "zenoh"),
     ("moderngl", ["serve-render", "--port", "0"], "render"),
 ]
 
 
 @pytest.mark.parametrize(("module", "arguments", "extra"), COMMANDS, ids=[case[0] for case in COMMANDS])
-def test_a_command_without_its_extra_says_which_to_install(module: str, arguments: list[str], extra: str) -> None:
+def test_a_command_without_its_extra_says_which_to_install(
+    module: str, arguments: list[str], extra: str
+) -> None:
     code = (f"import sys; sys.modules[{module!r}] = None; from viewer_bridge.cli.main import main; "
             "sys.exit(main(sys.argv[1:]))")  # fmt: skip
     result = subprocess.run(
-        [sys.executable, "-c", code, *arguments, *(["--lcm-url", lcm_url(42)] if arguments[0] == "run" else [])],
+        [
+            sys.executable,
+            "-c",
+            code,
+            *arguments,
+            *(["--lcm-url", lcm_url(42)] if arguments[0] == "run" else []),
+        ],
         capture_output=True,
         text=True,
         timeout=60,
@@ -38,7 +50,9 @@ def test_a_command_without_its_extra_says_which_to_install(module: str, argument
     assert result.returncode == 2, result.stderr
     last = result.stderr.strip().splitlines()[-1]  # after any log line (e.g. LCM's buffer size warning)
     assert last.startswith(f"viewer-bridge {arguments[0]}: "), result.stderr
-    assert last.endswith(f"needs {module}, not installed: pip install 'viewer-bridge[{extra}]'"), result.stderr
+    assert last.endswith(f"needs {module}, not installed: pip install 'viewer-bridge[{extra}]'"), (
+        result.stderr
+    )
     assert "Traceback" not in result.stderr
 
 
@@ -60,7 +74,9 @@ def test_a_converter_without_its_extra_says_which_to_install(module: str, call: 
 
 def test_require_imports_or_names_the_extra() -> None:
     assert require("json", "a test").__name__ == "json"
-    with pytest.raises(MissingExtra, match=r"^a test needs moderngl_x, not installed: pip install 'viewer-bridge\[all\]'$"):
+    with pytest.raises(
+        MissingExtra, match=r"^a test needs moderngl_x, not installed: pip install 'viewer-bridge\[all\]'$"
+    ):
         require("moderngl_x", "a test")
     error = missing(ModuleNotFoundError("no zmq", name="zmq.backend"), "the ign transport")
     assert isinstance(error, BridgeError) and error.extra == "ign" and error.module == "zmq"
@@ -74,7 +90,9 @@ def test_the_built_in_config_runs_with_the_ros_and_foxglove_extras_alone() -> No
         "from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))"
     )
     arguments = ["run", "--demo", "--duration", "2", "--lcm-url", lcm_url(43), "--set", "foxglove.port=0"]
-    result = subprocess.run([sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120
+    )
     assert result.returncode == 0, result.stderr
     assert " route poses: in " in result.stderr and "Traceback" not in result.stderr, result.stderr
 
@@ -86,7 +104,9 @@ def test_the_built_in_config_with_ros_alone_leaves_its_foxglove_routes_out_sayin
     code = (f"import sys\nfor name in {blocked_but('ros')!r}: sys.modules[name] = None\n"
             "from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))")  # fmt: skip
     arguments = ["run", "--demo", "--duration", "4", "--lcm-url", lcm_url(46)]
-    result = subprocess.run([sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120
+    )
     assert result.returncode == 0, result.stderr
     (said,) = [line for line in result.stderr.splitlines() if "Foxglove" in line]
     assert said.endswith("viewer-bridge: the built-in config's 6 Foxglove routes left out: they need foxglove, "
@@ -113,8 +133,12 @@ ONE_EXTRA = [
 ]  # fmt: skip
 
 
-@pytest.mark.parametrize(("extra", "arguments", "said"), ONE_EXTRA, ids=[" ".join(case[1][:3]) for case in ONE_EXTRA])
-def test_one_extra_alone_runs_its_built_in_config(tmp_path: Path, extra: str, arguments: list[str], said: str) -> None:
+@pytest.mark.parametrize(
+    ("extra", "arguments", "said"), ONE_EXTRA, ids=[" ".join(case[1][:3]) for case in ONE_EXTRA]
+)
+def test_one_extra_alone_runs_its_built_in_config(
+    tmp_path: Path, extra: str, arguments: list[str], said: str
+) -> None:
     """No route needs a module of an extra the user did not ask for (e.g. the Rerun schema's pyarrow)."""
     from tests.cli.test_cli import demo_log
 
@@ -126,7 +150,9 @@ def test_one_extra_alone_runs_its_built_in_config(tmp_path: Path, extra: str, ar
         f"import sys\nfor name in {blocked_but(extra)!r}: sys.modules[name] = None\n"
         "from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))"
     )
-    result = subprocess.run([sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120
+    )
     assert result.returncode == 0, result.stderr
     assert said.replace("OUT", names["OUT"]) in result.stdout + result.stderr, result
     assert "not installed" not in result.stderr and "Traceback" not in result.stderr, result.stderr

@@ -155,12 +155,15 @@ def test_rclpy_commands_reach_lcm_as_lcm_gen_writes_them_and_bad_cdr_is_counted_
         # The bridge finds each topic in the graph (once a second) and subscribes with its type.
         assert probe.wait_for(lambda: all(p.get_subscription_count() >= 1 for p in publishers.values()), 90)
         for channel, message in sent.items():
-            publishers[channel].publish(ros_from_lcm(message, message_class(ros_type_of(corpus_interfaces, message))))
+            publishers[channel].publish(
+                ros_from_lcm(message, message_class(ros_type_of(corpus_interfaces, message)))
+            )
         recorder.sync()
         assert wait_for(lambda: all(channel in recorder.messages for channel in sent), 60), bridge.lines[-10:]
         recorder.sync()
         assert_lcm_got(recorder, sent)
-        assert probe.wait_for(lambda: len(copies) >= 1, 60), bridge.lines[-10:]  # lazy: sent once it sees the probe
+        # lazy: sent once it sees the probe
+        assert probe.wait_for(lambda: len(copies) >= 1, 60), bridge.lines[-10:]
         assert copies[0].utime == sent["IIWA_COMMAND"].utime
 
         # Bad CDR on the same topic (rclpy publishes bytes as they are): short, too long, and a
@@ -172,14 +175,21 @@ def test_rclpy_commands_reach_lcm_as_lcm_gen_writes_them_and_bad_cdr_is_counted_
         bad = [
             cdr[:-5],
             cdr + bytes(16),
-            serialize_message(ros_from_lcm(wrong_length, message_class("drake_lcm_msgs/msg/LcmtIiwaCommand"))),
+            serialize_message(
+                ros_from_lcm(wrong_length, message_class("drake_lcm_msgs/msg/LcmtIiwaCommand"))
+            ),
         ]
+
         def errors() -> int:
             return int(route_stats(stats, "lcm_in").get("errors", {}).get("DecodeError", 0))
 
-        for count, payload in enumerate(bad, start=1):  # one at a time: the route keeps the newest per channel
+        # one at a time: the route keeps the newest per channel
+        for count, payload in enumerate(bad, start=1):
             publishers["IIWA_COMMAND"].publish(payload)
-            assert wait_for(lambda count=count: errors() >= count, 60), (route_stats(stats, "lcm_in"), bridge.lines[-10:])
+            assert wait_for(lambda count=count: errors() >= count, 60), (
+                route_stats(stats, "lcm_in"),
+                bridge.lines[-10:],
+            )
         assert route_stats(stats, "lcm_in")["errors"] == {"DecodeError": 3}
         named = "\n".join(line for line in bridge.lines if "DecodeError" in line)
         assert "num_joints" in named or "joint_position" in named, named
@@ -214,7 +224,9 @@ def test_a_topic_of_another_type_under_lcm_in_is_said_once_and_not_subscribed() 
 
 def test_a_drake_lcm_subscriber_system_receives_a_command_a_ros_node_published() -> None:
     url = lcm_url(73)
-    bridge = BridgeProcess("--lcm-url", url, "--allow-commands", "IIWA_COMMAND", "--set", "commands.max_age_ms=60000")
+    bridge = BridgeProcess(
+        "--lcm-url", url, "--allow-commands", "IIWA_COMMAND", "--set", "commands.max_age_ms=60000"
+    )
     probe = RosProbe("lcm_in_iiwa_planner")
     drake = subprocess.Popen(
         [sys.executable, str(DRAKE_SUBSCRIBER_SCRIPT), url, "120"], stdout=subprocess.PIPE, text=True
@@ -282,7 +294,9 @@ def test_an_rmw_zenoh_node_commands_lcm_over_zenoh(
                 f"/lcm_in/{channel}", typename, entity=entity, type_hash=rihs01(typename, definitions)
             )
         # The bridge finds each publisher's token (once a second) and subscribes, announcing its own.
-        assert wait_for(lambda: all(peer.subscribed(f"/lcm_in/{channel}") for channel in sent), 90), bridge.lines[-10:]
+        assert wait_for(lambda: all(peer.subscribed(f"/lcm_in/{channel}") for channel in sent), 90), (
+            bridge.lines[-10:]
+        )
         payloads = {
             channel: serialize_message(ros_from_lcm(message, message_class(ros_type_of(library, message))))
             for channel, message in sent.items()

@@ -110,6 +110,7 @@ def test_plugin_options_are_checked_at_load(plugin_installed: None, tmp_path: Pa
     with pytest.raises(ConfigError, match=r"plugin.yaml:8: routes.0.options.digits: .*valid integer"):
         load_config(path)
     path.write_text(CONFIG.replace("bus: plugin-test", "bus: plugin-test, colour: red"))
-    with pytest.raises(ConfigError, match=r"plugin.yaml:1: memory.colour: unknown key 'colour'; known keys: "):
+    with pytest.raises(
+        ConfigError, match=r"plugin.yaml:1: memory.colour: unknown key 'colour'; known keys: "
+    ):
         load_config(path)
-

@@ -94,7 +94,11 @@ def ros_message(typename: str, values: dict[str, Any]) -> Any:
         if nested is not None:
             nested_type = f"{nested.group(1)}/msg/{nested.group(2)}"
             many = isinstance(value, list)
-            value = [ros_message(nested_type, item) for item in value] if many else ros_message(nested_type, value)
+            value = (
+                [ros_message(nested_type, item) for item in value]
+                if many
+                else ros_message(nested_type, value)
+            )
         elif field_type.startswith("sequence<uint8") or field_type.startswith("uint8["):
             value = bytes(value)
         setattr(message, field, value)
@@ -116,7 +120,9 @@ def without_lengths(decoded: Any) -> Any:
 def assert_decodes_to_published(
     lcmgen_python: Path, joint_state: bytes, sample: bytes, joints: dict[str, Any] = JOINTS
 ) -> None:
-    decoded = lcmgen_decode(lcmgen_python, [("sensor_msgs.JointState", joint_state), (f"{MAIN}.JointSample", sample)])
+    decoded = lcmgen_decode(
+        lcmgen_python, [("sensor_msgs.JointState", joint_state), (f"{MAIN}.JointSample", sample)]
+    )
     assert without_lengths(decoded[0]) == joints
     assert without_lengths(decoded[1]) == JOINT_SAMPLE
 
@@ -140,13 +146,19 @@ def test_rclpy_topics_reach_lcm_as_lcm_gen_reads_them_and_only_those_named(
         sample = probe.publisher("/lab/sample", SAMPLE)
         other = probe.publisher("/joint_states_other", JOINT_STATE)  # matches no pattern in full
         # The bridge finds each topic in the graph (once a second) and subscribes with its type.
-        assert probe.wait_for(lambda: joints.get_subscription_count() >= 1 and sample.get_subscription_count() >= 1, 90)
+        assert probe.wait_for(
+            lambda: joints.get_subscription_count() >= 1 and sample.get_subscription_count() >= 1, 90
+        )
         for publisher, typename, values in [(joints, JOINT_STATE, JOINTS), (sample, SAMPLE, JOINT_SAMPLE),
                                             (other, JOINT_STATE, JOINTS)]:  # fmt: skip
             publisher.publish(ros_message(typename, values))
-        assert wait_for(lambda: {"joint_states", "lab/sample"} <= recorder.messages.keys(), 60), bridge.lines[-10:]
+        assert wait_for(lambda: {"joint_states", "lab/sample"} <= recorder.messages.keys(), 60), bridge.lines[
+            -10:
+        ]
         recorder.sync()
-        assert_decodes_to_published(lcmgen_python, recorder.messages["joint_states"][0], recorder.messages["lab/sample"][0])
+        assert_decodes_to_published(
+            lcmgen_python, recorder.messages["joint_states"][0], recorder.messages["lab/sample"][0]
+        )
         assert len(recorder.messages["joint_states"]) == 1 and len(recorder.messages["lab/sample"]) == 1
         assert "joint_states_other" not in recorder.messages
         assert other.get_subscription_count() == 0  # looked at every second, never taken
@@ -198,8 +210,16 @@ def test_topics_the_bridge_publishes_are_not_carried_back(tmp_path: Path) -> Non
     bus = lcm.LCM(url)
     status = drake_lcmtypes.lcmt_iiwa_status()
     status.utime, status.num_joints, status.joint_position_measured = 5, 1, [0.5]
-    status.joint_velocity_estimated, status.joint_position_commanded, status.joint_position_ipo = [0.0], [0.5], [0.5]
-    status.joint_torque_measured, status.joint_torque_commanded, status.joint_torque_external = [1.0], [1.0], [0.0]
+    status.joint_velocity_estimated, status.joint_position_commanded, status.joint_position_ipo = (
+        [0.0],
+        [0.5],
+        [0.5],
+    )
+    status.joint_torque_measured, status.joint_torque_commanded, status.joint_torque_external = (
+        [1.0],
+        [1.0],
+        [0.0],
+    )
     try:
         bridge.wait_for_line(" running (")
         copies = probe.subscribe("/lcm/IIWA_STATUS", "drake_lcm_msgs/msg/LcmtIiwaStatus")
@@ -260,7 +280,9 @@ def test_an_rmw_zenoh_node_s_topics_reach_lcm(zenoh_router: Any, lcmgen_python: 
             "joint_states": (joints, bytes(serialize_message(ros_message(JOINT_STATE, ZENOH_JOINTS)))),
             "lab/sample": (sample, bytes(serialize_message(ros_message(SAMPLE, JOINT_SAMPLE)))),
         }
-        assert wait_for(lambda: peer.subscribed("/joint_states") and peer.subscribed("/lab/sample"), 90), bridge.lines[-10:]
+        assert wait_for(lambda: peer.subscribed("/joint_states") and peer.subscribed("/lab/sample"), 90), (
+            bridge.lines[-10:]
+        )
 
         def arrived() -> bool:
             """Sends what has not arrived yet: the token that says the bridge subscribed may reach
@@ -274,7 +296,9 @@ def test_an_rmw_zenoh_node_s_topics_reach_lcm(zenoh_router: Any, lcmgen_python: 
         assert wait_for(arrived, 60), bridge.lines[-10:]
         recorder.sync()
         messages = recorder.messages
-        assert_decodes_to_published(lcmgen_python, messages["joint_states"][0], messages["lab/sample"][0], ZENOH_JOINTS)
+        assert_decodes_to_published(
+            lcmgen_python, messages["joint_states"][0], messages["lab/sample"][0], ZENOH_JOINTS
+        )
     finally:
         peer.close()
         assert bridge.stop() == 0
@@ -298,7 +322,9 @@ routes:  # routes that make the config use both ROS graphs: ros_topics reads fro
 """
 
 
-def test_a_channel_two_topics_map_to_keeps_the_first_and_says_so_once(zenoh_router: Any, tmp_path: Path) -> None:
+def test_a_channel_two_topics_map_to_keeps_the_first_and_says_so_once(
+    zenoh_router: Any, tmp_path: Path
+) -> None:
     """/dup over DDS and /dup over Zenoh both map to LCM `dup`: the one carried first keeps it, the
     other is held (`channel_taken`), counted, and named with the first in one line."""
     from tests.zenoh_peers import RmwZenohPeer

@@ -85,17 +85,23 @@ def test_drake_simulation_reaches_ros_through_the_bridge(probe: RosProbe, tmp_pa
         last_draw = drake_lcmtypes.lcmt_viewer_draw.decode(draws[-1])
         stamp = last_draw.timestamp
         assert probe.wait_for(lambda: any(_stamp_ms(p.header.stamp) == stamp for p in poses))
-        load = drake_lcmtypes.lcmt_viewer_load_robot.decode(recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0])
+        load = drake_lcmtypes.lcmt_viewer_load_robot.decode(
+            recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0]
+        )
         box_link = next(link for link in load.link if link.name.endswith("robot1::body0"))
         row = list(last_draw.link_name).index(box_link.name)
-        box_position, box_xyzw = oracle.world_pose(last_draw.position[row], last_draw.quaternion[row], box_link.geom[0])
+        box_position, box_xyzw = oracle.world_pose(
+            last_draw.position[row], last_draw.quaternion[row], box_link.geom[0]
+        )
 
         def box(array: Any) -> Any:
             (marker,) = [m for m in array.markers if m.ns == box_link.name.replace("::", "/")]
             return marker
 
         def at_last_draw(marker: Any) -> bool:
-            return oracle.close([marker.pose.position.x, marker.pose.position.y, marker.pose.position.z], box_position)
+            return oracle.close(
+                [marker.pose.position.x, marker.pose.position.y, marker.pose.position.z], box_position
+            )
 
         def last_drawn() -> Any:  # the load's array (DELETEALL first) has its own, latched writer
             drawn = [array for array in markers if array.markers[0].action != 3]
@@ -445,6 +451,7 @@ def test_a_camera_route_whose_interface_is_missing_is_refused_at_start_in_one_li
 
 # --- lazy routes ------------------------------------------------------------------------------------------
 
+
 def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_path: Path) -> None:
     """The default config's TF and marker routes are lazy: nothing is translated for them until a
     subscriber appears, which then gets the model and the latest transforms at once."""
@@ -471,14 +478,20 @@ def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_p
         bus.publish("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(scene).encode())  # the only load
         draws(1.0, 0.0)
         # Every draw is in and accounted for (the stats file is rewritten every 0.2 s).
-        assert probe.wait_for(lambda: all(_settled(stats().get(name), 50) for name in (*lazy, "poses"))), stats()
+        assert probe.wait_for(lambda: all(_settled(stats().get(name), 50) for name in (*lazy, "poses"))), (
+            stats()
+        )
         idle = stats()
         assert {idle[name]["state"] for name in lazy} == {"idle: no subscriber"}, idle
         for name in lazy:  # draws flowed in, nothing went out (a draw conflated by `latest` is a drop)
             route = idle[name]
             assert route["messages_in"] >= 50 and route["messages_out"] == 0, (name, route)
-            assert route["idle_skipped"] + route["dropped"] + route["queued"] == route["messages_in"], (name, route)
-        assert idle["poses"]["messages_in"] >= 50 and idle["poses"]["messages_out"] >= 1  # not lazy: publishes
+            assert route["idle_skipped"] + route["dropped"] + route["queued"] == route["messages_in"], (
+                name,
+                route,
+            )
+        # not lazy: publishes
+        assert idle["poses"]["messages_in"] >= 50 and idle["poses"]["messages_out"] >= 1
         # Subscribers join while nothing is sent: they get the model (from the load the routes
         # skipped) and the last draw's transforms at once, then the draws that follow.
         link_markers = probe.subscribe("/drake/link_markers", "visualization_msgs/msg/MarkerArray", 10,
@@ -502,9 +515,13 @@ def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_p
     assert {active[name]["state"] for name in lazy} == {"active"}, active
     assert all(active[name]["errors"] == {} for name in lazy), active
     # Stats lines: two decimals, or "-" for a route with no samples yet.
-    latencies = [re.search(r"latency p50 (\S+) p99 (\S+) ms", line) for line in bridge.lines if "route " in line]
+    latencies = [
+        re.search(r"latency p50 (\S+) p99 (\S+) ms", line) for line in bridge.lines if "route " in line
+    ]
     values = [value for match in latencies if match for value in match.groups()]
-    assert "-" in values and all(value == "-" or re.fullmatch(r"\d+\.\d\d", value) for value in values), values
+    assert "-" in values and all(value == "-" or re.fullmatch(r"\d+\.\d\d", value) for value in values), (
+        values
+    )
 
 
 def _tip_z(message: Any) -> float:
@@ -547,7 +564,9 @@ def test_ros_args_are_passed_to_rclpy_like_any_node(probe: RosProbe, tmp_path: P
 
 def test_default_config_is_printed_and_valid() -> None:
     result = subprocess.run(
-        [sys.executable, "-m", "viewer_bridge.cli.main", "run", "--print-default-config"], capture_output=True, text=True
+        [sys.executable, "-m", "viewer_bridge.cli.main", "run", "--print-default-config"],
+        capture_output=True,
+        text=True,
     )
     assert result.returncode == 0 and result.stdout == DEFAULT_CONFIG
     config = load_config(None)
@@ -690,9 +709,14 @@ def test_a_router_loads_its_lcm_types_once_naming_a_refused_type(
     with caplog.at_level("WARNING", logger="viewer_bridge"):
         router = Router(config)
     router.close()
-    named = [record.getMessage() for record in caplog.records if "vbtest_lab.tree_node_t" in record.getMessage()]
+    named = [
+        record.getMessage() for record in caplog.records if "vbtest_lab.tree_node_t" in record.getMessage()
+    ]
     assert len(named) == 1 and "contains itself" in named[0]
-    assert router.shared.lcm_types.get("vbtest_lab.arm_status_t").ros_type == "vbtest_lab_lcm_msgs/msg/ArmStatusT"
+    assert (
+        router.shared.lcm_types.get("vbtest_lab.arm_status_t").ros_type
+        == "vbtest_lab_lcm_msgs/msg/ArmStatusT"
+    )
     assert router.routes[0].prototype is not None and router.routes[0].prototype.shared is router.shared
     broken = tmp_path / "broken.lcm"
     broken.write_text("struct broken_t { int32_t a }\n")

@@ -127,7 +127,9 @@ def _finite(value: Any) -> bool:
     return not isinstance(value, float) or math.isfinite(value)
 
 
-def _round_trips(store: LcmTypes, known: LcmType, structs: dict[str, StructDef], classes: dict[str, type]) -> None:
+def _round_trips(
+    store: LcmTypes, known: LcmType, structs: dict[str, StructDef], classes: dict[str, type]
+) -> None:
     name = known.full_name
 
     @settings(max_examples=30, deadline=None, suppress_health_check=list(HealthCheck))

@@ -84,7 +84,11 @@ def copy(venv: Path, tmp_path: Path) -> Path:
 
 def test_the_wheel_ships_the_type_marker_and_the_data(wheel: Path) -> None:
     names = zipfile.ZipFile(wheel).namelist()
-    for name in ("viewer_bridge/py.typed", "viewer_bridge/convert.py", "viewer_bridge/_data/lcmtypes/lcmt_viewer_draw.lcm"):
+    for name in (
+        "viewer_bridge/py.typed",
+        "viewer_bridge/convert.py",
+        "viewer_bridge/_data/lcmtypes/lcmt_viewer_draw.lcm",
+    ):
         assert name in names
     assert not any(name.startswith("tests/") for name in names)
 
@@ -103,7 +107,9 @@ def test_the_readme_snippet_runs_on_the_core_install(venv: Path, tmp_path: Path)
 def test_a_missing_extra_is_one_line_naming_it(venv: Path, tmp_path: Path) -> None:
     version = run([str(venv / "bin/viewer-bridge"), "--version"], tmp_path)
     assert version.returncode == 0 and re.fullmatch(r"viewer-bridge \d+\.\d+\.\d+\n", version.stdout), version
-    refused = run([str(venv / "bin/viewer-bridge"), "run", "-c", "builtin:foxglove", "--duration", "1"], tmp_path)
+    refused = run(
+        [str(venv / "bin/viewer-bridge"), "run", "-c", "builtin:foxglove", "--duration", "1"], tmp_path
+    )
     assert refused.returncode == 2, refused.stderr
     assert "pip install 'viewer-bridge[foxglove]'" in refused.stderr and "Traceback" not in refused.stderr
 
@@ -116,7 +122,8 @@ def test_the_bridge_runs_its_demo_with_every_extra(venv: Path, wheel: Path, tmp_
     cli = str(env / "bin/python"), "-m", "viewer_bridge"
     version = run([*cli, "--version"], tmp_path)
     assert version.stdout.startswith("viewer-bridge "), version
-    interfaces = run([*cli, "ros-interfaces", "install", "--yes"], tmp_path)  # tf2_msgs, as ./dev run builds it
+    # tf2_msgs, as ./dev run builds it
+    interfaces = run([*cli, "ros-interfaces", "install", "--yes"], tmp_path)
     assert interfaces.returncode == 0, interfaces.stderr
     # ROS 2 traffic stays on this host, in this test process's domain (tests/conftest.py sets both).
     # Six seconds: on a loaded machine the demo's first draws may take a few to arrive.
@@ -146,11 +153,15 @@ def test_every_extra_has_a_row() -> None:
 
 @pytest.mark.parametrize("extra", list(extras_table.ROWS), ids=[name or "core" for name in extras_table.ROWS])
 @pytest.mark.timeout(3000)  # ros-build: pip installs rclpy's wheels and compiles tf2_msgs
-def test_one_extra_alone_runs_its_headline_command(extra: str, venv: Path, wheel: Path, tmp_path: Path) -> None:
+def test_one_extra_alone_runs_its_headline_command(
+    extra: str, venv: Path, wheel: Path, tmp_path: Path
+) -> None:
     row = extras_table.ROWS[extra]
     outcome = extras_table.try_extra(row, wheel, venv, tmp_path, lcm_url(45))
     OUTCOMES.append(outcome)
-    assert outcome.ok, f"{outcome.step.shown() if outcome.step else ''} exited {outcome.code}:\n{outcome.output[-4000:]}"
+    assert outcome.ok, (
+        f"{outcome.step.shown() if outcome.step else ''} exited {outcome.code}:\n{outcome.output[-4000:]}"
+    )
     if extra:  # the extra's own distributions, and no other extra's
         assert set(outcome.direct) <= set(outcome.added), outcome.added
         others = {name for other, requirements in extras_table.extras().items() if other not in (extra, "all", "test")
@@ -162,7 +173,10 @@ def test_the_library_guide_runs_on_the_core_install(venv: Path, tmp_path: Path) 
     """docs/library.md's Python, top to bottom, where no extra is installed, in a folder with the
     demo's log as the page says to write it; what needs `[ros]` says so as MissingExtra."""
     python = str(venv / "bin/python")
-    demo = run([python, "-m", "viewer_bridge", "demo", "--url", "file://demo.lcmlog?mode=w", "--duration", "1"], tmp_path)
+    demo = run(
+        [python, "-m", "viewer_bridge", "demo", "--url", "file://demo.lcmlog?mode=w", "--duration", "1"],
+        tmp_path,
+    )
     assert demo.returncode == 0, demo.stderr
     page = (ROOT / "docs" / "library.md").read_text()
     assert "viewer-bridge demo --url 'file://demo.lcmlog?mode=w' --duration 1" in page
@@ -170,7 +184,10 @@ def test_the_library_guide_runs_on_the_core_install(venv: Path, tmp_path: Path) 
     script.write_text("\n".join(substituted(block) for block in blocks(page, ("python",))))
     result = run([python, str(script)], tmp_path, timeout=600)
     assert result.returncode == 0, result.stderr[-4000:]
-    assert "to_rclpy needs visualization_msgs, not installed: pip install 'viewer-bridge[ros]'\n" in result.stdout
+    assert (
+        "to_rclpy needs visualization_msgs, not installed: pip install 'viewer-bridge[ros]'\n"
+        in result.stdout
+    )
     assert "ModuleNotFoundError" not in result.stderr and "Traceback" not in result.stderr, result.stderr
     assert run([python, "-c", "import rclpy"], tmp_path).returncode != 0  # no extra there indeed
 
@@ -185,7 +202,9 @@ def test_ros_interfaces_install_never_pip_installs_unasked(venv: Path, tmp_path:
         env=extras_table.clean_env(), stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert refused.returncode == 2, refused.stderr
-    assert refused.stderr.startswith("viewer-bridge ros-interfaces: building needs pip install ros-jazzy-rclpy ")
+    assert refused.stderr.startswith(
+        "viewer-bridge ros-interfaces: building needs pip install ros-jazzy-rclpy "
+    )
     assert refused.stderr.endswith(
         ": run again with --yes to allow it, or pip install 'viewer-bridge[ros,ros-build]' first\n"
     )

@@ -147,7 +147,14 @@ def data_key(domain: int, topic: str, typename: str, hash_: str | None = None) -
 
 
 def publisher_token(
-    domain: int, zid: str, entity: int, node: str, topic: str, typename: str, qos: str, hash_: str | None = None
+    domain: int,
+    zid: str,
+    entity: int,
+    node: str,
+    topic: str,
+    typename: str,
+    qos: str,
+    hash_: str | None = None,
 ) -> str:
     """`@ros2_lv/<domain>/<zid>/<node id>/<entity id>/MP/<enclave>/<namespace>/<node>/<topic>/<type>/<hash>/<qos>`
     with `/` as `%` inside a part (the root namespace and enclave `/`: `%`); the hash is Jazzy's

@@ -268,7 +268,11 @@ def image_array_to_images(data: bytes) -> list[Image]:
 
 
 def image_array_to_ros_images(
-    data: bytes, *, frame_id: str = "camera", drop_alpha: bool = False, depth: Literal["16UC1", "32FC1"] = "16UC1"
+    data: bytes,
+    *,
+    frame_id: str = "camera",
+    drop_alpha: bool = False,
+    depth: Literal["16UC1", "32FC1"] = "16UC1",
 ) -> dict[str, bytes]:
     """An `lcmt_image_array` as `sensor_msgs/Image` CDR per image name, in the camera frame
     `frame_id`, stamped with its sim time.

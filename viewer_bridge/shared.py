@@ -81,7 +81,9 @@ class Shared:
     MCAP file log to one; `get(LoadCache)`: every route's last Drake load). Two routers share
     nothing."""
 
-    def __init__(self, lcm_types: TypeLibrary | None = None, ros_definitions: RosDefinitions | None = None) -> None:
+    def __init__(
+        self, lcm_types: TypeLibrary | None = None, ros_definitions: RosDefinitions | None = None
+    ) -> None:
         self.message_time = MessageTime()
         self._lcm_types = lcm_types
         self.ros_definitions = ros_definitions

@@ -34,6 +34,7 @@ from viewer_bridge.lcmcodec.serde import LcmMessage, StructCodec
 
 __all__ = ["LcmMessage", "LcmTypes", "lcm_types"]
 
+
 def lcm_types(*sources: str | os.PathLike[str], drake: bool = True) -> LcmTypes:
     """The project's LCM types, Drake's (when `drake` and pydrake is installed), and those of
     `sources`: `.lcm` files, folders of them (searched recursively), lcm-gen'd Python modules by
@@ -135,6 +136,7 @@ class LcmTypes:
             return self._type(typename)
         known = self.library.for_data(data)
         if known is None:
-            raise DecodeError("<unknown>", "<fingerprint>", 0, f"fingerprint {bytes(data[:8]).hex()} names no known type")
+            raise DecodeError(
+                "<unknown>", "<fingerprint>", 0, f"fingerprint {bytes(data[:8]).hex()} names no known type"
+            )
         return known
-

@@ -27,13 +27,16 @@ def test_a_bag_becomes_an_lcm_log_lcm_gen_reads(tmp_path: Path, capsys: pytest.C
     assert "       2  /joint_states -> joint_states" in printed and "/camera/image -> camera/image" in printed
     events = list(read_log(out))
     assert [event.channel for event in events] == [lcm_channel(topic) for topic, _, _ in SAMPLES]
-    assert [event.timestamp_us for event in events] == [1_000_000 + index * 1000 for index in range(len(SAMPLES))]
+    assert [event.timestamp_us for event in events] == [
+        1_000_000 + index * 1000 for index in range(len(SAMPLES))
+    ]
     assert lcm_gen_all(types, tmp_path / "gen").returncode == 0
     decoded = lcmgen_decode(tmp_path / "gen" / "py", [("sensor_msgs.JointState", events[0].data),
                                                       ("my_robot.Gripper", events[-1].data)])  # fmt: skip
     assert decoded[0]["name"] == JOINTS["name"] and decoded[0]["effort"] == JOINTS["effort"]
     assert decoded[1]["fingers"][1]["name"] == "thumb" and decoded[1]["ticks"] == 4_294_967_295
-    assert main(["convert", str(tmp_path / "bag.mcap"), str(out)]) == 2  # exists: not replaced without --force
+    # exists: not replaced without --force
+    assert main(["convert", str(tmp_path / "bag.mcap"), str(out)]) == 2
 
 
 def test_topics_narrow_and_unmappable_and_bad_messages_are_reported(
@@ -134,7 +137,9 @@ def rosbag2_db3(folder: Path, count: int) -> Path:
 
     data = serialized("sensor_msgs/msg/JointState", JOINTS)
     with Writer(folder, version=9) as writer:
-        connection = writer.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=typestore())
+        connection = writer.add_connection(
+            "/joint_states", "sensor_msgs/msg/JointState", typestore=typestore()
+        )
         for index in range(count):
             writer.write(connection, index * 1_000_000, data)
     [database] = folder.glob("*.db3")
@@ -168,10 +173,15 @@ def test_a_db3_row_that_holds_no_message_is_counted_and_the_rest_converts(
     assert main(["convert", str(tmp_path / "bag"), str(tmp_path / "out.lcmlog")]) == 1
     assert converted(tmp_path / "out.lcmlog") == [index for index in range(20) if index != 4]
     [line] = [line for line in capsys.readouterr().err.splitlines() if "damaged" in line]
-    assert "/joint_states: 1 rows of the bag are damaged, the first: a row holds int 4000000 as its time and str" in line
+    assert (
+        "/joint_states: 1 rows of the bag are damaged, the first: a row holds int 4000000 as its time and str"
+        in line
+    )
 
 
-def test_a_bag_with_nothing_readable_is_refused_with_why(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_bag_with_nothing_readable_is_refused_with_why(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     whole = tmp_path / "whole.mcap"
     joint_states_mcap(whole, 3)
     (tmp_path / "stub.mcap").write_bytes(whole.read_bytes()[:12])
@@ -208,7 +218,9 @@ def test_mcap_chunks_of_every_compression_and_none_read_alike(tmp_path: Path, co
     assert [event.timestamp_us // 1000 for event in events] == list(range(50))
     definitions, wanted = load_ros_definitions(["sensor_msgs/msg/JointState"])
     encoder = compile_ros_encoders(map_ros_types(definitions, wanted), wanted)["sensor_msgs/msg/JointState"]
-    assert {event.data for event in events} == {encoder.encode(serialized("sensor_msgs/msg/JointState", JOINTS))}
+    assert {event.data for event in events} == {
+        encoder.encode(serialized("sensor_msgs/msg/JointState", JOINTS))
+    }
 
 
 def test_a_chunk_whose_crc_does_not_match_ends_the_readable_part(
@@ -227,4 +239,6 @@ def test_a_chunk_whose_crc_does_not_match_ends_the_readable_part(
     assert main(["convert", str(tmp_path / "bad.mcap"), str(tmp_path / "out.lcmlog")]) == 1
     before = chunk.message_start_time // 1_000_000
     assert converted(tmp_path / "out.lcmlog") == list(range(before))
-    assert "bad.mcap: ValueError: a chunk's CRC-32 does not match its records" in damage_line(capsys.readouterr().err)
+    assert "bad.mcap: ValueError: a chunk's CRC-32 does not match its records" in damage_line(
+        capsys.readouterr().err
+    )

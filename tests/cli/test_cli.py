@@ -115,7 +115,9 @@ def test_a_file_that_is_not_an_lcm_log_is_refused(tmp_path: Path) -> None:
     assert not (tmp_path / "out.mcap").exists()  # nothing written for a file that is no log
 
 
-def test_a_log_cut_short_is_read_to_its_last_whole_event_with_a_warning(drake_log: Path, tmp_path: Path) -> None:
+def test_a_log_cut_short_is_read_to_its_last_whole_event_with_a_warning(
+    drake_log: Path, tmp_path: Path
+) -> None:
     events = list(read_log(drake_log))
     all_but_last = tmp_path / "all_but_last.lcmlog"
     write_log(all_but_last, events[:-1])
@@ -127,7 +129,10 @@ def test_a_log_cut_short_is_read_to_its_last_whole_event_with_a_warning(drake_lo
     assert len(result.stdout.splitlines()) == len(events) - 1  # every whole event
     whole = all_but_last.stat().st_size
     tail = torn.stat().st_size - whole
-    assert f"{torn} ends in a partial event: the {tail} bytes after byte {whole} are not a whole event" in result.stderr
+    assert (
+        f"{torn} ends in a partial event: the {tail} bytes after byte {whole} are not a whole event"
+        in result.stderr
+    )
 
 
 def test_run_without_the_ros_extra_names_the_install_that_fixes_it() -> None:
@@ -140,7 +145,10 @@ def test_run_without_the_ros_extra_names_the_install_that_fixes_it() -> None:
         timeout=60,
     )
     assert result.returncode == 2, result.stderr
-    assert "the ros transport needs rclpy" in result.stderr and "pip install 'viewer-bridge[ros]'" in result.stderr
+    assert (
+        "the ros transport needs rclpy" in result.stderr
+        and "pip install 'viewer-bridge[ros]'" in result.stderr
+    )
     assert "Traceback" not in result.stderr
 
 
@@ -213,7 +221,9 @@ def test_convert_never_writes_over_its_input_even_through_links(tmp_path: Path) 
         for force in ((), ("--force",)):
             result = run("convert", str(log), str(target), *force)
             assert result.returncode == 2, result
-            assert result.stderr.startswith(f"viewer-bridge convert: {target} is the input log"), result.stderr
+            assert result.stderr.startswith(f"viewer-bridge convert: {target} is the input log"), (
+                result.stderr
+            )
             assert "Traceback" not in result.stderr
     assert log.read_bytes() == before
 
@@ -226,7 +236,10 @@ def test_convert_replaces_an_existing_file_only_with_force(tmp_path: Path) -> No
     out.write_text("keep me")
     refused = run("convert", str(log), str(out))
     assert refused.returncode == 2, refused
-    assert refused.stderr == f"viewer-bridge convert: {out} exists: give another output file, or --force to replace it\n"
+    assert (
+        refused.stderr
+        == f"viewer-bridge convert: {out} exists: give another output file, or --force to replace it\n"
+    )
     assert out.read_text() == "keep me"
     forced = run("convert", str(log), str(out), "--force")
     assert forced.returncode == 0, forced.stderr
@@ -241,7 +254,10 @@ def test_convert_with_no_route_for_the_schema_exits_2_naming_config_and_schema(t
     out = tmp_path / "out.mcap"
     result = run("convert", str(log), str(out), "-c", "builtin:ign")
     assert result.returncode == 2, result
-    assert result.stderr == "viewer-bridge convert: no route of builtin:ign reads LCM and writes the ros2 schema\n"
+    assert (
+        result.stderr
+        == "viewer-bridge convert: no route of builtin:ign reads LCM and writes the ros2 schema\n"
+    )
     empty = tmp_path / "empty.yaml"
     empty.write_text("routes: []\n")
     result = run("convert", str(log), str(out), "-c", str(empty), "--schema", "foxglove")
@@ -257,7 +273,7 @@ def test_ctrl_c_during_convert_leaves_a_readable_partial_file_and_exits_130(tmp_
     # small log, so that the interrupt surely comes midway.
     routes = "".join(
         f"  - name: markers{i}\n"
-        f"    source: {{transport: lcm, name: \"DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)\"}}\n"
+        f'    source: {{transport: lcm, name: "DRAKE_VIEWER_(?:LOAD_ROBOT|DRAW)"}}\n'
         f"    translator: drake_to_marker_array\n"
         f"    destination: {{transport: ros, name: slow/markers{i}}}\n"
         for i in range(40)
@@ -293,7 +309,6 @@ def test_ctrl_c_during_convert_leaves_a_readable_partial_file_and_exits_130(tmp_
     assert not out.exists()
 
 
-
 # --- convert: says what it did -------------------------------------------------------------------------
 
 
@@ -316,7 +331,8 @@ def test_convert_says_what_it_wrote_as_the_file_reads_back(tmp_path: Path) -> No
     from mcap.reader import make_reader
 
     log = tmp_path / "lab.lcmlog"
-    unknown = [LcmEvent("LAB_STATUS", b"12345678abc", 2_000_000 + i) for i in range(10)]  # no known fingerprint
+    # no known fingerprint
+    unknown = [LcmEvent("LAB_STATUS", b"12345678abc", 2_000_000 + i) for i in range(10)]
     write_log(log, [*read_log(demo_log(tmp_path / "demo.lcmlog", 10)), *unknown])
     out = tmp_path / "out.mcap"
     result = run("convert", str(log), str(out))
@@ -341,7 +357,8 @@ def test_convert_exits_1_when_lcm_channels_match_nothing_or_nothing_is_written(t
         "viewer-bridge convert: --lcm-channels 'nomatch' matches no channel of the log "
         "(its channels: DRAKE_VIEWER_DRAW, DRAKE_VIEWER_LOAD_ROBOT)"
     )
-    assert nomatch.stdout.splitlines()[-1].startswith(f"wrote {out}: ")  # the Drake routes' topics, said first
+    # the Drake routes' topics, said first
+    assert nomatch.stdout.splitlines()[-1].startswith(f"wrote {out}: ")
     lab = tmp_path / "lab.lcmlog"
     write_log(lab, [LcmEvent("LAB_STATUS", b"12345678abc", 1)])
     empty = tmp_path / "empty.mcap"
@@ -353,8 +370,9 @@ def test_convert_exits_1_when_lcm_channels_match_nothing_or_nothing_is_written(t
     assert not empty.exists() and not empty.with_name("empty.mcap.partial").exists()
 
 
-
-def test_an_unknown_type_is_said_once_for_the_router_and_counted_per_route(tmp_path: Path, caplog: Any) -> None:
+def test_an_unknown_type_is_said_once_for_the_router_and_counted_per_route(
+    tmp_path: Path, caplog: Any
+) -> None:
     """Two routes read a channel of no known type: one warning, and each route counts it."""
     from viewer_bridge.cli.log_convert import convert
     from viewer_bridge.config.bridge import BridgeConfig
@@ -367,8 +385,12 @@ def test_an_unknown_type_is_said_once_for_the_router_and_counted_per_route(tmp_p
     log = tmp_path / "lab.lcmlog"
     write_log(log, [LcmEvent("LAB_STATUS", b"12345678abc", i) for i in range(4)])
     with caplog.at_level("WARNING", logger="viewer_bridge"):
-        done = convert(log, tmp_path / "out.mcap", BridgeConfig.model_validate({"routes": routes}), progress=False)
-    said = [record.getMessage() for record in caplog.records if "LAB_STATUS: fingerprint" in record.getMessage()]
+        done = convert(
+            log, tmp_path / "out.mcap", BridgeConfig.model_validate({"routes": routes}), progress=False
+        )
+    said = [
+        record.getMessage() for record in caplog.records if "LAB_STATUS: fingerprint" in record.getMessage()
+    ]
     assert len(said) == 1, said
     assert done.skipped == {("LAB_STATUS", "unknown_type"): 4} and not done.written
 
@@ -500,7 +522,10 @@ def test_version_and_defaults_in_every_help() -> None:
 def test_no_arguments_prints_the_help() -> None:
     result = run()
     assert result.returncode == 2 and not result.stderr, result
-    assert result.stdout.startswith("usage: viewer-bridge") and "{dump,demo,example,mappings,run" in result.stdout
+    assert (
+        result.stdout.startswith("usage: viewer-bridge")
+        and "{dump,demo,example,mappings,run" in result.stdout
+    )
 
 
 def test_one_route_is_one_route(tmp_path: Path) -> None:
@@ -518,7 +543,10 @@ def test_ros_interfaces_status_shows_the_names_asked_for() -> None:
     assert status.returncode == 0 and status.stdout.startswith("tf2_msgs: "), status
     unknown = run("ros-interfaces", "status", "no_such_msgs")
     assert unknown.returncode == 2
-    assert unknown.stderr == "viewer-bridge ros-interfaces: unknown interface package no_such_msgs (known: tf2_msgs)\n"
+    assert (
+        unknown.stderr
+        == "viewer-bridge ros-interfaces: unknown interface package no_such_msgs (known: tf2_msgs)\n"
+    )
 
 
 def test_demo_says_when_it_starts() -> None:
@@ -543,7 +571,9 @@ def test_snapshot_writes_the_format_its_name_asks_for(tmp_path: Path) -> None:
 
 def test_a_replayed_log_says_it_ended_and_the_stats_come_once_at_shutdown(tmp_path: Path) -> None:
     log = demo_log(tmp_path / "demo.lcmlog", 5)
-    replay = run("run", "-c", "builtin:foxglove", "--set", "foxglove.port=0", "--lcm-url", f"file://{log}?speed=0")
+    replay = run(
+        "run", "-c", "builtin:foxglove", "--set", "foxglove.port=0", "--lcm-url", f"file://{log}?speed=0"
+    )
     assert replay.returncode == 0, replay.stderr
     assert f"viewer-bridge: LCM file://{log} has ended: stopping" in replay.stderr
     # A duration that is a whole number of stats periods: one report at 2 s, the last one at 4 s
@@ -580,7 +610,9 @@ def test_a_listening_zenoh_session_says_where_it_listens() -> None:
 
 
 @pytest.mark.parametrize(("config", "warned"), [("builtin:ign", False), ("builtin:gz", True)])
-def test_ign_partition_is_fortress_own_name_and_a_warning_only_for_harmonic(config: str, warned: bool) -> None:
+def test_ign_partition_is_fortress_own_name_and_a_warning_only_for_harmonic(
+    config: str, warned: bool
+) -> None:
     """The Gazebo guide tells Fortress users to set IGN_PARTITION: `builtin:ign` reads it quietly,
     `builtin:gz` (whose gz tools ignore it) says to set GZ_PARTITION."""
     environ = {key: value for key, value in os.environ.items() if not key.startswith(("GZ_", "IGN_"))}
@@ -610,13 +642,16 @@ def test_a_bad_lcm_type_source_is_one_line_naming_it_and_exit_2(tmp_path: Path) 
         assert result.returncode == 2, (command, result)
         lines = [line for line in result.stderr.splitlines() if "viewer-bridge" in line]
         assert len(lines) == 1 and "Traceback" not in result.stderr, (command, result.stderr)
-        where = f"{broken}:" if command[-1] != "no_such_lcm_module_anywhere" else "no_such_lcm_module_anywhere"
+        where = (
+            f"{broken}:" if command[-1] != "no_such_lcm_module_anywhere" else "no_such_lcm_module_anywhere"
+        )
         assert where in lines[0], (command, lines)
     assert not (tmp_path / "out.mcap").exists()
 
 
 def test_dump_lcm_types_decodes_a_labs_own_type(
-    tmp_path: Path, lcmgen_corpus: dict[str, type]  # noqa: F811 (the fixture, imported)
+    tmp_path: Path,
+    lcmgen_corpus: dict[str, type],  # noqa: F811 (the fixture, imported)
 ) -> None:
     import drake as drake_lcmtypes
 

@@ -48,8 +48,11 @@ def test_every_table_covers_every_shape() -> None:
         (Sphere(0.5), ("ros", "marker"), {"scale": [1.0, 1.0, 1.0]}),  # diameter
         (Ellipsoid((1.0, 2.0, 3.0)), ("ros", "marker"), {"scale": [2.0, 4.0, 6.0]}),
         (Capsule(0.5, 2.0), ("ign", "geometry"), {"capsule.radius": 0.5, "capsule.length": 2.0}),
-        (Cylinder(0.5, 2.0), ("foxglove", "primitive"), {"size": [1.0, 1.0, 2.0], "bottom_scale": 1.0,
-                                                          "top_scale": 1.0}),  # fmt: skip
+        (
+            Cylinder(0.5, 2.0),
+            ("foxglove", "primitive"),
+            {"size": [1.0, 1.0, 2.0], "bottom_scale": 1.0, "top_scale": 1.0},
+        ),  # fmt: skip
         (Ellipsoid((1.0, 2.0, 3.0)), ("foxglove", "primitive"), {"size": [2.0, 4.0, 6.0]}),
         (Box((1.0, 2.0, 3.0)), ("tree_viewer", "geometry"), {"lengths": [1.0, 2.0, 3.0]}),
         (

@@ -33,16 +33,26 @@ def test_no_built_in_config_carries_a_topic_onto_lcm(name: str) -> None:
 def test_the_flag_makes_one_route_per_ros_graph_the_config_uses() -> None:
     dds = load_config(None).with_ros_topics(["/joint_states", "/imu/.*"])
     [route] = made(dds.routes)
-    assert (route.name, route.source.transport, route.destination.transport) == ("ros_topics_ros", "ros", "lcm")
+    assert (route.name, route.source.transport, route.destination.transport) == (
+        "ros_topics_ros",
+        "ros",
+        "lcm",
+    )
     assert route.source.name == "((?:/joint_states)|(?:/imu/.*))" and route.destination.name == "{1:lcm}"
-    assert [r.source.transport for r in made(load_config("builtin:zenoh").with_ros_topics([".*"]).routes)] == ["zenoh"]
+    assert [
+        r.source.transport for r in made(load_config("builtin:zenoh").with_ros_topics([".*"]).routes)
+    ] == ["zenoh"]
     # A config on no ROS graph (Foxglove only): DDS, the default.
-    assert [r.source.transport for r in made(load_config("builtin:foxglove").with_ros_topics([".*"]).routes)] == ["ros"]
+    assert [
+        r.source.transport for r in made(load_config("builtin:foxglove").with_ros_topics([".*"]).routes)
+    ] == ["ros"]
     assert load_config(None).with_ros_topics([]).routes == load_config(None).routes
 
 
 def test_a_route_is_made_once_however_often_the_config_is_checked_again() -> None:
-    config = load_config(None).with_ros_topics(["/a"]).with_settings("lcm", url="udpm://239.255.76.67:7667?ttl=0")
+    config = (
+        load_config(None).with_ros_topics(["/a"]).with_settings("lcm", url="udpm://239.255.76.67:7667?ttl=0")
+    )
     config = config.with_ros_topics(["/b"]).allowing_commands(["X"]).with_settings("ros", node="other")
     [route] = made(config.routes)
     assert route.source.name == "((?:/a)|(?:/b))"
@@ -59,7 +69,9 @@ def test_a_yaml_config_names_them_too(tmp_path: Path) -> None:
         assert match is not None and destination_name(route.destination.name, match) == channel
     assert pattern.fullmatch("/joint_states_2") is None and pattern.fullmatch("/arm/up/state") is None
     # The topic is the first group whatever groups the patterns have: a stream per topic.
-    assert pattern.fullmatch("/arm/left/state").groups()[0] != pattern.fullmatch("/arm/right/state").groups()[0]  # type: ignore[union-attr]
+    assert (
+        pattern.fullmatch("/arm/left/state").groups()[0] != pattern.fullmatch("/arm/right/state").groups()[0]
+    )  # type: ignore[union-attr]
 
 
 def test_a_bad_regex_and_a_taken_route_name_are_clear_errors(tmp_path: Path) -> None:
@@ -67,7 +79,11 @@ def test_a_bad_regex_and_a_taken_route_name_are_clear_errors(tmp_path: Path) -> 
     path.write_text(DDS_ONLY.replace('"/joint_states"', '"/joint_states("'))
     with pytest.raises(ConfigError) as bad:
         load_config(path)
-    assert bad.value.line == 1 and "ros_topics" in bad.value.key and "not a regular expression" in bad.value.reason
+    assert (
+        bad.value.line == 1
+        and "ros_topics" in bad.value.key
+        and "not a regular expression" in bad.value.reason
+    )
     path.write_text(DDS_ONLY.replace("name: poses", "name: ros_topics_ros"))
     with pytest.raises(ConfigError) as taken:
         load_config(path)

@@ -18,7 +18,16 @@ import sys
 from collections.abc import Sequence
 from types import ModuleType
 
-BLOCKED = {"rclpy", "rpyutils", "pydrake", "drake", "foxglove", "foxglove_schemas_protobuf", "zenoh", "moderngl"}
+BLOCKED = {
+    "rclpy",
+    "rpyutils",
+    "pydrake",
+    "drake",
+    "foxglove",
+    "foxglove_schemas_protobuf",
+    "zenoh",
+    "moderngl",
+}
 
 
 def blocked(name: str) -> bool:

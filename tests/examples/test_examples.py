@@ -43,7 +43,9 @@ def test_an_example_records_its_messages(name: str, tmp_path: Path) -> None:
 
 def test_without_drake_one_line_names_the_install() -> None:
     code = "import sys; sys.modules['pydrake'] = None; from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))"
-    done = subprocess.run([sys.executable, "-c", code, "example", "shapes"], capture_output=True, text=True, timeout=60)
+    done = subprocess.run(
+        [sys.executable, "-c", code, "example", "shapes"], capture_output=True, text=True, timeout=60
+    )
     assert done.returncode == 2 and not done.stdout
     assert done.stderr.splitlines() == [
         f"viewer-bridge example: the examples simulate with Drake, which is not installed: {INSTALL_HINT}"

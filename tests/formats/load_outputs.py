@@ -175,7 +175,9 @@ def recorded_digests() -> dict[str, str]:
 
 def recorded_outputs() -> dict[str, Output]:
     """The recorded outputs: the archive's messages, and the refusals the digests record."""
-    out: dict[str, Output] = {name: value for name, value in recorded_digests().items() if value.startswith("refused")}
+    out: dict[str, Output] = {
+        name: value for name, value in recorded_digests().items() if value.startswith("refused")
+    }
     with tarfile.open(ARCHIVE) as archive:
         members = sorted(archive.getmembers(), key=lambda member: int(member.name.rsplit("/", 1)[1]))
         for member in members:
@@ -213,6 +215,8 @@ if __name__ == "__main__":
     elif sys.argv[1:] == ["digests"]:
         Path(RECORDED_FOLDER).mkdir(exist_ok=True)
         written = outputs(Path(RECORDED_FOLDER))
-        print(json.dumps({name: digest(output) for name, output in written.items()}, indent=1, sort_keys=True))
+        print(
+            json.dumps({name: digest(output) for name, output in written.items()}, indent=1, sort_keys=True)
+        )
     else:
         raise SystemExit("usage: python -m tests.formats.load_outputs digests | record")

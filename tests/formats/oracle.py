@@ -25,9 +25,14 @@ def close(actual: Any, expected: Any) -> bool:
 
 def transform(position: Any, quaternion_wxyz: Any) -> Any:
     """pydrake's RigidTransform (pydrake imported here: a core-only run skips the tests that need it)."""
-    eigen_geometry, drake_math = pytest.importorskip("pydrake.common.eigen_geometry"), pytest.importorskip("pydrake.math")
+    eigen_geometry, drake_math = (
+        pytest.importorskip("pydrake.common.eigen_geometry"),
+        pytest.importorskip("pydrake.math"),
+    )
     w, x, y, z = (float(value) for value in quaternion_wxyz)
-    return drake_math.RigidTransform(eigen_geometry.Quaternion(w, x, y, z), np.asarray(position, dtype=np.float64))
+    return drake_math.RigidTransform(
+        eigen_geometry.Quaternion(w, x, y, z), np.asarray(position, dtype=np.float64)
+    )
 
 
 def world_pose(link_position: Any, link_wxyz: Any, geometry: LcmMessage) -> tuple[np.ndarray, np.ndarray]:

@@ -134,7 +134,9 @@ def test_large_payloads_are_decoded_once_and_the_cache_stays_bounded() -> None:
 def test_a_large_buffer_read_twice_gives_the_same_meshes() -> None:
     rng = np.random.default_rng(3)
     mesh = TriangleMesh(rng.uniform(-1, 1, (20_000, 3)), rng.integers(0, 20_000, (20_000, 3)))
-    document = write_gltf(Scene((Link("big", 0, (Geometry(mesh, Pose((1.0, 2.0, 3.0)), (0.1, 0.2, 0.3, 1.0)),)),)))
+    document = write_gltf(
+        Scene((Link("big", 0, (Geometry(mesh, Pose((1.0, 2.0, 3.0)), (0.1, 0.2, 0.3, 1.0)),)),))
+    )
     assert len(document) > 2 * 64 * 1024  # the payload is cached
     first, second = read_gltf(document), read_gltf(document)
     np.testing.assert_allclose(first.meshes[0].vertices, mesh.vertices + (1.0, 2.0, 3.0), atol=1e-6)

@@ -100,7 +100,13 @@ def test_shape_bytes_of_real_drake_loads(drake_capture: dict[str, Capture]) -> N
 
 
 def test_tessellations_are_cached_read_only_and_equal_fresh_ones() -> None:
-    primitives = (Box((1.0, 2.0, 3.0)), Sphere(0.5), Cylinder(0.1, 0.4), Capsule(0.1, 0.4), Ellipsoid((1.0, 2.0, 3.0)))
+    primitives = (
+        Box((1.0, 2.0, 3.0)),
+        Sphere(0.5),
+        Cylinder(0.1, 0.4),
+        Capsule(0.1, 0.4),
+        Ellipsoid((1.0, 2.0, 3.0)),
+    )
     for shape in (*primitives, HalfSpace()):
         cached = triangle_mesh(shape)
         assert triangle_mesh(shape) is cached
@@ -112,8 +118,9 @@ def test_tessellations_are_cached_read_only_and_equal_fresh_ones() -> None:
 def test_the_recorded_outputs_are_the_ones_whose_digests_were_recorded() -> None:
     """The archive's bytes against the digests recorded over time (no arithmetic: stored bytes)."""
     recorded = load_outputs.recorded_outputs()
-    assert {name: load_outputs.digest(output) for name, output in recorded.items()} == load_outputs.recorded_digests()
-
+    assert {
+        name: load_outputs.digest(output) for name, output in recorded.items()
+    } == load_outputs.recorded_digests()
 
 
 def test_every_load_target_writes_the_recorded_values(tmp_path: Path, debian_ign_msgs: ModuleType) -> None:
@@ -159,8 +166,12 @@ def test_every_load_target_writes_the_recorded_values(tmp_path: Path, debian_ign
             continue
         read, tolerance = readers[target], atol.get(target, values.ATOL)
         # The meshes are in this test's folder; the recorded outputs name the recording's.
-        actual = values.renamed(values.plain([read(part) for part in output]), str(tmp_path), recording_folder)
-        found = list(values.differences(actual, values.plain([read(part) for part in expected]), tolerance, name))
+        actual = values.renamed(
+            values.plain([read(part) for part in output]), str(tmp_path), recording_folder
+        )
+        found = list(
+            values.differences(actual, values.plain([read(part) for part in expected]), tolerance, name)
+        )
         assert not found, found[:5]
 
 
@@ -169,7 +180,9 @@ def test_every_load_target_writes_the_recorded_values(tmp_path: Path, debian_ign
 def test_ign_model_bytes_equal_the_protobuf_objects(scene: Scene, draw: LinkPoses | None) -> None:
     if draw is not None:  # some of the scene's links in the frame, some not
         names = tuple(link.name for link in scene.links)[: len(draw)] + draw.names[len(scene.links) :]
-        scene = scene.with_poses(LinkPoses(draw.timestamp_ms, names, draw.robot_nums, draw.positions, draw.quaternions_wxyz))
+        scene = scene.with_poses(
+            LinkPoses(draw.timestamp_ms, names, draw.robot_nums, draw.positions, draw.quaternions_wxyz)
+        )
     assert model_bytes(scene, "m") == model(scene, "m").SerializeToString()
     assert model_v_bytes(scene) == model_v(scene).SerializeToString()
 
@@ -183,7 +196,9 @@ def test_ign_pose_bytes_with_zeros_and_negative_zeros(pose: Pose) -> None:
 
 
 def test_an_empty_scene_is_an_empty_marker_array() -> None:
-    assert marker_array_cdr(Scene(), delete_all=False) == to_cdr(ros_oracle.marker_array(Scene(), delete_all=False))
+    assert marker_array_cdr(Scene(), delete_all=False) == to_cdr(
+        ros_oracle.marker_array(Scene(), delete_all=False)
+    )
     # With DELETEALL: its frame_id is "" here and "world" in the object path, as before.
     (delete_all,) = from_cdr(marker_array_cdr(Scene()), ros.MARKER_ARRAY).markers
     assert delete_all.action == 3

@@ -15,7 +15,8 @@ from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
 from viewer_bridge.model.scene import PointCloud, StampedPointCloud
 
-drake_lcmtypes = peer("drake")  # Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
+# Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
+drake_lcmtypes = peer("drake")
 
 
 def sample_cloud(count: int = 30, colors: bool = True, normals: bool = False, seed: int = 3) -> PointCloud:

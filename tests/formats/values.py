@@ -54,7 +54,11 @@ def renamed(value: Any, old: str, new: str) -> Any:
 
 
 def _field(message: Message, field: FieldDescriptor) -> Any:
-    if field.type == FieldDescriptor.TYPE_MESSAGE and not field.is_repeated and not message.HasField(field.name):
+    if (
+        field.type == FieldDescriptor.TYPE_MESSAGE
+        and not field.is_repeated
+        and not message.HasField(field.name)
+    ):
         return None
     return getattr(message, field.name)
 
@@ -86,7 +90,9 @@ def differences(actual: Any, expected: Any, atol: float = ATOL, where: str = "")
 
 def _close(actual: Any, expected: Any, atol: float) -> Any:
     both_nan = np.isnan(actual) & np.isnan(expected)
-    return both_nan | (np.abs(actual - expected) <= atol + RTOL * np.maximum(np.abs(actual), np.abs(expected)))
+    return both_nan | (
+        np.abs(actual - expected) <= atol + RTOL * np.maximum(np.abs(actual), np.abs(expected))
+    )
 
 
 def json_envelope(data: bytes) -> Any:

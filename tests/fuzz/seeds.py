@@ -151,7 +151,9 @@ def zenoh_seeds() -> Seeds:
     for index, name in enumerate(("geometry_msgs/msg/PoseArray", "tf2_msgs/msg/TFMessage")):
         kind = keys.topic_type(name)
         data_keys.append(keys.data_key(7, "/drake/poses", kind).encode())
-        entity = keys.TopicEntity("/sim1/drake/poses", kind.dds_name, kind.hash, keys.TokenQos(index == 0, True, False, 1))
+        entity = keys.TopicEntity(
+            "/sim1/drake/poses", kind.dds_name, kind.hash, keys.TokenQos(index == 0, True, False, 1)
+        )
         tokens.append(keys.Token(7, "0f1e2d3c", 0, index + 1, keys.PUBLISHER, node, entity).key())
     return {
         "rmw_zenoh.data_key": data_keys,
@@ -166,7 +168,12 @@ def foxglove_seeds() -> Seeds:
     records; handshakes with and without an Origin; allowed-origin entries with origins."""
     from tests.fuzz.targets import FOXGLOVE_MAX_MESSAGE
 
-    channel = {"id": 1, "topic": "/lcm_in/IIWA_COMMAND", "encoding": "json", "schemaName": "drake_lcm_msgs/LcmtIiwaCommand"}
+    channel = {
+        "id": 1,
+        "topic": "/lcm_in/IIWA_COMMAND",
+        "encoding": "json",
+        "schemaName": "drake_lcm_msgs/LcmtIiwaCommand",
+    }
     texts = [
         json.dumps({"op": "advertise", "channels": [channel, {**channel, "id": 2, "topic": "/cmd_vel"},
                                                     {**channel, "id": 3, "encoding": "protobuf"}]}),
@@ -179,22 +186,44 @@ def foxglove_seeds() -> Seeds:
     ]  # fmt: skip
     data = b"\x01" + (1).to_bytes(4, "little") + b'{"utime": 7}'
     records = [bytes([0x81]) + len(text).to_bytes(2, "little") + text.encode() for text in texts]
-    records.insert(1, bytes([0x82]) + len(data).to_bytes(2, "little") + data)  # on the channel just advertised
-    records.append(bytes([0x01]) + (5).to_bytes(2, "little") + b"\x00\x00\x00\x00{" + bytes([0x89, 0, 0])
-                   + bytes([0x80]) + (5).to_bytes(2, "little") + b"\x00\x00\x00\x00}")  # fragments, a ping between
+    # on the channel just advertised
+    records.insert(1, bytes([0x82]) + len(data).to_bytes(2, "little") + data)
+    records.append(
+        bytes([0x01])
+        + (5).to_bytes(2, "little")
+        + b"\x00\x00\x00\x00{"
+        + bytes([0x89, 0, 0])
+        # fragments, a ping between
+        + bytes([0x80])
+        + (5).to_bytes(2, "little")
+        + b"\x00\x00\x00\x00}"
+    )
     big = b"\x01\x01\x00\x00\x00" + b"x" * FOXGLOVE_MAX_MESSAGE
     records.append(bytes([0x82]) + len(big).to_bytes(2, "little") + big)
     records.append(bytes([0xC1]) + (4).to_bytes(2, "little") + b"abcd")  # compressed (RSV1)
     every = b"".join(records)
     return {
         "foxglove_client_messages": [b"\x00" + record for record in records] + [b"\x03" + every],
-        "foxglove_client_stream": [b"\x00" + _frames(record) for record in records] + [b"\x10" + _frames(every)],
+        "foxglove_client_stream": [b"\x00" + _frames(record) for record in records]
+        + [b"\x10" + _frames(every)],
         "foxglove_sdk_stream": [b"\x00" + _sdk_frames(texts, data), b"\x06" + _sdk_frames(texts, data)],
-        "foxglove_handshake": [b"\x40" + _request(origin) for origin in
-                               (None, "https://app.foxglove.dev", "http://localhost:3000", "https://evil.example",
-                                "https://viewer.lab.example", "http://[::1]:8080")],  # fmt: skip
-        "origin_match": [b"https://*.lab.example\0https://viewer.lab.example", b"http://[::1]:*\0http://[::1]:8080",
-                         b"*\0https://evil.example/x", b"https://*:*\0HTTPS://A:1"],  # fmt: skip
+        "foxglove_handshake": [
+            b"\x40" + _request(origin)
+            for origin in (
+                None,
+                "https://app.foxglove.dev",
+                "http://localhost:3000",
+                "https://evil.example",
+                "https://viewer.lab.example",
+                "http://[::1]:8080",
+            )
+        ],  # fmt: skip
+        "origin_match": [
+            b"https://*.lab.example\0https://viewer.lab.example",
+            b"http://[::1]:*\0http://[::1]:8080",
+            b"*\0https://evil.example/x",
+            b"https://*:*\0HTTPS://A:1",
+        ],  # fmt: skip
     }
 
 
@@ -205,7 +234,9 @@ def _sdk_frames(texts: list[str], data: bytes) -> bytes:
     frames = b""
     for opcode, payload in [(0x81, text.encode()) for text in [*texts, refused]] + [(0x82, data)]:
         length = len(payload)
-        frames += bytes([opcode]) + (bytes([length]) if length < 126 else bytes([126]) + length.to_bytes(2, "big"))
+        frames += bytes([opcode]) + (
+            bytes([length]) if length < 126 else bytes([126]) + length.to_bytes(2, "big")
+        )
         frames += payload
     return frames
 
@@ -258,7 +289,9 @@ def lcm_type_seeds() -> Seeds:
         back_json.append(bytes([128 + choice]) + b"{}")
         back_json.append(bytes([choice]) + bytes([7, 9, 0, 1, 2, 3, 6, 2]) + bytes(8) + bytes([8, 8]))
     iiwa = BACK_TYPES.index("drake.lcmt_iiwa_command")
-    back_json.append(bytes([128 + iiwa]) + b'{"utime": 5, "joint_position": [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]}')
+    back_json.append(
+        bytes([128 + iiwa]) + b'{"utime": 5, "joint_position": [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7]}'
+    )
     return {"lcm_schema": [path.read_bytes() for path in schemas], "lcm_generic": messages,
             "lcm_back_cdr": back_cdr, "lcm_back_json": back_json}  # fmt: skip
 
@@ -304,7 +337,9 @@ def discovery_seeds() -> list[bytes]:
                     publisher.topic, publisher.address = DISCOVERY_SUBSCRIBED, "tcp://127.0.0.1:40001"
                     publisher.process_uuid, publisher.node_uuid = "fuzz-peer", "fuzz-node"
                     publisher.scope = Record.Publisher.ALL
-                    publisher.msg_pub.msg_type = "ignition.msgs.Pose_V" if version == WIRE_VERSION else "gz.msgs.Pose_V"
+                    publisher.msg_pub.msg_type = (
+                        "ignition.msgs.Pose_V" if version == WIRE_VERSION else "gz.msgs.Pose_V"
+                    )
                 seeds.append(datagram(message))
     anything = Record(version=WIRE_VERSION, process_uuid="fuzz-peer", type=Record.ADVERTISE)
     anything.pub.topic, anything.pub.address = DISCOVERY_ANY, "tcp://[::1]:40002"

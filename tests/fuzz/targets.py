@@ -140,7 +140,9 @@ _MESH_ROOT = tempfile.mkdtemp(prefix="fuzz-meshes-")
 def tree_viewer_request(data: bytes) -> object:
     """One envelope from a new client: decode, apply to its tree, reply, and the MarkerArray."""
     replies: list[bytes] = []
-    server = TreeViewerServer({"mesh_roots": [_MESH_ROOT]}, reply=lambda channel, payload: replies.append(payload))
+    server = TreeViewerServer(
+        {"mesh_roots": [_MESH_ROOT]}, reply=lambda channel, payload: replies.append(payload)
+    )
     try:
         return server.translate(Received("DIRECTOR_TREE_VIEWER_REQUEST_<fuzz>", data, 0))
     finally:
@@ -149,7 +151,9 @@ def tree_viewer_request(data: bytes) -> object:
 
 
 register(
-    Target("tree_viewer_request", tree_viewer_request, (RequestRejected, SceneError), (VIEWER2_COMMS.type_name,))
+    Target(
+        "tree_viewer_request", tree_viewer_request, (RequestRejected, SceneError), (VIEWER2_COMMS.type_name,)
+    )
 )
 
 
@@ -247,7 +251,14 @@ def ros_point_cloud(data: bytes) -> object:
     return cloud_to_lcm(cloud_from_cdr(data))
 
 
-register(Target("drake_contact_results", decode_contact_results, (DecodeError,), ("drake.lcmt_contact_results_for_viz",)))
+register(
+    Target(
+        "drake_contact_results",
+        decode_contact_results,
+        (DecodeError,),
+        ("drake.lcmt_contact_results_for_viz",),
+    )
+)
 register(Target("drake_point_cloud", cloud_from_lcm, (DecodeError,), ("drake.lcmt_point_cloud",)))
 register(Target("ros_point_cloud2", ros_point_cloud, (DecodeError,), ("sensor_msgs/PointCloud2",)))
 
@@ -539,7 +550,8 @@ def lcm_back_json(data: bytes) -> object:
     if choice >= 128:
         try:
             value = json.loads(data[1:])
-        except (ValueError, RecursionError):  # not JSON, or too deep for Python's parser: the transport's concern
+        # not JSON, or too deep for Python's parser: the transport's concern
+        except (ValueError, RecursionError):
             return None
     else:
         value = json_value(data[1:], _BACK_NAMES[name])
@@ -570,7 +582,10 @@ def _ros_encoders() -> tuple[dict[str, LcmEncoder], dict[str, LcmEncoder], TypeL
     mapping = map_ros_types(definitions, ROS_TYPES)
     folder = Path(tempfile.mkdtemp(prefix="fuzz-ros-lcm-"))
     mapping.write(folder)
-    kept, generated = compile_ros_encoders(mapping, ROS_TYPES), compile_ros_encoders(mapping, ROS_TYPES, keep_layouts=False)
+    kept, generated = (
+        compile_ros_encoders(mapping, ROS_TYPES),
+        compile_ros_encoders(mapping, ROS_TYPES, keep_layouts=False),
+    )
     atheris = sys.modules.get("atheris")
     for encoder in [*kept.values(), *generated.values()] if atheris is not None else ():
         for value in list(encoder._body.__globals__.values()):
@@ -638,7 +653,12 @@ def _read_along(stream: bytes, chunk: int) -> tuple[list[Message], list[str], li
             raise AssertionError(f"read along: opcode {message.opcode}, {len(message.payload)} bytes")
     for text in connection.said:
         said = json.loads(text)
-        if said["op"] != "status" or said["level"] != 2 or len(said["message"]) > 1100 or len(said["id"]) > 1100:
+        if (
+            said["op"] != "status"
+            or said["level"] != 2
+            or len(said["message"]) > 1100
+            or len(said["id"]) > 1100
+        ):
             raise AssertionError(f"said {text[:200]!r}")
     for received in delivered:
         if re.fullmatch(FOXGLOVE_ROUTE, received.channel) is None or received.origin is not connection:

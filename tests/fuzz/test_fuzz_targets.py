@@ -90,4 +90,6 @@ def test_an_origin_against_many_stars_is_matched_at_once() -> None:
     worker.start()
     worker.join(timeout=30)
     assert answers == [False]
-    assert origin_matches(entry, "https://a-b-c-d-e-f.example") and not origin_matches(entry, "https://a-b/c-d-e-f.example")
+    assert origin_matches(entry, "https://a-b-c-d-e-f.example") and not origin_matches(
+        entry, "https://a-b/c-d-e-f.example"
+    )

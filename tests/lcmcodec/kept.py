@@ -22,7 +22,9 @@ def outcome(convert: Convert, data: bytes) -> bytes | str:
         return str(error)
 
 
-def assert_damage_agrees(kept: Convert, generated: Convert, data: bytes, *, changes: int, examples: int) -> None:
+def assert_damage_agrees(
+    kept: Convert, generated: Convert, data: bytes, *, changes: int, examples: int
+) -> None:
     """`data` with up to `changes` bytes set to anything (lengths, counts, NULs, UTF-8, bools,
     numbers) converts or fails through `kept` as through `generated`, byte for byte."""
 

@@ -16,7 +16,10 @@ from tests.lcmcodec.test_from_ros import CUSTOM
 CUSTOM_TYPES = ["my_robot/msg/Finger", "my_robot/msg/Gripper"]
 
 _HEADER = {"stamp": {"sec": 1_700_000_000, "nanosec": 123_456_789}, "frame_id": "base_link"}
-_POSE = {"position": {"x": 1.5, "y": -2.25, "z": 0.125}, "orientation": {"x": 0.0, "y": 0.0, "z": 0.6, "w": 0.8}}
+_POSE = {
+    "position": {"x": 1.5, "y": -2.25, "z": 0.125},
+    "orientation": {"x": 0.0, "y": 0.0, "z": 0.6, "w": 0.8},
+}
 _TWIST = {"linear": {"x": 0.5, "y": 0.0, "z": -0.1}, "angular": {"x": 0.0, "y": 0.2, "z": 3.0}}
 _FINGER = {"name": "index", "position": [0.1, 0.2, 0.3], "id": 65535}
 
@@ -65,7 +68,9 @@ def write_bag(path: Path) -> None:
         schemas: dict[str, Any] = {}
         for index, (topic, ros_type, message) in enumerate(SAMPLES):
             if ros_type not in schemas:
-                schemas[ros_type] = writer.register_msgdef(ros_type, store.generate_msgdef(ros_type, ros_version=2)[0])
+                schemas[ros_type] = writer.register_msgdef(
+                    ros_type, store.generate_msgdef(ros_type, ros_version=2)[0]
+                )
             stamp = 1_000_000_000 + index * 1_000_000
             writer.write_message(topic, schemas[ros_type], message, log_time=stamp, publish_time=stamp)
         writer.finish()

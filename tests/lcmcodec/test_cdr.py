@@ -181,7 +181,12 @@ def test_booleans_other_than_one_are_true(
     body += PLAIN_TAIL
     read = read_cdr(known.to_cdr(known.packed_fingerprint + body), "lcm_msgs/msg/PlainStatusT")
     assert read["ok"] is True and read["bits"] == [False, True, True]
-    assert (read["tags"], read["odd"], read["fixed_shorts"], read["fixed_longs"]) == (["a", ""], -1, [1, -2, 3], [5, -6])
+    assert (read["tags"], read["odd"], read["fixed_shorts"], read["fixed_longs"]) == (
+        ["a", ""],
+        -1,
+        [1, -2, 3],
+        [5, -6],
+    )
 
 
 def test_a_refused_type_has_no_cdr(library: TypeLibrary) -> None:
@@ -278,7 +283,9 @@ def test_kept_layouts_agree_with_the_generated_code(library: TypeLibrary, classe
 
 
 @pytest.mark.usefixtures("mover")
-def test_a_kept_layout_takes_only_messages_of_its_own_shape(library: TypeLibrary, classes: dict[str, type]) -> None:
+def test_a_kept_layout_takes_only_messages_of_its_own_shape(
+    library: TypeLibrary, classes: dict[str, type]
+) -> None:
     """Two strings of lengths (1, 3) and (3, 1) make messages of one size: the second must not be
     read with the first's layout; nor a bool byte 2 be copied as 2, nor a string become bad UTF-8."""
     kept, generated = _transcoders(library, "lab.robot.arm_state_t")
@@ -314,7 +321,12 @@ def test_long_arrays_of_one_message_do_not_share_scratch(tmp_path: Path) -> None
 
     def message(n: int) -> tuple[bytes, bytes]:
         a, b, c = rng.normal(size=n), rng.normal(size=n).astype(np.float32), rng.normal(size=n)
-        lcm = known.packed_fingerprint + struct.pack(">i", n) + a.astype(">f8").tobytes() + struct.pack(">h", -2)
+        lcm = (
+            known.packed_fingerprint
+            + struct.pack(">i", n)
+            + a.astype(">f8").tobytes()
+            + struct.pack(">h", -2)
+        )
         lcm += b.astype(">f4").tobytes() + c.astype(">f8").tobytes()
         cdr = b"\0\1\0\0" + struct.pack("<iI", n, n) + a.astype("<f8").tobytes() + struct.pack("<h2xI", -2, n)
         cdr += b.astype("<f4").tobytes() + struct.pack("<I", n)

@@ -176,7 +176,9 @@ def test_a_sequence_must_hold_what_its_length_field_says(iiwa: LcmType) -> None:
     ros_like += struct.pack("<iI", 0, 0)
     error = _refused(iiwa, ros_like, "joint_position", "has 7 elements, but num_joints = 6")
     assert error.offset == 12
-    bad_torques = struct.pack("<4sqi", b"\0\1\0\0", 1, 1) + struct.pack("<Id", 1, 0.5) + struct.pack("<iI", 2, 1)
+    bad_torques = (
+        struct.pack("<4sqi", b"\0\1\0\0", 1, 1) + struct.pack("<Id", 1, 0.5) + struct.pack("<iI", 2, 1)
+    )
     _refused(iiwa, bad_torques + bytes(8), "joint_torque", "has 1 elements, but num_torques = 2")
     negative = struct.pack("<4sqi", b"\0\1\0\0", 1, -1) + struct.pack("<I", 2**32 - 1)
     _refused(iiwa, negative, "joint_position", "length field num_joints is negative (-1)")
@@ -225,8 +227,12 @@ def test_strings_and_bools_that_lcm_cannot_take(library: TypeLibrary, classes: d
     assert good[name_at : name_at + 8] == b"\x04\0\0\0arm\0"
     inner_nul = good[:name_at] + b"\x04\0\0\0a\0m\0" + good[name_at + 8 :]
     assert classes["lab.robot.arm_state_t"].decode(known.from_cdr(inner_nul)).robotName == "a\0m"
-    _refused(known, good[:name_at] + b"\x04\0\0\0a\xffm\0" + good[name_at + 8 :], "robot_name", "invalid UTF-8")
-    _refused(known, good[:name_at] + b"\x04\0\0\0armX" + good[name_at + 8 :], "robot_name", "not NUL-terminated")
+    _refused(
+        known, good[:name_at] + b"\x04\0\0\0a\xffm\0" + good[name_at + 8 :], "robot_name", "invalid UTF-8"
+    )
+    _refused(
+        known, good[:name_at] + b"\x04\0\0\0armX" + good[name_at + 8 :], "robot_name", "not NUL-terminated"
+    )
     _refused(known, good[:name_at] + b"\0\0\0\0" + good[name_at + 4 :], "robot_name", "length 0")
     nested = bytearray(_arm_cdr(library, classes, tip={"x": 1.0, "y": 2.0, "z": 3.0, "frame_id": "a?b"}))
     nested[nested.index(b"a?b") + 1] = 0xC3  # a UTF-8 lead byte with no continuation
@@ -259,7 +265,9 @@ def test_a_refused_type_has_no_way_back(library: TypeLibrary) -> None:
 
 
 def test_an_empty_message_reads_its_one_byte(tmp_path: Any) -> None:
-    (tmp_path / "e.lcm").write_text("package e; struct empty_t { } struct holder_t { e.empty_t a; int8_t b; }")
+    (tmp_path / "e.lcm").write_text(
+        "package e; struct empty_t { } struct holder_t { e.empty_t a; int8_t b; }"
+    )
     library = TypeLibrary.load([str(tmp_path / "e.lcm")], drake=False)
     known = library.get("e.holder_t")
     lcm = known.packed_fingerprint + b"\x05"
@@ -316,7 +324,9 @@ def test_a_kept_layout_takes_only_messages_of_its_own_shape(iiwa: LcmType) -> No
 def test_kept_layouts_agree_with_the_generated_code(tmp_path: Any) -> None:
     (tmp_path / "mix.lcm").write_text(MIX)
     known = TypeLibrary.load([str(tmp_path / "mix.lcm")], drake=False).get("mix.mix_t")
-    lcm = known.packed_fingerprint + struct.pack(">b2?2fh4qd?", 2, True, False, 0.5, -1.0, 2, 1, 2, 3, 4, 9.5, True)
+    lcm = known.packed_fingerprint + struct.pack(
+        ">b2?2fh4qd?", 2, True, False, 0.5, -1.0, 2, 1, 2, 3, 4, 9.5, True
+    )
     cdr = known.to_cdr(lcm)
     assert known.from_cdr(cdr) == lcm and known._encoder._layouts
     assert_damage_agrees(known.from_cdr, known._encoder._encode, cdr, changes=4, examples=400)
@@ -337,13 +347,16 @@ def test_kept_layouts_of_strings_nesting_and_many_values_agree_with_the_generate
     assert arm.from_cdr(cdr) == arm_state(classes).encode() and len(arm._encoder._layouts) == 1
     assert_damage_agrees(arm.from_cdr, arm._encoder._encode, cdr, changes=3, examples=300)
     assert list(arm._encoder._layouts) == [len(cdr)]
-    (tmp_path / "wide.lcm").write_text("package wide; struct wide_t { int16_t n; int64_t big[n]; float f[3]; }")
+    (tmp_path / "wide.lcm").write_text(
+        "package wide; struct wide_t { int16_t n; int64_t big[n]; float f[3]; }"
+    )
     wide = TypeLibrary.load([str(tmp_path / "wide.lcm")], drake=False).get("wide.wide_t")
     lcm = wide.packed_fingerprint + struct.pack(">h300q3f", 300, *range(-150, 150), 0.5, -2.0, 1e9)
     cdr = wide.to_cdr(lcm)
     assert wide.from_cdr(cdr) == lcm == wide.from_cdr(cdr)
     found = wide._encoder._layouts[len(cdr)]
-    assert type(found) is MoveProgram if mover == "compiled" else found.gather is not None  # 304 values: gathered
+    # 304 values: gathered
+    assert type(found) is MoveProgram if mover == "compiled" else found.gather is not None
     assert_damage_agrees(wide.from_cdr, wide._encoder._encode, cdr, changes=2, examples=200)
 
 
@@ -368,6 +381,8 @@ def test_float32_bits_are_carried_unchanged(tmp_path: Any) -> None:
     signalling = b"\x7f\xa0\x00\x01"
     lcm = known.packed_fingerprint + signalling + struct.pack(">i", 2) + signalling + b"\xff\x80\x00\x00"
     cdr = known.to_cdr(lcm)
-    assert cdr == b"\0\1\0\0" + signalling[::-1] + struct.pack("<iI", 2, 2) + signalling[::-1] + b"\0\0\x80\xff"
+    assert (
+        cdr == b"\0\1\0\0" + signalling[::-1] + struct.pack("<iI", 2, 2) + signalling[::-1] + b"\0\0\x80\xff"
+    )
     assert known.from_cdr(cdr) == lcm and known._encoder._layouts
     assert known.from_cdr(cdr) == lcm  # through the kept layout

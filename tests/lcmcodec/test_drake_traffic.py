@@ -11,7 +11,8 @@ from tests.optional import peer
 from viewer_bridge.lcmcodec import codec_for
 from viewer_bridge.transports.lcm import LcmEvent
 
-drake_lcmtypes = peer("drake")  # Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
+# Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
+drake_lcmtypes = peer("drake")
 
 
 def values(message: Any) -> Any:

@@ -29,7 +29,9 @@ def lcm_gen_all(lcm_dir: Path, out: Path) -> subprocess.CompletedProcess[str]:
     )  # fmt: skip
 
 
-def test_lcm_gen_takes_the_standard_sets_and_a_custom_package(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_lcm_gen_takes_the_standard_sets_and_a_custom_package(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     sources = ["sensor_msgs", "geometry_msgs", "nav_msgs", "std_msgs", str(CUSTOM)]
     assert main(["lcm-types", "generate", "--ros-types", *sources, "-o", str(tmp_path / "lcm")]) == 0
     said = capsys.readouterr()
@@ -37,7 +39,8 @@ def test_lcm_gen_takes_the_standard_sets_and_a_custom_package(tmp_path: Path, ca
     assert said.err == f"viewer-bridge lcm-types: wrote {len(written)} types into {tmp_path / 'lcm'}\n"
     assert str(tmp_path / "lcm" / "sensor_msgs" / "JointState.lcm") in written
     assert str(tmp_path / "lcm" / "my_robot" / "Gripper.lcm") in written
-    assert str(tmp_path / "lcm" / "builtin_interfaces" / "Time.lcm") in written  # nested, from another package
+    # nested, from another package
+    assert str(tmp_path / "lcm" / "builtin_interfaces" / "Time.lcm") in written
     done = lcm_gen_all(tmp_path / "lcm", tmp_path / "gen")
     assert done.returncode == 0, done.stderr
     assert "error" not in (done.stdout + done.stderr).lower()
@@ -85,11 +88,15 @@ def test_fingerprints_are_lcm_gens(tmp_path: Path) -> None:
     names = ["sensor_msgs/msg/JointState", "my_robot/msg/Gripper", "my_robot/msg/Note"]
     script = "; ".join(
         [f"import sys; sys.path.insert(0, {str(tmp_path / 'gen' / 'py')!r})"]
-        + [f"from {name.split('/')[0]} import {name.split('/')[-1]} as m; print(m._get_packed_fingerprint().hex())"
-           for name in names]  # fmt: skip
+        + [
+            f"from {name.split('/')[0]} import {name.split('/')[-1]} as m; print(m._get_packed_fingerprint().hex())"
+            for name in names
+        ]  # fmt: skip
     )
     # A fresh interpreter: lcm-gen's `std_msgs` must not meet the ROS 2 wheels' package of that name.
-    printed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout
+    printed = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, check=True
+    ).stdout
     assert printed.split() == [mapping.packed_fingerprint(name).hex() for name in names]
 
 
@@ -125,7 +132,10 @@ def test_the_command_names_what_it_refuses(tmp_path: Path, capsys: pytest.Captur
     assert main(["lcm-types", "generate", "--ros-types", str(tmp_path), "-o", str(tmp_path / "out")]) == 1
     err = capsys.readouterr().err
     assert "lab/msg/Clash not mapped: field x's length field" in err
-    assert err.splitlines()[-1] == f"viewer-bridge lcm-types: wrote 0 types into {tmp_path / 'out'}, 1 type left out (above)"
+    assert (
+        err.splitlines()[-1]
+        == f"viewer-bridge lcm-types: wrote 0 types into {tmp_path / 'out'}, 1 type left out (above)"
+    )
     assert main(["lcm-types", "generate", "--ros-types", "no_such_msgs", "-o", str(tmp_path / "out")]) == 2
     bad = write_msg(tmp_path / "bad", "Broken", "float64[ x\n")
     assert main(["lcm-types", "generate", "--ros-types", str(bad), "-o", str(tmp_path / "out")]) == 2

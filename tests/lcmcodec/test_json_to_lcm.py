@@ -42,7 +42,9 @@ def _as_json(values: Any) -> Any:
         assume(False)
 
 
-def _round_trips(known: LcmType, structs: Mapping[str, StructDef], classes: Mapping[str, type], examples: int) -> None:
+def _round_trips(
+    known: LcmType, structs: Mapping[str, StructDef], classes: Mapping[str, type], examples: int
+) -> None:
     @settings(max_examples=examples, deadline=None, suppress_health_check=list(HealthCheck))
     @given(lcmgen_messages(known.definition, structs, classes), st.booleans())
     def check(message: Any, drop_lengths: bool) -> None:
@@ -106,7 +108,9 @@ def _command(joints: list[float], torques: list[float], utime: int = 5) -> bytes
 def test_what_a_ros_user_writes_for_an_iiwa_command(iiwa: LcmType) -> None:
     joints = [0.0, 0.5, -0.5, 1.0, 0, 2, -1.25]  # integers in a float array are numbers too
     assert iiwa.from_json({"utime": 5, "joint_position": joints}) == _command(joints, [])
-    assert iiwa.from_json({"utime": 5, "num_joints": 7, "joint_position": joints, "num_torques": 0}) == _command(joints, [])
+    assert iiwa.from_json(
+        {"utime": 5, "num_joints": 7, "joint_position": joints, "num_torques": 0}
+    ) == _command(joints, [])
     assert iiwa.from_json({}) == _command([], [], utime=0)
 
 
@@ -171,10 +175,14 @@ def test_what_the_corpus_refuses(library: TypeLibrary) -> None:
     _refused(arm, {"tip": {"x": "1"}}, "tip.x", "expected a number, got a string")
     _refused(arm, {"tip": {"w": 1}}, "tip.w", "unknown field")
     two = {"joint_angles": [0, 0], "flags": [True, False]}
-    _refused(arm, {**two, "waypoints": [{}, {"frame_id": 1}]}, "waypoints[1].frame_id", "expected a string, got 1")
+    _refused(
+        arm, {**two, "waypoints": [{}, {"frame_id": 1}]}, "waypoints[1].frame_id", "expected a string, got 1"
+    )
     _refused(arm, {**two, "waypoints": [{}, 3]}, "waypoints[1]", "expected an object, got 3")
     _refused(arm, {"corners": [{}] * 3}, "corners", "has 3 elements, but 2 × 2 = 2 × 2 = 4")
-    _refused(arm, {"rows": 2, "cols": 3, "grid": [1] * 5}, "grid", "has 5 elements, but rows × cols = 2 × 3 = 6")
+    _refused(
+        arm, {"rows": 2, "cols": 3, "grid": [1] * 5}, "grid", "has 5 elements, but rows × cols = 2 × 3 = 6"
+    )
     _refused(arm, {"grid": [1] * 6}, "grid", "has 6 elements, but rows × cols = 0 × 0 = 0")
     _refused(arm, {"tiny": [1, 2, 3]}, "tiny", "has 3 elements, but 2 × 2 = 2 × 2 = 4")
     _refused(arm, {"labels": ["a", "b"], "rows": 2}, "table", "missing, but 4 × rows = 4 × 2 = 8")
@@ -183,7 +191,9 @@ def test_what_the_corpus_refuses(library: TypeLibrary) -> None:
     _refused(plain, {"ok": 1}, "ok", "expected true or false, got 1")
 
 
-def test_lengths_are_derived_through_several_dimensions(library: TypeLibrary, classes: dict[str, type]) -> None:
+def test_lengths_are_derived_through_several_dimensions(
+    library: TypeLibrary, classes: dict[str, type]
+) -> None:
     """rows from table (maxJoints × rows), then cols from grid (rows × cols), blob from cols."""
     arm = classes["lab.robot.arm_state_t"]()
     arm.rows, arm.cols = 2, 3
@@ -263,7 +273,9 @@ def big(tmp_path_factory: pytest.TempPathFactory) -> TypeLibrary:
     return TypeLibrary.load([str(folder)], drake=False)
 
 
-def test_a_short_json_claiming_a_huge_array_of_nested_messages_is_refused_before_building_it(big: TypeLibrary) -> None:
+def test_a_short_json_claiming_a_huge_array_of_nested_messages_is_refused_before_building_it(
+    big: TypeLibrary,
+) -> None:
     """411 bytes of JSON said 100 nested messages: 80 MB of LCM were built before the size limit
     was seen, as a nested message counted as 1 byte. Its real fewest bytes are counted first now."""
     known = big.get("vbtest_big.outer")
@@ -286,6 +298,9 @@ def test_arrays_that_fit_alone_but_not_together_are_refused_at_the_one_that_pass
 ) -> None:
     monkeypatch.setattr(json_to_lcm, "MESSAGE_LIMIT", 2_500_000)  # three inners, not four
     known = big.get("vbtest_big.wrap")
-    assert len(known.from_json({"outers": [{"items": [{}]}, {"items": [{}, {}]}]})) == 8 + 4 + 2 * 4 + 3 * 800_000
+    assert (
+        len(known.from_json({"outers": [{"items": [{}]}, {"items": [{}, {}]}]}))
+        == 8 + 4 + 2 * 4 + 3 * 800_000
+    )
     assert_refused(known.from_json, {"outers": [{"items": [{}, {}]}] * 2}, JsonValueError, known, "outers[1].items",
                    "2 elements of at least 800000 bytes each make the message at least 3200020 bytes")  # fmt: skip

@@ -56,7 +56,9 @@ def test_a_folder_is_searched_recursively_and_a_file_alone_works(library: TypeLi
     assert point.source == f"{CORPUS}/lab/geometry/point3d_t.lcm:5"
 
 
-def test_lcm_gen_python_modules_by_import_name_give_the_same_types(tmp_path: Path, library: TypeLibrary) -> None:
+def test_lcm_gen_python_modules_by_import_name_give_the_same_types(
+    tmp_path: Path, library: TypeLibrary
+) -> None:
     generate_lcmgen(tmp_path)
     sys.path.insert(0, str(tmp_path))
     try:
@@ -166,14 +168,25 @@ def test_to_json_summarises_bytes_unless_asked(library: TypeLibrary) -> None:
     body = struct.pack(">qd?", 5, float("nan"), True) + struct.pack(">dddI", 1, 2, 3, 3) + b"ab\0"
     data = status.packed_fingerprint + body + struct.pack(">i2f2b", 2, 0.5, -1.0, 3, -4) + PLAIN_TAIL
     record = status.to_json(data)
-    assert record["timestamp"] == 5 and record["ok"] is True and record["value"] != record["value"]  # NaN kept
-    assert record["where"] == {"x": 1.0, "y": 2.0, "z": 3.0, "frame_id": "ab"}  # ROS 2 names, as from_json takes
+    # NaN kept
+    assert record["timestamp"] == 5 and record["ok"] is True and record["value"] != record["value"]
+    # ROS 2 names, as from_json takes
+    assert record["where"] == {"x": 1.0, "y": 2.0, "z": 3.0, "frame_id": "ab"}
     assert record["fixed_shorts"] == [1, -2, 3]
     assert record["samples"] == [0.5, -1.0] and record["codes"] == [3, -4] and record["tags"] == ["a", ""]
     comms = TypeLibrary.load(drake=False).get("robotlocomotion.viewer2_comms_t")
     payload = b'{"a": 1}'
-    message = TypeLibrary.load(drake=False).codecs(comms.full_name)[comms.full_name].message_class(
-        utime=1, format="f", format_version_major=1, format_version_minor=0, num_bytes=len(payload), data=payload
+    message = (
+        TypeLibrary.load(drake=False)
+        .codecs(comms.full_name)[comms.full_name]
+        .message_class(
+            utime=1,
+            format="f",
+            format_version_major=1,
+            format_version_minor=0,
+            num_bytes=len(payload),
+            data=payload,
+        )
     )
     encoded = message.encode()
     assert comms.to_json(encoded)["data"] == {"bytes": 8, "crc32": f"{zlib.crc32(payload):08x}"}
@@ -185,13 +198,19 @@ def test_to_json_summarises_bytes_unless_asked(library: TypeLibrary) -> None:
 
 @pytest.mark.parametrize(
     ("channel", "topic"),
-    [("IIWA_STATUS", "/lcm/IIWA_STATUS"), ("left-arm.status", "/lcm/left_arm_status"), ("a b/c", "/lcm/a_b_c")],
+    [
+        ("IIWA_STATUS", "/lcm/IIWA_STATUS"),
+        ("left-arm.status", "/lcm/left_arm_status"),
+        ("a b/c", "/lcm/a_b_c"),
+    ],
 )
 def test_channels_become_topics(channel: str, topic: str) -> None:
     assert ros_topic_for_channel(channel) == topic
 
 
-def test_the_folder_of_an_lcm_gen_package_is_imported_from_its_parent(tmp_path: Path, library: TypeLibrary) -> None:
+def test_the_folder_of_an_lcm_gen_package_is_imported_from_its_parent(
+    tmp_path: Path, library: TypeLibrary
+) -> None:
     generate_lcmgen(tmp_path)
     sys.path_importer_cache.clear()
     for name in [name for name in sys.modules if name == "lab" or name.startswith("lab.")]:

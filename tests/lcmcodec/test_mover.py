@@ -52,12 +52,22 @@ def _parse(program: bytes) -> tuple[int, int, list[tuple[int, ...]], list[tuple[
         if kind not in (_EQUAL, _AT_MOST, _UTF8):
             raise ValueError("kind")
         within = _fits(at, count, step if kind == _AT_MOST else 1, 1, input_size)
-        if not within or (kind == _EQUAL and not _fits(arg, count, 1, 1, len(blob))) or (kind == _AT_MOST and arg > 255):
+        if (
+            not within
+            or (kind == _EQUAL and not _fits(arg, count, 1, 1, len(blob)))
+            or (kind == _AT_MOST and arg > 255)
+        ):
             raise ValueError("check")
     for in_at, out_at, count, in_step, out_step, width, flags in runs:
-        if width not in (1, 2, 4, 8) or flags not in (0, _SWAP, _NONZERO) or (flags == _NONZERO and width != 1):
+        if (
+            width not in (1, 2, 4, 8)
+            or flags not in (0, _SWAP, _NONZERO)
+            or (flags == _NONZERO and width != 1)
+        ):
             raise ValueError("run")
-        if not _fits(in_at, count, in_step, width, input_size) or not _fits(out_at, count, out_step, width, output_size):
+        if not _fits(in_at, count, in_step, width, input_size) or not _fits(
+            out_at, count, out_step, width, output_size
+        ):
             raise ValueError("run")
     return input_size, output_size, checks, runs, template, blob
 
@@ -80,7 +90,13 @@ def reference_move(program: bytes, data: bytes) -> bytes | None:
     for in_at, out_at, count, in_step, out_step, width, flags in runs:
         for i in range(count):
             element = data[in_at + i * in_step : in_at + i * in_step + width]
-            moved = bytes([element[0] != 0]) if flags == _NONZERO else element[::-1] if flags == _SWAP else element
+            moved = (
+                bytes([element[0] != 0])
+                if flags == _NONZERO
+                else element[::-1]
+                if flags == _SWAP
+                else element
+            )
             out[out_at + i * out_step : out_at + i * out_step + width] = moved
     return bytes(out)
 
@@ -118,7 +134,11 @@ def programs_and_inputs(draw: st.DrawFn) -> tuple[bytes, bytes]:
         arg = draw(st.sampled_from([0, 1, 0x7F, 255, 256] if wild else [0, 1, 0x7F, 255]))
         if kind == _EQUAL:
             arg = len(blob) + draw(st.integers(0, 1) if wild else st.just(0))
-            blob += data[at : at + count] if draw(st.integers(0, 3)) else draw(st.binary(min_size=count, max_size=count))
+            blob += (
+                data[at : at + count]
+                if draw(st.integers(0, 3))
+                else draw(st.binary(min_size=count, max_size=count))
+            )
         checks.append((kind, at, count, step, arg))
     runs = []
     for _ in range(draw(st.integers(0, 4))):
@@ -131,9 +151,23 @@ def programs_and_inputs(draw: st.DrawFn) -> tuple[bytes, bytes]:
                                  and _fits(0, count, out_step, width, output_size)):  # fmt: skip
                 count -= 1
         at_in = draw(_place(count, in_step, width, input_size, wild))
-        runs.append((at_in, draw(_place(count, out_step, width, output_size, wild)), count, in_step, out_step, width, flags))
+        runs.append(
+            (
+                at_in,
+                draw(_place(count, out_step, width, output_size, wild)),
+                count,
+                in_step,
+                out_step,
+                width,
+                flags,
+            )
+        )
     words = [input_size, output_size, len(checks), len(runs), *(w for row in (*checks, *runs) for w in row)]
-    program = struct.pack(f"={len(words)}I", *words) + draw(st.binary(min_size=output_size, max_size=output_size)) + blob
+    program = (
+        struct.pack(f"={len(words)}I", *words)
+        + draw(st.binary(min_size=output_size, max_size=output_size))
+        + blob
+    )
     program = program[: len(program) - draw(st.sampled_from([0, 1, 8] if wild else [0]))]
     data += draw(st.sampled_from([b""] * 9 + [b"\0"]))
     return program, bytes(data)
@@ -157,8 +191,13 @@ def test_the_mover_takes_any_buffer_and_refuses_what_is_not_one() -> None:
     program = struct.pack("=4I", 4, 4, 2, 1) + struct.pack("=5I", _EQUAL, 0, 2, 1, 0)
     program += struct.pack("=5I", _AT_MOST, 3, 1, 1, 1) + struct.pack("=7I", 0, 0, 2, 2, 2, 2, _SWAP)
     program += b"\0" * 4 + b"\x01\x02"  # the template, the expected bytes
-    assert move(program, b"\x01\x02\x03\x01") == b"\x02\x01\x01\x03" == reference_move(program, b"\x01\x02\x03\x01")
-    assert move(memoryview(b"." + program)[1:], bytearray(b"\x01\x02\x03\x01")) == b"\x02\x01\x01\x03"  # unaligned
+    assert (
+        move(program, b"\x01\x02\x03\x01")
+        == b"\x02\x01\x01\x03"
+        == reference_move(program, b"\x01\x02\x03\x01")
+    )
+    # unaligned
+    assert move(memoryview(b"." + program)[1:], bytearray(b"\x01\x02\x03\x01")) == b"\x02\x01\x01\x03"
     assert move(MoveProgram(program), memoryview(b"\x01\x02\x03\x01")) == b"\x02\x01\x01\x03"
     assert move(program, b"\x01\x02\x03\x02") is None and move(program, b"\x01\x03\x03\x01") is None
     assert move(program, b"\x01\x02\x03") is None and move(program, b"\x01\x02\x03\x01\x00") is None
@@ -180,7 +219,9 @@ def test_the_compiled_mover_is_built_and_used_here() -> None:
     assert built.move is not None
     assert layout.COMPILED_MOVER
     source = Path(layout.__file__).with_name("_mover.c")
-    assert Path(built.__file__).stat().st_mtime >= source.stat().st_mtime, "stale build: run python hatch_build.py"
+    assert Path(built.__file__).stat().st_mtime >= source.stat().st_mtime, (
+        "stale build: run python hatch_build.py"
+    )
     status = TypeLibrary.load().get("drake.lcmt_iiwa_status")
     data = _status(7).encode()
     assert status.to_cdr(data) == status.to_cdr(data)
@@ -274,7 +315,11 @@ def test_a_program_beyond_its_bound_leaves_the_python_movers_bounds_to_say(tmp_p
     bytes are the generated code's both ways."""
     (tmp_path / "words.lcm").write_text("package words; struct words_t { int32_t n; string words[n]; }")
     words = TypeLibrary.load([str(tmp_path / "words.lcm")], drake=False).get("words.words_t")
-    lcm = words.packed_fingerprint + struct.pack(">i", 2000) + b"".join(struct.pack(">I2s", 2, b"a\0") for _ in range(2000))
+    lcm = (
+        words.packed_fingerprint
+        + struct.pack(">i", 2000)
+        + b"".join(struct.pack(">I2s", 2, b"a\0") for _ in range(2000))
+    )
     cdr = words._transcoder._convert(lcm)
     assert words.to_cdr(lcm) == words.to_cdr(lcm) == cdr and words.from_cdr(cdr) == words.from_cdr(cdr) == lcm
     assert type(words._transcoder._layouts[len(lcm)]) is not MoveProgram

@@ -71,7 +71,9 @@ def _lcm_class(members: list[str], **constants: object) -> type:
         (_lcm_class(["a"], encode=3), "handmade_t: a constant name 'encode' is the name of an attribute"),
     ],
 )
-def test_a_class_the_generated_codecs_could_not_copy_is_refused_naming_its_module(cls: type, reason: str) -> None:
+def test_a_class_the_generated_codecs_could_not_copy_is_refused_naming_its_module(
+    cls: type, reason: str
+) -> None:
     with pytest.raises(SchemaError) as caught:
         struct_from_class(cls, "module handmade")
     assert str(caught.value).startswith(f"module handmade: {reason}")

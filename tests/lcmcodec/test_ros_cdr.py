@@ -66,17 +66,26 @@ def test_every_message_of_a_bag_decodes_in_lcm_gens_python_to_the_bags_values(
     write_bag(tmp_path / "bag.mcap")
     expected, converted = [], []
     with (tmp_path / "bag.mcap").open("rb") as stream:
-        for schema, _, message, decoded in make_reader(stream, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+        for schema, _, message, decoded in make_reader(
+            stream, decoder_factories=[DecoderFactory()]
+        ).iter_decoded_messages():
             assert schema is not None
             expected.append(as_lcm(mapping, schema.name, decoded))
-            converted.append((mapping.structs[schema.name].lcm_name, encoders[schema.name].encode(message.data)))
+            converted.append(
+                (mapping.structs[schema.name].lcm_name, encoders[schema.name].encode(message.data))
+            )
     assert len(converted) == len(SAMPLES)
     assert lcmgen_decode(lcmgen_python, converted) == expected
-    assert expected[-1]["serial"] == (1 << 63) - 1 and expected[-1]["fingers"][0]["id"] == 65535  # widened, kept
+    # widened, kept
+    assert expected[-1]["serial"] == (1 << 63) - 1 and expected[-1]["fingers"][0]["id"] == 65535
 
 
-def test_wstrings_arrive_as_utf8(mapping: LcmFromRos, encoders: dict[str, LcmEncoder], lcmgen_python: Path) -> None:
-    [message] = lcmgen_decode(lcmgen_python, [("my_robot.Note", encoders["my_robot/msg/Note"].encode(note_cdr()))])
+def test_wstrings_arrive_as_utf8(
+    mapping: LcmFromRos, encoders: dict[str, LcmEncoder], lcmgen_python: Path
+) -> None:
+    [message] = lcmgen_decode(
+        lcmgen_python, [("my_robot.Note", encoders["my_robot/msg/Note"].encode(note_cdr()))]
+    )
     assert message == {"text": "hi", "note": "hé", "more_length": 1, "more": ["😀"]}
 
 
@@ -112,7 +121,12 @@ def test_rosbags_cdr_converts_too(encoders: dict[str, LcmEncoder], lcmgen_python
     lcm = encoders["sensor_msgs/msg/JointState"].encode(data)
     [decoded] = lcmgen_decode(lcmgen_python, [("sensor_msgs.JointState", lcm)])
     assert decoded["header"] == {"stamp": {"sec": -3, "nanosec": 5}, "frame_id": "x"}
-    assert (decoded["name"], decoded["position"], decoded["velocity"], decoded["effort"]) == (["a"], [], [0.25], [-1.0, 2.0])
+    assert (decoded["name"], decoded["position"], decoded["velocity"], decoded["effort"]) == (
+        ["a"],
+        [],
+        [0.25],
+        [-1.0, 2.0],
+    )
     assert decoded["position_length"] == 0 and decoded["effort_length"] == 2
 
 
@@ -183,7 +197,9 @@ def test_kept_layouts_of_many_widened_values_agree_with_the_generated_code(mover
     generated = compile_ros_encoders(mapping, [ros_type], keep_layouts=False)[ros_type]
     assert kept.encode(data) == kept.encode(data) == generated.encode(data)
     found = kept._layouts[len(data)]
-    assert type(found) is MoveProgram if mover == "compiled" else found is not None and found.gather is not None
+    assert (
+        type(found) is MoveProgram if mover == "compiled" else found is not None and found.gather is not None
+    )
     assert_damage_agrees(kept.encode, generated.encode, data, changes=3, examples=200)
 
 

@@ -108,7 +108,9 @@ def test_the_original_types_cdr_differs_from_section_13s_by_the_length_fields(
     sequence; removing them (and the padding they move) gives the original back."""
     joints = next(message for _, ros_type, message in SAMPLES if ros_type == "sensor_msgs/msg/JointState")
     original = serialized("sensor_msgs/msg/JointState", {**joints, "name": ["a"], "velocity": [0.5]})
-    lcm = compile_ros_encoders(mapping, ["sensor_msgs/msg/JointState"])["sensor_msgs/msg/JointState"].encode(original)
+    lcm = compile_ros_encoders(mapping, ["sensor_msgs/msg/JointState"])["sensor_msgs/msg/JointState"].encode(
+        original
+    )
     lcm_type = library.for_data(lcm)
     assert lcm_type is not None
     section13 = lcm_type.to_cdr(lcm)
@@ -116,7 +118,9 @@ def test_the_original_types_cdr_differs_from_section_13s_by_the_length_fields(
     assert struct.pack("<iI", 1, 1) in section13  # name_length = 1, then name's own count 1
 
 
-def test_a_wstring_comes_back_as_the_same_text(mapping: LcmFromRos, library: TypeLibrary, section13_store: Any) -> None:
+def test_a_wstring_comes_back_as_the_same_text(
+    mapping: LcmFromRos, library: TypeLibrary, section13_store: Any
+) -> None:
     """Neither rosbags nor mcap-ros2-support writes a wstring, so the CDR is Fast DDS's by hand;
     section 13 has it as a string: the text is the same (UTF-16 -> UTF-8 loses nothing)."""
     lcm = compile_ros_encoders(mapping, ["my_robot/msg/Note"])["my_robot/msg/Note"].encode(note_cdr())

@@ -35,7 +35,8 @@ def test_each_type_gets_its_encoder_or_the_reason(tmp_path: Path) -> None:
     installed(tmp_path, "lab_msgs/msg/Clash", "float64[] x\nint32 x_length\n")
     types = RosTypesOnLcm(InstalledDefinitions([tmp_path]))
     encoder = types.encoder("sensor_msgs/msg/JointState")
-    assert isinstance(encoder, LcmEncoder) and types.encoder("sensor_msgs/msg/JointState") is encoder  # made once
+    # made once
+    assert isinstance(encoder, LcmEncoder) and types.encoder("sensor_msgs/msg/JointState") is encoder
     assert "no installed interface package" in str(types.encoder("lab_msgs/msg/Missing"))
     assert "x_length would collide" in str(types.encoder("lab_msgs/msg/Clash"))
 

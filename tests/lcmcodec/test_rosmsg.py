@@ -35,7 +35,8 @@ def test_the_arm_state_definition(library: TypeLibrary) -> None:
         "float64 last_value",
     ]:  # fmt: skip
         assert line in lines, line
-    assert lines.index("int8 num_joints") < lines.index("float64[] joint_angles")  # length fields stay, in order
+    # length fields stay, in order
+    assert lines.index("int8 num_joints") < lines.index("float64[] joint_angles")
 
 
 def test_the_msg_file_carries_the_lcm_comments_where_rosidl_reads_them(library: TypeLibrary) -> None:
@@ -98,7 +99,9 @@ def _without_comments(text: str) -> str:
     return re.sub(r"//[^\n]*|/\*.*?\*/", "", text, flags=re.DOTALL)
 
 
-def test_comments_change_neither_the_announced_text_nor_the_type_hash(library: TypeLibrary, tmp_path: Path) -> None:
+def test_comments_change_neither_the_announced_text_nor_the_type_hash(
+    library: TypeLibrary, tmp_path: Path
+) -> None:
     """What the bridge announces (ros2msg, RIHS01) and builds is the same with or without the .lcm
     comments; the workspace's .msg files differ only in comments, which RIHS01 leaves out (REP 2011)."""
     for path in CORPUS.rglob("*.lcm"):
@@ -151,11 +154,16 @@ def test_rihs01_agrees_with_rosbags(library: TypeLibrary) -> None:
 
 
 def test_types_that_collide_after_mapping_are_refused_naming_both() -> None:
-    structs = {s.full_name: s for s in parse_lcm("package a; struct foo_bar { int8_t x; } struct fooBar { int8_t y; }")}
+    structs = {
+        s.full_name: s
+        for s in parse_lcm("package a; struct foo_bar { int8_t x; } struct fooBar { int8_t y; }")
+    }
     mapping = map_to_ros(structs)
     assert not mapping.messages
-    assert mapping.refused["a.foo_bar"] == mapping.refused["a.fooBar"] == (
-        "a.fooBar and a.foo_bar both become a_lcm_msgs/msg/FooBar"
+    assert (
+        mapping.refused["a.foo_bar"]
+        == mapping.refused["a.fooBar"]
+        == ("a.fooBar and a.foo_bar both become a_lcm_msgs/msg/FooBar")
     )
 
 

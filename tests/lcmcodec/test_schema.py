@@ -116,8 +116,14 @@ def test_schema_errors_name_file_and_line(text: str, message: str) -> None:
 def test_arrays_sized_by_constants_hash_the_constants_literal_as_lcm_gen_does() -> None:
     """lcm-gen writes a dimension named by a constant as that constant's literal: `0x2`, not `2`."""
     (hexed,) = parse_lcm("struct hexdim_t { const int32_t HEX = 0x2; double a[HEX]; }")
-    assert hexed.members[0].dims == (Dimension("0x2", is_variable=False),) and hexed.members[0].dims[0].count == 2
-    assert fingerprint(hexed, {"hexdim_t": hexed}) == 0x5C67C30CCCA84513 << 1 & (1 << 64) - 1 | 0x5C67C30CCCA84513 >> 63
+    assert (
+        hexed.members[0].dims == (Dimension("0x2", is_variable=False),)
+        and hexed.members[0].dims[0].count == 2
+    )
+    assert (
+        fingerprint(hexed, {"hexdim_t": hexed})
+        == 0x5C67C30CCCA84513 << 1 & (1 << 64) - 1 | 0x5C67C30CCCA84513 >> 63
+    )
     (decimal,) = parse_lcm("struct s { const int16_t N = 3; int32_t m; float q[N][m]; }")
     assert [(d.size, d.is_variable) for d in decimal.members[1].dims] == [("3", False), ("m", True)]
 
@@ -150,10 +156,22 @@ def test_comments_are_kept_for_structs_members_and_constants() -> None:
         ("struct s {\n  int32_t __private;\n}", "a member name '__private' starts with two underscores"),
         ("struct s {\n  double _type_name;\n}", "'_type_name' is the name of an attribute every generated"),
         ("struct s {\n  string encode;\n}", "a member name 'encode' is the name of an attribute"),
-        ("struct s {\n  int8_t field_names[2];\n}", "a member name 'field_names' is the name of an attribute"),
-        ("struct s {\n  const int32_t to_dict = 1;\n}", "a constant name 'to_dict' is the name of an attribute"),
-        ("struct s {\n  const double _codec = 1.0;\n}", "a constant name '_codec' is the name of an attribute"),
-        ("struct s {\n  const int32_t __init__ = 1;\n}", "a constant name '__init__' starts with two underscores"),
+        (
+            "struct s {\n  int8_t field_names[2];\n}",
+            "a member name 'field_names' is the name of an attribute",
+        ),
+        (
+            "struct s {\n  const int32_t to_dict = 1;\n}",
+            "a constant name 'to_dict' is the name of an attribute",
+        ),
+        (
+            "struct s {\n  const double _codec = 1.0;\n}",
+            "a constant name '_codec' is the name of an attribute",
+        ),
+        (
+            "struct s {\n  const int32_t __init__ = 1;\n}",
+            "a constant name '__init__' starts with two underscores",
+        ),
         ("package p;\nstruct __x { int32_t a; }", "a struct name '__x' starts with two underscores"),
     ],
 )

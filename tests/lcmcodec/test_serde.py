@@ -238,7 +238,8 @@ def test_types_named_as_builtins_or_helpers_round_trip_as_lcm_gen_writes_them(tm
     theirs.range, theirs.n, theirs.data, theirs.xyz, theirs.name = 9, 2, b"\x01\x02\x03", [1.5, -2.5], "ok"
     theirs.items = [classes["vbtest_names.list"]() for _ in range(2)]
     theirs.items[1].a, theirs.items[1].xy = 7, [0.25, 4.0]
-    theirs.blobs[0].s, theirs.blobs[0].raw, theirs.blobs[1].raw = "blob", bytes(3), b"xyz"  # lcm-gen: raw = b""
+    # lcm-gen: raw = b""
+    theirs.blobs[0].s, theirs.blobs[0].raw, theirs.blobs[1].raw = "blob", bytes(3), b"xyz"
     theirs.u.d = 3.75
     data = theirs.encode()
 
@@ -265,7 +266,9 @@ def test_every_attribute_a_generated_class_has_is_a_name_the_schema_refuses() ->
     name a generated class has that is not its own field or constant (dunders are refused apart)."""
     for codec in CODECS.values():
         cls = codec.message_class
-        own = {member.name for member in codec.definition.members} | {c.name for c in codec.definition.constants}
+        own = {member.name for member in codec.definition.members} | {
+            c.name for c in codec.definition.constants
+        }
         defined = {name for klass in cls.__mro__[:-1] for name in vars(klass)} - own
         assert {name for name in defined if not name.startswith("__")} <= MESSAGE_CLASS_ATTRIBUTES, cls
         assert {"_codec", "encode"} <= defined

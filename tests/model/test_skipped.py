@@ -34,7 +34,9 @@ def with_mesh(scene: Scene, path: str | None) -> Scene:
         return () if path is None else (Geometry(MeshFile(path), geometry.pose, geometry.color),)
 
     return Scene(
-        tuple(Link(link.name, link.robot_num, sum(map(swapped, link.geometries), ())) for link in scene.links),
+        tuple(
+            Link(link.name, link.robot_num, sum(map(swapped, link.geometries), ())) for link in scene.links
+        ),
         scene.poses,
     )
 
@@ -42,7 +44,10 @@ def with_mesh(scene: Scene, path: str | None) -> Scene:
 def recording(folder: Path) -> Path:
     scene = with_mesh(demo_scene(), GONE)
     encoder = DrawEncoder()
-    draws = [LcmEvent("DRAKE_VIEWER_DRAW", encoder.encode(demo_poses(scene, i / 60)), 2000 + i * 16_667) for i in range(5)]
+    draws = [
+        LcmEvent("DRAKE_VIEWER_DRAW", encoder.encode(demo_poses(scene, i / 60)), 2000 + i * 16_667)
+        for i in range(5)
+    ]
     log = folder / "gone.lcmlog"
     write_log(log, [LcmEvent("DRAKE_VIEWER_LOAD_ROBOT", load_from_scene(scene).encode(), 1000), *draws])
     return log
@@ -100,7 +105,9 @@ def test_convert_to_foxglove_writes_the_scene_less_the_missing_mesh(tmp_path: Pa
     assert result.returncode == 0, result.stderr
     assert f"mesh file {GONE} does not exist" in result.stderr
     with out.open("rb") as file:
-        updates = [m.data for _, channel, m in make_reader(file).iter_messages() if channel.topic == "/drake/scene"]
+        updates = [
+            m.data for _, channel, m in make_reader(file).iter_messages() if channel.topic == "/drake/scene"
+        ]
     assert len(updates) == 1
     written = SceneUpdate.FromString(updates[0])
     expected = scene_update(with_mesh(demo_scene(), None), lambda name: name)
@@ -155,9 +162,7 @@ def test_targets_that_cannot_draw_a_point_cloud_write_the_rest_of_the_scene(tmp_
     scene = every_kind(tmp_path)
     bare = Scene(
         tuple(
-            Link(link.name, link.robot_num, ())
-            if isinstance(link.geometries[0].shape, PointCloud)
-            else link
+            Link(link.name, link.robot_num, ()) if isinstance(link.geometries[0].shape, PointCloud) else link
             for link in scene.links
         )
     )

@@ -41,7 +41,9 @@ def start_server(*args: str) -> tuple[subprocess.Popen[str], str]:
     logged = []
     for line in server.stderr:  # the server's first lines, until it is ready (or gone)
         logged.append(line)
-        if ready := re.search(r"render server on (\S+) \(Drake: RenderEngineGltfClientParams\(base_url=\"(.*?)\"\)", line):
+        if ready := re.search(
+            r"render server on (\S+) \(Drake: RenderEngineGltfClientParams\(base_url=\"(.*?)\"\)", line
+        ):
             break
     assert ready is not None and ready.group(1) == ready.group(2), logged
     threading.Thread(target=server.stderr.read, daemon=True).start()  # keep its pipe from filling
@@ -342,17 +344,29 @@ def test_a_page_of_a_foreign_origin_may_not_post_renders() -> None:
     import urllib.error
     import urllib.request
 
-    server, url = start_server("--allow-origin", "https://lab.example", "--allow-origin", "https://*.corp.example")
+    server, url = start_server(
+        "--allow-origin", "https://lab.example", "--allow-origin", "https://*.corp.example"
+    )
     try:
 
         def status(origin: str | None) -> tuple[int, bytes]:
-            headers = {"Content-Type": "multipart/form-data; boundary=b"} | ({"Origin": origin} if origin else {})
-            request = urllib.request.Request(f"{url}/render", data=b"--b--\r\n", method="POST", headers=headers)
+            headers = {"Content-Type": "multipart/form-data; boundary=b"} | (
+                {"Origin": origin} if origin else {}
+            )
+            request = urllib.request.Request(
+                f"{url}/render", data=b"--b--\r\n", method="POST", headers=headers
+            )
             with pytest.raises(urllib.error.HTTPError) as caught:  # a form with no fields: 400 when let in
                 urllib.request.urlopen(request, timeout=20)
             return caught.value.code, caught.value.read()
 
-        for origin in (None, "http://localhost:5173", "http://127.0.0.1", "https://lab.example", "https://x.corp.example"):
+        for origin in (
+            None,
+            "http://localhost:5173",
+            "http://127.0.0.1",
+            "https://lab.example",
+            "https://x.corp.example",
+        ):
             assert status(origin)[0] == 400, origin
         code, body = status("https://evil.example")
         assert code == 403

@@ -264,6 +264,8 @@ def test_a_running_bridge_never_installs_what_a_build_needs(tmp_path: Path) -> N
     assert builder.request(ROUTER).state is BuildState.BUILDING
     status = builder.wait(ROUTER, timeout=120)
     assert status.state is BuildState.FAILED, status
-    assert "pip install 'viewer-bridge[ros-build]'" in status.reason and "ros-jazzy-ament-cmake" in status.reason
+    assert (
+        "pip install 'viewer-bridge[ros-build]'" in status.reason and "ros-jazzy-ament-cmake" in status.reason
+    )
     assert sorted(path.name for path in site.iterdir()) == before  # nothing was installed
     assert not list(importlib.metadata.distributions(path=[str(site)]))

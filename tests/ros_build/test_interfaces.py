@@ -279,20 +279,34 @@ def test_the_cli_generates_drakes_types_by_default_and_the_packages_named(
     assert "int32 num_torques\n" in iiwa and "# Joint torques" in iiwa  # lcmtypes/'s file: its comments
     draw = (tmp_path / "all" / "drake_lcm_msgs" / "msg" / "LcmtViewerDraw.msg").read_text()
     assert "int64 timestamp  # simulation time in milliseconds\n" in draw  # lcmtypes/'s file: its comments
-    lab = ["ros-interfaces", "generate", "lab_robot_lcm_msgs", "--lcm-types", str(CORPUS), "-o", str(tmp_path / "lab")]
+    lab = [
+        "ros-interfaces",
+        "generate",
+        "lab_robot_lcm_msgs",
+        "--lcm-types",
+        str(CORPUS),
+        "-o",
+        str(tmp_path / "lab"),
+    ]
     assert main(lab) == 0
     capsys.readouterr()
     stale = tmp_path / "lab" / "lab_robot_lcm_msgs" / "msg" / "GoneT.msg"  # as if a type an earlier run wrote
     stale.write_text("int8 x\n")
     assert main(lab) == 0  # over its own output: rewritten
     said = capsys.readouterr()
-    assert said.out.split() == [str(tmp_path / "lab" / name) for name in ("lab_geometry_lcm_msgs", "lab_robot_lcm_msgs")]
+    assert said.out.split() == [
+        str(tmp_path / "lab" / name) for name in ("lab_geometry_lcm_msgs", "lab_robot_lcm_msgs")
+    ]
     assert not stale.exists()
     # The types left out are named, with the reason.
-    assert "viewer-bridge ros-interfaces: lab.robot.tree_node_t (" in said.err and "contains itself" in said.err
+    assert (
+        "viewer-bridge ros-interfaces: lab.robot.tree_node_t (" in said.err and "contains itself" in said.err
+    )
     assert main([*lab[:2], "lab_arm_lcm_msgs", *lab[3:]]) == 2
     error = capsys.readouterr().err
-    assert "no LCM type maps to the package lab_arm_lcm_msgs (known: " in error and "lab_robot_lcm_msgs" in error
+    assert (
+        "no LCM type maps to the package lab_arm_lcm_msgs (known: " in error and "lab_robot_lcm_msgs" in error
+    )
 
 
 def test_generate_says_which_types_it_wrote_and_that_drakes_own_need_pydrake(tmp_path: Path) -> None:
@@ -302,17 +316,26 @@ def test_generate_says_which_types_it_wrote_and_that_drakes_own_need_pydrake(tmp
     result = subprocess.run([sys.executable, "-c", code, "ros-interfaces", "generate", "-o", str(tmp_path)],
                             capture_output=True, text=True, timeout=300)  # fmt: skip
     assert result.returncode == 0, result.stderr
-    assert result.stdout.split() == [str(tmp_path / "drake_lcm_msgs"), str(tmp_path / "robotlocomotion_lcm_msgs")]
+    assert result.stdout.split() == [
+        str(tmp_path / "drake_lcm_msgs"),
+        str(tmp_path / "robotlocomotion_lcm_msgs"),
+    ]
     lines = result.stderr.splitlines()
     assert lines[0] == (
         "viewer-bridge ros-interfaces: Drake's other LCM types (lcmt_panda_status, lcmt_scope, lcmt_allegro_command "
         "and the rest) left out: they come with pydrake's drake module, not installed: pip install 'viewer-bridge[drake]'"
     )
     written = sorted(path.stem for path in (tmp_path / "drake_lcm_msgs" / "msg").glob("*.msg"))
-    assert {"LcmtViewerDraw", "LcmtIiwaCommand", "LcmtSchunkWsgCommand"} <= set(written)  # shipped: step 7 of the tour
+    # shipped: step 7 of the tour
+    assert {"LcmtViewerDraw", "LcmtIiwaCommand", "LcmtSchunkWsgCommand"} <= set(written)
     assert "LcmtPandaStatus" not in written
-    assert lines[1] == f"viewer-bridge ros-interfaces: wrote drake_lcm_msgs: {len(written)} types ({', '.join(written)})"
-    assert lines[2:] == ["viewer-bridge ros-interfaces: wrote robotlocomotion_lcm_msgs: 1 type (Viewer2CommsT)"]
+    assert (
+        lines[1]
+        == f"viewer-bridge ros-interfaces: wrote drake_lcm_msgs: {len(written)} types ({', '.join(written)})"
+    )
+    assert lines[2:] == [
+        "viewer-bridge ros-interfaces: wrote robotlocomotion_lcm_msgs: 1 type (Viewer2CommsT)"
+    ]
     # With pydrake (this venv), nothing is said of Drake's types: they are written.
     full = subprocess.run([sys.executable, "-m", "viewer_bridge", "ros-interfaces", "generate", "-o", str(tmp_path / "all")],
                           capture_output=True, text=True, timeout=300)  # fmt: skip
@@ -395,7 +418,9 @@ def _package_depends(xml: str) -> list[tuple[str, str]]:
 
 @pytest.mark.slow
 @pytest.mark.timeout(2700)  # colcon's build alone may take 1800 s
-def test_colcon_builds_packages_generated_from_lcm_files_and_rclpy_reads_the_bridges_cdr(tmp_path: Path) -> None:
+def test_colcon_builds_packages_generated_from_lcm_files_and_rclpy_reads_the_bridges_cdr(
+    tmp_path: Path,
+) -> None:
     """A user's colcon workspace with the packages of real .lcm files (comments carried over),
     built by colcon against the venv's ROS 2 wheels (the venv is the underlay's ament prefix);
     rclpy's classes from its install space read the CDR the bridge writes for lcm-gen's messages."""
@@ -413,7 +438,9 @@ def test_colcon_builds_packages_generated_from_lcm_files_and_rclpy_reads_the_bri
     common = [("buildtool_depend", "ament_cmake"), ("buildtool_depend", "rosidl_default_generators"),
               ("exec_depend", "rosidl_default_runtime"), ("member_of_group", "rosidl_interface_packages")]  # fmt: skip
     assert _package_depends((src / GEOMETRY / "package.xml").read_text()) == sorted(common)
-    assert _package_depends((src / ROBOT / "package.xml").read_text()) == sorted([*common, ("depend", GEOMETRY)])
+    assert _package_depends((src / ROBOT / "package.xml").read_text()) == sorted(
+        [*common, ("depend", GEOMETRY)]
+    )
     assert f"DEPENDENCIES {GEOMETRY})" in (src / ROBOT / "CMakeLists.txt").read_text()
     assert "DEPENDENCIES" not in (src / GEOMETRY / "CMakeLists.txt").read_text()
     point = (src / GEOMETRY / "msg" / "Point3dT.msg").read_text()
@@ -422,7 +449,8 @@ def test_colcon_builds_packages_generated_from_lcm_files_and_rclpy_reads_the_bri
     arm = (src / ROBOT / "msg" / "ArmStateT.msg").read_text()
     assert "# joint angles, radians\nfloat64[] joint_angles\n" in arm
     assert sorted(path.name for path in (src / ROBOT / "msg").iterdir()) == [
-        "ArmStateT.msg", "HeartbeatT.msg", "PulseT.msg"  # the recursive and colliding types have no ROS 2 form
+        # the recursive and colliding types have no ROS 2 form
+        "ArmStateT.msg", "HeartbeatT.msg", "PulseT.msg"
     ]  # fmt: skip
 
     _write_cpp_node(src / "vbws_show")  # a C++ user of the generated package, as docs/lcm-types.md says
@@ -433,8 +461,13 @@ def test_colcon_builds_packages_generated_from_lcm_files_and_rclpy_reads_the_bri
     start = time.monotonic()
     build = subprocess.run(
         [
-            str(colcon), "build", "--event-handlers", "console_direct-",
-            "--cmake-args", f"-DPython3_EXECUTABLE={sys.executable}", "-DBUILD_TESTING=OFF",
+            str(colcon),
+            "build",
+            "--event-handlers",
+            "console_direct-",
+            "--cmake-args",
+            f"-DPython3_EXECUTABLE={sys.executable}",
+            "-DBUILD_TESTING=OFF",
         ],  # fmt: skip
         cwd=workspace,
         env=env,

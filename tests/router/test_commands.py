@@ -55,7 +55,9 @@ class Sent:
         return CallPublisher(publish)
 
 
-def runner_for(policy: CommandPolicy, route: Route | None = None) -> tuple[RouteRunner, Sent, list[BridgeError]]:
+def runner_for(
+    policy: CommandPolicy, route: Route | None = None
+) -> tuple[RouteRunner, Sent, list[BridgeError]]:
     sent, told = Sent(), []
     runner = RouteRunner(
         route or command_route(), lambda: PassCommands({}), sent.publisher,
@@ -99,7 +101,9 @@ def test_a_pattern_that_is_no_regular_expression_is_a_config_error(tmp_path: Any
         load_config(path)
 
 
-def stalled(runner: RouteRunner, stall_s: float, send_for_s: float, count: int = 100) -> tuple[list[int], int]:
+def stalled(
+    runner: RouteRunner, stall_s: float, send_for_s: float, count: int = 100
+) -> tuple[list[int], int]:
     """The route's publisher stalls for `stall_s` on its first message (as a blocked socket or a
     busy core would), while `count` commands arrive over the first `send_for_s` seconds. Returns
     the receive times of what was sent after the stall, and when the stall ended."""
@@ -115,7 +119,8 @@ def stalled(runner: RouteRunner, stall_s: float, send_for_s: float, count: int =
     runner._publisher_for = lambda name, output: CallPublisher(publish)  # type: ignore[assignment]
     runner.start()
     try:
-        runner.offer(Received("/lcm_in/IIWA_COMMAND", str(time.time_ns() // 1000).encode()))  # stalls its thread
+        # stalls its thread
+        runner.offer(Received("/lcm_in/IIWA_COMMAND", str(time.time_ns() // 1000).encode()))
         assert stalling.wait(WAIT)
         for _ in range(count):
             runner.offer(Received("/lcm_in/IIWA_COMMAND", str(time.time_ns() // 1000).encode()))
@@ -141,7 +146,8 @@ def test_a_stalled_command_route_sends_at_most_one_afterwards_and_nothing_stale(
     after, resumed_us = stalled(runner, stall_s=2.0, send_for_s=2.0)
     assert len(after) <= 1, after
     for received_us in after:
-        assert resumed_us - received_us <= 200_000 + 100_000  # at most the age limit when taken (+ the handover)
+        # at most the age limit when taken (+ the handover)
+        assert resumed_us - received_us <= 200_000 + 100_000
     assert runner.mailbox.dropped == 99  # superseded while the route stalled: the newest waited
 
 
@@ -172,7 +178,9 @@ def test_a_route_gives_at_most_max_streams_channels_their_own_publisher() -> Non
         runner.feed(Received(f"CHANNEL_{index}", b"x"))
     assert len(made) == route.max_streams == 1000
     held = runner.snapshot()["held"]
-    assert len(held) == MAX_HELD_CHANNELS + 1 and held[OTHER_CHANNELS] == {"too_many_streams": 9000 - MAX_HELD_CHANNELS}
+    assert len(held) == MAX_HELD_CHANNELS + 1 and held[OTHER_CHANNELS] == {
+        "too_many_streams": 9000 - MAX_HELD_CHANNELS
+    }
     assert sum(kinds["too_many_streams"] for kinds in held.values()) == 9000
 
 
@@ -198,8 +206,10 @@ def test_a_command_topic_finds_the_channel_its_name_was_made_of_and_a_second_cha
     assert made == ["/lcm/n1ARM", "/lcm/a_b", "/lcm/IIWA_STATUS"]
     assert out.stats.held == {"a-b": {"name_collision": 2}}
     said = [record.getMessage() for record in caplog.records if "name_collision" in record.getMessage()]
-    assert said == ["route bus: a-b: LCM channels a.b and a-b both become the ROS name a_b: a-b is not carried "
-                    "(a.b, seen first, keeps it; rename one of them) (name_collision; counted, not said again)"]
+    assert said == [
+        "route bus: a-b: LCM channels a.b and a-b both become the ROS name a_b: a-b is not carried "
+        "(a.b, seen first, keeps it; rename one of them) (name_collision; counted, not said again)"
+    ]
 
     sent, told = Sent(), []
     back = RouteRunner(
@@ -209,5 +219,6 @@ def test_a_command_topic_finds_the_channel_its_name_was_made_of_and_a_second_cha
     )  # fmt: skip
     for topic in ("/lcm_in/n1ARM", "/lcm_in/a_b", "/lcm_in/IIWA_COMMAND"):
         back.feed(Received(topic, b"go"))
-    assert sorted(sent.by_channel) == ["1ARM", "IIWA_COMMAND", "a.b"]  # unseen: the channel named as its topic
+    # unseen: the channel named as its topic
+    assert sorted(sent.by_channel) == ["1ARM", "IIWA_COMMAND", "a.b"]
     assert told == []

@@ -58,7 +58,13 @@ def test_a_flood_keeps_only_the_newest_sends(monkeypatch: pytest.MonkeyPatch) ->
     guard = EchoGuard()
     for index in range(5):
         guard.sent(b"%d" % index, LCM_X)
-    assert [guard.origin(Received("/X", b"%d" % index)) for index in range(5)] == [None, None, LCM_X, LCM_X, LCM_X]
+    assert [guard.origin(Received("/X", b"%d" % index)) for index in range(5)] == [
+        None,
+        None,
+        LCM_X,
+        LCM_X,
+        LCM_X,
+    ]
 
 
 def test_only_names_both_published_and_read_are_guarded_and_the_origin_is_the_sending_message() -> None:
@@ -70,7 +76,9 @@ def test_only_names_both_published_and_read_are_guarded_and_the_origin_is_the_se
     guarded = router_echoes.publisher("ros", "/X", plain, "lcm", subscribed=True)
     offered: list[Received] = []
     back: list[tuple[Received, tuple[str, str]]] = []
-    deliver = router_echoes.deliver("ros", offered.append, lambda message, origin: back.append((message, origin)))
+    deliver = router_echoes.deliver(
+        "ros", offered.append, lambda message, origin: back.append((message, origin))
+    )
     sending.message = Received("X", b"lcm")  # what the runner sets before it publishes a message's outputs
     guarded.publish(b"cdr")
     assert sent == [b"cdr"]

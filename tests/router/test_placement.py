@@ -33,7 +33,9 @@ def test_routes_of_one_source_stay_together_and_groups_go_to_the_least_loaded_wo
 
 
 def test_a_pinned_route_runs_where_it_says_and_counts_for_the_balance() -> None:
-    config = BridgeConfig.model_validate({"routes": [relay("a", "A", worker=1), relay("b", "B"), relay("c", "C")]})
+    config = BridgeConfig.model_validate(
+        {"routes": [relay("a", "A", worker=1), relay("b", "B"), relay("c", "C")]}
+    )
     assert placed(config, 2) == [["b", "c"], ["a"]]  # b: a tie, the lower index
     with pytest.raises(UsageError, match="route a: worker: 1, but the bridge runs 1 worker"):
         place(config, 1)

@@ -153,7 +153,9 @@ def test_held_messages_are_counted_per_channel_said_once_and_the_other_channels_
                                  "WSG_STATUS": {"waiting_for_build": 3}}  # fmt: skip
     runner.catch_up()  # a lane whose publisher cannot be made is passed over, not raised
     assert not runner.stats.errors
-    said = [record.getMessage() for record in caplog.records if "counted, not said again" in record.getMessage()]
+    said = [
+        record.getMessage() for record in caplog.records if "counted, not said again" in record.getMessage()
+    ]
     assert len(said) == 3 and any("MYSTERY" in line and "0102030405060708" in line for line in said)
     snapshot = runner.snapshot()
     assert list(snapshot["held"]) == ["IIWA_COMMAND", "MYSTERY", "WSG_STATUS"]  # sorted by channel
@@ -200,7 +202,9 @@ def budget_test_runner(policy: str, seconds: float, sent: list[bytes], budget: A
         {"name": policy, "source": {"transport": "lcm", "name": "X"}, "translator": "lcm_relay",
          "destination": {"transport": "lcm", "name": f"/{policy}"}, "rate": {"policy": policy}}
     )  # fmt: skip
-    return RouteRunner(route, lambda: Timed({}), lambda name, output: CallPublisher(sent.append), inline=budget)
+    return RouteRunner(
+        route, lambda: Timed({}), lambda name, output: CallPublisher(sent.append), inline=budget
+    )
 
 
 def fill(budget: Any) -> None:

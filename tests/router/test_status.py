@@ -56,7 +56,17 @@ def test_the_table_shows_busy_routes_with_rates_and_folds_the_quiet_ones() -> No
     lines = last.splitlines()
     headings = next(cells for cells in (line.strip("┃ ").split("┃") for line in lines if "┃" in line))
     # Columns of counts that are 0 in every row (drop, unsent) are left out.
-    assert [h.strip() for h in headings] == ["route", "in/s", "out/s", "in", "out", "err", "warn", "p50", "p99"]
+    assert [h.strip() for h in headings] == [
+        "route",
+        "in/s",
+        "out/s",
+        "in",
+        "out",
+        "err",
+        "warn",
+        "p50",
+        "p99",
+    ]
     rows = {cells[0]: cells[1:] for cells in map(table_cells, lines) if cells}
     assert set(rows) == {"poses", "broken"}  # traffic, or an error even while idle
     rate_in, rate_out, total_in, total_out, errors, warnings, p50, p99 = rows["poses"]
@@ -91,7 +101,8 @@ def test_at_80_columns_every_number_is_whole_and_unsent_shows_in_the_row() -> No
     assert "poses" in rows, "\n".join(lines)
     long_name = next(name for name in rows if name != "poses")
     assert long_name.endswith("…") and "foxglove_camera_images_unnamed".startswith(long_name[:-1])
-    for number in ("123456", "89", "4567"):  # err, warn, superseded: never dropped (p99, in, out, p50 go first)
+    # err, warn, superseded: never dropped (p99, in, out, p50 go first)
+    for number in ("123456", "89", "4567"):
         assert number in rows[long_name], (number, rows[long_name])
     assert "357" in rows["poses"]  # unsent, in the route's own row
     every_cell = [cell for cells in rows.values() for cell in cells]
@@ -111,13 +122,22 @@ def test_at_80_columns_a_busy_demo_keeps_its_totals() -> None:
     last = lines[max(i for i, line in enumerate(lines) if "┃ route" in line) :]
     assert max(map(len, last)) <= 80
     assert [h.strip() for h in last[0].strip("┃").split("┃")] == [
-        "route", "in/s", "out/s", "in", "out", "err", "mailbox_full", "p50"
+        "route",
+        "in/s",
+        "out/s",
+        "in",
+        "out",
+        "err",
+        "mailbox_full",
+        "p50",
     ]  # fmt: skip  (p99 goes first, for the counter's long name)
     rows = {cells[0]: cells[1:] for cells in map(table_cells, last) if cells}
     foxglove = next(cells for name, cells in rows.items() if name.startswith("foxglove_tr"))
     assert foxglove[2:6] == ["46800", "46800", "0", "5"] and rows["poses"][3] == "46799"
     assert all(re.fullmatch(r"\d+(\.\d+)?|-", cell) for cells in rows.values() for cell in cells)
-    assert any(line.startswith("legend: mailbox_full: the oldest waiting message pushed out") for line in last)
+    assert any(
+        line.startswith("legend: mailbox_full: the oldest waiting message pushed out") for line in last
+    )
 
 
 def test_log_lines_show_routes_with_traffic_and_count_the_rest(caplog: Any) -> None:
@@ -158,7 +178,9 @@ def test_log_lines_explain_each_counter_once(caplog: Any) -> None:
     with caplog.at_level("INFO", logger="viewer_bridge"):
         lines.show({"poses": route(3, 3, mailbox_full=1)})
         lines.show({"poses": route(6, 6, mailbox_full=2)})
-        lines.show({"poses": route(9, 9, mailbox_full=2), "cmd": {**route(1, 0), "held": {"X": {"stale": 1}}}})
+        lines.show(
+            {"poses": route(9, 9, mailbox_full=2), "cmd": {**route(1, 0), "held": {"X": {"stale": 1}}}}
+        )
     said = [record.getMessage() for record in caplog.records if record.getMessage().startswith("legend: ")]
     assert said == [
         "legend: mailbox_full: the oldest waiting message pushed out (policy all: qos.depth was full)",
@@ -171,7 +193,9 @@ def test_a_log_record_on_the_console_keeps_a_url_whole() -> None:
     out = io.StringIO()
     console = Console(file=out, force_terminal=True, width=80, color_system=None)
     url = "https://app.foxglove.dev?ds=foxglove-websocket&ds.url=ws%3A%2F%2F127.0.0.1%3A8765"
-    ConsoleLog(console).emit(logging.makeLogRecord({"msg": "serving (open %s)", "args": (url,), "levelno": 20}))
+    ConsoleLog(console).emit(
+        logging.makeLogRecord({"msg": "serving (open %s)", "args": (url,), "levelno": 20})
+    )
     assert url in out.getvalue()
 
 
@@ -222,7 +246,11 @@ def test_run_without_a_terminal_prints_lines_and_quiet_prints_nothing_but_proble
 def test_held_messages_show_once_per_kind_with_their_channels(caplog: Any) -> None:
     """What a route held back on purpose (types unknown here, interfaces being built): a suffix of its
     log line, and a line under the table, by kind with the channels."""
-    held = {"MYSTERY": {"unknown_type": 4}, "OTHER": {"unknown_type": 1}, "IIWA_STATUS": {"waiting_for_build": 7}}
+    held = {
+        "MYSTERY": {"unknown_type": 4},
+        "OTHER": {"unknown_type": 1},
+        "IIWA_STATUS": {"waiting_for_build": 7},
+    }
     bus = {**route(12, 0), "held": held}
     with caplog.at_level("INFO", logger="viewer_bridge"):
         LogLines().show({"bus": bus})
@@ -236,7 +264,9 @@ def test_held_messages_show_once_per_kind_with_their_channels(caplog: Any) -> No
     table = LiveTable(Console(file=out, force_terminal=True, width=200, color_system=None))
     table.show({"bus": bus})
     table.close()
-    assert "bus held back: unknown_type 5 (MYSTERY, OTHER), waiting_for_build 7 (IIWA_STATUS)" in out.getvalue()
+    assert (
+        "bus held back: unknown_type 5 (MYSTERY, OTHER), waiting_for_build 7 (IIWA_STATUS)" in out.getvalue()
+    )
 
 
 def test_counts_are_singular_or_plural() -> None:

@@ -82,8 +82,12 @@ def test_two_workers_put_out_what_one_process_does(tmp_path: Path, recorder: Lcm
             assert bridge.stop() == (130 if workers > 1 else 0), "\n".join(bridge.lines)
         if workers > 1:  # one route on each worker: their sources differ
             assert worker_pid(bridge, 0) != worker_pid(bridge, 1)
-            assert any(re.search(r"worker 0 \(pid \d+\): relay_a$", line) for line in bridge.lines), bridge.lines
-            assert any(re.search(r"worker 1 \(pid \d+\): relay_b$", line) for line in bridge.lines), bridge.lines
+            assert any(re.search(r"worker 0 \(pid \d+\): relay_a$", line) for line in bridge.lines), (
+                bridge.lines
+            )
+            assert any(re.search(r"worker 1 \(pid \d+\): relay_b$", line) for line in bridge.lines), (
+                bridge.lines
+            )
         stats = json.loads((tmp_path / f"stats{workers}.json").read_text())  # merged: both routes
         assert {name: stats[name]["messages_out"] for name in ("relay_a", "relay_b")} == {
             "relay_a": COUNT, "relay_b": COUNT

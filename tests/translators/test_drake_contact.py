@@ -117,7 +117,8 @@ def test_dump_decodes_contact_results() -> None:
     record = describe(event)
     assert record["type"] == "drake.lcmt_contact_results_for_viz" and "error" not in record
     surface = record["message"]["hydroelastic_contacts"][0]
-    assert surface["p_wv"][4] == {"x": 0.02, "y": 0.005, "z": 0.0} and surface["poly_data"][0] == 4  # ROS 2 names
+    # ROS 2 names
+    assert surface["p_wv"][4] == {"x": 0.02, "y": 0.005, "z": 0.0} and surface["poly_data"][0] == 4
     assert "  point_pair_contact_info[1]:" in as_text(event).splitlines()
 
 

@@ -20,7 +20,9 @@ IGN_TRANSLATORS = {
 
 
 @pytest.mark.parametrize(("name", "message"), IGN_TRANSLATORS.items())
-def test_a_translator_names_its_message_once_and_a_route_may_pick_the_package(name: str, message: str) -> None:
+def test_a_translator_names_its_message_once_and_a_route_may_pick_the_package(
+    name: str, message: str
+) -> None:
     translator = TRANSLATORS.get(name)
     assert [output.type for output in translator.outputs] == [MessageType(message, PROTOBUF)]
     assert [output.type.name for output in translator({}).outputs] == [message]

@@ -285,7 +285,9 @@ def test_convert_writes_every_port_of_a_logged_camera_with_its_pixels(schema: st
     array = publish_with_drake(CAMERA, 2.5, compress=True)
     write_log(log, [LcmEvent("DRAKE_RGBD_CAMERA_IMAGES_wrist", array, 1_000_000)])
     topics = [f"/drake/cameras/wrist/{port}/image" for port, _, _ in CAMERA]
-    assert convert(log, out, load_config(None), progress=False, schema=schema).messages == dict.fromkeys(topics, 1)  # type: ignore[arg-type]
+    assert convert(log, out, load_config(None), progress=False, schema=schema).messages == dict.fromkeys(
+        topics, 1
+    )  # type: ignore[arg-type]
     with out.open("rb") as file:
         reader = make_reader(file, decoder_factories=[DecoderFactory()])
         if schema == "ros2":

@@ -63,7 +63,9 @@ def test_drakes_images_reach_rerun_with_drakes_pixels(tmp_path: Path, compress: 
     assert np.isclose(pinhole["Pinhole:image_from_camera"][0][0], 3.0)  # fx = height / 2 / tan(45 deg)
 
 
-def _through_file(tmp_path: Path, translator_name: str, channel: str, data: bytes, destination: str) -> dict[str, Any]:
+def _through_file(
+    tmp_path: Path, translator_name: str, channel: str, data: bytes, destination: str
+) -> dict[str, Any]:
     translator = TRANSLATORS[translator_name]({})
     transport = RerunTransport(RerunSettings(path=tmp_path / "out.rrd"))
     publisher = transport.publisher(destination, RERUN_CHUNKS_TYPE, Qos())
@@ -77,7 +79,9 @@ def test_a_point_cloud_is_points_with_its_colours(tmp_path: Path) -> None:
     points = np.array([[0.0, 1.0, 2.0], [3.0, 4.0, 5.0]])
     colors = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
     data = cloud_to_lcm(StampedPointCloud(PointCloud(points, colors), "world", 2_000_000))
-    rows = _through_file(tmp_path, "drake_point_cloud_to_rerun", "DRAKE_POINT_CLOUD_FOO", data, "/drake/point_cloud")
+    rows = _through_file(
+        tmp_path, "drake_point_cloud_to_rerun", "DRAKE_POINT_CLOUD_FOO", data, "/drake/point_cloud"
+    )
     row = rows["/drake/point_cloud/foo"]
     assert np.allclose(row["Points3D:positions"], points)
     assert row["Points3D:colors"] == [0xFF0000FF, 0x00FF00FF]
@@ -91,7 +95,9 @@ def test_draw_frames_are_triads(tmp_path: Path) -> None:
         np.array([[1.0, 0.0, 0.0, 0.0], [np.cos(np.pi / 4), 0.0, 0.0, np.sin(np.pi / 4)]]),
     )  # fmt: skip
     data = DrawEncoder().encode(poses)
-    rows = _through_file(tmp_path, "drake_draw_frames_to_rerun", "DRAKE_DRAW_FRAMES", data, "/drake/draw_frames")
+    rows = _through_file(
+        tmp_path, "drake_draw_frames_to_rerun", "DRAKE_DRAW_FRAMES", data, "/drake/draw_frames"
+    )
     row = rows["/drake/draw_frames"]
     vectors = np.array(row["Arrows3D:vectors"])
     assert np.allclose(row["Arrows3D:origins"], [[0, 0, 0]] * 3 + [[1, 2, 3]] * 3)

@@ -54,12 +54,16 @@ def test_roles_get_their_own_frames_and_static_links_are_sent_once() -> None:
     assert [t.child_frame_id for t in first] == ["plant/robot/base", "plant/robot/tip"]
     assert (first[0].header.stamp.sec, first[0].header.stamp.nanosec) == (1_700_000_000, 250_000_000)
     proximity = from_cdr(out["_PROXIMITY"][1][1], "tf2_msgs/msg/TFMessage").transforms
-    assert [t.child_frame_id for t in proximity] == ["proximity/plant/robot/base", "proximity/plant/robot/tip"]
+    assert [t.child_frame_id for t in proximity] == [
+        "proximity/plant/robot/base",
+        "proximity/plant/robot/tip",
+    ]
     sim = TRANSLATORS.get("drake_to_tf")({"stamp": "sim"})
     ((_, data),) = translate_all(sim, Received("DRAKE_VIEWER_DRAW", draw_of(small_scene(), 61.25)))
     stamp = from_cdr(data, "tf2_msgs/msg/TFMessage").transforms[0].header.stamp
     assert (stamp.sec, stamp.nanosec) == (61, 250_000_000)
-    before_1902 = Received("DRAKE_VIEWER_DRAW", draw_of(small_scene(), -(2.0**31) - 1))  # int32 sec: too early
+    # int32 sec: too early
+    before_1902 = Received("DRAKE_VIEWER_DRAW", draw_of(small_scene(), -(2.0**31) - 1))
     with pytest.raises(EncodeError, match="does not fit int32 seconds"):
         sim.translate(before_1902)
 
@@ -109,7 +113,9 @@ def test_a_drake_simulation_reaches_ros_as_a_tf_tree(tmp_path: Path) -> None:
         drake = start_drake(url, tmp_path, 2.0)
         assert drake.wait(timeout=120) == 0
         recorder.sync()  # holds Drake's last draw
-        last_draw = drake_lcmtypes.lcmt_viewer_draw.decode(recorder.messages["DRAKE_VIEWER_DRAW_ILLUSTRATION"][-1])
+        last_draw = drake_lcmtypes.lcmt_viewer_draw.decode(
+            recorder.messages["DRAKE_VIEWER_DRAW_ILLUSTRATION"][-1]
+        )
 
         def has_last_draw() -> bool:  # stamps are receive times: the positions tell the draw
             illustration = [m for m in tf if not m.transforms[0].child_frame_id.startswith("proximity/")]
@@ -117,7 +123,8 @@ def test_a_drake_simulation_reaches_ros_as_a_tf_tree(tmp_path: Path) -> None:
                 return False
             by_child = {t.child_frame_id: t.transform.translation for t in illustration[-1].transforms}
             return all(
-                (t := by_child.get(name.replace("::", "/"))) is not None and oracle.close([t.x, t.y, t.z], position)
+                (t := by_child.get(name.replace("::", "/"))) is not None
+                and oracle.close([t.x, t.y, t.z], position)
                 for name, position in zip(last_draw.link_name, last_draw.position, strict=True)
             )
 
@@ -127,12 +134,16 @@ def test_a_drake_simulation_reaches_ros_as_a_tf_tree(tmp_path: Path) -> None:
         assert bridge.stop() == 0
         recorder.close()
         probe.close()
-    load = drake_lcmtypes.lcmt_viewer_load_robot.decode(recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0])
+    load = drake_lcmtypes.lcmt_viewer_load_robot.decode(
+        recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0]
+    )
     # The tree: the last illustration TFMessage (unprefixed frames) is the last draw, world -> link.
     illustration = [m for m in tf if not m.transforms[0].child_frame_id.startswith("proximity/")]
     transforms = {t.child_frame_id: t for t in illustration[-1].transforms}
     assert set(transforms) == {name.replace("::", "/") for name in last_draw.link_name}
-    for name, position, wxyz in zip(last_draw.link_name, last_draw.position, last_draw.quaternion, strict=True):
+    for name, position, wxyz in zip(
+        last_draw.link_name, last_draw.position, last_draw.quaternion, strict=True
+    ):
         found = transforms[name.replace("::", "/")]
         assert found.header.frame_id == "world"
         t, r = found.transform.translation, found.transform.rotation

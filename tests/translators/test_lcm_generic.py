@@ -198,7 +198,9 @@ def test_unknown_and_recursive_types_are_held_by_kind_and_named(
 # --- back: ros_to_lcm ---------------------------------------------------------------------------------
 
 
-def back(library: TypeLibrary, payload: bytes, message_type: MessageType | None, channel: str = "/lcm_in/X") -> bytes:
+def back(
+    library: TypeLibrary, payload: bytes, message_type: MessageType | None, channel: str = "/lcm_in/X"
+) -> bytes:
     translator = TRANSLATORS.get("ros_to_lcm")(shared=Shared(library))
     [(index, data)] = translator.translate(Received(channel, payload, message_type=message_type))
     assert translator.outputs[index].type == MessageType("*", "lcm")
@@ -225,14 +227,18 @@ def test_json_comes_back_as_lcm_gens_bytes(drake_types: TypeLibrary) -> None:
     command = drake_lcmtypes.lcmt_iiwa_command()
     command.utime, command.num_joints, command.joint_position = 5, 2, [0.5, -1.0]
     value = {"utime": 5, "num_joints": 2, "joint_position": [0.5, -1.0], "num_torques": 0, "joint_torque": []}
-    data = back(drake_types, json.dumps(value).encode(), MessageType("drake_lcm_msgs/msg/LcmtIiwaCommand", "json"))
+    data = back(
+        drake_types, json.dumps(value).encode(), MessageType("drake_lcm_msgs/msg/LcmtIiwaCommand", "json")
+    )
     assert data == command.encode()
 
 
 def test_a_type_that_is_no_lcm_type_or_no_type_at_all_is_refused_naming_topic_and_type(
     drake_types: TypeLibrary,
 ) -> None:
-    with pytest.raises(NotAnLcmType, match=r"/lcm_in/POSES: geometry_msgs/msg/PoseArray is no generated LCM type"):
+    with pytest.raises(
+        NotAnLcmType, match=r"/lcm_in/POSES: geometry_msgs/msg/PoseArray is no generated LCM type"
+    ):
         back(drake_types, b"\0\1\0\0", MessageType("geometry_msgs/msg/PoseArray", CDR), "/lcm_in/POSES")
     with pytest.raises(NotAnLcmType, match="/lcm_in/X: the transport gave no message type"):
         back(drake_types, b"\0\1\0\0", None)
@@ -240,7 +246,11 @@ def test_a_type_that_is_no_lcm_type_or_no_type_at_all_is_refused_naming_topic_an
 
 @pytest.mark.parametrize(
     ("text", "reason"),
-    [(b"{not json", "not JSON"), (b"\xff\xfe", "not JSON"), (b"[" * 100_000 + b"]" * 100_000, "nested too deeply")],
+    [
+        (b"{not json", "not JSON"),
+        (b"\xff\xfe", "not JSON"),
+        (b"[" * 100_000 + b"]" * 100_000, "nested too deeply"),
+    ],
 )
 def test_text_that_is_not_json_is_a_decode_error(drake_types: TypeLibrary, text: bytes, reason: str) -> None:
     with pytest.raises(DecodeError, match=reason):
@@ -255,6 +265,7 @@ def test_bad_cdr_is_a_decode_error_naming_the_field(drake_types: TypeLibrary) ->
         with pytest.raises(DecodeError):
             back(drake_types, bad, message_type)
     wrong = bytearray(cdr)
-    wrong[12:16] = (3).to_bytes(4, "little")  # num_joints (after the header and utime) says 3; the sequence holds 2
+    # num_joints (after the header and utime) says 3; the sequence holds 2
+    wrong[12:16] = (3).to_bytes(4, "little")
     with pytest.raises(DecodeError, match="num_joints|joint_position"):
         back(drake_types, bytes(wrong), message_type)

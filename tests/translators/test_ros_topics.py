@@ -18,7 +18,9 @@ JOINTS = next(message for _, ros_type, message in SAMPLES if ros_type == JOINT_S
 
 
 def received(data: bytes, ros_type: str | None) -> Received:
-    return Received("/joint_states", data, message_type=None if ros_type is None else MessageType(ros_type, CDR))
+    return Received(
+        "/joint_states", data, message_type=None if ros_type is None else MessageType(ros_type, CDR)
+    )
 
 
 def test_a_message_becomes_its_mapping_s_lcm_message_fingerprint_first() -> None:
@@ -34,6 +36,8 @@ def test_no_type_and_an_unmapped_type_are_held_and_bad_bytes_named() -> None:
     assert untyped.value.kind == "refused_type"
     with pytest.raises(Held) as unknown:
         translator.translate(received(b"\x00\x01\x00\x00", "lab_msgs/msg/Nowhere"))
-    assert unknown.value.kind == "refused_type" and "lab_msgs/msg/Nowhere does not map onto LCM" in str(unknown.value)
+    assert unknown.value.kind == "refused_type" and "lab_msgs/msg/Nowhere does not map onto LCM" in str(
+        unknown.value
+    )
     with pytest.raises(DecodeError, match=JOINT_STATE):
         translator.translate(received(serialized(JOINT_STATE, JOINTS)[:-9], JOINT_STATE))

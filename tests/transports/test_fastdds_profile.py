@@ -24,7 +24,10 @@ from viewer_bridge.transports.ros2 import RosSettings
 def test_the_profile_sizes_the_shared_memory_segment_and_keeps_udp() -> None:
     namespace = {"p": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
     root = ElementTree.fromstring(profile_xml(32 * 2**20))
-    kinds = {d.findtext("p:type", namespaces=namespace): d for d in root.iterfind(".//p:transport_descriptor", namespace)}
+    kinds = {
+        d.findtext("p:type", namespaces=namespace): d
+        for d in root.iterfind(".//p:transport_descriptor", namespace)
+    }
     assert set(kinds) == {"SHM", "UDPv4"}
     assert kinds["SHM"].findtext("p:segment_size", namespaces=namespace) == str(32 * 2**20)
     participant = root.find("p:participant", namespace)
@@ -49,7 +52,11 @@ def test_the_profile_sizes_the_shared_memory_segment_and_keeps_udp() -> None:
     ],
 )
 def test_it_applies_only_to_fast_dds_without_a_profile_of_the_users(
-    tmp_path: Path, megabytes: int, environ: dict[str, str], profile_in_working_directory: bool, reason: str | None
+    tmp_path: Path,
+    megabytes: int,
+    environ: dict[str, str],
+    profile_in_working_directory: bool,
+    reason: str | None,
 ) -> None:
     if profile_in_working_directory:
         (tmp_path / "DEFAULT_FASTRTPS_PROFILES.xml").write_text("<profiles/>")
@@ -94,13 +101,21 @@ transport.close()
 
 @pytest.mark.e2e
 @pytest.mark.parametrize(("megabytes", "at_least", "below"), [(32, 32 * 2**20, 2**31), (0, 1, 2**20)])
-def test_the_nodes_participant_maps_a_segment_of_the_size_asked(megabytes: int, at_least: int, below: int) -> None:
+def test_the_nodes_participant_maps_a_segment_of_the_size_asked(
+    megabytes: int, at_least: int, below: int
+) -> None:
     """In a process of its own (Fast DDS reads profiles once per process): the participant's
     shared-memory segment, as mapped, is the size asked (0: Fast DDS's own 512 KiB), and the
     variable is gone once the node exists."""
-    environment = {key: value for key, value in os.environ.items() if key not in (PROFILE_VARIABLE, "RMW_IMPLEMENTATION")}
+    environment = {
+        key: value for key, value in os.environ.items() if key not in (PROFILE_VARIABLE, "RMW_IMPLEMENTATION")
+    }
     result = subprocess.run(
-        [sys.executable, "-c", _PROBE, str(megabytes)], capture_output=True, text=True, timeout=120, env=environment
+        [sys.executable, "-c", _PROBE, str(megabytes)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=environment,
     )
     assert result.returncode == 0, result.stderr
     seen = json.loads(result.stdout.strip().splitlines()[-1])

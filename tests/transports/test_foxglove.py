@@ -202,7 +202,9 @@ def check_scene(entities: dict[str, Any], load: Any) -> None:
         assert entity.frame_locked
         geometry = link.geom[0]
         data = list(geometry.float_data)
-        kind = {1: "cubes", 2: "spheres", 3: "cylinders", 4: "models", 5: "cylinders", 6: "spheres"}[geometry.type]
+        kind = {1: "cubes", 2: "spheres", 3: "cylinders", 4: "models", 5: "cylinders", 6: "spheres"}[
+            geometry.type
+        ]
         (primitive, *_) = getattr(entity, kind)
         if geometry.type == 4:
             assert primitive.data[:4] == b"glTF" and primitive.media_type == "model/gltf-binary"
@@ -269,7 +271,9 @@ def test_a_drake_simulation_reaches_a_foxglove_client(client_kind: str, tmp_path
                 each.close()
         assert bridge.stop() == 0
         recorder.close()
-    load = drake_lcmtypes.lcmt_viewer_load_robot.decode(recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0])
+    load = drake_lcmtypes.lcmt_viewer_load_robot.decode(
+        recorder.messages["DRAKE_VIEWER_LOAD_ROBOT_ILLUSTRATION"][0]
+    )
     check_scene(scene_of(client.messages["/drake/illustration/scene"]), load)
     check_scene(scene_of(late.messages["/drake/illustration/scene"]), load)
     transforms = _transforms(client.messages["/drake/illustration/transforms"][-1])
@@ -347,8 +351,9 @@ def _listening_on_loopback_only(port: int) -> bool:
     return addresses == {"127.0.0.1"}
 
 
-
-def test_convert_to_foxglove_mcap_carries_the_scene_and_the_transforms(drake_log: Path, tmp_path: Path) -> None:
+def test_convert_to_foxglove_mcap_carries_the_scene_and_the_transforms(
+    drake_log: Path, tmp_path: Path
+) -> None:
     import subprocess
 
     from mcap.reader import make_reader
@@ -357,7 +362,16 @@ def test_convert_to_foxglove_mcap_carries_the_scene_and_the_transforms(drake_log
 
     out = tmp_path / "drake_foxglove.mcap"
     result = subprocess.run(
-        [sys.executable, "-m", "viewer_bridge.cli.main", "convert", str(drake_log), str(out), "--schema", "foxglove"],
+        [
+            sys.executable,
+            "-m",
+            "viewer_bridge.cli.main",
+            "convert",
+            str(drake_log),
+            str(out),
+            "--schema",
+            "foxglove",
+        ],
         capture_output=True,
         text=True,
     )
@@ -366,7 +380,11 @@ def test_convert_to_foxglove_mcap_carries_the_scene_and_the_transforms(drake_log
     with out.open("rb") as file:
         reader = make_reader(file)
         for schema, channel, message in reader.iter_messages():
-            assert channel.message_encoding == "protobuf" and schema is not None and schema.encoding == "protobuf"
+            assert (
+                channel.message_encoding == "protobuf"
+                and schema is not None
+                and schema.encoding == "protobuf"
+            )
             topics.setdefault(channel.topic, []).append((schema.name, message.data, message.log_time))
     assert set(topics) == {f"/drake/{role}/{kind}" for role in ("illustration", "proximity")
                            for kind in ("scene", "transforms")}  # fmt: skip
@@ -429,8 +447,9 @@ def test_the_front_serves_each_name_what_it_asked_for() -> None:
             transport.close()
 
 
-
-def test_a_client_that_subscribes_before_its_channel_is_stored_is_counted(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_client_that_subscribes_before_its_channel_is_stored_is_counted(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """The SDK advertises a channel the moment it is made, so a connected client may subscribe
     before `publisher` has stored it: that subscriber must still be counted, or a lazy route
     publishing there never wakes for it (one of two /lcm channels missed for good, under load).

@@ -87,12 +87,16 @@ def test_a_clients_messages_reach_the_routes_of_their_topic_with_their_type_and_
         assert isinstance(received.origin, Connection)
 
         # A route refused it: the error status names the topic and the field, at that client alone.
-        transport.rejected(received, DecodeError("drake.lcmt_iiwa_command", "joint_position", 0, "not an array"))
+        transport.rejected(
+            received, DecodeError("drake.lcmt_iiwa_command", "joint_position", 0, "not an array")
+        )
         text = wait_for_status(publisher, "/lcm_in/IIWA_COMMAND", "joint_position")
         assert "not an array" in text and COMMAND_TYPE in text
 
         # A topic no route reads and an encoding the bridge does not read: said on advertise.
-        publisher.send(op="advertise", topic="/cmd_vel", encoding="json", schemaName="geometry_msgs/msg/Twist")
+        publisher.send(
+            op="advertise", topic="/cmd_vel", encoding="json", schemaName="geometry_msgs/msg/Twist"
+        )
         publisher.send(op="advertise", topic="/lcm_in/X", encoding="protobuf", schemaName="foxglove.Pose")
         assert "no route" in wait_for_status(publisher, "/cmd_vel")
         assert "encoding 'protobuf'" in wait_for_status(publisher, "/lcm_in/X")
@@ -112,7 +116,8 @@ def test_a_clients_messages_reach_the_routes_of_their_topic_with_their_type_and_
 
 def test_a_read_only_server_lists_no_client_publishing() -> None:
     transport = FoxgloveTransport(FoxgloveSettings(port=0, client_publish=False))
-    transport.subscribe("/lcm_in/(.*)", MessageType("*", CDR), Qos(), lambda received: None)  # idle, said once
+    # idle, said once
+    transport.subscribe("/lcm_in/(.*)", MessageType("*", CDR), Qos(), lambda received: None)
     client = None
     try:
         client = connected(transport.port)
@@ -153,7 +158,9 @@ def _b64(data: bytes) -> str:
 def test_a_foxglove_client_commands_an_lcm_robot_as_json_and_as_cdr() -> None:
     url = lcm_url(14)
     recorder = LcmRecorder(url)
-    bridge = BridgeProcess("-c", "builtin:foxglove", "--lcm-url", url, "--stats-period", "1", *COMMANDS_ALLOWED)
+    bridge = BridgeProcess(
+        "-c", "builtin:foxglove", "--lcm-url", url, "--stats-period", "1", *COMMANDS_ALLOWED
+    )
     publisher = bystander = other = None
     try:
         port = foxglove_port(bridge)
@@ -164,7 +171,10 @@ def test_a_foxglove_client_commands_an_lcm_robot_as_json_and_as_cdr() -> None:
         assert publisher.pump(WAIT, lambda: len(publisher.seen("advertised")) == 2), publisher.log()  # type: ignore[union-attr]
 
         def commands() -> list[Any]:
-            return [drake_lcmtypes.lcmt_iiwa_command.decode(data) for data in recorder.messages.get("IIWA_COMMAND", [])]
+            return [
+                drake_lcmtypes.lcmt_iiwa_command.decode(data)
+                for data in recorder.messages.get("IIWA_COMMAND", [])
+            ]
 
         def landed(count: int) -> None:
             deadline = time.monotonic() + WAIT
@@ -200,7 +210,9 @@ def test_a_foxglove_client_commands_an_lcm_robot_as_json_and_as_cdr() -> None:
             assert list(command.joint_torque) == values["joint_torque"]
 
         # Another schema (the Teleop panel's Twist) on /lcm_in/: said to that client too.
-        other.send(op="advertise", topic="/lcm_in/CMD_VEL", encoding="json", schemaName="geometry_msgs/msg/Twist")
+        other.send(
+            op="advertise", topic="/lcm_in/CMD_VEL", encoding="json", schemaName="geometry_msgs/msg/Twist"
+        )
         other.send(op="publish", name="/lcm_in/CMD_VEL", data=_b64(b'{"linear": {"x": 1.0}}'))
         assert "geometry_msgs/msg/Twist" in wait_for_status(other, "/lcm_in/CMD_VEL")
         recorder.sync()
@@ -217,7 +229,9 @@ def test_a_foxglove_client_commands_an_lcm_robot_as_json_and_as_cdr() -> None:
 
 
 def test_one_setting_makes_the_bridge_read_only() -> None:
-    bridge = BridgeProcess("-c", "builtin:foxglove", "--lcm-url", lcm_url(14), "--set", "foxglove.client_publish=false")
+    bridge = BridgeProcess(
+        "-c", "builtin:foxglove", "--lcm-url", lcm_url(14), "--set", "foxglove.client_publish=false"
+    )
     client = None
     try:
         client = connected(foxglove_port(bridge))
@@ -245,7 +259,9 @@ def test_statuses_go_between_the_sdks_messages_while_it_streams(transport: Foxgl
     publisher = transport.publisher("/big", MessageType("foxglove.FrameTransforms", PROTOBUF), Qos())
     payloads = [bytes([index]) * 100_000 for index in range(100)]  # within the SDK's backlog per client
     statuses_sent = 50
-    with connect(f"ws://127.0.0.1:{transport.port}", subprotocols=["foxglove.websocket.v1"], max_size=None) as ws:  # type: ignore[list-item]
+    with connect(
+        f"ws://127.0.0.1:{transport.port}", subprotocols=["foxglove.websocket.v1"], max_size=None
+    ) as ws:  # type: ignore[list-item]
         channel = None
         while channel is None:
             message = json.loads(ws.recv(timeout=WAIT))

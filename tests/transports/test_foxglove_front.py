@@ -98,7 +98,9 @@ def test_a_page_of_a_foreign_origin_gets_403_on_both_names_and_the_sdk_sees_noth
             with pytest.raises(BlockingIOError):
                 sdk.accept()
             assert front.errors() == {"origin_refused": 3}
-            lines = [record.getMessage() for record in caplog.records if "refused (403)" in record.getMessage()]
+            lines = [
+                record.getMessage() for record in caplog.records if "refused (403)" in record.getMessage()
+            ]
             assert lines == [  # one line per distinct origin
                 f'foxglove client from origin {EVIL} refused (403): allow it with foxglove.allowed_origins: ["{EVIL}"]',
                 "foxglove client from origin http://other.example:8080 refused (403): allow it with "
@@ -157,7 +159,9 @@ def test_allowed_origins_add_exact_origins_and_patterns(foxglove: Callable[..., 
 
 
 @pytest.mark.slow
-def test_a_lone_star_lets_every_page_in_and_the_start_up_line_says_so(foxglove: Callable[..., FoxgloveTransport]) -> None:
+def test_a_lone_star_lets_every_page_in_and_the_start_up_line_says_so(
+    foxglove: Callable[..., FoxgloveTransport],
+) -> None:
     transport = foxglove(allowed_origins=["*"])
     for name in NAMES:
         open_client(transport.port, EVIL, name).close()
@@ -183,11 +187,15 @@ def test_the_origin_rules() -> None:
 def test_an_allowed_origin_with_a_path_is_refused_in_the_config() -> None:
     with pytest.raises(ValidationError, match="'https://lab.example/' is no origin"):
         FoxgloveSettings(allowed_origins=["https://lab.example/"])
-    assert FoxgloveSettings(allowed_origins=["*", "null", "https://*.lab.example:*"]).allowed_origins[0] == "*"
+    assert (
+        FoxgloveSettings(allowed_origins=["*", "null", "https://*.lab.example:*"]).allowed_origins[0] == "*"
+    )
 
 
 @pytest.mark.slow
-def test_the_front_checks_origins_even_when_it_renames_and_reads_nothing(foxglove: Callable[..., FoxgloveTransport]) -> None:
+def test_the_front_checks_origins_even_when_it_renames_and_reads_nothing(
+    foxglove: Callable[..., FoxgloveTransport],
+) -> None:
     transport = foxglove(accept_websocket_v1=False, client_publish=False)
     assert refused(transport.port, EVIL)[0] == 403
     open_client(transport.port, None).close()
@@ -227,13 +235,19 @@ def statuses(ws: ClientConnection, *words: str) -> str:
         if isinstance(frame, str):
             message: dict[str, Any] = json.loads(frame)
             text = message.get("message", "")
-            if message["op"] == "status" and text.startswith("viewer-bridge:") and all(word in text for word in words):
+            if (
+                message["op"] == "status"
+                and text.startswith("viewer-bridge:")
+                and all(word in text for word in words)
+            ):
                 return str(text)
     raise AssertionError(f"no status naming {words}")
 
 
 @pytest.mark.slow
-def test_a_client_past_its_channel_limit_or_message_size_hears_why(foxglove: Callable[..., FoxgloveTransport]) -> None:
+def test_a_client_past_its_channel_limit_or_message_size_hears_why(
+    foxglove: Callable[..., FoxgloveTransport],
+) -> None:
     transport = foxglove(max_client_channels=2, max_client_message_bytes=2048)
     delivered: list[Received] = []
     transport.subscribe("/lcm_in/(.*)", MessageType("*", CDR), Qos(), delivered.append)
@@ -259,11 +273,17 @@ def test_what_a_client_leaves_behind_is_bounded_and_forgotten_when_it_goes() -> 
     connection = RecordingConnection()
     for index in range(3000):  # each channel refused with a status of its own, then withdrawn
         advertised = {"id": index, "topic": f"/lcm_in/T{index}", "encoding": "protobuf", "schemaName": "x"}
-        publishing.message(connection, Message(TEXT, json.dumps({"op": "advertise", "channels": [advertised]}).encode()))
-        publishing.message(connection, Message(TEXT, json.dumps({"op": "unadvertise", "channelIds": [index]}).encode()))
+        publishing.message(
+            connection, Message(TEXT, json.dumps({"op": "advertise", "channels": [advertised]}).encode())
+        )
+        publishing.message(
+            connection, Message(TEXT, json.dumps({"op": "unadvertise", "channelIds": [index]}).encode())
+        )
     assert len(connection.said) == 3000 and len(publishing._said) == 1000  # the most recent kept
     huge = {"id": 1, "topic": "/lcm_in/" + "x" * 1_000_000, "encoding": "protobuf"}
-    publishing.message(connection, Message(TEXT, json.dumps({"op": "advertise", "channels": [huge]}).encode()))
+    publishing.message(
+        connection, Message(TEXT, json.dumps({"op": "advertise", "channels": [huge]}).encode())
+    )
     assert len(json.loads(connection.said[-1])["message"]) < 1100  # a megabyte topic is not repeated whole
     publishing.message(connection, Message(BINARY, b"", "longer than 2048 bytes"))
     publishing.closed(connection)
@@ -283,8 +303,9 @@ class RacingSdk:
         self.refusals = refusals
         self.advertised = advertised
         self.asked: list[dict[str, Any]] = []
-        self._server = serve(self._serve, "127.0.0.1", 0, subprotocols=[Subprotocol("foxglove.sdk.v1")],
-                             compression=None)  # fmt: skip  (the SDK's WebSocket library offers no compression)
+        self._server = serve(
+            self._serve, "127.0.0.1", 0, subprotocols=[Subprotocol("foxglove.sdk.v1")], compression=None
+        )  # fmt: skip  (the SDK's WebSocket library offers no compression)
         self.port = self._server.socket.getsockname()[1]
         threading.Thread(target=self._server.serve_forever, daemon=True).start()
 
@@ -300,7 +321,9 @@ class RacingSdk:
                 channel = subscription["channelId"]
                 if channel not in (1, 2) or (channel == 2 and self.refusals > 0):
                     self.refusals -= channel == 2
-                    ws.send(json.dumps({"op": "status", "level": 2, "message": f"Unknown channel ID: {channel}"}))
+                    ws.send(
+                        json.dumps({"op": "status", "level": 2, "message": f"Unknown channel ID: {channel}"})
+                    )
                 else:
                     ws.send(b"\x01" + struct.pack("<IQ", subscription["id"], 0) + f"on {channel}".encode())
 
@@ -311,7 +334,9 @@ class RacingSdk:
 def until_data(ws: ClientConnection, subscription: int) -> list[str | bytes]:
     """What a client receives up to the message data of `subscription`."""
     received: list[str | bytes] = []
-    while not (received and isinstance(received[-1], bytes) and received[-1][1:5] == struct.pack("<I", subscription)):
+    while not (
+        received and isinstance(received[-1], bytes) and received[-1][1:5] == struct.pack("<I", subscription)
+    ):
         received.append(ws.recv(timeout=WAIT))
     return received
 
@@ -341,19 +366,27 @@ def test_a_subscription_the_sdk_refused_too_early_is_sent_again_and_the_client_n
         assert json.loads(ws.recv(timeout=WAIT))["op"] == "serverInfo"
         assert json.loads(ws.recv(timeout=WAIT))["op"] == "advertise"
         # Both at once, the moment they are advertised, as the app subscribes.
-        ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": 1}, {"id": 8, "channelId": 2}]}))
+        ws.send(
+            json.dumps(
+                {"op": "subscribe", "subscriptions": [{"id": 7, "channelId": 1}, {"id": 8, "channelId": 2}]}
+            )
+        )
         received = until_data(ws, 8)
     assert received[-1] == b"\x01" + struct.pack("<IQ", 8, 0) + b"on 2"
     assert not [each for each in received if isinstance(each, str)]  # the error status was held back
-    assert sdk.asked[1] == {"op": "subscribe", "subscriptions": [{"id": 8, "channelId": 2}]}  # the front's, masked
+    # the front's, masked
+    assert sdk.asked[1] == {"op": "subscribe", "subscriptions": [{"id": 8, "channelId": 2}]}
     assert front.errors() == {"resubscribed": 1}
 
 
 def test_after_its_last_attempt_the_status_reaches_the_client(
     racing: Callable[..., tuple[RacingSdk, SubprotocolFront]],
 ) -> None:
-    sdk, front = racing(refusals=len(RESUBSCRIBE_DELAYS) + 2)  # the last refuses the client's own second subscribe
-    with connect(f"ws://127.0.0.1:{front.port}", subprotocols=[Subprotocol("foxglove.sdk.v1")], open_timeout=WAIT) as ws:
+    # the last refuses the client's own second subscribe
+    sdk, front = racing(refusals=len(RESUBSCRIBE_DELAYS) + 2)
+    with connect(
+        f"ws://127.0.0.1:{front.port}", subprotocols=[Subprotocol("foxglove.sdk.v1")], open_timeout=WAIT
+    ) as ws:
         ws.recv(timeout=WAIT), ws.recv(timeout=WAIT)  # serverInfo, advertise
         ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 8, "channelId": 2}]}))
         status = json.loads(ws.recv(timeout=WAIT))
@@ -370,9 +403,15 @@ def test_a_channel_never_advertised_or_unsubscribed_meanwhile_gets_the_sdks_answ
     racing: Callable[..., tuple[RacingSdk, SubprotocolFront]],
 ) -> None:
     sdk, front = racing(refusals=1, advertised=(1,))
-    with connect(f"ws://127.0.0.1:{front.port}", subprotocols=[Subprotocol("foxglove.sdk.v1")], open_timeout=WAIT) as ws:
+    with connect(
+        f"ws://127.0.0.1:{front.port}", subprotocols=[Subprotocol("foxglove.sdk.v1")], open_timeout=WAIT
+    ) as ws:
         ws.recv(timeout=WAIT), ws.recv(timeout=WAIT)  # serverInfo, advertise of channel 1 alone
-        ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 8, "channelId": 2}, {"id": 9, "channelId": 3}]}))
+        ws.send(
+            json.dumps(
+                {"op": "subscribe", "subscriptions": [{"id": 8, "channelId": 2}, {"id": 9, "channelId": 3}]}
+            )
+        )
         answers = [json.loads(ws.recv(timeout=WAIT))["message"] for _ in range(2)]
         ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": 1}]}))
         until_data(ws, 7)  # everything before it has been through the front

@@ -194,9 +194,7 @@ def test_malformed_datagrams_and_frames_are_counted_and_skipped(ign_environment:
             elif kind == 1:  # not a Discovery at all
                 data = struct.pack("<H", 40) + rng.bytes(40)
             elif kind == 2:  # the wrong wire version
-                data = datagram(
-                    MESSAGES.Discovery(version=int(rng.integers(0, 9)), process_uuid="x", type=1)
-                )
+                data = datagram(MESSAGES.Discovery(version=int(rng.integers(0, 9)), process_uuid="x", type=1))
             else:  # random bytes of any length
                 data = rng.bytes(int(rng.integers(0, 300)))
             udp.sendto(data, (DISCOVERY_GROUP, MESSAGE_PORT))
@@ -267,7 +265,10 @@ def test_the_transport_spells_short_names_in_its_package_and_full_names_as_they_
             transport.publisher("/full", MessageType("ignition.msgs.Model", PROTOBUF), Qos())
             transport.subscribe("/in", MessageType("Pose_V", PROTOBUF), Qos(), lambda message: None)
             advertised = transport.node.discovery.advertised
-            assert advertised == {transport.node.full_name("/short"): short, transport.node.full_name("/full"): full}
+            assert advertised == {
+                transport.node.full_name("/short"): short,
+                transport.node.full_name("/full"): full,
+            }
             assert transport.node.discovery.subscriptions[transport.node.full_name("/in")].msg_type == short
         finally:
             transport.close()

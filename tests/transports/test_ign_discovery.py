@@ -43,7 +43,9 @@ class Peer:
         self.connected: list[str] = []
         self.reported: Counter[str] = Counter()
         self.connect_error = connect_error
-        self.discovery = Discovery(environment or NodeEnvironment(), ADDRESS, self._send, self._connect, self._report)
+        self.discovery = Discovery(
+            environment or NodeEnvironment(), ADDRESS, self._send, self._connect, self._report
+        )
 
     def _send(self, data: bytes, destination: tuple[str, int]) -> None:
         assert struct.unpack_from("<H", data)[0] == len(data) - 2

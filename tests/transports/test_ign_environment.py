@@ -17,7 +17,9 @@ from viewer_bridge.transports.ign_environment import (
 
 
 def test_nothing_set_is_the_defaults(caplog: pytest.LogCaptureFixture) -> None:
-    assert read_environment({}) == NodeEnvironment(None, None, (), DISCOVERY_GROUP, MESSAGE_PORT, SERVICE_PORT, False)
+    assert read_environment({}) == NodeEnvironment(
+        None, None, (), DISCOVERY_GROUP, MESSAGE_PORT, SERVICE_PORT, False
+    )
     assert not caplog.records
 
 

@@ -309,7 +309,11 @@ def test_convert_writes_every_channel_of_a_known_type_with_no_flag(profile: str,
         for (schema_name, schema_encoding, encoding, log_time, message, schema, _), event in zip(
             written, sent[channel], strict=True
         ):
-            assert (schema_name, schema_encoding, encoding) == (f"drake_lcm_msgs/msg/{name}", "ros2msg", "cdr")
+            assert (schema_name, schema_encoding, encoding) == (
+                f"drake_lcm_msgs/msg/{name}",
+                "ros2msg",
+                "cdr",
+            )
             assert log_time == event.timestamp_us * 1000  # the log's own time
             decoded = generate_dynamic(schema_name, schema.data.decode())[schema_name](message.data)
             assert_same(lcm_class.decode(event.data), decoded)
@@ -327,7 +331,8 @@ def test_convert_lcm_channels_chooses_the_channels_of_any_type(tmp_path: Path) -
 
 
 def test_convert_lcm_types_adds_a_labs_own_folder(
-    tmp_path: Path, lcmgen_corpus: dict[str, type]  # noqa: F811 (the fixture, imported)
+    tmp_path: Path,
+    lcmgen_corpus: dict[str, type],  # noqa: F811 (the fixture, imported)
 ) -> None:
     from mcap_ros2._dynamic import generate_dynamic
 

@@ -75,12 +75,19 @@ def test_every_link_and_geometry_is_an_entity_with_the_loads_sizes(
     rows = rows_by_entity(drake_rrd)
     checked = 0
     for role, root in ROLES.items():
-        scene = decode_load(next(e.data for e in drake_events if e.channel == f"DRAKE_VIEWER_LOAD_ROBOT_{role}"))
+        scene = decode_load(
+            next(e.data for e in drake_events if e.channel == f"DRAKE_VIEWER_LOAD_ROBOT_{role}")
+        )
         prefix = "" if root == "illustration" else "proximity/"
         for link in scene.links:
             if not link.geometries:
                 continue
-            path = "/drake/" + root + "/" + "/".join(rr.escape_entity_path_part(p) for p in link.name.split("::"))
+            path = (
+                "/drake/"
+                + root
+                + "/"
+                + "/".join(rr.escape_entity_path_part(p) for p in link.name.split("::"))
+            )
             frame = "tf#/" if link.name == "world" else prefix + frame_name(link.name)
             assert rows[path][0]["CoordinateFrame:frame"] == [frame]
             for index, geometry in enumerate(link.geometries):
@@ -156,7 +163,9 @@ def test_a_file_that_cannot_be_written_is_one_line(tmp_path: Path) -> None:
         _transport(tmp_path, path=tmp_path / "missing" / "out.rrd")
     (tmp_path / "out.rrd").write_bytes(b"")
     # What to type, on the command line where most runs start, and in a config.
-    with pytest.raises(TransportUnavailable, match=r"exists \(rerun.path\): .* --set rerun.overwrite=true \("):
+    with pytest.raises(
+        TransportUnavailable, match=r"exists \(rerun.path\): .* --set rerun.overwrite=true \("
+    ):
         _transport(tmp_path, path=tmp_path / "out.rrd")
     with pytest.raises(TransportUnavailable, match="no sink"):
         _transport(tmp_path)
@@ -276,7 +285,9 @@ def test_a_viewer_that_is_not_there_stops_nothing(tmp_path: Path) -> None:
     """The gRPC sink to a closed port: the scene and every draw still reach the file beside it."""
     out = tmp_path / "out.rrd"
     router = Router(
-        load_config("builtin:rerun").model_copy(deep=True).model_validate(
+        load_config("builtin:rerun")
+        .model_copy(deep=True)
+        .model_validate(
             {
                 "lcm": {"url": "memq://"},
                 "rerun": {"connect": f"rerun+http://127.0.0.1:{_free_port()}/proxy", "path": out},

@@ -45,7 +45,10 @@ def test_drakes_driver_messages_reach_an_rclpy_subscriber_of_the_built_interface
     recorder = LcmRecorder(url)
     bridge = BridgeProcess("--lcm-url", url)
     probe = RosProbe("lcm_bus_subscriber")
-    topics = {STATUS_CHANNEL: "drake_lcm_msgs/msg/LcmtIiwaStatus", PLAN_CHANNEL: "drake_lcm_msgs/msg/LcmtRobotPlan"}
+    topics = {
+        STATUS_CHANNEL: "drake_lcm_msgs/msg/LcmtIiwaStatus",
+        PLAN_CHANNEL: "drake_lcm_msgs/msg/LcmtRobotPlan",
+    }
 
     def arrived() -> bool:
         if not probe.received:
@@ -53,12 +56,17 @@ def test_drakes_driver_messages_reach_an_rclpy_subscriber_of_the_built_interface
                 return False  # the driver has not published yet
             for channel, typename in topics.items():
                 probe.subscribe(f"/lcm/{channel}", typename, depth=1000)
-        return len(probe.received[f"/lcm/{STATUS_CHANNEL}"]) >= 30 and len(probe.received[f"/lcm/{PLAN_CHANNEL}"]) >= 3
+        return (
+            len(probe.received[f"/lcm/{STATUS_CHANNEL}"]) >= 30
+            and len(probe.received[f"/lcm/{PLAN_CHANNEL}"]) >= 3
+        )
 
     try:
         bridge.wait_for_line(" running (")
         assert drive_until(url, arrived), (
-            {topic: len(messages) for topic, messages in probe.received.items()}, bridge.lines[-10:])
+            {topic: len(messages) for topic, messages in probe.received.items()},
+            bridge.lines[-10:],
+        )
         recorder.sync()  # holds every message the driver sent
     finally:
         probe.close()

@@ -24,7 +24,8 @@ from viewer_bridge.transports.websocket_frames import (
 messages = st.lists(
     st.tuples(
         st.sampled_from([Opcode.TEXT, Opcode.BINARY]),
-        st.binary(max_size=70_000).filter(lambda data: len(data) < 200 or len(data) > 65_000) | st.binary(max_size=300),
+        st.binary(max_size=70_000).filter(lambda data: len(data) < 200 or len(data) > 65_000)
+        | st.binary(max_size=300),
         st.integers(1, 4),
         st.booleans(),
     ),
@@ -52,11 +53,15 @@ def split(data: bytes, cuts: list[int]) -> list[bytes]:
 
 @settings(max_examples=150, deadline=None)
 @given(messages, st.lists(st.integers(0, 1 << 20), max_size=12))
-def test_a_clients_messages_whatever_the_chunks(sent: list[tuple[Opcode, bytes, int, bool]], cuts: list[int]) -> None:
+def test_a_clients_messages_whatever_the_chunks(
+    sent: list[tuple[Opcode, bytes, int, bool]], cuts: list[int]
+) -> None:
     stream = b"".join(frame.serialize(mask=True) for message in sent for frame in frames_of(*message))
     reader = ClientMessages(max_bytes=1 << 20)
     read = [message for chunk in split(stream, cuts) for message in reader.feed(chunk)]
-    assert read == [Message(TEXT if opcode == Opcode.TEXT else BINARY, payload) for opcode, payload, _, _ in sent]
+    assert read == [
+        Message(TEXT if opcode == Opcode.TEXT else BINARY, payload) for opcode, payload, _, _ in sent
+    ]
 
 
 HOLD = 300  # text messages up to this size are held back whole in these tests
@@ -126,7 +131,8 @@ def test_what_a_relayed_stream_does_not_hold() -> None:
     frames = [
         Frame(Opcode.TEXT, b'{"op": "status"}').serialize(mask=False, extensions=[deflate]),  # compressed
         Frame(Opcode.TEXT, b"x" * (HOLD + 1)).serialize(mask=False),  # too long
-        Frame(Opcode.TEXT, b"part", fin=False).serialize(mask=False) + Frame(Opcode.CONT, b"s").serialize(mask=False),
+        Frame(Opcode.TEXT, b"part", fin=False).serialize(mask=False)
+        + Frame(Opcode.CONT, b"s").serialize(mask=False),
         Frame(Opcode.TEXT, b"masked").serialize(mask=True),  # no server's
         Frame(Opcode.TEXT, b"").serialize(mask=False),  # held: an empty text message is one
     ]
@@ -185,7 +191,9 @@ def test_a_message_too_long_or_compressed_is_skipped_and_said_once() -> None:
     reader = ClientMessages(max_bytes=100)
     long = [Frame(Opcode.BINARY, b"x" * 80, fin=False), Frame(Opcode.CONT, b"y" * 80)]
     deflate = PerMessageDeflate(False, False, 15, 15)  # as a client that negotiated the extension writes
-    compressed = Frame(Opcode.TEXT, b'{"op": "advertise", "channels": []}').serialize(mask=True, extensions=[deflate])
+    compressed = Frame(Opcode.TEXT, b'{"op": "advertise", "channels": []}').serialize(
+        mask=True, extensions=[deflate]
+    )
     after = Frame(Opcode.TEXT, b'{"op": "advertise"}')
     stream = b"".join(frame.serialize(mask=True) for frame in long) + compressed + after.serialize(mask=True)
     read = [message for chunk in split(stream, [7, 90, 150, 170]) for message in reader.feed(chunk)]
@@ -236,7 +244,9 @@ def test_any_bytes_from_a_client_are_read_without_an_error_and_kept_within_bound
 @settings(max_examples=300, deadline=None)
 @given(st.binary(max_size=2000), st.lists(st.integers(0, 1 << 20), max_size=8))
 @example(bytes([0x81, 0x7F]) + b"\xff" * 8 + b"x", [3])  # a text frame claiming 2**64 - 1 bytes
-def test_any_bytes_from_a_server_pass_in_order_and_what_is_held_stays_bounded(junk: bytes, cuts: list[int]) -> None:
+def test_any_bytes_from_a_server_pass_in_order_and_what_is_held_stays_bounded(
+    junk: bytes, cuts: list[int]
+) -> None:
     reader, passed = RelayedStream(HOLD), bytearray()
     for chunk in split(junk, cuts):
         for piece in reader.feed(memoryview(chunk)):

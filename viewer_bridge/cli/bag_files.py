@@ -196,7 +196,12 @@ _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_DATA_END = 0x03, 0x04, 0x05
 _RECORD = struct.Struct("<BQ")
 _MESSAGE = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time; then the data
 _CHUNK = struct.Struct("<QQQI")  # start time, end time, uncompressed size, uncompressed CRC-32 (0: none)
-_U16, _U16_U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<HH"), struct.Struct("<I"), struct.Struct("<Q")
+_U16, _U16_U16, _U32, _U64 = (
+    struct.Struct("<H"),
+    struct.Struct("<HH"),
+    struct.Struct("<I"),
+    struct.Struct("<Q"),
+)
 
 
 def _chunk_records(chunk: memoryview) -> memoryview:
@@ -249,7 +254,9 @@ def _db3(path: Path, known: dict[tuple[str, str, str], Connection], found: list[
         definitions: dict[str, str] = {}
         if "message_definitions" in tables:  # rosbag2's schema 4 on
             query = "SELECT topic_type, encoding, encoded_message_definition FROM message_definitions"
-            definitions = {name: text for name, encoding, text in database.execute(query) if encoding == "ros2msg"}
+            definitions = {
+                name: text for name, encoding, text in database.execute(query) if encoding == "ros2msg"
+            }
         topics = {}
         for topic_id, topic, msgtype, serialization in database.execute(
             "SELECT id, name, type, serialization_format FROM topics"
@@ -258,7 +265,9 @@ def _db3(path: Path, known: dict[tuple[str, str, str], Connection], found: list[
                 topics[topic_id] = _connection(known, found, topic, msgtype, definitions.get(msgtype, ""))
         if not wanted:
             return
-        for topic_id, stamp, data in database.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY id"):
+        for topic_id, stamp, data in database.execute(
+            "SELECT topic_id, timestamp, data FROM messages ORDER BY id"
+        ):
             connection = topics.get(topic_id)
             if connection is not None and connection.id in wanted:
                 yield connection, stamp, data

@@ -40,7 +40,8 @@ class BagConversion:
     skipped: dict[str, str] = field(default_factory=dict)  # topic -> why it has no channel
     channels: dict[str, str] = field(default_factory=dict)  # topic -> LCM channel
     lcm_files: list[Path] = field(default_factory=list)
-    damaged: Counter[str] = field(default_factory=Counter)  # by topic: rows whose stored values are no message
+    # by topic: rows whose stored values are no message
+    damaged: Counter[str] = field(default_factory=Counter)
     first_damage: dict[str, str] = field(default_factory=dict)  # by topic
     cut: str | None = None  # where the bag's readable part ends, when it ends before the bag does
 
@@ -77,7 +78,9 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
         mapping = map_ros_types(definitions, [c.msgtype for c in connections if c.msgtype not in unreadable])
         chosen = _channels(connections, {**mapping.refused, **unreadable}, result)
         if not chosen:
-            reasons = "; ".join(f"{topic}: {why}" for topic, why in result.skipped.items()) or "no topic matches"
+            reasons = (
+                "; ".join(f"{topic}: {why}" for topic, why in result.skipped.items()) or "no topic matches"
+            )
             raise ConvertError(f"no topic of {bag} maps onto LCM: {reasons}")
         encoders = compile_ros_encoders(mapping, dict.fromkeys(c.msgtype for c in chosen))
         by_id = {c.id: (c.topic, result.channels[c.topic], encoders[c.msgtype]) for c in chosen}
@@ -104,7 +107,9 @@ def _open(bag: Path) -> Any:
     if bag.is_file():
         direct = DirectReader(bag)
         if not direct.connections:
-            raise ConvertError(f"{bag} holds no CDR topic that can be read: {direct.cut or 'none is recorded'}")
+            raise ConvertError(
+                f"{bag} holds no CDR topic that can be read: {direct.cut or 'none is recorded'}"
+            )
         return direct
     try:
         reader = Reader(bag)
@@ -167,12 +172,16 @@ def _channels(connections: list[Any], refused: dict[str, str], result: BagConver
     return chosen
 
 
-def _events(messages: Iterator[tuple[Any, Any, Any]], by_id: dict[int, Any], result: BagConversion) -> Iterator[LcmEvent]:
-    counts = dict.fromkeys((topic for topic, _, _ in by_id.values()), 0)  # per message; into `result` at the end
+def _events(
+    messages: Iterator[tuple[Any, Any, Any]], by_id: dict[int, Any], result: BagConversion
+) -> Iterator[LcmEvent]:
+    # per message; into `result` at the end
+    counts = dict.fromkeys((topic for topic, _, _ in by_id.values()), 0)
     try:
         for connection, timestamp_ns, data in messages:
             topic, channel, encoder = by_id[connection.id]
-            if type(timestamp_ns) is not int or type(data) not in _DATA:  # sqlite keeps any type in any column
+            # sqlite keeps any type in any column
+            if type(timestamp_ns) is not int or type(data) not in _DATA:
                 _damaged(result, topic, timestamp_ns, data)
                 continue
             try:

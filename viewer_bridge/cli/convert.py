@@ -21,9 +21,13 @@ def add_command(add: AddCommand) -> None:
     convert = add(
         "convert", help="translate an LCM log into an MCAP file (ROS 2 or Foxglove) or a Rerun .rrd file"
     )
-    convert.add_argument("log", type=bag_convert.input_path, help="an .lcmlog file, or a ROS 2 bag (MCAP, rosbag2 folder)")
     convert.add_argument(
-        "mcap", type=output_file(), help="the .mcap (or Rerun .rrd) file to write (written as NAME.partial until complete)"
+        "log", type=bag_convert.input_path, help="an .lcmlog file, or a ROS 2 bag (MCAP, rosbag2 folder)"
+    )
+    convert.add_argument(
+        "mcap",
+        type=output_file(),
+        help="the .mcap (or Rerun .rrd) file to write (written as NAME.partial until complete)",
     )
     convert.add_argument("-c", "--config", help="a YAML config whose LCM routes are used (default: built-in)")
     convert.add_argument(
@@ -46,8 +50,12 @@ def add_command(add: AddCommand) -> None:
         metavar="REGEX",
         help="the channels written as /lcm/<channel> in their own type (any known LCM type); default: all",
     )
-    convert.add_argument("--topics", type=regex, metavar="REGEX", help="a ROS 2 bag in: the topics to convert (default all)")
-    convert.add_argument("--lcm-types-out", type=Path, metavar="DIR", help="a ROS 2 bag in: write the .lcm files here")
+    convert.add_argument(
+        "--topics", type=regex, metavar="REGEX", help="a ROS 2 bag in: the topics to convert (default all)"
+    )
+    convert.add_argument(
+        "--lcm-types-out", type=Path, metavar="DIR", help="a ROS 2 bag in: write the .lcm files here"
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -58,9 +66,12 @@ def run(args: argparse.Namespace) -> int:
     from viewer_bridge.cli.log_convert import checked_output, convert  # MCAP: the foxglove extra; .rrd: rerun
 
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    written_as = checked_output(Path(args.log), Path(args.mcap), args.force, args.format)  # refused before any work
+    # refused before any work
+    written_as = checked_output(Path(args.log), Path(args.mcap), args.force, args.format)
     # An .rrd file is a Rerun recording: builtin:rerun's routes unless a config is given.
-    config = load_config(args.config or ("builtin:rerun" if written_as == "rrd" else None)).with_lcm_types(args.lcm_types)
+    config = load_config(args.config or ("builtin:rerun" if written_as == "rrd" else None)).with_lcm_types(
+        args.lcm_types
+    )
     # Ctrl-C (or a SIGTERM) stops after the message being converted: the MCAP is closed properly.
     stop = threading.Event()
     for signal_number in (signal.SIGINT, signal.SIGTERM):

@@ -28,7 +28,9 @@ def default_library() -> TypeLibrary:
     return TypeLibrary.load()
 
 
-def describe(event: LcmEvent, library: TypeLibrary | None = None, *, bytes_summary: bool = True) -> dict[str, Any]:
+def describe(
+    event: LcmEvent, library: TypeLibrary | None = None, *, bytes_summary: bool = True
+) -> dict[str, Any]:
     """A JSON-ready description of one event: its type and every decoded field, or the error."""
     library = library or default_library()
     record: dict[str, Any] = {

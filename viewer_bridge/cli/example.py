@@ -19,7 +19,9 @@ def add_command(add: AddCommand) -> None:
         description="Example simulations: " + "; ".join(f"{name}: {what}" for name, what in EXAMPLES.items()),
     )
     example.add_argument("name", choices=list(EXAMPLES), help="which example")
-    example.add_argument("--duration", type=positive, default=10.0, metavar="S", help="seconds to simulate, in real time")
+    example.add_argument(
+        "--duration", type=positive, default=10.0, metavar="S", help="seconds to simulate, in real time"
+    )
     example.add_argument(
         "--lcm-url",
         type=lcm_source,

@@ -23,7 +23,9 @@ def add_command(add: AddCommand) -> None:
         metavar="SRC",
         help="ROS 2 types (pkg/msg/Name), packages of the Jazzy store (sensor_msgs), or .msg files and folders",
     )
-    command.add_argument("-o", "--output", type=Path, required=True, metavar="DIR", help="where the .lcm files go")
+    command.add_argument(
+        "-o", "--output", type=Path, required=True, metavar="DIR", help="where the .lcm files go"
+    )
 
 
 def run(args: Any) -> int:
@@ -42,5 +44,8 @@ def run(args: Any) -> int:
     for ros_name, reason in mapping.refused.items():
         print(f"viewer-bridge lcm-types: {ros_name} not mapped: {reason}", file=sys.stderr)
     left_out = f", {counted(len(mapping.refused), 'type')} left out (above)" if mapping.refused else ""
-    print(f"viewer-bridge lcm-types: wrote {counted(len(written), 'type')} into {args.output}{left_out}", file=sys.stderr)
+    print(
+        f"viewer-bridge lcm-types: wrote {counted(len(written), 'type')} into {args.output}{left_out}",
+        file=sys.stderr,
+    )
     return 1 if mapping.refused else 0

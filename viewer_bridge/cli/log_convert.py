@@ -81,7 +81,9 @@ class Conversion:
         """Why the conversion did not do what was asked (one line), or None: `lcm_channels`
         matched no channel of the log, or nothing was written."""
         its = f"(its channels: {_listed(self.channels)})"
-        if self.lcm_channels is not None and not any(re.fullmatch(self.lcm_channels, c) for c in self.channels):
+        if self.lcm_channels is not None and not any(
+            re.fullmatch(self.lcm_channels, c) for c in self.channels
+        ):
             return f"--lcm-channels {self.lcm_channels!r} matches no channel of the log {its}"
         if self.written:
             return None
@@ -101,7 +103,8 @@ class Conversion:
         """One line per channel and reason, in the live legend's words:
         `skipped: 10 messages on LAB_STATUS: unknown_type, no known LCM type (--lcm-types ...)`."""
         return [
-            f"skipped: {counted(count, 'message')} on {channel}: {kind}" + (f", {LEGEND[kind]}" if kind in LEGEND else "")
+            f"skipped: {counted(count, 'message')} on {channel}: {kind}"
+            + (f", {LEGEND[kind]}" if kind in LEGEND else "")
             for (channel, kind), count in sorted(self.skipped.items())
         ]
 
@@ -184,7 +187,9 @@ def convert(
     else:  # an empty file would look like a result
         partial.unlink(missing_ok=True)
     chunks = dict(getattr(written, "chunks", {}))  # the rerun transport counts chunks per entity
-    return Conversion(target, chosen, dict(messages), chunks, errors.skipped, tuple(sorted(channels)), lcm_channels)
+    return Conversion(
+        target, chosen, dict(messages), chunks, errors.skipped, tuple(sorted(channels)), lcm_channels
+    )
 
 
 @dataclass(frozen=True, slots=True)
@@ -200,7 +205,12 @@ class _Sink:
     def mcap(cls, target: Path, schema: Profile) -> _Sink:
         from viewer_bridge.transports.mcap import McapTransport  # the foxglove extra, only for .mcap files
 
-        return cls("mcap", {"profile": schema}, lambda kind: McapTransport.carries(kind, schema), f"the {schema} schema")
+        return cls(
+            "mcap",
+            {"profile": schema},
+            lambda kind: McapTransport.carries(kind, schema),
+            f"the {schema} schema",
+        )
 
     @classmethod
     def rerun(cls, target: Path) -> _Sink:
@@ -224,7 +234,9 @@ def _distinct(routes: list[Route]) -> list[Route]:
     seen: set[str] = set()
     distinct = []
     for route in routes:
-        key = json.dumps([route.source.name, route.translator, route.destination.name, route.options], sort_keys=True)
+        key = json.dumps(
+            [route.source.name, route.translator, route.destination.name, route.options], sort_keys=True
+        )
         if key not in seen:
             seen.add(key)
             distinct.append(route)
@@ -241,7 +253,9 @@ def _narrowed(route: Route, channels: str | None) -> Route:
     if channels is None or not generic:
         return route
     shift = re.compile(channels).groups
-    destination = re.sub(r"\{([1-9][0-9]*)", lambda group: "{" + str(int(group[1]) + shift), route.destination.name)
+    destination = re.sub(
+        r"\{([1-9][0-9]*)", lambda group: "{" + str(int(group[1]) + shift), route.destination.name
+    )
     name = f"(?=(?:{channels})\\Z)(?:{route.source.name})"
     return route.model_copy(
         update={

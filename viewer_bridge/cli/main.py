@@ -55,7 +55,10 @@ def _parser() -> tuple[argparse.ArgumentParser, frozenset[str]]:
     # --debug before or after the command: `viewer-bridge --debug run` or `viewer-bridge run --debug`.
     debug = Parser(add_help=False)
     debug.add_argument(
-        "--debug", action="store_true", default=argparse.SUPPRESS, help="show the traceback of an internal error"
+        "--debug",
+        action="store_true",
+        default=argparse.SUPPRESS,
+        help="show the traceback of an internal error",
     )
     parser = Parser(
         prog="viewer-bridge",

@@ -10,9 +10,7 @@ from viewer_bridge.config.mappings import format_names, reference_markdown
 
 def add_command(add: AddCommand) -> None:
     """The `mappings` command (it takes no arguments), on the parser `add` makes."""
-    add(
-        "mappings", help="print the mapping reference (mappings/REFERENCE.md) from the tables"
-    )
+    add("mappings", help="print the mapping reference (mappings/REFERENCE.md) from the tables")
 
 
 def run(args: argparse.Namespace) -> int:

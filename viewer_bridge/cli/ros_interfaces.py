@@ -49,7 +49,11 @@ def add_command(add: AddCommand) -> None:
         "distributions) without asking; without it, install asks when run in a terminal and refuses otherwise",
     )
     interfaces.add_argument(
-        "-o", "--output", type=Path, metavar="DIR", help="generate: the folder to write the packages to (a workspace's src/)"
+        "-o",
+        "--output",
+        type=Path,
+        metavar="DIR",
+        help="generate: the folder to write the packages to (a workspace's src/)",
     )
 
 

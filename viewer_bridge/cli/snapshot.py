@@ -26,9 +26,7 @@ from viewer_bridge.router.status import counted
 
 def add_command(add: AddCommand) -> None:
     """The `snapshot` command's arguments, on the parser `add` makes."""
-    shot = add(
-        "snapshot", help="render the current scene of a log or a live LCM bus to a PNG or JPEG"
-    )
+    shot = add("snapshot", help="render the current scene of a log or a live LCM bus to a PNG or JPEG")
     shot.add_argument("source", type=lcm_source, help="an .lcmlog file, or an LCM URL to listen on")
     shot.add_argument(
         "out", type=output_file(IMAGE_SUFFIXES), help="the image to write: .png, or .jpg/.jpeg for JPEG"
@@ -89,6 +87,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"viewer-bridge snapshot: warning: {geometry}", file=sys.stderr)
     Path(args.out).write_bytes(picture)
     drawn = scene.geometry_count() - len(skipped)
-    print(f"wrote {args.out}: {counted(len(scene.links), 'link')}, {counted(drawn, 'geometry', 'geometries')} "
-          f"({len(skipped)} skipped)")
+    print(
+        f"wrote {args.out}: {counted(len(scene.links), 'link')}, {counted(drawn, 'geometry', 'geometries')} "
+        f"({len(skipped)} skipped)"
+    )
     return 0

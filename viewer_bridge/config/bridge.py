@@ -124,7 +124,8 @@ class BridgeConfig(BaseModel):
     # LCM types the routes know besides the project's own: .lcm files, folders of them (searched
     # recursively) and lcm-gen'd Python modules by import name (`--lcm-types` adds to these).
     lcm_types: list[str] = []
-    drake_lcm_types: bool = True  # also Drake's own types (pydrake's `drake` module), when pydrake is installed
+    # also Drake's own types (pydrake's `drake` module), when pydrake is installed
+    drake_lcm_types: bool = True
     # The LCM channels the way back (ros_to_lcm) may write, and how fresh a command must be.
     commands: CommandPolicy = CommandPolicy()
     # ROS 2 topics to carry onto LCM (`--ros-topics` adds to these): regexes, each matched in full.
@@ -163,7 +164,9 @@ class BridgeConfig(BaseModel):
             check.route(route, ("ros_topics",))
             if route.name in names:
                 at = ("routes", names.index(route.name), "name")
-                raise check.error(at, f"{route.name!r} is the name of the route ros_topics makes: rename this one")
+                raise check.error(
+                    at, f"{route.name!r} is the name of the route ros_topics makes: rename this one"
+                )
         self._own_routes = list(self.routes)
         self.routes = [*self.routes, *made]
         for name in self.transports():  # a used transport without a section: is a setting required?
@@ -351,7 +354,9 @@ def ros_topic_routes(patterns: Sequence[str], routes: Sequence[Route]) -> list[R
     each ROS graph transport `routes` use (DDS, rmw_zenoh), else from `ros`; none without patterns."""
     if not patterns:
         return []
-    used = dict.fromkeys(name for route in routes for name in (route.source.transport, route.destination.transport))
+    used = dict.fromkeys(
+        name for route in routes for name in (route.source.transport, route.destination.transport)
+    )
     graphs = [name for name in used if TRANSPORTS.get(name).ros_graph] or ["ros"]
     alternatives = patterns[0] if len(patterns) == 1 else "|".join(f"(?:{pattern})" for pattern in patterns)
     # The whole topic is group 1: a stream (a lane, and its channel) per topic, whatever groups the patterns have.

@@ -40,7 +40,8 @@ from viewer_bridge.model.scene import SHAPE_KINDS, Pose, Shape, shape_kind
 # A function that writes what a table's terms cannot (a mesh's vertices, say): the fields it sets.
 Encoder = Callable[..., dict[str, Any]]
 
-_TERM = re.compile(r"(?:(?P<factor>[0-9]+(?:\.[0-9]*)?)\s*\*\s*)?(?P<field>[a-z_]+)(?:\.(?P<axis>[xyz]))?")  # fullmatch
+# fullmatch
+_TERM = re.compile(r"(?:(?P<factor>[0-9]+(?:\.[0-9]*)?)\s*\*\s*)?(?P<field>[a-z_]+)(?:\.(?P<axis>[xyz]))?")
 _AXES = "xyz"
 
 

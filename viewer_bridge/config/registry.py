@@ -62,5 +62,7 @@ class Registry(Generic[Entry]):
                 raise UnknownName(self.kind, name, self.names())
             loaded = points[0].load()
         if not (isinstance(loaded, type) and issubclass(loaded, self._base)):
-            raise PluginError(f"{self.kind} {name!r} ({self.group}) is not a subclass of {self._base.__name__}")
+            raise PluginError(
+                f"{self.kind} {name!r} ({self.group}) is not a subclass of {self._base.__name__}"
+            )
         return cast("type[Entry]", loaded)

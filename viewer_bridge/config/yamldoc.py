@@ -120,9 +120,7 @@ def _fields_at(model: type[BaseModel], loc: tuple[Any, ...]) -> list[str]:
     annotation: Any = model
     for part in loc:
         if isinstance(part, str) and isinstance(annotation, type) and issubclass(annotation, BaseModel):
-            field = next(
-                (f for name, f in annotation.model_fields.items() if part in (name, f.alias)), None
-            )
+            field = next((f for name, f in annotation.model_fields.items() if part in (name, f.alias)), None)
             if field is None:
                 return []
             annotation = field.annotation

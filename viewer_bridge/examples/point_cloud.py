@@ -21,7 +21,9 @@ RATE_HZ = 10.0
 def ring(angle: float) -> tuple[np.ndarray, np.ndarray]:
     """Points (3 x N, metres) on a wavy ring turned by `angle`, and their colours (3 x N, uint8)."""
     around = np.linspace(0.0, 2 * math.pi, POINTS, endpoint=False)
-    xyz = np.stack([0.5 * np.cos(around + angle), 0.5 * np.sin(around + angle), 0.3 + 0.05 * np.sin(5 * around)])
+    xyz = np.stack(
+        [0.5 * np.cos(around + angle), 0.5 * np.sin(around + angle), 0.3 + 0.05 * np.sin(5 * around)]
+    )
     rgb = np.stack([127 + 127 * np.cos(around + shift) for shift in (0.0, 2.1, 4.2)]).astype(np.uint8)
     return xyz.astype(np.float32), rgb
 
@@ -38,8 +40,13 @@ def run(url: str, seconds: float) -> None:
     builder = DiagramBuilder()
     to_lcm = builder.AddSystem(PointCloudToLcm(frame_name="world"))
     publisher = builder.AddSystem(
-        LcmPublisherSystem.Make(channel=CHANNEL, lcm_type=drake_lcmtypes.lcmt_point_cloud, lcm=DrakeLcm(url),
-                                publish_period=0.0, use_cpp_serializer=True)  # fmt: skip
+        LcmPublisherSystem.Make(
+            channel=CHANNEL,
+            lcm_type=drake_lcmtypes.lcmt_point_cloud,
+            lcm=DrakeLcm(url),
+            publish_period=0.0,
+            use_cpp_serializer=True,
+        )  # fmt: skip
     )
     builder.Connect(to_lcm.get_output_port(), publisher.get_input_port())
     builder.ExportInput(to_lcm.get_input_port())

@@ -75,7 +75,9 @@ class _Reader:
             if getattr(layout, name) < 0:
                 raise self.fail(name, 0, f"{getattr(layout, name)} is negative")
         if layout.point_step > _MAX_POINT_STEP:  # found by bench/fuzz.py: numpy's limit for a record
-            raise self.fail("point_step", 0, f"{layout.point_step} is more than {_MAX_POINT_STEP} bytes a point")
+            raise self.fail(
+                "point_step", 0, f"{layout.point_step} is more than {_MAX_POINT_STEP} bytes a point"
+            )
         count = layout.width * layout.height
         if count and layout.point_step == 0:
             raise self.fail("point_step", 0, "0 for a cloud with points")

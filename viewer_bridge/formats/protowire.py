@@ -64,7 +64,9 @@ def double_keys(first: int, count: int) -> list[bytes]:
 def doubles(keys: Sequence[bytes], values: Sequence[float]) -> bytes:
     """Double fields, each left out when its bits are all zero (0.0, not -0.0)."""
     pairs = zip(keys, values, strict=False)  # keys may be longer: a Vector3 uses 3 of 4
-    return b"".join([field + _DOUBLE.pack(value) for field, value in pairs if value or copysign(1.0, value) < 0])
+    return b"".join(
+        [field + _DOUBLE.pack(value) for field, value in pairs if value or copysign(1.0, value) < 0]
+    )
 
 
 class PoseWriter:

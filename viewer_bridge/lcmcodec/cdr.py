@@ -126,7 +126,9 @@ def _glue(phase: int, count: int, size: int, sequence: bool) -> tuple[bytes, int
 
 
 @lru_cache(maxsize=1024)
-def _run_glue(phase: int, count: int, size: int, many: int) -> tuple[tuple[bytes, ...], tuple[slice, ...], int]:
+def _run_glue(
+    phase: int, count: int, size: int, many: int
+) -> tuple[tuple[bytes, ...], tuple[slice, ...], int]:
     """For `many` sequences of `count` elements of `size` bytes, one after the other from a
     position of `phase` modulo 8: the bytes before each, each one's slice of the swapped
     elements, and how far the position moves in all."""
@@ -140,7 +142,9 @@ def _run_glue(phase: int, count: int, size: int, many: int) -> tuple[tuple[bytes
     return tuple(glues), cuts, position - phase
 
 
-def _shared_count_error(type_name: str, fields: tuple[str, ...], off: int, count: int, size: int, end: int) -> DecodeError:
+def _shared_count_error(
+    type_name: str, fields: tuple[str, ...], off: int, count: int, size: int, end: int
+) -> DecodeError:
     """The error for sequences sharing one length: the first whose elements do not fit."""
     for index, field in enumerate(fields):
         start = off + index * count * size
@@ -363,4 +367,3 @@ def compile_transcoders(
     return {name: CdrTranscoder(name, fingerprints[name], body,
                                 partial(learn_lcm_layout, structs, name) if keep_layouts else None)
             for name, body in bodies.items()}  # fmt: skip
-

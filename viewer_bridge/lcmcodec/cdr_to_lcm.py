@@ -77,8 +77,14 @@ class LcmEncoder(LayoutKeeper):
             raise DecodeError(self.type_name, "<header>", 0, f"truncated: {total} bytes, a CDR header is 4")
         representation = bytes(view[:2])
         if representation != _CDR_LE:
-            kind = "big-endian CDR" if representation == b"\x00\x00" else f"representation {representation.hex()}"
-            raise DecodeError(self.type_name, "<header>", 0, f"{kind}: only little-endian CDR (00 01) is read")
+            kind = (
+                "big-endian CDR"
+                if representation == b"\x00\x00"
+                else f"representation {representation.hex()}"
+            )
+            raise DecodeError(
+                self.type_name, "<header>", 0, f"{kind}: only little-endian CDR (00 01) is read"
+            )
         buf = view[_HEADER:]
         end = total - _HEADER
         out: list[Any] = [self.packed_fingerprint]
@@ -153,7 +159,9 @@ class _Generator(StructWriter):
             if not self.struct.members:  # ROS 2 gives an empty message one uint8; LCM writes nothing
                 out.line("if off + 1 > end:")
                 with out.indent():
-                    out.line(f"raise _truncated({self.t}, 'structure_needs_at_least_one_member', off, 1, end)")
+                    out.line(
+                        f"raise _truncated({self.t}, 'structure_needs_at_least_one_member', off, 1, end)"
+                    )
                 out.line("off += 1")
             for scalars, run in scalar_runs(self.struct):
                 if scalars:
@@ -174,7 +182,9 @@ class _Generator(StructWriter):
                 size = PRIMITIVE_FORMATS[member.type_name][1]
                 pad = -position & (size - 1)
                 fmt += "x" * pad + _CODES[member.type_name]
-                layout.append((field_name(member.name), position + pad - phase, size, member.type_name == "boolean"))
+                layout.append(
+                    (field_name(member.name), position + pad - phase, size, member.type_name == "boolean")
+                )
                 position += pad + size
             unpackers.append(struct.Struct(fmt))
             layouts.append(tuple(layout))
@@ -207,7 +217,9 @@ class _Generator(StructWriter):
             out.line(f"n = {member.dims[0].count}")
         else:
             names = tuple(field_name(dim.size) if dim.is_variable else str(dim.count) for dim in member.dims)
-            sizes = ", ".join(f"v{self.index_of(dim.size)}" if dim.is_variable else str(dim.count) for dim in member.dims)
+            sizes = ", ".join(
+                f"v{self.index_of(dim.size)}" if dim.is_variable else str(dim.count) for dim in member.dims
+            )
             expected = " * ".join(
                 f"v{self.index_of(dim.size)}" if dim.is_variable else str(dim.count) for dim in member.dims
             )
@@ -267,7 +279,9 @@ def compile_encoders(
         "_U32_LE": U32_LE,
         **{f"_swap{size}": codegen.swapped(size) for size in (2, 4, 8)},
     }
-    bodies = codegen.compile_generated(structs, list(names), "C", _Generator, helpers, "<cdr -> lcm encoders>")
+    bodies = codegen.compile_generated(
+        structs, list(names), "C", _Generator, helpers, "<cdr -> lcm encoders>"
+    )
     return {name: LcmEncoder(name, fingerprints[name], body,
                              functools.partial(learn_lcm_layout, structs, name, fingerprint=fingerprints[name]))
             for name, body in bodies.items()}  # fmt: skip

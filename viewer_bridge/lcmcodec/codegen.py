@@ -61,7 +61,9 @@ _NUMPY_FROM = 256  # elements; below this Python's array module swaps faster tha
 
 def truncated(type_name: str, field: str, offset: int, need: int, end: int) -> DecodeError:
     """`need` bytes were wanted at `offset`, and the buffer ends at `end`."""
-    return DecodeError(type_name, field, offset, f"truncated: needs {need} bytes, {max(end - offset, 0)} remain")
+    return DecodeError(
+        type_name, field, offset, f"truncated: needs {need} bytes, {max(end - offset, 0)} remain"
+    )
 
 
 def bad_count(type_name: str, field: str, offset: int, count: int, size: int, end: int) -> DecodeError:
@@ -100,7 +102,9 @@ def string_error(
     return DecodeError(type_name, field, offset, "malformed string")
 
 
-def string_stop(buf: Any, off: int, end: int, type_name: str, field: str, read_length: ReadLength = U32_BE) -> int:
+def string_stop(
+    buf: Any, off: int, end: int, type_name: str, field: str, read_length: ReadLength = U32_BE
+) -> int:
     """Where the string at `off` ends (after its NUL), once it is checked whole: length, NUL, UTF-8.
     LCM and CDR write a string alike but for the byte order of its length (`read_length`)."""
     if off + 4 > end:
@@ -308,7 +312,9 @@ class _Writes(Protocol):
 
 
 # What writes one struct's function: a `StructWriter` class, or anything made the same way.
-MakeWriter = Callable[[StructDef, Mapping[str, str], Mapping[str, int], SourceWriter, dict[str, object]], _Writes]
+MakeWriter = Callable[
+    [StructDef, Mapping[str, str], Mapping[str, int], SourceWriter, dict[str, object]], _Writes
+]
 
 
 def compile_generated(

@@ -140,7 +140,9 @@ def load_ros_definitions(sources: Sequence[str]) -> tuple[dict[str, tuple[list[A
         else:
             found = [name for name in store.fielddefs if name.split("/")[0] == source]
             if not found:
-                raise SchemaError(source, 0, "neither a file, a ROS 2 type nor a package of the Jazzy type store")
+                raise SchemaError(
+                    source, 0, "neither a file, a ROS 2 type nor a package of the Jazzy type store"
+                )
             wanted.extend(sorted(found))
     definitions = {**store.fielddefs, **custom}
     return definitions, list(dict.fromkeys(wanted))
@@ -167,7 +169,9 @@ def map_ros_types(definitions: Definitions, names: Iterable[str]) -> LcmFromRos:
             continue
         if any(f.nested in result.refused for f in struct.fields):
             bad = next(f for f in struct.fields if f.nested in result.refused)
-            result.refused[ros_name] = f"field {bad.name}: {bad.nested} is refused ({result.refused[bad.nested]})"
+            result.refused[ros_name] = (
+                f"field {bad.name}: {bad.nested} is refused ({result.refused[bad.nested]})"
+            )
             continue
         text = lcm_text(struct, definitions[ros_name][0], pending)
         try:  # what lcm-gen will read: parsed back, so that the fingerprint is of these very lines
@@ -255,7 +259,9 @@ def _refuse_shared_names(pending: Mapping[str, RosStruct], refused: dict[str, st
                 refused[ros_name] = f"{' and '.join(ros_names)} would both be LCM struct {lcm_name}"
 
 
-def lcm_text(struct: RosStruct, constants: Sequence[tuple[str, str, Any]], structs: Mapping[str, RosStruct]) -> str:
+def lcm_text(
+    struct: RosStruct, constants: Sequence[tuple[str, str, Any]], structs: Mapping[str, RosStruct]
+) -> str:
     """The `.lcm` file of one struct, with comments saying what LCM does not carry."""
     package, name = struct.lcm_name.split(".")
     lines = [f"// ROS 2 type {struct.ros_name}, written by viewer-bridge lcm-types generate", f"package {package};", "",

@@ -106,7 +106,11 @@ def _scalar_error(type_name: str, field: str, value: Any) -> JsonValueError | No
                 return JsonValueError("", field, f"{_number(value)} is out of float32's range")
         return None
     if type_name == "boolean":
-        return None if type(value) is bool else JsonValueError("", field, f"expected true or false, got {_kind(value)}")
+        return (
+            None
+            if type(value) is bool
+            else JsonValueError("", field, f"expected true or false, got {_kind(value)}")
+        )
     if type_name == "string":
         if type(value) is not str:
             return JsonValueError("", field, f"expected a string, got {_kind(value)}")
@@ -160,14 +164,18 @@ class JsonEncoder:
                            for member in self._lengths}  # fmt: skip
         self._children = children
         self._min_sizes = min_sizes  # each type's fewest bytes of body (`codegen.min_sizes`)
-        self._steps: list[tuple[Member, Encode]] = [(member, self._step(member)) for member in struct_.members]
+        self._steps: list[tuple[Member, Encode]] = [
+            (member, self._step(member)) for member in struct_.members
+        ]
 
     def encode(self, value: object) -> bytes:
         """The whole LCM message (fingerprint first) of a JSON value; bad values: JsonValueError."""
         out = _Output(len(self.packed_fingerprint) + self._min_sizes[self.type_name])
         if out.least > MESSAGE_LIMIT:
             raise JsonValueError(
-                self.type_name, "", f"takes at least {out.least} bytes of LCM, more than {MESSAGE_LIMIT} bytes"
+                self.type_name,
+                "",
+                f"takes at least {out.least} bytes of LCM, more than {MESSAGE_LIMIT} bytes",
             )
         out.append(self.packed_fingerprint)
         self._encode(value, out)
@@ -223,7 +231,9 @@ class JsonEncoder:
         if self._sized is not None:
             for name, arrays in self._sized.items():
                 for array in arrays if name not in known else ():
-                    items = self._bytes(array, self._ros[array.name], value.get(self._ros[array.name], _MISSING))
+                    items = self._bytes(
+                        array, self._ros[array.name], value.get(self._ros[array.name], _MISSING)
+                    )
                     if type(items) is list:
                         known[name] = len(items)
                         derived_from[name] = self._ros[array.name]
@@ -242,7 +252,9 @@ class JsonEncoder:
                 if sum(1 for dim in array.dims if dim.size == name) != 1:
                     continue
                 others = math.prod(
-                    known[dim.size] if dim.is_variable else dim.count for dim in array.dims if dim.size != name
+                    known[dim.size] if dim.is_variable else dim.count
+                    for dim in array.dims
+                    if dim.size != name
                 )
                 if others == 0:
                     continue
@@ -388,7 +400,11 @@ def _pack_array(type_name: str, field: str, items: list[Any]) -> bytes:
         good = types <= _BOOL
     if good:
         try:
-            return bytes(items) if type_name in ("byte", "boolean") else struct.pack(f">{len(items)}{code}", *items)
+            return (
+                bytes(items)
+                if type_name in ("byte", "boolean")
+                else struct.pack(f">{len(items)}{code}", *items)
+            )
         except (OverflowError, struct.error):
             pass  # a float32 out of range: found below
     for index, item in enumerate(items):

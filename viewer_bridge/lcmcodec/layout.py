@@ -146,7 +146,8 @@ class LayoutKeeper:
 
     def convert(self, data: Buffer) -> bytes:
         """`data` converted: through its kept layout when it has one, else the generated code."""
-        if type(data) is bytes and (layout := self._layouts.get(len(data))) is not None:  # inline: a call less
+        # inline: a call less
+        if type(data) is bytes and (layout := self._layouts.get(len(data))) is not None:
             moved = _move(layout, data) if type(layout) is MoveProgram else _python_move(layout, data)
             if moved is not None:
                 return moved
@@ -241,7 +242,9 @@ class _Walk:
         (code_in, size_in), at_in, (code_out, size_out), at_out = (
             (lcm, self.lcm, cdr, self.cdr) if self.from_lcm else (cdr, self.cdr, lcm, self.lcm)
         )
-        self.pieces.append(_Value(count, code_in, size_in, self.start + at_in, code_out, size_out, at_out, role))
+        self.pieces.append(
+            _Value(count, code_in, size_in, self.start + at_in, code_out, size_out, at_out, role)
+        )
         if role == "shape":
             self.expected.append(self.read_last())
         self.lcm += count * lcm[1]
@@ -333,7 +336,9 @@ class _Walk:
         gather = [zero + 1 + index for index in range(len(prefix))] + [zero] * end
         start = len(prefix)
         for at, constant in self.constants:
-            gather[start + at : start + at + len(constant)] = range(zero + len(tail), zero + len(tail) + len(constant))
+            gather[start + at : start + at + len(constant)] = range(
+                zero + len(tail), zero + len(tail) + len(constant)
+            )
             tail += constant
         reads, read_to, index = ["<>"[self.from_lcm]], 0, 0
         key: list[int] = []
@@ -378,7 +383,8 @@ class _Walk:
             span = piece.number * piece.size_in
             if piece.role == "shape":
                 if checks and checks[-1][0] == _EQUAL and checks[-1][1] + checks[-1][2] == piece.at_in:
-                    checks[-1] = (_EQUAL, checks[-1][1], checks[-1][2] + span, 1, checks[-1][4])  # one comparison
+                    # one comparison
+                    checks[-1] = (_EQUAL, checks[-1][1], checks[-1][2] + span, 1, checks[-1][4])
                 else:
                     checks.append((_EQUAL, piece.at_in, span, 1, len(expected)))
                 expected += self.data[piece.at_in : piece.at_in + span]
@@ -391,7 +397,13 @@ class _Walk:
                 checks.append((_AT_MOST, piece.at_in + top, piece.number, piece.size_in, 0x7F))
             if piece.code_out is not None and piece.number:
                 _add_run(runs, self.run(piece, start))
-        words = [len(self.data), len(template), len(checks), len(runs), *(w for row in (*checks, *runs) for w in row)]
+        words = [
+            len(self.data),
+            len(template),
+            len(checks),
+            len(runs),
+            *(w for row in (*checks, *runs) for w in row),
+        ]
         return MoveProgram(struct.pack(f"={len(words)}I", *words) + template + expected)
 
     def run(self, piece: _Value, start: int) -> _Run:
@@ -463,7 +475,9 @@ def _lcm_struct(walk: _Walk, structs: Mapping[str, StructDef], name: str) -> Non
 def _lcm_elements(walk: _Walk, structs: Mapping[str, StructDef], member: Member, count: int) -> None:
     if member.type_name in PRIMITIVE_FORMATS:
         size = PRIMITIVE_FORMATS[member.type_name][1]
-        side = ("s", 1) if size == 1 and member.type_name != "boolean" else (_LCM_CODES[member.type_name], size)
+        side = (
+            ("s", 1) if size == 1 and member.type_name != "boolean" else (_LCM_CODES[member.type_name], size)
+        )
         walk.both(count, side, side, "bool" if member.type_name == "boolean" else "")
         return
     for _ in range(count):

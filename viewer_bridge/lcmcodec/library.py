@@ -178,13 +178,13 @@ class LcmType:
         return self._library._json_encoder(self.full_name)
 
 
-
 def _importable(module: str) -> bool:
     """Whether `module` can be found (an import hook that refuses it counts as absent)."""
     try:
         return importlib.util.find_spec(module) is not None
     except ImportError:
         return False
+
 
 class TypeLibrary:
     """The known LCM types, by full name and by fingerprint."""
@@ -328,9 +328,13 @@ class TypeLibrary:
         with self._lock:
             if full_name not in self._codec_sets:
                 closure = self._closure(full_name)
-                fingerprints = {name: int.from_bytes(self._types[name].packed_fingerprint, "big") for name in closure}
+                fingerprints = {
+                    name: int.from_bytes(self._types[name].packed_fingerprint, "big") for name in closure
+                }
                 compiled = {name: self._codecs[name] for name in closure if name in self._codecs}
-                self._codecs.update(compile_codecs(closure, finite=False, fingerprints=fingerprints, compiled=compiled))
+                self._codecs.update(
+                    compile_codecs(closure, finite=False, fingerprints=fingerprints, compiled=compiled)
+                )
                 self._codec_sets[full_name] = {name: self._codecs[name] for name in closure}
             return self._codec_sets[full_name]
 

@@ -66,7 +66,9 @@ def structs_from_module(name: str, search: Path | None = None) -> dict[str, Load
 
 def _classes(module: ModuleType, source: str) -> dict[str, LoadedClass]:
     found: dict[str, LoadedClass] = {}
-    pending = [value for child in _with_subpackages(module) for value in vars(child).values() if is_lcm_class(value)]
+    pending = [
+        value for child in _with_subpackages(module) for value in vars(child).values() if is_lcm_class(value)
+    ]
     if not pending:
         raise SchemaError(source, 0, "holds no lcm-gen'd Python class")
     while pending:

@@ -48,7 +48,8 @@ _UINT64_LIMIT = 1 << 63
 # typecode of their size: byteswap only needs the size.
 _SWAPS = {"int16": "H", "int32": "I", "int64": "Q", "float32": "I", "float64": "Q"}
 _NUMPY_FROM = 256  # elements
-_LIMITS = {"bool": 1, "uint64": _UINT64_LIMIT - 1}  # the largest value LCM takes, where CDR's type allows more
+# the largest value LCM takes, where CDR's type allows more
+_LIMITS = {"bool": 1, "uint64": _UINT64_LIMIT - 1}
 _COUNT_LIMIT = (1 << 31) - 1  # LCM's int32_t length field
 _TEXT_MIN = {"string": 5, "wstring": 4}  # count and NUL; count only
 _U32_LE = struct.Struct("<I").unpack_from
@@ -56,7 +57,9 @@ _U32_BE = struct.Struct(">I").pack
 _I32_BE = struct.Struct(">i").pack
 
 
-def compile_ros_encoders(mapping: LcmFromRos, ros_names: Iterable[str], keep_layouts: bool = True) -> dict[str, LcmEncoder]:
+def compile_ros_encoders(
+    mapping: LcmFromRos, ros_names: Iterable[str], keep_layouts: bool = True
+) -> dict[str, LcmEncoder]:
     """The CDR -> LCM encoders of the mapped ROS 2 types `ros_names`, by ROS 2 name. Each keeps the
     layouts of the messages it has converted (`layout`) unless `keep_layouts` is False: then
     every message takes the generated code (as the first of each shape does)."""
@@ -112,7 +115,9 @@ def _room(type_name: str, field: str, offset: int, count: int, size: int, end: i
         raise bad_count(type_name, field, offset, count, size, end)
 
 
-def _count(buf: Any, off: int, end: int, out: list[Any], type_name: str, field: str, bound: int) -> tuple[int, int]:
+def _count(
+    buf: Any, off: int, end: int, out: list[Any], type_name: str, field: str, bound: int
+) -> tuple[int, int]:
     """A sequence's CDR count (aligned to 4), checked against its bound and LCM's int32_t, written as
     the LCM length field; returns the count and the offset after it."""
     off += -off & 3
@@ -127,7 +132,9 @@ def _count(buf: Any, off: int, end: int, out: list[Any], type_name: str, field: 
     return count, off + 4
 
 
-def _numbers(buf: Any, off: int, end: int, out: list[Any], type_name: str, field: str, base: str, count: int) -> int:
+def _numbers(
+    buf: Any, off: int, end: int, out: list[Any], type_name: str, field: str, base: str, count: int
+) -> int:
     """`count` numbers of ROS 2 type `base` at `off` (aligned first when there are any) to LCM."""
     size = _WIRE[base][0]
     if not count:
@@ -191,7 +198,9 @@ def _string_problem(buf: Any, off: int, end: int, type_name: str, field: str) ->
 def _value_error(type_name: str, field: str, offset: int, base: str, value: int) -> DecodeError:
     if base == "bool":
         return DecodeError(type_name, field, offset, f"bool byte {value} is neither 0 nor 1")
-    return DecodeError(type_name, field, offset, f"uint64 {value} does not fit LCM's int64_t (from 2^63 up: refused)")
+    return DecodeError(
+        type_name, field, offset, f"uint64 {value} does not fit LCM's int64_t (from 2^63 up: refused)"
+    )
 
 
 def _run_problem(type_name: str, layout: tuple[tuple[str, str, int], ...], values: tuple[int, ...] | None,
@@ -220,11 +229,15 @@ def _wstring(buf: Any, off: int, end: int, out: list[Any], type_name: str, field
     wide = np.flatnonzero(units > 0xFFFF)
     if wide.size:
         index = int(wide[0])
-        raise DecodeError(type_name, field, start + 4 * index, f"code unit {int(units[index]):#x} is not UTF-16")
+        raise DecodeError(
+            type_name, field, start + 4 * index, f"code unit {int(units[index]):#x} is not UTF-16"
+        )
     try:
         text = units.astype("<u2").tobytes().decode("utf-16-le")
     except UnicodeDecodeError as error:  # a surrogate without its pair
-        raise DecodeError(type_name, field, start + 2 * error.start, "invalid UTF-16 (unpaired surrogate)") from None
+        raise DecodeError(
+            type_name, field, start + 2 * error.start, "invalid UTF-16 (unpaired surrogate)"
+        ) from None
     data = text.encode("utf-8")
     out.append(_U32_BE(len(data) + 1))
     out.append(data)
@@ -297,7 +310,10 @@ class _Generator:
         for phase in range(8):
             starts = _starts(phase, sizes)
             ends = [0] + [start + size for start, size in zip(starts, sizes, strict=True)][:-1]
-            codes = (f"{start - before}x{_WIRE[f.base][1]}" for start, before, f in zip(starts, ends, run, strict=True))
+            codes = (
+                f"{start - before}x{_WIRE[f.base][1]}"
+                for start, before, f in zip(starts, ends, run, strict=True)
+            )
             readers.append(struct.Struct("<" + "".join(codes)))
             layouts.append(tuple((f.name, f.base, start) for f, start in zip(run, starts, strict=True)))
         self.formats[name + "_LE"] = readers
@@ -305,7 +321,11 @@ class _Generator:
         self.formats[name + "_L"] = layouts
         values = ", ".join(f"v{index}" for index in range(len(run)))
         checks = " or ".join(f"v{i} > {_LIMITS[f.base]}" for i, f in enumerate(run) if f.base in _LIMITS)
-        check = f"if {checks}:\n    raise _run_problem({self.t}, {name}_L[k], ({values},), off, end)\n" if checks else ""
+        check = (
+            f"if {checks}:\n    raise _run_problem({self.t}, {name}_L[k], ({values},), off, end)\n"
+            if checks
+            else ""
+        )
         for line in _RUN.format(n=name, t=self.t, v=values, check=check).splitlines():
             out.line(line)
 

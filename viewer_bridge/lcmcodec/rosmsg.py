@@ -145,7 +145,9 @@ def map_to_ros(structs: Mapping[str, StructDef]) -> RosMapping:
             continue
         documented = message_text(struct, messages, comments=True)
         package, name = names[lcm_name]
-        messages[lcm_name] = RosMessage(lcm_name, package, name, definition, tuple(_nested(struct)), documented)
+        messages[lcm_name] = RosMessage(
+            lcm_name, package, name, definition, tuple(_nested(struct)), documented
+        )
     return RosMapping(messages, refused)
 
 

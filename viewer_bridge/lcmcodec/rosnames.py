@@ -33,7 +33,8 @@ __all__ = [
 ]
 
 # rosidl_adapter's patterns for valid names (the one set of them: ros_build checks packages by them too).
-PACKAGE_PATTERN = re.compile(r"(?!.*__)(?!.*_\Z)[a-z][a-z0-9_]*")  # each used with fullmatch: `$` takes "name\n"
+# each used with fullmatch: `$` takes "name\n"
+PACKAGE_PATTERN = re.compile(r"(?!.*__)(?!.*_\Z)[a-z][a-z0-9_]*")
 MESSAGE_PATTERN = re.compile(r"[A-Z][A-Za-z0-9]*")
 _FIELD = PACKAGE_PATTERN
 _CONSTANT = re.compile(r"[A-Z]([A-Z0-9_]?[A-Z0-9]+)*")

@@ -476,7 +476,9 @@ def load_lcm_files(paths: Iterable[Path]) -> dict[str, StructDef]:
         for struct in parse_lcm(text, str(path)):
             if struct.full_name in structs:
                 first = structs[struct.full_name]
-                raise SchemaError(struct.source, struct.line, f"type {struct.full_name} is also defined at {first.where}")
+                raise SchemaError(
+                    struct.source, struct.line, f"type {struct.full_name} is also defined at {first.where}"
+                )
             structs[struct.full_name] = struct
     return structs
 
@@ -487,7 +489,9 @@ def check_references(structs: Mapping[str, StructDef]) -> None:
         for member in struct.members:
             if not member.is_primitive and member.type_name not in structs:
                 raise SchemaError(
-                    struct.source, struct.line, f"{struct.full_name}.{member.name}: unknown type {member.type_name!r}"
+                    struct.source,
+                    struct.line,
+                    f"{struct.full_name}.{member.name}: unknown type {member.type_name!r}",
                 )
 
 

@@ -171,7 +171,9 @@ def _check_rows(type_name: str, field: str, offset: int, shape: Sequence[int], e
         level *= size
         rows += level
         if rows > limit:
-            raise DecodeError(type_name, field, offset, f"shape {tuple(shape)} is {rows}+ empty rows, more than {limit}")
+            raise DecodeError(
+                type_name, field, offset, f"shape {tuple(shape)} is {rows}+ empty rows, more than {limit}"
+            )
 
 
 def _check_finite(
@@ -218,7 +220,9 @@ def _ident(full_name: str) -> str:
 class _StructGenerator:
     """Writes the class, the decoder and the encoder of one struct."""
 
-    def __init__(self, struct: StructDef, min_sizes: Mapping[str, int], out: SourceWriter, finite: bool = True) -> None:
+    def __init__(
+        self, struct: StructDef, min_sizes: Mapping[str, int], out: SourceWriter, finite: bool = True
+    ) -> None:
         self.struct = struct
         self.finite = finite
         self.min_sizes = min_sizes
@@ -522,7 +526,9 @@ def _flatten_bytes(value: Any, shape: Sequence[int], type_name: str, field: str)
     return b"".join(_flatten_bytes(row, shape[1:], type_name, f"{field}[{i}]") for i, row in enumerate(value))
 
 
-def generate_source(structs: Mapping[str, StructDef], min_sizes: Mapping[str, int], finite: bool = True) -> str:
+def generate_source(
+    structs: Mapping[str, StructDef], min_sizes: Mapping[str, int], finite: bool = True
+) -> str:
     """The Python source of every class, decoder and encoder for `structs`."""
     out = SourceWriter()
     for definition in structs.values():

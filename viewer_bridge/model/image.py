@@ -228,7 +228,9 @@ def preview(image: Image) -> npt.NDArray[np.uint8]:
         values = pixels.astype(np.float64)
         low, high = float(values.min(initial=0)), float(values.max(initial=1))
         pixels = (255 * (values - low) / max(high - low, 1e-9)).astype(np.uint8)
-    rgb: npt.NDArray[np.uint8] = np.ascontiguousarray(np.broadcast_to(pixels[:, :, :3], (*pixels.shape[:2], 3)))
+    rgb: npt.NDArray[np.uint8] = np.ascontiguousarray(
+        np.broadcast_to(pixels[:, :, :3], (*pixels.shape[:2], 3))
+    )
     return rgb
 
 

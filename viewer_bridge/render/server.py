@@ -175,11 +175,16 @@ class RenderThread:
 
 def render_gate(allowed_origins: Iterable[str] = ()) -> OriginGate:
     """The render server's origin check: loopback pages and `allowed_origins` (Drake's client sends no Origin)."""
-    return OriginGate(Origins(allowed_origins), "render request", lambda origin: f"serve-render --allow-origin '{origin}'")
+    return OriginGate(
+        Origins(allowed_origins), "render request", lambda origin: f"serve-render --allow-origin '{origin}'"
+    )
 
 
 def make_server(
-    host: str = "127.0.0.1", port: int = 8000, max_upload: int = DEFAULT_MAX_UPLOAD, allowed_origins: Iterable[str] = ()
+    host: str = "127.0.0.1",
+    port: int = 8000,
+    max_upload: int = DEFAULT_MAX_UPLOAD,
+    allowed_origins: Iterable[str] = (),
 ) -> http.server.ThreadingHTTPServer:
     renderer = RenderThread()
     gate = render_gate(allowed_origins)

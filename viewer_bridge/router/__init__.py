@@ -77,14 +77,16 @@ class Router:
         lcm_types = TypeLibrary.load(config.lcm_types, drake=config.drake_lcm_types)
         self.shared = Shared(lcm_types, ros_definitions or definitions_of(lcm_types))
         self.shared.provide(LoadCache, LoadCache(config.load_cache))
-        self.shared.provide(CommandPolicy, config.commands)  # a server offers publishing only when it can land
+        # a server offers publishing only when it can land
+        self.shared.provide(CommandPolicy, config.commands)
         for warning in lcm_types.warnings:
             log.warning("viewer-bridge: %s", warning)
         self.transports: dict[str, Transport] = {}
         self.routes: list[RouteRunner] = []
         self._sourced: dict[str, list[RouteRunner]] = {}  # by source transport, for `feed`
         self._inline = InlineBudget()
-        self._echoes = Echoes(self.shared.message_time)  # the loop guard of names both published and subscribed
+        # the loop guard of names both published and subscribed
+        self._echoes = Echoes(self.shared.message_time)
         self._stop = threading.Event()
         self._started = False
         try:
@@ -108,9 +110,15 @@ class Router:
             return translator_class(options, shared=self.shared, reply=reply)
 
         runner = RouteRunner(
-            route, make_translator, self._publisher_factory(route), self._inline, self.shared.message_time,
-            source.rejected, self.config.commands if translator_class.commands else None,
-            self.shared.get(ChannelNames), self.shared.get(SaidOnce),
+            route,
+            make_translator,
+            self._publisher_factory(route),
+            self._inline,
+            self.shared.message_time,
+            source.rejected,
+            self.config.commands if translator_class.commands else None,
+            self.shared.get(ChannelNames),
+            self.shared.get(SaidOnce),
             self.shared.get(Destinations) if translator_class.exclusive else None,
         )
         translator = runner.prototype
@@ -139,7 +147,8 @@ class Router:
     def _subscribed(self, transport: str, name: str) -> bool:
         """Whether a route reads `name` on `transport` (then what is published there may come back)."""
         return any(
-            runner.route.source.transport == transport and runner.pattern.fullmatch(name) for runner in self.routes
+            runner.route.source.transport == transport and runner.pattern.fullmatch(name)
+            for runner in self.routes
         )
 
     def _replier(self, route: Route) -> Callable[[str, bytes], None]:
@@ -183,7 +192,9 @@ class Router:
             return
         exposures = [self.transports[name].exposure() for name in dict.fromkeys(sources)]
         who = ", ".join(exposure.who for exposure in exposures)
-        log.info("viewer-bridge: commands: %s from %s (max_age_ms %g)", policy.describe(), who, policy.max_age_ms)
+        log.info(
+            "viewer-bridge: commands: %s from %s (max_age_ms %g)", policy.describe(), who, policy.max_age_ms
+        )
         for exposure in exposures:
             if exposure.warning is not None:
                 log.warning("viewer-bridge: %s", exposure.warning)

@@ -114,7 +114,9 @@ class _Lane:
         now = time.monotonic()
         if now - self._checked_at >= _LISTENERS_CHECK_S:
             self._checked_at = now
-            counts = [self.publisher(index).subscriber_count() for index in range(len(self.translator.outputs))]
+            counts = [
+                self.publisher(index).subscriber_count() for index in range(len(self.translator.outputs))
+            ]
             self.listened_now = any(count is None or count > 0 for count in counts)
         return self.listened_now
 
@@ -200,7 +202,10 @@ class RouteRunner:
         if match is None:
             return
         try:
-            back_where = self.route.destination.transport, destination_name(self.route.destination.name, match, self._names)
+            back_where = (
+                self.route.destination.transport,
+                destination_name(self.route.destination.name, match, self._names),
+            )
         except Exception:  # a name the template cannot make: offered, and counted where it is made
             back_where = None
         if back_where != origin:
@@ -208,7 +213,9 @@ class RouteRunner:
             return
         self.stats.messages_in += 1
         self.stats.bytes_in += len(received.data)
-        self._count_held(received.channel, Held("own_message", "the bridge's own message, come back: not sent again"))
+        self._count_held(
+            received.channel, Held("own_message", "the bridge's own message, come back: not sent again")
+        )
 
     def feed(self, received: Received) -> None:
         """Offline (no worker running): translate and publish at once, on the caller's thread, if
@@ -329,9 +336,14 @@ class RouteRunner:
 
     def _expired(self, message: Message) -> Held | None:
         """Why a message is too old to send (older than the route's `max_age_ms` now), or None."""
-        if self._max_age_us is None or time.time_ns() // 1000 - message.received.received_us <= self._max_age_us:
+        if (
+            self._max_age_us is None
+            or time.time_ns() // 1000 - message.received.received_us <= self._max_age_us
+        ):
             return None
-        return Held("stale", f"older than max_age_ms ({self._max_age_us / 1000:g}) when it would be sent: dropped")
+        return Held(
+            "stale", f"older than max_age_ms ({self._max_age_us / 1000:g}) when it would be sent: dropped"
+        )
 
     def handle(self, message: Message) -> None:
         """Translate and publish one message; errors are counted and reported, never raised."""
@@ -347,7 +359,8 @@ class RouteRunner:
                 if lane.skipped:  # a subscriber just appeared: what came before goes first
                     lane.skipped.pop(message.channel, None)
                     self._replay(lane)
-        except Held as held:  # a type unknown or refused here, an interface being built: counted on its channel
+        # a type unknown or refused here, an interface being built: counted on its channel
+        except Held as held:
             self._held(message, held)
             return
         except Exception as error:  # a bug in a translator's bookkeeping or a transport
@@ -418,7 +431,13 @@ class RouteRunner:
             channel = OTHER_CHANNELS
         self.stats.held.setdefault(channel, Counter())[held.kind] += 1
         if self._said.first(channel, held.kind):
-            log.warning("route %s: %s: %s (%s; counted, not said again)", self.route.name, channel, held.reason, held.kind)
+            log.warning(
+                "route %s: %s: %s (%s; counted, not said again)",
+                self.route.name,
+                channel,
+                held.reason,
+                held.kind,
+            )
 
     def _tell_source(self, message: Message, error: BridgeError) -> None:
         if self._rejected is not None:

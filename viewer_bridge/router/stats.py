@@ -25,7 +25,8 @@ class RouteStats:
     bytes_out: int = 0
     idle_skipped: int = 0  # messages a lazy route did not translate: nobody was listening
     errors: Counter[str] = field(default_factory=Counter)
-    warnings: Counter[str] = field(default_factory=Counter)  # e.g. a geometry skipped (viewer_bridge.model.skipped)
+    # e.g. a geometry skipped (viewer_bridge.model.skipped)
+    warnings: Counter[str] = field(default_factory=Counter)
     # Messages held back on purpose, by channel and kind (unknown_type, refused_type, waiting_for_build,
     # own_message: the bridge's own message come back, `viewer_bridge.router.echoes`).
     held: dict[str, Counter[str]] = field(default_factory=dict)

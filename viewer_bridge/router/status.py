@@ -72,7 +72,8 @@ def unsent_of(stats: dict[str, Any]) -> int:
 def transports_line(transports: dict[str, Any]) -> str:
     """The transports' own error counts in words: `zenoh: 366 unsent no router; lcm: 3 dropped by kernel`."""
     return "; ".join(
-        f"{name}: " + ", ".join(f"{count} {kind.replace('_', ' ')}" for kind, count in entry["errors"].items())
+        f"{name}: "
+        + ", ".join(f"{count} {kind.replace('_', ' ')}" for kind, count in entry["errors"].items())
         for name, entry in transports.items()
     )
 
@@ -117,16 +118,22 @@ def is_waiting(stats: dict[str, Any]) -> bool:
     return not is_shown(stats) and stats["state"] != "active"
 
 
-def waiting_line(routes: dict[str, dict[str, Any]], names: list[str], rates: dict[str, tuple[float, float]]) -> str:
+def waiting_line(
+    routes: dict[str, dict[str, Any]], names: list[str], rates: dict[str, tuple[float, float]]
+) -> str:
     """The routes waiting for a subscriber, each with its in-rate and what it did not translate."""
-    each = (f"{name} in {rates[name][0]:.1f}/s (idle_skipped {routes[name]['idle_skipped']})" for name in names)
+    each = (
+        f"{name} in {rates[name][0]:.1f}/s (idle_skipped {routes[name]['idle_skipped']})" for name in names
+    )
     return f"waiting for a subscriber: {', '.join(each)}"
 
 
 def quiet_line(routes: dict[str, dict[str, Any]], names: list[str], listed: bool) -> str:
     """The routes nothing arrived on, counted (and named when `listed`)."""
     more = "more " if len(names) < len(routes) else ""  # beside the other lines, or all of them
-    return f"{counted(len(names), more + 'route')} without traffic" + (f": {', '.join(names)}" if listed else "")
+    return f"{counted(len(names), more + 'route')} without traffic" + (
+        f": {', '.join(names)}" if listed else ""
+    )
 
 
 def legend(terms: Iterable[str]) -> str | None:
@@ -197,7 +204,9 @@ class LogLines:
                 losses_of(stats),
                 _ms(latency["p50"]),
                 _ms(latency["p99"]),
-                f" ({stats['state']}, idle_skipped {stats['idle_skipped']})" if stats["state"] != "active" else "",
+                f" ({stats['state']}, idle_skipped {stats['idle_skipped']})"
+                if stats["state"] != "active"
+                else "",
                 f" held: {held}" if (held := held_of(stats)) else "",
             )
         if waiting := [name for name, stats in routes.items() if is_waiting(stats)]:
@@ -236,7 +245,13 @@ COLUMNS: dict[str, Cell] = {
 ZERO_HIDDEN = ("warn", *LOSSES)  # shown only when some row has one
 OPTIONAL = ("p99", "in", "out", "p50")  # dropped first when the terminal is narrow
 ROUTE_MIN = 12  # characters of a route's name kept, at least, when the terminal is narrow
-STYLES = {"err": "bold red", "warn": "yellow", "superseded": "yellow", "mailbox_full": "yellow", "unsent": "bold red"}
+STYLES = {
+    "err": "bold red",
+    "warn": "yellow",
+    "superseded": "yellow",
+    "mailbox_full": "yellow",
+    "unsent": "bold red",
+}
 
 
 class ConsoleLog(logging.Handler):
@@ -249,7 +264,13 @@ class ConsoleLog(logging.Handler):
         self.setFormatter(logging.Formatter("%(asctime)s %(message)s", datefmt="%H:%M:%S"))
 
     def emit(self, record: logging.LogRecord) -> None:
-        style = "bold red" if record.levelno >= logging.ERROR else "yellow" if record.levelno >= logging.WARNING else ""
+        style = (
+            "bold red"
+            if record.levelno >= logging.ERROR
+            else "yellow"
+            if record.levelno >= logging.WARNING
+            else ""
+        )
         try:
             self._console.print(Text(self.format(record), style=style), soft_wrap=True)
         except Exception:  # a log record must never stop the bridge
@@ -285,9 +306,13 @@ class LiveTable:
             parts.append(Text(said, style="dim"))
         self._live.update(Group(*parts), refresh=True)
 
-    def _table(self, title: str, routes: dict[str, dict[str, Any]], rates: dict[str, tuple[float, float]]) -> Table:
+    def _table(
+        self, title: str, routes: dict[str, dict[str, Any]], rates: dict[str, tuple[float, float]]
+    ) -> Table:
         cells = {
-            heading: [name if heading == "route" else cell(stats, rates[name]) for name, stats in routes.items()]
+            heading: [
+                name if heading == "route" else cell(stats, rates[name]) for name, stats in routes.items()
+            ]
             for heading, cell in COLUMNS.items()
         }
         headings = [h for h in COLUMNS if h not in ZERO_HIDDEN or any(value != "0" for value in cells[h])]

@@ -259,7 +259,9 @@ class Workers:
         routes: dict[str, Any] = {}
         for worker in self._workers:
             routes.update({name: counts for name, counts in worker.snapshot.items() if name != "transports"})
-        merged: dict[str, Any] = {route.name: routes[route.name] for route in self.config.routes if route.name in routes}
+        merged: dict[str, Any] = {
+            route.name: routes[route.name] for route in self.config.routes if route.name in routes
+        }
         errors: dict[str, Counter[str]] = {}
         for worker in self._workers:
             for name, entry in worker.snapshot.get("transports", {}).items():
@@ -306,6 +308,7 @@ def _serve(index: int, config: BridgeConfig, stats_period: float, connection: Co
     signal.signal(signal.SIGTERM, stop)
     parent = multiprocessing.parent_process()
     if parent is not None:  # a parent killed outright leaves no worker behind
+
         def orphaned() -> None:
             parent.join()
             stop()

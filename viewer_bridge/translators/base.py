@@ -37,7 +37,8 @@ class Output:
     latched: bool = False
 
 
-Outputs = list[tuple[int, Payload]]  # (index into `outputs`, payload: bytes, or a `Value` for a transport in this process)
+# (index into `outputs`, payload: bytes, or a `Value` for a transport in this process)
+Outputs = list[tuple[int, Payload]]
 Reply = Callable[[str, bytes], None]  # publish on the source's transport: (channel, bytes)
 
 

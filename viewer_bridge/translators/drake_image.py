@@ -137,7 +137,11 @@ class _DrakeImages(Translator):
     def writes(cls, options: TranslatorOptions) -> tuple[MessageType, ...]:
         """Each port's image, and its compressed image and intrinsics when the options ask for them."""
         assert isinstance(options, ImagesOptions)
-        asked = (cls.IMAGE, cls.COMPRESSED if options.compressed else None, cls.INFO if options.camera_info else None)
+        asked = (
+            cls.IMAGE,
+            cls.COMPRESSED if options.compressed else None,
+            cls.INFO if options.camera_info else None,
+        )
         return tuple(message_type for _, message_type in filter(None, asked))
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:

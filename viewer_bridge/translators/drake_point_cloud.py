@@ -119,4 +119,6 @@ class DrakeDrawFramesToMarkers(DrawReader):
         )
         changed = poses.names != self.names
         self.names = poses.names
-        return [(0, marker_array_cdr(Scene(links, poses), self.options.table_overrides(), delete_all=changed))]
+        return [
+            (0, marker_array_cdr(Scene(links, poses), self.options.table_overrides(), delete_all=changed))
+        ]

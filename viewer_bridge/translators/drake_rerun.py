@@ -139,7 +139,9 @@ class DrakePointCloudToRerun(Translator):
         stamped = cloud_from_lcm(message.data)
         name = message.channel.removeprefix("DRAKE_POINT_CLOUD").removeprefix("_").lower()
         stamp = Stamp.of(stamped.time_us, message.received_us)
-        return [(0, timed_chunk(entity_path(name), stamp, cloud_archetypes(stamped, self.options.world_frame)))]
+        return [
+            (0, timed_chunk(entity_path(name), stamp, cloud_archetypes(stamped, self.options.world_frame)))
+        ]
 
 
 class DrawFramesOptions(TranslatorOptions):

@@ -66,7 +66,9 @@ class LcmToRos(Translator):
         if found is None:
             lcm_type = self.shared.lcm_types.type_of(message.data, message.channel)
             if lcm_type.ros_type is None:
-                raise Held("refused_type", f"{lcm_type.full_name} cannot be a ROS 2 message: {lcm_type.refused}")
+                raise Held(
+                    "refused_type", f"{lcm_type.full_name} cannot be a ROS 2 message: {lcm_type.refused}"
+                )
             self.outputs = (*self.outputs, Output("", ros_message_type(lcm_type)))
             found = self._by_fingerprint[fingerprint] = (len(self.outputs) - 1, lcm_type)
         return found
@@ -91,7 +93,9 @@ class RosToLcm(Translator):
         """The LCM type whose ROS 2 mapping the message's type is; `NotAnLcmType` if none."""
         message_type = message.message_type
         if message_type is None:
-            raise NotAnLcmType(f"{message.channel}: the transport gave no message type, so no LCM type is known")
+            raise NotAnLcmType(
+                f"{message.channel}: the transport gave no message type, so no LCM type is known"
+            )
         lcm_type = self.shared.lcm_types.for_ros_type(message_type.name)
         if lcm_type is None:
             raise NotAnLcmType(

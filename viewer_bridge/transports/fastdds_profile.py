@@ -83,7 +83,9 @@ def why_not_applied(megabytes: int, environ: MutableMapping[str, str], working_d
 
 
 @contextlib.contextmanager
-def shared_memory_profile(megabytes: int, environ: MutableMapping[str, str] | None = None) -> Iterator[Path | None]:
+def shared_memory_profile(
+    megabytes: int, environ: MutableMapping[str, str] | None = None
+) -> Iterator[Path | None]:
     """Around the creation of this process's first DDS participant: the profile's file, named by
     `FASTRTPS_DEFAULT_PROFILES_FILE` (None when `why_not_applied` says it is not used); on exit
     the variable and the file are gone. A participant made earlier in the process has read its

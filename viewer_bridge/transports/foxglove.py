@@ -256,7 +256,11 @@ class FoxgloveTransport(Transport):
     settings: FoxgloveSettings
 
     def __init__(
-        self, settings: FoxgloveSettings, context: FoxgloveContext | None = None, *, accept_commands: bool = True
+        self,
+        settings: FoxgloveSettings,
+        context: FoxgloveContext | None = None,
+        *,
+        accept_commands: bool = True,
     ) -> None:
         """`accept_commands`: whether what clients publish can land anywhere (a router's config
         allows some command channel); without it the server offers no publishing, and a client
@@ -266,7 +270,10 @@ class FoxgloveTransport(Transport):
         self._subscribers = _Subscribers()
         self.context = FoxgloveContext() if context is None else context
         self.clients = ClientPublishing(settings.max_client_channels) if settings.client_publish else None
-        publishing = {"capabilities": [Capability.ClientPublish], "supported_encodings": list(CLIENT_ENCODINGS)}
+        publishing = {
+            "capabilities": [Capability.ClientPublish],
+            "supported_encodings": list(CLIENT_ENCODINGS),
+        }
         try:
             self.server = foxglove.start_server(
                 name=settings.name,
@@ -292,8 +299,10 @@ class FoxgloveTransport(Transport):
     @classmethod
     def create(cls, settings: TransportSettings, shared: Shared) -> FoxgloveTransport:
         assert isinstance(settings, FoxgloveSettings)
-        accept = bool(shared.get(CommandPolicy).allow)  # without an allowed channel nothing clients publish lands
-        return cls(settings, shared.get(FoxgloveContext), accept_commands=accept)  # an MCAP file logs to it too
+        # without an allowed channel nothing clients publish lands
+        accept = bool(shared.get(CommandPolicy).allow)
+        # an MCAP file logs to it too
+        return cls(settings, shared.get(FoxgloveContext), accept_commands=accept)
 
     def _cannot_listen(self, error: Exception) -> TransportUnavailable:
         where = f"{self.settings.host}:{self.settings.port}"
@@ -314,7 +323,10 @@ class FoxgloveTransport(Transport):
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
         """Deliver what clients publish on topics that fully match `pattern`, each message with its own type."""
         if self.clients is None:  # a read-only server: the route stays idle, the rest of the config runs
-            log.warning("foxglove.client_publish is false: the route reading %r from Foxglove clients gets nothing", pattern)
+            log.warning(
+                "foxglove.client_publish is false: the route reading %r from Foxglove clients gets nothing",
+                pattern,
+            )
             return
         self.clients.subscribe(pattern, deliver)
 

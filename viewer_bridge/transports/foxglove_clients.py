@@ -110,10 +110,16 @@ class ClientPublishing:
 
     def message(self, connection: Connection, message: Message) -> None:
         if message.skipped is not None:
-            self._refuse(connection, "client_message_unread", "-", f"a message was not read: {message.skipped}")
+            self._refuse(
+                connection, "client_message_unread", "-", f"a message was not read: {message.skipped}"
+            )
         elif message.opcode == TEXT:
             self._control(connection, message.payload)
-        elif message.opcode == BINARY and message.payload[:1] == bytes([_MESSAGE_DATA]) and len(message.payload) >= 5:
+        elif (
+            message.opcode == BINARY
+            and message.payload[:1] == bytes([_MESSAGE_DATA])
+            and len(message.payload) >= 5
+        ):
             (channel_id,) = struct.unpack_from("<I", message.payload, 1)
             self._publish(connection, channel_id, message.payload[5:])
 
@@ -129,7 +135,9 @@ class ClientPublishing:
         """Say to the client that sent `received` why a route refused it."""
         if not isinstance(received.origin, Connection):
             return
-        reason = (error.reason if isinstance(error, Held) else str(error)).removeprefix(f"{received.channel}: ")
+        reason = (error.reason if isinstance(error, Held) else str(error)).removeprefix(
+            f"{received.channel}: "
+        )
         what = f" ({received.message_type})" if received.message_type is not None else ""
         self._say(received.origin, received.channel, f"{received.channel}{what}: refused: {reason}")
 
@@ -158,9 +166,13 @@ class ClientPublishing:
         encoding, schema_name = fields.get("encoding"), fields.get("schemaName")
         if not (isinstance(channel_id, int) and isinstance(topic, str)):
             return  # not a channel: the SDK refuses it
-        message_type = MessageType(ros_type_name(schema_name if isinstance(schema_name, str) else ""), str(encoding))
+        message_type = MessageType(
+            ros_type_name(schema_name if isinstance(schema_name, str) else ""), str(encoding)
+        )
         routes = tuple(deliver for pattern, deliver in self._subscriptions if pattern.fullmatch(topic))
-        channel = ClientChannel(channel_id, topic, message_type, routes if encoding in CLIENT_ENCODINGS else ())
+        channel = ClientChannel(
+            channel_id, topic, message_type, routes if encoding in CLIENT_ENCODINGS else ()
+        )
         if not self._keep(connection, channel):
             # One text for every channel past the limit: said once, however many were advertised.
             self._refuse(connection, "client_channel_limit", "-",
@@ -206,7 +218,8 @@ class ClientPublishing:
         self._say(connection, topic, text)
 
     def _say(self, connection: Connection, topic: str, text: str) -> None:
-        text, topic = _clipped(text), _clipped(topic)  # what is kept and sent stays small, whatever the client sent
+        # what is kept and sent stays small, whatever the client sent
+        text, topic = _clipped(text), _clipped(topic)
         now = time.monotonic()
         with self._lock:
             last = self._said.get((connection, text))

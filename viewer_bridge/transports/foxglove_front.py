@@ -66,11 +66,15 @@ OLDER_NAMES = frozenset({"foxglove.websocket.v1"})  # the same protocol under th
 MAX_HEAD = 64 * 1024  # an HTTP head longer than this is not a WebSocket handshake
 HANDSHAKE_SECONDS = 10.0  # a client that has not finished its request by then is dropped
 CHUNK = 256 * 1024  # bytes relayed per read; a 1000-link FrameTransforms frame is about 108 kB
-MAX_CLIENT_MESSAGE = 16 * 1024 * 1024  # a client's message read along up to this size (foxglove.max_client_message_bytes)
+# a client's message read along up to this size (foxglove.max_client_message_bytes)
+MAX_CLIENT_MESSAGE = 16 * 1024 * 1024
 MAX_CLIENTS = 32  # clients connected at once (foxglove.max_clients); one more is answered 503
-INJECT_WAIT_SECONDS = 5.0  # a frame of ours waits this long for a client stream busy sending; then it is dropped
-MAX_PENDING = 1024 * 1024  # bytes of our frames waiting for the end of one of the SDK's messages; more are dropped
-MAX_SDK_TEXT = 8 * 1024 * 1024  # a text message of the SDK's read (held back until whole); longer: passed unread
+# a frame of ours waits this long for a client stream busy sending; then it is dropped
+INJECT_WAIT_SECONDS = 5.0
+# bytes of our frames waiting for the end of one of the SDK's messages; more are dropped
+MAX_PENDING = 1024 * 1024
+# a text message of the SDK's read (held back until whole); longer: passed unread
+MAX_SDK_TEXT = 8 * 1024 * 1024
 MAX_SUBSCRIPTIONS = 4096  # subscriptions, and channels advertised, remembered per client (Resubscriptions)
 RESUBSCRIBE_DELAYS = (0.0, 0.01, 0.05, 0.25, 1.0)  # seconds before each attempt to subscribe again
 _UNKNOWN_CHANNEL = b"Unknown channel ID: "  # the SDK's words (ConnectedClient::on_subscribe)
@@ -93,12 +97,19 @@ def header_values(head: bytes, name: bytes) -> list[str]:
 
 def subprotocols(head: bytes) -> list[str]:
     """The subprotocols an HTTP head names, in order, from all its `Sec-WebSocket-Protocol` lines."""
-    return [name.strip() for value in header_values(head, _PROTOCOL_HEADER) for name in value.split(",") if name.strip()]
+    return [
+        name.strip()
+        for value in header_values(head, _PROTOCOL_HEADER)
+        for name in value.split(",")
+        if name.strip()
+    ]
 
 
 def foxglove_gate(origins: Origins) -> OriginGate:
     """The origin check of the Foxglove server, whose log line names the setting to widen it."""
-    return OriginGate(origins, "foxglove client", lambda origin: f"foxglove.allowed_origins: {json.dumps([origin])}")
+    return OriginGate(
+        origins, "foxglove client", lambda origin: f"foxglove.allowed_origins: {json.dumps([origin])}"
+    )
 
 
 def origin_refusal(request: bytes, gate: OriginGate) -> HttpRefusal | None:
@@ -289,7 +300,11 @@ class Resubscriptions:
         """Read a text message of the SDK's to this client. For the status that refused a
         subscription of a channel advertised to it: the channel, and how long to wait before
         sending its subscriptions again (the status is then not passed on); else None."""
-        if b'"advertise"' not in payload and b'"unadvertise"' not in payload and _UNKNOWN_CHANNEL not in payload:
+        if (
+            b'"advertise"' not in payload
+            and b'"unadvertise"' not in payload
+            and _UNKNOWN_CHANNEL not in payload
+        ):
             return None
         message = _json_object(payload)
         op = message.get("op")
@@ -301,7 +316,11 @@ class Resubscriptions:
             elif op == "unadvertise":
                 for channel in _ids(message.get("channelIds")):
                     self._advertised.pop(channel, None)
-            elif op == "status" and message.get("level") == _ERROR_LEVEL and isinstance(message.get("message"), str):
+            elif (
+                op == "status"
+                and message.get("level") == _ERROR_LEVEL
+                and isinstance(message.get("message"), str)
+            ):
                 return self._retry(message["message"])
         return None
 
@@ -344,7 +363,11 @@ class Connection:
     `Resubscriptions`, what the client sends for its subscriptions."""
 
     def __init__(
-        self, address: str, client: socket.socket, sdk: socket.socket, tally: Callable[[str, int], None] | None = None
+        self,
+        address: str,
+        client: socket.socket,
+        sdk: socket.socket,
+        tally: Callable[[str, int], None] | None = None,
     ) -> None:
         self.address = address
         self._to_client = _Outbound(client, MAX_SDK_TEXT)
@@ -398,7 +421,8 @@ class Connection:
     def _resubscribe(self, channel: int) -> None:
         sent = 0
 
-        def frame() -> bytes | None:  # asked while the client's stream stands still: never after its unsubscribe
+        # asked while the client's stream stands still: never after its unsubscribe
+        def frame() -> bytes | None:
             nonlocal sent
             op = self._subscriptions.subscribe_op(channel)
             if op is None:
@@ -447,7 +471,9 @@ class _Relay:
         buffer = bytearray(CHUNK)
         view = memoryview(buffer)
         from_client = source is self.sockets[0]
-        messages = ClientMessages(max_message_bytes, "foxglove.max_client_message_bytes", binary=reader is not None)
+        messages = ClientMessages(
+            max_message_bytes, "foxglove.max_client_message_bytes", binary=reader is not None
+        )
         try:
             if from_client and early:
                 self._from_client(memoryview(early), messages, reader)
@@ -533,7 +559,9 @@ class SubprotocolFront:
                 client, _ = self._listener.accept()
             except OSError:  # the listener was closed
                 return
-            threading.Thread(target=self._serve, args=(client,), name="foxglove front client", daemon=True).start()
+            threading.Thread(
+                target=self._serve, args=(client,), name="foxglove front client", daemon=True
+            ).start()
 
     def _serve(self, client: socket.socket) -> None:
         """Read the client's request, admit it or answer a refusal, then relay it to the SDK."""
@@ -565,7 +593,8 @@ class SubprotocolFront:
                      address, ", ".join(offered) or "none", _address(sdk.getsockname()))  # fmt: skip
             if not upgraded:  # a refusal's body and whatever follows are no WebSocket frames
                 connection.framed = False
-            connection.relay(memoryview(rest))  # the SDK's first frames: from here on, its messages are tracked
+            # the SDK's first frames: from here on, its messages are tracked
+            connection.relay(memoryview(rest))
         except (HandshakeError, OSError) as error:
             self._count("bad_handshake", error)
             self._forget(relay)
@@ -573,7 +602,9 @@ class SubprotocolFront:
         for each in (client, sdk):
             each.settimeout(None)
             each.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # frames go out as they come
-        threading.Thread(target=self._pump, args=(relay, sdk, client), name="foxglove front sdk", daemon=True).start()
+        threading.Thread(
+            target=self._pump, args=(relay, sdk, client), name="foxglove front sdk", daemon=True
+        ).start()
         self._pump(relay, client, sdk, early)
 
     def _admit(self, client: socket.socket, request: bytes) -> bool:
@@ -608,7 +639,9 @@ class SubprotocolFront:
         with self._lock:
             self._admitted -= 1
 
-    def _handshake(self, client: socket.socket, sdk: socket.socket, request: bytes) -> tuple[list[str], bytes, bool]:
+    def _handshake(
+        self, client: socket.socket, sdk: socket.socket, request: bytes
+    ) -> tuple[list[str], bytes, bool]:
         """Pass the client's request on and the SDK's answer head back, renamed for an older name;
         the subprotocols the client offered, what the SDK sent after its head, and whether it
         upgraded the connection (101). (What the client sent after its request, `early`, goes on

@@ -91,7 +91,9 @@ def _open(url: str) -> lcm.LCM:
     try:
         return lcm.LCM(url)
     except RuntimeError as error:  # LCM says only "Couldn't create LCM"
-        raise TransportUnavailable(f"LCM cannot open {url} ({error}): is it an LCM URL, e.g. {DEFAULT_URL}?") from None
+        raise TransportUnavailable(
+            f"LCM cannot open {url} ({error}): is it an LCM URL, e.g. {DEFAULT_URL}?"
+        ) from None
 
 
 class Subscription:
@@ -213,7 +215,9 @@ class LcmBus:
         return 0 if self._port is None else kernel_drops(self._port)
 
     def subscribe(self, channel: str, callback: Callback) -> None:
-        subscription = self._lcm.subscribe(channel, lambda name, data: callback(name, data, time.time_ns() // 1000))
+        subscription = self._lcm.subscribe(
+            channel, lambda name, data: callback(name, data, time.time_ns() // 1000)
+        )
         # LCM queues at most 30 messages per subscription while a callback runs, and discards the
         # rest without a word. Unbounded here: loss happens only where it is counted (the kernel's
         # socket buffer, a route's mailbox); the router keeps the callback quick (`InlineBudget`).

@@ -119,7 +119,9 @@ class _Ros2File:
                 else:
                     text = definition.ros2msg
                 self._schemas[typename] = self._writer.register_schema(typename, "ros2msg", text.encode())
-            self._channels[(topic, typename)] = self._writer.register_channel(topic, CDR, self._schemas[typename])
+            self._channels[(topic, typename)] = self._writer.register_channel(
+                topic, CDR, self._schemas[typename]
+            )
         return self._channels[(topic, typename)]
 
     def close(self) -> None:

@@ -36,10 +36,13 @@ __all__ = [
 log = logging.getLogger("viewer_bridge")
 
 ANY_ORIGIN = "*"  # as a whole entry: every origin passes (the check is off)
-FOXGLOVE_APPS = ("https://app.foxglove.dev", "https://studio.foxglove.dev")  # Foxglove's web app, old and new host
+# Foxglove's web app, old and new host
+FOXGLOVE_APPS = ("https://app.foxglove.dev", "https://studio.foxglove.dev")
 # scheme://host[:port]: what a browser puts in Origin; "null" is what an opaque origin (a file:// page, a sandbox) sends
 _ENTRY = re.compile(r"(?:[a-z][a-z0-9+.-]*://[^/\s]+|null)", re.IGNORECASE)
-_LOOPBACK = re.compile(r"https?://(?:localhost|127\.0\.0\.1|\[::1\])(?::[0-9]{1,5})?", re.IGNORECASE | re.ASCII)
+_LOOPBACK = re.compile(
+    r"https?://(?:localhost|127\.0\.0\.1|\[::1\])(?::[0-9]{1,5})?", re.IGNORECASE | re.ASCII
+)
 _SHOWN = 200  # characters of a refused origin put in a log line or an answer
 _REMEMBERED = 1024  # distinct refused origins remembered (each logged once); then the oldest are forgotten
 
@@ -100,7 +103,9 @@ class Origins:
         if origin is None or not self.checked:
             return True
         origin = origin.strip()
-        return _LOOPBACK.fullmatch(origin) is not None or any(origin_matches(entry, origin) for entry in self._entries)
+        return _LOOPBACK.fullmatch(origin) is not None or any(
+            origin_matches(entry, origin) for entry in self._entries
+        )
 
     def describe(self) -> str:
         """What passes, in a few words, for a start-up line."""

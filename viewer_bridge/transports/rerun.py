@@ -101,7 +101,9 @@ class RerunTransport(Transport):
     def __init__(self, settings: RerunSettings) -> None:
         super().__init__(settings)
         if not (settings.connect or settings.serve or settings.path):
-            raise TransportUnavailable("the rerun transport has no sink: set rerun.connect, rerun.serve or rerun.path")
+            raise TransportUnavailable(
+                "the rerun transport has no sink: set rerun.connect, rerun.serve or rerun.path"
+            )
         self.partial: Path | None = None
         if settings.path is not None:
             if settings.path.exists() and not settings.overwrite:
@@ -113,18 +115,24 @@ class RerunTransport(Transport):
             try:
                 self.partial.open("wb").close()  # a folder that cannot be written fails here, in one line
             except OSError as error:
-                raise TransportUnavailable(f"{settings.path} (rerun.path): {error.strerror or error}") from None
+                raise TransportUnavailable(
+                    f"{settings.path} (rerun.path): {error.strerror or error}"
+                ) from None
         self.grpc_port = self.web_port = 0
         if settings.serve:
             self.grpc_port = _free_port(settings.host, settings.grpc_port, "rerun.grpc_port")
             self.web_port = _free_port("0.0.0.0", settings.web_port, "rerun.web_port")  # the SDK binds all
-        self.stream = rr.RecordingStream(settings.application_id, recording_id=settings.recording_id or uuid.uuid4())
+        self.stream = rr.RecordingStream(
+            settings.application_id, recording_id=settings.recording_id or uuid.uuid4()
+        )
         sinks: list[rr.sinks.LogSinkLike] = []
         if settings.connect:
             sinks.append(rr.GrpcSink(settings.connect))
         if settings.serve:
             sinks.append(
-                rr.GrpcServerSink(bind_ip=settings.host, port=self.grpc_port, server_memory_limit=settings.memory_limit)
+                rr.GrpcServerSink(
+                    bind_ip=settings.host, port=self.grpc_port, server_memory_limit=settings.memory_limit
+                )
             )
         if self.partial is not None:
             sinks.append(rr.FileSink(self.partial))
@@ -155,7 +163,9 @@ class RerunTransport(Transport):
     @classmethod
     def check_destination(cls, name: str) -> None:
         if not name.startswith("/"):
-            raise InvalidName(f"a rerun destination is an entity path from the root, e.g. /drake (got {name!r})")
+            raise InvalidName(
+                f"a rerun destination is an entity path from the root, e.g. /drake (got {name!r})"
+            )
 
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
         raise TransportUnavailable("the rerun transport only writes")

@@ -125,8 +125,16 @@ class PublisherOnceBuilt:
     message held through a build (tens of seconds) would arrive stale and out of its time.
     """
 
-    def __init__(self, node: Node, builder: InterfaceBuilder, topic: str, typename: str, profile: QoSProfile) -> None:
-        self._node, self._builder, self._topic, self._typename, self._profile = node, builder, topic, typename, profile
+    def __init__(
+        self, node: Node, builder: InterfaceBuilder, topic: str, typename: str, profile: QoSProfile
+    ) -> None:
+        self._node, self._builder, self._topic, self._typename, self._profile = (
+            node,
+            builder,
+            topic,
+            typename,
+            profile,
+        )
         self._package = typename.split("/")[0]
         self._publisher: Any = None
         self.unsent = 0  # held while building (counted by the route), never given and lost
@@ -137,7 +145,9 @@ class PublisherOnceBuilt:
         """The rclpy publisher, made on the first call after the build, or None before."""
         with self._lock:
             if self._publisher is None and self._builder.status(self._package).state is BuildState.READY:
-                self._publisher = self._node.create_publisher(message_class(self._typename), self._topic, self._profile)
+                self._publisher = self._node.create_publisher(
+                    message_class(self._typename), self._topic, self._profile
+                )
             return self._publisher
 
     def publish(self, data: bytes) -> None:
@@ -145,7 +155,9 @@ class PublisherOnceBuilt:
         if publisher is None:
             status = self._builder.status(self._package)
             if status.state is BuildState.FAILED:
-                raise TransportUnavailable(f"the interface package {self._package} failed to build: {status.reason}")
+                raise TransportUnavailable(
+                    f"the interface package {self._package} failed to build: {status.reason}"
+                )
             raise Held("waiting_for_build", f"{self._package} is being built (its messages wait, counted)")
         publisher.publish(data)
 
@@ -170,6 +182,7 @@ class RosTransport(Transport):
     @classmethod
     def check_destination(cls, name: str) -> None:
         _valid(name, topic_problem(name), "topic name")
+
     settings: RosSettings
 
     def __init__(
@@ -191,7 +204,10 @@ class RosTransport(Transport):
         with shared_memory_profile(settings.shared_memory_mb):  # read as the node makes the participant
             rclpy.init(context=self._context, args=["viewer-bridge", "--ros-args", *settings.ros_args])
             self.node = Node(
-                settings.node, namespace=settings.namespace, context=self._context, parameter_overrides=overrides
+                settings.node,
+                namespace=settings.namespace,
+                context=self._context,
+                parameter_overrides=overrides,
             )
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self.node)

@@ -39,7 +39,8 @@ class Piece:
 
     data: bytes | memoryview
     ends_message: bool  # the stream's bytes up to here end with a whole message: a frame may follow
-    text: bytes | None = None  # when `data` is a text message held back whole: its payload (it may be dropped)
+    # when `data` is a text message held back whole: its payload (it may be dropped)
+    text: bytes | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -122,7 +123,9 @@ class ClientMessages:
                 self._opcode = header.opcode if header.opcode in self._read else None
                 self._parts, self._joined = [], 0
                 if header.rsv1 and self._opcode is not None:
-                    messages.append(Message(self._opcode, b"", "compressed (an extension the bridge does not read)"))
+                    messages.append(
+                        Message(self._opcode, b"", "compressed (an extension the bridge does not read)")
+                    )
                     self._opcode = None
             if self._opcode is not None and self._joined + header.length > self.max_bytes:
                 messages.append(Message(self._opcode, b"", self._too_long))
@@ -233,7 +236,9 @@ class RelayedStream:
         if have < 2:
             return 2 - have
         length = self._header[1] & 0x7F
-        size = 2 + (2 if length == 126 else 8 if length == 127 else 0) + (4 if self._header[1] & _MASKED else 0)
+        size = (
+            2 + (2 if length == 126 else 8 if length == 127 else 0) + (4 if self._header[1] & _MASKED else 0)
+        )
         return size - have
 
 

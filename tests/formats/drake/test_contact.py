@@ -12,7 +12,8 @@ from tests.optional import peer
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.drake.contact import decode_contact_results
 
-drake_lcmtypes = peer("drake")  # Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
+# Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
+drake_lcmtypes = peer("drake")
 
 
 def pydrake_results(polygons: list[int] | None = None, force_z: float = 9.81) -> Any:

@@ -16,7 +16,8 @@ from viewer_bridge.lcmcodec import DRAW
 from viewer_bridge.model.scene import frame_name
 from viewer_bridge.transports.lcm import LcmEvent
 
-drake_lcmtypes = peer("drake")  # Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
+# Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
+drake_lcmtypes = peer("drake")
 
 
 def test_draw_fast_path_matches_drake(drake_events: list[LcmEvent]) -> None:

@@ -28,6 +28,8 @@ from viewer_bridge.model.image import Image, Layout
 # Every test here builds or reads messages with Drake's own classes: a core-only run skips them all.
 drake_lcmtypes = pytest.importorskip("drake")
 LCMT_IMAGE = drake_lcmtypes.lcmt_image
+
+
 def drake_scene_images(height: int = 6, width: int = 5) -> list[tuple[str, str, np.ndarray]]:
     """An rgb, depth and label image as ApplyCameraConfig's ports carry them."""
     return [

@@ -93,7 +93,9 @@ def test_a_pooled_buffer_is_handed_out_again_only_once_no_view_of_it_is_left() -
 
 
 @pytest.mark.parametrize("inflater", INFLATERS, ids=lambda f: f.__name__)
-def test_a_room_no_stream_could_fill_is_never_allocated(inflater: Callable[[bytes | memoryview, int], Bytes]) -> None:
+def test_a_room_no_stream_could_fill_is_never_allocated(
+    inflater: Callable[[bytes | memoryview, int], Bytes],
+) -> None:
     """bench/fuzz.py's finding (drake_images, drake_images_to_ros): libz's room was allocated at
     the declared size, so a header declaring 4 GiB over a few bytes of stream ran out of memory."""
     tracemalloc.start()

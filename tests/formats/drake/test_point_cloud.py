@@ -22,7 +22,8 @@ from viewer_bridge.lcmcodec import POINT_CLOUD
 from viewer_bridge.model.scene import StampedPointCloud
 from viewer_bridge.transports.lcm import LcmEvent, write_log
 
-drake_lcmtypes = peer("drake")  # Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
+# Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them
+drake_lcmtypes = peer("drake")
 
 FIELDS = {
     "xyz": ("kXYZs",),
@@ -56,7 +57,9 @@ def pydrake_message(kinds: tuple[str, ...], count: int = 40, seed: int = 0, time
     return received[0]
 
 
-def pydrake_publisher(lcm: Any, channel: str, cloud: Any, frame_name: str, time_s: float) -> Callable[[], None]:
+def pydrake_publisher(
+    lcm: Any, channel: str, cloud: Any, frame_name: str, time_s: float
+) -> Callable[[], None]:
     """A diagram of pydrake's PointCloudToLcm and LcmPublisherSystem (C++ serializer) holding
     `cloud` at `time_s`; returns what publishes it once on `channel`."""
     from pydrake.common.value import AbstractValue

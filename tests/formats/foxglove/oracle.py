@@ -13,9 +13,16 @@ def frame_transforms(poses: LinkPoses, stamp: tuple[int, int], frames: FrameName
     """world -> every link as a FrameTransforms, one field at a time."""
     message = FrameTransforms()
     quaternions = xyzw_from_wxyz(poses.quaternions_wxyz).tolist()
-    for name, (x, y, z), (qx, qy, qz, qw) in zip(poses.names, poses.positions.tolist(), quaternions, strict=True):
+    for name, (x, y, z), (qx, qy, qz, qw) in zip(
+        poses.names, poses.positions.tolist(), quaternions, strict=True
+    ):
         transform = message.transforms.add(parent_frame_id=frames.world_frame, child_frame_id=frames(name))
         transform.timestamp.seconds, transform.timestamp.nanos = stamp
         transform.translation.x, transform.translation.y, transform.translation.z = x, y, z
-        transform.rotation.x, transform.rotation.y, transform.rotation.z, transform.rotation.w = qx, qy, qz, qw
+        transform.rotation.x, transform.rotation.y, transform.rotation.z, transform.rotation.w = (
+            qx,
+            qy,
+            qz,
+            qw,
+        )
     return message

@@ -132,9 +132,7 @@ def test_bad_models_raise_scene_errors() -> None:
         scene_from_model(message)
     with pytest.raises(DecodeError, match="gz.msgs.Model"):
         MESSAGES.parse("Model", b"\xff\xff\xff")
-    poses = pose_v(
-        LinkPoses(0, ("a",), np.zeros(1, np.int32), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]]))
-    )
+    poses = pose_v(LinkPoses(0, ("a",), np.zeros(1, np.int32), np.zeros((1, 3)), np.array([[1.0, 0, 0, 0]])))
     poses.pose[0].position.x = float("inf")
     with pytest.raises(SceneError, match=r"pose\[0\].position is not finite"):
         poses_from_pose_v(poses)

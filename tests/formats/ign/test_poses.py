@@ -40,9 +40,9 @@ def test_pose_v_read_by_debians_protos(
             w,
         ]
     robot_nums = dict(zip(poses.names, poses.robot_nums.tolist(), strict=True))
-    assert poses_from_pose_v(
-        MESSAGES.parse("Pose_V", theirs.SerializeToString()), robot_nums
-    ) == LinkPoses(poses.timestamp_ms, poses.names, poses.robot_nums, poses.positions, poses.quaternions_wxyz)
+    assert poses_from_pose_v(MESSAGES.parse("Pose_V", theirs.SerializeToString()), robot_nums) == LinkPoses(
+        poses.timestamp_ms, poses.names, poses.robot_nums, poses.positions, poses.quaternions_wxyz
+    )
 
 
 @settings(max_examples=60, deadline=None)

@@ -15,7 +15,9 @@ from viewer_bridge.formats.rerun.chunks import Stamp, time_columns
 from viewer_bridge.model.scene import LinkPoses
 
 
-def transforms_batch(path: str, poses: LinkPoses, frames: Callable[[str], str], world: str, stamp: Stamp) -> pa.RecordBatch:
+def transforms_batch(
+    path: str, poses: LinkPoses, frames: Callable[[str], str], world: str, stamp: Stamp
+) -> pa.RecordBatch:
     count = len(poses.names)
     w, x, y, z = np.asarray(poses.quaternions_wxyz, dtype=np.float64).T
     columns = rr.Transform3D.columns(

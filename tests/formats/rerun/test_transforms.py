@@ -22,7 +22,9 @@ from common import frame  # noqa: E402
 def _columns(chunk: Chunk) -> dict[str, object]:
     """The chunk's data (ids left out: each build makes its own)."""
     table = chunk.to_record_batch()
-    return {name: table.column(name).to_pylist() for name in table.schema.names if name != "rerun.controls.RowId"}
+    return {
+        name: table.column(name).to_pylist() for name in table.schema.names if name != "rerun.controls.RowId"
+    }
 
 
 @pytest.mark.parametrize("links", [1, 7, 1000])
@@ -30,7 +32,9 @@ def test_encoder_equals_the_sdks_columns(links: int) -> None:
     poses, stamp = frame(links, seed=links), Stamp(1_234_000_000, 1_700_000_000_000_000_000)
     encoder = TransformsEncoder("/drake/transforms", frame_name, "tf#/")
     ours = encoder.encode(poses, stamp)
-    (expected_chunk,) = Chunk.from_record_batch(transforms_batch("/drake/transforms", poses, frame_name, "tf#/", stamp))
+    (expected_chunk,) = Chunk.from_record_batch(
+        transforms_batch("/drake/transforms", poses, frame_name, "tf#/", stamp)
+    )
     expected = _columns(expected_chunk)
     (as_bytes,) = Chunks.decode(ours.encode()).chunks
     for chunk in (*ours.chunks, as_bytes):
@@ -46,4 +50,6 @@ def test_new_link_names_new_frames() -> None:
     encoder = TransformsEncoder("/t", frame_name, "world")
     encoder.encode(frame(3), Stamp(0, 0))
     (chunk,) = encoder.encode(frame(5), Stamp(0, 0)).chunks
-    assert chunk.to_record_batch().column("Transform3D:child_frame").to_pylist() == [[frame_name(n)] for n in frame(5).names]
+    assert chunk.to_record_batch().column("Transform3D:child_frame").to_pylist() == [
+        [frame_name(n)] for n in frame(5).names
+    ]

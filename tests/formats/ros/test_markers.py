@@ -61,11 +61,15 @@ def test_every_drake_shape_becomes_markers_at_drakes_world_pose(
             assert close([[p.x, p.y, p.z] for p in first.points], vertices[triangles.reshape(-1)])
         elif kind == "file":
             assert (
-                first.type == markers_msgs.Marker.MESH_RESOURCE and first.mesh_resource == f"file://{geometry.string_data}"
+                first.type == markers_msgs.Marker.MESH_RESOURCE
+                and first.mesh_resource == f"file://{geometry.string_data}"
             )
             assert close(scale_of(first), data)
         elif kind == "memory":
-            assert first.type == markers_msgs.Marker.MESH_RESOURCE and first.mesh_resource == "embedded://tetrahedron.obj"
+            assert (
+                first.type == markers_msgs.Marker.MESH_RESOURCE
+                and first.mesh_resource == "embedded://tetrahedron.obj"
+            )
             assert first.mesh_file.filename == "tetrahedron.obj"
             assert bytes(first.mesh_file.data) == TETRAHEDRON_OBJ.encode()
     assert next(markers, None) is None
@@ -152,7 +156,11 @@ def test_points_triads_and_lines_as_markers_both_paths_agree() -> None:
     objects = to_rclpy(ros_oracle.marker_array(scene))
     assert serialization.deserialize_message(marker_array_cdr(scene), markers_msgs.MarkerArray) == objects
     points, triad, strip = objects.markers[1:]
-    assert (points.type, points.scale.x, [c.g for c in points.colors]) == (markers_msgs.Marker.POINTS, 0.01, [0.0, 1.0])
+    assert (points.type, points.scale.x, [c.g for c in points.colors]) == (
+        markers_msgs.Marker.POINTS,
+        0.01,
+        [0.0, 1.0],
+    )
     assert triad.type == markers_msgs.Marker.LINE_LIST and [p.x for p in triad.points] == [0, 2, 0, 0, 0, 0]
     assert strip.type == markers_msgs.Marker.LINE_STRIP and len(strip.points) == 3 and strip.scale.x == 0.002
     from viewer_bridge.model.skipped import collecting

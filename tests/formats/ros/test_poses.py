@@ -70,7 +70,9 @@ def test_one_pose_array_encoder_follows_changing_draws(frames: list[LinkPoses]) 
 @given(link_poses(), st.text(st.characters(exclude_characters="\0", exclude_categories=("Cs",)), max_size=9))
 def test_draw_to_pose_array_to_draw_round_trips(poses: LinkPoses, frame_id: str) -> None:
     data = PoseArrayEncoder(frame_id).encode(poses)
-    assert serialization.deserialize_message(data, geometry.PoseArray) == to_rclpy(ros_oracle.pose_array(poses, frame_id))
+    assert serialization.deserialize_message(data, geometry.PoseArray) == to_rclpy(
+        ros_oracle.pose_array(poses, frame_id)
+    )
     for index, stamped in enumerate(ros_oracle.PoseStampedEncoder(frame_id).encode(poses)):
         assert serialization.deserialize_message(stamped, geometry.PoseStamped) == to_rclpy(
             ros_oracle.pose_stamped(poses, index, frame_id)

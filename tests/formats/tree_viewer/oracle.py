@@ -33,7 +33,9 @@ def fixed_width_reference(poses: LinkPoses, prefix: tuple[str, ...], utime: int 
         return separator + f"{sign}{whole}.".rjust(7) + f"{fraction:08d}"
 
     heads = [
-        '{"path":' + orjson.dumps([*prefix, str(int(robot_num)), name]).decode() + ',"transform":{"translation":['
+        '{"path":'
+        + orjson.dumps([*prefix, str(int(robot_num)), name]).decode()
+        + ',"transform":{"translation":['
         for name, robot_num in zip(poses.names, poses.robot_nums.tolist(), strict=True)
     ]
     width = -(-max(len(head.encode()) for head in heads) // 8) * 8

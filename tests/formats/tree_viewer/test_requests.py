@@ -89,7 +89,10 @@ def assert_same_request(fast: bytes, slow: bytes) -> None:
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.lists(link_poses(max_links=8), min_size=1, max_size=4), st.sampled_from([(), ("drake",), ('a"\\', "é")]))
+@given(
+    st.lists(link_poses(max_links=8), min_size=1, max_size=4),
+    st.sampled_from([(), ("drake",), ('a"\\', "é")]),
+)
 def test_settransform_equals_the_reference(frames: list[LinkPoses], prefix: tuple[str, ...]) -> None:
     encoder = SettransformEncoder(prefix)  # one encoder for all frames: its template must follow the links
     for poses in frames:
@@ -106,7 +109,9 @@ def test_settransform_of_real_drake_draws_through_the_decoder(drake_capture: dic
         encoder = SettransformEncoder()
         assert_same_request(encoder.encode(poses), reference(poses, DEFAULT_PREFIX))
         assert encoder.encode(poses) == fixed_width_reference(poses, DEFAULT_PREFIX)
-        moved = LinkPoses(poses.timestamp_ms + 1, poses.names, poses.robot_nums, poses.positions * 2, poses.quaternions_wxyz)
+        moved = LinkPoses(
+            poses.timestamp_ms + 1, poses.names, poses.robot_nums, poses.positions * 2, poses.quaternions_wxyz
+        )
         assert_same_request(encoder.encode(moved), reference(moved, DEFAULT_PREFIX))
 
 
@@ -123,7 +128,8 @@ def test_every_number_in_the_table_range_reads_back_as_the_rounded_value(numbers
     # Half the last decimal, plus the round-off of number * 1e8 and of the double nearest k / 10**8
     # (64.958984375 is a tie: 64.95898438 is 5e-9 away as a real number, 5.000004e-9 as doubles).
     assert all(
-        abs(value - number) <= 5e-9 + 4 * np.spacing(abs(number)) for value, number in zip(written, numbers, strict=True)
+        abs(value - number) <= 5e-9 + 4 * np.spacing(abs(number))
+        for value, number in zip(written, numbers, strict=True)
     )
 
 
@@ -137,7 +143,9 @@ def test_numbers_outside_the_tables_fall_back_to_orjson() -> None:
     assert SettransformEncoder().encode(empty) == reference(empty, DEFAULT_PREFIX)
     edge = LinkPoses(3, ("a",), np.zeros(1, np.int32), np.array([[9999.0, -9999.0, 1.0]]), quaternions[:1])
     assert SettransformEncoder().encode(edge) == reference(edge, DEFAULT_PREFIX)  # past the tables
-    huge = LinkPoses(3, ("a",), np.zeros(1, np.int32), np.array([[1e301, -1.7e308, 12345678.123]]), quaternions[:1])
+    huge = LinkPoses(
+        3, ("a",), np.zeros(1, np.int32), np.array([[1e301, -1.7e308, 12345678.123]]), quaternions[:1]
+    )
     (command,) = decode(SettransformEncoder().encode(huge))["settransform"]
     assert command["transform"]["translation"] == [1e301, -1.7e308, 12345678.123]  # not rounded, not inf
 

@@ -218,7 +218,10 @@ def test_the_bridge_drops_a_sample_put_on_a_wildcard_key() -> None:
     errors: Counter[str] = Counter()
     delivered: list[Received] = []
     on_sample = entities.ros_receiver(
-        "/lcm_in/IIWA_COMMAND", MessageType("drake_lcm_msgs/msg/LcmtIiwaCommand", CDR), [delivered.append], errors
+        "/lcm_in/IIWA_COMMAND",
+        MessageType("drake_lcm_msgs/msg/LcmtIiwaCommand", CDR),
+        [delivered.append],
+        errors,
     )
     payload = SimpleNamespace(to_bytes=lambda: b"\0\1\0\0" + bytes(16))
     for key in ("**", "0/**", "0/*/IIWA_COMMAND/T/H", "0/lcm_in/$*"):

@@ -83,7 +83,9 @@ def on_the_wire(poses: LinkPoses) -> tuple[list[list[float]], list[list[float]]]
 
 
 def bridge(endpoint: str, *args: str, stats: Path | None = None) -> BridgeProcess:
-    return BridgeProcess(*args, "--set", f"zenoh.connect=[{endpoint}]", *(stats_flags(stats) if stats else []))
+    return BridgeProcess(
+        *args, "--set", f"zenoh.connect=[{endpoint}]", *(stats_flags(stats) if stats else [])
+    )
 
 
 def zenoh_errors(path: Path) -> dict[str, int]:
@@ -554,8 +556,9 @@ def test_any_lcm_type_from_a_pydrake_diagram_reaches_an_rmw_zenoh_subscriber(
     try:
         process.wait_for_line("routes running")
         # The lazy route wakes once it sees the subscribers: the driver publishes until they have their share.
-        assert drive_until(url, lambda: len(arrived[STATUS_CHANNEL]) >= 100 and len(arrived[PLAN_CHANNEL]) >= 10), (
-            {channel: len(samples) for channel, samples in arrived.items()}, process.lines)
+        assert drive_until(
+            url, lambda: len(arrived[STATUS_CHANNEL]) >= 100 and len(arrived[PLAN_CHANNEL]) >= 10
+        ), ({channel: len(samples) for channel, samples in arrived.items()}, process.lines)
         recorder.sync()  # holds every message the driver sent
     finally:
         assert process.stop() == 0
@@ -577,4 +580,5 @@ def test_any_lcm_type_from_a_pydrake_diagram_reaches_an_rmw_zenoh_subscriber(
             message = store.deserialize_cdr(payload, typename)
             assert_same(lcm_class.decode(sent[channel][message.utime]), message)
     route = stats_of(stats)["lcm_bus"]
-    assert route["errors"] == {} and route["held"] == {SYNC_CHANNEL: {"unknown_type": 1}}  # the recorder's mark
+    # the recorder's mark
+    assert route["errors"] == {} and route["held"] == {SYNC_CHANNEL: {"unknown_type": 1}}

@@ -3,5 +3,4 @@
 (lcmt_viewer_draw, with the fast decoder and encoder), `contact` (lcmt_contact_results_for_viz)
 and `point_cloud` (lcmt_point_cloud)."""
 
-
 __all__: list[str] = []

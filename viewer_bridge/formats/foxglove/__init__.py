@@ -2,5 +2,4 @@
 `foxglove.SceneUpdate` (`scene`), a draw as `foxglove.FrameTransforms` (`transforms`), and the
 schemas channels and MCAP files carry (`schema`, the one module a transport may use)."""
 
-
 __all__: list[str] = []

@@ -101,7 +101,9 @@ def _polyline(shape: Shape) -> dict[str, Any]:
     return {"type": kind, "thickness": 2 * shape.radius if shape.radius > 0 else 0.01, "points": points}
 
 
-TABLES = FormatTables("foxglove", {"glb_model": _glb_model, "triad_lines": _triad_lines, "polyline": _polyline})
+TABLES = FormatTables(
+    "foxglove", {"glb_model": _glb_model, "triad_lines": _triad_lines, "polyline": _polyline}
+)
 
 
 __all__ = [

@@ -2,5 +2,4 @@
 message family: `poses` (Pose_V, PosesStamped), `geometry` (Geometry, with its table in
 mappings/ign.yaml), `model` (Model, Model_V) and `contact` (Contacts)."""
 
-
 __all__: list[str] = []

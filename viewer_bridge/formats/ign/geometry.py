@@ -38,7 +38,8 @@ def _polyline_points(shape: Line) -> dict[str, Any]:
 
 
 TABLES = FormatTables(
-    "ign", {"obj_data_uri": _data_uri_obj, "file_data_uri": _data_uri_file, "polyline_points": _polyline_points}
+    "ign",
+    {"obj_data_uri": _data_uri_obj, "file_data_uri": _data_uri_file, "polyline_points": _polyline_points},
 )
 
 

@@ -192,7 +192,8 @@ class _ModelWriter:
             wire.submessage(_LINK_POSE, _pose_values_bytes(pose)),
         ]
         parts += per_geometry(
-            link, lambda index, geometry: wire.submessage(_LINK_VISUAL, self.visual(link.name, index, geometry))
+            link,
+            lambda index, geometry: wire.submessage(_LINK_VISUAL, self.visual(link.name, index, geometry)),
         )
         return b"".join(parts)
 

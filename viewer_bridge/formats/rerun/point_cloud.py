@@ -44,5 +44,9 @@ def frame_arrows(poses: LinkPoses, length: float, world: str) -> list[Any]:
     origins = np.repeat(np.asarray(poses.positions, dtype=np.float64), 3, axis=0)
     return [
         rr.CoordinateFrame(world),
-        rr.Arrows3D(origins=origins, vectors=axes.reshape(-1, 3) * length, colors=np.tile(_AXIS_COLORS, (len(poses), 1))),
+        rr.Arrows3D(
+            origins=origins,
+            vectors=axes.reshape(-1, 3) * length,
+            colors=np.tile(_AXIS_COLORS, (len(poses), 1)),
+        ),
     ]

@@ -21,7 +21,9 @@ FieldPath = tuple[str, ...]
 TIME_FIELDS = ("utime",)
 
 
-def numeric_fields(message: Mapping[str, Any], path: FieldPath = ()) -> Iterator[tuple[FieldPath, list[float]]]:
+def numeric_fields(
+    message: Mapping[str, Any], path: FieldPath = ()
+) -> Iterator[tuple[FieldPath, list[float]]]:
     """(field path, its numbers) for every numeric field of a JSON-ready message, in field order."""
     for name, value in message.items():
         yield from _numbers(value, (*path, name))

@@ -63,7 +63,9 @@ def scene_chunks(scene: Scene, root: tuple[str, ...], frames: Callable[[str], st
     for link in scene.links:
         path, frame = link_entity(root, link.name), rr.CoordinateFrame(frames(link.name))
 
-        def geometry_chunks(index: int, geometry: Geometry, path: str = path, frame: Any = frame) -> list[Chunks]:
+        def geometry_chunks(
+            index: int, geometry: Geometry, path: str = path, frame: Any = frame
+        ) -> list[Chunks]:
             parts = table.expand(geometry.shape, geometry.pose)
             return [
                 static_chunk(
@@ -84,7 +86,9 @@ def _archetypes(type_name: str, values: dict[str, Any], pose: Pose, geometry: Ge
     """The geometry's pose in its link (with a mesh's scale) and its archetype, coloured."""
     scale = values.pop(_SCALE, None)
     instance = rr.InstancePoses3D(
-        translations=[pose.position], quaternions=[pose.quaternion_xyzw], scales=None if scale is None else [scale]
+        translations=[pose.position],
+        quaternions=[pose.quaternion_xyzw],
+        scales=None if scale is None else [scale],
     )
     if type_name in _ALBEDO:
         values["albedo_factor"] = geometry.color

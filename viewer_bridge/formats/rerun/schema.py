@@ -81,6 +81,7 @@ class Chunks(Value):
 def encode_batches(batches: Iterable[pa.RecordBatch]) -> bytes:
     """Record batches (each with a schema of its own) as one message's bytes."""
     import pyarrow as pa
+
     parts: list[bytes] = []
     for batch in batches:
         sink = pa.BufferOutputStream()
@@ -95,6 +96,7 @@ def decode_batches(data: bytes) -> list[tuple[int, pa.RecordBatch]]:
     """The record batches of a message, each with its stream's offset; `DecodeError` naming the
     offset of a bad one."""
     import pyarrow as pa
+
     batches: list[tuple[int, pa.RecordBatch]] = []
     offset = 0
     view = memoryview(data)

@@ -50,7 +50,9 @@ class _Times:
 
     def __init__(self, name: str, kind: pa.DataType, value: int, count: int) -> None:
         self.name = name
-        self.array = pa.Array.from_buffers(kind, count, [None, pa.py_buffer(np.full(count, value, dtype=np.int64))])
+        self.array = pa.Array.from_buffers(
+            kind, count, [None, pa.py_buffer(np.full(count, value, dtype=np.int64))]
+        )
 
     def timeline_name(self) -> str:
         return self.name
@@ -108,11 +110,16 @@ class TransformsEncoder:
         xyzw = np.empty((count, 4), dtype=np.float32)
         xyzw[:, :3] = poses.quaternions_wxyz[:, 1:]
         xyzw[:, 3] = poses.quaternions_wxyz[:, 0]
-        translations = self._fixed_rows("Transform3D:translation", np.asarray(poses.positions, dtype=np.float32))
+        translations = self._fixed_rows(
+            "Transform3D:translation", np.asarray(poses.positions, dtype=np.float32)
+        )
         quaternions = self._fixed_rows("Transform3D:quaternion", xyzw)
         chunk = Chunk.from_columns(
             self.path,
-            [_Times(SIM_TIME, _DURATION, stamp.sim_ns, count), _Times(RECEIVE_TIME, _TIMESTAMP, stamp.received_ns, count)],
+            [
+                _Times(SIM_TIME, _DURATION, stamp.sim_ns, count),
+                _Times(RECEIVE_TIME, _TIMESTAMP, stamp.received_ns, count),
+            ],
             [
                 self._column("Transform3D:translation", translations),
                 self._column("Transform3D:quaternion", quaternions),

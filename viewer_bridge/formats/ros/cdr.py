@@ -158,7 +158,9 @@ class CdrReader:
         seconds = self.scalar("i", "header.stamp.sec")
         nanoseconds = self.scalar("I", "header.stamp.nanosec")
         if nanoseconds >= 1_000_000_000:
-            raise DecodeError(self.type_name, "header.stamp.nanosec", self.offset - 4, f"{nanoseconds} >= 1e9")
+            raise DecodeError(
+                self.type_name, "header.stamp.nanosec", self.offset - 4, f"{nanoseconds} >= 1e9"
+            )
         return us_from_sec_nsec(seconds, nanoseconds), self.string("header.frame_id")
 
     def count(self, field: str, item_size: int) -> int:
@@ -167,7 +169,10 @@ class CdrReader:
         left = len(self.buffer) - self.offset
         if count * item_size > left:
             raise DecodeError(
-                self.type_name, field, self.offset - 4, f"count {count} needs {count * item_size} bytes, {left} left"
+                self.type_name,
+                field,
+                self.offset - 4,
+                f"count {count} needs {count * item_size} bytes, {left} left",
             )
         return count
 

@@ -62,7 +62,12 @@ def _solid_primitive_cdr(rule: ShapeRule, shape: Shape) -> bytes:
     dimensions = rule.values(shape)["dimensions"]
     count = len(dimensions)
     return b"".join(
-        (CDR_LE, _TYPE_AND_COUNT.pack(rule.type_code, count), struct.pack(f"<{count}d", *dimensions), U32.pack(0))
+        (
+            CDR_LE,
+            _TYPE_AND_COUNT.pack(rule.type_code, count),
+            struct.pack(f"<{count}d", *dimensions),
+            U32.pack(0),
+        )
     )
 
 

@@ -71,7 +71,12 @@ def link_path(link: Link, prefix: Sequence[str] = DEFAULT_PREFIX) -> list[str]:
 def geometry_command(shape: Shape, pose: Pose, color: Sequence[float]) -> dict[str, Any]:
     """The `geometry` object of a setgeometry for one shape (see mappings/tree_viewer.yaml)."""
     ((rule, lowered, lowered_pose),) = TABLES["geometry"].expand(shape, pose)
-    return {"type": rule.type_code, **rule.values(lowered), "color": list(color), "transform": transform(lowered_pose)}
+    return {
+        "type": rule.type_code,
+        **rule.values(lowered),
+        "color": list(color),
+        "transform": transform(lowered_pose),
+    }
 
 
 def load_requests(scene: Scene, prefix: Sequence[str] = DEFAULT_PREFIX, utime: int = 0) -> list[Request]:

@@ -6,5 +6,4 @@
 Only `keys` and `transport` import without eclipse-zenoh installed.
 """
 
-
 __all__: list[str] = []

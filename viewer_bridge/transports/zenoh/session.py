@@ -187,7 +187,9 @@ class Link:
                              self.where, _reason(error), self._retry_s)  # fmt: skip
             return False
         listener = as_non_daemon(
-            lambda: session.info.declare_transport_events_listener(self.calling(self._on_transport), history=True)
+            lambda: session.info.declare_transport_events_listener(
+                self.calling(self._on_transport), history=True
+            )
         )
         with self._lock:  # `close` sets the stop before it takes the session under this lock
             closed = self._stop.is_set()
@@ -222,11 +224,14 @@ class Link:
         with self._calls_lock:
             self._closing = True  # no callback nor put starts after this
         self._stop.set()
-        if self._thread.is_alive():  # an attempt under way: a daemon left inside `zenoh.open` at exit would abort it
+        # an attempt under way: a daemon left inside `zenoh.open` at exit would abort it
+        if self._thread.is_alive():
             self._thread.join(timeout=_CALLBACKS_DONE_S)
         with self._calls:
             if not self._calls.wait_for(lambda: self._running == 0, timeout=_CALLBACKS_DONE_S):
-                _log.warning("Zenoh: %d callbacks or puts still running at close (%s)", self._running, self.where)
+                _log.warning(
+                    "Zenoh: %d callbacks or puts still running at close (%s)", self._running, self.where
+                )
         with self._lock:
             session, self.session = self.session, None
             held, self._held = self._held, []
@@ -273,8 +278,10 @@ def _undeclare(handle: object) -> None:
         undeclare()
     except zenoh.ZError as error:  # e.g. the router gone meanwhile: closing the session ends it anyway
         _log.debug("Zenoh: undeclaring %r at close: %s", handle, error)
-    except RuntimeError as error:  # in use on another thread ("Already borrowed"): the session's close ends it
+    # in use on another thread ("Already borrowed"): the session's close ends it
+    except RuntimeError as error:
         _log.warning("Zenoh: undeclaring %r at close: %s", handle, error)
+
 
 __all__ = [
     "Declare",

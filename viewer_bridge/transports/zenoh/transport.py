@@ -169,7 +169,9 @@ class ZenohTransport(Transport):
         endpoints = settings.connect or ([] if file else [session.ROUTER_ENDPOINT])
         self._where = f"{mode}, connecting to {', '.join(endpoints) or 'no endpoint'}"
         if settings.listen:  # a router or a peer others connect to: where, for the start line
-            self._where = f"{mode}, listening on {', '.join(settings.listen)}, connecting to {', '.join(endpoints)}"
+            self._where = (
+                f"{mode}, listening on {', '.join(settings.listen)}, connecting to {', '.join(endpoints)}"
+            )
         self.link: Link = session.Link(lambda: session.make_config(file, pairs), self._where)
         self.domain = (
             settings.domain_id
@@ -229,7 +231,11 @@ class ZenohTransport(Transport):
 
     def require(self, message_types: Iterable[MessageType]) -> None:
         for message_type in message_types:
-            if message_type.encoding == CDR and message_type.definition is None and not found_in_graph(message_type):
+            if (
+                message_type.encoding == CDR
+                and message_type.definition is None
+                and not found_in_graph(message_type)
+            ):
                 try:
                     keys.topic_type(message_type.name)
                 except (KeyError, ValueError):
@@ -319,7 +325,9 @@ class ZenohTransport(Transport):
                     if not pattern.fullmatch(topic) or (wanted.name == EVERY and topic in own):
                         continue
                     if found := self._types.pick(wanted, topic, announced):
-                        self._subscribe_topic(topic, found, qos, deliver, type_hash if wanted.name == EVERY else None)
+                        self._subscribe_topic(
+                            topic, found, qos, deliver, type_hash if wanted.name == EVERY else None
+                        )
 
     def _on_lcm(self, sample: zenoh.Sample) -> None:
         channel = str(sample.key_expr)[len(self.settings.lcm_prefix) + 1 :]
@@ -346,9 +354,7 @@ class ZenohTransport(Transport):
         def declare(session: zenoh.Session) -> None:
             token = dataclasses.replace(node_token, zid=str(session.zid()))
             self.link.hold(session.liveliness().declare_token(token.key()))
-            self.link.hold(
-                session.liveliness().declare_subscriber(graph_key, on_graph, history=True)
-            )
+            self.link.hold(session.liveliness().declare_subscriber(graph_key, on_graph, history=True))
             if self._channels:
                 self.link.hold(session.declare_subscriber(f"{prefix}/**", on_lcm))
                 if latched:  # what was sent before this bridge joined: each channel's last message
