@@ -207,7 +207,9 @@ class BridgeConfig(BaseModel):
     def _checked_again(self, changes: dict[str, Any]) -> BridgeConfig:
         """This config with `changes` to its top-level keys, checked again (a bad value is a
         ConfigError); made from its own routes, so that `ros_topics` makes its routes anew."""
-        data = {**self.model_dump(), "routes": [route.model_dump() for route in self._own_routes], **changes}
+        # Each route as its config wrote it: a QoS policy it left unset follows the publishers.
+        routes = [route.model_dump(exclude_unset=True) for route in self._own_routes]
+        data = {**self.model_dump(), "routes": routes, **changes}
         try:
             return BridgeConfig.model_validate(data)
         except ValidationError as error:  # a section of the config's own (a transport's raises ConfigError)
