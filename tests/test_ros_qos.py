@@ -270,3 +270,53 @@ def test_thousands_of_disallowed_command_topics_cost_nothing(tmp_path: Path) -> 
     finally:
         probe.close()
         assert bridge.stop() == 0
+
+
+# --- Zenoh -------------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def zenoh_router() -> Any:
+    from tests.zenoh_peers import Router
+
+    router = Router()
+    yield router
+    router.close()
+
+
+def test_over_zenoh_best_effort_and_latched_publishers_reach_lcm(zenoh_router: Any, tmp_path: Path) -> None:
+    """The rmw_zenoh-format peer publishes as rmw_zenoh does: a transient-local String once, before
+    the bridge starts (an advanced publisher with a cache), and a best-effort JointState; both reach
+    LCM, the latched one once."""
+    from rclpy.serialization import serialize_message
+
+    from tests.test_ros_topics import ZENOH_JOINTS
+    from tests.zenoh_peers import RmwZenohPeer
+
+    url = free_lcm_url()
+    recorder = LcmRecorder(url)
+    peer = RmwZenohPeer(zenoh_router.endpoint, 45, node="qos_zenoh_peer")
+    latched = peer.publisher("/probe/description", STRING, entity=1, depth=1, latched=True)
+    latched(bytes(serialize_message(ros_message(STRING, {"data": "<robot name='arm'/>"}))))
+    bridge = BridgeProcess(
+        "-c", "builtin:zenoh", "--lcm-url", url, "--ros-topics", "/probe/.*",
+        "--set", f"zenoh.connect=[{zenoh_router.endpoint}]", "--set", "zenoh.domain_id=45",
+    )  # fmt: skip
+    try:
+        bridge.wait_for_line(" running (")
+        sensor = peer.publisher("/probe/joints", JOINT_STATE, entity=2, depth=5, best_effort=True)
+        joints = bytes(serialize_message(ros_message(JOINT_STATE, ZENOH_JOINTS)))
+        assert wait_for(lambda: peer.subscribed("/probe/joints"), 90), bridge.lines[-10:]
+
+        def carried() -> bool:
+            sensor(joints)
+            return "probe/joints" in recorder.messages
+
+        assert wait_for(carried, 60), bridge.lines[-10:]
+        assert wait_for(lambda: "probe/description" in recorder.messages, 60), bridge.lines[-10:]
+        recorder.sync()
+        assert lcmgen_strings(recorder.messages["probe/description"]) == [{"data": "<robot name='arm'/>"}]
+    finally:
+        peer.close()
+        assert bridge.stop() == 0
+        recorder.close()
