@@ -320,3 +320,42 @@ def test_over_zenoh_best_effort_and_latched_publishers_reach_lcm(zenoh_router: A
         peer.close()
         assert bridge.stop() == 0
         recorder.close()
+
+
+def test_a_latched_message_published_before_the_bridge_reaches_a_route_subscribed_at_start(
+    tmp_path: Path,
+) -> None:
+    """`/drake_in/point_cloud` is subscribed as the bridge starts, before discovery has found any
+    publisher (so with the route's own QoS, volatile); the transient-local publisher found then
+    calls for a new subscription, whose history brings the cloud published before the bridge
+    started: it reaches LCM once."""
+    import numpy as np
+    from sensor_msgs.msg import PointCloud2, PointField
+
+    url = free_lcm_url()
+    recorder = LcmRecorder(url)
+    probe = RosProbe("qos_latched_cloud")
+    cloud = PointCloud2()
+    cloud.header.frame_id = "camera_link"
+    cloud.height, cloud.width = 1, 3
+    cloud.fields = [PointField(name=name, offset=4 * index, datatype=PointField.FLOAT32, count=1)
+                    for index, name in enumerate("xyz")]  # fmt: skip
+    cloud.point_step, cloud.row_step, cloud.is_dense = 12, 36, True
+    cloud.data = np.arange(9, dtype="<f4").tobytes()
+    publisher = probe.publisher(
+        "/drake_in/point_cloud", "sensor_msgs/msg/PointCloud2", profile(1, latched=True)
+    )
+    publisher.publish(cloud)
+    bridge = BridgeProcess("--lcm-url", url)
+    try:
+        bridge.wait_for_line(" running (")
+        assert wait_for(lambda: "DRAKE_POINT_CLOUD_FROM_ROS" in recorder.messages, 60), bridge.lines[-10:]
+        time.sleep(3)  # the old subscription's last second and the switch's window: nothing more comes
+        recorder.sync()
+        assert len(recorder.messages["DRAKE_POINT_CLOUD_FROM_ROS"]) == 1
+        received = drake_lcmtypes.lcmt_point_cloud.decode(recorder.messages["DRAKE_POINT_CLOUD_FROM_ROS"][0])
+        assert (received.width, received.frame_name) == (3, "camera_link")
+    finally:
+        probe.close()
+        assert bridge.stop() == 0
+        recorder.close()

@@ -26,8 +26,7 @@ import os
 import re
 import threading
 import time
-from collections import deque
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from pydantic import Field, field_validator
@@ -92,6 +91,7 @@ def message_class(typename: str) -> Any:
 
 SWITCH_S = 2.0  # a followed subscription is re-made at most this often (a peer whose QoS flaps)
 RETIRE_S = 1.0  # a replaced subscription delivers this long beside its successor, duplicates dropped
+MAX_SWITCH_KEYS = 65_536  # message keys one switch remembers (about 6 MiB), whatever the rate
 GONE_TICKS = 3  # discovery rounds (seconds) a pattern's topic may have no publisher before it is dropped
 
 
@@ -137,26 +137,29 @@ def _valid(name: str, problem: str | None, what: str) -> str:
     return name
 
 
-class RecentKeys:
-    """The last `size` messages' keys (the writer's timestamp and sequence number), to drop a
-    message that arrives twice: once from a subscription being replaced and once from its
-    successor, or again as a transient-local publisher's history."""
+class Switch:
+    """While a topic's subscription is being replaced, which messages were delivered already:
+    the keys (the writer's timestamp and sequence number) of those the old and the new
+    subscription delivered in the meantime, and the writers' time span the earlier subscriptions
+    covered, whose messages a transient-local successor receives again as history. Only a
+    switch pays for it: outside one, a message costs no key."""
 
-    __slots__ = ("_keys", "_order")
+    __slots__ = ("ends", "covered", "_keys")
 
-    def __init__(self, size: int) -> None:
+    def __init__(self, covered: tuple[int, int], ends: float) -> None:
+        self.covered, self.ends = covered, ends
         self._keys: set[tuple[int, int]] = set()
-        self._order: deque[tuple[int, int]] = deque(maxlen=size)
 
-    def seen(self, key: tuple[int, int]) -> bool:
-        """Whether `key` came before (else it is remembered now)."""
+    def delivered(self, info: dict[str, Any], history: bool) -> bool:
+        """Whether a message (its rclpy message info) was delivered before; `history`: it came
+        from the new subscription, whose history repeats what the old one delivered live."""
+        sent = info["source_timestamp"]
+        key = (sent, info["publication_sequence_number"])
         if key in self._keys:
             return True
-        if len(self._order) == self._order.maxlen:
-            self._keys.discard(self._order[0])
-        self._order.append(key)
-        self._keys.add(key)
-        return False
+        if len(self._keys) < MAX_SWITCH_KEYS:
+            self._keys.add(key)
+        return history and self.covered[0] <= sent < self.covered[1]
 
 
 class TopicSubscription:
@@ -164,7 +167,7 @@ class TopicSubscription:
     publishers (`Qos.follow`), re-made when what they offer calls for another profile.
 
     The new subscription is made before the old one goes, and the old one delivers for `RETIRE_S`
-    beside it, so no message is lost in between; each message's key drops the second copy.
+    beside it, so no message is lost in between; a `Switch` drops the second copy of a message.
     """
 
     def __init__(
@@ -184,39 +187,55 @@ class TopicSubscription:
         self._live: Any = None
         self._retiring: list[tuple[Any, float]] = []  # (subscription, when it goes)
         self._switched_at = -SWITCH_S
+        self._switch: Switch | None = None  # while a switch is under way
+        self._since_ns = 0  # when the first subscription was made: what the live ones covered since
         self._message_class: Any = None
-        # Room for every message two subscriptions' histories can hold, plus what arrives meanwhile.
-        self._recent = RecentKeys(4 * max_depth) if asked.follow else None
 
     def start(self, message_class: Any) -> None:
         """Subscribe, as the publishers known now call for (the type's class is importable now)."""
         self._message_class = message_class
         self.qos = followed(self.asked, offered_by(self.node, self.topic), self.max_depth)
-        self._live = self._create(self.qos)
+        self._since_ns = time.time_ns()
+        self._live = self._create(self.qos, successor=False)
 
-    def _create(self, qos: Qos) -> Any:
+    def _create(self, qos: Qos, successor: bool) -> Any:
         from rclpy.event_handler import SubscriptionEventCallbacks
 
         events = SubscriptionEventCallbacks(
             incompatible_qos=self._incompatible, incompatible_type=self._other_type
         )
         profile = qos_profile(qos.depth, qos.reliable, qos.latched)
+        # A transient-local successor hears the past again: its history is checked as such.
+        on_message = self.message_callback(history=successor and qos.latched)
         return self.node.create_subscription(
             self._message_class,
             self.topic,
-            self._on_message,  # type: ignore[arg-type]  # rclpy passes the message info to a second parameter
+            on_message,  # type: ignore[arg-type]  # rclpy passes the message info to a second parameter
             profile,
             event_callbacks=events,
             raw=True,
         )
 
-    def _on_message(self, data: bytes, info: dict[str, Any]) -> None:
-        sent = info["source_timestamp"]
-        if self._recent is not None and self._recent.seen((sent, info["publication_sequence_number"])):
-            return
-        message = Received(self.topic, bytes(data), message_type=self.message_type, sent_us=sent // 1000)
-        for each in self.delivers:
-            each(message)
+    def message_callback(self, history: bool) -> Callable[[bytes, dict[str, Any]], None]:
+        """rclpy's callback of one subscription: the raw bytes to every route reading the topic,
+        stamped with the writer's time; during a switch, a message delivered before is dropped."""
+
+        def on_message(data: bytes, info: dict[str, Any]) -> None:
+            switch = self._switch
+            if switch is not None and self._repeated(switch, info, history):
+                return
+            sent_us = info["source_timestamp"] // 1000
+            message = Received(self.topic, bytes(data), message_type=self.message_type, sent_us=sent_us)
+            for each in self.delivers:
+                each(message)
+
+        return on_message
+
+    def _repeated(self, switch: Switch, info: dict[str, Any], history: bool) -> bool:
+        if time.monotonic() >= switch.ends:  # the switch is over: back to no keys at all
+            self._switch = None
+            return False
+        return switch.delivered(info, history)
 
     def refresh(self, publishers: list[Offered] | None = None) -> None:
         """Re-make the subscription when its `publishers` (found now if not given) call for another
@@ -236,7 +255,11 @@ class TopicSubscription:
             return
         log.info("viewer-bridge: %s: its publishers offer %s now (was %s): subscribed anew",
                  self.topic, describe(wanted), describe(self.qos))  # fmt: skip
-        replaced, self._live, self.qos, self._switched_at = self._live, self._create(wanted), wanted, now
+        # What arrives before the new subscription is matched, and its history, is checked
+        # against what was delivered for a while after the old one is gone.
+        self._switch = Switch((self._since_ns, time.time_ns()), now + RETIRE_S + SWITCH_S)
+        replaced, self._live = self._live, self._create(wanted, successor=True)
+        self.qos, self._switched_at = wanted, now
         self._retiring.append((replaced, now + RETIRE_S))
 
     def _incompatible(self, info: Any) -> None:
