@@ -359,3 +359,40 @@ def test_a_latched_message_published_before_the_bridge_reaches_a_route_subscribe
         probe.close()
         assert bridge.stop() == 0
         recorder.close()
+
+
+def test_many_mixed_publishers_and_one_that_flaps_cost_at_most_two_subscriptions(tmp_path: Path) -> None:
+    """100 publishers of one topic with every mix of QoS, then one whose QoS changes every half
+    second: the bridge never holds more than two subscriptions on the topic (the live one and, for
+    a second, the one it replaces), and every kind of publisher is heard."""
+    url = free_lcm_url()
+    recorder = LcmRecorder(url)
+    probe = RosProbe("qos_crowd")
+    bridge = BridgeProcess("--lcm-url", url, "--ros-topics", "/probe/crowd")
+    kinds = [profile(1 + index % 7, reliable=index % 2 == 0, latched=index % 3 == 0) for index in range(100)]
+    try:
+        bridge.wait_for_line(" running (")
+        crowd = [probe.publisher("/probe/crowd", STRING, kind) for kind in kinds]
+        most = 0
+        deadline = time.monotonic() + 8
+        flapping = None
+        while time.monotonic() < deadline:  # a publisher that comes back with other QoS, twice a second
+            if flapping is not None:
+                probe.node.destroy_publisher(flapping)
+            flapping = probe.publisher(
+                "/probe/crowd", STRING, profile(5, reliable=bool(int(time.monotonic() * 2) % 2))
+            )
+            most = max(most, probe.node.count_subscribers("/probe/crowd"))
+            time.sleep(0.5)
+        assert 1 <= most <= 2, most
+
+        def heard(index: int) -> bool:
+            crowd[index].publish(ros_message(STRING, {"data": f"from {index}"}))
+            return any(f"from {index}".encode() in data for data in recorder.messages.get("probe/crowd", []))
+
+        assert wait_for(lambda: heard(1), 60)  # best effort, volatile
+        assert wait_for(lambda: heard(0), 60)  # reliable, transient local
+    finally:
+        probe.close()
+        assert bridge.stop() == 0
+        recorder.close()
