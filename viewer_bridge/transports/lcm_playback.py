@@ -155,11 +155,11 @@ class LogPlayer:
                 self._send(event)
             if position is not None:
                 self._send(self.index.event(position))
-            if ended is not None:
-                for on_state, _ in self._watchers:
-                    on_state(ended)
             if latched is not None or ended is not None or self._clock.playing:
                 self._tell_time(force=latched is not None or ended is not None)
+            if ended is not None:  # after the time: the clock at the end, then "ended"
+                for on_state, _ in self._watchers:
+                    on_state(ended)
 
     def _take_resend(self) -> list[LoggedEvent] | None:
         """The world at the clock's time, when a seek (or the start) asks for it."""
