@@ -134,12 +134,12 @@ class PlaybackClient:
         assert self.pump(lambda: self.answer(request_id) is not None), self.seen[-5:]
         answer = self.answer(request_id)
         assert answer is not None
-        return answer  # type: ignore[no-any-return]
+        return answer
 
     def answer(self, request_id: str) -> tuple[Any, ...] | None:
         return next((state for kind, state in self.seen if kind == "state" and state[4] == request_id), None)
 
-    def after(self, request_id: str, topic: str) -> list[tuple[int, bytes]]:
+    def after(self, request_id: str, topic: str) -> list[Any]:
         """What arrived on `topic` (or "time") since the request `request_id` was sent."""
         return [item for kind, item in self.seen[self._sent_at[request_id] :] if kind == topic]
 
@@ -201,7 +201,7 @@ def test_foxglove_drives_the_playback_and_lcm_follows(demo_log: Path) -> None:
         client.subscribe("/drake/transforms")  # advertised with the draw it carried (kept: nobody listened)
         assert client.pump(lambda: client.after("seek-middle", "/drake/transforms")), client.seen[-5:]
         log_time, transforms = client.after("seek-middle", "/drake/transforms")[0]
-        assert log_time == ns(middle)  # stamped with its time in the log: the timeline's
+        assert log_time == ns(middle)  # stamped with the timeline's time: paused at that instant
         assert sim_ms(transforms) == drake_lcmtypes.lcmt_viewer_draw.decode(middle.data).timestamp
         # on LCM: the scene again, then that instant's draw, byte for byte
         assert wait_for(lambda: "DRAKE_VIEWER_DRAW" in recorder.messages)
@@ -224,7 +224,10 @@ def test_foxglove_drives_the_playback_and_lcm_follows(demo_log: Path) -> None:
         sought_at = time.monotonic()
         assert (status, speed, did_seek) == (PLAYING, 2.0, True) and 0 <= now - ns(back) < 10**9
         # the world at that instant comes (a draw played just before the seek may come before it)
-        assert client.pump(lambda: any(t == ns(back) for t, _ in client.after("back", "/drake/transforms")))
+        back_ms = drake_lcmtypes.lcmt_viewer_draw.decode(back.data).timestamp
+        assert client.pump(
+            lambda: any(sim_ms(p) == back_ms for _, p in client.after("back", "/drake/transforms"))
+        )
         assert client.pump(lambda: any(kind == "state" and state[0] == ENDED for kind, state in client.seen))
         ended_at = time.monotonic()
         assert ended_at - sought_at >= (last - ns(back)) / 1e9 / 2 * 0.9  # never faster than the clock

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from urllib.parse import urlencode
 
 from pydantic import Field, field_validator
@@ -41,7 +41,7 @@ from pydantic import Field, field_validator
 from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, TransportUnavailable
 from viewer_bridge.formats.foxglove.schema import schema
-from viewer_bridge.shared import MessageTime, Shared
+from viewer_bridge.shared import Shared
 from viewer_bridge.transports.base import (
     CDR,
     PROTOBUF,
@@ -154,6 +154,7 @@ class _WithoutSdkAddress(logging.Filter):
 
 logging.getLogger("foxglove.websocket.server").addFilter(_WithoutSdkAddress())  # the SDK's Rust log
 log = logging.getLogger("viewer_bridge")
+Clock = Callable[[], int]  # a time in nanoseconds since the epoch
 
 
 class FoxgloveSettings(TransportSettings):
@@ -224,11 +225,11 @@ class _Channel:
         channel: foxglove.Channel,
         latched: bool,
         subscribers: _Subscribers,
-        time: MessageTime | None = None,
+        clock: Clock | None = None,
     ) -> None:
-        """`time`: the message time to stamp each message with (a played log's), else now."""
+        """`clock`: the time (ns) to stamp each message with (a played log's timeline), else now."""
         self.channel = channel
-        self._time = time
+        self._clock = clock
         self.id = channel.id()
         self.latched = latched
         self.last: bytes | None = None
@@ -238,10 +239,10 @@ class _Channel:
     def publish(self, data: bytes) -> None:
         if self.latched:
             self.last = data
-        if self._time is None:
+        if self._clock is None:
             self.channel.log(data)
         else:
-            self.channel.log(data, log_time=self._time.received_us * 1000)
+            self.channel.log(data, log_time=self._clock())
 
     def subscriber_count(self) -> int:
         return self._subscribers.count(self.id)
@@ -293,8 +294,8 @@ class FoxgloveTransport(Transport):
         """`accept_commands`: whether what clients publish can land anywhere (a router's config
         allows some command channel); without it the server offers no publishing, and a client
         that publishes anyway is told why. `shared`: when it holds a played timeline (`viewer-bridge
-        play`), clients drive it (viewer_bridge/transports/foxglove_playback.py) and messages are
-        stamped with their time on it."""
+        play`), clients drive it (viewer_bridge/transports/foxglove_playback.py) and each message is
+        stamped with the timeline's time when it is sent."""
         super().__init__(settings)
         self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
         self._subscribers = _Subscribers()
@@ -307,7 +308,7 @@ class FoxgloveTransport(Transport):
         options = publishing if self.clients is not None and accept_commands else {}
         timeline = None if shared is None else shared.get(Timelines).timeline
         self._playback = None if timeline is None else FoxglovePlayback(timeline)
-        self._time = None if self._playback is None or shared is None else shared.message_time
+        self._clock = None if timeline is None else timeline.now_ns
         if self._playback is not None:
             played = self._playback.server_options()
             options = (
@@ -379,7 +380,7 @@ class FoxgloveTransport(Transport):
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         channel = self.context.channel(name, message_type, "foxglove")
         publisher = self._channels[channel.id()] = _Channel(
-            channel, qos.latched, self._subscribers, self._time
+            channel, qos.latched, self._subscribers, self._clock
         )
         return publisher
 

@@ -1,8 +1,9 @@
 """An LCM log played under a clock that can pause, change speed and seek: the source of
 `viewer-bridge play`, with the interface of a live bus (`viewer_bridge.transports.lcm.LcmBus`).
 
-Events are delivered in time order when the clock reaches their time, stamped with their log
-time (what the outputs are stamped with, as `convert` does offline). A seek re-sends the world
+Events are delivered in time order when the clock reaches their time, received now (as a live
+bus's, and as `run --lcm-url file://LOG` replays them: a ROS 2 tool's clock keeps moving forward
+across seeks); a transport that shows the timeline stamps what it sends with `now_ns`. A seek re-sends the world
 at the instant sought before playing on from it: per channel, the last event at or before it
 (so the last load of each role, the last draw, the last of every other channel), found with two
 binary searches per channel in the log's index (`LogIndex.latched`), however long the log. With
@@ -25,7 +26,7 @@ from viewer_bridge.transports.playback import Answer, PlaybackClock, PlaybackReq
 
 log = logging.getLogger("viewer_bridge")
 
-Callback = Callable[[str, bytes, int], None]  # channel, data, log time (microseconds)
+Callback = Callable[[str, bytes, int], None]  # channel, data, receive time (time.time_ns() // 1000)
 TICK_S = 0.1  # how often the clock's time is told while playing with no event due
 
 
@@ -96,6 +97,9 @@ class LogPlayer:
     @property
     def range_ns(self) -> tuple[int, int]:
         return self.index.first_us * 1000, self.index.last_us * 1000
+
+    def now_ns(self) -> int:
+        return self._time_us() * 1000
 
     def watch(self, on_state: Callable[[PlaybackState], None], on_time: Callable[[int], None]) -> None:
         self._watchers.append((on_state, on_time))
@@ -215,7 +219,7 @@ class LogPlayer:
                 log.warning("--lcm-out: %s: %s", event.channel, error)
         for pattern, callback in self._subscribers:
             if pattern.fullmatch(event.channel):
-                callback(event.channel, event.data, event.utime)
+                callback(event.channel, event.data, time.time_ns() // 1000)
 
 
 __all__ = ["LcmOut", "LogPlayer", "TICK_S"]

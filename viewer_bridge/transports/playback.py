@@ -63,6 +63,9 @@ class Timeline(Protocol):
 
     def state(self) -> PlaybackState: ...
 
+    def now_ns(self) -> int:
+        """The clock's time, within the range."""
+
     def watch(self, on_state: Callable[[PlaybackState], None], on_time: Callable[[int], None]) -> None:
         """Call `on_state` when the state changes by itself (the end reached), `on_time` as the
         clock moves (a few times a second while playing, and after each seek)."""
