@@ -257,3 +257,44 @@ def test_an_empty_log_is_one_line_and_exit_2(tmp_path: Path) -> None:
     assert done.stderr.splitlines() == [
         f"viewer-bridge play: {empty} holds no whole LCM event: nothing to play"
     ]
+
+
+def test_a_seek_in_drakes_log_sends_lcm_that_instant_byte_for_byte_and_every_client_the_state(
+    drake_log: Path,
+) -> None:
+    """A log DrakeVisualizer wrote (two roles): after a seek, the first draw of each role an LCM
+    subscriber on --lcm-out receives is the log's draw at that instant, after the role's load; a
+    second client sees the state that answers the first's request."""
+    events = list(read_log(drake_log, "DRAKE_VIEWER_.*"))
+    draws = [event for event in events if event.channel == "DRAKE_VIEWER_DRAW_ILLUSTRATION"]
+    middle = draws[len(draws) // 2]
+    url = lcm_url(3)
+    recorder = LcmRecorder(url)
+    bridge = PlayProcess(str(drake_log), "-c", "builtin:foxglove", "--paused", "--lcm-out", url)
+    clients: list[PlaybackClient] = []
+    try:
+        port = bridge.port()
+        clients = [PlaybackClient(port), PlaybackClient(port)]
+        first, second = clients
+        assert second.pump(lambda: bool(second.info))
+        assert wait_for(lambda: bool(recorder.messages))  # the log's first instant, sent at start
+        before = {channel: len(messages) for channel, messages in recorder.messages.items()}
+        state = first.request(False, 1.0, ns(middle), "to-the-middle")
+        assert state == (PAUSED, ns(middle), 1.0, True, "to-the-middle")
+        assert second.pump(lambda: second.answer("to-the-middle") == state), second.seen[-5:]
+
+        def since_seek(channel: str) -> list[bytes]:
+            return recorder.messages.get(channel, [])[before.get(channel, 0) :]
+
+        expected = {}
+        for event in events:  # the last of each channel at or before the instant
+            if event.timestamp_us <= middle.timestamp_us:
+                expected[event.channel] = event.data
+        assert wait_for(lambda: all(since_seek(channel) for channel in expected)), recorder.messages.keys()
+        for channel, data in expected.items():
+            assert since_seek(channel)[0] == data, channel  # byte for byte
+    finally:
+        for client in clients:
+            client.close()
+        assert bridge.stop() == 0, bridge.lines
+        recorder.close()
