@@ -189,3 +189,19 @@ def test_a_log_played_at_speed_ends_in_time_order(log_path: Path) -> None:
         assert delivered == [event.data for event in events()]
     finally:
         player.close()
+
+
+def test_a_looped_log_plays_from_its_start_again(log_path: Path) -> None:
+    player = LogPlayer(LogIndex.build(log_path), speed=20.0, loop=True)
+    delivered: list[bytes] = []
+    player.subscribe(".*", lambda channel, data, received_us: delivered.append(data))
+    player.start()
+    try:
+        # once through, then the world at the first instant (the first load and draw) and on
+        assert wait_for(lambda: len(delivered) > len(events()) + 10)
+        once = [event.data for event in events()]
+        assert delivered[: len(once)] == once
+        assert delivered[len(once) : len(once) + 3] == [b"load-1", b"draw-0", b"draw-1"]
+        assert not player.finished.is_set()
+    finally:
+        player.close()

@@ -90,12 +90,16 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--workers {args.workers}: play runs its routes in one process (--workers 1)")
     if args.lcm_out and log_to_write(args.lcm_out) is None and args.lcm_out.startswith("file://"):
         raise UsageError(f"--lcm-out {args.lcm_out}: a log to write is file://PATH?mode=w")
-    view = _status_view(args.quiet)
-    index = None
+    # indexed before the route table takes the terminal: its progress line is a line of its own
+    index = LogIndex.build(args.log, None if args.quiet else ProgressLine(Path(args.log)))
+    if len(index) == 0:
+        raise UsageError(f"{args.log} holds no whole LCM event: nothing to play")
     try:
-        index = LogIndex.build(args.log, ProgressLine(Path(args.log)))
-        if len(index) == 0:
-            raise UsageError(f"{args.log} holds no whole LCM event: nothing to play")
+        view = _status_view(args.quiet)
+    except BaseException:
+        index.close()
+        raise
+    try:
         without = _foxglove_unless_installed() if args.config is None else None
         config = load_config(args.config, without=without)
         for setting in args.set:
@@ -128,8 +132,7 @@ def run(args: argparse.Namespace) -> int:
         )
     except BaseException:
         view.close()
-        if index is not None:
-            index.close()
+        index.close()
         raise
     for signal_number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signal_number, lambda number, frame: router.stop())
