@@ -154,29 +154,32 @@ def _scan(
     channel_ids: dict[bytes, int] = {}
     unpack, header = _HEADER.unpack_from, _HEADER.size
     offset = skipped = 0
-    next_progress = 1 << 24  # every 16 MB: a check per event would cost more than the progress line is worth
+    next_progress = 1 << 24  # the progress is told every 16 MB
+    # bound once: the loop runs per event, and a name looked up is dearer than a local
+    add_offset, add_utime, add_id, known = offsets.append, utimes.append, ids.append, channel_ids.get
     while offset + header <= size:
         sync, _, utime, channel_length, data_length = unpack(mapped, offset)
-        end = offset + header + channel_length + data_length
         if sync != SYNC or channel_length > MAX_CHANNEL_LENGTH:  # no event here: on to the next sync word
             found = mapped.find(_SYNC_BYTES, offset + 1)
             found = size if found < 0 else found
             skipped += found - offset
             offset = found
             continue
+        start = offset + header
+        end = start + channel_length + data_length
         if end > size:
             break  # a partial last event
-        name = mapped[offset + header : offset + header + channel_length]
-        channel = channel_ids.get(name)
+        name = mapped[start : start + channel_length]
+        channel = known(name)
         if channel is None:
             if len(channel_ids) >= MAX_CHANNELS:
                 raise LogError(f"{path}: more than {MAX_CHANNELS} channels; not indexed")
             channel = channel_ids[name] = len(channel_ids)
-        offsets.append(offset)
-        utimes.append(utime)
-        ids.append(channel)
+        add_offset(offset)
+        add_utime(utime)
+        add_id(channel)
         offset = end
-        if progress is not None and offset >= next_progress:
+        if offset >= next_progress and progress is not None:
             next_progress = offset + (1 << 24)
             progress(offset, size)
     if progress is not None:
