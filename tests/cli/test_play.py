@@ -5,11 +5,14 @@ and status), and an LCM subscriber on `--lcm-out`."""
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import re
 import struct
 import subprocess
 import sys
+import termios
 import threading
 import time
 from pathlib import Path
@@ -298,3 +301,59 @@ def test_a_seek_in_drakes_log_sends_lcm_that_instant_byte_for_byte_and_every_cli
             client.close()
         assert bridge.stop() == 0, bridge.lines
         recorder.close()
+
+
+def test_keys_on_a_terminal_step_draws_change_speed_and_play(demo_log: Path) -> None:
+    """`play` on a terminal (a pty): right and left step one draw (LCM gets that draw), + doubles
+    the speed, space plays; each key's line says the position; the terminal is restored after."""
+    draws = [event.data for event in read_log(demo_log, "DRAKE_VIEWER_DRAW")]
+    url = lcm_url(4)
+    recorder = LcmRecorder(url)
+    leader, follower = os.openpty()
+    echo_before = termios.tcgetattr(follower)[3] & termios.ECHO
+    command = [sys.executable, "-m", "viewer_bridge.cli.main", "play", str(demo_log), "-c", "builtin:foxglove",
+               "--set", "foxglove.port=0", "--paused", "--lcm-out", url]  # fmt: skip
+    process = subprocess.Popen(
+        command, stdin=follower, stdout=follower, stderr=follower, start_new_session=True
+    )
+    screen: list[str] = []
+
+    def read() -> None:
+        with contextlib.suppress(OSError):  # the pty ends with the process
+            while data := os.read(leader, 4096):
+                screen.append(data.decode("utf-8", "replace"))
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+
+    def said(text: str) -> bool:
+        return text in "".join(screen)
+
+    def sent() -> list[bytes]:
+        return recorder.messages.get("DRAKE_VIEWER_DRAW", [])
+
+    try:
+        assert wait_for(lambda: said("keys: space play/pause")), "".join(screen)
+        assert wait_for(lambda: termios.tcgetattr(follower)[3] & termios.ECHO == 0)  # cbreak: keys unechoed
+        os.write(leader, b"\x1b[C")  # right: the first draw
+        assert wait_for(lambda: sent() == draws[:1]), len(sent())
+        os.write(leader, b"\x1b[C")
+        assert wait_for(lambda: sent() == draws[:2]), len(sent())
+        os.write(leader, b"\x1b[D")  # left: back to the first
+        assert wait_for(lambda: sent() == [draws[0], draws[1], draws[0]]), len(sent())
+        assert wait_for(lambda: said("paused at ")), "".join(screen)
+        os.write(leader, b"+")
+        assert wait_for(lambda: said(", 2x")), "".join(screen)
+        os.write(leader, b" ")  # play: on from the first draw at 2x
+        assert wait_for(lambda: said("playing at ")), "".join(screen)
+        assert wait_for(lambda: len(sent()) >= 10)
+        assert sent()[3:10] == draws[1:8]  # on from the first draw, none skipped
+    finally:
+        process.send_signal(2)
+        code = process.wait(timeout=30)
+        reader.join(timeout=5)
+        os.close(leader)
+        recorder.close()
+    assert code == 0, "".join(screen)
+    assert termios.tcgetattr(follower)[3] & termios.ECHO == echo_before  # the terminal as it was
+    os.close(follower)

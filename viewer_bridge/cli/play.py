@@ -3,7 +3,8 @@
 The log is indexed once (viewer_bridge/transports/lcm_log_index.py), then played
 (viewer_bridge/transports/lcm_playback.py) to the config's routes, and with `--lcm-out URL` onto
 an LCM bus too. A Foxglove server of the config drives the clock from its playback bar
-(viewer_bridge/transports/foxglove_playback.py); without one, `play` ends with the log.
+(viewer_bridge/transports/foxglove_playback.py), and on a terminal the keys do
+(viewer_bridge/cli/play_keys.py); with neither, `play` ends with the log.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from viewer_bridge.cli.arguments import (
     positive,
     worker_count,
 )
+from viewer_bridge.cli.play_keys import keys
 from viewer_bridge.cli.run import _foxglove_unless_installed, _status_view, _with_setting
 from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import UsageError
@@ -85,7 +87,7 @@ def add_command(add: AddCommand) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Index the log, then route what it plays until it ends (no Foxglove server), Ctrl-C or SIGTERM."""
+    """Index the log, then route what it plays until it ends (nothing to seek with), Ctrl-C or SIGTERM."""
     if args.workers is not None and args.workers > 1:
         raise UsageError(f"--workers {args.workers}: play runs its routes in one process (--workers 1)")
     if args.lcm_out and log_to_write(args.lcm_out) is None and args.lcm_out.startswith("file://"):
@@ -136,5 +138,6 @@ def run(args: argparse.Namespace) -> int:
         raise
     for signal_number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signal_number, lambda number, frame: router.stop())
-    router.run()
+    with keys(player):  # on a terminal: space, left, right, + and -
+        router.run()
     return 0

@@ -21,6 +21,8 @@ import time
 from collections.abc import Callable
 from typing import Protocol
 
+import numpy as np
+
 from viewer_bridge.transports.lcm_log_index import LoggedEvent, LogIndex
 from viewer_bridge.transports.playback import Answer, PlaybackClock, PlaybackRequest, PlaybackState, Status
 
@@ -109,10 +111,11 @@ class LogPlayer:
         status = Status.ENDED if self._ended else Status.PLAYING if clock.playing else Status.PAUSED
         return PlaybackState(status, self._time_us() * 1000, clock.speed, did_seek, request_id)
 
-    def request(self, request: PlaybackRequest) -> Answer:
+    def request(self, request: PlaybackRequest, *, tell: bool = False) -> Answer:
         """Play or pause, at a speed, after a seek: applied at once (the thread re-sends the world
         at a seek's instant before it plays on). A speed that is not above 0 refuses the whole
-        request; a seek outside the log is clamped to it. Each says why in the answer's note."""
+        request; a seek outside the log is clamped to it. Each says why in the answer's note.
+        `tell`: the new state goes to the watchers too (a request that came from none of them)."""
         if not (request.speed > 0 and math.isfinite(request.speed)):
             refusal = f"speed {request.speed:g} refused: a speed must be greater than 0 (playback unchanged)"
             return Answer(self.state(request_id=request.request_id), refusal)
@@ -132,7 +135,30 @@ class LogPlayer:
             self._clock.set(playing=request.play, speed=request.speed, at_us=at_us)
             self._changed.notify_all()
             state = self.state(did_seek=at_us is not None, request_id=request.request_id)
+        if tell:
+            for on_state, _ in self._watchers:
+                on_state(state)
         return Answer(state, note)
+
+    def step(self, steps: int, channel: str) -> Answer:
+        """Pause at the instant of the `steps`-th event on a channel fully matching the regex
+        `channel` after the clock's time (before it when negative), the world there re-sent: one
+        draw forward or back. At the first or last such event it stays there."""
+        pattern = re.compile(channel)
+        times = [self.index.utimes[events] for c, events in enumerate(self.index.by_channel)
+                 if pattern.fullmatch(self.index.channels[c])]  # fmt: skip
+        if not times:
+            return Answer(self.state(), f"no channel matches {channel!r}: nothing to step to")
+        instants = np.unique(np.concatenate(times))
+        now = self._time_us()
+        if steps > 0:
+            at = int(np.searchsorted(instants, now, side="right")) + steps - 1
+        else:
+            at = int(np.searchsorted(instants, now, side="left")) + steps
+        target = int(instants[min(max(at, 0), len(instants) - 1)])
+        return self.request(
+            PlaybackRequest(play=False, speed=self._clock.speed, seek_ns=target * 1000), tell=True
+        )
 
     def _clamped(self, at_us: int) -> tuple[int, str | None]:
         first, last = self.index.first_us, self.index.last_us
