@@ -205,3 +205,19 @@ def test_a_looped_log_plays_from_its_start_again(log_path: Path) -> None:
         assert not player.finished.is_set()
     finally:
         player.close()
+
+
+def test_a_step_pauses_at_the_next_or_previous_draw(log_path: Path) -> None:
+    player = LogPlayer(LogIndex.build(log_path), paused=True)
+    states: list[PlaybackState] = []
+    player.watch(states.append, lambda now_ns: None)
+    try:
+        forward = player.step(1, "DRAW")
+        assert forward.state.time_ns == (T0 + 10_000) * 1000  # draw-0 is at the first instant: draw-1
+        assert player.step(2, "DRAW").state.time_ns == (T0 + 30_000) * 1000
+        assert player.step(-1, "DRAW").state.time_ns == (T0 + 20_000) * 1000
+        assert player.step(-100, "DRAW").state.time_ns == T0 * 1000  # no further back than the first
+        assert all(state.status == Status.PAUSED and state.did_seek for state in states) and len(states) == 4
+        assert player.step(1, "NOTHING").note == "no channel matches 'NOTHING': nothing to step to"
+    finally:
+        player.close()
