@@ -57,7 +57,7 @@ from viewer_bridge.transports.base import (
 from viewer_bridge.transports.foxglove_clients import CLIENT_ENCODINGS, MAX_CLIENT_CHANNELS, ClientPublishing
 from viewer_bridge.transports.foxglove_front import MAX_CLIENT_MESSAGE, MAX_CLIENTS, SubprotocolFront
 from viewer_bridge.transports.origins import FOXGLOVE_APPS, Origins, is_origin_pattern
-from viewer_bridge.transports.playback import Timelines
+from viewer_bridge.transports.playback import Timeline, Timelines
 from viewer_bridge.util.extras import missing
 
 try:
@@ -289,13 +289,13 @@ class FoxgloveTransport(Transport):
         context: FoxgloveContext | None = None,
         *,
         accept_commands: bool = True,
-        shared: Shared | None = None,
+        timeline: Timeline | None = None,
     ) -> None:
         """`accept_commands`: whether what clients publish can land anywhere (a router's config
         allows some command channel); without it the server offers no publishing, and a client
-        that publishes anyway is told why. `shared`: when it holds a played timeline (`viewer-bridge
-        play`), clients drive it (viewer_bridge/transports/foxglove_playback.py) and each message is
-        stamped with the timeline's time when it is sent."""
+        that publishes anyway is told why. `timeline`: a played log's (`viewer-bridge play`), which
+        clients drive (viewer_bridge/transports/foxglove_playback.py); each message is stamped with
+        its time when sent."""
         super().__init__(settings)
         self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
         self._subscribers = _Subscribers()
@@ -306,14 +306,9 @@ class FoxgloveTransport(Transport):
             "supported_encodings": list(CLIENT_ENCODINGS),
         }
         options = publishing if self.clients is not None and accept_commands else {}
-        timeline = None if shared is None else shared.get(Timelines).timeline
         self._playback = None if timeline is None else FoxglovePlayback(timeline)
-        self._clock = None if timeline is None else timeline.now_ns
         if self._playback is not None:
-            played = self._playback.server_options()
-            options = (
-                options | played | {"capabilities": options.get("capabilities", []) + played["capabilities"]}
-            )
+            options = self._playback.server_options(options)
         try:
             self.server = foxglove.start_server(
                 name=settings.name,
@@ -344,7 +339,8 @@ class FoxgloveTransport(Transport):
         # without an allowed channel nothing clients publish lands
         accept = bool(shared.get(CommandPolicy).allow)
         # an MCAP file logs to it too
-        return cls(settings, shared.get(FoxgloveContext), accept_commands=accept, shared=shared)
+        timeline = shared.get(Timelines).timeline  # `viewer-bridge play`'s
+        return cls(settings, shared.get(FoxgloveContext), accept_commands=accept, timeline=timeline)
 
     def _cannot_listen(self, error: Exception) -> TransportUnavailable:
         where = f"{self.settings.host}:{self.settings.port}"
@@ -380,7 +376,10 @@ class FoxgloveTransport(Transport):
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         channel = self.context.channel(name, message_type, "foxglove")
         publisher = self._channels[channel.id()] = _Channel(
-            channel, qos.latched, self._subscribers, self._clock
+            channel,
+            qos.latched,
+            self._subscribers,
+            None if self._playback is None else self._playback.timeline.now_ns,
         )
         return publisher
 

@@ -44,11 +44,10 @@ class FoxglovePlayback:
         self.timeline = timeline
         self._server: WebSocketServer | None = None
 
-    def server_options(self) -> dict[str, Any]:
-        return {
-            "capabilities": [Capability.PlaybackControl, Capability.Time],
-            "playback_time_range": self.timeline.range_ns,
-        }
+    def server_options(self, options: dict[str, Any]) -> dict[str, Any]:
+        """`start_server`'s `options` with playback: its capabilities added, the time range."""
+        capabilities = [*options.get("capabilities", []), Capability.PlaybackControl, Capability.Time]
+        return options | {"capabilities": capabilities, "playback_time_range": self.timeline.range_ns}
 
     def attach(self, server: WebSocketServer) -> None:
         self._server = server
