@@ -12,7 +12,9 @@ as the baseline over the same file. A seek's latency is the position of the inst
 search) and the world there (each channel's last event before it, read out of the map), for 200
 instants spread over the log; its baseline is reading the log from its start to the middle, as a
 replay that can only go forward would; and the same through a paused player, from the request
-to the last message of that world delivered to a subscriber.
+to the last message of that world delivered to a subscriber. Last, the CPU each event costs a
+player at full speed against `run --lcm-url 'file://LOG?speed=0'`'s replay (the routes behind
+either cost the same, and are not measured here).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from pathlib import Path
 from common import Measure, Size  # bench/ is on sys.path when run as a script
 from draw_codec import print_measures
 
-from viewer_bridge.transports.lcm import read_log
+from viewer_bridge.transports.lcm import LogReplay, read_log
 from viewer_bridge.transports.lcm_log_index import SYNC, LogIndex
 from viewer_bridge.transports.lcm_playback import LogPlayer
 from viewer_bridge.transports.playback import PlaybackRequest
@@ -115,6 +117,26 @@ def player_seek_ms(index: LogIndex, instants: list[int]) -> list[float]:
     return spent
 
 
+def cpu_per_event_us(source: LogPlayer | LogReplay, count: int) -> float:
+    """CPU (this process's, all threads) per event a source delivers to a subscriber that keeps
+    nothing, as fast as it can."""
+    delivered = threading.Semaphore(0)
+    seen = [0]
+
+    def arrived(channel: str, data: bytes, received_us: int) -> None:
+        seen[0] += 1
+        if seen[0] == count:
+            delivered.release()
+
+    source.subscribe(".*", arrived)
+    started = time.process_time()
+    source.start()
+    delivered.acquire()
+    spent = time.process_time() - started
+    source.close()
+    return spent / count * 1e6
+
+
 def measures(size: Size = Size.FULL) -> list[Measure]:
     sizes = size.pick(full=[100_000_000, 1_000_000_000], quick=[100_000_000], smoke=[2_000_000])
     rows = []
@@ -149,6 +171,11 @@ def measures(size: Size = Size.FULL) -> list[Measure]:
             rows.append(Measure(f"seek a player of it: request to the world delivered (max {worst:.2f} ms), "
                                 "vs reading to it", median, middle, "ms", f"<= {GOAL_SEEK_MS:g} ms",
                                 worst <= GOAL_SEEK_MS))  # fmt: skip
+            ours_us = cpu_per_event_us(LogPlayer(LogIndex.build(path), speed=1e9), count)
+            base_us = cpu_per_event_us(LogReplay(path, speed=0), count)
+            rows.append(Measure(f"play a {megabytes:.0f} MB log as fast as it goes: CPU per event, "
+                                "vs run's replay (file://LOG?speed=0)", ours_us, base_us, "us",
+                                "<= the replay's", ours_us <= base_us))  # fmt: skip
             path.unlink()
     return rows
 

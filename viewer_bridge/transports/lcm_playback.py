@@ -29,7 +29,8 @@ from viewer_bridge.transports.playback import Answer, PlaybackClock, PlaybackReq
 log = logging.getLogger("viewer_bridge")
 
 Callback = Callable[[str, bytes, int], None]  # channel, data, receive time (time.time_ns() // 1000)
-TICK_S = 0.1  # how often the clock's time is told while playing with no event due
+TICK_S = 0.1  # how often the clock's time is told while playing
+BATCH = 256  # the most events taken at once when several are due (a seek still cuts in between two)
 
 
 class LcmOut(Protocol):
@@ -180,10 +181,12 @@ class LogPlayer:
         while not self._stop.is_set():
             with self._changed:  # what to do is decided under the lock, done outside it
                 latched = self._take_resend()
-                position, ended = (None, None) if latched is not None else self._take_due()
+                due, ended = (range(0), None) if latched is not None else self._take_due()
             for event in latched or ():
                 self._send(event)
-            if position is not None:
+            for position in due:
+                if self._resend or self._stop.is_set():  # a seek meanwhile: what was due is no longer
+                    break
                 self._send(self.index.event(position))
             if latched is not None or ended is not None or self._clock.playing:
                 self._tell_time(force=latched is not None or ended is not None)
@@ -198,17 +201,25 @@ class LogPlayer:
         self._resend = False
         return [self.index.event(position) for position in self.index.latched(self._position)]
 
-    def _take_due(self) -> tuple[int | None, PlaybackState | None]:
-        """The next event when its time has come, else a wait (for it, a request, or a tick); and
-        the state when the end was reached just now."""
+    def _take_due(self) -> tuple[range, PlaybackState | None]:
+        """The events whose time has come (at most `BATCH`: one lock taken for many), else a wait
+        (for the next, a request, or a tick); and the state when the end was reached just now."""
         if self._position >= len(self.index):
-            return None, self._at_end()
+            return range(0), self._at_end()
         wait = self._clock.seconds_until(int(self.index.utimes[self._position]))
         if wait is not None and wait <= 0:
-            self._position += 1
-            return self._position - 1, None
+            first = self._position
+            if (
+                self._position + 1 < len(self.index)
+                and self.index.utimes[self._position + 1] <= self._clock.now_us()
+            ):
+                last = self.index.position(self._clock.now_us())
+                self._position = min(last, first + BATCH)
+            else:
+                self._position = first + 1
+            return range(first, self._position), None
         self._changed.wait(TICK_S if wait is None else min(wait, TICK_S))
-        return None, None
+        return range(0), None
 
     def _at_end(self) -> PlaybackState | None:
         """At the end: from the start again when looping; else ended (the state returned once),
