@@ -25,7 +25,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -81,9 +81,12 @@ class Router:
         stats_period: float = 5.0,
         view: StatusView | None = None,
         ros_definitions: RosDefinitions | None = None,
+        provided: Mapping[Callable[[], Any], Any] | None = None,
     ) -> None:
         """`ros_definitions`: where the ros transport finds the `.msg` definitions of an interface
-        package it lacks, to build it while the other routes run (see `RosDefinitions`)."""
+        package it lacks, to build it while the other routes run (see `RosDefinitions`).
+        `provided`: what `Shared.get(make)` returns for each `make`, before the transports are made
+        (`viewer-bridge play` provides the timeline of the log it plays)."""
         self.config = config
         self.stats_json = Path(stats_json) if stats_json else None
         self.stats_period = stats_period
@@ -97,6 +100,8 @@ class Router:
         self.shared.provide(LoadCache, LoadCache(config.load_cache))
         # a server offers publishing only when it can land
         self.shared.provide(CommandPolicy, config.commands)
+        for make, made in (provided or {}).items():
+            self.shared.provide(make, made)
         for warning in lcm_types.warnings:
             log.warning("viewer-bridge: %s", warning)
         self.transports: dict[str, Transport] = {}

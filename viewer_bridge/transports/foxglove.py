@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from urllib.parse import urlencode
 
 from pydantic import Field, field_validator
@@ -57,11 +57,21 @@ from viewer_bridge.transports.base import (
 from viewer_bridge.transports.foxglove_clients import CLIENT_ENCODINGS, MAX_CLIENT_CHANNELS, ClientPublishing
 from viewer_bridge.transports.foxglove_front import MAX_CLIENT_MESSAGE, MAX_CLIENTS, SubprotocolFront
 from viewer_bridge.transports.origins import FOXGLOVE_APPS, Origins, is_origin_pattern
+from viewer_bridge.transports.playback import Timeline, Timelines
 from viewer_bridge.util.extras import missing
 
 try:
     import foxglove
-    from foxglove.websocket import Capability, ChannelView, Client, ServerListener
+    from foxglove.websocket import (
+        Capability,
+        ChannelView,
+        Client,
+        PlaybackControlRequest,
+        PlaybackState,
+        ServerListener,
+    )
+
+    from viewer_bridge.transports.foxglove_playback import FoxglovePlayback
 except ImportError as error:
     raise missing(error, "the foxglove transport") from None
 
@@ -144,6 +154,7 @@ class _WithoutSdkAddress(logging.Filter):
 
 logging.getLogger("foxglove.websocket.server").addFilter(_WithoutSdkAddress())  # the SDK's Rust log
 log = logging.getLogger("viewer_bridge")
+Clock = Callable[[], int]  # a time in nanoseconds since the epoch
 
 
 class FoxgloveSettings(TransportSettings):
@@ -209,8 +220,16 @@ class _Subscribers:
 class _Channel:
     """A publisher on one Foxglove channel: its subscribers, and its last message when latched."""
 
-    def __init__(self, channel: foxglove.Channel, latched: bool, subscribers: _Subscribers) -> None:
+    def __init__(
+        self,
+        channel: foxglove.Channel,
+        latched: bool,
+        subscribers: _Subscribers,
+        clock: Clock | None = None,
+    ) -> None:
+        """`clock`: the time (ns) to stamp each message with (a played log's timeline), else now."""
         self.channel = channel
+        self._clock = clock
         self.id = channel.id()
         self.latched = latched
         self.last: bytes | None = None
@@ -220,7 +239,10 @@ class _Channel:
     def publish(self, data: bytes) -> None:
         if self.latched:
             self.last = data
-        self.channel.log(data)
+        if self._clock is None:
+            self.channel.log(data)
+        else:
+            self.channel.log(data, log_time=self._clock())
 
     def subscriber_count(self) -> int:
         return self._subscribers.count(self.id)
@@ -234,9 +256,12 @@ class _Channel:
 class _Listener(ServerListener):
     """Clients subscribing to and unsubscribing from channels (the SDK calls it on its threads)."""
 
-    def __init__(self, channels: dict[int, _Channel], subscribers: _Subscribers) -> None:
+    def __init__(
+        self, channels: dict[int, _Channel], subscribers: _Subscribers, playback: FoxglovePlayback | None
+    ) -> None:
         self._channels = channels
         self._subscribers = subscribers
+        self._playback = playback
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
         self._subscribers.add(channel.id, client.id)  # counted even before `publisher` stores the channel
@@ -246,6 +271,9 @@ class _Listener(ServerListener):
 
     def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
         self._subscribers.discard(channel.id, client.id)
+
+    def on_playback_control_request(self, request: PlaybackControlRequest) -> PlaybackState | None:
+        return None if self._playback is None else self._playback.on_request(request)
 
 
 class FoxgloveTransport(Transport):
@@ -261,10 +289,13 @@ class FoxgloveTransport(Transport):
         context: FoxgloveContext | None = None,
         *,
         accept_commands: bool = True,
+        timeline: Timeline | None = None,
     ) -> None:
         """`accept_commands`: whether what clients publish can land anywhere (a router's config
         allows some command channel); without it the server offers no publishing, and a client
-        that publishes anyway is told why."""
+        that publishes anyway is told why. `timeline`: a played log's (`viewer-bridge play`), which
+        clients drive (viewer_bridge/transports/foxglove_playback.py); each message is stamped with
+        its time when sent."""
         super().__init__(settings)
         self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
         self._subscribers = _Subscribers()
@@ -274,17 +305,23 @@ class FoxgloveTransport(Transport):
             "capabilities": [Capability.ClientPublish],
             "supported_encodings": list(CLIENT_ENCODINGS),
         }
+        options = publishing if self.clients is not None and accept_commands else {}
+        self._playback = None if timeline is None else FoxglovePlayback(timeline)
+        if self._playback is not None:
+            options = self._playback.server_options(options)
         try:
             self.server = foxglove.start_server(
                 name=settings.name,
                 host="127.0.0.1",  # behind the front, which holds the public port
                 port=0,
                 context=self.context.context,
-                server_listener=_Listener(self._channels, self._subscribers),
-                **(publishing if self.clients is not None and accept_commands else {}),  # type: ignore[arg-type]
+                server_listener=_Listener(self._channels, self._subscribers, self._playback),
+                **options,  # type: ignore[arg-type]
             )
         except Exception as error:  # the SDK raises its own error types, e.g. for a port in use
             raise self._cannot_listen(error) from None
+        if self._playback is not None:
+            self._playback.attach(self.server)
         try:
             self.front = SubprotocolFront(
                 settings.host, settings.port, self.server.port,
@@ -302,7 +339,8 @@ class FoxgloveTransport(Transport):
         # without an allowed channel nothing clients publish lands
         accept = bool(shared.get(CommandPolicy).allow)
         # an MCAP file logs to it too
-        return cls(settings, shared.get(FoxgloveContext), accept_commands=accept)
+        timeline = shared.get(Timelines).timeline  # `viewer-bridge play`'s
+        return cls(settings, shared.get(FoxgloveContext), accept_commands=accept, timeline=timeline)
 
     def _cannot_listen(self, error: Exception) -> TransportUnavailable:
         where = f"{self.settings.host}:{self.settings.port}"
@@ -337,7 +375,12 @@ class FoxgloveTransport(Transport):
 
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         channel = self.context.channel(name, message_type, "foxglove")
-        publisher = self._channels[channel.id()] = _Channel(channel, qos.latched, self._subscribers)
+        publisher = self._channels[channel.id()] = _Channel(
+            channel,
+            qos.latched,
+            self._subscribers,
+            None if self._playback is None else self._playback.timeline.now_ns,
+        )
         return publisher
 
     @property
