@@ -41,7 +41,7 @@ from pydantic import Field, field_validator
 from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, TransportUnavailable
 from viewer_bridge.formats.foxglove.schema import schema
-from viewer_bridge.shared import Shared
+from viewer_bridge.shared import Clock, Shared
 from viewer_bridge.transports.base import (
     CDR,
     PROTOBUF,
@@ -207,20 +207,30 @@ class _Subscribers:
 
 
 class _Channel:
-    """A publisher on one Foxglove channel: its subscribers, and its last message when latched."""
+    """A publisher on one Foxglove channel: its subscribers, and its last message when latched.
+    Its log times are the SDK's (now) unless the bridge's clock is sim: then the clock's time."""
 
-    def __init__(self, channel: foxglove.Channel, latched: bool, subscribers: _Subscribers) -> None:
+    def __init__(
+        self, channel: foxglove.Channel, latched: bool, subscribers: _Subscribers, clock: Clock
+    ) -> None:
         self.channel = channel
         self.id = channel.id()
         self.latched = latched
         self.last: bytes | None = None
         self.unsent = 0  # a channel logs to every client and file of its context: nothing stays unsent
         self._subscribers = subscribers
+        self._clock = clock
 
     def publish(self, data: bytes) -> None:
         if self.latched:
             self.last = data
-        self.channel.log(data)
+        self._log(data)
+
+    def _log(self, data: bytes) -> None:
+        if self._clock.sim:
+            self.channel.log(data, log_time=self._clock.now_ns)
+        else:
+            self.channel.log(data)
 
     def subscriber_count(self) -> int:
         return self._subscribers.count(self.id)
@@ -228,7 +238,7 @@ class _Channel:
     def subscribed(self) -> None:
         """A client subscribed: it gets the current state (others see it again)."""
         if self.last is not None:
-            self.channel.log(self.last)
+            self._log(self.last)
 
 
 class _Listener(ServerListener):
@@ -261,19 +271,24 @@ class FoxgloveTransport(Transport):
         context: FoxgloveContext | None = None,
         *,
         accept_commands: bool = True,
+        clock: Clock | None = None,
     ) -> None:
         """`accept_commands`: whether what clients publish can land anywhere (a router's config
         allows some command channel); without it the server offers no publishing, and a client
-        that publishes anyway is told why."""
+        that publishes anyway is told why. `clock`: the bridge's; with `time: sim` the server lists
+        the `time` capability and broadcasts each new sim time to every client (messages' log
+        times are that clock's too), so Foxglove's current time is Drake's."""
         super().__init__(settings)
         self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
         self._subscribers = _Subscribers()
         self.context = FoxgloveContext() if context is None else context
+        self.clock = Clock() if clock is None else clock
         self.clients = ClientPublishing(settings.max_client_channels) if settings.client_publish else None
-        publishing = {
-            "capabilities": [Capability.ClientPublish],
-            "supported_encodings": list(CLIENT_ENCODINGS),
-        }
+        publishing = self.clients is not None and accept_commands
+        capabilities = [Capability.ClientPublish] if publishing else []
+        if self.clock.sim:
+            capabilities.append(Capability.Time)
+        options = {"supported_encodings": list(CLIENT_ENCODINGS)} if publishing else {}
         try:
             self.server = foxglove.start_server(
                 name=settings.name,
@@ -281,10 +296,16 @@ class FoxgloveTransport(Transport):
                 port=0,
                 context=self.context.context,
                 server_listener=_Listener(self._channels, self._subscribers),
-                **(publishing if self.clients is not None and accept_commands else {}),  # type: ignore[arg-type]
+                capabilities=capabilities or None,
+                **options,  # type: ignore[arg-type]
             )
         except Exception as error:  # the SDK raises its own error types, e.g. for a port in use
             raise self._cannot_listen(error) from None
+        self._broadcast_time = (
+            self.server.broadcast_time
+        )  # one callable: the clock's listener, and its removal
+        if self.clock.sim:
+            self.clock.listen(self._broadcast_time)
         try:
             self.front = SubprotocolFront(
                 settings.host, settings.port, self.server.port,
@@ -293,6 +314,7 @@ class FoxgloveTransport(Transport):
                 max_clients=settings.max_clients, max_message_bytes=settings.max_client_message_bytes,
             )  # fmt: skip
         except OSError as error:  # a port in use, an address not of this machine
+            self.clock.unlisten(self._broadcast_time)
             self.server.stop()
             raise self._cannot_listen(error) from None
 
@@ -302,7 +324,7 @@ class FoxgloveTransport(Transport):
         # without an allowed channel nothing clients publish lands
         accept = bool(shared.get(CommandPolicy).allow)
         # an MCAP file logs to it too
-        return cls(settings, shared.get(FoxgloveContext), accept_commands=accept)
+        return cls(settings, shared.get(FoxgloveContext), accept_commands=accept, clock=shared.clock)
 
     def _cannot_listen(self, error: Exception) -> TransportUnavailable:
         where = f"{self.settings.host}:{self.settings.port}"
@@ -337,7 +359,9 @@ class FoxgloveTransport(Transport):
 
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         channel = self.context.channel(name, message_type, "foxglove")
-        publisher = self._channels[channel.id()] = _Channel(channel, qos.latched, self._subscribers)
+        publisher = self._channels[channel.id()] = _Channel(
+            channel, qos.latched, self._subscribers, self.clock
+        )
         return publisher
 
     @property
@@ -359,6 +383,7 @@ class FoxgloveTransport(Transport):
         return counts | ({} if self.clients is None else self.clients.errors())
 
     def close(self) -> None:
+        self.clock.unlisten(self._broadcast_time)
         self.front.close()
         self.server.stop()
 
