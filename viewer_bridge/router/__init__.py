@@ -94,9 +94,9 @@ class Router:
         # What the transports and translators share: the known LCM types (loaded once, here: a
         # bad source stops the start) and the ROS 2 definitions of their interface packages (for
         # building one the ros transport lacks), one Foxglove context, the message time, the last
-        # Drake load per channel (kept in the config's folder, if it names one).
+        # Drake load per channel (kept in the config's folder, if it names one), the clock (`time:`).
         lcm_types = TypeLibrary.load(config.lcm_types, drake=config.drake_lcm_types)
-        self.shared = Shared(lcm_types, ros_definitions or definitions_of(lcm_types))
+        self.shared = Shared(lcm_types, ros_definitions or definitions_of(lcm_types), config.time)
         self.shared.provide(LoadCache, LoadCache(config.load_cache))
         # a server offers publishing only when it can land
         self.shared.provide(CommandPolicy, config.commands)
