@@ -185,7 +185,10 @@ def test_foxglove_drives_the_playback_and_lcm_follows(demo_log: Path) -> None:
     first, last = ns(events[0]), ns(events[-1])
     url = lcm_url(2)
     recorder = LcmRecorder(url)
-    bridge = PlayProcess(str(demo_log), "-c", "builtin:foxglove", "--paused", "--lcm-out", url)
+    # Transforms stamped with sim time (`time: sim`), which tells the draws apart; log times stay the timeline's.
+    bridge = PlayProcess(
+        str(demo_log), "-c", "builtin:foxglove", "--paused", "--lcm-out", url, "--set", "time=sim"
+    )
     client = None
     try:
         client = PlaybackClient(bridge.port())
