@@ -25,7 +25,7 @@ from viewer_bridge.config.bridge import Route, destination_name, load_config
 from viewer_bridge.errors import ConfigError, DecodeError, EncodeError
 from viewer_bridge.formats.ros.image import LAYOUTS
 from viewer_bridge.model.skipped import collecting
-from viewer_bridge.translators import TRANSLATORS
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import CallPublisher, Received
 from viewer_bridge.transports.lcm import LcmEvent, write_log
 

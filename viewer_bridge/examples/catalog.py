@@ -1,9 +1,6 @@
-"""Example simulations that ship with the package: `viewer-bridge example NAME`.
+"""The examples by name (`EXAMPLES`), whether Drake is here to run them, and running one.
 
-Each is a real pydrake simulation (or diagram) publishing over LCM what Drake publishes: the
-scene of every shape in every role, simulated cameras, contact results, a point cloud. The tests
-run the same scenes. They need Drake (`pip install 'viewer-bridge[drake]'`); the rest of the
-package does not, so nothing here imports pydrake until an example runs.
+Imports no pydrake: an example's module (`viewer_bridge.examples.<name>`) is imported when it runs.
 """
 
 from __future__ import annotations

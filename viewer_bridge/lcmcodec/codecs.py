@@ -1,4 +1,4 @@
-"""LCM codecs for the types in `lcmtypes/`, generated from the schemas when first imported.
+"""The strict LCM codecs for the types in `lcmtypes/`, generated from the schemas when first imported.
 
 Usage::
 

@@ -1,4 +1,4 @@
-"""The router: runs each configured route's translator between transports.
+"""The `Router`: runs each configured route's translator between transports.
 
 The data path of one message:
 
@@ -8,7 +8,7 @@ The data path of one message:
     (one per message,   (per route,                                 -> publisher per output
      shared by routes)   bounded)
 
-`Router` (here) makes the transports a config names, a `RouteRunner` per route
+`Router` makes the transports a config names, a `RouteRunner` per route
 (`viewer_bridge.router.runner`: lanes, lazy routes, its worker) and reports their stats
 (`viewer_bridge.router.stats`); how a message waits for a worker, or is translated at once on the
 transport's thread, is `viewer_bridge.router.flow`. The router knows transports and translators only
@@ -38,9 +38,11 @@ from viewer_bridge.router.flow import InlineBudget
 from viewer_bridge.router.runner import Destinations, PublisherFor, RouteRunner, SaidOnce
 from viewer_bridge.router.status import LogLines, StatusView, counted
 from viewer_bridge.shared import RosDefinitions, Shared, definitions_of
-from viewer_bridge.translators import TRANSLATORS, LoadCache, Output, Translator
-from viewer_bridge.transports import TRANSPORTS
+from viewer_bridge.translators.base import Output, Translator
+from viewer_bridge.translators.load_cache import LoadCache
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import Publisher, Qos, Received, Transport
+from viewer_bridge.transports.registry import TRANSPORTS
 from viewer_bridge.transports.ros_names import ChannelNames
 
 log = logging.getLogger("viewer_bridge")

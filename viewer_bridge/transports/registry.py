@@ -1,6 +1,4 @@
-"""Transports: bytes in and out of LCM, ROS 2, ign-transport, Foxglove, MCAP files, Zenoh, Rerun, and plugins'.
-
-`TRANSPORTS` is the registry a config's `transport:` words are looked up in. A plugin adds a
+"""`TRANSPORTS`: the registry a config's `transport:` words are looked up in. A plugin adds a
 transport with an entry point in the group `viewer_bridge.transports` naming a `Transport`
 subclass (see `viewer_bridge.transports.base`).
 """
@@ -25,4 +23,4 @@ TRANSPORTS: Registry[Transport] = Registry(
     Transport,
 )
 
-__all__ = ["TRANSPORTS", "Transport"]
+__all__ = ["TRANSPORTS"]
