@@ -20,8 +20,8 @@ from router import frame, scene
 
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
-from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.translators.base import Translator
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.translators.types import LOAD_TYPE
 from viewer_bridge.transports.base import Received
 

@@ -23,7 +23,7 @@ from typing import Any
 from common import Measure, Size, best_of, frame  # bench/ is on sys.path when run as a script
 
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
-from viewer_bridge.lcmcodec import DRAW, SCHEMA_DIR
+from viewer_bridge.lcmcodec.codecs import DRAW, SCHEMA_DIR
 
 
 def lcm_gen_draw_class(folder: Path) -> Any:

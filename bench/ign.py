@@ -31,7 +31,7 @@ from router import Bridge, publish_at  # noqa: E402
 from tests.formats.ign.oracle import pose_v  # noqa: E402
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder  # noqa: E402
 from viewer_bridge.formats.ign.poses import PosesEncoder  # noqa: E402
-from viewer_bridge.translators import TRANSLATORS  # noqa: E402
+from viewer_bridge.translators.registry import TRANSLATORS  # noqa: E402
 from viewer_bridge.transports.base import Received  # noqa: E402
 from viewer_bridge.transports.ign import IgnNode  # noqa: E402
 from viewer_bridge.transports.lcm import LcmBus  # noqa: E402

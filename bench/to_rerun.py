@@ -45,8 +45,8 @@ from router import URL, Bridge, publish_at  # noqa: E402
 
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder  # noqa: E402
 from viewer_bridge.model.scene import LinkPoses, frame_name  # noqa: E402
-from viewer_bridge.translators import TRANSLATORS  # noqa: E402
 from viewer_bridge.translators.drake_rerun import ROOT_FRAME  # noqa: E402
+from viewer_bridge.translators.registry import TRANSLATORS  # noqa: E402
 from viewer_bridge.translators.types import RERUN_CHUNKS_TYPE  # noqa: E402
 from viewer_bridge.transports.base import Qos, Received, hand_over  # noqa: E402
 from viewer_bridge.transports.lcm import LcmBus  # noqa: E402

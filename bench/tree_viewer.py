@@ -20,7 +20,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from draw_codec import seconds_per_call  # noqa: E402
 
 from viewer_bridge.formats.tree_viewer.envelope import FORMAT  # noqa: E402
-from viewer_bridge.lcmcodec import VIEWER2_COMMS  # noqa: E402
+from viewer_bridge.lcmcodec.codecs import VIEWER2_COMMS  # noqa: E402
 from viewer_bridge.translators.tree_viewer import TreeViewerServer  # noqa: E402
 from viewer_bridge.transports.base import Received  # noqa: E402
 

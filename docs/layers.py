@@ -20,9 +20,9 @@ from PIL import Image, ImageDraw, ImageFont
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))  # tests/ (the layer table and the import reader)
 
-from tests.test_layers import GRAPH, LAYERS  # noqa: E402
+from tests.test_layers import GRAPH, LAYERS, holds_only_a_docstring  # noqa: E402
 
-ROW, BOX_HEIGHT, MARGIN, WIDTH = 120, 34, 70, 1900
+ROW, BOX_HEIGHT, MARGIN, WIDTH = 120, 34, 70, 2500
 FONT = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf"
 
 
@@ -60,8 +60,13 @@ def main() -> None:
     draw = ImageDraw.Draw(image)
     font = ImageFont.truetype(FONT, 15)
     placed = boxes(draw, font)
+    # The packages above a module are imported with it: the root (which imports nothing until a
+    # name is asked for) and each folder's `__init__.py` (a docstring, nothing else) get no arrow.
     arrows = {
-        (room(module), room(name)) for module, names in GRAPH.items() for name in names if name in GRAPH
+        (room(module), room(name))
+        for module, names in GRAPH.items()
+        for name in names
+        if name in GRAPH and name != "viewer_bridge" and not holds_only_a_docstring(name)
     }
     for source, target in sorted(arrows):
         if source != target:

@@ -26,7 +26,8 @@ from tests.process_groups import ChildGroups
 from viewer_bridge.errors import MissingExtra
 from viewer_bridge.formats.drake.draw import poses_from_draw
 from viewer_bridge.formats.drake.load import decode_load
-from viewer_bridge.lcmcodec import DRAW, LOAD_ROBOT, SCHEMA_DIR, LcmMessage
+from viewer_bridge.lcmcodec.codecs import DRAW, LOAD_ROBOT, SCHEMA_DIR
+from viewer_bridge.lcmcodec.serde import LcmMessage
 from viewer_bridge.model.scene import LinkPoses, Scene
 from viewer_bridge.transports.lcm import LcmEvent, read_log
 

@@ -11,8 +11,9 @@ from typing import Any
 import numpy as np
 from hypothesis import strategies as st
 
-from viewer_bridge.lcmcodec import CODECS, LcmMessage
+from viewer_bridge.lcmcodec.codecs import CODECS
 from viewer_bridge.lcmcodec.schema import Member, StructDef
+from viewer_bridge.lcmcodec.serde import LcmMessage
 from viewer_bridge.model.scene import (
     Box,
     Capsule,

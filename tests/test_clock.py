@@ -58,7 +58,7 @@ def test_every_stamping_translator_follows_the_clock_unless_its_route_says(time_
     from rclpy.serialization import deserialize_message
     from tf2_msgs.msg import TFMessage
 
-    from viewer_bridge.translators import TRANSLATORS
+    from viewer_bridge.translators.registry import TRANSLATORS
     from viewer_bridge.transports.base import Received
 
     shared = Shared(time=time_source)  # type: ignore[arg-type]

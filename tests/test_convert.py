@@ -29,7 +29,6 @@ from viewer_bridge import convert, streams
 from viewer_bridge.errors import DecodeError, SceneError
 from viewer_bridge.examples.demo import DEMO_MESH, demo_poses, demo_scene
 from viewer_bridge.examples.scenes import demo_contact_results
-from viewer_bridge.formats import ros
 from viewer_bridge.formats.drake.draw import DrawDecoder
 from viewer_bridge.formats.drake.image import images_to_lcm
 from viewer_bridge.formats.drake.load import decode_load, load_from_scene
@@ -37,12 +36,13 @@ from viewer_bridge.formats.drake.point_cloud import cloud_to_lcm
 from viewer_bridge.formats.gltf import read_gltf, write_gltf
 from viewer_bridge.formats.ign.model import model_v
 from viewer_bridge.formats.ros.image import image_from_cdr
+from viewer_bridge.formats.ros.message_types import MESH, POSE_ARRAY, SOLID_PRIMITIVE
 from viewer_bridge.formats.ros.messages import to_cdr
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr
 from viewer_bridge.formats.ros.shapes import shapes_cdr
 from viewer_bridge.formats.ros.tf import FrameNames
 from viewer_bridge.formats.tree_viewer.tree import scene_from_requests
-from viewer_bridge.lcmcodec import CONTACT_RESULTS, DRAW
+from viewer_bridge.lcmcodec.codecs import CONTACT_RESULTS, DRAW
 from viewer_bridge.model.contact import ContactDrawOptions
 from viewer_bridge.model.image import Image, Layout
 from viewer_bridge.model.scene import PointCloud, Scene, StampedPointCloud
@@ -106,7 +106,7 @@ def test_load_to_marker_array_places_the_markers_by_the_draw() -> None:
 def test_load_to_shapes_and_model_v_and_glb() -> None:
     shapes = convert.load_to_shapes(LOAD)
     assert shapes == shapes_cdr(SCENE)
-    assert {shape.type for shape in shapes} == {ros.SOLID_PRIMITIVE, ros.MESH}  # the demo has no plane
+    assert {shape.type for shape in shapes} == {SOLID_PRIMITIVE, MESH}  # the demo has no plane
     assert all(
         isinstance(shape, convert.TypedCdr) and shape.cdr[:4] == b"\x00\x01\x00\x00" for shape in shapes
     )
@@ -185,7 +185,7 @@ def test_pose_array_to_draw_takes_the_names_from_the_load() -> None:
 
 def test_cdr_to_rclpy_is_rclpys_own_message() -> None:
     pose_array = convert.draw_to_pose_array(DRAW_BYTES)
-    assert convert.cdr_to_rclpy(pose_array, ros.POSE_ARRAY) == deserialize_message(pose_array, PoseArray)
+    assert convert.cdr_to_rclpy(pose_array, POSE_ARRAY) == deserialize_message(pose_array, PoseArray)
 
 
 def test_bad_bytes_are_a_decode_error() -> None:

@@ -13,10 +13,10 @@ from viewer_bridge.examples.demo import demo_poses, demo_scene
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from viewer_bridge.formats.ros.messages import to_cdr
 
-# numpy and the codecs (lcmcodec compiles every LCM type's codec when it is imported) come with
+# numpy and the codecs (lcmcodec.codecs compiles every LCM type's codec when it is imported) come with
 # the first call; pydantic and yaml with the format tables; protobuf with ign and Foxglove; PIL
 # with images; orjson with the tree viewer; rosbags with ROS message building.
-HEAVY = ["numpy", "pydantic", "yaml", "google.protobuf", "PIL", "orjson", "rosbags", "viewer_bridge.lcmcodec",
+HEAVY = ["numpy", "pydantic", "yaml", "google.protobuf", "PIL", "orjson", "rosbags", "viewer_bridge.lcmcodec.codecs",
          "viewer_bridge.config.mappings", "viewer_bridge.model.scene"]  # fmt: skip
 
 CHILD = """
@@ -39,6 +39,6 @@ def test_importing_convert_loads_nothing_heavy_and_a_call_still_converts() -> No
     # A draw's PoseArray is written from the draw's arrays alone: no table, so no pydantic or
     # yaml, and nothing of protobuf or images.
     assert set(report["loaded_by_call"]) & {"pydantic", "yaml", "google.protobuf", "PIL"} == set()
-    assert {"numpy", "viewer_bridge.lcmcodec"} <= set(report["loaded_by_call"])  # the call did import
+    assert {"numpy", "viewer_bridge.lcmcodec.codecs"} <= set(report["loaded_by_call"])  # the call did import
     expected = to_cdr(ros_oracle.pose_array(DrawDecoder().decode(draw), "map"))
     assert bytes.fromhex(report["pose_array"]) == expected

@@ -1,13 +1,21 @@
-"""The layers of docs/ARCHITECTURE.md, held against the imports of `bridge/`.
+"""The layers of docs/ARCHITECTURE.md, held against the imports of `viewer_bridge/`.
 
 Every module of the package has a layer (a folder gives its modules one); a module may import
-only from its own layer or below, with no import circle. Transports use format code only
+only from its own layer or below, with no import circle. Importing `a.b.c` runs `a/__init__.py`
+and `a/b/__init__.py` first, so those count as imported too; every `__init__.py` below the root
+holds only a docstring, so a folder costs nothing to enter (such a package is on the ground floor).
+The same holds when the code runs: a module imported in a fresh interpreter loads no project
+module above its layer, lazy imports at import time included. Transports use format code only
 through a format's `schema` module, and a translator family imports no other family.
 """
 
 from __future__ import annotations
 
 import ast
+import json
+import subprocess
+import sys
+from functools import cache
 from pathlib import Path
 
 import pytest
@@ -106,13 +114,30 @@ def module_name(path: Path) -> str:
 
 
 def layer(module: str) -> int:
+    if module != "viewer_bridge" and holds_only_a_docstring(module):
+        return 1  # a folder's `__init__`: importing it loads nothing
     prefix = max((name for name in LAYERS if module == name or module.startswith(name + ".")), key=len)
     return LAYERS[prefix]
 
 
+@cache
+def holds_only_a_docstring(package: str) -> bool:
+    init = PACKAGE.parent.joinpath(*package.split("."), "__init__.py")
+    if not init.exists():
+        return False
+    body = ast.parse(init.read_text(), str(init)).body
+    return len(body) == 1 and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant)
+
+
+def with_parents(modules: set[str]) -> set[str]:
+    """`modules` and every package above each: importing `a.b.c` imports `a` and `a.b` first."""
+    return {".".join(name.split(".")[:end]) for name in modules for end in range(1, name.count(".") + 2)}
+
+
 def imports(path: Path) -> set[str]:
-    """The `bridge` modules a file imports, at any depth of its code (lazy imports count too)."""
-    found: set[str] = set()
+    """The `bridge` modules a file imports, at any depth of its code (lazy imports count too), with
+    the packages above them and above the file itself."""
+    found: set[str] = {module_name(path)}
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
         if isinstance(node, ast.Import):
             found |= {alias.name for alias in node.names}
@@ -120,6 +145,7 @@ def imports(path: Path) -> set[str]:
             # `from viewer_bridge.formats import ros` names a module; `from viewer_bridge.model.scene import Scene` a name.
             found |= {f"{node.module}.{alias.name}" if _is_module(f"{node.module}.{alias.name}") else node.module
                       for alias in node.names}  # fmt: skip
+    found = with_parents(found) - {module_name(path)}
     return {name for name in found if name == "viewer_bridge" or name.startswith("viewer_bridge.")}
 
 
@@ -129,6 +155,12 @@ def _is_module(name: str) -> bool:
 
 
 GRAPH = {module_name(path): imports(path) for path in sorted(PACKAGE.rglob("*.py"))}
+
+
+def test_every_init_below_the_root_holds_only_a_docstring() -> None:
+    packages = sorted(module_name(path) for path in PACKAGE.rglob("__init__.py") if path.parent != PACKAGE)
+    assert len(packages) > 10, packages  # the check would pass on no package at all
+    assert [package for package in packages if not holds_only_a_docstring(package)] == []
 
 
 @pytest.mark.parametrize("module", sorted(GRAPH))
@@ -155,7 +187,7 @@ def test_no_import_circle() -> None:
 
 def test_transports_use_format_code_only_through_schema_modules() -> None:
     used = {(module, name) for module, names in GRAPH.items() if module.startswith("viewer_bridge.transports")
-            for name in names if name.startswith("viewer_bridge.formats")}  # fmt: skip
+            for name in names if name.startswith("viewer_bridge.formats") and not holds_only_a_docstring(name)}  # fmt: skip
     assert used, "no transport names a schema: the check would pass on anything"
     assert all(name.endswith(".schema") for _, name in used), sorted(used)
 
@@ -173,3 +205,67 @@ def test_the_layer_table_knows_every_module() -> None:
     unknown = [module for module in GRAPH if not any(
         module == name or module.startswith(name + ".") for name in LAYERS if name != "viewer_bridge")]  # fmt: skip
     assert unknown in ([], ["viewer_bridge"]), f"modules without a layer in LAYERS: {unknown}"
+
+
+# One interpreter per module, forked from a parent that has loaded the heavy third-party
+# libraries the package uses (and no project module): a fresh interpreter as far as the project
+# goes, at a fraction of the cost of starting one per module. Run as `python -c FORKS modules workers`.
+FORKS = """
+import importlib, json, os, sys
+for library in ("numpy", "pydantic", "yaml", "orjson", "google.protobuf.message", "PIL.Image",
+                "rosbags.typesys", "rosbags.serde", "lcm", "rerun", "foxglove", "mcap.writer"):
+    try:
+        importlib.import_module(library)
+    except ImportError:
+        pass
+assert not [name for name in sys.modules if name.split(".")[0] == "viewer_bridge"]
+modules, workers = json.loads(sys.argv[1]), int(sys.argv[2])
+loaded, running = {}, {}
+
+def collect():
+    pid, _ = os.wait()
+    module, reader = running.pop(pid)
+    with os.fdopen(reader) as pipe:
+        loaded[module] = json.loads(pipe.read())
+
+for module in modules:
+    while len(running) >= workers:
+        collect()
+    reader, writer = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(reader)
+        try:
+            importlib.import_module(module)
+            result = sorted(name for name in sys.modules if name.split(".")[0] == "viewer_bridge")
+        except BaseException as error:
+            result = {"error": repr(error)}
+        os.write(writer, json.dumps(result).encode())
+        os._exit(0)
+    os.close(writer)
+    running[pid] = (module, reader)
+while running:
+    collect()
+print(json.dumps(loaded))
+"""
+
+
+def loaded_at_import() -> dict[str, list[str] | dict[str, str]]:
+    """Per module (but the `__main__`s, which run), the project modules importing it loads."""
+    modules = [module for module in sorted(GRAPH) if not module.endswith("__main__")]
+    result = subprocess.run([sys.executable, "-c", FORKS, json.dumps(modules), "3"],
+                            capture_output=True, text=True, check=True, timeout=600)  # fmt: skip
+    loaded: dict[str, list[str] | dict[str, str]] = json.loads(result.stdout)
+    return loaded
+
+
+def test_importing_a_module_loads_nothing_above_its_layer() -> None:
+    loaded = loaded_at_import()
+    assert len(loaded) == len(GRAPH) - 2, sorted(set(GRAPH) - set(loaded))  # all but the two __main__
+    failed = {module: names for module, names in loaded.items() if isinstance(names, dict)}
+    assert not failed, failed
+    above = {module: {name: layer(name) for name in names if layer(name) > layer(module)}
+             for module, names in loaded.items()}  # fmt: skip
+    assert {module: names for module, names in above.items() if names} == {}
+    # The check bites: a module high up loads much of the package below it.
+    assert len(loaded["viewer_bridge.cli.main"]) > 30

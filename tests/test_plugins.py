@@ -21,9 +21,9 @@ import pytest
 
 from viewer_bridge.config.bridge import load_config
 from viewer_bridge.formats.ros.poses import pose_array_arrays
-from viewer_bridge.router import Router
-from viewer_bridge.translators import TRANSLATORS
-from viewer_bridge.transports import TRANSPORTS
+from viewer_bridge.router.router import Router
+from viewer_bridge.translators.registry import TRANSLATORS
+from viewer_bridge.transports.registry import TRANSPORTS
 
 PLUGIN = Path(__file__).parent / "plugin_package"
 

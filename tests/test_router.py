@@ -672,7 +672,7 @@ def test_clock_carries_drakes_sim_time() -> None:
     from rclpy.serialization import deserialize_message
     from rosgraph_msgs.msg import Clock
 
-    from viewer_bridge.translators import TRANSLATORS
+    from viewer_bridge.translators.registry import TRANSLATORS
 
     names = ("plant::a",)
     draw = DrawEncoder().encode(
@@ -709,7 +709,7 @@ def test_a_router_loads_its_lcm_types_once_naming_a_refused_type(
     from tests.translators.test_lcm_generic import CORPUS
     from viewer_bridge.config.bridge import BridgeConfig
     from viewer_bridge.errors import BridgeError
-    from viewer_bridge.router import Router
+    from viewer_bridge.router.router import Router
 
     routes = [{"name": "bus", "source": {"transport": "lcm", "name": "(.*)"}, "translator": "lcm_to_ros",
                "destination": {"transport": "mcap", "name": "/lcm/{1:topic}"}}]  # fmt: skip

@@ -38,11 +38,11 @@ from typing import TYPE_CHECKING, Any, Literal
 # Light at import: these three name defaults and results and import nothing. Everything else is
 # imported by the function that needs it, so that `import viewer_bridge.convert` loads no numpy,
 # pydantic, yaml, protobuf or PIL and compiles no codec (tests/test_import.py holds it to that).
-from viewer_bridge.formats.ros import WORLD, TypedCdr
-from viewer_bridge.formats.tree_viewer import DEFAULT_PREFIX, JsonObject
+from viewer_bridge.formats.ros.message_types import WORLD, TypedCdr
+from viewer_bridge.formats.tree_viewer.common import DEFAULT_PREFIX, JsonObject
 
 if TYPE_CHECKING:
-    from viewer_bridge.lcmcodec import Buffer
+    from viewer_bridge.lcmcodec.serde import Buffer
     from viewer_bridge.model.image import Image
     from viewer_bridge.model.scene import LinkPoses, Scene
 

@@ -75,6 +75,30 @@ class EncodeError(BridgeError):
         return EncodeError(type_name, f"{prefix}.{self.field}", self.reason)
 
 
+class InflateError(BridgeError, ValueError):
+    """A zlib stream (a compressed image) that is no zlib stream, ends early, has bytes after it,
+    or expands past the size it was given."""
+
+
+class ShapeDataError(BridgeError):
+    """A geometry's shape data that makes no shape, raised inside the load decoder and turned there
+    into a `DecodeError` with the field's path: `offset` in `unit`s into `field`."""
+
+    def __init__(
+        self, reason: str, offset: int = 0, unit: str = "element", field: str = "float_data"
+    ) -> None:
+        super().__init__(reason)
+        self.reason = reason
+        self.offset = offset
+        self.unit = unit
+        self.field = field
+
+
+class NoLayout(BridgeError):
+    """A message holding something a kept layout does not take; the layout code falls back to the
+    general path when it meets one, so it never reaches a caller."""
+
+
 class SceneError(BridgeError):
     """A scene that a target format cannot express, or a message that makes no valid scene."""
 
@@ -103,6 +127,11 @@ class UnknownName(BridgeError):
         super().__init__(f"unknown {kind} {name!r} ({hint}known: {', '.join(known)})")
 
 
+class NameRefused(BridgeError, ValueError):
+    """An LCM name with no valid ROS 2 form (a field, constant, package or type); the message
+    names it."""
+
+
 class PluginError(BridgeError):
     """An installed plugin's entry point that is not what its group needs (not a `Transport`...)."""
 
@@ -118,6 +147,10 @@ class InvalidName(BridgeError, ValueError):
 
 class LogError(BridgeError):
     """A file that is not an LCM log."""
+
+
+class CutShort(BridgeError):
+    """A bag's storage file that ends before its last record does."""
 
 
 class GltfError(BridgeError):
@@ -185,6 +218,10 @@ class HttpRefusal(BridgeError):
         self.kind = kind
 
 
+class BadRequest(BridgeError):
+    """A render request the glTF render server refuses with 400 and this text."""
+
+
 class RosInterfaceError(BridgeError):
     """An interface package could not be built or installed; says which step and why."""
 
@@ -210,23 +247,33 @@ class Interrupted(BridgeError):
 
 
 __all__ = [
+    "BadRequest",
     "BridgeError",
     "ConfigError",
     "ConvertError",
+    "CutShort",
     "DecodeError",
     "EncodeError",
     "GltfError",
     "HandshakeError",
+    "Held",
     "HttpRefusal",
+    "InflateError",
     "Interrupted",
+    "InvalidName",
     "JsonValueError",
     "LogError",
     "MissingExtra",
+    "NameRefused",
+    "NoLayout",
     "NotAnLcmType",
+    "PluginError",
     "RequestRejected",
     "RosInterfaceError",
     "SceneError",
     "SchemaError",
+    "ShapeDataError",
     "TransportUnavailable",
+    "UnknownName",
     "UsageError",
 ]

@@ -18,7 +18,7 @@ import pytest
 
 from tests.conftest import lcm_url
 from tests.translators.test_lcm_generic import CORPUS, arm_status, lcmgen_corpus  # noqa: F401 (a fixture)
-from viewer_bridge.lcmcodec import DRAW
+from viewer_bridge.lcmcodec.codecs import DRAW
 from viewer_bridge.transports.lcm import LcmEvent, read_log, write_log
 
 CLI = [sys.executable, "-m", "viewer_bridge.cli.main"]

@@ -12,7 +12,7 @@ from viewer_bridge.config.mappings import format_names, load_tables, reference_m
 from viewer_bridge.config.resources import data_dir
 from viewer_bridge.config.yamldoc import YamlDocument
 from viewer_bridge.errors import ConfigError
-from viewer_bridge.lcmcodec import GEOMETRY_DATA
+from viewer_bridge.lcmcodec.codecs import GEOMETRY_DATA
 from viewer_bridge.model.scene import SHAPE_KINDS, Box, Capsule, Cylinder, Ellipsoid, MeshFile, Sphere
 
 

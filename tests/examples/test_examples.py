@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from viewer_bridge.examples import EXAMPLES, INSTALL_HINT
+from viewer_bridge.examples.catalog import EXAMPLES, INSTALL_HINT
 from viewer_bridge.transports.lcm import read_log
 
 pytestmark = pytest.mark.slow

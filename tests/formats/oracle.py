@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from viewer_bridge.lcmcodec import LcmMessage
+from viewer_bridge.lcmcodec.serde import LcmMessage
 
 BOX, SPHERE, CYLINDER, MESH, CAPSULE, ELLIPSOID = 1, 2, 3, 4, 5, 6
 F32 = 1e-6  # float32 round-off, relative

@@ -22,9 +22,9 @@ from tests.formats.ros import oracle as ros_oracle
 from tests.strategies import link_poses, poses, scenes
 from viewer_bridge.errors import SceneError
 from viewer_bridge.examples.demo import TETRAHEDRON_OBJ
-from viewer_bridge.formats import ros
 from viewer_bridge.formats.ign.model import model, model_bytes, model_v, model_v_bytes
 from viewer_bridge.formats.ros.markers import marker_array_cdr
+from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, MESH, SOLID_PRIMITIVE
 from viewer_bridge.formats.ros.messages import from_cdr, to_cdr
 from viewer_bridge.formats.ros.shapes import shapes_cdr
 from viewer_bridge.formats.tree_viewer.requests import DECIMALS
@@ -76,7 +76,7 @@ def test_shape_bytes_equal_the_object_path_for_every_kind(tmp_path: Path) -> Non
     fast = shapes_cdr(scene)
     assert fast == reference_shapes(scene)
     # and rclpy reads them: the real peer
-    kinds = {ros.SOLID_PRIMITIVE: SolidPrimitive, ros.MESH: Mesh}
+    kinds = {SOLID_PRIMITIVE: SolidPrimitive, MESH: Mesh}
     read = [deserialize_message(data, kinds[name]) for name, data in fast if name in kinds]
     assert [list(message.dimensions) for message in read[:2]] == [[0.1, 0.2, 0.3], [0.05]]
     assert any(isinstance(message, Mesh) and len(message.triangles) == 1 for message in read)
@@ -200,7 +200,7 @@ def test_an_empty_scene_is_an_empty_marker_array() -> None:
         ros_oracle.marker_array(Scene(), delete_all=False)
     )
     # With DELETEALL: its frame_id is "" here and "world" in the object path, as before.
-    (delete_all,) = from_cdr(marker_array_cdr(Scene()), ros.MARKER_ARRAY).markers
+    (delete_all,) = from_cdr(marker_array_cdr(Scene()), MARKER_ARRAY).markers
     assert delete_all.action == 3
 
 

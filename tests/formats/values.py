@@ -97,7 +97,7 @@ def _close(actual: Any, expected: Any, atol: float) -> Any:
 
 def json_envelope(data: bytes) -> Any:
     """A Director `viewer2_comms_t` request: its header fields and its parsed JSON."""
-    from viewer_bridge.lcmcodec import VIEWER2_COMMS
+    from viewer_bridge.lcmcodec.codecs import VIEWER2_COMMS
 
     message = VIEWER2_COMMS.decode(data)
     names = ("utime", "format", "format_version_major", "format_version_minor")  # num_bytes: the text's

@@ -31,15 +31,8 @@ from viewer_bridge.formats.gltf import write_gltf
 from viewer_bridge.formats.ign.model import model
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.requests import draw_request, load_requests
-from viewer_bridge.lcmcodec import (
-    DRAW,
-    LOAD_ROBOT,
-    SCHEMA_DIR,
-    VIEWER2_COMMS,
-    LcmMessage,
-    StructCodec,
-    codec_for,
-)
+from viewer_bridge.lcmcodec.codecs import DRAW, LOAD_ROBOT, SCHEMA_DIR, VIEWER2_COMMS, codec_for
+from viewer_bridge.lcmcodec.serde import LcmMessage, StructCodec
 from viewer_bridge.model.scene import Scene
 from viewer_bridge.transports.ign_discovery import STATISTICS_VERSION, WIRE_VERSION, Record, datagram
 
@@ -374,7 +367,7 @@ def image_seeds() -> Seeds:
 
     from viewer_bridge.formats.drake.image import images_to_lcm
     from viewer_bridge.formats.ros.image import LAYOUTS, image_to_cdr
-    from viewer_bridge.lcmcodec import IMAGE_ARRAY
+    from viewer_bridge.lcmcodec.codecs import IMAGE_ARRAY
     from viewer_bridge.model.image import Image, Layout
 
     rgba = np.arange(48, dtype=np.uint8).reshape(3, 4, 4)

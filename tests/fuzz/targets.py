@@ -33,6 +33,7 @@ import numpy as np
 
 from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import (
+    BadRequest,
     ConfigError,
     DecodeError,
     EncodeError,
@@ -52,17 +53,18 @@ from viewer_bridge.formats.gltf import read_gltf
 from viewer_bridge.formats.ign.model import scene_from_model
 from viewer_bridge.formats.ign.schema import MESSAGES
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr
-from viewer_bridge.lcmcodec import CODECS, LOAD_ROBOT, STRUCTS, VIEWER2_COMMS, StructCodec
 from viewer_bridge.lcmcodec.cdr import CdrTranscoder, compile_transcoders
 from viewer_bridge.lcmcodec.cdr_to_lcm import LcmEncoder
+from viewer_bridge.lcmcodec.codecs import CODECS, LOAD_ROBOT, STRUCTS, VIEWER2_COMMS
 from viewer_bridge.lcmcodec.from_ros import load_ros_definitions, map_ros_types
 from viewer_bridge.lcmcodec.library import LcmType, TypeLibrary
 from viewer_bridge.lcmcodec.ros_cdr import compile_ros_encoders
 from viewer_bridge.lcmcodec.rosmsg import map_to_ros
 from viewer_bridge.lcmcodec.schema import check_references, parse_lcm
+from viewer_bridge.lcmcodec.serde import StructCodec
 from viewer_bridge.model.skipped import collecting
 from viewer_bridge.render.renderer import Camera
-from viewer_bridge.render.server import BadRequest, parse_form, render_request
+from viewer_bridge.render.server import parse_form, render_request
 from viewer_bridge.translators.drake_ign import IgnPoseVToDrakeDraw
 from viewer_bridge.translators.drake_image import DrakeImagesToFoxglove, DrakeImagesToRos, RosImageToDrake
 from viewer_bridge.translators.tree_viewer import TreeViewerServer

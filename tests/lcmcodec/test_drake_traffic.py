@@ -8,7 +8,7 @@ from collections import Counter
 from typing import Any
 
 from tests.optional import peer
-from viewer_bridge.lcmcodec import codec_for
+from viewer_bridge.lcmcodec.codecs import codec_for
 from viewer_bridge.transports.lcm import LcmEvent
 
 # Drake's own lcm-gen classes, shipped with pydrake: imported by the tests that use them

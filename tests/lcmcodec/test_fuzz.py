@@ -18,7 +18,7 @@ from viewer_bridge.examples.scenes import demo_contact_results
 from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder
 from viewer_bridge.formats.drake.load import decode_load, load_from_scene
-from viewer_bridge.lcmcodec import (
+from viewer_bridge.lcmcodec.codecs import (
     CODECS,
     CONTACT_RESULTS,
     DRAW,

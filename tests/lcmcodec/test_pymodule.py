@@ -6,7 +6,7 @@ import drake
 import pytest
 
 from viewer_bridge.errors import SchemaError
-from viewer_bridge.lcmcodec import STRUCTS
+from viewer_bridge.lcmcodec.codecs import STRUCTS
 from viewer_bridge.lcmcodec.pymodule import is_lcm_class, struct_from_class, structs_from_module
 from viewer_bridge.lcmcodec.schema import fingerprint
 

@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from viewer_bridge.errors import NameRefused
 from viewer_bridge.lcmcodec.rosnames import (
-    NameRefused,
     constant_name,
     field_name,
     message_name,

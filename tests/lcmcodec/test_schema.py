@@ -8,7 +8,7 @@ import struct
 import pytest
 
 from viewer_bridge.errors import SchemaError
-from viewer_bridge.lcmcodec import CODECS, STRUCTS
+from viewer_bridge.lcmcodec.codecs import CODECS, STRUCTS
 from viewer_bridge.lcmcodec.schema import Dimension, fingerprint, parse_lcm
 
 # Values printed by lcm-gen 1.5.3 (docs/PROTOCOLS.md section 1 and 2).

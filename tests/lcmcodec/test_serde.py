@@ -13,9 +13,10 @@ from hypothesis import strategies as st
 from tests.lcmcodec.corpus import generate_lcmgen
 from tests.strategies import message_pairs, use_lcmgen
 from viewer_bridge.errors import DecodeError, EncodeError
-from viewer_bridge.lcmcodec import CODECS, DRAW, GEOMETRY_DATA, LOAD_ROBOT, VIEWER2_COMMS, LcmMessage
+from viewer_bridge.lcmcodec.codecs import CODECS, DRAW, GEOMETRY_DATA, LOAD_ROBOT, VIEWER2_COMMS
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.lcmcodec.schema import MESSAGE_CLASS_ATTRIBUTES
+from viewer_bridge.lcmcodec.serde import LcmMessage
 
 NAMES = sorted(CODECS)
 

@@ -27,9 +27,9 @@ from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import RosInterfaceError
 from viewer_bridge.ros_build import interfaces as ros_interfaces
 from viewer_bridge.ros_build.background import BuildState, InterfaceBuilder
-from viewer_bridge.router import Router
-from viewer_bridge.translators import TRANSLATORS
+from viewer_bridge.router.router import Router
 from viewer_bridge.translators.base import Output, Outputs, Translator
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import CDR, LCM, MessageType, Received
 from viewer_bridge.transports.ros2 import message_class
 

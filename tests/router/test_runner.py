@@ -17,7 +17,7 @@ def test_a_translator_crash_skips_that_message_only() -> None:
 
     from viewer_bridge.config.bridge import Route
     from viewer_bridge.router.runner import RouteRunner
-    from viewer_bridge.translators import Translator
+    from viewer_bridge.translators.base import Translator
 
     class Flaky(Translator):
         reads = ()
@@ -50,7 +50,7 @@ def lazy_pose_route(**rate: Any) -> Route:
 def test_a_lazy_route_that_wakes_does_not_count_the_wait_as_latency() -> None:
     from viewer_bridge.examples.scenes import draw_of, small_scene
     from viewer_bridge.router.runner import RouteRunner
-    from viewer_bridge.translators import TRANSLATORS
+    from viewer_bridge.translators.registry import TRANSLATORS
 
     listeners = 0
     published: list[bytes] = []
@@ -80,7 +80,7 @@ def test_a_lazy_route_that_wakes_does_not_count_the_wait_as_latency() -> None:
 
 def test_messages_a_rate_limit_skips_are_counted_as_skipped_not_dropped() -> None:
     from viewer_bridge.router.runner import RouteRunner
-    from viewer_bridge.translators import TRANSLATORS
+    from viewer_bridge.translators.registry import TRANSLATORS
 
     def runner(**rate: Any) -> RouteRunner:
         return RouteRunner(
@@ -114,7 +114,8 @@ def test_held_messages_are_counted_per_channel_said_once_and_the_other_channels_
     from viewer_bridge.errors import Held
     from viewer_bridge.router.runner import RouteRunner
     from viewer_bridge.shared import Shared
-    from viewer_bridge.translators import TRANSLATORS, Output
+    from viewer_bridge.translators.base import Output
+    from viewer_bridge.translators.registry import TRANSLATORS
 
     shared = Shared()  # the project's types and Drake's
     published: dict[str, list[bytes]] = {}
@@ -165,7 +166,8 @@ def test_a_lazy_generic_route_announces_each_channels_topic_before_anyone_listen
     import drake as drake_lcmtypes
 
     from viewer_bridge.router.runner import RouteRunner
-    from viewer_bridge.translators import TRANSLATORS, Output
+    from viewer_bridge.translators.base import Output
+    from viewer_bridge.translators.registry import TRANSLATORS
 
     made: list[tuple[str, str]] = []
     published: list[bytes] = []

@@ -19,13 +19,13 @@ from tests.formats.ros.oracle import ARROW, DELETEALL, TRIANGLE_LIST
 from tests.peers import BridgeProcess, RosProbe
 from tests.test_router import LcmRecorder
 from viewer_bridge.examples.scenes import demo_contact_results
-from viewer_bridge.formats import ros
+from viewer_bridge.formats.ros.message_types import MARKER_ARRAY
 from viewer_bridge.formats.ros.messages import from_cdr
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.tree import TreeState
 from viewer_bridge.model.contact import FORCE_COLOR, pressure_colors
 from viewer_bridge.model.scene import Line, Scene, TriangleMesh
-from viewer_bridge.translators import TRANSLATORS
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import Received
 
 pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
@@ -159,7 +159,7 @@ def test_marker_options_reach_the_table_and_unknown_ones_are_refused() -> None:
     options = {"frame_id": "map", "force_scale": 0.5, "pressure_range": [0, 1e6], "surfaces": False}
     translator = TRANSLATORS.get("drake_contacts_to_marker_array")(options)
     ((_, data),) = translator.translate(Received("CONTACT_RESULTS", pydrake_results().encode()))
-    markers = from_cdr(data, ros.MARKER_ARRAY).markers
+    markers = from_cdr(data, MARKER_ARRAY).markers
     assert {m.header.frame_id for m in markers[1:]} == {"map"}
     assert not [m for m in markers if m.type == TRIANGLE_LIST]
     force = markers[1]

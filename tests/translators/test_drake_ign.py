@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from viewer_bridge.config.bridge import load_config
-from viewer_bridge.translators import TRANSLATORS
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import PROTOBUF, MessageType
 from viewer_bridge.transports.ign import IgnSettings, IgnTransport
 

@@ -26,7 +26,7 @@ from viewer_bridge.errors import ConfigError, DecodeError, EncodeError
 from viewer_bridge.formats.ros.image import LAYOUTS
 from viewer_bridge.model.skipped import collecting
 from viewer_bridge.shared import Shared
-from viewer_bridge.translators import TRANSLATORS
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import CallPublisher, Received
 from viewer_bridge.transports.lcm import LcmEvent, write_log
 

@@ -18,7 +18,7 @@ from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.tree import TreeState
 from viewer_bridge.model.scene import LinkPoses, PointCloud
-from viewer_bridge.translators import TRANSLATORS
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import Received
 from viewer_bridge.transports.lcm import LcmEvent, write_log
 

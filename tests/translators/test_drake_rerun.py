@@ -18,7 +18,7 @@ from tests.drake_images import publish_with_drake
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.point_cloud import cloud_to_lcm
 from viewer_bridge.model.scene import LinkPoses, PointCloud, StampedPointCloud
-from viewer_bridge.translators import TRANSLATORS
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.translators.types import RERUN_CHUNKS_TYPE
 from viewer_bridge.transports.base import Qos, Received, hand_over
 from viewer_bridge.transports.lcm import read_log

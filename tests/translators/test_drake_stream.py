@@ -10,7 +10,8 @@ from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.draw import DrawDecoder
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.shared import Shared
-from viewer_bridge.translators import TRANSLATORS, LoadCache
+from viewer_bridge.translators.load_cache import LoadCache
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.translators.types import LOAD_TYPE
 from viewer_bridge.transports.base import Received
 

@@ -19,7 +19,7 @@ from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.formats.ros.messages import from_cdr
 from viewer_bridge.model.scene import Box, Geometry, Link, Pose, Scene
-from viewer_bridge.translators import TRANSLATORS
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import Received
 
 pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)

@@ -24,8 +24,8 @@ from tests.conftest import SCRIPTS
 from viewer_bridge.errors import DecodeError, Held, NotAnLcmType
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.shared import Shared
-from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.translators.lcm_generic import LcmToRos
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import CDR, MessageType, Received
 
 CORPUS = Path(__file__).parent / "lcm_corpus"

@@ -26,7 +26,7 @@ from viewer_bridge.examples.demo import DEMO_MESH
 from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.load import decode_load, load_from_scene
 from viewer_bridge.formats.tree_viewer import envelope
-from viewer_bridge.lcmcodec import VIEWER2_COMMS
+from viewer_bridge.lcmcodec.codecs import VIEWER2_COMMS
 from viewer_bridge.model.scene import Pose
 from viewer_bridge.translators.tree_viewer import DrakeToTreeViewer, TreeViewerServer
 from viewer_bridge.transports.base import Received

@@ -22,7 +22,7 @@ from viewer_bridge.errors import ConfigError, TransportUnavailable
 from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.model.scene import Scene
-from viewer_bridge.router import Router
+from viewer_bridge.router.router import Router
 from viewer_bridge.transports.base import Received
 from viewer_bridge.transports.foxglove import FoxgloveTransport
 from viewer_bridge.transports.mcap import McapTransport

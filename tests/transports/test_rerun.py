@@ -26,7 +26,7 @@ from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.formats.drake.draw import DrawEncoder, poses_from_draw
 from viewer_bridge.formats.drake.load import decode_load, load_from_scene
 from viewer_bridge.formats.rerun.schema import Chunks, encode_batches
-from viewer_bridge.lcmcodec import DRAW
+from viewer_bridge.lcmcodec.codecs import DRAW
 from viewer_bridge.model.scene import (
     Box,
     Capsule,
@@ -38,7 +38,7 @@ from viewer_bridge.model.scene import (
     TriangleMesh,
     frame_name,
 )
-from viewer_bridge.router import Router
+from viewer_bridge.router.router import Router
 from viewer_bridge.translators.types import RERUN_CHUNKS_TYPE
 from viewer_bridge.transports.base import CallPublisher, Qos, Received, ValuePublisher, hand_over
 from viewer_bridge.transports.lcm import LcmEvent
@@ -248,7 +248,7 @@ def test_every_draw_through_the_router_is_in_the_rrd_with_its_values(tmp_path: P
 def test_chunks_reach_a_publisher_that_takes_them_as_they_are_and_any_other_as_bytes() -> None:
     """The router's hand-over: the same object to a publisher of its type (no bytes made), its
     bytes to a publisher of bytes (a file, another process), which decode to the same rows."""
-    from viewer_bridge.translators import TRANSLATORS
+    from viewer_bridge.translators.registry import TRANSLATORS
 
     translator = TRANSLATORS["drake_to_rerun"]({})
     ((_, value),) = translator.translate(Received("DRAKE_VIEWER_DRAW", draw_of(small_scene(), 0.5)))

@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 
 from viewer_bridge.errors import TransportUnavailable
-from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import CDR, MessageType
+from viewer_bridge.transports.registry import TRANSPORTS
 
 pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
 

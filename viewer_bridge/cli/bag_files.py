@@ -22,6 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from viewer_bridge.errors import CutShort
+
 __all__ = ["DirectReader", "cut_reason"]
 
 
@@ -38,10 +40,6 @@ class Connection:
     topic: str
     msgtype: str
     msgdef: MessageDefinition
-
-
-class CutShort(Exception):
-    """A storage file that ends before its last record does."""
 
 
 def cut_reason(error: BaseException) -> str:

@@ -6,7 +6,7 @@ import argparse
 
 from viewer_bridge.cli.arguments import AddCommand, lcm_source, positive
 from viewer_bridge.errors import UsageError
-from viewer_bridge.examples import EXAMPLES, drake_missing, run_example
+from viewer_bridge.examples.catalog import EXAMPLES, drake_missing, run_example
 from viewer_bridge.transports.lcm import DEFAULT_URL
 
 

@@ -41,12 +41,12 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from viewer_bridge.config.bridge import BridgeConfig, Endpoint, Route
 from viewer_bridge.errors import ConvertError, Interrupted
-from viewer_bridge.router import Router
+from viewer_bridge.router.router import Router
 from viewer_bridge.router.status import LEGEND, Snapshot, counted, routes_of
-from viewer_bridge.translators import TRANSLATORS
-from viewer_bridge.transports import TRANSPORTS
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import LCM, MessageType, Received
 from viewer_bridge.transports.lcm import read_log
+from viewer_bridge.transports.registry import TRANSPORTS
 
 if TYPE_CHECKING:
     from viewer_bridge.transports.mcap import Profile

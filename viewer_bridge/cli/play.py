@@ -27,7 +27,7 @@ from viewer_bridge.cli.play_keys import keys
 from viewer_bridge.cli.run import _foxglove_unless_installed, _status_view, _with_setting
 from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import UsageError
-from viewer_bridge.router import Router
+from viewer_bridge.router.router import Router
 from viewer_bridge.transports.lcm import Publisher
 from viewer_bridge.transports.lcm_log_index import LogIndex, ProgressLine
 from viewer_bridge.transports.lcm_playback import LogPlayer

@@ -24,7 +24,7 @@ from viewer_bridge.config.bridge import BUILTIN_CONFIGS, BridgeConfig, load_conf
 from viewer_bridge.config.commands import COMMAND_FLAG
 from viewer_bridge.errors import ConfigError, UsageError
 from viewer_bridge.examples.demo import run_demo
-from viewer_bridge.router import Router
+from viewer_bridge.router.router import Router
 from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines, StatusView
 from viewer_bridge.router.workers import Workers
 from viewer_bridge.transports.lcm import DEFAULT_URL

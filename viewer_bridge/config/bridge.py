@@ -1,7 +1,7 @@
 """The router's configuration: transport settings, and a flat list of routes.
 
 A route names a source (a transport and a channel or topic, matched in full as a regular
-expression), a translator (`viewer_bridge.translators.TRANSLATORS`), a destination whose name is a
+expression), a translator (`viewer_bridge.translators.registry.TRANSLATORS`), a destination whose name is a
 template over the source's regex groups (`{1}`; `{1:lower}`; `{1:path}` turns `_PROXIMITY` into
 `/proximity` and `` into ``; `{1:topic}` makes any text a valid ROS name token; `{1:lcm}` a ROS 2
 topic its LCM channel), QoS, a rate
@@ -51,9 +51,10 @@ from viewer_bridge.config.yamldoc import KeyPath, YamlDocument
 from viewer_bridge.errors import ConfigError, InvalidName, UnknownName
 from viewer_bridge.lcmcodec.from_ros import lcm_channel
 from viewer_bridge.shared import TimeSource
-from viewer_bridge.translators import TRANSLATORS, Translator, TranslatorOptions
-from viewer_bridge.transports import TRANSPORTS
+from viewer_bridge.translators.base import Translator, TranslatorOptions
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import MessageType, Transport, TransportSettings
+from viewer_bridge.transports.registry import TRANSPORTS
 from viewer_bridge.transports.ros_names import ChannelNames, name_token
 
 

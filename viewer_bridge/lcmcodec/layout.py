@@ -63,6 +63,7 @@ from typing import Any, Final, NamedTuple, final
 
 import numpy as np
 
+from viewer_bridge.errors import NoLayout
 from viewer_bridge.lcmcodec.codegen import Buffer
 from viewer_bridge.lcmcodec.from_ros import RosField, RosStruct
 from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
@@ -188,10 +189,6 @@ def _items(indices: list[int]) -> Callable[[tuple[Any, ...]], tuple[Any, ...]] |
 
 
 # --- the walk: every value with its place on both sides ------------------------------------------------
-
-
-class _NoLayout(Exception):
-    """The message holds something a layout does not take."""
 
 
 class _Value(NamedTuple):
@@ -498,7 +495,7 @@ def learn_ros_layout(structs: Mapping[str, RosStruct], wire: Wire, ros_name: str
     walk.header()
     try:
         _ros_struct(walk, structs, wire, ros_name)
-    except _NoLayout:
+    except NoLayout:
         return None
     return walk.layout()
 
@@ -522,7 +519,7 @@ def _ros_element(walk: _Walk, structs: Mapping[str, RosStruct], wire: Wire, ros_
     elif ros_field.base == "string":
         walk.string()
     elif ros_field.base == "wstring":
-        raise _NoLayout
+        raise NoLayout
     else:
         _ros_numbers(walk, wire, ros_field.base, 1)
 

@@ -28,9 +28,9 @@ from pathlib import Path
 from typing import TypeVar
 
 from viewer_bridge.errors import DecodeError, Held, JsonValueError, SchemaError
-from viewer_bridge.lcmcodec import STRUCTS
 from viewer_bridge.lcmcodec.cdr import CdrTranscoder, compile_transcoders
 from viewer_bridge.lcmcodec.cdr_to_lcm import LcmEncoder, compile_encoders
+from viewer_bridge.lcmcodec.codecs import STRUCTS
 from viewer_bridge.lcmcodec.json_to_lcm import JsonEncoder, compile_json_encoders
 from viewer_bridge.lcmcodec.jsonview import message_json
 from viewer_bridge.lcmcodec.pymodule import structs_from_module

@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
 
-from viewer_bridge.lcmcodec.rosnames import NameRefused, constant_name, field_name, message_name, package_name
+from viewer_bridge.errors import NameRefused
+from viewer_bridge.lcmcodec.rosnames import constant_name, field_name, message_name, package_name
 from viewer_bridge.lcmcodec.schema import Member, StructDef
 
 __all__ = ["ROS_PRIMITIVES", "RosMapping", "RosMessage", "map_to_ros", "ros_type_of"]

@@ -16,13 +16,14 @@ from __future__ import annotations
 import re
 from typing import TYPE_CHECKING
 
+from viewer_bridge.errors import NameRefused
+
 if TYPE_CHECKING:
     from viewer_bridge.lcmcodec.schema import StructDef
 
 __all__ = [
     "MESSAGE_PATTERN",
     "PACKAGE_PATTERN",
-    "NameRefused",
     "constant_name",
     "field_name",
     "field_names",
@@ -44,10 +45,6 @@ _UNDERSCORES = re.compile(r"_+")
 _NOT_TOPIC = re.compile(r"[^A-Za-z0-9_]")
 PACKAGE_SUFFIX = "_lcm_msgs"
 NO_PACKAGE = "lcm_msgs"
-
-
-class NameRefused(ValueError):
-    """An LCM name with no valid ROS 2 form; the message names it."""
 
 
 def _snake(name: str) -> str:

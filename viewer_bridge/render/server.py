@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
-from viewer_bridge.errors import GltfError
+from viewer_bridge.errors import BadRequest, GltfError
 from viewer_bridge.formats.gltf import read_gltf
 from viewer_bridge.render.renderer import Camera, Renderer, depth_mm, rgb8
 from viewer_bridge.transports.origins import OriginGate, Origins
@@ -34,10 +34,6 @@ log = logging.getLogger("viewer_bridge")
 
 DEFAULT_MAX_UPLOAD = 256 * 1024 * 1024
 _NUMBERS = ("width", "height", "near", "far", "focal_x", "focal_y", "center_x", "center_y")
-
-
-class BadRequest(Exception):
-    """A request the server refuses with 400 and this text."""
 
 
 _BOUNDARY = re.compile(r'boundary=(?:"([^"]+)"|([^;\s]+))', re.IGNORECASE)
@@ -246,7 +242,6 @@ def make_server(
 
 
 __all__ = [
-    "BadRequest",
     "DEFAULT_MAX_UPLOAD",
     "RenderThread",
     "log",

@@ -26,7 +26,7 @@ from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.drake.draw import DrawDecoder
 from viewer_bridge.formats.drake.load import decode_load
 from viewer_bridge.formats.gltf import read_gltf, write_gltf
-from viewer_bridge.lcmcodec import CONTACT_RESULTS, DRAW, LOAD_ROBOT
+from viewer_bridge.lcmcodec.codecs import CONTACT_RESULTS, DRAW, LOAD_ROBOT
 from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene, pressure_colors
 from viewer_bridge.model.lowering import arrow_mesh
 from viewer_bridge.model.scene import FloatArray, Geometry, Line, Link, Scene, TriangleMesh

@@ -27,7 +27,7 @@ from viewer_bridge.model.skipped import Skipped, thread_collector
 from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
 from viewer_bridge.router.stats import RouteStats
 from viewer_bridge.shared import MessageTime
-from viewer_bridge.translators import Output, Translator
+from viewer_bridge.translators.base import Output, Translator
 from viewer_bridge.transports.base import MessageType, Publisher, Received, hand_over, size_of
 from viewer_bridge.transports.ros_names import ChannelNames
 from viewer_bridge.util.channels import ChannelPattern

@@ -33,9 +33,10 @@ from typing import Any
 
 from viewer_bridge.config.bridge import BridgeConfig, Route
 from viewer_bridge.errors import BridgeError, UsageError
-from viewer_bridge.router import Router, stats
+from viewer_bridge.router import stats
+from viewer_bridge.router.router import Router
 from viewer_bridge.router.status import LogLines, StatusView, counted
-from viewer_bridge.transports import TRANSPORTS
+from viewer_bridge.transports.registry import TRANSPORTS
 
 log = logging.getLogger("viewer_bridge")
 

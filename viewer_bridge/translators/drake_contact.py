@@ -12,11 +12,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from viewer_bridge.formats import ros
 from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.ign.contact import contacts_message
-from viewer_bridge.formats.ros import WRENCH_STAMPED
 from viewer_bridge.formats.ros.contact import WrenchEncoder, contact_marker_array_cdr
+from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, WRENCH_STAMPED
 from viewer_bridge.formats.ros.tf import WORLD
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.requests import load_requests
@@ -48,7 +47,7 @@ class DrakeContactsToMarkerArray(Translator):
     Options = ContactMarkerOptions
     options: ContactMarkerOptions
     reads = (CONTACT_TYPE,)
-    outputs = (Output("", ros_type(ros.MARKER_ARRAY), latched=True),)
+    outputs = (Output("", ros_type(MARKER_ARRAY), latched=True),)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)

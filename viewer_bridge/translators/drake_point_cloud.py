@@ -13,10 +13,9 @@ from typing import Any
 
 from pydantic import Field
 
-from viewer_bridge.formats import ros
 from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
-from viewer_bridge.formats.ros import POINT_CLOUD2
 from viewer_bridge.formats.ros.markers import marker_array_cdr
+from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, POINT_CLOUD2
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.requests import geometry_command
@@ -108,7 +107,7 @@ class DrakeDrawFramesToMarkers(DrawReader):
     Options = DrawFramesOptions
     options: DrawFramesOptions
     reads = (DRAW_TYPE,)
-    outputs = (Output("", ros_type(ros.MARKER_ARRAY), latched=True),)
+    outputs = (Output("", ros_type(MARKER_ARRAY), latched=True),)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)

@@ -5,14 +5,14 @@ from __future__ import annotations
 import struct
 from typing import Any
 
-from viewer_bridge.formats import ros
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import link_from_lcm
 from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, time_parts, time_parts_from_us
 from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_cdr
+from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, MESH, PLANE, POSE_ARRAY, SOLID_PRIMITIVE
 from viewer_bridge.formats.ros.poses import PoseArrayEncoder, pose_array_arrays, poses_from_pose_array_cdr
 from viewer_bridge.formats.ros.shapes import shapes_cdr
-from viewer_bridge.lcmcodec import LINK_DATA
+from viewer_bridge.lcmcodec.codecs import LINK_DATA
 from viewer_bridge.model.scene import Scene
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.drake_stream import DrakeTranslator, DrawReader, PerLoadTranslator
@@ -28,7 +28,7 @@ class DrakeToMarkerArray(DrakeTranslator):
 
     Options = MarkerOptions
     options: MarkerOptions
-    outputs = (Output("", ros_type(ros.MARKER_ARRAY), latched=True),)
+    outputs = (Output("", ros_type(MARKER_ARRAY), latched=True),)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -55,7 +55,7 @@ class DrakeToPoseArray(DrawReader):
     Options = PoseArrayOptions
     options: PoseArrayOptions
     reads = (DRAW_TYPE,)
-    outputs = (Output("", ros_type(ros.POSE_ARRAY)),)
+    outputs = (Output("", ros_type(POSE_ARRAY)),)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -87,11 +87,11 @@ class DrakeToShapes(PerLoadTranslator):
 
     reads = (LOAD_TYPE,)
     outputs = (
-        Output("/primitives", ros_type(ros.SOLID_PRIMITIVE), latched=True),
-        Output("/meshes", ros_type(ros.MESH), latched=True),
-        Output("/planes", ros_type(ros.PLANE), latched=True),
+        Output("/primitives", ros_type(SOLID_PRIMITIVE), latched=True),
+        Output("/meshes", ros_type(MESH), latched=True),
+        Output("/planes", ros_type(PLANE), latched=True),
     )
-    _INDEX = {ros.SOLID_PRIMITIVE: 0, ros.MESH: 1, ros.PLANE: 2}
+    _INDEX = {SOLID_PRIMITIVE: 0, MESH: 1, PLANE: 2}
 
     def on_scene(self, scene: Scene, channel: str) -> Outputs:
         return [(self._INDEX[typename], data) for typename, data in shapes_cdr(scene)]
@@ -104,7 +104,7 @@ class DrakeLinkToMarkerArray(Translator):
     Options = MarkerOptions
     options: MarkerOptions
     reads = (LINK_DATA_TYPE,)
-    outputs = (Output("", ros_type(ros.MARKER_ARRAY)),)
+    outputs = (Output("", ros_type(MARKER_ARRAY)),)
 
     def translate(self, message: Received) -> Outputs:
         link = link_from_lcm(LINK_DATA.decode(message.data))
@@ -124,7 +124,7 @@ class RosPoseArrayToDrakeDraw(Translator):
 
     Options = PoseArrayToDrawOptions
     options: PoseArrayToDrawOptions
-    reads = (ros_type(ros.POSE_ARRAY),)
+    reads = (ros_type(POSE_ARRAY),)
     outputs = (Output("", DRAW_TYPE),)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:

@@ -17,7 +17,7 @@ from typing import Any
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.drake.draw import DrawDecoder
 from viewer_bridge.formats.drake.load import decode_load
-from viewer_bridge.lcmcodec import DRAW, LOAD_ROBOT
+from viewer_bridge.lcmcodec.codecs import DRAW, LOAD_ROBOT
 from viewer_bridge.model.scene import LinkPoses, Scene
 from viewer_bridge.shared import Clock
 from viewer_bridge.translators.base import Outputs, Translator

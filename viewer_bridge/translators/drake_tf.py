@@ -20,10 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from viewer_bridge.formats import ros
-from viewer_bridge.formats.ros import TF_MESSAGE
 from viewer_bridge.formats.ros.cdr import time_parts, time_parts_from_us
 from viewer_bridge.formats.ros.markers import marker_array_in_link_frames_cdr
+from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, TF_MESSAGE
 from viewer_bridge.formats.ros.tf import WORLD, TransformsEncoder
 from viewer_bridge.model.scene import LinkPoses, Scene
 from viewer_bridge.translators.base import Output, Outputs
@@ -99,7 +98,7 @@ class DrakeToLinkMarkers(PerLoadTranslator):
 
     Options = LinkMarkerOptions
     options: LinkMarkerOptions
-    outputs = (Output("", ros_type(ros.MARKER_ARRAY), latched=True),)
+    outputs = (Output("", ros_type(MARKER_ARRAY), latched=True),)
 
     def on_scene(self, scene: Scene, channel: str) -> Outputs:
         frames = self.options.frames(channel)

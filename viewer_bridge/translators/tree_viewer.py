@@ -6,8 +6,8 @@ import re
 from typing import Any
 
 from viewer_bridge.errors import DecodeError, RequestRejected, SceneError
-from viewer_bridge.formats import ros
 from viewer_bridge.formats.ros.markers import marker_array_cdr
+from viewer_bridge.formats.ros.message_types import MARKER_ARRAY
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.requests import (
     DEFAULT_PREFIX,
@@ -16,7 +16,7 @@ from viewer_bridge.formats.tree_viewer.requests import (
     load_requests,
 )
 from viewer_bridge.formats.tree_viewer.tree import TreeState
-from viewer_bridge.lcmcodec import VIEWER2_COMMS
+from viewer_bridge.lcmcodec.codecs import VIEWER2_COMMS
 from viewer_bridge.model.scene import LinkPoses, Scene
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.drake_stream import DrakeTranslator
@@ -40,7 +40,7 @@ class TreeViewerServer(Translator):
     Options = TreeViewerServerOptions
     options: TreeViewerServerOptions
     reads = (ENVELOPE_TYPE,)
-    outputs = (Output("", ros_type(ros.MARKER_ARRAY), latched=True),)
+    outputs = (Output("", ros_type(MARKER_ARRAY), latched=True),)
     replies = ENVELOPE_TYPE
     _CLIENT = re.compile(r"DIRECTOR_TREE_VIEWER_REQUEST_<([^<>]*)>")
 

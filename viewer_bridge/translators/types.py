@@ -16,7 +16,7 @@ from viewer_bridge.formats.foxglove.schema import (
 )
 from viewer_bridge.formats.ign.schema import Package, type_name
 from viewer_bridge.formats.rerun.schema import CHUNKS, RERUN
-from viewer_bridge.lcmcodec import (
+from viewer_bridge.lcmcodec.codecs import (
     CONTACT_RESULTS,
     DRAW,
     IMAGE_ARRAY,

@@ -6,7 +6,7 @@ bytes otherwise.
 
 A transport moves payloads named by a channel or topic. The router knows transports only
 through `Transport`; which one a route uses is a word in the config, looked up in
-`viewer_bridge.transports.TRANSPORTS`. A transport says which message types it can carry
+`viewer_bridge.transports.registry.TRANSPORTS`. A transport says which message types it can carry
 (`carries`), so a config that routes PoseArray CDR over LCM is refused when it loads.
 
 A message received once is one `Received`, handed to every subscription it matches, so a

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from viewer_bridge.lcmcodec import CODECS, CONTACT_RESULTS, DRAW, LcmMessage
+from viewer_bridge.lcmcodec.codecs import CODECS, CONTACT_RESULTS, DRAW
+from viewer_bridge.lcmcodec.serde import LcmMessage
 from viewer_bridge.model.contact import ContactResults, HydroelasticContact
 from viewer_bridge.model.scene import LinkPoses
 

@@ -12,7 +12,7 @@ from tests.formats.drake.oracle import draw_from_poses
 from tests.optional import peer
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.drake.draw import DrawDecoder, DrawEncoder, poses_from_draw
-from viewer_bridge.lcmcodec import DRAW
+from viewer_bridge.lcmcodec.codecs import DRAW
 from viewer_bridge.model.scene import frame_name
 from viewer_bridge.transports.lcm import LcmEvent
 

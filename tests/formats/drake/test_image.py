@@ -22,7 +22,7 @@ from viewer_bridge.formats.drake.image import (
     read_image_array,
     unpack,
 )
-from viewer_bridge.lcmcodec import IMAGE_ARRAY
+from viewer_bridge.lcmcodec.codecs import IMAGE_ARRAY
 from viewer_bridge.model.image import Image, Layout
 
 # Every test here builds or reads messages with Drake's own classes: a core-only run skips them all.

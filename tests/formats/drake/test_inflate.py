@@ -9,7 +9,8 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from viewer_bridge.formats.drake.inflate import Bytes, InflateError, inflate, inflate_libz, inflate_python
+from viewer_bridge.errors import InflateError
+from viewer_bridge.formats.drake.inflate import Bytes, inflate, inflate_libz, inflate_python
 
 ROWS = bytes(range(256)) * 40
 INFLATERS: list[Callable[[bytes | memoryview, int], Bytes]] = [inflate_python]

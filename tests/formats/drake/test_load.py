@@ -13,7 +13,7 @@ import pytest
 
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.drake.load import decode_load, link_from_lcm, load_from_scene, scene_from_load
-from viewer_bridge.lcmcodec import GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, codec_for
+from viewer_bridge.lcmcodec.codecs import GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, codec_for
 from viewer_bridge.model.scene import (
     Box,
     Capsule,

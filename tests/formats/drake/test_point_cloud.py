@@ -18,7 +18,7 @@ import pytest
 from tests.optional import peer
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.drake.point_cloud import cloud_from_lcm, cloud_to_lcm
-from viewer_bridge.lcmcodec import POINT_CLOUD
+from viewer_bridge.lcmcodec.codecs import POINT_CLOUD
 from viewer_bridge.model.scene import StampedPointCloud
 from viewer_bridge.transports.lcm import LcmEvent, write_log
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 from types import ModuleType
 
 from tests.formats.drake.test_contact import pydrake_results
-from viewer_bridge.translators import TRANSLATORS
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import Received
 
 

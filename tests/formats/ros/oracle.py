@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.config.mappings import ShapeRule
-from viewer_bridge.formats.ros import MARKER_ARRAY, POSE_ARRAY, TF_MESSAGE
 from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, cdr_string, time_parts
 from viewer_bridge.formats.ros.markers import (
     DELETE_ALL,
@@ -23,6 +22,7 @@ from viewer_bridge.formats.ros.markers import (
     marker_specs,
     world_poses,
 )
+from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, POSE_ARRAY, TF_MESSAGE
 from viewer_bridge.formats.ros.messages import make
 from viewer_bridge.formats.ros.tables import TABLES
 from viewer_bridge.formats.ros.tf import FrameNames

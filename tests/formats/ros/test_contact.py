@@ -9,11 +9,11 @@ from tests.formats.drake.test_contact import pydrake_results
 from tests.formats.ros import oracle as ros_oracle
 from tests.formats.ros.oracle import ARROW, DELETEALL, TRIANGLE_LIST
 from viewer_bridge.formats.drake.contact import decode_contact_results
-from viewer_bridge.formats.ros import MARKER_ARRAY, WRENCH_STAMPED
 from viewer_bridge.formats.ros.contact import WrenchEncoder, contact_marker_array_cdr
+from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, WRENCH_STAMPED
 from viewer_bridge.formats.ros.messages import from_cdr, to_cdr
 from viewer_bridge.model.contact import ContactDrawOptions, pressure_colors
-from viewer_bridge.translators import TRANSLATORS
+from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import Received
 
 

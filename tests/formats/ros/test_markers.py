@@ -15,8 +15,8 @@ from tests.formats.oracle import close
 from tests.formats.ros import oracle as ros_oracle
 from tests.optional import peer
 from viewer_bridge.examples.demo import TETRAHEDRON_OBJ
-from viewer_bridge.formats import ros
 from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_cdr
+from viewer_bridge.formats.ros.message_types import MARKER_ARRAY
 from viewer_bridge.formats.ros.messages import from_cdr, to_rclpy
 from viewer_bridge.model.scene import Geometry, Link, LinkPoses, Pose, Scene, frame_name
 
@@ -110,7 +110,7 @@ def test_marker_cdr_paths_decode_to_the_objects(drake_capture: dict[str, Capture
     objects = to_rclpy(ros_oracle.marker_array(capture.scene))
     fast = marker_array_cdr(capture.scene)
     assert serialization.deserialize_message(fast, markers_msgs.MarkerArray) == objects
-    assert to_rclpy(from_cdr(fast, ros.MARKER_ARRAY)) == objects  # rosbags reads it too
+    assert to_rclpy(from_cdr(fast, MARKER_ARRAY)) == objects  # rosbags reads it too
     stream = MarkerStream(capture.scene)
     assert serialization.deserialize_message(stream.load_cdr, markers_msgs.MarkerArray) == objects
     # A draw re-poses the template: equal to building the markers anew at those poses.

@@ -11,7 +11,7 @@ import pytest
 
 from tests.formats.test_point_cloud import sample_cloud
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.formats.ros import POINT_CLOUD2
+from viewer_bridge.formats.ros.message_types import POINT_CLOUD2
 from viewer_bridge.formats.ros.messages import from_cdr, make, to_cdr
 from viewer_bridge.formats.ros.point_cloud import cloud_from_cdr, cloud_to_cdr
 from viewer_bridge.model.scene import StampedPointCloud

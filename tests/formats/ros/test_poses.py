@@ -15,7 +15,7 @@ from tests.formats.ros import oracle as ros_oracle
 from tests.optional import peer
 from tests.strategies import link_poses
 from viewer_bridge.errors import DecodeError, EncodeError, SceneError
-from viewer_bridge.formats import ros
+from viewer_bridge.formats.ros.message_types import POSE_ARRAY
 from viewer_bridge.formats.ros.messages import from_cdr, from_rclpy, to_cdr, to_rclpy
 from viewer_bridge.formats.ros.poses import (
     PoseArrayEncoder,
@@ -38,7 +38,7 @@ def test_pose_array_fast_path_matches_the_objects(drake_capture: dict[str, Captu
     objects = to_rclpy(ros_oracle.pose_array(poses))
     decoded = serialization.deserialize_message(data, geometry.PoseArray)
     assert decoded == objects
-    assert to_rclpy(from_cdr(data, ros.POSE_ARRAY)) == objects
+    assert to_rclpy(from_cdr(data, POSE_ARRAY)) == objects
     assert decoded.header.stamp.sec * 1000 + decoded.header.stamp.nanosec // 1_000_000 == poses.timestamp_ms
     for index, pose in enumerate(decoded.poses):
         w, x, y, z = raw.quaternions_wxyz[index]
@@ -142,7 +142,7 @@ def test_pose_array_errors_name_what_is_wrong() -> None:
     with pytest.raises(DecodeError, match="count 2147483648"):
         pose_array_arrays(bytes(huge))
     with pytest.raises(DecodeError, match="not a valid CDR message"):
-        from_cdr(b"\x00\x01\x00\x00\xff", ros.POSE_ARRAY)
+        from_cdr(b"\x00\x01\x00\x00\xff", POSE_ARRAY)
 
 
 def test_pose_stamped_reads_back_as_a_pose() -> None:

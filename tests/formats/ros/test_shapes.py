@@ -15,7 +15,7 @@ from tests.formats.ros import oracle as ros_oracle
 from tests.optional import peer
 from viewer_bridge.errors import EncodeError, SceneError
 from viewer_bridge.examples.demo import TETRAHEDRON_OBJ
-from viewer_bridge.formats import ros
+from viewer_bridge.formats.ros.message_types import MESH, PLANE, SOLID_PRIMITIVE
 from viewer_bridge.formats.ros.messages import from_cdr, from_rclpy, make, to_cdr, to_rclpy
 from viewer_bridge.formats.ros.poses import PoseArrayEncoder
 from viewer_bridge.formats.ros.shapes import shape_from_message, shapes_cdr
@@ -72,7 +72,7 @@ def test_every_drake_shape_becomes_a_shape_message(drake_capture: dict[str, Capt
 
 
 def mesh_vertices(message: Any) -> np.ndarray:
-    assert message.__msgtype__ == ros.MESH
+    assert message.__msgtype__ == MESH
     return np.array([[p.x, p.y, p.z] for p in message.vertices])
 
 
@@ -80,7 +80,7 @@ def test_half_space_is_a_plane_and_reads_back() -> None:
     from viewer_bridge.model.scene import HalfSpace
 
     (posed,) = ros_oracle.shapes(Scene((Link("world", 0, (Geometry(HalfSpace(), Pose((0, 0, 1.0))),)),)))
-    assert posed.typename == ros.PLANE and posed.shape.coef.tolist() == [0, 0, 1, 0]
+    assert posed.typename == PLANE and posed.shape.coef.tolist() == [0, 0, 1, 0]
     assert shape_from_message(posed.shape) == HalfSpace()
     posed.shape.coef[3] = 2.0  # another plane is not silently the same half-space
     with pytest.raises(SceneError, match=r"coef\[3\]"):
@@ -95,7 +95,7 @@ def test_shape_messages_cdr_decodes_to_the_objects(drake_capture: dict[str, Capt
         data = to_cdr(posed.shape)
         assert serialization.deserialize_message(data, cls) == to_rclpy(posed.shape)
         assert to_rclpy(from_cdr(data, posed.typename)) == to_rclpy(posed.shape)
-        if posed.typename == ros.SOLID_PRIMITIVE:
+        if posed.typename == SOLID_PRIMITIVE:
             assert shape_from_message(posed.shape) == shape_from_message(from_rclpy(to_rclpy(posed.shape)))
 
 
@@ -105,7 +105,7 @@ def test_a_missing_mesh_file_is_skipped_alone_with_a_warning() -> None:
 
     scene = Scene((Link("l", 0, (Geometry(MeshFile("/nowhere/mesh.obj")), Geometry(Box((1.0, 2.0, 3.0))))),))
     with collecting() as skipped:
-        assert [posed.typename for posed in ros_oracle.shapes(scene)] == [ros.SOLID_PRIMITIVE]
+        assert [posed.typename for posed in ros_oracle.shapes(scene)] == [SOLID_PRIMITIVE]
         assert shapes_cdr(scene) == [
             (posed.typename, to_cdr(posed.shape)) for posed in ros_oracle.shapes(scene)
         ]
@@ -130,8 +130,8 @@ def test_review_fixes_times_and_mesh_indices() -> None:
     )
     with pytest.raises(EncodeError, match="does not fit int32 seconds"):
         PoseArrayEncoder().encode(late)
-    mesh = make(ros.MESH, vertices=[make("geometry_msgs/msg/Point")],
+    mesh = make(MESH, vertices=[make("geometry_msgs/msg/Point")],
                 triangles=[make("shape_msgs/msg/MeshTriangle", vertex_indices=[0, 0, 5])])  # fmt: skip
     with pytest.raises(SceneError, match="refers to vertex 5 of 1"):
         shape_from_message(mesh)
-    assert isinstance(shape_from_message(make(ros.MESH)), TriangleMesh)
+    assert isinstance(shape_from_message(make(MESH)), TriangleMesh)

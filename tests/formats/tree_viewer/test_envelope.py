@@ -13,7 +13,7 @@ from viewer_bridge.formats.tree_viewer.envelope import (
     decode,
     request_channel,
 )
-from viewer_bridge.lcmcodec import VIEWER2_COMMS
+from viewer_bridge.lcmcodec.codecs import VIEWER2_COMMS
 
 
 def envelope(format_name: str = FORMAT, major: int = 1, data: bytes = b"{}") -> bytes:

@@ -30,7 +30,7 @@ from viewer_bridge.formats.tree_viewer.requests import (
     load_requests,
     settransform_values,
 )
-from viewer_bridge.lcmcodec import VIEWER2_COMMS
+from viewer_bridge.lcmcodec.codecs import VIEWER2_COMMS
 from viewer_bridge.model.scene import LinkPoses
 
 ROLES = ["ILLUSTRATION", "PROXIMITY"]

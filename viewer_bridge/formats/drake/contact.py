@@ -15,7 +15,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.lcmcodec import CONTACT_RESULTS, Buffer, LcmMessage
+from viewer_bridge.lcmcodec.codecs import CONTACT_RESULTS
+from viewer_bridge.lcmcodec.serde import Buffer, LcmMessage
 from viewer_bridge.model.contact import (
     ContactBody,
     ContactResults,

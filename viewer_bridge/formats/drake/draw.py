@@ -15,7 +15,8 @@ import numpy as np
 import numpy.typing as npt
 
 from viewer_bridge.errors import EncodeError
-from viewer_bridge.lcmcodec import DRAW, Buffer, LcmMessage
+from viewer_bridge.lcmcodec.codecs import DRAW
+from viewer_bridge.lcmcodec.serde import Buffer, LcmMessage
 from viewer_bridge.model.scene import LinkPoses
 
 

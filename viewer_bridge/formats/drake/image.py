@@ -28,9 +28,10 @@ import numpy as np
 import numpy.typing as npt
 from PIL import Image as PilImage
 
-from viewer_bridge.errors import DecodeError, EncodeError
-from viewer_bridge.formats.drake.inflate import InflateError, inflate
-from viewer_bridge.lcmcodec import HEADER, IMAGE, IMAGE_ARRAY, Buffer
+from viewer_bridge.errors import DecodeError, EncodeError, InflateError
+from viewer_bridge.formats.drake.inflate import inflate
+from viewer_bridge.lcmcodec.codecs import HEADER, IMAGE, IMAGE_ARRAY
+from viewer_bridge.lcmcodec.serde import Buffer
 from viewer_bridge.model.image import EncodedImage, FileFormat, Image, Layout, Pixels
 
 TYPE_NAME = IMAGE_ARRAY.type_name

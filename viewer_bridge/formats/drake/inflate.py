@@ -25,6 +25,8 @@ from collections.abc import Callable
 import numpy as np
 import numpy.typing as npt
 
+from viewer_bridge.errors import InflateError
+
 Bytes = npt.NDArray[np.uint8]
 DEFLATE_MAX_RATIO = 1032  # deflate's best: 258 bytes per 2-bit match code, so no stream gives more
 _Z_OK, _Z_MEM_ERROR = 0, -4
@@ -61,10 +63,6 @@ class BufferPool:
     def idle_count(self) -> int:
         with self._lock:
             return sum(map(len, self._free.values()))
-
-
-class InflateError(ValueError):
-    """A stream that is no zlib stream, ends early, has bytes after it, or expands past the size."""
 
 
 def inflate_python(data: bytes | memoryview, size: int) -> Bytes:
@@ -129,7 +127,6 @@ __all__ = [
     "BufferPool",
     "Bytes",
     "DEFLATE_MAX_RATIO",
-    "InflateError",
     "POOL",
     "inflate",
     "inflate_libz",

@@ -19,8 +19,9 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.config.mappings import FormatTables
-from viewer_bridge.errors import DecodeError
-from viewer_bridge.lcmcodec import GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT, Buffer, LcmMessage
+from viewer_bridge.errors import DecodeError, ShapeDataError
+from viewer_bridge.lcmcodec.codecs import GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT
+from viewer_bridge.lcmcodec.serde import Buffer, LcmMessage
 from viewer_bridge.model.scene import (
     FileContents,
     Geometry,
@@ -47,19 +48,6 @@ BOX, SPHERE, CYLINDER, MESH, CAPSULE, ELLIPSOID = map(
 _LOAD_TYPE = LOAD_ROBOT.type_name
 
 
-class _ShapeDataError(Exception):
-    """Raised inside shape parsing; turned into a DecodeError with the field path outside."""
-
-    def __init__(
-        self, reason: str, offset: int = 0, unit: str = "element", field: str = "float_data"
-    ) -> None:
-        super().__init__(reason)
-        self.reason = reason
-        self.offset = offset
-        self.unit = unit
-        self.field = field
-
-
 def _mesh(data: Sequence[float], text: str) -> Shape:
     if not text:
         return _triangle_mesh(data)
@@ -79,15 +67,15 @@ def _scale(data: Sequence[float]) -> Vector3:
 
 def _triangle_mesh(data: Sequence[float]) -> TriangleMesh:
     if len(data) < 2:
-        raise _ShapeDataError(f"mesh array needs V and T, got {len(data)} floats", len(data))
+        raise ShapeDataError(f"mesh array needs V and T, got {len(data)} floats", len(data))
     vertex_count, triangle_count = data[0], data[1]
     for index, count in enumerate((vertex_count, triangle_count)):
         if count < 0 or count != int(count):
-            raise _ShapeDataError(f"mesh array count {count} is not a whole number >= 0", index)
+            raise ShapeDataError(f"mesh array count {count} is not a whole number >= 0", index)
     v, t = int(vertex_count), int(triangle_count)
     expected = 2 + 3 * v + 3 * t
     if len(data) != expected:
-        raise _ShapeDataError(
+        raise ShapeDataError(
             f"mesh array with V={v}, T={t} needs {expected} floats, got {len(data)}", len(data)
         )
     values = np.asarray(data, dtype=np.float64)
@@ -96,15 +84,15 @@ def _triangle_mesh(data: Sequence[float]) -> TriangleMesh:
     invalid = (index_floats < 0) | (index_floats >= v) | (index_floats != np.floor(index_floats))
     if invalid.any():
         bad = int(np.flatnonzero(invalid)[0])
-        raise _ShapeDataError(
+        raise ShapeDataError(
             f"mesh array index {index_floats[bad]} is not a vertex index below V={v}", 2 + 3 * v + bad
         )
     return TriangleMesh(vertices, index_floats.astype(np.int64).reshape(t, 3))
 
 
-def _json_error(reason: str, position: int = 0) -> _ShapeDataError:
+def _json_error(reason: str, position: int = 0) -> ShapeDataError:
     """An error in the in-memory-mesh JSON of `string_data`, at a character position."""
-    return _ShapeDataError(reason, position, "character", "string_data")
+    return ShapeDataError(reason, position, "character", "string_data")
 
 
 def _in_memory_mesh(text: str, scale: Vector3) -> InMemoryMesh:
@@ -148,7 +136,7 @@ def _file_contents(entry: dict[str, Any], where: str) -> FileContents:
 
 
 def geometry_from_lcm(message: LcmMessage) -> Geometry:
-    """One `lcmt_viewer_geometry_data` as a scene geometry (raises `_ShapeDataError`)."""
+    """One `lcmt_viewer_geometry_data` as a scene geometry (raises `ShapeDataError`)."""
     if message.type == MESH:  # three kinds of mesh, told apart by string_data: code, not table
         shape = _mesh(message.float_data, message.string_data)
     elif message.type in TABLES["geometry_data"].types.values():
@@ -156,9 +144,9 @@ def geometry_from_lcm(message: LcmMessage) -> Geometry:
         try:
             shape = TABLES["geometry_data"].decode(message.type, values)
         except ValueError as error:
-            raise _ShapeDataError(str(error), len(message.float_data)) from None
+            raise ShapeDataError(str(error), len(message.float_data)) from None
     else:
-        raise _ShapeDataError(f"unknown geometry type {message.type}", 0, "element", "type")
+        raise ShapeDataError(f"unknown geometry type {message.type}", 0, "element", "type")
     x, y, z = message.position
     qw, qx, qy, qz = message.quaternion
     r, g, b, a = message.color
@@ -186,7 +174,7 @@ def _link_geometries(link: LcmMessage, prefix: str, type_name: str = _LOAD_TYPE)
     for index, geometry in enumerate(link.geom):
         try:
             geometries.append(geometry_from_lcm(geometry))
-        except _ShapeDataError as error:
+        except ShapeDataError as error:
             field = f"{prefix}.geom[{index}].{error.field}".lstrip(".")
             raise DecodeError(type_name, field, error.offset, error.reason, unit=error.unit) from None
     return tuple(geometries)

@@ -16,7 +16,8 @@ from viewer_bridge.formats.point_fields import (
     read_points,
     write_points,
 )
-from viewer_bridge.lcmcodec import POINT_CLOUD, POINT_CLOUD_FIELD, Buffer
+from viewer_bridge.lcmcodec.codecs import POINT_CLOUD, POINT_CLOUD_FIELD
+from viewer_bridge.lcmcodec.serde import Buffer
 from viewer_bridge.model.scene import StampedPointCloud, frame_name
 
 TYPE_NAME = POINT_CLOUD.type_name

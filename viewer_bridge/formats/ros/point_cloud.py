@@ -20,8 +20,8 @@ from viewer_bridge.formats.point_fields import (
     read_points,
     write_points,
 )
-from viewer_bridge.formats.ros import POINT_CLOUD2
 from viewer_bridge.formats.ros.cdr import CDR_TIME, U32, CdrReader, CdrWriter, time_parts_from_us
+from viewer_bridge.formats.ros.message_types import POINT_CLOUD2
 from viewer_bridge.model.scene import StampedPointCloud
 
 _TWO_U32 = struct.Struct("<II")

@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.formats.ros import POSE_ARRAY
 from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, FRONT_PADDING, U32, cdr_string_4, time_parts
+from viewer_bridge.formats.ros.message_types import POSE_ARRAY
 from viewer_bridge.model.pose_math import write_pose_rows_xyzw
 from viewer_bridge.model.scene import FloatArray, LinkPoses, Pose, link_poses_from_xyzw, pose_from_xyzw
 from viewer_bridge.model.sim_time import ms_from_sec_nsec

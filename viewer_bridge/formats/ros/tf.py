@@ -16,8 +16,8 @@ import struct
 
 import numpy as np
 
-from viewer_bridge.formats.ros import WORLD
 from viewer_bridge.formats.ros.cdr import CDR_TIME, POSE_ITEM, U32, CdrWriter, payload_items
+from viewer_bridge.formats.ros.message_types import WORLD
 from viewer_bridge.model.pose_math import write_pose_rows_xyzw
 from viewer_bridge.model.scene import LinkPoses, frame_name
 

@@ -8,7 +8,8 @@ from typing import Any
 import orjson
 
 from viewer_bridge.errors import RequestRejected
-from viewer_bridge.lcmcodec import VIEWER2_COMMS, Buffer
+from viewer_bridge.lcmcodec.codecs import VIEWER2_COMMS
+from viewer_bridge.lcmcodec.serde import Buffer
 
 FORMAT = "treeviewer_json"
 VERSION = (1, 0)

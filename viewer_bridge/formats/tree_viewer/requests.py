@@ -17,7 +17,7 @@ import numpy.typing as npt
 import orjson
 
 from viewer_bridge.config.mappings import FormatTables
-from viewer_bridge.formats.tree_viewer import DEFAULT_PREFIX
+from viewer_bridge.formats.tree_viewer.common import DEFAULT_PREFIX
 from viewer_bridge.formats.tree_viewer.envelope import Request, encode, envelope
 from viewer_bridge.model.scene import (
     FloatArray,

@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import RequestRejected, SceneError
-from viewer_bridge.formats.tree_viewer import JsonObject
 from viewer_bridge.formats.tree_viewer.commands import geometry_from_command, pose_from_transform
+from viewer_bridge.formats.tree_viewer.common import JsonObject
 from viewer_bridge.formats.tree_viewer.envelope import (
     ERROR_HANDLING_REQUEST,
     ERROR_UNKNOWN_REQUEST_TYPE,

@@ -5,5 +5,3 @@
 (publishers, subscriptions and the token graph on that session), `transport` (the `Transport`).
 Only `keys` and `transport` import without eclipse-zenoh installed.
 """
-
-__all__: list[str] = []

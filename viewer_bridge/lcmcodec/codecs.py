@@ -1,0 +1,58 @@
+"""The strict LCM codecs for the types in `lcmtypes/`, generated from the schemas when first imported.
+
+Usage::
+
+    message = DRAW.decode(data)          # a drake.lcmt_viewer_draw message
+    assert DRAW.encode(message) == data  # byte-identical to lcm-gen's output
+"""
+
+from __future__ import annotations
+
+from viewer_bridge.config.resources import data_dir
+from viewer_bridge.lcmcodec.schema import StructDef, load_schema_dir
+from viewer_bridge.lcmcodec.serde import Buffer, LcmMessage, StructCodec, compile_codecs
+
+SCHEMA_DIR = data_dir("lcmtypes")
+STRUCTS: dict[str, StructDef] = load_schema_dir(SCHEMA_DIR)
+CODECS: dict[str, StructCodec] = compile_codecs(STRUCTS)
+
+LOAD_ROBOT = CODECS["drake.lcmt_viewer_load_robot"]
+LINK_DATA = CODECS["drake.lcmt_viewer_link_data"]
+GEOMETRY_DATA = CODECS["drake.lcmt_viewer_geometry_data"]
+DRAW = CODECS["drake.lcmt_viewer_draw"]
+VIEWER2_COMMS = CODECS["robotlocomotion.viewer2_comms_t"]
+POINT_CLOUD = CODECS["drake.lcmt_point_cloud"]
+POINT_CLOUD_FIELD = CODECS["drake.lcmt_point_cloud_field"]
+CONTACT_RESULTS = CODECS["drake.lcmt_contact_results_for_viz"]
+HEADER = CODECS["drake.lcmt_header"]
+IMAGE = CODECS["drake.lcmt_image"]
+IMAGE_ARRAY = CODECS["drake.lcmt_image_array"]
+
+_BY_FINGERPRINT = {codec.packed_fingerprint: codec for codec in CODECS.values()}
+
+
+def codec_for(data: Buffer) -> StructCodec | None:
+    """The codec whose fingerprint starts `data`, or None for a type we have no schema for."""
+    return _BY_FINGERPRINT.get(bytes(data[:8]))
+
+
+__all__ = [
+    "CODECS",
+    "CONTACT_RESULTS",
+    "DRAW",
+    "GEOMETRY_DATA",
+    "HEADER",
+    "IMAGE",
+    "IMAGE_ARRAY",
+    "LINK_DATA",
+    "LOAD_ROBOT",
+    "POINT_CLOUD",
+    "POINT_CLOUD_FIELD",
+    "SCHEMA_DIR",
+    "STRUCTS",
+    "VIEWER2_COMMS",
+    "Buffer",
+    "LcmMessage",
+    "StructCodec",
+    "codec_for",
+]
