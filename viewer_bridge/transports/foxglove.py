@@ -57,6 +57,7 @@ from viewer_bridge.transports.base import (
 from viewer_bridge.transports.foxglove_clients import CLIENT_ENCODINGS, MAX_CLIENT_CHANNELS, ClientPublishing
 from viewer_bridge.transports.foxglove_front import MAX_CLIENT_MESSAGE, MAX_CLIENTS, SubprotocolFront
 from viewer_bridge.transports.origins import FOXGLOVE_APPS, Origins, is_origin_pattern
+from viewer_bridge.transports.sdk_tls import SdkCertificate
 from viewer_bridge.util.extras import missing
 
 try:
@@ -261,10 +262,13 @@ class FoxgloveTransport(Transport):
         context: FoxgloveContext | None = None,
         *,
         accept_commands: bool = True,
+        sdk_tls: bool = True,
     ) -> None:
         """`accept_commands`: whether what clients publish can land anywhere (a router's config
         allows some command channel); without it the server offers no publishing, and a client
-        that publishes anyway is told why."""
+        that publishes anyway is told why. `sdk_tls`: the SDK's server behind the front speaks
+        TLS only, with a certificate made for this run (viewer_bridge/transports/sdk_tls.py: no
+        web page can read it); false only to measure what that costs (bench/foxglove_live.py)."""
         super().__init__(settings)
         self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
         self._subscribers = _Subscribers()
@@ -274,6 +278,10 @@ class FoxgloveTransport(Transport):
             "capabilities": [Capability.ClientPublish],
             "supported_encodings": list(CLIENT_ENCODINGS),
         }
+        certificate = SdkCertificate.make() if sdk_tls else None
+        tls = (
+            {} if certificate is None else {"tls_cert": certificate.cert_pem, "tls_key": certificate.key_pem}
+        )
         try:
             self.server = foxglove.start_server(
                 name=settings.name,
@@ -282,6 +290,7 @@ class FoxgloveTransport(Transport):
                 context=self.context.context,
                 server_listener=_Listener(self._channels, self._subscribers),
                 **(publishing if self.clients is not None and accept_commands else {}),  # type: ignore[arg-type]
+                **tls,  # type: ignore[arg-type]
             )
         except Exception as error:  # the SDK raises its own error types, e.g. for a port in use
             raise self._cannot_listen(error) from None
@@ -291,6 +300,7 @@ class FoxgloveTransport(Transport):
                 rename=settings.accept_websocket_v1, reader=self.clients,
                 origins=Origins(settings.allowed_origins, trusted=FOXGLOVE_APPS),
                 max_clients=settings.max_clients, max_message_bytes=settings.max_client_message_bytes,
+                certificate=certificate,
             )  # fmt: skip
         except OSError as error:  # a port in use, an address not of this machine
             self.server.stop()
