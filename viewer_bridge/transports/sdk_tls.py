@@ -32,7 +32,7 @@ from viewer_bridge.errors import HandshakeError
 
 __all__ = ["SdkCertificate", "SdkLink", "TLS_CHUNK"]
 
-TLS_CHUNK = 64 * 1024  # raw bytes read from the SDK's socket at a time
+TLS_CHUNK = 256 * 1024  # raw bytes read from the SDK's socket at a time (the relay's own CHUNK)
 
 # --- Ed25519 (RFC 8032, section 5.1) ---------------------------------------------------------
 
@@ -224,17 +224,13 @@ class SdkLink:
             self.sock.sendall(raw)
 
     def recv_into(self, buffer: bytearray | memoryview) -> int:
-        """Plain bytes from the SDK into `buffer`; 0 at the end of the stream."""
+        """Plain bytes from the SDK into `buffer`: every whole record already come that fits
+        (TLS gives one record, at most 16 kB, per read: a 100 kB message in one piece saves the
+        relay six passes); 0 at the end of the stream."""
+        view = memoryview(buffer)
         while True:
             with self._lock:
-                try:
-                    count: int = self._tls.read(len(buffer), buffer)  # type: ignore[assignment]  # a count, given a buffer
-                except ssl.SSLWantReadError:
-                    count = -1
-                except (ssl.SSLZeroReturnError, ssl.SSLEOFError):
-                    return 0
-                except ssl.SSLError as error:
-                    raise OSError(f"TLS from the SDK's server: {error}") from None
+                count, ended = self._read_records(view)
                 made = self._outgoing.read()  # what reading made the TLS state send (rare)
                 if made:
                     self._sending.acquire()
@@ -243,12 +239,29 @@ class SdkLink:
                     self._flush(made)
                 finally:
                     self._sending.release()
-            if count >= 0:
+            if count or ended:
                 return count
             raw = self.sock.recv(TLS_CHUNK)
             with self._lock:
-                if not self._take(raw):
-                    continue  # the next read says how it ended
+                self._take(raw)  # at its end, the next read says how it ended
+
+    def _read_records(self, view: memoryview) -> tuple[int, bool]:
+        """Decrypt into `view` what the bytes taken hold (under the lock); the count, and whether
+        the stream has ended (cleanly or not)."""
+        count = 0
+        while count < len(view):
+            try:
+                got: int = self._tls.read(len(view) - count, view[count:])  # type: ignore[assignment]  # a count, given a buffer
+            except ssl.SSLWantReadError:
+                return count, False
+            except (ssl.SSLZeroReturnError, ssl.SSLEOFError):
+                return count, True
+            except ssl.SSLError as error:
+                raise OSError(f"TLS from the SDK's server: {error}") from None
+            if not got:  # the server's close_notify: the end (given a buffer, a read returns a count)
+                return count, True
+            count += got
+        return count, False
 
     def recv(self, size: int, /) -> bytes:
         buffer = bytearray(size)
