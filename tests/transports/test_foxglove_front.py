@@ -503,7 +503,9 @@ def test_past_max_handshakes_the_oldest_request_under_way_is_dropped_and_a_clien
             sock.close()
 
 
-@pytest.mark.filterwarnings("ignore::pytest.PytestUnhandledThreadExceptionWarning")  # the end it is made to meet
+@pytest.mark.filterwarnings(
+    "ignore::pytest.PytestUnhandledThreadExceptionWarning"
+)  # the end it is made to meet
 def test_an_accepting_thread_that_ends_is_started_again_and_said(
     foxglove: Callable[..., FoxgloveTransport], caplog: pytest.LogCaptureFixture
 ) -> None:
