@@ -495,7 +495,7 @@ def test_past_max_handshakes_the_oldest_request_under_way_is_dropped_and_a_clien
         for sock in stalled:
             sock.sendall(b"G")
         assert wait_until(lambda: transport.errors().get("too_many_handshakes") == 22)
-        assert transport.front.handshakes() == 8 and threading.active_count() == threads
+        assert transport.front.handshakes() == 8 and threading.active_count() <= threads
         assert sum(_gone(sock, 0.01) for sock in stalled) == 22
         open_client(transport.port, None).close()  # newest: read before the next crowd pushes it out
     finally:
