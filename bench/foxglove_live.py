@@ -9,18 +9,23 @@ protobuf wire template; numpy scatters the doubles and the stamp). Baseline: the
 once-per-load SceneUpdate of a 1000-geometry scene.
 
 Then the live server: from `publish` of those bytes to a WebSocket client's receipt, a client
-connected straight to the SDK's server (the baseline: what the SDK costs alone) beside clients
-connected through our front (viewer_bridge/transports/foxglove_front.py) with either subprotocol name,
-and through the front of a read-only server (no client publishing: it reads along only the
-subscriptions, and the SDK's text messages, to send again one the SDK refused too early).
-Two figures each: one message at a time (publish, wait for it: the latency), and a burst of
-messages back to back (the time per message when the relay is kept busy).
+connected straight to the SDK's server over TLS (the baseline: what the SDK costs alone) beside
+clients connected through our front (viewer_bridge/transports/foxglove_front.py) with either
+subprotocol name, through a front that reaches the SDK in plain TCP (what the TLS between front
+and SDK costs per frame: viewer_bridge/transports/sdk_tls.py), and through the front of a
+read-only server (no client publishing: it reads along only the subscriptions, and the SDK's text
+messages, to send again one the SDK refused too early).
+Three figures each: one message at a time (publish, wait for it: the latency), a burst of
+messages back to back (the time per message when the relay is kept busy), and the CPU per message
+of that burst, of the whole process (SDK, front and client all run in it; steadier than the times
+on a shared machine).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import ssl
 import time
 
 from common import frame  # bench/ is on sys.path when run as a script
@@ -101,41 +106,53 @@ def per_message(publisher: Publisher, ws: ClientConnection, payload: bytes, coun
     return (time.perf_counter() - start) / count
 
 
-def live_paths(payload: bytes, count: int, rounds: int = 5) -> dict[str, tuple[float, float]]:
+def live_paths(payload: bytes, count: int, rounds: int = 5) -> dict[str, tuple[float, float, float]]:
     """(one at a time, in a burst) seconds per message for each way of reaching the server, the
     best of `rounds` alternating rounds (this machine's load drifts). The default server reads
-    along what clients send (client publishing) and tracks where the SDK's messages end; a
-    read-only one (`client_publish: false`) reads along only what repairs a refused subscription."""
+    along what clients send (client publishing) and tracks where the SDK's messages end, and
+    reaches the SDK over TLS (a certificate made per run, so that no web page can read the SDK's
+    own port); beside it the same front reaching the SDK in plain TCP (`sdk_tls=False`: what the
+    TLS costs per frame), and a read-only one (`client_publish: false`) that reads along only what
+    repairs a refused subscription."""
     transport = FoxgloveTransport(FoxgloveSettings(port=0))
+    plain = FoxgloveTransport(FoxgloveSettings(port=0), sdk_tls=False)
     read_only = FoxgloveTransport(FoxgloveSettings(port=0, client_publish=False))
+    direct = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)  # a program of ours that knows the SDK's port
+    direct.check_hostname, direct.verify_mode = False, ssl.CERT_NONE
     try:
         message_type = MessageType("foxglove.FrameTransforms", PROTOBUF)
         publisher = transport.publisher("/bench", message_type, Qos())
+        on_plain = plain.publisher("/bench", message_type, Qos())
         relay_only = read_only.publisher("/bench", message_type, Qos())
-        paths = {  # name: (publisher, port, subprotocol)
-            "SDK server alone, foxglove.sdk.v1 (baseline)": (
-                publisher,
-                transport.server.port,
-                "foxglove.sdk.v1",
-            ),
-            "through the front, foxglove.sdk.v1": (publisher, transport.port, "foxglove.sdk.v1"),
-            "through the front, foxglove.websocket.v1": (publisher, transport.port, "foxglove.websocket.v1"),
-            "read-only server's front, .websocket.v1": (relay_only, read_only.port, "foxglove.websocket.v1"),
-        }
+        paths = {  # name: (publisher, url, subprotocol, TLS context)
+            "SDK server alone (wss, baseline)": (
+                publisher, f"wss://127.0.0.1:{transport.server.port}", "foxglove.sdk.v1", direct),
+            "front, plain TCP to the SDK, .sdk.v1": (on_plain, f"ws://127.0.0.1:{plain.port}", "foxglove.sdk.v1", None),
+            "front, TLS to the SDK, foxglove.sdk.v1": (publisher, f"ws://127.0.0.1:{transport.port}", "foxglove.sdk.v1",
+                                                       None),
+            "front, TLS to the SDK, .websocket.v1": (publisher, f"ws://127.0.0.1:{transport.port}",
+                                                     "foxglove.websocket.v1", None),
+            "read-only server's front, .websocket.v1": (relay_only, f"ws://127.0.0.1:{read_only.port}",
+                                                        "foxglove.websocket.v1", None),
+        }  # fmt: skip
         best: dict[str, tuple[float, float]] = {}
         for _ in range(rounds):
-            for name, (on, port, subprotocol) in paths.items():
-                with connect(f"ws://127.0.0.1:{port}", subprotocols=[subprotocol], max_size=None) as ws:  # type: ignore[list-item]
+            for name, (on, url, subprotocol, context) in paths.items():
+                with connect(url, subprotocols=[subprotocol], max_size=None, ssl=context) as ws:  # type: ignore[list-item]
                     assert ws.subprotocol == subprotocol
                     subscribe(ws)
                     wait_for_subscriber(on)
                     per_message(on, ws, payload, 20, burst=False)  # warm up
-                    figures = tuple(per_message(on, ws, payload, count, burst) for burst in (False, True))
-                old = best.get(name, (float("inf"), float("inf")))
-                best[name] = (min(old[0], figures[0]), min(old[1], figures[1]))
+                    single = per_message(on, ws, payload, count, burst=False)
+                    cpu = time.process_time()  # the SDK, the front and the client: all this process's
+                    burst = per_message(on, ws, payload, count, burst=True)
+                    cpu = (time.process_time() - cpu) / count
+                old = best.get(name, (float("inf"),) * 3)
+                best[name] = (min(old[0], single), min(old[1], burst), min(old[2], cpu))
         return best
     finally:
         transport.close()
+        plain.close()
         read_only.close()
 
 
@@ -176,9 +193,9 @@ def main() -> None:
         payload = encoder.encode(decoder.decode(DrawEncoder().encode(frame(links))), stamp)
         print(f"\nlive server, publish -> client receipt of a {len(payload)}-byte FrameTransforms, {links} links"
               " (best of 5 rounds)")  # fmt: skip
-        print(f"  {'path':44} {'one at a time':>14} {'in a burst':>12}")
-        for name, (single, burst) in live_paths(payload, args.messages).items():
-            print(f"  {name:44} {single * 1e6:11.1f} us {burst * 1e6:9.1f} us")
+        print(f"  {'path':44} {'one at a time':>14} {'in a burst':>12} {'CPU, burst':>12}")
+        for name, (single, burst, cpu) in live_paths(payload, args.messages).items():
+            print(f"  {name:44} {single * 1e6:11.1f} us {burst * 1e6:9.1f} us {cpu * 1e6:9.1f} us")
 
 
 if __name__ == "__main__":

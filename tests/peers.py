@@ -6,6 +6,7 @@ process's own (set in conftest before rclpy loads), LCM uses a private multicast
 
 from __future__ import annotations
 
+import resource
 import subprocess
 import sys
 import threading
@@ -86,12 +87,25 @@ class BridgeProcess:
     """`viewer-bridge run` in a process of its own (in `env`, by default this one's); its log lines
     are collected."""
 
-    def __init__(self, *args: str, env: Mapping[str, str] | None = None) -> None:
+    def __init__(
+        self, *args: str, env: Mapping[str, str] | None = None, max_files: int | None = None
+    ) -> None:
+        """`max_files`: the bridge's open-file limit (RLIMIT_NOFILE, soft and hard), as `ulimit -n` sets it."""
         # Never a fixed port: bridges may run side by side, and beside a user's own.
         command = [sys.executable, "-m", "viewer_bridge.cli.main", "run", "--set", "foxglove.port=0", *args]
+
+        def limit_files() -> None:
+            if max_files is not None:
+                resource.setrlimit(resource.RLIMIT_NOFILE, (max_files, max_files))
+
         # stdout to nowhere: a pipe nobody reads fills (64 KiB) and then blocks the bridge for good.
         self.process = subprocess.Popen(
-            command, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env
+            command,
+            stderr=subprocess.PIPE,
+            stdout=subprocess.DEVNULL,
+            text=True,
+            env=env,
+            preexec_fn=limit_files if max_files is not None else None,
         )
         self.lines: list[str] = []
         self._reader = threading.Thread(target=self._read, daemon=True)

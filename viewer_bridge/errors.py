@@ -207,6 +207,11 @@ class HandshakeError(BridgeError):
     """A client connection whose opening handshake cannot be relayed (cut off, too long, too slow)."""
 
 
+class FrameLimitError(BridgeError):
+    """A client's WebSocket stream past what its frames may cost (one message in too many
+    fragments): the connection is let go."""
+
+
 class HttpRefusal(BridgeError):
     """A connection a server of the bridge answers with an HTTP error `status` instead of serving
     it (403: a browser page of a foreign origin; 503: too many clients at once), counted as `kind`;
@@ -255,6 +260,7 @@ __all__ = [
     "DecodeError",
     "EncodeError",
     "GltfError",
+    "FrameLimitError",
     "HandshakeError",
     "Held",
     "HttpRefusal",

@@ -211,6 +211,12 @@ def foxglove_seeds() -> Seeds:
                 "http://[::1]:8080",
             )
         ],  # fmt: skip
+        "foxglove_slow_handshake": [
+            _trickled(_request(None), 1, 0),  # all at once
+            _trickled(_request("https://evil.example"), 7, 3),  # a few bytes every 0.3 s: in time
+            _trickled(_request(None), 1, 1),  # a byte every 0.1 s: past the deadline
+            _trickled(_request(None)[:-2], 64, 0),  # closed before its blank line
+        ],
         "origin_match": [
             b"https://*.lab.example\0https://viewer.lab.example",
             b"http://[::1]:*\0http://[::1]:8080",
@@ -238,6 +244,12 @@ def _frames(records: bytes) -> bytes:
     from tests.fuzz.targets import client_frames
 
     return client_frames(records)
+
+
+def _trickled(request: bytes, size: int, delay: int) -> bytes:
+    """`request` as foxglove_slow_handshake's records: reads of `size` bytes, `delay` x 0.1 s apart."""
+    return b"".join(bytes([delay, len(part)]) + part for part in (request[at : at + size]
+                    for at in range(0, len(request), size)))  # fmt: skip
 
 
 def _request(origin: str | None) -> bytes:

@@ -9,8 +9,8 @@ Seed kinds are what tests/fuzz/seeds.py writes: every LCM type by its full name 
 capture, so a new schema Drake publishes gets seeds and a target with no code here), plus
 "ign.Pose_V", "ign.Model", "ign.discovery", "gltf", "render_form", "sensor_msgs/PointCloud2", "config",
 the rmw_zenoh kinds "rmw_zenoh.data_key", "rmw_zenoh.token" and "rmw_zenoh.attachment", and the
-Foxglove front's "foxglove_client_stream", "foxglove_client_messages", "foxglove_handshake" and
-"origin_match".
+Foxglove front's "foxglove_client_stream", "foxglove_client_messages", "foxglove_handshake",
+"foxglove_slow_handshake" and "origin_match".
 
 This module imports `bridge` at its top on purpose: the fuzz runner imports it inside
 `atheris.instrument_imports()`, so that every bridge module is instrumented for coverage.
@@ -37,6 +37,7 @@ from viewer_bridge.errors import (
     ConfigError,
     DecodeError,
     EncodeError,
+    FrameLimitError,
     GltfError,
     HandshakeError,
     JsonValueError,
@@ -71,8 +72,11 @@ from viewer_bridge.translators.tree_viewer import TreeViewerServer
 from viewer_bridge.transports.base import Received
 from viewer_bridge.transports.foxglove_clients import ClientPublishing
 from viewer_bridge.transports.foxglove_front import (
+    HANDSHAKE_SECONDS,
+    MAX_HEAD,
     SDK_SUBPROTOCOL,
     Connection,
+    RequestHead,
     foxglove_gate,
     http_response,
     naming,
@@ -736,6 +740,50 @@ def foxglove_handshake(data: bytes) -> object:
     return answer
 
 
+def foxglove_slow_handshake(data: bytes) -> object:
+    """A request head arriving slowly and in fragments, as the front's accepting thread reads it
+    (`RequestHead`, on a clock of the fuzzer's): records `u8 delay | u8 length | bytes`, each a
+    read that comes `delay` x 0.1 s after the previous one (0 to 25.5 s); a record cut short is
+    the peer closing. Checked against a plain reading of what came: the head is found exactly
+    when the bytes so far hold a blank line within MAX_HEAD and the one deadline has not passed;
+    nothing is found past the deadline, however short each wait was."""
+    start = clock = 1000.0
+    head = RequestHead(start + HANDSHAKE_SECONDS)
+    sent = bytearray()
+    at = 0
+    while True:
+        if at + 2 > len(data):
+            chunk = b""  # the peer closes
+        else:
+            clock += data[at] * 0.1
+            chunk = data[at + 2 : at + 2 + data[at + 1]]
+            at += 2 + data[at + 1]
+            if not chunk:
+                continue  # a read of nothing is no read (a socket returns b"" only at its end)
+        sent += chunk
+        end = sent.find(b"\r\n\r\n")
+        in_time = clock <= start + HANDSHAKE_SECONDS
+        whole = end >= 0 and end + 4 <= MAX_HEAD
+        try:
+            found = head.feed(chunk, clock)
+        except HandshakeError:
+            if chunk and in_time and (whole or len(sent) <= MAX_HEAD):
+                raise AssertionError(f"refused in time, {len(sent)} bytes, head end at {end}") from None
+            raise
+        if found is None:
+            if whole or not in_time:
+                raise AssertionError(
+                    f"nothing found nor refused at {clock - start:.1f} s ({len(sent)} bytes)"
+                )
+            continue
+        request, early = found
+        if not in_time or not whole or request != bytes(sent[: end + 4]) or request + early != sent:
+            raise AssertionError(
+                f"found at {clock - start:.1f} s a head of {len(request)} bytes of {len(sent)}"
+            )
+        return request
+
+
 def _star_match(pattern: str, text: str) -> bool:
     """The allowed-origin rule, written again as a plain dynamic programme (the test's own): `*`
     any run of characters but `/`, every other character itself, ASCII letters in either case."""
@@ -766,7 +814,9 @@ def origin_match(data: bytes) -> object:
     return found
 
 
-register(Target("foxglove_client_stream", foxglove_client_stream, (), ("foxglove_client_stream",)))
+register(
+    Target("foxglove_client_stream", foxglove_client_stream, (FrameLimitError,), ("foxglove_client_stream",))
+)
 
 
 SDK_TEXT_HELD = 4096  # the front holds back up to MAX_SDK_TEXT; a smaller limit reaches both sides of it
@@ -794,8 +844,20 @@ def foxglove_sdk_stream(data: bytes) -> object:
 
 
 register(Target("foxglove_sdk_stream", foxglove_sdk_stream, (), ("foxglove_sdk_stream",)))
-register(Target("foxglove_client_messages", foxglove_client_messages, (), ("foxglove_client_messages",)))
+register(
+    Target(
+        "foxglove_client_messages",
+        foxglove_client_messages,
+        (FrameLimitError,),
+        ("foxglove_client_messages",),
+    )
+)
 register(Target("foxglove_handshake", foxglove_handshake, (HandshakeError,), ("foxglove_handshake",)))
+register(
+    Target(
+        "foxglove_slow_handshake", foxglove_slow_handshake, (HandshakeError,), ("foxglove_slow_handshake",)
+    )
+)
 register(Target("origin_match", origin_match, (), ("origin_match",)))
 
 

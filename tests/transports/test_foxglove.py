@@ -8,8 +8,10 @@ Payloads are decoded with foxglove-schemas-protobuf."""
 from __future__ import annotations
 
 import base64
+import contextlib
 import json
 import re
+import resource
 import socket
 import struct
 import subprocess
@@ -26,6 +28,7 @@ from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import ClientConnection, connect
+from websockets.typing import Origin, Subprotocol
 
 from tests.conftest import lcm_url, publish_until
 from tests.formats import oracle
@@ -578,3 +581,127 @@ def test_any_lcm_type_from_a_pydrake_diagram_reaches_a_foxglove_client_as_ros2ms
         for payload in client.messages[topics[channel]]:
             message = decode(payload)
             assert_same(sent[message.utime], message)
+
+
+# --- Hostile clients at the door (issue 51, rows 1 and 13) ------------------------------------------------
+
+STALLED = 1100  # connections of the attack: more than the bridge's 1024 files
+EVIL = "https://evil.example"
+SDK_NAME = Subprotocol("foxglove.sdk.v1")
+
+
+def served(port: int) -> bool:
+    """Whether a plain client gets its serverInfo from the Foxglove server at `port`."""
+    with connect(
+        f"ws://127.0.0.1:{port}", subprotocols=[SDK_NAME], open_timeout=60, ping_interval=None
+    ) as ws:
+        return bool(json.loads(ws.recv(timeout=60))["op"] == "serverInfo")
+
+
+def _stalling(port: int) -> socket.socket:
+    """A connection to `port` that sends nothing yet (connecting without waiting: a door that
+    stopped accepting must not hang the test)."""
+    sock = socket.socket()
+    sock.setblocking(False)
+    sock.connect_ex(("127.0.0.1", port))
+    return sock
+
+
+def _trickle(
+    port: int, stalled: list[socket.socket], stop: threading.Event, rounds: threading.Semaphore
+) -> None:
+    """Every 2 s, one more byte of a request head on each connection; one the bridge closed is
+    made again, as an attacker would."""
+    head = b"GET / HTTP/1.1\r\nHost: x\r\n"
+    sent = 0
+    while not stop.is_set():
+        for index, sock in enumerate(stalled):
+            try:
+                sock.send(head[sent % len(head) : sent % len(head) + 1])
+            except (BlockingIOError, InterruptedError):
+                pass  # still connecting, or its buffer is full
+            except OSError:  # closed by the bridge: again
+                sock.close()
+                stalled[index] = _stalling(port)
+        sent += 1
+        rounds.release()
+        stop.wait(2.0)
+
+
+def _files_here(count: int) -> None:
+    """This test process needs `count` files: raise its soft limit if it is lower."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft != resource.RLIM_INFINITY and soft < count:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (min(count, hard), hard))
+
+
+def test_a_crowd_of_stalled_handshakes_under_a_1024_file_limit_leaves_the_bridge_serving() -> None:
+    """1,100 connections, each sending one header byte now and then, to a bridge whose open-file
+    limit is 1024 (the common default): the bridge stays up (its stats report every 0.5 s runs
+    throughout), a plain client is served while they stall and after they are gone, and the
+    dropped connections are a few log lines, not one each."""
+    _files_here(STALLED + 500)
+    bridge = BridgeProcess("-c", "builtin:foxglove", "--lcm-url", lcm_url(16), "--stats-period", "0.5",
+                           max_files=1024)  # fmt: skip
+    stop, rounds = threading.Event(), threading.Semaphore(0)
+    stalled: list[socket.socket] = []
+    try:
+        port = foxglove_port(bridge)
+        stalled.extend(_stalling(port) for _ in range(STALLED))
+        trickler = threading.Thread(target=_trickle, args=(port, stalled, stop, rounds), daemon=True)
+        trickler.start()
+        for _ in range(3):  # the attack under way: its connections made, two bytes each so far
+            assert rounds.acquire(timeout=60)
+        assert served(port), "\n".join(bridge.lines[-40:])
+        for _ in range(6):  # past the handshake deadline: the first of them are dropped and made again
+            assert rounds.acquire(timeout=60)
+        assert served(port) and bridge.process.poll() is None
+        stop.set()
+        trickler.join(timeout=60)
+        for sock in stalled:
+            sock.close()
+        assert served(port)
+        assert bridge.process.poll() is None, "\n".join(bridge.lines)
+        dropped = [line for line in bridge.lines if "foxglove client connection dropped" in line
+                   or "request under way dropped" in line]  # fmt: skip
+        assert 0 < len(dropped) < 20, "\n".join(dropped[:40])
+    finally:
+        stop.set()
+        for sock in stalled:
+            sock.close()
+        assert bridge.stop() == 0, "\n".join(bridge.lines[-40:])
+
+
+def test_a_page_that_finds_the_sdks_own_port_reads_nothing_there() -> None:
+    """The SDK's server behind the front, found by a scan of loopback ports: a WebSocket request
+    from a foreign page gets no HTTP answer (the SDK speaks TLS only), `wss://` is refused for
+    its certificate (no authority signed it), and the front still serves the same page's
+    request with 403 and a program's with the stream."""
+    import ssl
+
+    from websockets.exceptions import InvalidStatus
+
+    from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
+
+    transport = FoxgloveTransport(FoxgloveSettings(port=0))
+    try:
+        sdk_port = transport.server.port
+        request = (b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                   b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n"
+                   b"Sec-WebSocket-Protocol: foxglove.sdk.v1\r\nOrigin: https://evil.example\r\n\r\n")  # fmt: skip
+        with socket.create_connection(("127.0.0.1", sdk_port), timeout=60) as scan:
+            scan.sendall(request)
+            answer = b""
+            with contextlib.suppress(OSError):  # reset, or closed
+                while chunk := scan.recv(65536):
+                    answer += chunk
+        assert not answer.startswith(b"HTTP") and b"serverInfo" not in answer, answer[:200]
+        with pytest.raises(ssl.SSLCertVerificationError):  # what a browser's wss:// meets
+            connect(f"wss://127.0.0.1:{sdk_port}", origin=Origin(EVIL), subprotocols=[SDK_NAME],
+                    open_timeout=60).close()  # fmt: skip
+        with pytest.raises(InvalidStatus):  # and at the front: 403
+            connect(f"ws://127.0.0.1:{transport.port}", origin=Origin(EVIL), subprotocols=[SDK_NAME],
+                    open_timeout=60).close()  # fmt: skip
+        assert served(transport.port)
+    finally:
+        transport.close()

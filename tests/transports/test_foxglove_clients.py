@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import base64
 import json
+import logging
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -327,3 +328,30 @@ def test_a_ros_type_as_foxglove_may_name_it() -> None:
     assert ros_type_name(COMMAND_TYPE) == COMMAND_TYPE
     for other in ("foxglove.Pose", "", "a/", "/b"):
         assert ros_type_name(other) == other
+
+
+def test_json_nested_too_deep_is_refused_as_a_bad_message_logged_once_per_client(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """50,000 nested arrays: refused as any unread message (counted, said to that client), one
+    log line per client however many it sends, never a traceback."""
+    from tests.fuzz.targets import RecordingConnection
+    from viewer_bridge.transports.foxglove_clients import ClientPublishing
+    from viewer_bridge.transports.websocket_frames import TEXT, Message
+
+    publishing = ClientPublishing()
+    deep = Message(TEXT, b'{"op": "advertise", "channels": ' + b"[" * 50_000 + b"]" * 50_000 + b"}")
+    one, other = RecordingConnection(), RecordingConnection()
+    with caplog.at_level(logging.DEBUG):
+        for _ in range(3):
+            publishing.message(one, deep)
+        publishing.message(other, deep)
+    assert publishing.errors() == {"client_message_unread": 4}
+    assert (
+        len(one.said) == 1 and "nested deeper" in json.loads(one.said[0])["message"]
+    )  # then held back a while
+    lines = [record for record in caplog.records if "nested deeper" in record.getMessage()]
+    assert len(lines) == 2 and not any(record.exc_info for record in caplog.records)
+    publishing.closed(one)
+    publishing.message(one, deep)  # a client that connects again is a new one
+    assert len([record for record in caplog.records if "nested deeper" in record.getMessage()]) == 3

@@ -5,10 +5,13 @@ front's answer to the SDK's subscribe race, against a server of that package sta
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import socket
 import struct
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -16,12 +19,14 @@ from typing import Any
 
 import pytest
 from pydantic import ValidationError
-from websockets.exceptions import InvalidStatus
+from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 from websockets.sync.server import ServerConnection, serve
 from websockets.typing import Origin, Subprotocol
 
 from tests.fuzz.targets import RecordingConnection
+from viewer_bridge.errors import HandshakeError
+from viewer_bridge.transports import foxglove_front
 from viewer_bridge.transports.base import CDR, MessageType, Qos, Received
 from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
 from viewer_bridge.transports.foxglove_clients import ClientPublishing
@@ -32,7 +37,8 @@ from viewer_bridge.transports.foxglove_front import (
     SubprotocolFront,
 )
 from viewer_bridge.transports.origins import FOXGLOVE_APPS, Origins
-from viewer_bridge.transports.websocket_frames import BINARY, TEXT, Message
+from viewer_bridge.transports.sdk_tls import SdkCertificate, SdkLink
+from viewer_bridge.transports.websocket_frames import BINARY, MAX_FRAGMENTS, TEXT, Message
 
 NAMES = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
 WAIT = 60.0
@@ -436,3 +442,174 @@ def test_what_a_client_leaves_for_resubscribing_is_bounded() -> None:
         assert subscriptions.server_said(junk) is None
     subscriptions.client_said(b'{"op": "unsubscribe", "subscriptionIds": [%d]}' % (3 * MAX_SUBSCRIPTIONS - 1))
     assert subscriptions.server_said(newest) is None  # nothing of the client's left to send again
+
+
+# --- Hostile connections at the door (issue 51) -------------------------------------------------------------
+
+
+def _gone(sock: socket.socket, seconds: float) -> bool:
+    """Whether the other end closed `sock` within `seconds` (what it sent before is read past)."""
+    sock.settimeout(seconds)
+    try:
+        while sock.recv(4096):
+            pass
+    except TimeoutError:
+        return False
+    except OSError:  # reset
+        pass
+    return True
+
+
+def test_a_request_trickled_in_is_dropped_at_one_deadline_for_the_whole_head(
+    foxglove: Callable[..., FoxgloveTransport], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A byte every 0.3 s keeps each read well within the deadline; the head as a whole is not,
+    and its connection is dropped once the deadline has passed."""
+    monkeypatch.setattr(foxglove_front, "HANDSHAKE_SECONDS", 1.5)
+    transport = foxglove()
+    head = b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n" + b"X-Padding: " + b"x" * 200
+    with socket.create_connection(("127.0.0.1", transport.port), timeout=WAIT) as slow:
+        start = time.monotonic()
+        closed = False
+        for byte in head:
+            with contextlib.suppress(OSError):
+                slow.sendall(bytes([byte]))
+            if _gone(slow, 0.3):
+                closed = True
+                break
+        assert closed, "still open after its whole trickle"
+        assert 1.5 <= time.monotonic() - start < WAIT
+    assert wait_until(lambda: transport.errors().get("bad_handshake") == 1)
+
+
+def test_past_max_handshakes_the_oldest_request_under_way_is_dropped_and_a_client_still_gets_in(
+    foxglove: Callable[..., FoxgloveTransport],
+) -> None:
+    """Requests under way hold no thread each and at most `max_handshakes` files: one more
+    pushes the oldest out, so a crowd of stalled connections never keeps a client out."""
+    transport = foxglove()
+    transport.front.max_handshakes = 8
+    threads = threading.active_count()
+    stalled = [socket.create_connection(("127.0.0.1", transport.port), timeout=WAIT) for _ in range(30)]
+    try:
+        for sock in stalled:
+            sock.sendall(b"G")
+        assert wait_until(lambda: transport.errors().get("too_many_handshakes") == 22)
+        assert transport.front.handshakes() == 8 and threading.active_count() <= threads
+        assert sum(_gone(sock, 0.01) for sock in stalled) == 22
+        open_client(transport.port, None).close()  # newest: read before the next crowd pushes it out
+    finally:
+        for sock in stalled:
+            sock.close()
+
+
+@pytest.mark.filterwarnings(
+    "ignore::pytest.PytestUnhandledThreadExceptionWarning"
+)  # the end it is made to meet
+def test_an_accepting_thread_that_ends_is_started_again_and_said(
+    foxglove: Callable[..., FoxgloveTransport], caplog: pytest.LogCaptureFixture
+) -> None:
+    transport = foxglove()
+    front = transport.front
+    accept = front._accept_waiting
+    ended = threading.Event()
+
+    def ends_once(selector: Any) -> None:
+        if not ended.is_set():
+            ended.set()
+            raise SystemExit  # what no `except Exception` catches: the thread ends
+        accept(selector)
+
+    front._accept_waiting = ends_once  # type: ignore[method-assign]
+    with caplog.at_level(logging.ERROR, logger="viewer_bridge"):
+        open_client(transport.port, None).close()  # waits in the queue while the thread starts again
+    assert ended.is_set() and transport.errors().get("accept_restarted") == 1
+    assert [
+        record for record in caplog.records if "accepting thread ended: started again" in record.getMessage()
+    ]
+
+
+OUT_OF_FILES = """
+import logging, os, resource, sys
+logging.basicConfig(level=logging.WARNING)
+resource.setrlimit(resource.RLIMIT_NOFILE, (256, resource.getrlimit(resource.RLIMIT_NOFILE)[1]))
+from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
+transport = FoxgloveTransport(FoxgloveSettings(port=0))
+print(transport.port, flush=True)
+held = []
+try:
+    while True:
+        held.append(os.open(os.devnull, os.O_RDONLY))
+except OSError:
+    pass
+print("full", flush=True)
+sys.stdin.readline()
+for each in held:
+    os.close(each)
+print("freed", flush=True)
+sys.stdin.readline()
+print(transport.errors().get("out_of_files", 0), flush=True)
+transport.close()
+"""
+
+
+@pytest.mark.e2e
+def test_out_of_files_the_front_rests_says_so_and_serves_again_once_files_are_free() -> None:
+    """A bridge process whose files are all taken: the connections that come meanwhile are
+    refused or wait, the front says so (a few lines, not one per try), and once files are free
+    a client is served (accepting never stopped for good)."""
+    child = subprocess.Popen([sys.executable, "-c", OUT_OF_FILES], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)  # fmt: skip
+    assert child.stdin is not None and child.stdout is not None
+    try:
+        port = int(child.stdout.readline())
+        assert child.stdout.readline() == "full\n"
+        tries = [socket.create_connection(("127.0.0.1", port), timeout=WAIT) for _ in range(20)]
+        for sock in tries:
+            with contextlib.suppress(OSError):
+                sock.sendall(b"GET / HTTP/1.1\r\nHost: x\r\n\r\n")
+        time.sleep(1.0)  # the front meets a full table a few times (nothing to wait on: it serves no one)
+        child.stdin.write("\n")
+        child.stdin.flush()
+        assert child.stdout.readline() == "freed\n"
+        open_client(port, None).close()
+        for sock in tries:
+            sock.close()
+        child.stdin.write("\n")
+        child.stdin.flush()
+        assert int(child.stdout.readline()) >= 1
+    finally:
+        child.stdin.close()
+        child.wait(timeout=WAIT)
+        assert child.stderr is not None
+        errors = child.stderr.read()
+    said = [line for line in errors.splitlines() if "no file for a new foxglove client" in line]
+    assert 1 <= len(said) <= 2, errors
+    assert "Traceback" not in errors, errors
+
+
+def test_a_client_sending_a_message_in_too_many_fragments_is_let_go_and_others_are_served(
+    foxglove: Callable[..., FoxgloveTransport],
+) -> None:
+    transport = foxglove()
+    bad, good = open_client(transport.port, None), open_client(transport.port, None)
+    try:
+        bad.send(["x"] * (MAX_FRAGMENTS + 10))  # one text message, a frame per character
+        with pytest.raises(ConnectionClosed):
+            while True:
+                bad.recv(timeout=WAIT)
+        assert transport.errors().get("frame_limit") == 1
+        good.send(json.dumps({"op": "subscribe", "subscriptions": []}))
+        good.ping().wait(timeout=WAIT)
+        open_client(transport.port, None).close()
+    finally:
+        bad.close()
+        good.close()
+
+
+def test_the_front_talks_only_to_the_server_with_its_own_certificate(
+    foxglove: Callable[..., FoxgloveTransport],
+) -> None:
+    transport = foxglove()
+    with pytest.raises(HandshakeError, match="another certificate"):
+        SdkLink.open(transport.server.port, SdkCertificate.make(), WAIT)

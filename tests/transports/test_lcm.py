@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import errno
+import logging
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -80,3 +84,47 @@ def test_what_the_kernel_drops_is_counted_as_the_transports_error() -> None:
     finally:
         unblocked.set()
         transport.close()
+
+
+KERNEL_DROPS_OUT_OF_FILES = """
+import os, resource, sys
+from viewer_bridge.transports.lcm import LcmBus
+bus = LcmBus(sys.argv[1])
+resource.setrlimit(resource.RLIMIT_NOFILE, (256, resource.getrlimit(resource.RLIMIT_NOFILE)[1]))
+held = []
+try:
+    while True:
+        held.append(os.open(os.devnull, os.O_RDONLY))
+except OSError:
+    pass
+print(bus.kernel_drops())
+"""
+
+
+def test_the_kernel_drops_of_a_process_out_of_files_are_the_last_count_not_an_error() -> None:
+    """Reading them lists /proc/self/fd, which takes a file: out of files (EMFILE), the stats
+    report that asked once ended the whole bridge."""
+    result = subprocess.run([sys.executable, "-c", KERNEL_DROPS_OUT_OF_FILES, lcm_url(22)],
+                            capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert result.returncode == 0 and result.stdout == "0\n", result.stderr
+
+
+def test_a_stats_report_that_cannot_be_made_is_skipped_and_said_once(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    from viewer_bridge.router import stats
+
+    def out_of_files() -> dict[str, object]:
+        raise OSError(errno.EMFILE, "Too many open files")
+
+    stats._skipped.clear()  # said once per process: from here
+    shown: list[dict[str, object]] = []
+    view = type("View", (), {"show": lambda self, snapshot: shown.append(snapshot)})()
+    with caplog.at_level(logging.WARNING):
+        for _ in range(3):
+            stats.report_safely(out_of_files, view, None)
+        stats.report_safely(lambda: {"route": {}}, view, None)
+    assert shown == [{"route": {}}]
+    assert (
+        len([record for record in caplog.records if "stats report was skipped" in record.getMessage()]) <= 1
+    )

@@ -6,13 +6,16 @@ from __future__ import annotations
 
 from typing import Any
 
+import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from websockets.extensions.permessage_deflate import PerMessageDeflate
 from websockets.frames import Frame, Opcode
 
+from viewer_bridge.errors import FrameLimitError
 from viewer_bridge.transports.websocket_frames import (
     BINARY,
+    MAX_FRAGMENTS,
     TEXT,
     ClientMessages,
     Message,
@@ -255,3 +258,34 @@ def test_any_bytes_from_a_server_pass_in_order_and_what_is_held_stays_bounded(
         held = len(reader._held or b"") + len(reader._header)
         assert held <= HOLD + 14  # at most a frame it holds, or a header cut short
     assert junk.startswith(bytes(passed)) and len(junk) - len(passed) <= HOLD + 14
+
+
+def _fragmented(first: bytes, continuations: list[bytes]) -> bytes:
+    """A text message as a client sends it: `first`, then each continuation (the last with FIN)."""
+    frames = [Frame(Opcode.TEXT, first, fin=not continuations)]
+    frames += [
+        Frame(Opcode.CONT, part, fin=index == len(continuations) - 1)
+        for index, part in enumerate(continuations)
+    ]
+    return b"".join(frame.serialize(mask=True) for frame in frames)
+
+
+def test_a_message_in_more_fragments_than_a_client_sends_ends_the_stream_whatever_their_size() -> None:
+    """3M one-byte continuation frames cost the original reader 167 MiB and half a minute of
+    CPU; the reader now gives up at MAX_FRAGMENTS frames (its client is let go)."""
+    reader = ClientMessages(max_bytes=1 << 24)
+    assert reader.feed(_fragmented(b"x", [b"y"] * (MAX_FRAGMENTS - 1))) == [Message(TEXT, b"x" + b"y" * 1023)]
+    with pytest.raises(FrameLimitError, match=f"more than {MAX_FRAGMENTS} frames"):
+        reader.feed(_fragmented(b"x", [b""] * MAX_FRAGMENTS))
+
+
+def test_empty_continuation_frames_count_toward_a_messages_size() -> None:
+    """Each continuation frame costs its header: 200 empty ones (6 bytes each, masked) are more
+    than a 1 kB limit, though they carry no byte."""
+    reader = ClientMessages(max_bytes=1024, limit_name="foxglove.max_client_message_bytes")
+    (skipped,) = reader.feed(_fragmented(b"0123456789", [b""] * 200))
+    assert (
+        skipped.payload == b""
+        and skipped.skipped == "longer than 1024 bytes (foxglove.max_client_message_bytes)"
+    )
+    assert reader.feed(_fragmented(b"fine", [b""] * 10)) == [Message(TEXT, b"fine")]

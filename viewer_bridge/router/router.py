@@ -306,4 +306,4 @@ class Router:
 
     def report(self) -> None:
         """The routes' stats to the status view, and to the JSON file when asked for."""
-        stats.report(self.snapshot(), self.view, self.stats_json)
+        stats.report_safely(self.snapshot, self.view, self.stats_json)

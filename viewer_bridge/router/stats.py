@@ -4,7 +4,10 @@ translate time and latency of its recent messages (as percentiles in a snapshot)
 from __future__ import annotations
 
 import json
+import logging
+import threading
 from collections import Counter, deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -65,6 +68,21 @@ def _percentiles(samples: deque[float]) -> dict[str, float | None]:
     values = np.fromiter(samples, dtype=np.float64)
     p50, p99 = np.percentile(values, [50, 99])
     return {"p50": round(float(p50), 4), "p99": round(float(p99), 4), "max": round(float(values.max()), 4)}
+
+
+_log = logging.getLogger(__name__)
+_skipped = threading.Event()  # a report was skipped (said once)
+
+
+def report_safely(snapshot: Callable[[], dict[str, Any]], view: StatusView, stats_json: Path | None) -> None:
+    """`report` of what `snapshot` makes; one that fails for want of a file (EMFILE: the process
+    is out of them), a full disk or the like is skipped, said once: the stats never stop the bridge."""
+    try:
+        report(snapshot(), view, stats_json)
+    except OSError as error:
+        if not _skipped.is_set():
+            _skipped.set()
+            _log.warning("a stats report was skipped (%s); the next is tried at its time (said once)", error)
 
 
 def report(snapshot: dict[str, Any], view: StatusView, stats_json: Path | None) -> None:

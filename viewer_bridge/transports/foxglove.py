@@ -59,6 +59,7 @@ from viewer_bridge.transports.foxglove_clients import CLIENT_ENCODINGS, MAX_CLIE
 from viewer_bridge.transports.foxglove_front import MAX_CLIENT_MESSAGE, MAX_CLIENTS, SubprotocolFront
 from viewer_bridge.transports.origins import FOXGLOVE_APPS, Origins, is_origin_pattern
 from viewer_bridge.transports.playback import Timeline, Timelines
+from viewer_bridge.transports.sdk_tls import SdkCertificate
 from viewer_bridge.util.extras import missing
 
 try:
@@ -296,6 +297,7 @@ class FoxgloveTransport(Transport):
         accept_commands: bool = True,
         timeline: Timeline | None = None,
         clock: Clock | None = None,
+        sdk_tls: bool = True,
     ) -> None:
         """`accept_commands`: whether what clients publish can land anywhere (a router's config
         allows some command channel); without it the server offers no publishing, and a client
@@ -304,7 +306,9 @@ class FoxgloveTransport(Transport):
         its time when sent, and the timeline is Foxglove's time. `clock`: the bridge's; with
         `time: sim` (and no timeline) the server lists the `time` capability and broadcasts each
         new sim time to every client (messages' log times are that clock's too), so Foxglove's
-        current time is Drake's."""
+        current time is Drake's. `sdk_tls`: the SDK's server behind the front speaks TLS only,
+        with a certificate made for this run (viewer_bridge/transports/sdk_tls.py: no web page can
+        read it); false only to measure what that costs (bench/foxglove_live.py)."""
         super().__init__(settings)
         self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
         self._subscribers = _Subscribers()
@@ -324,6 +328,9 @@ class FoxgloveTransport(Transport):
             options = self._playback.server_options(options)
         elif self._sim_time:
             options["capabilities"] = [*options.get("capabilities", []), Capability.Time]
+        certificate = SdkCertificate.make() if sdk_tls else None
+        if certificate is not None:
+            options |= {"tls_cert": certificate.cert_pem, "tls_key": certificate.key_pem}
         try:
             self.server = foxglove.start_server(
                 name=settings.name,
@@ -347,6 +354,7 @@ class FoxgloveTransport(Transport):
                 rename=settings.accept_websocket_v1, reader=self.clients,
                 origins=Origins(settings.allowed_origins, trusted=FOXGLOVE_APPS),
                 max_clients=settings.max_clients, max_message_bytes=settings.max_client_message_bytes,
+                certificate=certificate,
             )  # fmt: skip
         except OSError as error:  # a port in use, an address not of this machine
             self.clock.unlisten(self._broadcast_time)

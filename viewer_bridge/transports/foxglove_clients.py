@@ -27,6 +27,7 @@ say each again only after SAY_AGAIN_SECONDS, are at most _SAID_KEPT, the oldest 
 from __future__ import annotations
 
 import json
+import logging
 import re
 import struct
 import threading
@@ -50,6 +51,7 @@ __all__ = [
     "status",
 ]
 
+log = logging.getLogger(__name__)
 CLIENT_ENCODINGS = (CDR, JSON)  # what the bridge reads from clients (serverInfo's supportedEncodings)
 ERROR = 2  # a status message's level: 0 info, 1 warning, 2 error
 _MESSAGE_DATA = 0x01  # a client's binary opcode: u32 LE channel id, then the payload
@@ -95,6 +97,7 @@ class ClientPublishing:
         # when each status was last said to each client, the least recently said first
         self._said: OrderedDict[tuple[Connection, str], float] = OrderedDict()
         self._errors: Counter[str] = Counter()
+        self._logged_deep: set[Connection] = set()  # clients whose too-deep JSON was logged (once each)
         self._lock = threading.Lock()
 
     def subscribe(self, pattern: str, deliver: Deliver) -> None:
@@ -126,6 +129,7 @@ class ClientPublishing:
     def closed(self, connection: Connection) -> None:
         with self._lock:
             self._channels.pop(connection, None)
+            self._logged_deep.discard(connection)
             for key in [key for key in self._said if key[0] is connection]:
                 del self._said[key]
 
@@ -148,6 +152,9 @@ class ClientPublishing:
             control = json.loads(payload)
         except ValueError:  # not JSON: the SDK answers it
             return
+        except RecursionError:  # nested deeper than Python's reader goes: no client's control message
+            self._too_deep(connection)
+            return
         if not isinstance(control, dict):
             return
         if control.get("op") == "advertise" and isinstance(control.get("channels"), list):
@@ -159,6 +166,19 @@ class ClientPublishing:
                 for channel_id in control["channelIds"]:
                     if isinstance(channel_id, int):
                         channels.pop(channel_id, None)
+
+    def _too_deep(self, connection: Connection) -> None:
+        """A text message nested too deep to read: refused (counted, said to the client as any
+        unread message), and logged once per client, never as a traceback."""
+        self._refuse(connection, "client_message_unread", "-",
+                     "a message was not read: JSON nested deeper than the bridge reads")  # fmt: skip
+        with self._lock:
+            first = connection not in self._logged_deep
+            if first:
+                self._logged_deep.add(connection)
+        if first:
+            log.warning("%s sent JSON nested deeper than the bridge reads: refused (said once per client; "
+                        "each is counted as client_message_unread)", connection)  # fmt: skip
 
     def _advertise(self, connection: Connection, advertised: Any) -> None:
         fields = advertised if isinstance(advertised, dict) else {}

@@ -45,18 +45,23 @@ end). The Foxglove transport reads clients' published messages this way
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import logging
 import os
 import re
+import resource
+import selectors
 import socket
 import threading
+import time
 from collections import Counter
 from collections.abc import Callable
 from typing import Any, Protocol, TypeGuard, TypeVar
 
-from viewer_bridge.errors import HandshakeError, HttpRefusal
+from viewer_bridge.errors import FrameLimitError, HandshakeError, HttpRefusal
 from viewer_bridge.transports.origins import FOXGLOVE_APPS, OriginGate, Origins
+from viewer_bridge.transports.sdk_tls import SdkCertificate, SdkLink
 from viewer_bridge.transports.websocket_frames import TEXT, ClientMessages, Message, RelayedStream, text_frame
 
 log = logging.getLogger(__name__)
@@ -64,7 +69,14 @@ log = logging.getLogger(__name__)
 SDK_SUBPROTOCOL = "foxglove.sdk.v1"
 OLDER_NAMES = frozenset({"foxglove.websocket.v1"})  # the same protocol under the name it had first
 MAX_HEAD = 64 * 1024  # an HTTP head longer than this is not a WebSocket handshake
-HANDSHAKE_SECONDS = 10.0  # a client that has not finished its request by then is dropped
+HANDSHAKE_SECONDS = 10.0  # a client that has not finished its request by then is dropped (one deadline)
+# requests read at once (connections not yet admitted); one more drops the oldest (`handshake_budget`)
+MAX_HANDSHAKES = 128
+FD_SHARE = 4  # ... and at most this share of the process's open-file limit
+ACCEPTS_PER_TURN = 64  # connections accepted before the requests under way are read again
+LISTEN_BACKLOG = 128  # connections the kernel holds for the front before it refuses more
+ACCEPT_BACKOFF_SECONDS = 0.25  # the listener rests this long when files run out or accepting fails
+SAY_EVERY_SECONDS = 10.0  # at most one log line of each kind of dropped connection this often
 CHUNK = 256 * 1024  # bytes relayed per read; a 1000-link FrameTransforms frame is about 108 kB
 # a client's message read along up to this size (foxglove.max_client_message_bytes)
 MAX_CLIENT_MESSAGE = 16 * 1024 * 1024
@@ -151,24 +163,58 @@ class Receiving(Protocol):
     def recv(self, size: int, /) -> bytes: ...
 
 
-def read_head(connection: Receiving) -> tuple[bytes, bytes]:
-    """An HTTP head up to its blank line, and whatever arrived after it in the same reads."""
-    data = bytearray()
-    while (end := data.find(b"\r\n\r\n")) < 0:
-        if len(data) > MAX_HEAD:
-            raise HandshakeError(f"an HTTP head longer than {MAX_HEAD} bytes")
-        chunk = connection.recv(4096)
+class Stream(Protocol):
+    """A relayed connection's end: a socket, or the TLS link to the SDK (`SdkLink`)."""
+
+    def recv(self, size: int, /) -> bytes: ...
+    def recv_into(self, buffer: bytearray | memoryview, /) -> int: ...
+    def sendall(self, data: bytes | bytearray | memoryview, /) -> None: ...
+    def shutdown(self, how: int, /) -> None: ...
+    def close(self) -> None: ...
+    def settimeout(self, seconds: float | None, /) -> None: ...
+    def setsockopt(self, level: int, option: int, value: int, /) -> None: ...
+    def getsockname(self) -> Any: ...
+
+
+class RequestHead:
+    """An HTTP head arriving in pieces, bounded in size (MAX_HEAD) and in time: whole by
+    `deadline`, however slowly its bytes trickle in (one deadline for the head, not one per read)."""
+
+    def __init__(self, deadline: float) -> None:
+        self.deadline = deadline
+        self._data = bytearray()
+
+    def feed(self, chunk: bytes, now: float) -> tuple[bytes, bytes] | None:
+        """Take the bytes read at `now` (b"": the peer closed): the head and what came after it
+        once it is whole, else None; HandshakeError when it cannot become a head in time."""
         if not chunk:
-            raise HandshakeError(f"closed after {len(data)} bytes, before the end of its HTTP head")
-        data += chunk
-    return bytes(data[: end + 4]), bytes(data[end + 4 :])
+            raise HandshakeError(f"closed after {len(self._data)} bytes, before the end of its HTTP head")
+        if now > self.deadline:
+            raise HandshakeError(f"its HTTP head was not whole within {HANDSHAKE_SECONDS:g} s")
+        start = max(0, len(self._data) - 3)  # the blank line may straddle two reads
+        self._data += chunk
+        end = self._data.find(b"\r\n\r\n", start)
+        if end < 0 or end + 4 > MAX_HEAD:
+            if len(self._data) > MAX_HEAD:
+                raise HandshakeError(f"an HTTP head longer than {MAX_HEAD} bytes")
+            return None
+        return bytes(self._data[: end + 4]), bytes(self._data[end + 4 :])
+
+
+def read_head(connection: Receiving, seconds: float = HANDSHAKE_SECONDS) -> tuple[bytes, bytes]:
+    """An HTTP head up to its blank line, and whatever arrived after it in the same reads, read
+    with blocking reads (a socket's own timeout bounds each; `seconds` the whole head)."""
+    head = RequestHead(time.monotonic() + seconds)
+    while (found := head.feed(connection.recv(4096), time.monotonic())) is None:
+        pass
+    return found
 
 
 def _address(address: tuple[str, int] | tuple[str, int, int, int]) -> str:
     return f"{address[0]}:{address[1]}"
 
 
-def _shut_down(connection: socket.socket) -> None:
+def _shut_down(connection: Stream | socket.socket) -> None:
     """Shut both ways (a thread blocked on it wakes up), unless it is already gone."""
     with contextlib.suppress(OSError):
         connection.shutdown(socket.SHUT_RDWR)
@@ -178,7 +224,7 @@ class _Outbound:
     """One direction of a relayed connection, into which the front puts frames of its own, each
     where a message of the relayed stream ends (never inside one)."""
 
-    def __init__(self, target: socket.socket, hold_text_bytes: int = 0) -> None:
+    def __init__(self, target: Stream, hold_text_bytes: int = 0) -> None:
         self._target = target
         self._stream = RelayedStream(hold_text_bytes)
         self._pending: list[bytes] = []  # frames of ours waiting for the end of the message under way
@@ -366,7 +412,7 @@ class Connection:
         self,
         address: str,
         client: socket.socket,
-        sdk: socket.socket,
+        sdk: Stream,
         tally: Callable[[str, int], None] | None = None,
     ) -> None:
         self.address = address
@@ -450,16 +496,16 @@ class Reader(Protocol):
 class _Relay:
     """One client connection and its connection to the SDK, relayed both ways by two threads."""
 
-    def __init__(self, client: socket.socket, sdk: socket.socket, connection: Connection) -> None:
-        self.sockets = (client, sdk)
+    def __init__(self, client: socket.socket, sdk: Stream, connection: Connection) -> None:
+        self.sockets: tuple[Stream, Stream] = (client, sdk)
         self.connection = connection
         self._ended = 0
         self._lock = threading.Lock()
 
     def pump(
         self,
-        source: socket.socket,
-        target: socket.socket,
+        source: Stream,
+        target: Stream,
         reader: Reader | None = None,
         early: bytes = b"",
         max_message_bytes: int = MAX_CLIENT_MESSAGE,
@@ -467,7 +513,8 @@ class _Relay:
         """Copy `source` to `target` through the connection until `source` ends; True when both
         directions have ended. From the client (`early` first: what it sent with its handshake),
         its text messages are read, and with a `reader` each whole message goes to it too (one
-        longer than `max_message_bytes` handed over as skipped)."""
+        longer than `max_message_bytes` handed over as skipped). FrameLimitError: the client's
+        frames went past what they may cost (the caller lets it go)."""
         buffer = bytearray(CHUNK)
         view = memoryview(buffer)
         from_client = source is self.sockets[0]
@@ -485,6 +532,10 @@ class _Relay:
             target.shutdown(socket.SHUT_WR)  # the other direction may still carry a close frame
         except OSError:  # a reset or a close on either side ends both directions
             self.abort()
+        return self.ended()
+
+    def ended(self) -> bool:
+        """One direction has ended; True when it was the second."""
         with self._lock:
             self._ended += 1
             return self._ended == 2
@@ -514,14 +565,36 @@ def _read(reader: Reader, connection: Connection, message: Message) -> None:
         log.exception("reading a message of %s failed", connection)
 
 
+class _Pending:
+    """A connection still sending its request: its head so far and its address."""
+
+    def __init__(self, address: str, deadline: float) -> None:
+        self.address = address
+        self.head = RequestHead(deadline)
+
+
+def handshake_budget(most: int = MAX_HANDSHAKES) -> int:
+    """Requests read at once: `most`, and at most 1/FD_SHARE of this process's open-file limit
+    (each is a file until it is admitted or dropped)."""
+    soft, _ = resource.getrlimit(resource.RLIMIT_NOFILE)
+    return most if soft == resource.RLIM_INFINITY else max(1, min(most, soft // FD_SHARE))
+
+
 class SubprotocolFront:
     """Listens on `host:port` and relays every client it admits to the SDK's server at
-    127.0.0.1:`sdk_port`.
+    127.0.0.1:`sdk_port` (over TLS with the SDK's `certificate` when given: viewer_bridge/transports/sdk_tls.py).
 
     `rename`: serve clients that ask for an older name of the protocol (else the SDK answers them
     as it does: refused). `reader`: reads along every client's messages (see the module's doc),
     each up to `max_message_bytes`. `origins`: the pages whose browsers may connect (default:
     loopback pages and Foxglove's app). `max_clients`: connected at once; one more gets 503.
+
+    One thread accepts connections and reads the requests of all those still sending theirs
+    (`max_handshakes` at once, see `handshake_budget`: one more drops the oldest; each whole
+    within HANDSHAKE_SECONDS, else dropped), so a crowd of slow clients holds neither threads nor
+    more files than that; an admitted client gets two threads, for as long as it stays. That
+    thread survives every error (logged, counted, retried; out of files it backs off), and a
+    watcher starts it again should it end anyway (said as an error).
     """
 
     def __init__(
@@ -535,49 +608,180 @@ class SubprotocolFront:
         origins: Origins | None = None,
         max_clients: int = MAX_CLIENTS,
         max_message_bytes: int = MAX_CLIENT_MESSAGE,
+        certificate: SdkCertificate | None = None,
+        max_handshakes: int | None = None,
     ) -> None:
         self._rename = rename
         self._reader = reader
         self.gate = foxglove_gate(Origins(trusted=FOXGLOVE_APPS) if origins is None else origins)
         self.max_clients = max_clients
         self.max_message_bytes = max_message_bytes
+        self.max_handshakes = handshake_budget() if max_handshakes is None else max_handshakes
+        self._certificate = certificate
         family = socket.AF_INET6 if ":" in host else socket.AF_INET
-        self._listener = socket.create_server((host, port), family=family)
+        self._listener = socket.create_server((host, port), family=family, backlog=LISTEN_BACKLOG)
+        self._listener.setblocking(False)
         self.port: int = self._listener.getsockname()[1]
         self._sdk_port = sdk_port
         self._relays: set[_Relay] = set()
+        self._pending: dict[socket.socket, _Pending] = {}  # the accepting thread's alone; oldest first
         self._admitted = 0  # clients past the door, relayed or about to be: at most max_clients
         self._said_full = False  # the 503 is logged once
         self._lock = threading.Lock()
         self._errors: Counter[str] = Counter()  # dropped or refused connections by kind
-        self._thread = threading.Thread(target=self._accept, name="foxglove front", daemon=True)
-        self._thread.start()
+        self._last_said: dict[str, tuple[float, int]] = {}  # kind -> (when logged, counted since)
+        self._resume_at = 0.0  # out of files: no accepting before this (time.monotonic)
+        self._spare = _spare_file()  # given up to refuse one connection when files run out
+        self._closing = threading.Event()
+        self._thread = self._start_accepting()
+        self._watcher = threading.Thread(target=self._watch, name="foxglove front watch", daemon=True)
+        self._watcher.start()
+
+    def _start_accepting(self) -> threading.Thread:
+        thread = threading.Thread(target=self._accept, name="foxglove front", daemon=True)
+        thread.start()
+        return thread
+
+    def _watch(self) -> None:
+        """Start the accepting thread again should it end before `close` (a bug of ours: said)."""
+        while True:
+            self._thread.join()
+            if self._closing.is_set():
+                return
+            log.error("the foxglove front's accepting thread ended: started again (a bug: please report it)")
+            with self._lock:
+                self._errors["accept_restarted"] += 1
+            time.sleep(ACCEPT_BACKOFF_SECONDS)
+            self._thread = self._start_accepting()
 
     def _accept(self) -> None:
-        while True:
-            try:
-                client, _ = self._listener.accept()
-            except OSError:  # the listener was closed
-                return
-            threading.Thread(
-                target=self._serve, args=(client,), name="foxglove front client", daemon=True
-            ).start()
+        """New connections and the requests of those still sending theirs, on one selector; an
+        error of any kind is logged, counted and retried after ACCEPT_BACKOFF_SECONDS."""
+        with selectors.DefaultSelector() as selector:
+            for pending in list(self._pending):  # kept across a restart
+                selector.register(pending, selectors.EVENT_READ)
+            listening = False
+            while not self._closing.is_set():
+                try:
+                    now = time.monotonic()
+                    if listening != (now >= self._resume_at):  # out of files: the listener rests
+                        listening = not listening
+                        if listening:
+                            selector.register(self._listener, selectors.EVENT_READ)
+                        else:
+                            with contextlib.suppress(KeyError, ValueError):  # its registering failed
+                                selector.unregister(self._listener)
+                    ready = [key.fileobj for key, _ in selector.select(self._until_next(now))]
+                    # requests first: one that came is read before more connections can push it out
+                    for client in ready:
+                        if client is not self._listener:
+                            self._read_request(selector, client)  # type: ignore[arg-type]
+                    if self._listener in ready:
+                        self._accept_waiting(selector)
+                    self._expire(selector, time.monotonic())
+                except Exception as error:  # never the end of accepting: counted, said, tried again
+                    if self._closing.is_set():
+                        return
+                    self._say("accept_error", f"accepting foxglove clients failed ({type(error).__name__}: "
+                              f"{error}); trying again in {ACCEPT_BACKOFF_SECONDS} s")  # fmt: skip
+                    self._resume_at = time.monotonic() + ACCEPT_BACKOFF_SECONDS
 
-    def _serve(self, client: socket.socket) -> None:
-        """Read the client's request, admit it or answer a refusal, then relay it to the SDK."""
+    def _until_next(self, now: float) -> float:
+        """How long the selector may wait: until the first request's deadline or the end of a rest."""
+        soonest = min((pending.head.deadline for pending in self._pending.values()), default=now + 1.0)
+        if now < self._resume_at:
+            soonest = min(soonest, self._resume_at)
+        return min(1.0, max(0.0, soonest - now))
+
+    def _accept_waiting(self, selector: selectors.BaseSelector) -> None:
+        """Accept the connections waiting (a bounded number per turn); each one's request is
+        read as it comes. Past `max_handshakes`, the oldest request still under way is dropped."""
+        for _ in range(ACCEPTS_PER_TURN):
+            try:
+                client, address = self._listener.accept()
+            except BlockingIOError:
+                return
+            except OSError as error:
+                if error.errno in (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM):
+                    self._out_of_files(error)
+                    return
+                raise
+            if len(self._pending) >= self.max_handshakes:
+                oldest = next(iter(self._pending))
+                self._drop(selector, oldest)
+                self._say("too_many_handshakes", f"a foxglove client's request under way dropped: "
+                          f"{self.max_handshakes} connections were sending theirs at once")  # fmt: skip
+            client.setblocking(False)
+            self._pending[client] = _Pending(_address(address), time.monotonic() + HANDSHAKE_SECONDS)
+            selector.register(client, selectors.EVENT_READ)
+
+    def _out_of_files(self, error: OSError) -> None:
+        """No file for a new connection: refuse one waiting (with the spare file, given up for
+        it), say so (throttled) and rest the listener a moment; the waiting ones stay in the queue."""
+        self._resume_at = time.monotonic() + ACCEPT_BACKOFF_SECONDS
+        self._say("out_of_files", f"no file for a new foxglove client ({error}): connections wait or are "
+                  "refused until files are free again (the open-file limit: ulimit -n)")  # fmt: skip
+        if self._spare is None:
+            return
+        os.close(self._spare)
+        with contextlib.suppress(OSError):
+            refused, _ = self._listener.accept()
+            refused.close()
+        self._spare = _spare_file()
+
+    def _read_request(self, selector: selectors.BaseSelector, client: socket.socket) -> None:
+        """Read what came of one request; once whole, admit it (or answer a refusal) and relay it."""
+        pending = self._pending[client]
         try:
-            client.settimeout(HANDSHAKE_SECONDS)
-            address = _address(client.getpeername())
-            request, early = read_head(client)
+            found = pending.head.feed(client.recv(4096), time.monotonic())
+        except BlockingIOError:
+            return
         except (HandshakeError, OSError) as error:  # cut off, too long, too slow, or gone already
+            self._drop(selector, client)
             self._count("bad_handshake", error)
-            client.close()
             return
-        if not self._admit(client, request):
+        if found is None:
             return
+        selector.unregister(client)
+        del self._pending[client]
+        request, early = found
+        if not self._admit(client, request):  # a refusal's few bytes fit in the socket's buffer
+            return
+        client.setblocking(True)
         try:
-            sdk = socket.create_connection(("127.0.0.1", self._sdk_port), timeout=HANDSHAKE_SECONDS)
-        except OSError as error:
+            threading.Thread(target=self._serve, args=(client, pending.address, request, early),
+                             name="foxglove front client", daemon=True).start()  # fmt: skip
+        except RuntimeError as error:  # no thread to be had
+            self._leave()
+            client.close()
+            self._count("no_thread", error)
+
+    def _expire(self, selector: selectors.BaseSelector, now: float) -> None:
+        """Drop the requests not whole by their deadline (the oldest are first)."""
+        while self._pending:
+            client, pending = next(iter(self._pending.items()))
+            if pending.head.deadline >= now:
+                return
+            self._drop(selector, client)
+            self._count("bad_handshake", HandshakeError(
+                f"{pending.address}: its HTTP head was not whole within {HANDSHAKE_SECONDS:g} s"))  # fmt: skip
+
+    def _drop(self, selector: selectors.BaseSelector, client: socket.socket) -> None:
+        del self._pending[client]
+        with contextlib.suppress(KeyError, ValueError):
+            selector.unregister(client)
+        client.close()
+
+    def _connect_sdk(self) -> Stream:
+        if self._certificate is None:
+            return socket.create_connection(("127.0.0.1", self._sdk_port), timeout=HANDSHAKE_SECONDS)
+        return SdkLink.open(self._sdk_port, self._certificate, HANDSHAKE_SECONDS)
+
+    def _serve(self, client: socket.socket, address: str, request: bytes, early: bytes) -> None:
+        """Relay an admitted client to the SDK (on a thread of its own)."""
+        try:
+            sdk = self._connect_sdk()
+        except (HandshakeError, OSError) as error:
             self._leave()
             self._count("sdk_unreachable", error)
             client.close()
@@ -587,6 +791,8 @@ class SubprotocolFront:
         with self._lock:
             self._relays.add(relay)
         try:
+            client.settimeout(HANDSHAKE_SECONDS)
+            sdk.settimeout(HANDSHAKE_SECONDS)
             offered, rest, upgraded = self._handshake(client, sdk, request)
             # The SDK's log names the relay's own address for this client: say which is which.
             log.info("foxglove client %s (subprotocols %s) is %s to the SDK's server",
@@ -602,9 +808,14 @@ class SubprotocolFront:
         for each in (client, sdk):
             each.settimeout(None)
             each.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # frames go out as they come
-        threading.Thread(
-            target=self._pump, args=(relay, sdk, client), name="foxglove front sdk", daemon=True
-        ).start()
+        try:
+            threading.Thread(
+                target=self._pump, args=(relay, sdk, client), name="foxglove front sdk", daemon=True
+            ).start()
+        except RuntimeError as error:  # no thread to be had: this client is not served
+            self._count("no_thread", error)
+            self._forget(relay)
+            return
         self._pump(relay, client, sdk, early)
 
     def _admit(self, client: socket.socket, request: bytes) -> bool:
@@ -639,9 +850,7 @@ class SubprotocolFront:
         with self._lock:
             self._admitted -= 1
 
-    def _handshake(
-        self, client: socket.socket, sdk: socket.socket, request: bytes
-    ) -> tuple[list[str], bytes, bool]:
+    def _handshake(self, client: socket.socket, sdk: Stream, request: bytes) -> tuple[list[str], bytes, bool]:
         """Pass the client's request on and the SDK's answer head back, renamed for an older name;
         the subprotocols the client offered, what the SDK sent after its head, and whether it
         upgraded the connection (101). (What the client sent after its request, `early`, goes on
@@ -653,9 +862,15 @@ class SubprotocolFront:
         client.sendall(answer if older is None else naming(answer, older))
         return subprotocols(request), rest, answer.split(b" ", 2)[1:2] == [b"101"]
 
-    def _pump(self, relay: _Relay, source: socket.socket, target: socket.socket, early: bytes = b"") -> None:
+    def _pump(self, relay: _Relay, source: Stream, target: Stream, early: bytes = b"") -> None:
         reader = self._reader if source is relay.sockets[0] else None  # the client's side is read along
-        if relay.pump(source, target, reader, early, self.max_message_bytes):
+        try:
+            ended = relay.pump(source, target, reader, early, self.max_message_bytes)
+        except FrameLimitError as error:  # a client past what its frames may cost: it is let go
+            self._count("frame_limit", error)
+            relay.abort()
+            ended = relay.ended()
+        if ended:
             self._forget(relay)
 
     def _forget(self, relay: _Relay) -> None:
@@ -670,9 +885,22 @@ class SubprotocolFront:
                 log.exception("forgetting %s failed", relay.connection)
 
     def _count(self, kind: str, error: Exception) -> None:
+        self._say(kind, f"foxglove client connection dropped ({kind.replace('_', ' ')}): {error}")
+
+    def _say(self, kind: str, text: str) -> None:
+        """Count one of `kind` and log `text`: the first at once, then at most one line of that
+        kind per SAY_EVERY_SECONDS (a crowd of bad connections is a few lines), with how many
+        went unsaid meanwhile."""
+        now = time.monotonic()
         with self._lock:
             self._errors[kind] += 1
-        log.warning("foxglove client connection dropped (%s): %s", kind.replace("_", " "), error)
+            last, unsaid = self._last_said.get(kind, (-SAY_EVERY_SECONDS, 0))
+            if now - last < SAY_EVERY_SECONDS:
+                self._last_said[kind] = (last, unsaid + 1)
+                return
+            self._last_said[kind] = (now, 0)
+        more = f" ({unsaid} more like it since the last said, counted as {kind})" if unsaid else ""
+        log.warning("%s%s", text, more)
 
     def _tally(self, kind: str, count: int) -> None:
         """Count what the front did for a client that is no error of the client's (no log line)."""
@@ -684,9 +912,15 @@ class SubprotocolFront:
         with self._lock:
             return self._admitted
 
+    def handshakes(self) -> int:
+        """Connections still sending their request."""
+        return len(self._pending)
+
     def errors(self) -> dict[str, int]:
         """Connections dropped or refused before they were relayed, by kind (`bad_handshake`,
-        `sdk_unreachable`, `origin_refused`, `too_many_clients`); and `resubscribed`: clients'
+        `too_many_handshakes`, `sdk_unreachable`, `origin_refused`, `too_many_clients`,
+        `no_thread`), clients let go (`frame_limit`), the accepting thread's troubles
+        (`out_of_files`, `accept_error`, `accept_restarted`); and `resubscribed`: clients'
         subscriptions the SDK refused before it had listed their channel, sent again
         (`Resubscriptions`)."""
         with self._lock:
@@ -694,21 +928,37 @@ class SubprotocolFront:
 
     def close(self) -> None:
         """Stop listening and end every relayed connection."""
-        _shut_down(self._listener)  # wakes the accepting thread
+        self._closing.set()
+        self._thread.join(timeout=5)  # it sees `_closing` within a second
         self._listener.close()
-        self._thread.join(timeout=5)
+        for client in list(self._pending):
+            client.close()
+        self._pending.clear()
+        if self._spare is not None:
+            os.close(self._spare)
+            self._spare = None
         with self._lock:
             relays = list(self._relays)
         for relay in relays:
             relay.abort()
 
 
+def _spare_file() -> int | None:
+    """A file held in reserve, to be given up when files run out; None when there is none."""
+    try:
+        return os.open(os.devnull, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        return None
+
+
 __all__ = [
+    "ACCEPT_BACKOFF_SECONDS",
     "CHUNK",
     "HANDSHAKE_SECONDS",
     "INJECT_WAIT_SECONDS",
     "MAX_CLIENTS",
     "MAX_CLIENT_MESSAGE",
+    "MAX_HANDSHAKES",
     "MAX_HEAD",
     "MAX_PENDING",
     "MAX_SDK_TEXT",
@@ -718,10 +968,13 @@ __all__ = [
     "Connection",
     "Reader",
     "Receiving",
+    "RequestHead",
     "Resubscriptions",
     "SDK_SUBPROTOCOL",
+    "Stream",
     "SubprotocolFront",
     "foxglove_gate",
+    "handshake_budget",
     "header_values",
     "http_response",
     "log",

@@ -173,23 +173,30 @@ def _granted(wanted: int) -> int:
     return min(allowed, wanted)
 
 
-def kernel_drops(port: int) -> int:
-    """Datagrams the kernel dropped for this process's UDP sockets on `port` (full buffers).
+def kernel_drops(port: int) -> int | None:
+    """Datagrams the kernel dropped for this process's UDP sockets on `port` (full buffers); None
+    when they cannot be read now (no file to read them with: the process is out of files).
 
     Read from /proc/net/udp (its last column), for the sockets among this process's files.
     """
     inodes = set()
-    for link in Path("/proc/self/fd").iterdir():
+    try:
+        links = list(Path("/proc/self/fd").iterdir())
+    except OSError:  # EMFILE: listing a directory takes a file
+        return None
+    for link in links:
         with contextlib.suppress(OSError):
             target = os.readlink(link)
             if target.startswith("socket:["):
                 inodes.add(target[8:-1])
     drops = 0
-    with contextlib.suppress(OSError):
+    try:
         for line in Path("/proc/net/udp").read_text().splitlines()[1:]:
             fields = line.split()
             if int(fields[1].rsplit(":", 1)[1], 16) == port and fields[9] in inodes:
                 drops += int(fields[-1])
+    except OSError:
+        return None
     return drops
 
 
@@ -210,12 +217,19 @@ class LcmBus:
         self.url = url
         self._lcm = _open(with_receive_buffer(url))
         self._port = _udpm_port(url)
+        self._drops = 0  # the last count of kernel_drops read
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"lcm {url}", daemon=True)
 
     def kernel_drops(self) -> int:
-        """Datagrams the kernel dropped before LCM read them (0 for other providers)."""
-        return 0 if self._port is None else kernel_drops(self._port)
+        """Datagrams the kernel dropped before LCM read them (0 for other providers); the last
+        count read while they cannot be read (out of files: a report never fails for it)."""
+        if self._port is None:
+            return 0
+        drops = kernel_drops(self._port)
+        if drops is not None:
+            self._drops = drops
+        return self._drops
 
     def subscribe(self, channel: str, callback: Callback) -> None:
         subscription = self._lcm.subscribe(

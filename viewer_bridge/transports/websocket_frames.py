@@ -17,9 +17,24 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["BINARY", "TEXT", "ClientMessages", "Message", "Piece", "RelayedStream", "text_frame", "unmask"]
+from viewer_bridge.errors import FrameLimitError
+
+__all__ = [
+    "BINARY",
+    "MAX_FRAGMENTS",
+    "TEXT",
+    "ClientMessages",
+    "Message",
+    "Piece",
+    "RelayedStream",
+    "text_frame",
+    "unmask",
+]
 
 CONTINUATION, TEXT, BINARY = 0, 1, 2
+# frames of one message (its fragments, and control frames between them): no client sends more
+# (a browser never fragments); each costs the reader as much as a byte of payload a thousand times
+MAX_FRAGMENTS = 1024
 _FIN, _RSV1, _MASKED = 0x80, 0x40, 0x80
 
 
@@ -87,8 +102,13 @@ class ClientMessages:
     `feed(chunk)` returns the messages that chunk completed. A message longer than `max_bytes`
     or compressed (RSV1, a negotiated extension) is skipped whole, its bytes dropped as they
     come; it is returned once as a `Message` whose `skipped` says why (naming `limit_name`, the
-    setting of `max_bytes`, when it was too long). With `binary` false, binary messages are
-    dropped as they come, never returned (a reader of text messages only).
+    setting of `max_bytes`, when it was too long). A message's length counts the header of each
+    frame after its first too, so that empty continuation frames are no free ride; a message in
+    more than MAX_FRAGMENTS frames raises FrameLimitError (its client is let go: skipping it
+    frame by frame would still cost a parse per frame). With `binary` false, binary messages are
+    dropped as they come, never returned (a reader of text messages only). What it holds is
+    bounded: at most `max_bytes` of a message under way, in at most MAX_FRAGMENTS parts, and
+    one chunk.
     """
 
     def __init__(self, max_bytes: int, limit_name: str = "", *, binary: bool = True) -> None:
@@ -100,6 +120,7 @@ class ClientMessages:
         self._parts: list[bytes] = []
         self._joined = 0
         self._drop = 0  # payload bytes of a skipped frame still to come
+        self._fragments = 0  # frames of the message under way (0: none under way)
 
     def feed(self, chunk: bytes | memoryview) -> list[Message]:
         self._buffer += chunk
@@ -116,6 +137,7 @@ class ClientMessages:
                 break
             end = header.size + header.length
             if header.opcode >= 8:  # control: nothing a relay reads along, dropped as it comes
+                self._count_fragment(header)
                 del self._buffer[: header.size]
                 self._drop = header.length
                 continue
@@ -127,10 +149,12 @@ class ClientMessages:
                         Message(self._opcode, b"", "compressed (an extension the bridge does not read)")
                     )
                     self._opcode = None
-            if self._opcode is not None and self._joined + header.length > self.max_bytes:
+            cost = header.length + (header.size if header.opcode == CONTINUATION else 0)
+            if self._opcode is not None and self._joined + cost > self.max_bytes:
                 messages.append(Message(self._opcode, b"", self._too_long))
                 self._opcode = None
             if self._opcode is None:  # skipped (or a continuation of nothing): drop its payload
+                self._count_fragment(header)
                 del self._buffer[: header.size]
                 self._drop = header.length
                 self._parts = []
@@ -138,12 +162,26 @@ class ClientMessages:
             if len(self._buffer) < end:
                 break
             self._parts.append(unmask(self._buffer[header.size : end], header.mask))
-            self._joined += header.length
+            self._joined += cost
+            self._count_fragment(header)
             del self._buffer[:end]
             if header.fin:
                 messages.append(Message(self._opcode, b"".join(self._parts)))
                 self._opcode, self._parts = None, []
         return messages
+
+    def _count_fragment(self, header: _Header) -> None:
+        """Count a frame as it is consumed (once, however many chunks its payload takes) toward
+        the message under way (a data frame without FIN starts one; its final fragment ends it);
+        FrameLimitError past MAX_FRAGMENTS."""
+        if header.opcode in (TEXT, BINARY) or 2 < header.opcode < 8:
+            self._fragments = 0 if header.fin else 1
+        elif self._fragments:
+            self._fragments += 1
+            if self._fragments > MAX_FRAGMENTS:
+                raise FrameLimitError(f"a message in more than {MAX_FRAGMENTS} frames")
+            if header.opcode == CONTINUATION and header.fin:
+                self._fragments = 0
 
 
 class RelayedStream:
