@@ -29,7 +29,7 @@ from viewer_bridge.translators.drake_stream import role_of
 from viewer_bridge.translators.options import FrameOptions
 from viewer_bridge.translators.types import FRAME_TRANSFORMS_TYPE, RAW_IMAGE_TYPE, SCENE_UPDATE_TYPE
 from viewer_bridge.transports.base import MessageType, Received
-from viewer_bridge.transports.lcm_log_index import LogIndex
+from viewer_bridge.transports.lcm_log_index import LogIndex, ProgressLine
 from viewer_bridge.util.extras import missing
 
 if TYPE_CHECKING:
@@ -89,7 +89,9 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(
             f"no route of {args.config or 'the built-in config'} writes to Foxglove: no topic to lay out"
         )
-    index = LogIndex.build(args.log) if args.log else None
+    index = (
+        LogIndex.build(args.log, ProgressLine(Path(args.log))) if args.log else None
+    )  # a big log: a progress line
     try:
         if index is not None and len(index) == 0:
             raise UsageError(f"{args.log} holds no whole LCM event: no channel to lay out")
