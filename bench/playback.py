@@ -2,12 +2,14 @@
 a log is indexed, and how long a seek takes to find the world at its instant, against reading the
 log with LCM's own reader (what a replay from the start does).
 
-Run: .venv/bin/python bench/playback.py [--quick]
+Run: .venv/bin/python bench/playback.py [--quick] [--sizes 100M,1G,2G] [--rows index,seek,player,cpu]
 
 The log is written here: a Drake-like mix of 1 kHz draws (1.4 kB), a load every 10 s (200 kB),
 and 100 Hz status messages on 20 channels, up to the size measured (100 MB; 1 GB in the full
-run). It lives in /dev/shm where there is one: the disk is shared, and not what is measured (a
-cold read from a disk runs at that disk's speed). The index is built with LCM's event log reader
+run; `--sizes` any, e.g. 2G). It lives in /dev/shm when that has room for it (the disk is shared,
+and not what is measured: a cold read from a disk runs at that disk's speed), else in the
+current folder; it is deleted after its rows. `--rows` measures some of the rows only (a 2 GB
+log's CPU row plays every one of its events twice). The index is built with LCM's event log reader
 as the baseline over the same file. A seek's latency is the position of the instant (a binary
 search) and the world there (each channel's last event before it, read out of the map), for 200
 instants spread over the log; its baseline is reading the log from its start to the middle, as a
@@ -19,12 +21,16 @@ either cost the same, and are not measured here).
 
 from __future__ import annotations
 
+import argparse
+import functools
 import random
+import shutil
 import struct
 import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from common import Measure, Size  # bench/ is on sys.path when run as a script
@@ -39,6 +45,7 @@ MB = 1e6
 RAM = Path("/dev/shm")
 GOAL_SEEK_MS = 50.0  # issue 53: < 50 ms from request to the state at the seek point
 GOAL_INDEX_MB_S = 200.0
+ROWS = ("index", "seek", "player", "cpu")
 
 
 def write_log(path: Path, size_bytes: int) -> int:
@@ -137,48 +144,128 @@ def cpu_per_event_us(source: LogPlayer | LogReplay, count: int) -> float:
     return spent / count * 1e6
 
 
-def measures(size: Size = Size.FULL) -> list[Measure]:
-    sizes = size.pick(full=[100_000_000, 1_000_000_000], quick=[100_000_000], smoke=[2_000_000])
-    rows = []
-    with tempfile.TemporaryDirectory(dir=RAM if RAM.is_dir() else None) as folder_name:
-        for size_bytes in sizes:
-            path = Path(folder_name) / "log.lcmlog"
-            count = write_log(path, size_bytes)
-            megabytes = path.stat().st_size / MB
-            best = base = float("inf")
-            for _ in range(size.pick(full=3, quick=2, smoke=1)):  # alternating rounds: the load drifts
-                started = time.perf_counter()
-                index = LogIndex.build(path)
-                best = min(best, time.perf_counter() - started)
-                base = min(base, lcm_reader_seconds(path))
-                if len(index) != count:
-                    raise AssertionError(f"indexed {len(index)} of {count} events")
-                index.close()
-            rows.append(Measure(f"index a {megabytes:.0f} MB log ({count} events): {megabytes / best:.0f} MB/s, "
-                                "vs LCM's reader", best * 1000 / megabytes, base * 1000 / megabytes, "ms/MB",
-                                f">= {GOAL_INDEX_MB_S:g} MB/s", megabytes / best >= GOAL_INDEX_MB_S))  # fmt: skip
-            index = LogIndex.build(path)
-            first, last = index.first_us, index.last_us
-            instants = [random.Random(seed).randint(first, last) for seed in range(200)]
-            spent = sorted(seek_ms(index, instants))
-            median, worst = spent[len(spent) // 2], spent[-1]
-            middle = to_middle_seconds(path, (first + last) // 2) * 1000
-            rows.append(Measure(f"seek in a {megabytes:.0f} MB log: the world at an instant (max {worst:.2f} ms), "
-                                "vs reading to it", median, middle, "ms", f"<= {GOAL_SEEK_MS:g} ms",
-                                worst <= GOAL_SEEK_MS))  # fmt: skip
-            played = sorted(player_seek_ms(index, instants[:50]))  # the player closes the index
-            median, worst = played[len(played) // 2], played[-1]
-            rows.append(Measure(f"seek a player of it: request to the world delivered (max {worst:.2f} ms), "
-                                "vs reading to it", median, middle, "ms", f"<= {GOAL_SEEK_MS:g} ms",
-                                worst <= GOAL_SEEK_MS))  # fmt: skip
-            ours_us = cpu_per_event_us(LogPlayer(LogIndex.build(path), speed=1e9), count)
-            base_us = cpu_per_event_us(LogReplay(path, speed=0), count)
-            rows.append(Measure(f"play a {megabytes:.0f} MB log as fast as it goes: CPU per event, "
-                                "vs run's replay (file://LOG?speed=0)", ours_us, base_us, "us",
-                                "<= the replay's", ours_us <= base_us))  # fmt: skip
-            path.unlink()
-    return rows
+def log_folder(size_bytes: int) -> Path:
+    """/dev/shm when it has room for the log (and a tenth more), else the current folder."""
+    if RAM.is_dir() and shutil.disk_usage(RAM).free > size_bytes * 1.1:
+        return RAM
+    return Path.cwd()
+
+
+def measures(
+    size: Size = Size.FULL, sizes: list[int] | None = None, rows: set[str] | None = None
+) -> list[Measure]:
+    """The rows `rows` names (default all: `ROWS`) for logs of `sizes` bytes (default by `size`)."""
+    sizes = sizes or size.pick(full=[100_000_000, 1_000_000_000], quick=[100_000_000], smoke=[2_000_000])
+    wanted = set(ROWS) if rows is None else rows
+    measured: list[Measure] = []
+    for size_bytes in sizes:
+        with tempfile.TemporaryDirectory(dir=log_folder(size_bytes)) as folder_name:
+            measured += log_rows(Path(folder_name) / "log.lcmlog", size_bytes, size, wanted)
+    return measured
+
+
+def log_rows(path: Path, size_bytes: int, size: Size, wanted: set[str]) -> list[Measure]:
+    """The `wanted` rows of one log of about `size_bytes`, written at `path` and deleted after."""
+    count = write_log(path, size_bytes)
+    megabytes = path.stat().st_size / MB
+    print(f"--- a {megabytes:.0f} MB log of {count} events in {path.parent}", file=sys.stderr, flush=True)
+    try:
+        return [
+            row for name in ROWS if name in wanted for row in _ROW_MAKERS[name](path, count, megabytes, size)
+        ]
+    finally:
+        path.unlink()
+
+
+def index_rows(path: Path, count: int, megabytes: float, size: Size) -> list[Measure]:
+    best = base = float("inf")
+    for _ in range(size.pick(full=3, quick=2, smoke=1)):  # alternating rounds: the load drifts
+        started = time.perf_counter()
+        index = LogIndex.build(path)
+        best = min(best, time.perf_counter() - started)
+        base = min(base, lcm_reader_seconds(path))
+        if len(index) != count:
+            raise AssertionError(f"indexed {len(index)} of {count} events")
+        index.close()
+    return [Measure(f"index a {megabytes:.0f} MB log ({count} events): {megabytes / best:.0f} MB/s, "
+                    "vs LCM's reader", best * 1000 / megabytes, base * 1000 / megabytes, "ms/MB",
+                    f">= {GOAL_INDEX_MB_S:g} MB/s", megabytes / best >= GOAL_INDEX_MB_S)]  # fmt: skip
+
+
+def _instants(index: LogIndex) -> list[int]:
+    """200 instants spread over the log, the same in every run."""
+    return [random.Random(seed).randint(index.first_us, index.last_us) for seed in range(200)]
+
+
+@functools.cache  # the seek rows' common baseline, read once per log (seconds at 2 GB)
+def _to_middle_ms(path: Path, first_us: int, last_us: int) -> float:
+    return to_middle_seconds(path, (first_us + last_us) // 2) * 1000
+
+
+def seek_rows(path: Path, count: int, megabytes: float, size: Size) -> list[Measure]:
+    index = LogIndex.build(path)
+    spent = sorted(seek_ms(index, _instants(index)))
+    median, worst = spent[len(spent) // 2], spent[-1]
+    middle = _to_middle_ms(path, index.first_us, index.last_us)
+    index.close()
+    return [Measure(f"seek in a {megabytes:.0f} MB log: the world at an instant (max {worst:.2f} ms), "
+                    "vs reading to it", median, middle, "ms", f"<= {GOAL_SEEK_MS:g} ms",
+                    worst <= GOAL_SEEK_MS)]  # fmt: skip
+
+
+def player_rows(path: Path, count: int, megabytes: float, size: Size) -> list[Measure]:
+    index = LogIndex.build(path)
+    middle = _to_middle_ms(path, index.first_us, index.last_us)
+    played = sorted(player_seek_ms(index, _instants(index)[:50]))  # the player closes the index
+    median, worst = played[len(played) // 2], played[-1]
+    return [Measure(f"seek a player of a {megabytes:.0f} MB log: request to the world delivered "
+                    f"(max {worst:.2f} ms), vs reading to it", median, middle, "ms", f"<= {GOAL_SEEK_MS:g} ms",
+                    worst <= GOAL_SEEK_MS)]  # fmt: skip
+
+
+def cpu_rows(path: Path, count: int, megabytes: float, size: Size) -> list[Measure]:
+    ours_us = cpu_per_event_us(LogPlayer(LogIndex.build(path), speed=1e9), count)
+    base_us = cpu_per_event_us(LogReplay(path, speed=0), count)
+    return [Measure(f"play a {megabytes:.0f} MB log as fast as it goes: CPU per event, "
+                    "vs run's replay (file://LOG?speed=0)", ours_us, base_us, "us",
+                    "<= the replay's", ours_us <= base_us)]  # fmt: skip
+
+
+_ROW_MAKERS: dict[str, Callable[[Path, int, float, Size], list[Measure]]] = {
+    "index": index_rows,
+    "seek": seek_rows,
+    "player": player_rows,
+    "cpu": cpu_rows,
+}
+
+
+def byte_size(text: str) -> int:
+    """`100M`, `1G`, `2G`, `1500M` (decimal units, as the rows print them) as bytes."""
+    units = {"K": 1e3, "M": 1e6, "G": 1e9}
+    number, unit = (text[:-1], text[-1].upper()) if text[-1:].upper() in units else (text, "")
+    try:
+        size_bytes = round(float(number) * units.get(unit, 1))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is no size (e.g. 100M, 2G)") from None
+    if size_bytes < 1_000_000:
+        raise argparse.ArgumentTypeError(f"{text}: at least 1M (a log of a few seconds)")
+    return size_bytes
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--quick", action="store_true", help="100 MB only, fewer rounds")
+    parser.add_argument("--sizes", type=lambda text: [byte_size(each) for each in text.split(",")],
+                        help="log sizes, comma-separated (default: 100M,1G; --quick 100M)")  # fmt: skip
+    parser.add_argument("--rows", type=lambda text: set(text.split(",")), default=set(ROWS),
+                        help=f"the rows to measure, comma-separated, of {','.join(ROWS)} (default: all)")  # fmt: skip
+    args = parser.parse_args()
+    if unknown := args.rows - set(ROWS):
+        parser.error(f"--rows: no row {', '.join(sorted(unknown))} (rows: {','.join(ROWS)})")
+    print_measures(measures(Size.QUICK if args.quick else Size.FULL, sizes=args.sizes, rows=args.rows))
 
 
 if __name__ == "__main__":
-    print_measures(measures(Size.QUICK if "--quick" in sys.argv[1:] else Size.FULL))
+    main()

@@ -94,6 +94,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.router": 9,
     "viewer_bridge.cli.run": 9,
     "viewer_bridge.cli.play": 9,
+    "viewer_bridge.cli.layout": 9,
     # 10
     "viewer_bridge.cli.log_convert": 10,
     "viewer_bridge.cli.bag_convert": 10,
