@@ -24,6 +24,7 @@ class RouteStats:
     bytes_in: int = 0
     bytes_out: int = 0
     idle_skipped: int = 0  # messages a lazy route did not translate: nobody was listening
+    streams_reclaimed: int = 0  # streams quiet for `stream_idle_s` whose lanes went to new ones
     errors: Counter[str] = field(default_factory=Counter)
     # e.g. a geometry skipped (viewer_bridge.model.skipped)
     warnings: Counter[str] = field(default_factory=Counter)
@@ -43,6 +44,7 @@ class RouteStats:
             "bytes_in": self.bytes_in,
             "bytes_out": self.bytes_out,
             "idle_skipped": self.idle_skipped,
+            "streams_reclaimed": self.streams_reclaimed,
             "errors": dict(self.errors),
             "warnings": dict(self.warnings),
             "held": {channel: dict(kinds) for channel, kinds in sorted(self.held.items())},
