@@ -163,3 +163,14 @@ def test_a_channel_seen_on_lcm_cannot_take_the_name_of_an_allowed_command(tmp_pa
         probe.close()
         assert bridge.stop() == 0
         recorder.close()
+
+
+def test_two_allowed_channels_that_would_take_one_name_are_said_at_start() -> None:
+    bridge = BridgeProcess(
+        "--lcm-url", lcm_url(94), "--allow-commands", "IIWA_COMMAND", "--allow-commands", "IIWA-COMMAND|WSG_COMMAND"
+    )  # fmt: skip
+    try:
+        line = bridge.wait_for_line("would both be commanded as /lcm_in/IIWA_COMMAND")
+        assert "it commands IIWA_COMMAND; IIWA-COMMAND cannot be commanded" in line, line
+    finally:
+        assert bridge.stop() == 0
