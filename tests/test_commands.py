@@ -14,7 +14,7 @@ from typing import Any
 import drake as drake_lcmtypes
 import pytest
 
-from tests.conftest import lcm_url
+from tests.conftest import lcm_url, publish_until
 from tests.peers import BridgeProcess, RosProbe, wait_for
 from tests.test_lcm_in import ros_from_lcm
 from tests.test_router import LcmRecorder
@@ -127,3 +127,50 @@ def test_only_the_named_channels_are_commanded_from_ros_and_foxglove(
         probe.close()
         assert bridge.stop() == 0
         recorder.close()
+
+
+def test_a_channel_seen_on_lcm_cannot_take_the_name_of_an_allowed_command(tmp_path: Path) -> None:
+    """One datagram on `IIWA-COMMAND` (a sender on the bus; its ROS name token is `IIWA_COMMAND`)
+    before any command: a node's command on /lcm_in/IIWA_COMMAND still reaches the allowed LCM
+    `IIWA_COMMAND`, never `IIWA-COMMAND`; the allow-list alone says which channel a name commands."""
+    url = lcm_url(93)
+    stats = tmp_path / "stats.json"
+    recorder = LcmRecorder(url)
+    bridge = BridgeProcess(
+        "--lcm-url", url, "--stats-json", str(stats), "--stats-period", "0.3",
+        "--allow-commands", "IIWA_COMMAND", "--set", "commands.max_age_ms=60000",
+    )  # fmt: skip
+    probe = RosProbe("name_taker_e2e")
+    try:
+        bridge.wait_for_line(" running (")
+        # The bridge has carried the squatter out as /lcm/IIWA_COMMAND: it has seen it.
+        copies = probe.subscribe("/lcm/IIWA_COMMAND", TYPES["IIWA_COMMAND"])
+        squatter = command("IIWA_COMMAND", 7).encode()
+        publish_until(url, squatter, lambda: len(copies) >= 1, channel="IIWA-COMMAND")
+        publisher = probe.publisher("/lcm_in/IIWA_COMMAND", TYPES["IIWA_COMMAND"])
+        assert probe.wait_for(lambda: publisher.get_subscription_count() >= 1, 90)
+        real = command("IIWA_COMMAND", 8)
+        publisher.publish(ros_from_lcm(real, message_class(TYPES["IIWA_COMMAND"])))
+        assert wait_for(lambda: "IIWA_COMMAND" in recorder.messages, WAIT), (
+            bridge.lines[-15:],
+            stats.read_text() if stats.exists() else "",
+        )
+        recorder.sync()
+        assert recorder.messages["IIWA_COMMAND"] == [real.encode()]
+        assert set(recorder.messages["IIWA-COMMAND"]) == {squatter}  # only the squatter's own
+        assert not [line for line in bridge.lines if "may not be commanded" in line], bridge.lines
+    finally:
+        probe.close()
+        assert bridge.stop() == 0
+        recorder.close()
+
+
+def test_two_allowed_channels_that_would_take_one_name_are_said_at_start() -> None:
+    bridge = BridgeProcess(
+        "--lcm-url", lcm_url(94), "--allow-commands", "IIWA_COMMAND", "--allow-commands", "IIWA-COMMAND|WSG_COMMAND"
+    )  # fmt: skip
+    try:
+        line = bridge.wait_for_line("would both be commanded as /lcm_in/IIWA_COMMAND")
+        assert "it commands IIWA_COMMAND; IIWA-COMMAND cannot be commanded" in line, line
+    finally:
+        assert bridge.stop() == 0

@@ -419,6 +419,8 @@ MISTAKES = [
     (["snapshot", "LOG", "TMP/x.png", "--role", "illustration"], "(it has DRAKE_VIEWER_LOAD_ROBOT: choose with --role)"),
     (["serve-render", "--port", "70000"], "argument --port: a port is 0 (any free one) to 65535"),
     (["serve-render", "--port", "BUSY"], "cannot listen on 127.0.0.1:BUSY: Address already in use"),
+    (["serve-render", "--max-requests", "0"], "argument --max-requests: '0' is not a number of requests from 1 to"),
+    (["serve-render", "--max-image", "4096"], "argument --max-image: '4096' is not WIDTHxHEIGHT, each 1 to 16384"),
     (["demo", "--rate", "0"], "argument --rate: must be greater than 0"),
     (["demo", "--url", "nope://x"], "unknown LCM provider 'nope'"),
     (["convert", "nope.lcmlog", "TMP/x.mcap"], "nope.lcmlog: no such file"),
@@ -509,7 +511,7 @@ def test_version_and_defaults_in_every_help() -> None:
     version = run("--version")
     assert version.returncode == 0 and re.fullmatch(r"viewer-bridge \S+\n", version.stdout), version
     serve = " ".join(run("serve-render", "--help").stdout.split())  # as read, whatever the width wrapped
-    assert "(default: 8000)" in serve and "(default: 268435456)" in serve
+    assert "(default: 8000)" in serve and "(default: 268435456)" in serve and "(default: 4096x4096)" in serve
     shot = run("snapshot", "--help").stdout
     assert "(default: 640x480)" in shot and "(default: 45.0)" in shot
     assert "(default: None)" not in shot  # options with no default say nothing

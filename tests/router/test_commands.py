@@ -14,7 +14,14 @@ from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, ConfigError, Held
 from viewer_bridge.router.runner import MAX_HELD_CHANNELS, OTHER_CHANNELS, RouteRunner
 from viewer_bridge.translators.base import Output, Outputs, Translator
-from viewer_bridge.transports.base import LCM, CallPublisher, MessageType, Publisher, Received
+from viewer_bridge.transports.base import (
+    LCM,
+    CallPublisher,
+    ClosingPublisher,
+    MessageType,
+    Publisher,
+    Received,
+)
 
 WAIT = 60.0
 
@@ -184,12 +191,76 @@ def test_a_route_gives_at_most_max_streams_channels_their_own_publisher() -> Non
     assert sum(kinds["too_many_streams"] for kinds in held.values()) == 9000
 
 
-def test_a_command_topic_finds_the_channel_its_name_was_made_of_and_a_second_channel_is_refused(
+def test_streams_quiet_for_stream_idle_s_give_their_lanes_to_a_channel_that_comes_later() -> None:
+    """6,000 junk channel names take the route's 1,000 lanes; once they have been quiet for
+    `stream_idle_s` (30 s, on the route's clock), the real IIWA_STATUS that comes later gets a lane
+    and a publisher, the quiet streams' publishers are closed, a stream still sending keeps its lane,
+    and the route never holds more than `max_streams` lanes or publishers."""
+    made: list[str] = []
+    closed: list[str] = []
+
+    def publisher(name: str, output: Output) -> Publisher:
+        made.append(name)
+        return ClosingPublisher(lambda data: None, close=lambda: closed.append(name))
+
+    route = Route.model_validate(
+        {"name": "bus", "source": {"transport": "lcm", "name": "(.*)"}, "translator": "lcm_to_ros",
+         "destination": {"transport": "ros", "name": "/lcm/{1:topic}"}}
+    )  # fmt: skip
+    assert route.stream_idle_s == 30.0
+    now = [0.0]
+    runner = RouteRunner(route, lambda: PassThrough({}), publisher, clock=lambda: now[0])
+
+    def too_many() -> int:
+        return sum(kinds.get("too_many_streams", 0) for kinds in runner.snapshot()["held"].values())
+
+    for index in range(6000):
+        runner.feed(Received(f"JUNK_{index}", b"x"))
+    now[0] = 10.0
+    runner.feed(Received("IIWA_STATUS", b"real"))  # none quiet for 30 s yet: held
+    assert too_many() == 5001 and "/lcm/IIWA_STATUS" not in made
+    now[0] = 20.0
+    runner.feed(Received("JUNK_0", b"x"))  # still sending: keeps its lane
+    now[0] = 31.0
+    runner.feed(Received("IIWA_STATUS", b"real"))
+    assert made[-1] == "/lcm/IIWA_STATUS" and too_many() == 5001
+    assert len(closed) == 999 and "/lcm/JUNK_0" not in closed
+    assert runner.snapshot()["streams_reclaimed"] == 999 and runner.stats.messages_out == 1002
+    # A second flood takes what is free, and no more: the bound holds
+    for index in range(6000, 12_000):
+        runner.feed(Received(f"JUNK_{index}", b"x"))
+    now[0] = 32.0
+    runner.feed(Received("IIWA_STATUS", b"real"))
+    assert runner.stats.messages_out == 1002 + 998 + 1
+    assert len(made) - len(closed) == route.max_streams  # publishers open
+    assert len(runner._lanes) == route.max_streams
+    # Publishers that cannot free their transport's state (Zenoh's, gz's) keep their lanes
+    kept = RouteRunner(route.model_copy(update={"max_streams": 2}), lambda: PassThrough({}),
+                       lambda name, output: CallPublisher(lambda data: None), clock=lambda: now[0])  # fmt: skip
+    for channel in ("A", "B"):
+        kept.feed(Received(channel, b"x"))
+    now[0] = 100.0
+    kept.feed(Received("IIWA_STATUS", b"real"))
+    assert kept.stats.messages_out == 2 and kept.stats.streams_reclaimed == 0
+
+
+def test_stream_idle_s_is_a_route_setting() -> None:
+    route = Route.model_validate(
+        {"name": "bus", "source": {"transport": "lcm", "name": "(.*)"}, "translator": "lcm_to_ros",
+         "destination": {"transport": "ros", "name": "/lcm/{1:topic}"}, "stream_idle_s": 0.5}
+    )  # fmt: skip
+    assert route.stream_idle_s == 0.5
+    with pytest.raises(ValueError, match="stream_idle_s"):
+        Route.model_validate(route.model_dump() | {"stream_idle_s": 0})
+
+
+def test_a_second_channel_that_makes_a_token_is_refused_and_only_the_allow_list_maps_tokens_back(
     caplog: pytest.LogCaptureFixture,
 ) -> None:
     """`/lcm/{1:topic}` made tokens of the channels seen (`1ARM` -> `n1ARM`, `a.b` -> `a_b`; `a-b`,
-    whose token `a.b` has, is refused, never merged into `/lcm/a_b`); `/lcm_in/{1:channel}` maps
-    them back."""
+    whose token `a.b` has, is refused, never merged into `/lcm/a_b`); `/lcm_in/{1:channel}` maps a
+    name back by the allow-list alone: the name itself when allowed, else the channel the list names
+    literally with that token, whatever channels the bus has shown."""
     from viewer_bridge.transports.ros_names import ChannelNames
 
     names = ChannelNames()
@@ -200,10 +271,10 @@ def test_a_command_topic_finds_the_channel_its_name_was_made_of_and_a_second_cha
     )  # fmt: skip
     out = RouteRunner(outward, lambda: PassThrough({}), lambda name, output: (made.append(name), CallPublisher(print))[1],
                       names=names)  # fmt: skip
-    for channel in ("1ARM", "a.b", "a-b", "IIWA_STATUS"):
+    for channel in ("1ARM", "a.b", "a-b", "IIWA_STATUS", "IIWA-COMMAND"):
         out.feed(Received(channel, b"x"))
     out.feed(Received("a-b", b"y"))  # counted each time, said once
-    assert made == ["/lcm/n1ARM", "/lcm/a_b", "/lcm/IIWA_STATUS"]
+    assert made == ["/lcm/n1ARM", "/lcm/a_b", "/lcm/IIWA_STATUS", "/lcm/IIWA_COMMAND"]
     assert out.stats.held == {"a-b": {"name_collision": 2}}
     said = [record.getMessage() for record in caplog.records if "name_collision" in record.getMessage()]
     assert said == [
@@ -215,10 +286,37 @@ def test_a_command_topic_finds_the_channel_its_name_was_made_of_and_a_second_cha
     back = RouteRunner(
         command_route(destination={"transport": "lcm", "name": "{1:channel}"}), lambda: PassCommands({}),
         sent.publisher, rejected=lambda message, error: told.append(error),
-        commands=CommandPolicy(allow=(".*",)), names=names,
+        commands=CommandPolicy(allow=("1ARM", r"a\.b", "IIWA_.*")), names=names,
     )  # fmt: skip
-    for topic in ("/lcm_in/n1ARM", "/lcm_in/a_b", "/lcm_in/IIWA_COMMAND"):
+    for topic in ("/lcm_in/n1ARM", "/lcm_in/a_b", "/lcm_in/IIWA_COMMAND", "/lcm_in/a_c"):
         back.feed(Received(topic, b"go"))
-    # unseen: the channel named as its topic
+    # IIWA_COMMAND is allowed as it is: IIWA-COMMAND, seen on the bus, takes nothing
     assert sorted(sent.by_channel) == ["1ARM", "IIWA_COMMAND", "a.b"]
-    assert told == []
+    assert [str(error) for error in told] == [
+        CommandPolicy(allow=("1ARM", r"a\.b", "IIWA_.*")).refusal("a_c")
+    ]
+
+
+def test_the_allow_list_is_the_table_of_command_names() -> None:
+    """Literal names (plain characters, escaped punctuation, `|` between them) give their tokens to
+    their channels; a name the list allows as it is keeps it; two allowed channels on one name are
+    said."""
+    from viewer_bridge.config.commands import literal_channels
+
+    assert literal_channels(r"IIWA-COMMAND|WSG\.COMMAND") == ["IIWA-COMMAND", "WSG.COMMAND"]
+    assert literal_channels(r"IIWA\ COMMAND") == ["IIWA COMMAND"]
+    for regex in ("IIWA_.*", "IIWA.COMMAND", "(A|B)", r"\d+", "[AB]", "A\\", "^A$"):
+        assert literal_channels(regex) == [], regex
+    policy = CommandPolicy(allow=("IIWA_COMMAND", "IIWA-COMMAND", "a.b", "1ARM", r"x\-y", r"x\.y"))
+    assert policy.channel("IIWA_COMMAND") == "IIWA_COMMAND"
+    assert policy.channel("n1ARM") == "1ARM"
+    assert policy.channel("a_b") == "a_b"  # a.b is a regex: it allows a_b itself
+    assert policy.channel("x_y") == "x-y"  # the first named keeps it
+    assert policy.channel("WSG_COMMAND") == "WSG_COMMAND"  # not allowed: refused under its own name
+    assert policy.collisions() == [
+        "allowed LCM channels IIWA_COMMAND and IIWA-COMMAND would both be commanded as /lcm_in/IIWA_COMMAND: "
+        "it commands IIWA_COMMAND; IIWA-COMMAND cannot be commanded (rename one)",
+        "allowed LCM channels x-y and x.y would both be commanded as /lcm_in/x_y: it commands x-y; x.y "
+        "cannot be commanded (rename one)",
+    ]
+    assert CommandPolicy(allow=("IIWA_COMMAND|WSG_COMMAND", "IIWA_COMMAND")).collisions() == []

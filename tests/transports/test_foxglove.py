@@ -69,6 +69,9 @@ class FoxgloveClient:
                 message = json.loads(frame)
                 if message["op"] == "advertise":
                     self.channels.update({channel["topic"]: channel for channel in message["channels"]})
+                elif message["op"] == "unadvertise":
+                    gone = set(message["channelIds"])
+                    self.channels = {topic: c for topic, c in self.channels.items() if c["id"] not in gone}
             elif frame[0] == 0x01:  # message data
                 (subscription,) = struct.unpack_from("<I", frame, 1)
                 self.messages.setdefault(self._topics[subscription], []).append(bytes(frame[13:]))
@@ -497,6 +500,33 @@ def test_a_client_that_subscribes_before_its_channel_is_stored_is_counted(
     finally:
         if client is not None:
             client.close()
+        transport.close()
+
+
+def test_a_closed_publisher_takes_its_channel_away_and_the_transport_forgets_it() -> None:
+    """A route lets a quiet stream go (`stream_idle_s`) by closing its publisher: clients see the
+    channel unadvertised, and the transport keeps nothing of it, so a flood of names that comes and
+    goes cannot grow it; the topic may be published again later."""
+    from viewer_bridge.transports.base import PROTOBUF, Closable, MessageType, Qos
+    from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
+
+    transport = FoxgloveTransport(FoxgloveSettings(port=0))
+    client = FoxgloveClient(transport.port)
+    transforms = MessageType("foxglove.FrameTransforms", PROTOBUF)
+    try:
+        publisher = transport.publisher("/lcm/JUNK", transforms, Qos())
+        assert isinstance(publisher, Closable)
+        assert client.pump(60, lambda: "/lcm/JUNK" in client.channels), client.log()
+        publisher.close()
+        assert client.pump(60, lambda: "/lcm/JUNK" not in client.channels), client.log()
+        assert transport._channels == {} and transport.context._asked_by == {}
+        again = transport.publisher("/lcm/JUNK", transforms, Qos())
+        client.subscribe("/lcm/JUNK")
+        assert client.pump(60, lambda: again.subscriber_count() == 1)
+        again.publish(FrameTransforms().SerializeToString())
+        assert client.pump(60, lambda: "/lcm/JUNK" in client.messages), client.log()
+    finally:
+        client.close()
         transport.close()
 
 

@@ -22,7 +22,21 @@ def add_command(add: AddCommand) -> None:
         type=byte_count,
         default=256 * 1024 * 1024,
         metavar="BYTES",
-        help="largest request body accepted",
+        help="largest request body accepted, and the most the requests being read hold together (others wait)",
+    )
+    serve.add_argument(
+        "--max-requests",
+        type=_request_count,
+        default=8,
+        metavar="N",
+        help="requests at once, being read, rendered or waiting; more are answered 503 with Retry-After",
+    )
+    serve.add_argument(
+        "--max-image",
+        type=_image_size,
+        default="4096x4096",
+        metavar="WIDTHxHEIGHT",
+        help="largest image rendered; a larger one is refused (400) naming this limit",
     )
     serve.add_argument(
         "--allow-origin",
@@ -33,6 +47,27 @@ def add_command(add: AddCommand) -> None:
         help="also accept posts from browser pages of this origin (scheme://host[:port], * for any run of "
         "characters but /; '*': any page); loopback pages and clients that send no Origin always may; repeatable",
     )
+
+
+def _request_count(text: str) -> int:
+    """A --max-requests value: 1 to 1024."""
+    if not text.isdigit() or not 1 <= int(text) <= 1024:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of requests from 1 to 1024")
+    return int(text)
+
+
+def _image_size(text: str) -> tuple[int, int]:
+    """A --max-image value: WIDTHxHEIGHT, each 1 to 16384 (`4096x4096`)."""
+    width, separator, height = text.lower().partition("x")
+    if not (
+        separator
+        and width.isdigit()
+        and height.isdigit()
+        and 0 < int(width) <= 16384
+        and 0 < int(height) <= 16384
+    ):
+        raise argparse.ArgumentTypeError(f"{text!r} is not WIDTHxHEIGHT, each 1 to 16384 (e.g. 4096x4096)")
+    return int(width), int(height)
 
 
 def _origin(text: str) -> str:
@@ -49,7 +84,9 @@ def run(args: argparse.Namespace) -> int:
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
     try:
-        server = make_server(args.host, args.port, args.max_upload, args.allow_origin)
+        server = make_server(
+            args.host, args.port, args.max_upload, args.allow_origin, args.max_requests, args.max_image
+        )
     except OSError as error:  # e.g. the port is taken, or the host is not an address of this machine
         raise UsageError(f"cannot listen on {args.host}:{args.port}: {error.strerror or error}") from None
     # Ctrl-C stops it cleanly from the moment it says it is ready.

@@ -93,6 +93,9 @@ class Route(_Strict):
     # and publishers of their own; a message of one more is held (`too_many_streams`), so a bus
     # with 10,000 channel names cannot make 10,000 publishers.
     max_streams: int = Field(1000, ge=1)
+    # A stream quiet this long gives its translator and publishers back when the route has
+    # `max_streams` and a new one comes: a flood of names that stops cannot hold the lanes for good.
+    stream_idle_s: float = Field(30.0, gt=0)
     # The worker process this route runs on when the bridge runs several (`workers`); None: placed
     # by its source (`viewer_bridge.router.workers.place`).
     worker: int | None = Field(None, ge=0)
@@ -312,11 +315,13 @@ class _Checker:
 
 class _Template(string.Formatter):
     """`{1}`, `{1:lower}`, `{1:path}`, `{1:topic}`, `{1:channel}` over a regex match's groups (a
-    missing group is empty); `names` remembers the channels `:topic` made tokens of, for `:channel`."""
+    missing group is empty); `names` remembers the channels `:topic` made tokens of, for `:channel`;
+    `commands`, on a route that writes commands, is the only table `:channel` reads (`CommandPolicy.channel`)."""
 
-    def __init__(self, names: ChannelNames | None = None) -> None:
+    def __init__(self, names: ChannelNames | None = None, commands: CommandPolicy | None = None) -> None:
         super().__init__()
         self._names = names
+        self._commands = commands
 
     def get_field(self, field_name: str, args: Sequence[Any], kwargs: Mapping[str, Any]) -> Any:
         # Only group numbers: `{1.path}` or `{1[a]}` would reach into the group's str (found by
@@ -334,6 +339,8 @@ class _Template(string.Formatter):
         if format_spec == "topic":  # any text as one valid ROS name token: "my client!" -> "my_client_"
             return name_token(text) if self._names is None else self._names.token(text)
         if format_spec == "channel":  # a token back to the LCM channel it was made of: "A_B" -> "A.B"
+            if self._commands is not None:  # a command: only the allow-list says which channel
+                return self._commands.channel(text)
             return text if self._names is None else self._names.channel(text)
         if format_spec == "lcm":  # a ROS 2 topic as the LCM channel it is carried on: "/a/b" -> "a/b"
             return lcm_channel(text)
@@ -359,10 +366,15 @@ def _sample_destination(route: Route) -> str:
     return _Template().format(route.destination.name, "x", *(["x"] * groups))
 
 
-def destination_name(template: str, match: re.Match[str], names: ChannelNames | None = None) -> str:
-    """The destination name for a message whose source name `match`ed (`names`: see `_Template`).
-    Raises `Held` for a `:channel` that cannot be told."""
-    return _Template(names).format(template, match.group(0), *match.groups())
+def destination_name(
+    template: str,
+    match: re.Match[str],
+    names: ChannelNames | None = None,
+    commands: CommandPolicy | None = None,
+) -> str:
+    """The destination name for a message whose source name `match`ed (`names`, `commands`: see
+    `_Template`). Raises `Held` for a `:channel` that cannot be told."""
+    return _Template(names, commands).format(template, match.group(0), *match.groups())
 
 
 ROS_TOPICS_TRANSLATOR = "ros_topic_to_lcm"

@@ -11,6 +11,11 @@ would be sent (measured from the bridge's own receive time) is dropped and count
 never replayed after a stall. The senders' own stamps (a ROS 2 `header.stamp`, an LCM `utime`)
 are not used: they come from another clock (a simulation's, another host's) that the bridge
 cannot compare with its own.
+
+The allow-list is also the table of names: `/lcm_in/<name>` commands the channel `<name>` when
+the allow-list allows it, else the channel the allow-list names literally whose ROS name token
+`<name>` is (`IIWA-COMMAND`, named so, for `/lcm_in/IIWA_COMMAND`), else nothing. What arrives on
+LCM never changes it, so no sender on the bus can take a command's name (`channel`).
 """
 
 from __future__ import annotations
@@ -22,11 +27,38 @@ from typing import TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from viewer_bridge.transports.ros_names import name_token
+
 COMMAND_FLAG = "--allow-commands"
 DEFAULT_MAX_AGE_MS = 200.0
 
 
 Patterns = TypeVar("Patterns", bound=Sequence[str])
+_REGEX_SYNTAX = frozenset(".^$*+?{}[]()")  # unescaped, any of these makes a pattern no plain name
+
+
+def literal_channels(pattern: str) -> list[str]:
+    """The channels `pattern` names literally: its `|`-separated alternatives made only of plain
+    characters and escaped punctuation (`IIWA-COMMAND|WSG\\.COMMAND` -> `IIWA-COMMAND`,
+    `WSG.COMMAND`); none when it holds any other regex syntax (`IIWA_.*`, `(A|B)`, `\\d`)."""
+    channels, current, escaped = [], [], False
+    for character in pattern:
+        if escaped:
+            if character.isalnum():  # \d, \A, \n: classes, anchors and escapes, no plain character
+                return []
+            current.append(character)
+            escaped = False
+        elif character == "\\":
+            escaped = True
+        elif character == "|":
+            channels.append("".join(current))
+            current = []
+        elif character in _REGEX_SYNTAX:
+            return []
+        else:
+            current.append(character)
+    channels.append("".join(current))
+    return [] if escaped else [channel for channel in channels if channel]
 
 
 def regular_expressions(patterns: Patterns) -> Patterns:
@@ -65,6 +97,35 @@ class CommandPolicy(BaseModel):
         """Whether the way back may write LCM `channel`."""
         return any(pattern.fullmatch(channel) for pattern in self._allowed)
 
+    @cached_property
+    def _named(self) -> dict[str, str]:
+        """ROS name token -> the channel the allow-list names literally that has it (the first)."""
+        named: dict[str, str] = {}
+        for pattern in self.allow:
+            for channel in literal_channels(pattern):
+                named.setdefault(name_token(channel), channel)
+        return named
+
+    def channel(self, name: str) -> str:
+        """The LCM channel a command on `/lcm_in/<name>` goes to: `name` when allowed, else the
+        channel the allow-list names literally whose ROS name token `name` is, else `name` (then
+        refused as not allowed). Only the allow-list decides: no channel seen on a bus does."""
+        return name if self.allows(name) else self._named.get(name, name)
+
+    def collisions(self) -> list[str]:
+        """Each pair of allowed channels that would take one ROS name, and which one has it: said
+        at start, for the one left out can be commanded by no `/lcm_in` name."""
+        said = []
+        for pattern in self.allow:
+            for channel in literal_channels(pattern):
+                name = name_token(channel)
+                if channel != (keeper := self.channel(name)):
+                    said.append(
+                        f"allowed LCM channels {keeper} and {channel} would both be commanded as "
+                        f"/lcm_in/{name}: it commands {keeper}; {channel} cannot be commanded (rename one)"
+                    )
+        return said
+
     def widened(self, patterns: list[str]) -> CommandPolicy:
         """This policy with more channels allowed (`--allow-commands` on top of the config's)."""
         return CommandPolicy(allow=(*self.allow, *patterns), max_age_ms=self.max_age_ms)
@@ -82,4 +143,4 @@ class CommandPolicy(BaseModel):
         )
 
 
-__all__ = ["COMMAND_FLAG", "DEFAULT_MAX_AGE_MS", "CommandPolicy", "regular_expressions"]
+__all__ = ["COMMAND_FLAG", "DEFAULT_MAX_AGE_MS", "CommandPolicy", "literal_channels", "regular_expressions"]

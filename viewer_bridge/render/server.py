@@ -6,6 +6,12 @@ plain-text reason for a bad request, 500 for anything else. GL work happens on o
 concurrent requests queue for it. Uploads above `max_upload` bytes are refused unread, and so is
 a post from a browser page of a foreign origin (403; viewer_bridge/transports/origins.py: no
 `Origin` header, as from Drake's client, and loopback pages pass, and the `allowed_origins`).
+
+Every request is bounded before its upload is read (`Admission`): at most `max_requests` at once,
+the rest answered 503 with a Retry-After; of those, the uploads read and held together stay within
+`max_upload` (the others wait their turn, in order, unread). An image larger than `max_image`
+(width by height) is refused with a 400 naming the limit, never rendered: the renderer's memory
+grows with the pixels (an 8192x8192 render took the server to 3.9 GB).
 """
 
 from __future__ import annotations
@@ -13,6 +19,7 @@ from __future__ import annotations
 import hashlib
 import http.server
 import io
+import itertools
 import logging
 import queue
 import re
@@ -33,6 +40,10 @@ from viewer_bridge.transports.origins import OriginGate, Origins
 log = logging.getLogger("viewer_bridge")
 
 DEFAULT_MAX_UPLOAD = 256 * 1024 * 1024
+DEFAULT_MAX_REQUESTS = 8  # at once: being read, waiting for the GL thread, rendering, or waiting to be read
+DEFAULT_MAX_IMAGE = (4096, 4096)  # width, height
+ADMISSION_WAIT_S = 60.0  # how long a request waits for its upload's turn before a 503
+RETRY_AFTER_S = 1  # what a refused client is told to wait (Drake's cameras render one at a time)
 _NUMBERS = ("width", "height", "near", "far", "focal_x", "focal_y", "center_x", "center_y")
 
 
@@ -82,9 +93,12 @@ def _part_name(head: bytes) -> str | None:
 
 
 def render_request(
-    fields: dict[str, bytes], render: Callable[[Any, Camera, str], np.ndarray[Any, Any]]
+    fields: dict[str, bytes],
+    render: Callable[[Any, Camera, str], np.ndarray[Any, Any]],
+    max_image: tuple[int, int] = DEFAULT_MAX_IMAGE,
 ) -> bytes:
-    """The PNG answering one form; raises `BadRequest` for what the client got wrong."""
+    """The PNG answering one form; raises `BadRequest` for what the client got wrong, or for an
+    image wider or taller than `max_image` (width, height)."""
     for name in ("scene", "scene_sha256", "image_type", *_NUMBERS):
         if name not in fields:
             raise BadRequest(f"missing form field {name!r}")
@@ -98,12 +112,16 @@ def render_request(
         raise BadRequest(f"unsupported image_type {kind!r} (color, depth or label)")
     numbers = {name: _number(fields, name) for name in _NUMBERS}
     width, height = int(numbers["width"]), int(numbers["height"])
+    max_width, max_height = max_image
     if (
         width != numbers["width"]
         or height != numbers["height"]
-        or not (0 < width <= 8192 and 0 < height <= 8192)
+        or not (0 < width <= max_width and 0 < height <= max_height)
     ):
-        raise BadRequest("width and height must be whole numbers from 1 to 8192")
+        raise BadRequest(
+            f"width and height must be whole numbers, at most {max_width}x{max_height} (the server's "
+            f"limit, serve-render --max-image WIDTHxHEIGHT); asked for {fields['width'][:20]!r}x{fields['height'][:20]!r}"
+        )
     if not 0 < numbers["near"] < numbers["far"] or numbers["focal_x"] <= 0 or numbers["focal_y"] <= 0:
         raise BadRequest("need 0 < near < far and positive focal lengths")
     try:
@@ -169,6 +187,52 @@ class RenderThread:
         return future.result()
 
 
+class Admission:
+    """Which requests may read their upload now: at most `max_requests` at once (`enter` says False
+    beyond: 503), and of those, uploads holding at most `max_bytes` together; the others wait, in
+    arrival order, unread, until theirs fits (a request alone always fits: `max_upload` refused
+    larger ones before) or `wait_s` passes (False)."""
+
+    def __init__(self, max_requests: int, max_bytes: int, wait_s: float = ADMISSION_WAIT_S) -> None:
+        self._max_requests = max_requests
+        self._max_bytes = max_bytes
+        self._wait_s = wait_s
+        self._requests = 0  # in: waiting or admitted
+        self._bytes = 0  # the uploads of the admitted ones
+        self._queue: list[object] = []  # the waiting ones' tickets, first come first
+        self._changed = threading.Condition()
+
+    def enter(self, length: int) -> bool:
+        """Whether a request with an upload of `length` bytes is in (then `leave` it): False when
+        `max_requests` are in already, or when its turn did not come within `wait_s`."""
+        ticket = object()
+        with self._changed:
+            if self._requests >= self._max_requests:
+                return False
+            self._requests += 1
+            self._queue.append(ticket)
+            fits = self._changed.wait_for(
+                lambda: (
+                    self._queue[0] is ticket and (self._bytes == 0 or self._bytes + length <= self._max_bytes)
+                ),
+                self._wait_s,
+            )
+            self._queue.remove(ticket)
+            if not fits:
+                self._requests -= 1
+            else:
+                self._bytes += length
+            self._changed.notify_all()
+            return fits
+
+    def leave(self, length: int) -> None:
+        """A request let in by `enter(length)` is done: its upload is let go."""
+        with self._changed:
+            self._requests -= 1
+            self._bytes -= length
+            self._changed.notify_all()
+
+
 def render_gate(allowed_origins: Iterable[str] = ()) -> OriginGate:
     """The render server's origin check: loopback pages and `allowed_origins` (Drake's client sends no Origin)."""
     return OriginGate(
@@ -181,9 +245,13 @@ def make_server(
     port: int = 8000,
     max_upload: int = DEFAULT_MAX_UPLOAD,
     allowed_origins: Iterable[str] = (),
+    max_requests: int = DEFAULT_MAX_REQUESTS,
+    max_image: tuple[int, int] = DEFAULT_MAX_IMAGE,
 ) -> http.server.ThreadingHTTPServer:
     renderer = RenderThread()
     gate = render_gate(allowed_origins)
+    admission = Admission(max_requests, max_upload)
+    busy_refusals = itertools.count(1)  # the handlers' threads count here (`next` is atomic)
 
     class Handler(http.server.BaseHTTPRequestHandler):
         timeout = 30  # seconds a stalled upload may hold its connection's thread
@@ -203,6 +271,24 @@ def make_server(
                 return self._reply(
                     400, f"upload of {length} bytes is above the limit of {max_upload}".encode(), "text/plain"
                 )
+            if not admission.enter(length):  # unread: the client may send it again later
+                self.close_connection = True
+                refused = next(busy_refusals)
+                if refused == 1 or refused % 1000 == 0:  # never a line per refusal
+                    log.warning(
+                        "render server: busy, %d requests refused so far (--max-requests %d)",
+                        refused,
+                        max_requests,
+                    )
+                busy = f"busy: {max_requests} requests at once is the limit (serve-render --max-requests); retry\n"
+                return self._reply(503, busy.encode(), "text/plain", {"Retry-After": str(RETRY_AFTER_S)})
+            try:
+                self._serve(length)
+            finally:
+                admission.leave(length)
+
+        def _serve(self, length: int) -> None:
+            """Read, render and answer an admitted request."""
             try:
                 body = self.rfile.read(length)
             except OSError:  # stalled past `timeout`, or reset by the client
@@ -213,7 +299,7 @@ def make_server(
             started = time.perf_counter()
             try:
                 fields = parse_form(self.headers.get("Content-Type", ""), body)
-                png = render_request(fields, renderer.render)
+                png = render_request(fields, renderer.render, max_image)
             except BadRequest as error:
                 return self._reply(400, str(error).encode(), "text/plain")
             except Exception as error:
@@ -226,8 +312,12 @@ def make_server(
                 (time.perf_counter() - started) * 1e3,
             )  # fmt: skip
 
-        def _reply(self, status: int, body: bytes, content_type: str) -> None:
+        def _reply(
+            self, status: int, body: bytes, content_type: str, headers: dict[str, str] | None = None
+        ) -> None:
             self.send_response(status)
+            for name, value in (headers or {}).items():
+                self.send_header(name, value)
             self.send_header("Content-Type", content_type)
             self.send_header("Content-Length", str(len(body)))
             if self.close_connection:
@@ -242,6 +332,10 @@ def make_server(
 
 
 __all__ = [
+    "Admission",
+    "BadRequest",
+    "DEFAULT_MAX_IMAGE",
+    "DEFAULT_MAX_REQUESTS",
     "DEFAULT_MAX_UPLOAD",
     "RenderThread",
     "log",

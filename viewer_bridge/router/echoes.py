@@ -26,7 +26,7 @@ from collections import deque
 from collections.abc import Callable
 
 from viewer_bridge.shared import MessageTime
-from viewer_bridge.transports.base import Deliver, Publisher, Received
+from viewer_bridge.transports.base import Closable, Deliver, Publisher, Received
 
 WINDOW_S = 2.0  # how long a sent payload is waited for: a round trip through one bus, with room
 LIMIT = 10_000  # sends remembered per name at most: a flood forgets its oldest, memory never grows
@@ -139,6 +139,16 @@ class GuardedPublisher:
         return self._publisher.subscriber_count()
 
 
+class ClosingGuardedPublisher(GuardedPublisher):
+    """A guarded publisher whose own publisher is `Closable`: so is it."""
+
+    __slots__ = ()
+
+    def close(self) -> None:
+        assert isinstance(self._publisher, Closable)
+        self._publisher.close()
+
+
 class Echoes:
     """The router's guards, by transport and name, made when a publisher is made on a name the
     router also subscribes to."""
@@ -161,7 +171,8 @@ class Echoes:
             guard = names.get(name)
             if guard is None:
                 guard = names[name] = EchoGuard(self._window)
-        return GuardedPublisher(publisher, guard, source, self._sending)
+        kind = ClosingGuardedPublisher if isinstance(publisher, Closable) else GuardedPublisher
+        return kind(publisher, guard, source, self._sending)
 
     def deliver(self, transport: str, offer: Deliver, came_back: CameBack) -> Deliver:
         """What a route's subscription on `transport` calls: `came_back` for the bridge's own

@@ -236,6 +236,8 @@ class Router:
         for exposure in exposures:
             if exposure.warning is not None:
                 log.warning("viewer-bridge: %s", exposure.warning)
+        for collision in policy.collisions():
+            log.warning("viewer-bridge: commands: %s", collision)
 
     def stop(self) -> None:
         self._stop.set()

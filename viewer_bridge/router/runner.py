@@ -28,7 +28,7 @@ from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
 from viewer_bridge.router.stats import RouteStats
 from viewer_bridge.shared import MessageTime
 from viewer_bridge.translators.base import Output, Translator
-from viewer_bridge.transports.base import MessageType, Publisher, Received, hand_over, size_of
+from viewer_bridge.transports.base import Closable, MessageType, Publisher, Received, hand_over, size_of
 from viewer_bridge.transports.ros_names import ChannelNames
 from viewer_bridge.util.channels import ChannelPattern
 
@@ -40,6 +40,9 @@ _LISTENERS_CHECK_S = 0.25  # how often a lazy route asks its publishers whether 
 # flood of new channel names (a hostile peer's topics) cannot grow the stats without bound.
 MAX_HELD_CHANNELS = 1000
 OTHER_CHANNELS = "(other channels)"
+# A full route looks for quiet streams (`stream_idle_s`) at most this often: lanes gone quiet one by
+# one under a flood of new names cost one scan of the route's lanes a second, not one per message.
+RECLAIM_SCAN_S = 1.0
 # A `policy: all` route whose translations take less than this on average translates inline
 # past the thread's budget: a few wake-ups' worth (20-60 us each on the 2-core test VM).
 QUICK_S = 100e-6
@@ -80,15 +83,28 @@ class Destinations:
         with self._lock:
             return self._owners.setdefault(destination, source)
 
+    def release(self, destination: Place, source: Place) -> None:
+        """`source` carries `destination` no more (its stream went quiet): the next to ask has it."""
+        with self._lock:
+            if self._owners.get(destination) == source:
+                del self._owners[destination]
+
 
 class _Lane:
     """One stream of a route: its translator, the names it publishes on, what it skipped."""
 
     def __init__(
-        self, name: str, translator: Translator, publisher: Callable[[str, Output], Publisher]
+        self,
+        name: str,
+        translator: Translator,
+        publisher: Callable[[str, Output], Publisher],
+        channel: str = "",
+        now: float = 0.0,
     ) -> None:
         self.name = name
         self.translator = translator
+        self.channel = channel  # the source channel it was made for (an exclusive claim's owner)
+        self.used_at = now  # when it last had a message (the route's clock): a quiet lane is reclaimed
         self._publisher = publisher
         # Each output's publisher by index, while the output at that index is the same (a
         # translator adds outputs as it goes): no name or key made per message.
@@ -98,6 +114,15 @@ class _Lane:
         self._checked_at = float("-inf")
         # Whether the translator keeps books on every message: most do not (no call per message).
         self.observes = type(translator).observe is not Translator.observe
+
+    def names(self) -> list[tuple[str, MessageType]]:
+        """The (name, type) of each publisher it made: what it gives back when reclaimed."""
+        return [(self.name + output.suffix, output.type) for output, _ in self._made.values()]
+
+    def closable(self) -> bool:
+        """Whether all it holds can be let go: every publisher it made frees its transport's state
+        when closed (a Zenoh or gz publisher does not: such a lane is never reclaimed)."""
+        return all(isinstance(publisher, Closable) for _, publisher in self._made.values())
 
     def publisher(self, index: int) -> Publisher:
         output = self.translator.outputs[index]
@@ -140,13 +165,15 @@ class RouteRunner:
         names: ChannelNames | None = None,
         said: SaidOnce | None = None,
         destinations: Destinations | None = None,
+        clock: Callable[[], float] = time.monotonic,
     ) -> None:
         """`commands`: the policy of a route that writes commands (its destinations must be
         allowed; its messages expire after `max_age_ms`), or None for any other route. `names`:
         the router's channels made into ROS name tokens (`{1:topic}`, `{1:channel}`). `said`: what
         the router's routes have logged once (a held channel), or None for the route's own.
         `destinations`: the router's, for a route whose translator is exclusive (each destination
-        carries one stream), else None."""
+        carries one stream), else None. `clock`: seconds, for how long a stream has been quiet
+        (`stream_idle_s`; a test's own clock)."""
         self.route = route
         self.commands = commands
         self._destinations = destinations
@@ -177,6 +204,10 @@ class RouteRunner:
         self._message_time = MessageTime() if message_time is None else message_time
         self.prototype: Translator | None = make_translator()  # made now: errors show at start
         self._lanes: dict[tuple[str | None, ...], _Lane] = {}  # by the source's captured groups
+        self._clock = clock
+        # When a full route looks for quiet lanes next: not before one can be quiet for
+        # `stream_idle_s`, nor within `RECLAIM_SCAN_S` of the last look.
+        self._reclaim_at = float("-inf")
         # By full name and type: lanes may share a topic, a channel's type may change (any LCM type).
         self._publishers: dict[tuple[str, MessageType], Publisher] = {}
         self._said = SaidOnce() if said is None else said  # a held (channel, kind) said once
@@ -204,7 +235,7 @@ class RouteRunner:
         try:
             back_where = (
                 self.route.destination.transport,
-                destination_name(self.route.destination.name, match, self._names),
+                destination_name(self.route.destination.name, match, self._names, self.commands),
             )
         except Exception:  # a name the template cannot make: offered, and counted where it is made
             back_where = None
@@ -306,11 +337,13 @@ class RouteRunner:
     def _lane(self, message: Message) -> _Lane:
         key = message.match.groups()
         lane = self._lanes.get(key)
+        now = self._clock()
         if lane is None:
-            name = destination_name(self.route.destination.name, message.match, self._names)
-            self._admit(name, message.channel)
+            name = destination_name(self.route.destination.name, message.match, self._names, self.commands)
+            self._admit(name, message.channel, now)
             translator, self.prototype = self.prototype or self._make_translator(), None
-            lane = self._lanes[key] = _Lane(name, translator, self._publisher)
+            lane = self._lanes[key] = _Lane(name, translator, self._publisher, message.channel, now)
+        lane.used_at = now
         return lane
 
     def admits(self, source_name: str) -> bool:
@@ -321,16 +354,57 @@ class RouteRunner:
         if self.commands is None or match is None:
             return match is not None
         try:
-            return self.commands.allows(destination_name(self.route.destination.name, match, self._names))
+            name = destination_name(self.route.destination.name, match, self._names, self.commands)
+            return self.commands.allows(name)
         except Held:
             return False
 
-    def _admit(self, name: str, channel: str) -> None:
+    def _reclaim(self, now: float) -> None:
+        """Let every lane quiet for `stream_idle_s` go, with the publishers no other lane uses (closed,
+        so the transport frees them) and its exclusive destination: room for new streams, while
+        the route still holds at most `max_streams`. A lane whose publishers cannot free what their
+        transport holds stays (`_Lane.closable`): letting it go would leave that state behind."""
+        if now < self._reclaim_at:
+            return
+        idle_s = self.route.stream_idle_s
+        quiet = [key for key, lane in self._lanes.items() if now - lane.used_at >= idle_s and lane.closable()]
+        gone = [self._lanes.pop(key) for key in quiet]
+        kept = {lane.name for lane in self._lanes.values()}
+        for lane in gone:
+            if self._destinations is not None:
+                place = (self.route.destination.transport, lane.name)
+                self._destinations.release(place, (self.route.source.transport, lane.channel))
+            if lane.name in kept:  # another stream publishes there too: its publishers stay
+                continue
+            for key in lane.names():
+                publisher = self._publishers.pop(key, None)
+                if isinstance(publisher, Closable):
+                    try:
+                        publisher.close()
+                    except Exception as error:  # the transport refused: the stream is gone all the same
+                        self._error(f"close:{type(error).__name__}", f"{key[0]}: {error}")
+            kept.add(lane.name)  # its publishers are closed once, though several lanes had them
+        before = self.stats.streams_reclaimed
+        self.stats.streams_reclaimed += len(gone)
+        if gone and (before == 0 or before // 1000 != self.stats.streams_reclaimed // 1000):  # never a flood
+            log.info(
+                "route %s: streams quiet for %g s give their lanes to new ones (%d so far; streams_reclaimed)",
+                self.route.name,
+                idle_s,
+                self.stats.streams_reclaimed,
+            )
+        oldest = min((lane.used_at for lane in self._lanes.values()), default=now)
+        self._reclaim_at = max(oldest + idle_s, now + RECLAIM_SCAN_S)
+
+    def _admit(self, name: str, channel: str, now: float) -> None:
         """Raise `Held` when a new stream from `channel` publishing on `name` may not have a lane: a
-        command destination not allowed, one stream more than the route's `max_streams`, or an
-        exclusive destination another stream carries."""
+        command destination not allowed, one stream more than the route's `max_streams` (once the
+        streams quiet for `stream_idle_s` have given theirs back), or an exclusive destination
+        another stream carries."""
         if self.commands is not None and not self.commands.allows(name):
             raise Held("not_allowed", self.commands.refusal(name))
+        if len(self._lanes) >= self.route.max_streams:
+            self._reclaim(now)
         if len(self._lanes) >= self.route.max_streams:
             raise Held(
                 "too_many_streams",
@@ -478,7 +552,8 @@ class RouteRunner:
             log.warning("route %s: %s (%s #%d)", self.route.name, text.rstrip(), kind, count)
 
     def state(self) -> str:
-        if self.route.lazy and self._lanes and not any(lane.listened_now for lane in self._lanes.values()):
+        lanes = list(self._lanes.values())  # lanes come and go on the route's thread meanwhile
+        if self.route.lazy and lanes and not any(lane.listened_now for lane in lanes):
             return "idle: no subscriber"
         return "active"
 

@@ -29,6 +29,7 @@ class RouteStats:
     idle_skipped: int = 0  # messages a lazy route did not translate: nobody was listening
     # Peers whose QoS cannot match one of the route's subscriptions or publishers (events, not messages).
     qos_incompatible: int = 0
+    streams_reclaimed: int = 0  # streams quiet for `stream_idle_s` whose lanes went to new ones
     errors: Counter[str] = field(default_factory=Counter)
     # e.g. a geometry skipped (viewer_bridge.model.skipped)
     warnings: Counter[str] = field(default_factory=Counter)
@@ -49,6 +50,7 @@ class RouteStats:
             "bytes_out": self.bytes_out,
             "idle_skipped": self.idle_skipped,
             "qos_incompatible": self.qos_incompatible,
+            "streams_reclaimed": self.streams_reclaimed,
             "errors": dict(self.errors),
             "warnings": dict(self.warnings),
             "held": {channel: dict(kinds) for channel, kinds in sorted(self.held.items())},

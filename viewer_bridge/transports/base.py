@@ -22,7 +22,7 @@ import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, Generic, Protocol, Self, TypeVar
+from typing import TYPE_CHECKING, Any, ClassVar, Generic, Protocol, Self, TypeVar, runtime_checkable
 
 from pydantic import BaseModel, ConfigDict
 
@@ -278,6 +278,15 @@ class Transport(ABC):
         """Stop delivering and release everything."""
 
 
+@runtime_checkable
+class Closable(Protocol):
+    """A publisher that frees all its transport holds for it when closed (a DDS writer, a Foxglove
+    channel), or holds nothing: a route may then let a quiet stream's publishers go and give its
+    lane to a new stream (`Route.stream_idle_s`). Publishers that are not keep their lanes."""
+
+    def close(self) -> None: ...
+
+
 class CallPublisher:
     """A `Publisher` from a function; the count is unknown unless `count` is given."""
 
@@ -290,6 +299,21 @@ class CallPublisher:
 
     def subscriber_count(self) -> int | None:
         return None if self._count is None else self._count()
+
+
+class ClosingPublisher(CallPublisher):
+    """A `CallPublisher` that is `Closable`: `close` frees what its transport holds for it."""
+
+    __slots__ = ("close",)
+
+    def __init__(
+        self,
+        publish: Callable[[bytes], None],
+        count: Callable[[], int] | None = None,
+        close: Callable[[], None] = lambda: None,  # nothing held: nothing to free
+    ) -> None:
+        super().__init__(publish, count)
+        self.close = close
 
 
 ValueType = TypeVar("ValueType", bound=Value)
@@ -326,6 +350,8 @@ def hand_over(publisher: Publisher, payload: Payload) -> None:
 __all__ = [
     "CDR",
     "CallPublisher",
+    "Closable",
+    "ClosingPublisher",
     "DEPTH",
     "DURABILITY",
     "Decoded",

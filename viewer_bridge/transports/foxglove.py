@@ -115,6 +115,11 @@ class FoxgloveContext:
         self._asked_by: dict[str, str] = {}  # topic -> the transport that first asked for it
         self._lock = threading.Lock()
 
+    def forget(self, topic: str) -> None:
+        """`topic` has no channel any more (its stream went quiet): the next to ask is the first."""
+        with self._lock:
+            self._asked_by.pop(topic, None)
+
     def channel(self, topic: str, message_type: MessageType, transport: str) -> foxglove.Channel:
         """The channel of a `foxglove.*` protobuf type on `topic`, or of a CDR type with the
         `ros2msg` schema its definition carries, for the `transport` named."""
@@ -217,6 +222,11 @@ class _Subscribers:
         with self._lock:
             return len(self._clients.get(channel_id, ()))
 
+    def drop(self, channel_id: int) -> None:
+        """A channel closed: its subscribers are no more."""
+        with self._lock:
+            self._clients.pop(channel_id, None)
+
 
 class _Channel:
     """A publisher on one Foxglove channel: its subscribers, and its last message when latched.
@@ -228,10 +238,12 @@ class _Channel:
         latched: bool,
         subscribers: _Subscribers,
         log_time: Callable[[], int] | None = None,
+        forget: Callable[[_Channel], None] = lambda channel: None,
     ) -> None:
         """`log_time`: the time (ns) to stamp each message with (a played log's timeline, the sim
-        clock), else the SDK's now."""
+        clock), else the SDK's now. `forget`: called when the channel is closed."""
         self.channel = channel
+        self._forget = forget
         self.id = channel.id()
         self.latched = latched
         self.last: bytes | None = None
@@ -252,6 +264,11 @@ class _Channel:
 
     def subscriber_count(self) -> int:
         return self._subscribers.count(self.id)
+
+    def close(self) -> None:
+        """Its route let its stream go: clients see the channel go, and the transport forgets it."""
+        self._forget(self)
+        self.channel.close()
 
     def subscribed(self) -> None:
         """A client subscribed: it gets the current state (others see it again)."""
@@ -419,9 +436,14 @@ class FoxgloveTransport(Transport):
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         channel = self.context.channel(name, message_type, "foxglove")
         publisher = self._channels[channel.id()] = _Channel(
-            channel, qos.latched, self._subscribers, self._log_time()
+            channel, qos.latched, self._subscribers, self._log_time(), self._forget
         )
         return publisher
+
+    def _forget(self, channel: _Channel) -> None:
+        self._channels.pop(channel.id, None)
+        self._subscribers.drop(channel.id)
+        self.context.forget(channel.channel.topic())
 
     @property
     def url(self) -> str:

@@ -362,7 +362,7 @@ class LcmTransport(base.Transport):
 
     def publisher(self, name: str, message_type: base.MessageType, qos: base.Qos) -> base.Publisher:
         bus = self.bus
-        return base.CallPublisher(lambda data: bus.publish(name, data))
+        return base.ClosingPublisher(lambda data: bus.publish(name, data))  # it holds nothing
 
     def start(self) -> None:
         self.bus.subscribe(".*", self._dispatch)

@@ -36,7 +36,7 @@ from viewer_bridge.ros_build.background import BuildState, InterfaceBuilder
 from viewer_bridge.shared import Shared
 from viewer_bridge.transports.base import (
     CDR,
-    CallPublisher,
+    ClosingPublisher,
     Deliver,
     Exposure,
     MessageType,
@@ -458,7 +458,12 @@ class RosTransport(Transport):
             assert self.builder is not None
             return PublisherOnceBuilt(self.node, self.builder, name, message_type.name, profile)
         publisher = self.node.create_publisher(message, name, profile, event_callbacks=self._told(name, qos))
-        return CallPublisher(publisher.publish, publisher.get_subscription_count)
+        node = self.node
+
+        def close() -> None:  # when its route lets a quiet stream go: the node drops its DDS writer
+            node.destroy_publisher(publisher)
+
+        return ClosingPublisher(publisher.publish, publisher.get_subscription_count, close)
 
     @staticmethod
     def _told(topic: str, qos: Qos) -> Any:

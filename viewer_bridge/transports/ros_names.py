@@ -31,8 +31,9 @@ def name_token(text: str) -> str:
 
 class ChannelNames:
     """The channels whose names became ROS name tokens (`{1:topic}`: `A.B` -> `A_B`, `1ARM` ->
-    `n1ARM`), so that the way back (`{1:channel}`) finds the channel a token stands for: the
-    channel seen with that token, else the token itself.
+    `n1ARM`), so that a way back (`{1:channel}`) finds the channel a token stands for: the
+    channel seen with that token, else the token itself. Not for commands: a route that writes
+    them reads the allow-list alone (`CommandPolicy.channel`), so no sender can take their names.
 
     One token, one channel: the first channel seen with a token keeps it, and another that makes
     the same token (`A-B` after `A.B`) is refused (`Held`, kind `name_collision`, naming both),
