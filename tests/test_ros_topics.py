@@ -173,13 +173,13 @@ def test_without_the_flag_nothing_is_carried(tmp_path: Path) -> None:
     url = free_lcm_url()
     stats = tmp_path / "stats.json"
     recorder = LcmRecorder(url)
-    bridge = BridgeProcess("--lcm-url", url, *stats_flags(stats))
+    bridge = BridgeProcess("--lcm-url", url, "--allow-commands", "IIWA_COMMAND", *stats_flags(stats))
     probe = RosProbe("ros_topics_unnamed")
     try:
         bridge.wait_for_line(" running (")
         joints = probe.publisher("/joint_states", JOINT_STATE)
-        # What the bridge does subscribe to it subscribes within seconds: /lcm_in/X is taken (an
-        # LCM type's topic, refused as no channel is allowed), /joint_states never.
+        # What the bridge does subscribe to it subscribes within seconds: /lcm_in/IIWA_COMMAND is
+        # taken (an LCM type's topic, its channel allowed), /joint_states never.
         command = probe.publisher("/lcm_in/IIWA_COMMAND", "drake_lcm_msgs/msg/LcmtIiwaCommand")
         assert probe.wait_for(lambda: command.get_subscription_count() >= 1, 90)
         assert wait_for(lambda: bool(stats_of(stats)), 30)
