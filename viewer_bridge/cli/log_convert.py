@@ -47,6 +47,7 @@ from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import LCM, MessageType, Received
 from viewer_bridge.transports.lcm import read_log
+from viewer_bridge.util.partial import partial_output
 
 if TYPE_CHECKING:
     from viewer_bridge.transports.mcap import Profile
@@ -160,32 +161,27 @@ def convert(
     writes = _distinct([_narrowed(route, lcm_channels) for route in fitting])
     if not writes:
         raise ConvertError(f"no route of {config_name} reads LCM and writes {sink.what}")
-    partial = target.with_name(target.name + ".partial")
-    errors = _RouteErrors()
-    router = Router(_into(config, writes, sink, partial), view=errors)
-    written = router.transports[sink.transport]
-    messages: Counter[str] = written.messages  # type: ignore[attr-defined]  # both file transports count
-    channels: set[str] = set()
     stop = stop or threading.Event()
-    try:
-        with _progress_bar(Path(log_path).stat().st_size, progress) as advance:
-            for event in itertools.chain([first] if first is not None else [], events):
-                if stop.is_set():
-                    break
-                channels.add(event.channel)
-                router.feed("lcm", Received(event.channel, event.data, event.timestamp_us))
-                advance(len(event.data) + len(event.channel) + 36)  # roughly one event record
-    except BaseException:
-        router.close()
-        partial.unlink(missing_ok=True)  # a failure midway leaves no file that looks like output
-        raise
-    router.close()  # the file complete; each route's errors reported
-    if stop.is_set():
-        raise Interrupted(sum(messages.values()), partial)
-    if sum(messages.values()):
-        os.replace(partial, target)
-    else:  # an empty file would look like a result
-        partial.unlink(missing_ok=True)
+    channels: set[str] = set()
+    with partial_output(target) as partial:  # removed on a failure, kept (Interrupted) on a stop
+        errors = _RouteErrors()
+        router = Router(_into(config, writes, sink, partial), view=errors)
+        written = router.transports[sink.transport]
+        messages: Counter[str] = written.messages  # type: ignore[attr-defined]  # both file transports count
+        try:
+            with _progress_bar(Path(log_path).stat().st_size, progress) as advance:
+                for event in itertools.chain([first] if first is not None else [], events):
+                    if stop.is_set():
+                        break
+                    channels.add(event.channel)
+                    router.feed("lcm", Received(event.channel, event.data, event.timestamp_us))
+                    advance(len(event.data) + len(event.channel) + 36)  # roughly one event record
+        finally:
+            router.close()  # the file complete (or closed properly); each route's errors reported
+        if stop.is_set():
+            raise Interrupted(sum(messages.values()), partial)
+        if not sum(messages.values()):  # an empty file would look like a result
+            partial.unlink(missing_ok=True)
     chunks = dict(getattr(written, "chunks", {}))  # the rerun transport counts chunks per entity
     return Conversion(
         target, chosen, dict(messages), chunks, errors.skipped, tuple(sorted(channels)), lcm_channels

@@ -119,7 +119,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return handler(args)
     except BridgeError as error:  # a mistake in what was given, or what this machine lacks: one line
         return fail(args.command, str(error))
-    except KeyboardInterrupt:  # Ctrl-C before a command's own handling of it: no traceback
+    except KeyboardInterrupt:  # Ctrl-C before a command's own handling of it: one line, no traceback
+        print(f"viewer-bridge {args.command}: interrupted", file=sys.stderr)
         return 130
     except Exception as error:  # a bug: said as one, with its traceback under --debug
         if args.debug:

@@ -25,7 +25,7 @@ from viewer_bridge.config.commands import COMMAND_FLAG
 from viewer_bridge.errors import ConfigError, UsageError
 from viewer_bridge.examples.demo import run_demo
 from viewer_bridge.router import Router
-from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines, StatusView
+from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines, StatusView, counted
 from viewer_bridge.router.workers import Workers
 from viewer_bridge.transports.lcm import DEFAULT_URL
 from viewer_bridge.transports.lcm_url import log_to_write
@@ -164,7 +164,13 @@ def run(args: argparse.Namespace) -> int:
         stop_demo.set()
         if demo is not None:
             demo.join(timeout=2)
-    return 130 if isinstance(router, Workers) and signal.SIGINT in signals else 0
+    if isinstance(router, Workers) and signal.SIGINT in signals:  # every worker stopped and waited for
+        print(
+            f"viewer-bridge run: interrupted: {counted(len(router.processes()), 'worker')} stopped",
+            file=sys.stderr,
+        )
+        return 130
+    return 0
 
 
 def _foxglove_unless_installed() -> str | None:
