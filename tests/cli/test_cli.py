@@ -444,6 +444,12 @@ MISTAKES = [
     # `run` cannot feed routes through a log that is only written.
     (["demo", "--url", "file://MISSING/x.lcmlog?mode=w"], "the folder MISSING does not exist"),
     (["run", "--demo", "--lcm-url", "file://TMP/x.lcmlog?mode=w"], "--demo: the routes would read the demo on"),
+    # Patterns that can never match: a ROS 2 topic without its leading /, an LCM channel with one.
+    (["run", "--ros-topics", "joint_states"], "argument --ros-topics: 'joint_states' can never match a ROS 2 "
+     "topic (every topic name starts with /): did you mean '/joint_states'?"),
+    (["run", "--ros-topics", "/imu|^joint_states"], "'joint_states' can never match a ROS 2 topic"),
+    (["run", "--allow-commands", "/lcm_in/IIWA_COMMAND"], "argument --allow-commands: '/lcm_in/IIWA_COMMAND' can "
+     "never match an LCM channel (a channel is named without a leading /): did you mean 'IIWA_COMMAND'?"),
 ]  # fmt: skip
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import importlib.metadata
 import itertools
+import os
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any, Protocol
@@ -25,6 +26,7 @@ from viewer_bridge.cli import (
 from viewer_bridge.cli.arguments import AddCommand, Parser, fail, split_ros_args
 from viewer_bridge.errors import BridgeError, UsageError
 from viewer_bridge.transports.ros_names import ros_argument_problem
+from viewer_bridge.util.hints import DEBUG_ENV
 
 
 class Command(Protocol):
@@ -115,6 +117,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if problem := ros_argument_problem(flag, value):
             parser.exit(2, f"viewer-bridge run: --ros-args: {flag} {value}: {problem}\n")
     handler: Callable[[argparse.Namespace], int] = args.handler
+    if args.debug:  # every once-per-machine hint said again, in worker processes too
+        os.environ[DEBUG_ENV] = "1"
     try:
         return handler(args)
     except BridgeError as error:  # a mistake in what was given, or what this machine lacks: one line

@@ -13,11 +13,12 @@ from rich.console import Console
 
 from viewer_bridge.cli.arguments import (
     AddCommand,
+    channel_regex,
     lcm_source,
     lcm_types_option,
     output_file,
     positive,
-    regex,
+    topic_regex,
     worker_count,
 )
 from viewer_bridge.config.bridge import BUILTIN_CONFIGS, BridgeConfig, load_config
@@ -65,7 +66,7 @@ def add_command(add: AddCommand) -> None:
         COMMAND_FLAG,
         action="append",
         default=[],
-        type=regex,
+        type=channel_regex,
         metavar="REGEX",
         help="LCM channels (a regular expression matched against the whole name) that ROS 2 and Foxglove "
         "may command by publishing on /lcm_in/<channel> (repeatable; default: none, nothing is written)",
@@ -74,7 +75,7 @@ def add_command(add: AddCommand) -> None:
         "--ros-topics",
         action="append",
         default=[],
-        type=regex,
+        type=topic_regex,
         metavar="REGEX",
         help="ROS 2 topics (a regular expression matched against the whole name, e.g. '/joint_states|/imu') "
         "to carry onto LCM, each on the channel named by the topic without its leading / (repeatable; "
