@@ -116,9 +116,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     view = _status_view(args.quiet)
     try:
-        without = _foxglove_unless_installed() if args.config is None else None
+        named, without = _builtin_for_this_install() if args.config is None else (args.config, [])
         config = (
-            load_config(args.config, without=without)
+            load_config(named, without=without)
             .with_lcm_types(args.lcm_types)
             .allowing_commands(args.allow_commands)
             .with_ros_topics(args.ros_topics)
@@ -126,9 +126,9 @@ def run(args: argparse.Namespace) -> int:
         if args.lcm_url:
             config = config.with_settings("lcm", url=args.lcm_url)
         for setting in args.set:
-            config = _with_setting(config, setting, args.config)
+            config = _with_setting(config, setting, named)
         if args.ros_args:
-            _uses(config, "ros", "--ros-args", args.config)
+            _uses(config, "ros", "--ros-args", named)
             config = config.with_settings("ros", ros_args=args.ros_args)
         if args.demo and log_to_write(_lcm_url(config)):
             raise UsageError(
@@ -174,34 +174,52 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _foxglove_unless_installed() -> str | None:
-    """The built-in config serves ROS 2 and Foxglove. With `[ros]` alone, its Foxglove routes are
-    left out ("foxglove", said in one line naming the extra) and ROS 2 is served; a config the
-    user names (`-c`) runs as written, or stops naming what it lacks."""
+# The transports' names in the line that says which routes were left out.
+_SAID = {"ros": "ROS 2", "foxglove": "Foxglove", "zenoh": "Zenoh", "rerun": "Rerun", "ign": "ign-transport"}
+# The built-in configs tried, in order, when the default one has no route this install can run.
+_FALLBACKS = ("foxglove", "zenoh", "rerun", "ign")
+
+
+def _builtin_for_this_install() -> tuple[str | None, list[str]]:
+    """The built-in config to run when none is named (`-c`), and the transports to leave out of it.
+
+    One rule for every extra: the default config's routes on a transport whose extra is not
+    installed are left out, said in one line naming them and the extra that adds them. When none is
+    left (`[zenoh]` alone, say), the first built-in config whose every transport is installed runs
+    instead, said in one line; with none (the core alone), a `MissingExtra` names the extras. A
+    config the user names runs as written, or stops naming what it lacks."""
     from viewer_bridge.config.bridge import routes_on
-    from viewer_bridge.util.extras import EXTRAS
+    from viewer_bridge.util.extras import TRANSPORT_EXTRAS, lacking
 
-    lacking = [module for module, extra in EXTRAS.items() if extra == "foxglove" and not _importable(module)]
-    if not lacking:
-        return None
     routes = yaml.safe_load(BUILTIN_CONFIGS["default"])["routes"]
-    logging.getLogger(__name__).warning(
-        "viewer-bridge: the built-in config's %d Foxglove routes left out: they need %s, not installed: "
-        "pip install 'viewer-bridge[foxglove]'",
-        sum(routes_on(route, "foxglove") for route in routes),
-        lacking[0],
+    used = dict.fromkeys(end["transport"] for route in routes for end in (route["source"], route["destination"]))
+    absent = {name: module for name in used if (module := lacking(name)) is not None}
+    if not absent:
+        return None, []
+    kept = [route for route in routes if not any(routes_on(route, name) for name in absent)]
+    extras = ",".join(dict.fromkeys(TRANSPORT_EXTRAS[name] for name in absent))
+    needs = f"{' and '.join(absent.values())}, not installed: pip install 'viewer-bridge[{extras}]'"
+    say = logging.getLogger(__name__).warning
+    if kept:
+        dropped = " and ".join(
+            f"{sum(routes_on(route, name) for route in routes)} {_SAID.get(name, name)} routes" for name in absent
+        )
+        say("viewer-bridge: the built-in config's %s left out: they need %s", dropped, needs)
+        return None, list(absent)
+    for name in _FALLBACKS:
+        document = yaml.safe_load(BUILTIN_CONFIGS[name])
+        wanted = {end["transport"] for route in document["routes"] for end in (route["source"], route["destination"])}
+        if all(lacking(transport) is None for transport in wanted):
+            say("viewer-bridge: the built-in config's routes need %s; running -c builtin:%s, the built-in "
+                "config of what is installed", needs, name)  # fmt: skip
+            return f"builtin:{name}", []
+    others = [name for name in _FALLBACKS if name != "foxglove"]
+    raise UsageError(
+        "no built-in config can run: this install has none of their extras: pip install "
+        + " or ".join(f"'viewer-bridge[{TRANSPORT_EXTRAS[name]}]'" for name in absent)
+        + " for the default config, or "
+        + ", ".join(f"[{name}] for -c builtin:{name}" for name in others)
     )
-    return "foxglove"
-
-
-def _importable(module: str) -> bool:
-    """Whether `module` can be found (one made missing, `sys.modules[name] = None`, counts as absent)."""
-    import importlib.util
-
-    try:
-        return importlib.util.find_spec(module) is not None
-    except (ImportError, ValueError):
-        return False
 
 
 def _status_view(quiet: bool) -> StatusView:

@@ -385,9 +385,9 @@ BUILTIN_CONFIGS = _builtin_configs()
 DEFAULT_CONFIG = BUILTIN_CONFIGS["default"]
 
 
-def load_config(path: str | Path | None, *, without: str | None = None) -> BridgeConfig:
+def load_config(path: str | Path | None, *, without: Sequence[str] = ()) -> BridgeConfig:
     """The config in `path` (`builtin:NAME` for a built-in one), or the built-in default;
-    `without` a transport, the config less its routes on that transport and its section.
+    `without` transports, the config less its routes on those transports and their sections.
 
     Raises `ConfigError` with file:line:field.
     """
@@ -402,9 +402,11 @@ def load_config(path: str | Path | None, *, without: str | None = None) -> Bridg
     if not isinstance(document.data, dict):
         raise ConfigError(document.path, 1, "", "the config must be a mapping with a 'routes' list")
     _check_top_level_keys(document)
-    if without is not None:
-        data = {key: value for key, value in document.data.items() if key != without}
-        data["routes"] = [route for route in data.get("routes") or [] if not routes_on(route, without)]
+    if without:
+        data = {key: value for key, value in document.data.items() if key not in without}
+        data["routes"] = [
+            route for route in data.get("routes") or [] if not any(routes_on(route, name) for name in without)
+        ]
         document.data = data
     return document.validate(BridgeConfig, context={"document": document})
 
