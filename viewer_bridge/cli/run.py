@@ -192,7 +192,9 @@ def _builtin_for_this_install() -> tuple[str | None, list[str]]:
     from viewer_bridge.util.extras import TRANSPORT_EXTRAS, lacking
 
     routes = yaml.safe_load(BUILTIN_CONFIGS["default"])["routes"]
-    used = dict.fromkeys(end["transport"] for route in routes for end in (route["source"], route["destination"]))
+    used = dict.fromkeys(
+        end["transport"] for route in routes for end in (route["source"], route["destination"])
+    )
     absent = {name: module for name in used if (module := lacking(name)) is not None}
     if not absent:
         return None, []
@@ -202,13 +204,18 @@ def _builtin_for_this_install() -> tuple[str | None, list[str]]:
     say = logging.getLogger(__name__).warning
     if kept:
         dropped = " and ".join(
-            f"{sum(routes_on(route, name) for route in routes)} {_SAID.get(name, name)} routes" for name in absent
+            f"{sum(routes_on(route, name) for route in routes)} {_SAID.get(name, name)} routes"
+            for name in absent
         )
         say("viewer-bridge: the built-in config's %s left out: they need %s", dropped, needs)
         return None, list(absent)
     for name in _FALLBACKS:
         document = yaml.safe_load(BUILTIN_CONFIGS[name])
-        wanted = {end["transport"] for route in document["routes"] for end in (route["source"], route["destination"])}
+        wanted = {
+            end["transport"]
+            for route in document["routes"]
+            for end in (route["source"], route["destination"])
+        }
         if all(lacking(transport) is None for transport in wanted):
             say("viewer-bridge: the built-in config's routes need %s; running -c builtin:%s, the built-in "
                 "config of what is installed", needs, name)  # fmt: skip

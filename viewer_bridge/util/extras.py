@@ -48,7 +48,9 @@ TRANSPORT_EXTRAS: dict[str, str] = {
 def lacking(transport: str) -> str | None:
     """The first module `transport` needs that is not installed (its extra's, `EXTRAS`), or None."""
     extra = TRANSPORT_EXTRAS.get(transport)
-    return next((module for module, owner in EXTRAS.items() if owner == extra and not importable(module)), None)
+    return next(
+        (module for module, owner in EXTRAS.items() if owner == extra and not importable(module)), None
+    )
 
 
 def importable(module: str) -> bool:
