@@ -159,7 +159,7 @@ def test_log_lines_show_routes_with_traffic_and_count_the_rest(caplog: Any) -> N
         "transport errors: zenoh: 4 unsent no router",
         "legend: superseded: a newer message on its channel came first (policy latest: the newest is sent); "
         "max_hz_skipped: superseded while the route waited out its rate.max_hz (by design); "
-        "unsent: given to a transport that could not send it (a Zenoh session with no router); "
+        "unsent: given to a transport that could not send it (a Zenoh session with no router, no Rerun viewer); "
         "idle_skipped: not translated: nobody subscribes (the newest per channel goes out when one does)",
     ]
 

@@ -91,7 +91,7 @@ LEGEND = {
     "superseded": "a newer message on its channel came first (policy latest: the newest is sent)",
     "mailbox_full": "the oldest waiting message pushed out (policy all: qos.depth was full)",
     "max_hz_skipped": "superseded while the route waited out its rate.max_hz (by design)",
-    "unsent": "given to a transport that could not send it (a Zenoh session with no router)",
+    "unsent": "given to a transport that could not send it (a Zenoh session with no router, no Rerun viewer)",
     "idle_skipped": "not translated: nobody subscribes (the newest per channel goes out when one does)",
     "stale": "older than max_age_ms when it would be sent",
     "not_allowed": "a command channel --allow-commands does not name",
