@@ -40,7 +40,13 @@ def run(args: Any, stop: threading.Event | None = None) -> int:
     """Convert; print messages per topic, then each topic left out and each with bad messages; a
     damaged bag (cut short, rows that hold no message) exits 1, having converted what it could."""
     result = bag_to_lcm(
-        args.log, args.mcap, topics=args.topics, lcm_types_out=args.lcm_types_out, force=args.force, stop=stop
+        args.log,
+        args.mcap,
+        topics=args.topics,
+        lcm_types_out=args.lcm_types_out,
+        force=args.force,
+        stop=stop,
+        progress=True,
     )
     for topic, channel in result.channels.items():
         print(f"{result.written[topic]:8d}  {topic} -> {channel}")

@@ -89,7 +89,7 @@ def _from_lcm_log(args: argparse.Namespace, stop: threading.Event) -> int:
         args.log,
         args.mcap,
         config,
-        progress=sys.stderr.isatty(),
+        progress=True,  # a bar on a terminal, a line per tenth on a pipe (when it takes seconds)
         schema=args.schema,
         force=args.force,
         config_name=args.config or "the built-in config",

@@ -32,12 +32,10 @@ import os
 import re
 import threading
 from collections import Counter
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
-
-from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from viewer_bridge.config.bridge import BridgeConfig, Endpoint, Route
 from viewer_bridge.errors import ConvertError, Interrupted
@@ -48,6 +46,7 @@ from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import LCM, MessageType, Received
 from viewer_bridge.transports.lcm import read_log
 from viewer_bridge.util.partial import partial_output
+from viewer_bridge.util.progress import progress as progress_of
 
 if TYPE_CHECKING:
     from viewer_bridge.transports.mcap import Profile
@@ -169,7 +168,8 @@ def convert(
         written = router.transports[sink.transport]
         messages: Counter[str] = written.messages  # type: ignore[attr-defined]  # both file transports count
         try:
-            with _progress_bar(Path(log_path).stat().st_size, progress) as advance:
+            size = Path(log_path).stat().st_size
+            with _progress(size, progress) as advance:
                 for event in itertools.chain([first] if first is not None else [], events):
                     if stop.is_set():
                         break
@@ -327,22 +327,9 @@ def _check_target(log_path: Path, target: Path, force: bool) -> None:
         raise ConvertError(f"{target} exists: give another output file, or --force to replace it")
 
 
-@contextlib.contextmanager
-def _progress_bar(total: int, shown: bool) -> Iterator[Callable[[int], None]]:
-    """A progress bar over `total` bytes (when `shown`); yields the function that advances it."""
-    columns = (
-        TextColumn("converting"),
-        BarColumn(),
-        TextColumn("{task.percentage:>3.0f}%"),
-        TimeRemainingColumn(),
-    )
-    with Progress(*columns, disable=not shown, transient=True) as bar:
-        task = bar.add_task("convert", total=total)
-        done = 0
-
-        def advance(size: int) -> None:
-            nonlocal done
-            done += size
-            bar.update(task, completed=min(done, total))
-
-        yield advance
+def _progress(total: int, shown: bool) -> contextlib.AbstractContextManager[Callable[[int], None]]:
+    """The conversion's progress over the log's `total` bytes (`util/progress.py`), when `shown`."""
+    if not shown:
+        return contextlib.nullcontext(lambda size: None)
+    return progress_of("viewer-bridge convert", "converting", total,
+                       lambda done: f"{done / 1e6:.1f} of {total / 1e6:.1f} MB of the log")  # fmt: skip
