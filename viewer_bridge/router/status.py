@@ -128,6 +128,16 @@ def waiting_line(
     return f"waiting for a subscriber: {', '.join(each)}"
 
 
+def idle_state(stats: dict[str, Any]) -> str:
+    """Why a lazy route sends nothing, as its line says it: `idle: no subscriber, idle_skipped 218`."""
+    return f"{stats['state']}, idle_skipped {stats['idle_skipped']}"
+
+
+def idle_line(routes: dict[str, dict[str, Any]], names: list[str]) -> str:
+    """The table's rows of idle routes, each with why, in the words of the piped lines."""
+    return "idle in the table: " + ", ".join(f"{name} ({idle_state(routes[name])})" for name in names)
+
+
 def quiet_line(routes: dict[str, dict[str, Any]], names: list[str], listed: bool) -> str:
     """The routes nothing arrived on, counted (and named when `listed`)."""
     more = "more " if len(names) < len(routes) else ""  # beside the other lines, or all of them
@@ -204,9 +214,7 @@ class LogLines:
                 losses_of(stats),
                 _ms(latency["p50"]),
                 _ms(latency["p99"]),
-                f" ({stats['state']}, idle_skipped {stats['idle_skipped']})"
-                if stats["state"] != "active"
-                else "",
+                f" ({idle_state(stats)})" if stats["state"] != "active" else "",
                 f" held: {held}" if (held := held_of(stats)) else "",
             )
         if waiting := [name for name, stats in routes.items() if is_waiting(stats)]:
@@ -293,6 +301,8 @@ class LiveTable:
         title = (f"viewer-bridge: {counted(len(routes), 'route')} "
                  f"(rates over the last {self._rates.elapsed:.1f} s; latency in ms)")  # fmt: skip
         parts: list[Any] = [self._table(title, {name: routes[name] for name in shown}, rates)]
+        if idle := [name for name in shown if routes[name]["state"] != "active"]:  # why a row sends nothing
+            parts.append(Text(idle_line(routes, idle)))
         if waiting := [name for name, stats in routes.items() if is_waiting(stats)]:
             parts.append(Text(waiting_line(routes, waiting, rates)))
         if quiet := [name for name in routes if name not in shown and name not in waiting]:
