@@ -16,11 +16,13 @@ that definition as its `ros2msg` schema.
 Channels and schemas are registered as topics appear. Each message is stamped with the receive
 time of the message it was translated from (`MessageTime`): the log's time when `convert` feeds
 the router a log, the bus's receive time live. So a route whose destination is this transport
-records a live session, and `convert` is a router whose routes all end here.
+records a live session, and `convert` is a router whose routes all end here. The file is written
+as `PATH.partial` and renamed to `PATH` when the transport closes, as every writer does.
 """
 
 from __future__ import annotations
 
+import os
 import threading
 from collections import Counter
 from collections.abc import Iterable
@@ -44,6 +46,7 @@ from viewer_bridge.transports.base import (
 )
 from viewer_bridge.transports.foxglove import FoxgloveContext, carried, require_schemas
 from viewer_bridge.util.extras import missing
+from viewer_bridge.util.partial import partial_path
 
 try:
     import foxglove
@@ -183,11 +186,13 @@ class McapTransport(Transport):
                 f"{settings.path} exists (mcap.path): give another file, or mcap.overwrite: true to replace it"
             )
         self._time = MessageTime() if time is None else time
+        # Written as PATH.partial, renamed when closed: a file under its name is whole (util/partial.py).
+        self._partial = partial_path(settings.path)
         self.file: _File
         if settings.profile == "ros2":
-            self.file = _Ros2File(settings.path)
+            self.file = _Ros2File(self._partial)
         else:
-            self.file = _FoxgloveFile(settings.path, FoxgloveContext() if context is None else context)
+            self.file = _FoxgloveFile(self._partial, FoxgloveContext() if context is None else context)
 
     @classmethod
     def create(cls, settings: TransportSettings, shared: Shared) -> McapTransport:
@@ -232,6 +237,8 @@ class McapTransport(Transport):
 
     def close(self) -> None:
         self.file.close()
+        if self._partial != self.settings.path:
+            os.replace(self._partial, self.settings.path)
 
 
 __all__ = [

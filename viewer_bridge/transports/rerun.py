@@ -55,6 +55,7 @@ from viewer_bridge.transports.base import (
     TransportSettings,
     ValuePublisher,
 )
+from viewer_bridge.util.partial import partial_path
 
 VIEWER_URL = "rerun+http://127.0.0.1:9876/proxy"  # what `rerun` listens on by default
 _FLUSH_S = 10.0  # how long closing waits for the file and served sinks to take what was logged
@@ -180,7 +181,7 @@ class RerunTransport(Transport):
                     f"{settings.path} exists (rerun.path): give another file, or replace it with "
                     "--set rerun.overwrite=true (in a config: rerun.overwrite: true)"
                 )
-            self.partial = settings.path.with_name(settings.path.name + ".partial")
+            self.partial = partial_path(settings.path)  # itself when convert hands it its .partial
             try:
                 self.partial.open("wb").close()  # a folder that cannot be written fails here, in one line
             except OSError as error:
@@ -301,7 +302,7 @@ class RerunTransport(Transport):
             except RuntimeError as error:
                 log.warning("rerun: %s", error)
             self.stream.disconnect()  # the file's footer written, servers closed
-        if self.partial is not None and self.settings.path is not None:
+        if self.partial is not None and self.settings.path is not None and self.partial != self.settings.path:
             try:
                 os.replace(self.partial, self.settings.path)
             except OSError as error:

@@ -23,8 +23,9 @@ __all__ = ["check_output_folder", "partial_output", "partial_path", "write_whole
 
 
 def partial_path(target: Path) -> Path:
-    """`NAME.partial` beside `target`."""
-    return target.with_name(target.name + ".partial")
+    """`NAME.partial` beside `target`; `target` itself when it is a `.partial` already (`convert`
+    hands its file transports the `.partial` it renames, and keeps on Ctrl-C)."""
+    return target if target.name.endswith(".partial") else target.with_name(target.name + ".partial")
 
 
 @contextlib.contextmanager
