@@ -67,8 +67,8 @@ class RosProbe:
         self.node.create_subscription(message_class(typename), topic, keep, qos(depth, latched))
         return messages
 
-    def publisher(self, topic: str, typename: str) -> Any:
-        return self.node.create_publisher(message_class(typename), topic, qos())
+    def publisher(self, topic: str, typename: str, profile: QoSProfile | None = None) -> Any:
+        return self.node.create_publisher(message_class(typename), topic, profile or qos())
 
     def wait_for(self, condition: Callable[[], bool], timeout: float = 60.0) -> bool:
         return wait_for(condition, timeout)

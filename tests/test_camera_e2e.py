@@ -171,14 +171,14 @@ def test_rclpy_images_reach_drakes_image_reader(probe: RosProbe) -> None:
 
 def test_drake_cameras_reach_a_foxglove_client_as_raw_images() -> None:
     """builtin:foxglove, the protocol client of tests/transports/test_foxglove.py: RawImage with
-    the pixels Drake's reader reads, stamped with the sim time of an image Drake sent."""
+    the pixels Drake's reader reads, stamped (`time: sim`) with the sim time of an image Drake sent."""
     from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
 
     from tests.transports.test_foxglove import foxglove_port, python_client
 
     url = lcm_url(25)
     recorder = LcmRecorder(url)
-    bridge = BridgeProcess("-c", "builtin:foxglove", "--lcm-url", url)
+    bridge = BridgeProcess("-c", "builtin:foxglove", "--lcm-url", url, "--set", "time=sim")
     simulation = client = None
     topics = [f"/drake/cameras/left/{port}/image" for port in PORTS]
     try:

@@ -50,6 +50,8 @@ SUBSTITUTIONS: list[tuple[str, str, str]] = [
      "the optional arguments, given"),
     (r"--duration (5|10)\b", "--duration 1", "shorter"),
     (r"foxglove\.port=9000", "foxglove.port=0", "any free port: other bridges may be running here"),
+    (r"\bviewer-bridge play (?!.*foxglove\.port=)", "viewer-bridge play --set foxglove.port=0 ",
+     "any free port: other bridges may be running here"),
     (r"127\.0\.0\.1:7447", "127.0.0.1:{zenoh_port}", "a free port: a Zenoh router may be running here"),
     (r"\[-c CONFIG\]", "-c builtin:default", "the optional argument, given"),
     (r"\[--host 127\.0\.0\.1\] \[--port 8000\] \[--max-upload BYTES\]",
@@ -74,7 +76,7 @@ SUBSTITUTIONS: list[tuple[str, str, str]] = [
 RUN_DEFAULTS = [("--duration", "--duration 2"), ("foxglove.port=", "--set foxglove.port=0")]
 
 # Commands that serve until Ctrl-C, by how they start: the line each logs once it is ready.
-SERVERS = {"viewer-bridge serve-render": "render server on"}
+SERVERS = {"viewer-bridge serve-render": "render server on", "viewer-bridge play": " running ("}
 
 # Commands not run here: (a regex their line matches, why). Each is run elsewhere or is what CI does.
 NOT_RUN: list[tuple[str, str]] = [

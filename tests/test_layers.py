@@ -65,6 +65,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.render.renderer": 6,
     "viewer_bridge.convert": 6,
     "viewer_bridge.cli.bag_to_lcm": 6,
+    "viewer_bridge.cli.play_keys": 6,
     "viewer_bridge.streams": 6,
     "viewer_bridge.typestore": 6,
     # 7
@@ -84,6 +85,7 @@ LAYERS: dict[str, int] = {
     # 9
     "viewer_bridge.router": 9,
     "viewer_bridge.cli.run": 9,
+    "viewer_bridge.cli.play": 9,
     # 10
     "viewer_bridge.cli.log_convert": 10,
     "viewer_bridge.cli.bag_convert": 10,

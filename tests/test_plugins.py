@@ -41,6 +41,7 @@ routes:
     translator: drake_to_pose_array
     destination: {transport: memory, name: "/poses{1:path}"}
     rate: {policy: all}
+time: sim  # the PoseArray stamped with the draw's sim time
 """
 
 

@@ -105,7 +105,7 @@ def test_pydrake_cloud_and_frames_reach_rclpy(probe: RosProbe, tmp_path: Path) -
     draw.position = [[0.5, 0.0, 0.25], [1.0, -1.0, 0.0]]
     draw.quaternion = [[1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]  # the second turned 180 deg about z
     bus = LcmBus(url)
-    bridge = BridgeProcess("--lcm-url", url)
+    bridge = BridgeProcess("--lcm-url", url, "--set", "time=sim")  # the cloud stamped with its utime
     try:
         bridge.wait_for_line(" running (")
 

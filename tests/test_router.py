@@ -73,8 +73,15 @@ def test_drake_simulation_reaches_ros_through_the_bridge(probe: RosProbe, tmp_pa
         "/drake/illustration/shapes/primitives", "shape_msgs/msg/SolidPrimitive", 1000, latched=True
     )
     recorder = LcmRecorder(url)
-    bridge = BridgeProcess(
-        "--lcm-url", url, "--stats-json", str(tmp_path / "stats.json"), "--stats-period", "1"
+    bridge = BridgeProcess(  # time: sim: the PoseArray's stamp tells Drake's last draw
+        "--lcm-url",
+        url,
+        "--stats-json",
+        str(tmp_path / "stats.json"),
+        "--stats-period",
+        "1",
+        "--set",
+        "time=sim",
     )
     try:
         bridge.wait_for_line(" running (")
@@ -262,6 +269,7 @@ routes:
     destination: {transport: ros, name: /stream/poses}
     qos: {depth: 1000}
     rate: {policy: all}
+    options: {stamp: sim}  # each PoseArray stamped with its draw's time, which tells them apart
 """
 
 
@@ -536,7 +544,9 @@ def test_ros_args_are_passed_to_rclpy_like_any_node(probe: RosProbe, tmp_path: P
     from viewer_bridge.examples.scenes import draw_of, small_scene
 
     url = lcm_url(14)
-    bridge = BridgeProcess("--lcm-url", url, "--ros-args", "-r", "__ns:=/sim1", "-p", "use_sim_time:=true")
+    bridge = BridgeProcess(
+        "--lcm-url", url, "--set", "time=sim", "--ros-args", "-r", "__ns:=/sim1", "-p", "use_sim_time:=true"
+    )
     bus = LcmBus(url)
     poses = probe.subscribe("/sim1/drake/poses", "geometry_msgs/msg/PoseArray")
     try:
@@ -632,11 +642,9 @@ def test_convert_writes_an_mcap_that_reads_back(drake_log: Path, tmp_path: Path)
     )
     assert result.returncode == 0, result.stderr
     assert "/drake/illustration/markers" in result.stdout
-    events = [
-        drake_lcmtypes.lcmt_viewer_draw.decode(e.data)
-        for e in read_log(drake_log, "DRAKE_VIEWER_DRAW_ILLUSTRATION")
-    ]
-    draws = {draw.timestamp: draw for draw in events}
+    events_read = list(read_log(drake_log, "DRAKE_VIEWER_DRAW_ILLUSTRATION"))
+    events = [drake_lcmtypes.lcmt_viewer_draw.decode(e.data) for e in events_read]
+    draws = {event.timestamp_us: draw for event, draw in zip(events_read, events, strict=True)}
     topics: dict[str, list[Any]] = {}
     with out.open("rb") as file:
         for _, channel, _, message in make_reader(
@@ -646,7 +654,8 @@ def test_convert_writes_an_mcap_that_reads_back(drake_log: Path, tmp_path: Path)
     poses = topics["/drake/illustration/poses"]
     assert len(poses) == len(events)
     for message in poses:
-        draw = draws[message.header.stamp.sec * 1000 + message.header.stamp.nanosec // 1_000_000]
+        # stamped with the log's receive time (time: receive, as /tf)
+        draw = draws[message.header.stamp.sec * 1_000_000 + message.header.stamp.nanosec // 1000]
         assert [[p.position.x, p.position.y, p.position.z] for p in message.poses] == [
             list(p) for p in draw.position
         ]

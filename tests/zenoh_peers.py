@@ -221,18 +221,44 @@ class RmwZenohPeer:
         return [str(reply.ok.key_expr) for reply in replies if reply.ok is not None]
 
     def publisher(
-        self, topic: str, typename: str, entity: int = 1, type_hash: str | None = None
+        self,
+        topic: str,
+        typename: str,
+        entity: int = 1,
+        type_hash: str | None = None,
+        *,
+        depth: int = 10,
+        best_effort: bool = False,
+        latched: bool = False,
     ) -> Callable[..., None]:
         """`publish(cdr, attachment=None)`: on the topic's key, with this node's MP token (the
         liveliness token rmw_zenoh declares for a publisher, which a bridge finds it by); the
-        attachment is rmw_zenoh's unless one is given. `type_hash`: for a type not in Jazzy."""
-        token = publisher_token(
-            self.domain, self.zid, entity, self.node, topic, typename, "::,10:,:,:,,", type_hash
-        )
+        attachment is rmw_zenoh's unless one is given. `type_hash`: for a type not in Jazzy.
+
+        As rmw_zenoh 0.2.3 and later write the QoS in the token (reliability, durability,
+        history,depth, each empty when it is rmw_zenoh's default: reliable, volatile, keep last,
+        depth 42; BEST_EFFORT is 2, TRANSIENT_LOCAL 1), and as they publish TRANSIENT_LOCAL: an
+        advanced publisher with a cache of `depth` samples that announces itself, which a late
+        subscriber with history queries."""
+        reliability, durability = ("2" if best_effort else ""), ("1" if latched else "")
+        qos = f"{reliability}:{durability}:,{depth}:,:,:,,"
+        token = publisher_token(self.domain, self.zid, entity, self.node, topic, typename, qos, type_hash)
         self._held.append(self.session.liveliness().declare_token(token))
         digest = xxhash.xxh3_128_intdigest(token.encode())
         gid = struct.pack("<QQ", digest & (2**64 - 1), digest >> 64)
-        put = self.session.declare_publisher(data_key(self.domain, topic, typename, type_hash))
+        key = data_key(self.domain, topic, typename, type_hash)
+        kind = zenoh.Reliability.BEST_EFFORT if best_effort else zenoh.Reliability.RELIABLE
+        put: Any = (
+            zenoh.ext.declare_advanced_publisher(
+                self.session,
+                key,
+                reliability=kind,
+                cache=zenoh.ext.CacheConfig(depth),
+                publisher_detection=True,
+            )
+            if latched
+            else self.session.declare_publisher(key, reliability=kind)
+        )
         self._held.append(put)
 
         def publish(cdr: bytes, attachment: bytes | None = None) -> None:

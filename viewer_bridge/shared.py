@@ -2,8 +2,9 @@
 
 `Shared` sits below both transports and the router: a transport takes it in `Transport.create`,
 a translator in its constructor, and neither needs to know what the others keep in it. It holds
-three things of its own, none specific to Drake: the receive time of the message whose outputs
-are being published (`MessageTime`, which an MCAP file stamps), the LCM types the router knows,
+four things of its own, none specific to Drake: the receive time of the message whose outputs
+are being published (`MessageTime`), the bridge's one clock (`Clock`: receive or sim time, what
+every stamp and log time is), the LCM types the router knows,
 and the ROS 2 interface definitions the ros transport may build packages from. Everything else
 (one Foxglove context for the live server and an MCAP file, the Drake translators' load cache)
 is made once per router by whoever asks first, through `Shared.get(make)`, and is opaque here.
@@ -13,7 +14,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Protocol, TypeVar, cast
+from typing import TYPE_CHECKING, Literal, Protocol, TypeVar, cast
 
 if TYPE_CHECKING:
     from viewer_bridge.lcmcodec.library import TypeLibrary
@@ -51,6 +52,61 @@ class MessageTime(threading.local):
         return "" if self.message is None else self.message.channel
 
 
+TimeSource = Literal["receive", "sim"]
+"""The config's `time:`: what every output of the bridge is stamped with."""
+
+
+class Clock:
+    """The bridge's one clock (the config's `time:`), for every output's stamps and log times.
+
+    `receive` (the default): each output carries the receive time of the message it was made
+    from, the wall clock that RViz and tf2 expect of a node without `use_sim_time`. `sim`: Drake's
+    sim time; a draw carries its own, and everything else (an MCAP file's or Foxglove's log time
+    for a load, any LCM type's message) the clock's `now_ns`: the sim time of the newest draw
+    received (`tick`, from the router's one decoding of each draw). Listeners (the Foxglove
+    server's time broadcast) hear each new time. A draw received before the newest one (a route
+    that lags) never moves the clock back; a newer draw with an earlier time does: a restarted
+    simulation, which RViz and Foxglove must see as a jump back.
+    """
+
+    def __init__(self, time: TimeSource = "receive") -> None:
+        self.time: TimeSource = time
+        self.sim = time == "sim"
+        self.now_ns = 0  # the newest draw's sim time (sim), 0 before the first
+        self._received_us = -1  # when that draw was received
+        self._listeners: list[Callable[[int], None]] = []
+        self._lock = threading.Lock()  # ticked on the routes' threads
+
+    def tick(self, sim_ns: int, received_us: int) -> None:
+        """A draw of sim time `sim_ns` received at `received_us`: the clock's time when it is the newest."""
+        if not self.sim:
+            return
+        with self._lock:
+            if received_us < self._received_us:
+                return
+            self._received_us = received_us
+            if sim_ns == self.now_ns:
+                return
+            self.now_ns = sim_ns
+            listeners = tuple(self._listeners)
+        for listener in listeners:
+            listener(sim_ns)
+
+    def log_time_ns(self, received_us: int) -> int:
+        """The log time of an output of a message received at `received_us` (an MCAP file's, Foxglove's)."""
+        return self.now_ns if self.sim else received_us * 1000
+
+    def listen(self, listener: Callable[[int], None]) -> None:
+        """Have `listener(sim_ns)` called with each new time (only with `time: sim`)."""
+        with self._lock:
+            self._listeners.append(listener)
+
+    def unlisten(self, listener: Callable[[int], None]) -> None:
+        with self._lock:
+            if listener in self._listeners:
+                self._listeners.remove(listener)
+
+
 Made = TypeVar("Made")
 
 
@@ -74,7 +130,8 @@ def definitions_of(lcm_types: TypeLibrary) -> RosDefinitions:
 
 
 class Shared:
-    """What the transports and translators of one router share: the `MessageTime`, the LCM types
+    """What the transports and translators of one router share: the `MessageTime`, its `Clock`
+    (the config's `time:`), the LCM types
     it knows (`lcm_types`, loaded once at start from the config's `lcm_types`), the definitions of
     the ROS 2 interface packages that may be built while it runs (`ros_definitions`, or None), and
     whatever is made once per router on first ask (`get(FoxgloveContext)`: the live server and an
@@ -82,12 +139,16 @@ class Shared:
     nothing."""
 
     def __init__(
-        self, lcm_types: TypeLibrary | None = None, ros_definitions: RosDefinitions | None = None
+        self,
+        lcm_types: TypeLibrary | None = None,
+        ros_definitions: RosDefinitions | None = None,
+        time: TimeSource = "receive",
     ) -> None:
         self.message_time = MessageTime()
+        self.clock = Clock(time)
         self._lcm_types = lcm_types
         self.ros_definitions = ros_definitions
-        self._made: dict[Callable[[], object], object] = {}
+        self._made: dict[Callable[..., object], object] = {}
         self._lock = threading.Lock()  # translators are made on the routes' threads
 
     @property
@@ -99,11 +160,11 @@ class Shared:
             self._lcm_types = TypeLibrary.load()
         return self._lcm_types
 
-    def get(self, make: Callable[[], Made]) -> Made:
-        """This router's one `make()`, made on the first ask."""
+    def get(self, make: Callable[..., Made], *arguments: object) -> Made:
+        """This router's one `make(*arguments)`, made on the first ask (later asks' arguments unused)."""
         with self._lock:
             if make not in self._made:
-                self._made[make] = make()
+                self._made[make] = make(*arguments)
             return cast(Made, self._made[make])
 
     def provide(self, make: Callable[[], Made], made: Made) -> None:
@@ -112,4 +173,4 @@ class Shared:
             self._made[make] = made
 
 
-__all__ = ["Made", "MessageTime", "RosDefinitions", "Shared", "definitions_of"]
+__all__ = ["Clock", "Made", "MessageTime", "RosDefinitions", "Shared", "TimeSource", "definitions_of"]

@@ -290,3 +290,23 @@ def test_without_a_zenoh_router_the_routes_say_what_was_not_delivered() -> None:
     assert poses and int(poses[-1][2]) > 0, lines[-2000:]
     assert re.search(r"transport errors: zenoh: \d+ unsent no router", lines), lines[-2000:]
     assert "{'zenoh'" not in lines
+
+
+def test_a_qos_mismatch_shows_in_the_row_the_line_and_the_legend(caplog: Any) -> None:
+    """A route that nothing reaches because a peer's QoS cannot match is shown, not folded into the
+    routes without traffic: its count in the table's row and in the log line, explained once."""
+    mismatched = {**route(0, 0), "qos_incompatible": 2}
+    out = io.StringIO()
+    table = LiveTable(Console(file=out, force_terminal=True, width=120, color_system=None))
+    table.show({"forced": mismatched, "idle": route(0, 0)})
+    table.close()
+    drawn = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", out.getvalue()).splitlines()
+    heading = next(line for line in drawn if "qos_incompatible" in line)  # rich draws it with ┃
+    header = [cell.strip() for cell in heading.strip().strip("┃").split("┃")]
+    rows = {cells[0]: cells for cells in map(table_cells, drawn) if cells}
+    assert rows["forced"][header.index("qos_incompatible")] == "2", "\n".join(drawn)
+    with caplog.at_level("INFO", logger="viewer_bridge"):
+        LogLines().show({"forced": mismatched})
+    said = [record.getMessage() for record in caplog.records]
+    assert any(line.startswith("route forced:") and "qos_incompatible 2" in line for line in said), said
+    assert any(line.startswith("legend: qos_incompatible: ") for line in said), said

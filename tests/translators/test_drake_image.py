@@ -25,6 +25,7 @@ from viewer_bridge.config.bridge import Route, destination_name, load_config
 from viewer_bridge.errors import ConfigError, DecodeError, EncodeError
 from viewer_bridge.formats.ros.image import LAYOUTS
 from viewer_bridge.model.skipped import collecting
+from viewer_bridge.shared import Shared
 from viewer_bridge.translators import TRANSLATORS
 from viewer_bridge.transports.base import CallPublisher, Received
 from viewer_bridge.transports.lcm import LcmEvent, write_log
@@ -248,7 +249,7 @@ def test_foxglove_gets_raw_images_stamped_with_sim_time_and_calibrations() -> No
     from foxglove_schemas_protobuf.RawImage_pb2 import RawImage
 
     translator = TRANSLATORS.get("drake_images_to_foxglove")(
-        {"camera_info": {"width": 8, "height": 6, "fov_y": 45}}
+        {"camera_info": {"width": 8, "height": 6, "fov_y": 45}}, shared=Shared(time="sim")
     )
     out = translator.translate(
         Received("DRAKE_RGBD_CAMERA_IMAGES_top", publish_with_drake(CAMERA, 2.5, compress=True))

@@ -234,7 +234,10 @@ def test_a_drake_simulation_reaches_a_foxglove_client(client_kind: str, tmp_path
     connect_client, subprotocol = CLIENTS[client_kind]
     url = lcm_url(12)
     recorder = LcmRecorder(url)
-    bridge = BridgeProcess("-c", "builtin:foxglove", "--lcm-url", url, "--stats-period", "1")
+    # time: sim: the transforms are stamped with the draw's sim time, which tells the last draw.
+    bridge = BridgeProcess(
+        "-c", "builtin:foxglove", "--lcm-url", url, "--stats-period", "1", "--set", "time=sim"
+    )
     client = late = None
     try:
         port = foxglove_port(bridge)
@@ -398,7 +401,8 @@ def test_convert_to_foxglove_mcap_carries_the_scene_and_the_transforms(
         draw = drake_lcmtypes.lcmt_viewer_draw.decode(event.data)
         message = _transforms(data)
         assert schema_name == "foxglove.FrameTransforms" and log_time == event.timestamp_us * 1000
-        assert _stamp_ms(message) == draw.timestamp
+        stamp = message.transforms[0].timestamp  # the log's receive time too, as /tf (time: receive)
+        assert stamp.seconds * 1_000_000 + stamp.nanos // 1000 == event.timestamp_us
         rows = [[t.translation.x, t.translation.y, t.translation.z, t.rotation.w, t.rotation.x, t.rotation.y,
                  t.rotation.z] for t in message.transforms]  # fmt: skip
         assert rows == [list(p) + list(q) for p, q in zip(draw.position, draw.quaternion, strict=True)]

@@ -81,6 +81,14 @@ def positive(text: str) -> float:
     return value
 
 
+def non_negative(text: str) -> float:
+    """A finite number of 0 or more."""
+    value = _number(text)
+    if not value >= 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text}")
+    return value
+
+
 def field_of_view(text: str) -> float:
     """A vertical field of view in degrees: more than 0, less than 180."""
     value = _number(text)

@@ -274,6 +274,7 @@ def _into(config: BridgeConfig, routes: list[Route], sink: _Sink, path: Path) ->
             sink.transport: {**sink.settings, "path": path, "overwrite": True},
             "lcm_types": config.lcm_types,
             "drake_lcm_types": config.drake_lcm_types,
+            "time": config.time,  # the file's log times and stamps: receive (the log's) or sim time
             "routes": [
                 route.model_copy(
                     update={

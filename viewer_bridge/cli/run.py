@@ -58,8 +58,8 @@ def add_command(add: AddCommand) -> None:
         action="append",
         default=[],
         metavar="TRANSPORT.KEY=VALUE",
-        help="override a transport setting, e.g. foxglove.port=9000 or ros.namespace=/sim1, or the "
-        "commands section's, e.g. commands.max_age_ms=500 (repeatable)",
+        help="override a transport setting, e.g. foxglove.port=9000 or ros.namespace=/sim1, the "
+        "commands section's, e.g. commands.max_age_ms=500, or a top-level key, e.g. time=sim (repeatable)",
     )
     lcm_types_option(run)
     run.add_argument(
@@ -242,17 +242,30 @@ def _status_view(quiet: bool) -> StatusView:
 
 def _with_setting(config: BridgeConfig, setting: str, config_name: str | None) -> BridgeConfig:
     """`TRANSPORT.KEY=VALUE` (the value read as YAML: 9000 is a number, true a bool) applied; a
-    section of the config's own (`commands.max_age_ms=500`) is set the same way."""
+    section of the config's own (`commands.max_age_ms=500`) is set the same way, and a plain
+    top-level key of its own (`time=sim`) as `KEY=VALUE`."""
     name, equals, value = setting.partition("=")
     transport, _, key = name.partition(".")
+    if equals and not key and name in _TOP_LEVEL_KEYS:
+        try:
+            return config.with_keys(**{name: yaml.safe_load(value)})
+        except ConfigError as error:
+            raise UsageError(f"--set {setting}: {error.key}: {error.reason}") from None
     if not (transport and key and equals):
-        raise UsageError(f"--set {setting!r}: expected TRANSPORT.KEY=VALUE, e.g. foxglove.port=9000")
+        raise UsageError(
+            f"--set {setting!r}: expected TRANSPORT.KEY=VALUE, e.g. foxglove.port=9000, "
+            f"or KEY=VALUE for one of {', '.join(_TOP_LEVEL_KEYS)}"
+        )
     if transport not in BridgeConfig.model_fields:
         _uses(config, transport, f"--set {setting}", config_name)
     try:
         return config.with_settings(transport, **{key: yaml.safe_load(value)})
     except ConfigError as error:
         raise UsageError(f"--set {setting}: {error.key}: {error.reason}") from None
+
+
+# The config's own top-level keys that `--set KEY=VALUE` sets (lists and sections have options or dots).
+_TOP_LEVEL_KEYS = ("time", "workers", "load_cache", "drake_lcm_types")
 
 
 def _uses(config: BridgeConfig, transport: str, option: str, config_name: str | None) -> None:

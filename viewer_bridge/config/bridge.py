@@ -13,6 +13,11 @@ folders, lcm-gen'd modules; loaded once per router, `viewer_bridge.lcmcodec.libr
 full: it makes one route per ROS graph transport the config uses (`ros_topics_<transport>`, `ros`
 when it uses none), source `(REGEX)`, translator `ros_topic_to_lcm`, destination LCM `{1:lcm}`
 (the topic without its leading `/`). Empty by default: nothing is carried unless named.
+`time:` is the bridge's one clock, what every output is stamped with (`/tf`, poses, images,
+Foxglove's messages and log times, an MCAP file's log times): `receive` (the default) or `sim`
+(Drake's sim time). With `sim`, the config also publishes Drake's sim time on `/clock`: a route
+`clock_<transport>` per ROS graph transport it uses (`clock_routes`), unless a route of its own
+already translates `drake_to_clock`.
 The built-in configs (`-c builtin:NAME`; `default` bridges Drake's default channels to ROS 2
 under `/drake`) are the YAML files in `configs/`, shipped with the package and read like a user's.
 
@@ -46,6 +51,7 @@ from viewer_bridge.config.resources import data_dir
 from viewer_bridge.config.yamldoc import KeyPath, YamlDocument
 from viewer_bridge.errors import ConfigError, InvalidName, UnknownName
 from viewer_bridge.lcmcodec.from_ros import lcm_channel
+from viewer_bridge.shared import TimeSource
 from viewer_bridge.translators import TRANSLATORS, Translator, TranslatorOptions
 from viewer_bridge.transports import TRANSPORTS
 from viewer_bridge.transports.base import MessageType, Transport, TransportSettings
@@ -133,9 +139,14 @@ class BridgeConfig(BaseModel):
     ros_topics: list[str] = []
     # Processes the routes run on (`--workers`); 1: the routes run in the bridge's own process.
     workers: int = Field(1, ge=1, le=256)
+    # The clock of every stamp and log time: each message's receive time (what RViz and tf2 take
+    # out of the box), or Drake's sim time (`sim`: also /clock, for use_sim_time nodes).
+    time: TimeSource = "receive"
     routes: list[Route]
     _settings: dict[str, TransportSettings] = PrivateAttr(default_factory=dict)
-    _own_routes: list[Route] = PrivateAttr(default_factory=list)  # the routes but those ros_topics made
+    _own_routes: list[Route] = PrivateAttr(
+        default_factory=list
+    )  # the routes but those ros_topics and time made
 
     @field_validator("ros_topics")
     @classmethod
@@ -148,7 +159,7 @@ class BridgeConfig(BaseModel):
         check = _Checker(document if isinstance(document, YamlDocument) else None)
         for name, section in (self.model_extra or {}).items():
             known = (
-                "a config key (load_cache, lcm_types, drake_lcm_types, commands, ros_topics, workers, routes) "
+                "a config key (load_cache, lcm_types, drake_lcm_types, commands, ros_topics, workers, time, routes) "
                 "nor a transport"
             )
             transport = check.transport(name, (name,), known)
@@ -160,16 +171,18 @@ class BridgeConfig(BaseModel):
                 raise check.error(
                     ("routes", index, "name"), f"route names must be unique: {route.name!r} again"
                 )
-        made = ros_topic_routes(self.ros_topics, self.routes)
-        for route in made:
-            check.route(route, ("ros_topics",))
+        topic_routes = ros_topic_routes(self.ros_topics, self.routes)
+        made = [
+            *((route, "ros_topics") for route in topic_routes),
+            *((route, "time") for route in clock_routes(self.time, [*self.routes, *topic_routes])),
+        ]
+        for route, key in made:
+            check.route(route, (key,))
             if route.name in names:
                 at = ("routes", names.index(route.name), "name")
-                raise check.error(
-                    at, f"{route.name!r} is the name of the route ros_topics makes: rename this one"
-                )
+                raise check.error(at, f"{route.name!r} is the name of the route {key} makes: rename this one")
         self._own_routes = list(self.routes)
-        self.routes = [*self.routes, *made]
+        self.routes = [*self.routes, *(route for route, _ in made)]
         for name in self.transports():  # a used transport without a section: is a setting required?
             if name not in self._settings:
                 self._settings[name] = check.model(TRANSPORTS.get(name).Settings, {}, (name,))
@@ -205,10 +218,16 @@ class BridgeConfig(BaseModel):
         current = self.model_dump().get(transport) or {}
         return self._checked_again({transport: {**current, **values}})
 
+    def with_keys(self, **values: Any) -> BridgeConfig:
+        """The same config with some of its own top-level keys replaced (a command line's `--set time=sim`)."""
+        return self._checked_again(values)
+
     def _checked_again(self, changes: dict[str, Any]) -> BridgeConfig:
         """This config with `changes` to its top-level keys, checked again (a bad value is a
         ConfigError); made from its own routes, so that `ros_topics` makes its routes anew."""
-        data = {**self.model_dump(), "routes": [route.model_dump() for route in self._own_routes], **changes}
+        # Each route as its config wrote it: a QoS policy it left unset follows the publishers.
+        routes = [route.model_dump(exclude_unset=True) for route in self._own_routes]
+        data = {**self.model_dump(), "routes": routes, **changes}
         try:
             return BridgeConfig.model_validate(data)
         except ValidationError as error:  # a section of the config's own (a transport's raises ConfigError)
@@ -375,6 +394,32 @@ def ros_topic_routes(patterns: Sequence[str], routes: Sequence[Route]) -> list[R
     ]
 
 
+CLOCK_TRANSLATOR = "drake_to_clock"
+CLOCK_SOURCE = "DRAKE_VIEWER_DRAW(_ILLUSTRATION|_PROXIMITY|_PERCEPTION)?"  # Drake's draws, every role
+
+
+def clock_routes(time: TimeSource, routes: Sequence[Route]) -> list[Route]:
+    """The routes `time: sim` makes: Drake's draws' sim time on `/clock` (rosgraph_msgs/Clock), from
+    each ROS graph transport `routes` use; none with `time: receive`, none when a route of the
+    config translates `drake_to_clock` already, none when the config has no ROS graph."""
+    if time != "sim" or any(route.translator == CLOCK_TRANSLATOR for route in routes):
+        return []
+    used = dict.fromkeys(
+        name for route in routes for name in (route.source.transport, route.destination.transport)
+    )
+    return [
+        Route(
+            name=f"clock_{transport}",
+            source=Endpoint(transport="lcm", name=CLOCK_SOURCE),
+            translator=CLOCK_TRANSLATOR,
+            destination=Endpoint(transport=transport, name="/clock"),
+            rate=Rate(policy="latest"),  # a time behind the newest is of no use to anyone
+        )
+        for transport in used
+        if TRANSPORTS.get(transport).ros_graph
+    ]
+
+
 def _builtin_configs() -> dict[str, str]:
     """The configs shipped in `configs/` (`builtin:NAME`), by name, the default first."""
     paths = sorted(data_dir("configs").glob("*.yaml"), key=lambda path: (path.stem != "default", path.stem))
@@ -440,6 +485,7 @@ __all__ = [
     "ConfigError",
     "Endpoint",
     "Route",
+    "clock_routes",
     "destination_name",
     "load_config",
     "ros_topic_routes",

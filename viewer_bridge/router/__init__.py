@@ -25,7 +25,8 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -40,17 +41,34 @@ from viewer_bridge.router.status import LogLines, StatusView, counted
 from viewer_bridge.shared import RosDefinitions, Shared, definitions_of
 from viewer_bridge.translators import TRANSLATORS, LoadCache, Output, Translator
 from viewer_bridge.transports import TRANSPORTS
-from viewer_bridge.transports.base import Publisher, Qos, Received, Transport
+from viewer_bridge.transports.base import DEPTH, DURABILITY, RELIABILITY, Publisher, Qos, Received, Transport
 from viewer_bridge.transports.ros_names import ChannelNames
 
 log = logging.getLogger("viewer_bridge")
 
 
-def output_qos(route: Route, latched_by_default: bool) -> Qos:
-    """A route's QoS for one output or its subscription: durability is the config's, else the translator's."""
+def output_qos(route: Route, latched_by_default: bool, told: Callable[[str], None] | None = None) -> Qos:
+    """A route's QoS for one output: durability is the config's, else the translator's; `told`
+    hears of subscribers whose QoS cannot match."""
     durability = route.qos.durability
     latched = latched_by_default if durability is None else durability == "transient_local"
-    return Qos(route.qos.depth, route.qos.reliability == "reliable", latched)
+    return Qos(route.qos.depth, route.qos.reliability == "reliable", latched, told=told)
+
+
+def source_qos(runner: RouteRunner) -> Qos:
+    """A route's QoS for its subscription: each policy its config leaves unset follows the
+    topic's publishers, where the transport finds them in a ROS graph. A route that writes
+    commands keeps one message (KEEP_LAST 1: after a stall, only the newest is there to take) and
+    subscribes only to the names whose channel the allow-list names."""
+    route, commands = runner.route, runner.commands is not None
+    asked = route.qos.model_fields_set
+    follow = {RELIABILITY} - asked | ({DURABILITY} if route.qos.durability is None else set())
+    if not commands and DEPTH not in asked:
+        follow.add(DEPTH)
+    qos = output_qos(route, False, runner.qos_mismatch)
+    if commands:
+        return replace(qos, depth=1, follow=frozenset(follow), admits=runner.admits)
+    return replace(qos, follow=frozenset(follow))
 
 
 class Router:
@@ -63,9 +81,12 @@ class Router:
         stats_period: float = 5.0,
         view: StatusView | None = None,
         ros_definitions: RosDefinitions | None = None,
+        provided: Mapping[Callable[[], Any], Any] | None = None,
     ) -> None:
         """`ros_definitions`: where the ros transport finds the `.msg` definitions of an interface
-        package it lacks, to build it while the other routes run (see `RosDefinitions`)."""
+        package it lacks, to build it while the other routes run (see `RosDefinitions`).
+        `provided`: what `Shared.get(make)` returns for each `make`, before the transports are made
+        (`viewer-bridge play` provides the timeline of the log it plays)."""
         self.config = config
         self.stats_json = Path(stats_json) if stats_json else None
         self.stats_period = stats_period
@@ -73,12 +94,14 @@ class Router:
         # What the transports and translators share: the known LCM types (loaded once, here: a
         # bad source stops the start) and the ROS 2 definitions of their interface packages (for
         # building one the ros transport lacks), one Foxglove context, the message time, the last
-        # Drake load per channel (kept in the config's folder, if it names one).
+        # Drake load per channel (kept in the config's folder, if it names one), the clock (`time:`).
         lcm_types = TypeLibrary.load(config.lcm_types, drake=config.drake_lcm_types)
-        self.shared = Shared(lcm_types, ros_definitions or definitions_of(lcm_types))
+        self.shared = Shared(lcm_types, ros_definitions or definitions_of(lcm_types), config.time)
         self.shared.provide(LoadCache, LoadCache(config.load_cache))
         # a server offers publishing only when it can land
         self.shared.provide(CommandPolicy, config.commands)
+        for make, made in (provided or {}).items():
+            self.shared.provide(make, made)
         for warning in lcm_types.warnings:
             log.warning("viewer-bridge: %s", warning)
         self.transports: dict[str, Transport] = {}
@@ -129,20 +152,33 @@ class Router:
         source.require(translator.reads[:1] + ((translator.replies,) if translator.replies else ()))
         self.transports[route.destination.transport].require(translator_class.writes(options))
         deliver = self._echoes.deliver(route.source.transport, runner.offer, runner.came_back)
-        source.subscribe(route.source.name, translator.reads[0], output_qos(route, False), deliver)
+        source.subscribe(route.source.name, translator.reads[0], source_qos(runner), deliver)
         return runner
 
     def _publisher_factory(self, route: Route) -> PublisherFor:
         transport = self.transports[route.destination.transport]
+        told = self._told(route)
 
         def make(name: str, output: Output) -> Publisher:
-            publisher = transport.publisher(name, output.type, output_qos(route, output.latched))
+            qos = output_qos(route, output.latched, told)
+            publisher = transport.publisher(name, output.type, qos)
             subscribed = self._subscribed(route.destination.transport, name)
             return self._echoes.publisher(
                 route.destination.transport, name, publisher, route.source.transport, subscribed
             )
 
         return make
+
+    def _told(self, route: Route) -> Callable[[str], None]:
+        """What a route's publishers call when a subscriber's QoS cannot match: its runner counts it
+        (the runner is made after its publisher factory, so it is looked up when it happens)."""
+
+        def told(text: str) -> None:
+            for runner in self.routes:
+                if runner.route is route:
+                    runner.qos_mismatch(text)
+
+        return told
 
     def _subscribed(self, transport: str, name: str) -> bool:
         """Whether a route reads `name` on `transport` (then what is published there may come back)."""

@@ -316,6 +316,18 @@ class RouteRunner:
             lane = self._lanes[key] = _Lane(name, translator, self._publisher)
         return lane
 
+    def admits(self, source_name: str) -> bool:
+        """Whether a message on `source_name` could be carried: for a route that writes commands,
+        whether its destination is a channel the allow-list names (a source transport subscribes
+        to nothing else); True for every other route."""
+        match = self.pattern.pattern.fullmatch(source_name)  # not remembered: names of a graph, not messages
+        if self.commands is None or match is None:
+            return match is not None
+        try:
+            return self.commands.allows(destination_name(self.route.destination.name, match, self._names))
+        except Held:
+            return False
+
     def _admit(self, name: str, channel: str) -> None:
         """Raise `Held` when a new stream from `channel` publishing on `name` may not have a lane: a
         command destination not allowed, one stream more than the route's `max_streams`, or an
@@ -341,7 +353,7 @@ class RouteRunner:
         """Why a message is too old to send (older than the route's `max_age_ms` now), or None."""
         if (
             self._max_age_us is None
-            or time.time_ns() // 1000 - message.received.received_us <= self._max_age_us
+            or time.time_ns() // 1000 - message.received.sent_at_us() <= self._max_age_us
         ):
             return None
         return Held(
@@ -448,6 +460,15 @@ class RouteRunner:
                 held.reason,
                 held.kind,
             )
+
+    def qos_mismatch(self, text: str) -> None:
+        """A peer's QoS cannot match one of this route's subscriptions or publishers (`text`, the
+        transport's words, begins with the topic): counted as `qos_incompatible`, said once per
+        topic. Called on the transport's thread."""
+        self.stats.qos_incompatible += 1
+        topic = text.split(":", 1)[0]
+        if self._said.first(topic, "qos_incompatible"):
+            log.warning("route %s: %s (qos_incompatible; counted, not said again)", self.route.name, text)
 
     def _tell_source(self, message: Message, error: BridgeError) -> None:
         if self._rejected is not None:

@@ -24,6 +24,8 @@ class RouteStats:
     bytes_in: int = 0
     bytes_out: int = 0
     idle_skipped: int = 0  # messages a lazy route did not translate: nobody was listening
+    # Peers whose QoS cannot match one of the route's subscriptions or publishers (events, not messages).
+    qos_incompatible: int = 0
     errors: Counter[str] = field(default_factory=Counter)
     # e.g. a geometry skipped (viewer_bridge.model.skipped)
     warnings: Counter[str] = field(default_factory=Counter)
@@ -43,6 +45,7 @@ class RouteStats:
             "bytes_in": self.bytes_in,
             "bytes_out": self.bytes_out,
             "idle_skipped": self.idle_skipped,
+            "qos_incompatible": self.qos_incompatible,
             "errors": dict(self.errors),
             "warnings": dict(self.warnings),
             "held": {channel: dict(kinds) for channel, kinds in sorted(self.held.items())},

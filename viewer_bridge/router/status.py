@@ -83,7 +83,7 @@ def _ms(value: float | None) -> str:
 
 
 # What a route could not carry, by cause, as the stats name them (0 is not shown).
-LOSSES = ("superseded", "mailbox_full", "max_hz_skipped", "unsent")
+LOSSES = ("superseded", "mailbox_full", "max_hz_skipped", "unsent", "qos_incompatible")
 
 # What each counter that may appear means, in a few words: the legend names those that appear
 # (docs/configuration.md, "Flow, errors and stats", says more of each). `held` kinds too.
@@ -92,6 +92,7 @@ LEGEND = {
     "mailbox_full": "the oldest waiting message pushed out (policy all: qos.depth was full)",
     "max_hz_skipped": "superseded while the route waited out its rate.max_hz (by design)",
     "unsent": "given to a transport that could not send it (a Zenoh session with no router, no Rerun viewer)",
+    "qos_incompatible": "a peer whose QoS cannot match the route's (nothing passes between them; the log says the fix)",
     "idle_skipped": "not translated: nobody subscribes (the newest per channel goes out when one does)",
     "stale": "older than max_age_ms when it would be sent",
     "not_allowed": "a command channel --allow-commands does not name",
@@ -247,6 +248,7 @@ COLUMNS: dict[str, Cell] = {
     "mailbox_full": lambda stats, rates: str(stats.get("mailbox_full", 0)),
     "max_hz_skipped": lambda stats, rates: str(stats.get("max_hz_skipped", 0)),
     "unsent": lambda stats, rates: str(unsent_of(stats)),
+    "qos_incompatible": lambda stats, rates: str(stats.get("qos_incompatible", 0)),
     "p50": lambda stats, rates: _ms(stats["latency_ms"]["p50"]),
     "p99": lambda stats, rates: _ms(stats["latency_ms"]["p99"]),
 }
@@ -259,6 +261,7 @@ STYLES = {
     "superseded": "yellow",
     "mailbox_full": "yellow",
     "unsent": "bold red",
+    "qos_incompatible": "bold red",
 }
 
 

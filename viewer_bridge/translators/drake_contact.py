@@ -10,7 +10,7 @@ head). All decode a message once between them (`contact_results`).
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any
 
 from viewer_bridge.formats import ros
 from viewer_bridge.formats.drake.contact import decode_contact_results
@@ -23,7 +23,7 @@ from viewer_bridge.formats.tree_viewer.requests import load_requests
 from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene
 from viewer_bridge.model.sim_time import sec_nsec_from_us
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from viewer_bridge.translators.options import IgnOptions, MarkerOptions
+from viewer_bridge.translators.options import IgnOptions, MarkerOptions, StampOptions
 from viewer_bridge.translators.types import CONTACT_TYPE, ENVELOPE_TYPE, ign_type, ros_type
 from viewer_bridge.transports.base import Received
 
@@ -58,9 +58,8 @@ class DrakeContactsToMarkerArray(Translator):
         return [(0, contact_marker_array_cdr(contact_results(message), self.options, self._markers))]
 
 
-class WrenchOptions(TranslatorOptions):
+class WrenchOptions(StampOptions):
     frame_id: str = WORLD  # the wrenches' axes: Drake's world frame
-    stamp: Literal["receive", "sim"] = "receive"  # sim: Drake's sim time (for use_sim_time nodes)
 
 
 class DrakeContactsToWrenches(Translator):
@@ -77,7 +76,8 @@ class DrakeContactsToWrenches(Translator):
 
     def translate(self, message: Received) -> Outputs:
         results = contact_results(message)
-        time_us = results.timestamp_us if self.options.stamp == "sim" else message.received_us
+        sim = self.options.sim_stamps(self.shared.clock)
+        time_us = results.timestamp_us if sim else message.received_us
         return [(0, data) for data in self.encoder.encode(results, sec_nsec_from_us(time_us))]
 
 

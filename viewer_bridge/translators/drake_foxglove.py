@@ -2,14 +2,15 @@
 
 `drake_to_scene_update`: load -> `foxglove.SceneUpdate`, an entity per link in its link's frame
 (latched: a client that connects later still gets the scene). `drake_to_frame_transforms`: draw
--> `foxglove.FrameTransforms`, world -> every link, stamped with Drake's sim time; a draw costs
+-> `foxglove.FrameTransforms`, world -> every link, stamped by the bridge's clock (the config's
+`time:`: receive time, or Drake's sim time with `time: sim`) as `/tf` is; a draw costs
 one transform list, never a re-sent scene. Frames are named as on ROS's /tf, role prefixes
 included (see `drake_tf`), so one naming serves RViz and Foxglove alike.
 """
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any
 
 from viewer_bridge.formats.foxglove.scene import scene_update
 from viewer_bridge.formats.foxglove.transforms import FrameTransformsEncoder
@@ -17,7 +18,7 @@ from viewer_bridge.model.scene import Scene
 from viewer_bridge.model.sim_time import sec_nsec_from_ms, sec_nsec_from_us
 from viewer_bridge.translators.base import Output, Outputs
 from viewer_bridge.translators.drake_stream import DrawReader, PerLoadTranslator
-from viewer_bridge.translators.options import FrameOptions
+from viewer_bridge.translators.options import FrameOptions, StampOptions
 from viewer_bridge.translators.types import DRAW_TYPE, FRAME_TRANSFORMS_TYPE, SCENE_UPDATE_TYPE
 from viewer_bridge.transports.base import Received
 
@@ -33,8 +34,8 @@ class DrakeToSceneUpdate(PerLoadTranslator):
         return [(0, scene_update(scene, self.options.frames(channel)).SerializeToString())]
 
 
-class FrameTransformsOptions(FrameOptions):
-    stamp: Literal["sim", "receive"] = "sim"
+class FrameTransformsOptions(FrameOptions, StampOptions):
+    """How frames are named, and the clock of the stamps."""
 
 
 class DrakeToFrameTransforms(DrawReader):
@@ -53,7 +54,7 @@ class DrakeToFrameTransforms(DrawReader):
         poses = self.draw_poses(message)
         if self.encoder is None:  # one stream per translator: its role is its first channel's
             self.encoder = FrameTransformsEncoder(self.options.frames(message.channel))
-        if self.options.stamp == "sim":
+        if self.options.sim_stamps(self.shared.clock):
             stamp = sec_nsec_from_ms(poses.timestamp_ms)
         else:
             stamp = sec_nsec_from_us(message.received_us)

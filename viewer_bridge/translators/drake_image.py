@@ -12,7 +12,8 @@ images of the array still go out.
 
 `drake_images_to_foxglove`: the same as `foxglove.RawImage` on `<destination>/<port>/image`, by
 option `foxglove.CompressedImage` on `<port>/compressed` and `foxglove.CameraCalibration` on
-`<port>/calibration`, for Foxglove's Image panel (stamped with sim time by default, as the scene).
+`<port>/calibration`, for Foxglove's Image panel. Both stamp as the scene's frames are stamped:
+by the bridge's clock (the config's `time:`), the image's utime with `time: sim`, else its receive time.
 
 `ros_image_to_drake`: a `sensor_msgs/Image` -> an `lcmt_image_array` of that one image, which
 Drake's `LcmImageArrayToImages` reads (bgr8 and bgra8 reordered to RGB, float depth in Drake's
@@ -52,7 +53,7 @@ from viewer_bridge.model.image import (
 )
 from viewer_bridge.model.skipped import part_failed
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
-from viewer_bridge.translators.options import CameraInfoOptions
+from viewer_bridge.translators.options import CameraInfoOptions, StampOptions
 from viewer_bridge.translators.types import (
     CAMERA_CALIBRATION_TYPE,
     COMPRESSED_IMAGE_TYPE,
@@ -96,9 +97,10 @@ def camera_name(channel: str) -> str:
     return channel.removeprefix(CAMERA_CHANNEL).removeprefix("_") or UNNAMED_CAMERA
 
 
-class ImagesOptions(TranslatorOptions):
+class ImagesOptions(StampOptions):
+    """Stamps (`stamp`): the image's utime (sim time) or its receive time, as the bridge's clock says."""
+
     frame_id: str | None = None  # None: the camera's name (the channel's suffix; "camera" for none)
-    stamp: Literal["receive", "sim"] = "receive"  # sim: the image's utime (for use_sim_time nodes)
     drop_alpha: bool = False  # rgba8 -> rgb8, bgra8 -> bgr8
     depth: Literal["16UC1", "32FC1"] = "16UC1"  # 32FC1: metres, REP 117 (a float depth image always is)
     # Also a compressed image: Drake's JPEG or PNG as they came, the others encoded in this format.
@@ -107,7 +109,7 @@ class ImagesOptions(TranslatorOptions):
 
 
 class FoxgloveImagesOptions(ImagesOptions):
-    stamp: Literal["receive", "sim"] = "sim"  # as the scene's transforms: the images sync with them
+    """As the ROS images' (stamped by the bridge's clock, as the scene's transforms: they sync)."""
 
 
 @dataclass(slots=True)
@@ -148,6 +150,7 @@ class _DrakeImages(Translator):
         super().__init__(*args, **kwargs)
         self._ports: dict[str, _Port] = {}
         self._intrinsics = self.options.camera_info.intrinsics() if self.options.camera_info else None
+        self._sim = self.options.sim_stamps(self.shared.clock)
 
     def write_image(self, image: Image, frame_id: str, stamp: tuple[int, int]) -> bytes:
         raise NotImplementedError
@@ -188,7 +191,7 @@ class _DrakeImages(Translator):
             try:
                 if isinstance(image, DecodeError):
                     raise image
-                time_us = image.time_us if self.options.stamp == "sim" else message.received_us
+                time_us = image.time_us if self._sim else message.received_us
                 stamp = time_parts_from_us(time_us)
                 port = self._port(packed.name)
                 out.append((port.image, self.write_image(self._as_options_say(image), frame_id, stamp)))

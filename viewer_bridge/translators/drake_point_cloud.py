@@ -8,6 +8,7 @@ triads, drawn as meldis draws them (0.25 m axes, red x, green y, blue z).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 from pydantic import Field
@@ -22,7 +23,7 @@ from viewer_bridge.formats.tree_viewer.requests import geometry_command
 from viewer_bridge.model.scene import Geometry, Link, Pose, Scene, StampedPointCloud, Triad
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.drake_stream import DrawReader
-from viewer_bridge.translators.options import MarkerOptions
+from viewer_bridge.translators.options import MarkerOptions, StampOptions
 from viewer_bridge.translators.types import DRAW_TYPE, ENVELOPE_TYPE, POINT_CLOUD_TYPE, ros_type
 from viewer_bridge.transports.base import Received
 
@@ -38,7 +39,7 @@ def lcm_cloud(message: Received) -> StampedPointCloud:
     return message.decoded(_lcm_cloud)
 
 
-class PointCloudToRosOptions(TranslatorOptions):
+class PointCloudToRosOptions(StampOptions):
     frame_id: str = "world"  # for a cloud whose frame_name is empty
 
 
@@ -52,7 +53,10 @@ class DrakePointCloudToRos(Translator):
     outputs = (Output("", ros_type(POINT_CLOUD2), latched=True),)
 
     def translate(self, message: Received) -> Outputs:
-        return [(0, cloud_to_cdr(lcm_cloud(message), self.options.frame_id))]
+        cloud = lcm_cloud(message)  # its utime is sim time; its receive time unless the clock is sim
+        if not self.options.sim_stamps(self.shared.clock):
+            cloud = replace(cloud, time_us=message.received_us)
+        return [(0, cloud_to_cdr(cloud, self.options.frame_id))]
 
 
 class RosPointCloudToDrake(Translator):

@@ -8,7 +8,7 @@ from typing import Any
 from viewer_bridge.formats import ros
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import link_from_lcm
-from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, time_parts
+from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, time_parts, time_parts_from_us
 from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_cdr
 from viewer_bridge.formats.ros.poses import PoseArrayEncoder, pose_array_arrays, poses_from_pose_array_cdr
 from viewer_bridge.formats.ros.shapes import shapes_cdr
@@ -16,7 +16,7 @@ from viewer_bridge.lcmcodec import LINK_DATA
 from viewer_bridge.model.scene import Scene
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.drake_stream import DrakeTranslator, DrawReader, PerLoadTranslator
-from viewer_bridge.translators.options import MarkerOptions
+from viewer_bridge.translators.options import MarkerOptions, StampOptions
 from viewer_bridge.translators.types import DRAW_TYPE, LINK_DATA_TYPE, LOAD_TYPE, ros_type
 from viewer_bridge.transports.base import LCM, MessageType, Received
 
@@ -45,7 +45,7 @@ class DrakeToMarkerArray(DrakeTranslator):
         return out
 
 
-class PoseArrayOptions(TranslatorOptions):
+class PoseArrayOptions(StampOptions):
     frame_id: str = "world"
 
 
@@ -62,11 +62,15 @@ class DrakeToPoseArray(DrawReader):
         self.encoder = PoseArrayEncoder(self.options.frame_id)
 
     def translate(self, message: Received) -> Outputs:
-        return [(0, self.encoder.encode(self.draw_poses(message)))]  # needs no load
+        poses = self.draw_poses(message)  # needs no load
+        sim = self.options.sim_stamps(self.shared.clock)
+        # its receive time as /tf has it unless the bridge's clock is sim (None: the draw's sim time)
+        return [(0, self.encoder.encode(poses, None if sim else time_parts_from_us(message.received_us)))]
 
 
 class DrakeToClock(DrawReader):
-    """draw -> `rosgraph_msgs/Clock` with Drake's sim time, for nodes with `use_sim_time`."""
+    """draw -> `rosgraph_msgs/Clock` with Drake's sim time, for nodes with `use_sim_time` (the
+    config's `time: sim` makes a route of it to `/clock`: `viewer_bridge.config.bridge`)."""
 
     reads = (DRAW_TYPE,)
     outputs = (Output("", ros_type("rosgraph_msgs/msg/Clock")),)

@@ -19,6 +19,7 @@ from viewer_bridge.formats.drake.draw import DrawDecoder
 from viewer_bridge.formats.drake.load import decode_load
 from viewer_bridge.lcmcodec import DRAW, LOAD_ROBOT
 from viewer_bridge.model.scene import LinkPoses, Scene
+from viewer_bridge.shared import Clock
 from viewer_bridge.translators.base import Outputs, Translator
 from viewer_bridge.translators.load_cache import LoadCache
 from viewer_bridge.translators.types import DRAW_TYPE, LOAD_TYPE
@@ -39,10 +40,12 @@ def load_channel_for(draw_channel: str) -> str:
 
 
 class DrawPoses:
-    """A router's draw decoding (`shared.get(DrawPoses)`): one `DrawDecoder` per channel, so each
-    keeps its name block, and each received draw decoded once for every route that reads it."""
+    """A router's draw decoding (`shared.get(DrawPoses, shared.clock)`): one `DrawDecoder` per
+    channel, so each keeps its name block, and each received draw decoded once for every route
+    that reads it, which ticks the router's clock (`time: sim`) once per draw."""
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Clock | None = None) -> None:
+        self._clock = Clock() if clock is None else clock
         self._decoders: dict[str, DrawDecoder] = {}
         self._decode_once = self._decode  # one bound method: the key of `Received.decoded`
 
@@ -54,7 +57,9 @@ class DrawPoses:
         decoder = self._decoders.get(message.channel)
         if decoder is None:
             decoder = self._decoders.setdefault(message.channel, DrawDecoder())
-        return decoder.decode(message.data)
+        poses = decoder.decode(message.data)
+        self._clock.tick(poses.timestamp_ms * 1_000_000, message.received_us)
+        return poses
 
 
 def _load_scene(message: Received) -> Scene:
@@ -115,7 +120,7 @@ class DrawReader(Translator):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.draw_poses = self.shared.get(DrawPoses)
+        self.draw_poses = self.shared.get(DrawPoses, self.shared.clock)
 
 
 class DrakeTranslator(DrawReader):

@@ -9,14 +9,14 @@ Roles: Drake's illustration scene (unsuffixed or `_ILLUSTRATION` channels) names
 `plant/iiwa/iiwa_link_0`; the proximity and perception scenes prefix theirs (`proximity/...`,
 `perception/...`), so the three trees never collide on one `/tf`. `frame_prefix` overrides.
 
-Stamps: the bridge's receive time by default, which RViz and tf2 accept out of the box; `stamp:
-sim` uses Drake's sim time instead, for nodes with `use_sim_time` (route `drake_to_clock` to
-`/clock` as well).
+Stamps: the bridge's clock (the config's `time:`): the receive time by default, which RViz and
+tf2 accept out of the box; with `time: sim`, Drake's sim time, for nodes with `use_sim_time` (the
+config then publishes `/clock` too). A route's `stamp:` option overrides the clock for that route.
 """
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
@@ -28,13 +28,13 @@ from viewer_bridge.formats.ros.tf import WORLD, TransformsEncoder
 from viewer_bridge.model.scene import LinkPoses, Scene
 from viewer_bridge.translators.base import Output, Outputs
 from viewer_bridge.translators.drake_stream import DrakeTranslator, PerLoadTranslator
-from viewer_bridge.translators.options import FrameOptions, MarkerOptions
+from viewer_bridge.translators.options import FrameOptions, MarkerOptions, StampOptions
 from viewer_bridge.translators.types import ros_type
 from viewer_bridge.transports.base import Received
 
 
-class TfOptions(FrameOptions):
-    stamp: Literal["receive", "sim"] = "receive"
+class TfOptions(FrameOptions, StampOptions):
+    """How frames are named, and the clock of the stamps."""
 
 
 class DrakeToTf(DrakeTranslator):
@@ -72,7 +72,7 @@ class DrakeToTf(DrakeTranslator):
 
     def _stamp(self, message: Received, poses: LinkPoses) -> tuple[int, int]:
         """(sec, nanosec); `EncodeError` for a time whose seconds do not fit an int32."""
-        if self.options.stamp == "sim":
+        if self.options.sim_stamps(self.shared.clock):
             return time_parts(poses.timestamp_ms)
         return time_parts_from_us(message.received_us)
 

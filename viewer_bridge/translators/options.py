@@ -6,13 +6,14 @@ own options class combines these (e.g. contact markers: `ContactDrawOptions` + `
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from viewer_bridge.formats.ign.schema import Package
 from viewer_bridge.formats.ros.tf import WORLD, FrameNames
 from viewer_bridge.model.image import Intrinsics
+from viewer_bridge.shared import Clock
 from viewer_bridge.translators.base import TranslatorOptions
 from viewer_bridge.translators.drake_stream import role_of
 from viewer_bridge.translators.types import ign_type
@@ -40,6 +41,17 @@ class FrameOptions(TranslatorOptions):
             return FrameNames(self.world_frame, self.frame_prefix)
         role = role_of(channel)
         return FrameNames(self.world_frame, "" if role in ("", "illustration") else f"{role}/")
+
+
+class StampOptions(TranslatorOptions):
+    """The clock a route's stamps are of: unset, the bridge's (the config's `time:`, receive time
+    unless it says sim); `receive` or `sim` for this route only."""
+
+    stamp: Literal["receive", "sim"] | None = None
+
+    def sim_stamps(self, clock: Clock) -> bool:
+        """Whether this route stamps with the message's sim time (else its receive time)."""
+        return clock.sim if self.stamp is None else self.stamp == "sim"
 
 
 class IgnOptions(TranslatorOptions):
@@ -92,4 +104,5 @@ __all__ = [
     "FrameOptions",
     "IgnOptions",
     "MarkerOptions",
+    "StampOptions",
 ]

@@ -81,13 +81,17 @@ class Received:
     type. `origin` is the transport's note of who sent it (a Foxglove client), for the transport's
     own answer when the message is refused (`Transport.rejected`).
 
+    `sent_us` is when the sender sent it, by the middleware's own stamp (DDS's source timestamp,
+    rmw_zenoh's attachment), where the transport has one: a command's age counts from it, so a
+    message that waited in a stalled process is seen as old as it is.
+
     `decoded(decoder)` runs `decoder(self)` the first time and returns the same result after:
     a draw that the markers and the poses routes both read is decoded once. Routes run on
     threads of their own; two may race to decode the same message, which costs a second
     decode and nothing else (decoders are pure, and a dict store is atomic).
     """
 
-    __slots__ = ("channel", "data", "received_us", "message_type", "origin", "_decoded")
+    __slots__ = ("channel", "data", "received_us", "message_type", "origin", "sent_us", "_decoded")
 
     def __init__(
         self,
@@ -97,13 +101,21 @@ class Received:
         *,
         message_type: MessageType | None = None,
         origin: object = None,
+        sent_us: int | None = None,
     ) -> None:
         self.channel = channel
         self.data = data
         self.received_us = time.time_ns() // 1000 if received_us is None else received_us
         self.message_type = message_type
         self.origin = origin
+        self.sent_us = sent_us
         self._decoded: dict[object, Any] | None = None  # made on the first decode: most messages have none
+
+    def sent_at_us(self) -> int:
+        """When it was sent, by the sender's stamp where there is one and it is not later than
+        this process received it (another host's clock may run ahead), else when it was received."""
+        sent = self.sent_us
+        return sent if sent is not None and sent <= self.received_us else self.received_us
 
     def decoded(self, decoder: Callable[[Received], Decoded]) -> Decoded:
         decoded = self._decoded
@@ -129,13 +141,32 @@ class Exposure:
     warning: str | None = None
 
 
+# The QoS policies a subscription may take from its topic's publishers (`Qos.follow`), named as
+# the config's `qos:` keys name them.
+RELIABILITY = "reliability"
+DURABILITY = "durability"
+DEPTH = "depth"
+
+
 @dataclass(frozen=True, slots=True)
 class Qos:
-    """What a route asks of a publisher or subscription; transports use what they have of it."""
+    """What a route asks of a publisher or subscription; transports use what they have of it.
+
+    `follow` names the policies (`reliability`, `durability`, `depth`) a subscription takes from
+    its topic's publishers instead (`viewer_bridge.transports.ros_qos`), in a ROS graph; `admits`
+    narrows what a source pattern subscribes to in a graph. `told`,
+    when set, is called with the bridge's words when a peer's QoS cannot match (a publisher that
+    offers less than a subscription asks, a subscriber that asks more than a publisher offers).
+    """
 
     depth: int = 10
     reliable: bool = True
     latched: bool = False  # late subscribers get the last messages (ROS 2 TRANSIENT_LOCAL)
+    follow: frozenset[str] = frozenset()
+    told: Callable[[str], None] | None = field(default=None, compare=False, repr=False)
+    # For a source matched against a graph: whether a name the pattern matched is worth a
+    # subscription (a route that writes commands takes only the channels the allow-list names).
+    admits: Callable[[str], bool] | None = field(default=None, compare=False, repr=False)
 
 
 class Publisher(Protocol):
@@ -295,6 +326,8 @@ def hand_over(publisher: Publisher, payload: Payload) -> None:
 __all__ = [
     "CDR",
     "CallPublisher",
+    "DEPTH",
+    "DURABILITY",
     "Decoded",
     "Deliver",
     "Exposure",
@@ -305,6 +338,7 @@ __all__ = [
     "Payload",
     "Publisher",
     "Qos",
+    "RELIABILITY",
     "Received",
     "Transport",
     "TransportSettings",

@@ -33,7 +33,8 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
+from typing import Any
 from urllib.parse import urlencode
 
 from pydantic import Field, field_validator
@@ -41,7 +42,7 @@ from pydantic import Field, field_validator
 from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, TransportUnavailable
 from viewer_bridge.formats.foxglove.schema import schema
-from viewer_bridge.shared import Shared
+from viewer_bridge.shared import Clock, Shared
 from viewer_bridge.transports.base import (
     CDR,
     PROTOBUF,
@@ -57,11 +58,21 @@ from viewer_bridge.transports.base import (
 from viewer_bridge.transports.foxglove_clients import CLIENT_ENCODINGS, MAX_CLIENT_CHANNELS, ClientPublishing
 from viewer_bridge.transports.foxglove_front import MAX_CLIENT_MESSAGE, MAX_CLIENTS, SubprotocolFront
 from viewer_bridge.transports.origins import FOXGLOVE_APPS, Origins, is_origin_pattern
+from viewer_bridge.transports.playback import Timeline, Timelines
 from viewer_bridge.util.extras import missing
 
 try:
     import foxglove
-    from foxglove.websocket import Capability, ChannelView, Client, ServerListener
+    from foxglove.websocket import (
+        Capability,
+        ChannelView,
+        Client,
+        PlaybackControlRequest,
+        PlaybackState,
+        ServerListener,
+    )
+
+    from viewer_bridge.transports.foxglove_playback import FoxglovePlayback
 except ImportError as error:
     raise missing(error, "the foxglove transport") from None
 
@@ -207,20 +218,36 @@ class _Subscribers:
 
 
 class _Channel:
-    """A publisher on one Foxglove channel: its subscribers, and its last message when latched."""
+    """A publisher on one Foxglove channel: its subscribers, and its last message when latched.
+    Its log times are the SDK's (now) unless a played log's timeline or the sim clock gives them."""
 
-    def __init__(self, channel: foxglove.Channel, latched: bool, subscribers: _Subscribers) -> None:
+    def __init__(
+        self,
+        channel: foxglove.Channel,
+        latched: bool,
+        subscribers: _Subscribers,
+        log_time: Callable[[], int] | None = None,
+    ) -> None:
+        """`log_time`: the time (ns) to stamp each message with (a played log's timeline, the sim
+        clock), else the SDK's now."""
         self.channel = channel
         self.id = channel.id()
         self.latched = latched
         self.last: bytes | None = None
         self.unsent = 0  # a channel logs to every client and file of its context: nothing stays unsent
         self._subscribers = subscribers
+        self._log_time = log_time
 
     def publish(self, data: bytes) -> None:
         if self.latched:
             self.last = data
-        self.channel.log(data)
+        self._log(data)
+
+    def _log(self, data: bytes) -> None:
+        if self._log_time is None:
+            self.channel.log(data)
+        else:
+            self.channel.log(data, log_time=self._log_time())
 
     def subscriber_count(self) -> int:
         return self._subscribers.count(self.id)
@@ -228,15 +255,18 @@ class _Channel:
     def subscribed(self) -> None:
         """A client subscribed: it gets the current state (others see it again)."""
         if self.last is not None:
-            self.channel.log(self.last)
+            self._log(self.last)
 
 
 class _Listener(ServerListener):
     """Clients subscribing to and unsubscribing from channels (the SDK calls it on its threads)."""
 
-    def __init__(self, channels: dict[int, _Channel], subscribers: _Subscribers) -> None:
+    def __init__(
+        self, channels: dict[int, _Channel], subscribers: _Subscribers, playback: FoxglovePlayback | None
+    ) -> None:
         self._channels = channels
         self._subscribers = subscribers
+        self._playback = playback
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
         self._subscribers.add(channel.id, client.id)  # counted even before `publisher` stores the channel
@@ -246,6 +276,9 @@ class _Listener(ServerListener):
 
     def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
         self._subscribers.discard(channel.id, client.id)
+
+    def on_playback_control_request(self, request: PlaybackControlRequest) -> PlaybackState | None:
+        return None if self._playback is None else self._playback.on_request(request)
 
 
 class FoxgloveTransport(Transport):
@@ -261,30 +294,53 @@ class FoxgloveTransport(Transport):
         context: FoxgloveContext | None = None,
         *,
         accept_commands: bool = True,
+        timeline: Timeline | None = None,
+        clock: Clock | None = None,
     ) -> None:
         """`accept_commands`: whether what clients publish can land anywhere (a router's config
         allows some command channel); without it the server offers no publishing, and a client
-        that publishes anyway is told why."""
+        that publishes anyway is told why. `timeline`: a played log's (`viewer-bridge play`), which
+        clients drive (viewer_bridge/transports/foxglove_playback.py); each message is stamped with
+        its time when sent, and the timeline is Foxglove's time. `clock`: the bridge's; with
+        `time: sim` (and no timeline) the server lists the `time` capability and broadcasts each
+        new sim time to every client (messages' log times are that clock's too), so Foxglove's
+        current time is Drake's."""
         super().__init__(settings)
         self._channels: dict[int, _Channel] = {}  # by Foxglove channel id
         self._subscribers = _Subscribers()
         self.context = FoxgloveContext() if context is None else context
+        self.clock = Clock() if clock is None else clock
         self.clients = ClientPublishing(settings.max_client_channels) if settings.client_publish else None
-        publishing = {
-            "capabilities": [Capability.ClientPublish],
-            "supported_encodings": list(CLIENT_ENCODINGS),
-        }
+        publishing = self.clients is not None and accept_commands
+        options: dict[str, Any] = {}
+        if publishing:
+            options = {
+                "capabilities": [Capability.ClientPublish],
+                "supported_encodings": list(CLIENT_ENCODINGS),
+            }
+        self._playback = None if timeline is None else FoxglovePlayback(timeline)
+        self._sim_time = self.clock.sim and self._playback is None  # a played log's timeline is the time
+        if self._playback is not None:
+            options = self._playback.server_options(options)
+        elif self._sim_time:
+            options["capabilities"] = [*options.get("capabilities", []), Capability.Time]
         try:
             self.server = foxglove.start_server(
                 name=settings.name,
                 host="127.0.0.1",  # behind the front, which holds the public port
                 port=0,
                 context=self.context.context,
-                server_listener=_Listener(self._channels, self._subscribers),
-                **(publishing if self.clients is not None and accept_commands else {}),  # type: ignore[arg-type]
+                server_listener=_Listener(self._channels, self._subscribers, self._playback),
+                **options,
             )
         except Exception as error:  # the SDK raises its own error types, e.g. for a port in use
             raise self._cannot_listen(error) from None
+        if self._playback is not None:
+            self._playback.attach(self.server)
+        # one callable: the clock's listener, and its removal
+        self._broadcast_time = self.server.broadcast_time
+        if self._sim_time:
+            self.clock.listen(self._broadcast_time)
         try:
             self.front = SubprotocolFront(
                 settings.host, settings.port, self.server.port,
@@ -293,6 +349,7 @@ class FoxgloveTransport(Transport):
                 max_clients=settings.max_clients, max_message_bytes=settings.max_client_message_bytes,
             )  # fmt: skip
         except OSError as error:  # a port in use, an address not of this machine
+            self.clock.unlisten(self._broadcast_time)
             self.server.stop()
             raise self._cannot_listen(error) from None
 
@@ -302,7 +359,14 @@ class FoxgloveTransport(Transport):
         # without an allowed channel nothing clients publish lands
         accept = bool(shared.get(CommandPolicy).allow)
         # an MCAP file logs to it too
-        return cls(settings, shared.get(FoxgloveContext), accept_commands=accept)
+        timeline = shared.get(Timelines).timeline  # `viewer-bridge play`'s
+        return cls(
+            settings,
+            shared.get(FoxgloveContext),
+            accept_commands=accept,
+            timeline=timeline,
+            clock=shared.clock,
+        )
 
     def _cannot_listen(self, error: Exception) -> TransportUnavailable:
         where = f"{self.settings.host}:{self.settings.port}"
@@ -335,9 +399,20 @@ class FoxgloveTransport(Transport):
         if self.clients is not None:
             self.clients.answer(message, error)
 
+    def _log_time(self) -> Callable[[], int] | None:
+        """What stamps each message: a played log's timeline, else the sim clock, else the SDK's now."""
+        if self._playback is not None:
+            return self._playback.timeline.now_ns
+        if self._sim_time:
+            clock = self.clock
+            return lambda: clock.now_ns
+        return None
+
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         channel = self.context.channel(name, message_type, "foxglove")
-        publisher = self._channels[channel.id()] = _Channel(channel, qos.latched, self._subscribers)
+        publisher = self._channels[channel.id()] = _Channel(
+            channel, qos.latched, self._subscribers, self._log_time()
+        )
         return publisher
 
     @property
@@ -359,6 +434,7 @@ class FoxgloveTransport(Transport):
         return counts | ({} if self.clients is None else self.clients.errors())
 
     def close(self) -> None:
+        self.clock.unlisten(self._broadcast_time)
         self.front.close()
         self.server.stop()
 

@@ -22,8 +22,11 @@ from pathlib import Path
 import lcm
 
 from viewer_bridge.errors import LogError, TransportUnavailable
+from viewer_bridge.shared import Shared
 from viewer_bridge.transports import base
+from viewer_bridge.transports.lcm_playback import LogPlayer
 from viewer_bridge.transports.lcm_url import log_to_write
+from viewer_bridge.transports.playback import Timelines
 from viewer_bridge.util.channels import ChannelPattern
 from viewer_bridge.util.hints import first_time
 
@@ -327,10 +330,17 @@ class LcmTransport(base.Transport):
     several_processes = True  # multicast: every process gets its own copy of each message
     settings: LcmSettings
 
-    def __init__(self, settings: LcmSettings) -> None:
+    def __init__(self, settings: LcmSettings, bus: LcmBus | LogReplay | LogPlayer | None = None) -> None:
+        """`bus`: where the messages come from instead of `settings.url` (a log `play` plays)."""
         super().__init__(settings)
-        self.bus = open_bus(settings.url)
+        self.bus = open_bus(settings.url) if bus is None else bus
         self._routes: list[tuple[ChannelPattern, base.Deliver]] = []
+
+    @classmethod
+    def create(cls, settings: base.TransportSettings, shared: Shared) -> LcmTransport:
+        assert isinstance(settings, LcmSettings)
+        played = shared.get(Timelines).timeline  # `viewer-bridge play`: the log it plays is the bus
+        return cls(settings, played if isinstance(played, LogPlayer) else None)
 
     def subscribe(
         self, pattern: str, message_type: base.MessageType, qos: base.Qos, deliver: base.Deliver
@@ -353,14 +363,14 @@ class LcmTransport(base.Transport):
                 deliver(message)
 
     def describe(self) -> str:
-        return f"LCM {self.bus.url}"
+        return f"LCM {self.bus.url}{' (played)' if isinstance(self.bus, LogPlayer) else ''}"
 
     def errors(self) -> dict[str, int]:
         drops = self.bus.kernel_drops() if isinstance(self.bus, LcmBus) else 0
         return {"dropped_by_kernel": drops} if drops else {}
 
     def finished(self) -> bool:
-        return isinstance(self.bus, LogReplay) and self.bus.finished.is_set()
+        return isinstance(self.bus, LogReplay | LogPlayer) and self.bus.finished.is_set()
 
     def close(self) -> None:
         self.bus.close()

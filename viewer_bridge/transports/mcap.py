@@ -13,11 +13,13 @@ Two profiles (`mcap: {profile: ...}`, what `viewer-bridge convert --schema` choo
 In both, a CDR type that carries its definition (any LCM type's ROS 2 mapping) is written with
 that definition as its `ros2msg` schema.
 
-Channels and schemas are registered as topics appear. Each message is stamped with the receive
-time of the message it was translated from (`MessageTime`): the log's time when `convert` feeds
-the router a log, the bus's receive time live. So a route whose destination is this transport
-records a live session, and `convert` is a router whose routes all end here. The file is written
-as `PATH.partial` and renamed to `PATH` when the transport closes, as every writer does.
+Channels and schemas are registered as topics appear. Each message's log time is the bridge's
+clock (the config's `time:`): by default the receive time of the message it was translated from
+(`MessageTime`): the log's time when `convert` feeds the router a log, the bus's receive time
+live; with `time: sim`, Drake's sim time (the newest draw's, `Clock`). So a route whose destination is this transport
+records a live session, and `convert` is a router whose routes all end here.
+The file is written as `PATH.partial` and renamed to `PATH` when the transport closes, as every
+writer does.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ from typing import Literal, Protocol
 from rosbags.typesys import Stores, get_typestore
 
 from viewer_bridge.errors import InvalidName, TransportUnavailable
-from viewer_bridge.shared import MessageTime, Shared
+from viewer_bridge.shared import Clock, MessageTime, Shared
 from viewer_bridge.transports.base import (
     CDR,
     PROTOBUF,
@@ -70,7 +72,9 @@ class _File(Protocol):
 
     def require(self, message_types: Iterable[MessageType]) -> None: ...
 
-    def publisher(self, topic: str, message_type: MessageType, time: MessageTime) -> Publisher: ...
+    def publisher(
+        self, topic: str, message_type: MessageType, time: MessageTime, clock: Clock
+    ) -> Publisher: ...
 
     def close(self) -> None: ...
 
@@ -98,14 +102,14 @@ class _Ros2File:
             if message_type.definition is None and message_type.name not in self._store.fielddefs:
                 raise TransportUnavailable(f"rosbags has no ROS 2 message definition of {message_type.name}")
 
-    def publisher(self, topic: str, message_type: MessageType, time: MessageTime) -> Publisher:
+    def publisher(self, topic: str, message_type: MessageType, time: MessageTime, clock: Clock) -> Publisher:
         topic = topic if topic.startswith("/") else f"/{topic}"  # as a node in the root namespace names it
         with self._lock:
             channel_id = self._channel(topic, message_type)
         writer, lock, messages = self._writer, self._lock, self.messages
 
         def write(data: bytes) -> None:
-            time_ns = time.received_us * 1000
+            time_ns = clock.log_time_ns(time.received_us)
             with lock:
                 messages[topic] += 1
                 writer.add_message(channel_id, time_ns, data, time_ns)
@@ -149,14 +153,14 @@ class _FoxgloveFile:
     def require(self, message_types: Iterable[MessageType]) -> None:
         require_schemas(message_types)
 
-    def publisher(self, topic: str, message_type: MessageType, time: MessageTime) -> Publisher:
+    def publisher(self, topic: str, message_type: MessageType, time: MessageTime, clock: Clock) -> Publisher:
         channel = self._context.channel(topic, message_type, "mcap")
         lock, messages = self._lock, self.messages
 
         def write(data: bytes) -> None:
             with lock:
                 messages[topic] += 1
-            channel.log(data, log_time=time.received_us * 1000)
+            channel.log(data, log_time=clock.log_time_ns(time.received_us))
 
         return CallPublisher(write)
 
@@ -178,9 +182,14 @@ class McapTransport(Transport):
     settings: McapSettings
 
     def __init__(
-        self, settings: McapSettings, context: FoxgloveContext | None = None, time: MessageTime | None = None
+        self,
+        settings: McapSettings,
+        context: FoxgloveContext | None = None,
+        time: MessageTime | None = None,
+        clock: Clock | None = None,
     ) -> None:
         super().__init__(settings)
+        self._clock = Clock() if clock is None else clock
         if settings.path.exists() and not settings.overwrite:
             raise TransportUnavailable(
                 f"{settings.path} exists (mcap.path): give another file, or mcap.overwrite: true to replace it"
@@ -199,7 +208,7 @@ class McapTransport(Transport):
         assert isinstance(settings, McapSettings)
         # The Foxglove server of this router, if any, logs to the same context (made only when used).
         context = shared.get(FoxgloveContext) if settings.profile == "foxglove" else None
-        return cls(settings, context, shared.message_time)
+        return cls(settings, context, shared.message_time, shared.clock)
 
     @classmethod
     def carries(cls, message_type: MessageType, profile: Profile | None = None) -> bool:
@@ -225,7 +234,7 @@ class McapTransport(Transport):
         raise TransportUnavailable("the mcap transport only writes a file")
 
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
-        return self.file.publisher(name, message_type, self._time)
+        return self.file.publisher(name, message_type, self._time, self._clock)
 
     @property
     def messages(self) -> Counter[str]:

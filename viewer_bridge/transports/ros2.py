@@ -21,9 +21,11 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import logging
 import os
 import re
 import threading
+import time
 from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -46,12 +48,23 @@ from viewer_bridge.transports.base import (
 )
 from viewer_bridge.transports.fastdds_profile import shared_memory_profile
 from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem, topic_problem
+from viewer_bridge.transports.ros_qos import (
+    DEFAULT_MAX_DEPTH,
+    Offered,
+    describe,
+    followed,
+    incompatible_publication,
+    incompatible_subscription,
+    same_profile,
+)
 from viewer_bridge.transports.topic_types import EVERY, TopicTypes, found_in_graph
 from viewer_bridge.util.extras import missing
 
 if TYPE_CHECKING:
     from rclpy.node import Node
     from rclpy.qos import QoSProfile
+
+log = logging.getLogger("viewer_bridge")
 
 _PLAIN_TOPIC = re.compile(r"[A-Za-z0-9_/~{}]+")  # fullmatch: `$` takes "name\n"
 LOCAL_RANGES = ("LOCALHOST", "OFF")  # discovery ranges that reach no other host (but static peers)
@@ -76,6 +89,12 @@ def message_class(typename: str) -> Any:
     return getattr(importlib.import_module(f"{package}.msg"), name)
 
 
+SWITCH_S = 2.0  # a followed subscription is re-made at most this often (a peer whose QoS flaps)
+RETIRE_S = 1.0  # a replaced subscription delivers this long beside its successor, duplicates dropped
+MAX_SWITCH_KEYS = 65_536  # message keys one switch remembers (about 6 MiB), whatever the rate
+GONE_TICKS = 3  # discovery rounds (seconds) a pattern's topic may have no publisher before it is dropped
+
+
 def qos_profile(depth: int, reliable: bool = True, latched: bool = False) -> QoSProfile:
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -96,6 +115,9 @@ class RosSettings(TransportSettings):
     # messages at high rates, unless the user gave Fast DDS a profile of their own; 0 (the default)
     # leaves Fast DDS's own 512 KiB (see `viewer_bridge.transports.fastdds_profile`).
     shared_memory_mb: int = Field(default=0, ge=0, le=4096)
+    # The most messages a subscription that follows its publishers keeps (their largest depth, or
+    # for transient local the sum of their depths, bounded by this): `viewer_bridge.transports.ros_qos`.
+    max_qos_depth: int = Field(default=DEFAULT_MAX_DEPTH, ge=1, le=10_000)
 
     @field_validator("node")
     @classmethod
@@ -113,6 +135,169 @@ def _valid(name: str, problem: str | None, what: str) -> str:
     if problem is not None:
         raise InvalidName(f"{name!r} is not a valid ROS 2 {what}: {problem}")
     return name
+
+
+class Switch:
+    """While a topic's subscription is being replaced, which messages were delivered already:
+    the keys (the writer's timestamp and sequence number) of those the old and the new
+    subscription delivered in the meantime, and the writers' time span the earlier subscriptions
+    covered, whose messages a transient-local successor receives again as history. Only a
+    switch pays for it: outside one, a message costs no key."""
+
+    __slots__ = ("ends", "covered", "_keys")
+
+    def __init__(self, covered: tuple[int, int], ends: float) -> None:
+        self.covered, self.ends = covered, ends
+        self._keys: set[tuple[int, int]] = set()
+
+    def delivered(self, info: dict[str, Any], history: bool) -> bool:
+        """Whether a message (its rclpy message info) was delivered before; `history`: it came
+        from the new subscription, whose history repeats what the old one delivered live."""
+        sent = info["source_timestamp"]
+        key = (sent, info["publication_sequence_number"])
+        if key in self._keys:
+            return True
+        if len(self._keys) < MAX_SWITCH_KEYS:
+            self._keys.add(key)
+        return history and self.covered[0] <= sent < self.covered[1]
+
+
+class TopicSubscription:
+    """One topic's subscription, shared by every route that reads it; while its QoS follows the
+    publishers (`Qos.follow`), re-made when what they offer calls for another profile.
+
+    The new subscription is made before the old one goes, and the old one delivers for `RETIRE_S`
+    beside it, so no message is lost in between; a `Switch` drops the second copy of a message.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        topic: str,
+        message_type: MessageType,
+        asked: Qos,
+        delivers: list[Deliver],
+        max_depth: int,
+    ) -> None:
+        self.node, self.topic, self.message_type, self.asked = node, topic, message_type, asked
+        self.delivers, self.max_depth = delivers, max_depth
+        self.qos = asked  # what the live subscription asks
+        self.from_pattern = False  # made by discovery: dropped once its publishers are gone
+        self.quiet_ticks = 0  # discovery rounds in a row without a publisher
+        self._live: Any = None
+        self._retiring: list[tuple[Any, float]] = []  # (subscription, when it goes)
+        self._switched_at = -SWITCH_S
+        self._switch: Switch | None = None  # while a switch is under way
+        self._since_ns = 0  # when the first subscription was made: what the live ones covered since
+        self._message_class: Any = None
+
+    def start(self, message_class: Any) -> None:
+        """Subscribe, as the publishers known now call for (the type's class is importable now)."""
+        self._message_class = message_class
+        self.qos = followed(self.asked, offered_by(self.node, self.topic), self.max_depth)
+        self._since_ns = time.time_ns()
+        self._live = self._create(self.qos, successor=False)
+
+    def _create(self, qos: Qos, successor: bool) -> Any:
+        from rclpy.event_handler import SubscriptionEventCallbacks
+
+        events = SubscriptionEventCallbacks(
+            incompatible_qos=self._incompatible, incompatible_type=self._other_type
+        )
+        profile = qos_profile(qos.depth, qos.reliable, qos.latched)
+        # A transient-local successor hears the past again: its history is checked as such.
+        on_message = self.message_callback(history=successor and qos.latched)
+        return self.node.create_subscription(
+            self._message_class,
+            self.topic,
+            on_message,  # type: ignore[arg-type]  # rclpy passes the message info to a second parameter
+            profile,
+            event_callbacks=events,
+            raw=True,
+        )
+
+    def message_callback(self, history: bool) -> Callable[[bytes, dict[str, Any]], None]:
+        """rclpy's callback of one subscription: the raw bytes to every route reading the topic,
+        stamped with the writer's time; during a switch, a message delivered before is dropped."""
+
+        def on_message(data: bytes, info: dict[str, Any]) -> None:
+            switch = self._switch
+            if switch is not None and self._repeated(switch, info, history):
+                return
+            sent_us = info["source_timestamp"] // 1000
+            message = Received(self.topic, bytes(data), message_type=self.message_type, sent_us=sent_us)
+            for each in self.delivers:
+                each(message)
+
+        return on_message
+
+    def _repeated(self, switch: Switch, info: dict[str, Any], history: bool) -> bool:
+        if time.monotonic() >= switch.ends:  # the switch is over: back to no keys at all
+            self._switch = None
+            return False
+        return switch.delivered(info, history)
+
+    def refresh(self, publishers: list[Offered] | None = None) -> None:
+        """Re-make the subscription when its `publishers` (found now if not given) call for another
+        profile (at most once per `SWITCH_S`), and let go of replaced ones whose time is up. On the
+        executor's thread."""
+        now = time.monotonic()
+        for subscription, ends in [*self._retiring]:
+            if now >= ends:
+                self._retiring.remove((subscription, ends))
+                self.node.destroy_subscription(subscription)
+        if self._live is None or not self.asked.follow:
+            return
+        if publishers is None:
+            publishers = offered_by(self.node, self.topic)
+        wanted = followed(self.asked, publishers, self.max_depth)
+        if not publishers or same_profile(wanted, self.qos) or now - self._switched_at < SWITCH_S:
+            return
+        log.info("viewer-bridge: %s: its publishers offer %s now (was %s): subscribed anew",
+                 self.topic, describe(wanted), describe(self.qos))  # fmt: skip
+        # What arrives before the new subscription is matched, and its history, is checked
+        # against what was delivered for a while after the old one is gone.
+        self._switch = Switch((self._since_ns, time.time_ns()), now + RETIRE_S + SWITCH_S)
+        replaced, self._live = self._live, self._create(wanted, successor=True)
+        self.qos, self._switched_at = wanted, now
+        self._retiring.append((replaced, now + RETIRE_S))
+
+    def _incompatible(self, info: Any) -> None:
+        from rclpy.qos import QoSPolicyKind
+
+        policy = QoSPolicyKind(info.last_policy_kind).name
+        if policy.lower() in self.asked.follow:  # a publisher just found: follow it now
+            self.refresh()
+        elif self.asked.told is not None:
+            publishers = offered_by(self.node, self.topic)
+            self.asked.told(incompatible_subscription(self.topic, policy, self.qos, publishers))
+
+    def _other_type(self, info: Any) -> None:
+        if self.asked.told is not None:
+            self.asked.told(f"{self.topic}: a publisher of another type than {self.message_type.name}: "
+                            "its messages are not received")  # fmt: skip
+
+    def close(self) -> None:
+        for subscription in [self._live, *(each for each, _ in self._retiring)]:
+            if subscription is not None:
+                self.node.destroy_subscription(subscription)
+        self._live, self._retiring = None, []
+
+
+def offered_by(node: Node, topic: str) -> list[Offered]:
+    """What each publisher on `topic` offers, but this node's own (and a worker's node of its name)."""
+    from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
+
+    name, namespace = node.get_name(), node.get_namespace()
+    return [
+        Offered(
+            info.qos_profile.reliability == ReliabilityPolicy.RELIABLE,
+            info.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL,
+            int(info.qos_profile.depth),
+        )
+        for info in node.get_publishers_info_by_topic(topic)
+        if not (info.node_name == name and info.node_namespace == namespace)
+    ]
 
 
 class PublisherOnceBuilt:
@@ -220,12 +405,12 @@ class RosTransport(Transport):
         self._executor.add_node(self.node)
         self._patterns: list[tuple[re.Pattern[str], MessageType, Qos, Deliver]] = []
         self._types = TopicTypes(Shared() if shared is None else shared)  # what a `*` pattern takes
-        self._delivers: dict[str, list[Deliver]] = {}  # topic -> every route reading it
+        self._topics: dict[str, TopicSubscription] = {}  # topic -> its subscription, every route reading it
         self._lock = threading.Lock()
         self._thread = threading.Thread(target=self._spin, name="rclpy", daemon=True)
         self._discovery = self.node.create_timer(1.0, self._discover)
         self.builder = builder  # builds the interface packages of types it lacks, or None
-        self._unbuilt: list[tuple[str, str, Callable[[bytes], None], QoSProfile]] = []  # type being built
+        self._unbuilt: list[TopicSubscription] = []  # subscriptions whose type is being built
 
     @classmethod
     def create(cls, settings: TransportSettings, shared: Shared) -> RosTransport:
@@ -279,8 +464,22 @@ class RosTransport(Transport):
                 raise
             assert self.builder is not None
             return PublisherOnceBuilt(self.node, self.builder, name, message_type.name, profile)
-        publisher = self.node.create_publisher(message, name, profile)
+        publisher = self.node.create_publisher(message, name, profile, event_callbacks=self._told(name, qos))
         return CallPublisher(publisher.publish, publisher.get_subscription_count)
+
+    @staticmethod
+    def _told(topic: str, qos: Qos) -> Any:
+        """A publisher's event callbacks: a subscriber that asks more than it offers is told to the route."""
+        from rclpy.event_handler import PublisherEventCallbacks
+        from rclpy.qos import QoSPolicyKind
+
+        told = qos.told
+
+        def incompatible(info: Any) -> None:
+            if told is not None:
+                told(incompatible_publication(topic, QoSPolicyKind(info.last_policy_kind).name, qos))
+
+        return PublisherEventCallbacks(incompatible_qos=incompatible)
 
     def subscribe(self, pattern: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
         """Raw bytes of the type from `pattern`: a topic, or a regex matched against the graph."""
@@ -289,59 +488,80 @@ class RosTransport(Transport):
         else:  # a regex, or a topic whose type the graph will say
             self._patterns.append((re.compile(pattern), message_type, qos, deliver))
 
-    def _subscribe(self, topic: str, message_type: MessageType, qos: Qos, deliver: Deliver) -> None:
-        typename = message_type.name
+    def _subscribe(
+        self, topic: str, message_type: MessageType, qos: Qos, deliver: Deliver, from_pattern: bool = False
+    ) -> None:
         with self._lock:
-            delivers = self._delivers.get(topic)
-            if delivers is not None:  # another route reads it already: share the subscription
-                if deliver not in delivers:
-                    delivers.append(deliver)
+            subscription = self._topics.get(topic)
+            if subscription is not None:  # another route reads it already: share the subscription
+                if deliver not in subscription.delivers:
+                    subscription.delivers.append(deliver)
                 return
-            delivers = self._delivers[topic] = [deliver]
-
-        def on_message(data: bytes) -> None:
-            message = Received(topic, bytes(data), message_type=message_type)
-            for each in delivers:
-                each(message)
-
-        profile = qos_profile(qos.depth, qos.reliable, qos.latched)
+            subscription = TopicSubscription(
+                self.node, topic, message_type, qos, [deliver], self.settings.max_qos_depth
+            )
+            subscription.from_pattern = from_pattern
+            self._topics[topic] = subscription
         try:
-            message = message_class(typename)
+            message = message_class(message_type.name)
         except (ImportError, AttributeError):
-            if not self._building(typename):
+            if not self._building(message_type.name):
+                with self._lock:
+                    del self._topics[topic]
                 raise
             with self._lock:  # subscribed once built (`_discover` looks each second)
-                self._unbuilt.append((topic, typename, on_message, profile))
+                self._unbuilt.append(subscription)
             return
-        self.node.create_subscription(message, topic, on_message, profile, raw=True)
+        subscription.start(message)
 
     def _subscribe_built(self) -> None:
         """Make the subscriptions whose type was being built, now that it is ready."""
         assert self.builder is not None
         with self._lock:
             unbuilt, self._unbuilt = self._unbuilt, []
-        for topic, typename, on_message, profile in unbuilt:
+        for subscription in unbuilt:
+            typename = subscription.message_type.name
             if self.builder.status(typename.split("/")[0]).state is BuildState.READY:
-                self.node.create_subscription(message_class(typename), topic, on_message, profile, raw=True)
+                subscription.start(message_class(typename))
             else:  # building, or failed (the builder said so once): nothing arrives on it
                 with self._lock:
-                    self._unbuilt.append((topic, typename, on_message, profile))
+                    self._unbuilt.append(subscription)
 
     def _discover(self) -> None:
         if self._unbuilt:
             self._subscribe_built()
+        self._follow_publishers()
         if not self._patterns:
             return
         for topic, types in self.node.get_topic_names_and_types():
             for pattern, wanted, qos, deliver in self._patterns:
-                if not pattern.fullmatch(topic) or (wanted.name == EVERY and not self._others_publish(topic)):
+                if not pattern.fullmatch(topic) or (qos.admits is not None and not qos.admits(topic)):
+                    continue  # a topic no route would carry (a command channel not allowed) costs nothing
+                if wanted.name == EVERY and not self._others_publish(topic):
                     continue
                 if (found := self._types.pick(wanted, topic, types)) is None:
                     continue
                 try:
-                    self._subscribe(topic, found, qos, deliver)
+                    self._subscribe(topic, found, qos, deliver, from_pattern=True)
                 except (ImportError, AttributeError, ValueError):  # `**`: a type not installed here
                     self._types.say(topic, found.name, "whose interface package is not installed here")
+
+    def _follow_publishers(self) -> None:
+        """Once a second: each subscription that follows its publishers takes what they offer now,
+        and one that a pattern made goes once its topic has had no publisher for `GONE_TICKS`."""
+        with self._lock:
+            subscriptions = list(self._topics.values())
+        for subscription in subscriptions:
+            publishers = offered_by(self.node, subscription.topic)
+            if subscription.from_pattern and not publishers:
+                subscription.quiet_ticks += 1
+                if subscription.quiet_ticks >= GONE_TICKS:
+                    with self._lock:
+                        self._topics.pop(subscription.topic, None)
+                    subscription.close()
+                continue
+            subscription.quiet_ticks = 0
+            subscription.refresh(publishers)
 
     def _others_publish(self, topic: str) -> bool:
         """Whether `topic` has publishers, none of them this node (nor a worker's node of the same

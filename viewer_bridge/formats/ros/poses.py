@@ -48,10 +48,12 @@ class PoseArrayEncoder:
         self._padding = b"\0" * (-(8 + len(self._frame) + 4) % 8)
         self._layout(0)
 
-    def encode(self, poses: LinkPoses) -> bytes:
+    def encode(self, poses: LinkPoses, stamp: tuple[int, int] | None = None) -> bytes:
+        """The draw as a PoseArray stamped `stamp` (sec, nanosec), by default its sim time."""
         if len(poses) != len(self._rows):
             self._layout(len(poses))
-        self._buffer[FRONT_PADDING + 4 : FRONT_PADDING + 12] = _stamp_bytes(poses.timestamp_ms)
+        stamp_bytes = _stamp_bytes(poses.timestamp_ms) if stamp is None else CDR_TIME.pack(*stamp)
+        self._buffer[FRONT_PADDING + 4 : FRONT_PADDING + 12] = stamp_bytes
         write_pose_rows_xyzw(self._rows, poses.positions, poses.quaternions_wxyz)
         return bytes(self._message)
 

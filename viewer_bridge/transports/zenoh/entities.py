@@ -26,6 +26,7 @@ import zenoh.ext
 
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.transports.base import Deliver, MessageType, Qos, Received
+from viewer_bridge.transports.ros_qos import Offered
 from viewer_bridge.transports.zenoh import keys
 from viewer_bridge.transports.zenoh.session import Link
 
@@ -197,7 +198,7 @@ def ros_receiver(
             return
         attachment = sample.attachment
         try:
-            keys.parse_attachment(b"" if attachment is None else attachment.to_bytes())
+            stamp = keys.parse_attachment(b"" if attachment is None else attachment.to_bytes())
         except DecodeError:
             errors["bad_attachment"] += 1
             return
@@ -205,7 +206,9 @@ def ros_receiver(
         if not is_cdr(payload):
             errors["not_cdr"] += 1
             return
-        message = Received(channel, payload, message_type=message_type)
+        # The sender's clock at publish (rmw_zenoh's source timestamp): what a command's age counts from.
+        sent_us = stamp.timestamp_ns // 1000 if stamp.timestamp_ns > 0 else None
+        message = Received(channel, payload, message_type=message_type, sent_us=sent_us)
         for deliver in delivers:
             deliver(message)
 
@@ -245,6 +248,18 @@ class Graph:
 
     def subscribers(self, topic: str, dds_type: str) -> int:
         return self._subscribers[topic, dds_type]
+
+    def offered(self, topic: str) -> list[Offered]:
+        """What each publisher on `topic` declares in its token (its reliability, durability, depth)."""
+        return [
+            Offered(
+                entity.qos.reliable,
+                entity.qos.transient_local,
+                0 if entity.qos.keep_all else entity.qos.depth,
+            )
+            for _, entity in self._publisher_topics()
+            if entity.topic == topic
+        ]
 
     def publishers(self) -> set[tuple[str, str, str]]:
         """(topic, DDS type name, type hash) of every publisher the graph knows."""

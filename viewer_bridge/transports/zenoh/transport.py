@@ -32,6 +32,7 @@ from viewer_bridge.errors import InvalidName, TransportUnavailable
 from viewer_bridge.shared import Shared
 from viewer_bridge.transports.base import (
     CDR,
+    DURABILITY,
     LCM,
     Deliver,
     Exposure,
@@ -43,6 +44,7 @@ from viewer_bridge.transports.base import (
     TransportSettings,
 )
 from viewer_bridge.transports.ros_names import namespace_problem, node_name_problem
+from viewer_bridge.transports.ros_qos import Offered, followed
 from viewer_bridge.transports.topic_types import EVERY, TopicTypes, found_in_graph
 from viewer_bridge.transports.zenoh import keys
 from viewer_bridge.util.extras import missing
@@ -136,6 +138,16 @@ def key_problem(name: str) -> str | None:
     if "" in key.split("/"):
         return "it has an empty part (// or a trailing /)"
     return None
+
+
+def following(asked: Qos, publishers: list[Offered]) -> Qos:
+    """The QoS a Zenoh subscription takes from its topic's publishers' tokens: the ROS 2 table
+    (`viewer_bridge.transports.ros_qos`), but that one which follows durability always asks the
+    publishers' caches. Zenoh matches every subscriber to every publisher, so there is nothing to
+    fall out with: rmw_zenoh's transient-local publishers answer with their history, the others
+    with nothing, and their live samples arrive either way."""
+    qos = followed(asked, publishers)
+    return dataclasses.replace(qos, latched=True) if DURABILITY in asked.follow else qos
 
 
 class ZenohTransport(Transport):
@@ -300,6 +312,7 @@ class ZenohTransport(Transport):
                 return
             delivers = self._topics[topic] = [deliver]
         resolved = self.resolve(topic)
+        qos = following(qos, self.graph.offered(resolved))
         topic_type = (
             _topic_type(message_type)
             if type_hash is None
@@ -324,6 +337,8 @@ class ZenohTransport(Transport):
                 for pattern, wanted, qos, deliver in self._patterns:
                     if not pattern.fullmatch(topic) or (wanted.name == EVERY and topic in own):
                         continue
+                    if qos.admits is not None and not qos.admits(topic):
+                        continue  # a topic no route would carry (a command channel not allowed) costs nothing
                     if found := self._types.pick(wanted, topic, announced):
                         self._subscribe_topic(
                             topic, found, qos, deliver, type_hash if wanted.name == EVERY else None
