@@ -83,6 +83,17 @@ def _run_demo(config: str, route: str, *more: str) -> Step:
                 rf" route {route}: in [1-9]\d* out [1-9]")  # fmt: skip
 
 
+def _demo_alone(expect: str, code: int = 0) -> Step:
+    """`viewer-bridge run --demo` with no -c: the built-in config's routes this one extra runs (or
+    its own built-in config), after one line naming what was left out and the extra that adds it;
+    with no extra of a transport, one line naming them (exit 2)."""
+    return Step(("run", "--demo", "--duration", "3", "--lcm-url", "LCM"), expect, code=code)
+
+
+NO_TRANSPORT = _demo_alone(
+    r"^viewer-bridge run: no built-in config can run: this install has none of their extras", 2
+)
+
 # The core first: its demo log (`viewer-bridge demo`, as the README's tour records it) is what the
 # rows after it read.
 DEMO_LOG = Step(("demo", "--url", "file://demo.lcmlog?mode=w", "--duration", "1"), r"")
@@ -102,17 +113,25 @@ ROWS: dict[str, Row] = {
         Row("foxglove", (DEMO_LOG, Step(("run", "-c", "builtin:foxglove", "--demo", "--duration", "6", "--lcm-url", "LCM",
                                          "--set", "foxglove.port=0"),
                                         r"Foxglove WebSocket server ws://127\.0\.0\.1:\d+(.|\n)*foxglove_scene in [1-9]"),
-                         Step(("convert", "demo.lcmlog", "demo.mcap"), r"wrote demo\.mcap: \d+ messages"))),
+                         Step(("convert", "demo.lcmlog", "demo.mcap"), r"wrote demo\.mcap: \d+ messages"),
+                         _demo_alone(r"the built-in config's 17 ROS 2 routes left out: they need rclpy, not installed: "
+                                     r"pip install 'viewer-bridge\[ros\]'(.|\n)* 6 routes running \("))),
         Row("zenoh", (Step(("run", "-c", "builtin:zenoh", "--demo", "--duration", "6", "--lcm-url", "LCM"),
                            # translated; no router here
-                           r"Zenoh client(.|\n)* route poses: in [1-9]\d* out [1-9]"),)),
-        Row("ign", (_run_demo("builtin:ign", "pose_v", "--set", "ign.ip=127.0.0.1"),)),
-        Row("render", (DEMO_LOG, Step(("snapshot", "demo.lcmlog", "demo.png"), r"wrote demo\.png: \d+ links?"))),
-        Row("rerun", (DEMO_LOG, Step(("convert", "demo.lcmlog", "demo.rrd"), r"wrote demo\.rrd: "))),
+                           r"Zenoh client(.|\n)* route poses: in [1-9]\d* out [1-9]"),
+                      _demo_alone(r"running -c builtin:zenoh, the built-in config of what is installed(.|\n)*"
+                                  r"route poses: in [1-9]\d* out [1-9]"))),
+        Row("ign", (_run_demo("builtin:ign", "pose_v", "--set", "ign.ip=127.0.0.1"),
+                    _demo_alone(r"running -c builtin:ign, the built-in config of what is installed"))),
+        Row("render", (DEMO_LOG, Step(("snapshot", "demo.lcmlog", "demo.png"), r"wrote demo\.png: \d+ links?"),
+                       NO_TRANSPORT)),
+        Row("rerun", (DEMO_LOG, Step(("convert", "demo.lcmlog", "demo.rrd"), r"wrote demo\.rrd: "),
+                      _demo_alone(r"running -c builtin:rerun, the built-in config of what is installed"))),
         Row("ros-build", (Step(("ros-interfaces", "install", "--yes"), r"tf2_msgs", timeout=1500),
                           Step(("ros-interfaces", "status"), r"tf2_msgs: installed"))),
         Row("drake", (Step(("example", "shapes", "--duration", "1", "--lcm-url", "file://shapes.lcmlog?mode=w"), r""),
-                      Step(("dump", "shapes.lcmlog", "--channel", "DRAKE_VIEWER_LOAD.*"), r"DRAKE_VIEWER_LOAD"))),
+                      Step(("dump", "shapes.lcmlog", "--channel", "DRAKE_VIEWER_LOAD.*"), r"DRAKE_VIEWER_LOAD"),
+                      NO_TRANSPORT)),
         Row("docs", (Step(("-m", "mkdocs", "--version"), r"mkdocs, version \d", python=True),)),
     ]
 }  # fmt: skip

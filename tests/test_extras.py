@@ -17,7 +17,7 @@ from viewer_bridge.util.extras import EXTRAS, missing, require
 
 # (the module made missing, the command line's arguments, the extra the message must name)
 COMMANDS = [
-    ("rclpy", ["run", "--duration", "1", "--set", "foxglove.port=0"], "ros"),
+    ("rclpy", ["run", "-c", "builtin:default", "--duration", "1", "--set", "foxglove.port=0"], "ros"),
     ("zmq", ["run", "-c", "builtin:ign", "--duration", "1"], "ign"),
     (
         "foxglove",
@@ -108,7 +108,7 @@ def test_the_built_in_config_with_ros_alone_leaves_its_foxglove_routes_out_sayin
         [sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120
     )
     assert result.returncode == 0, result.stderr
-    (said,) = [line for line in result.stderr.splitlines() if "Foxglove" in line]
+    (said,) = [line for line in result.stderr.splitlines() if "left out" in line]
     assert said.endswith("viewer-bridge: the built-in config's 6 Foxglove routes left out: they need foxglove, "
                          "not installed: pip install 'viewer-bridge[foxglove]'"), said  # fmt: skip
     assert "ROS 2 node /viewer_bridge)" in result.stderr and "Traceback" not in result.stderr, result.stderr
@@ -156,3 +156,49 @@ def test_one_extra_alone_runs_its_built_in_config(
     assert result.returncode == 0, result.stderr
     assert said.replace("OUT", names["OUT"]) in result.stdout + result.stderr, result
     assert "not installed" not in result.stderr and "Traceback" not in result.stderr, result.stderr
+
+
+# `run --demo` with no -c, in a venv of the core and one extra: the one line said, what then runs.
+ONE_EXTRA_DEMO = [
+    ("foxglove", "the built-in config's 17 ROS 2 routes left out: they need rclpy, not installed: "
+                 "pip install 'viewer-bridge[ros]'", r" route foxglove_\w+: in [1-9]|waiting for a subscriber: foxglove_"),
+    ("zenoh", "the built-in config's routes need rclpy and foxglove, not installed: pip install "
+              "'viewer-bridge[ros,foxglove]'; running -c builtin:zenoh, the built-in config of what is installed",
+     r" route poses: in [1-9]\d* out [1-9]"),
+    ("ign", "running -c builtin:ign, the built-in config of what is installed", r" route pose_v: in [1-9]\d* out [1-9]"),
+    ("rerun", "running -c builtin:rerun, the built-in config of what is installed", r"6 routes running \("),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("extra", "said", "works"), ONE_EXTRA_DEMO, ids=[case[0] for case in ONE_EXTRA_DEMO])
+def test_run_demo_with_one_extra_runs_what_it_can_and_says_what_it_left_out(
+    extra: str, said: str, works: str
+) -> None:
+    """One rule for every extra: the built-in config's routes that extra runs (or, with none left,
+    the built-in config of that extra), and one line naming what was left out and the extra that adds it."""
+    import re
+
+    code = (f"import sys\nfor name in {blocked_but(extra)!r}: sys.modules[name] = None\n"
+            "from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))")  # fmt: skip
+    arguments = ["run", "--demo", "--duration", "3", "--stats-period", "1", "--lcm-url", lcm_url(47)]
+    result = subprocess.run(
+        [sys.executable, "-c", code, *arguments], capture_output=True, text=True, timeout=120
+    )
+    assert result.returncode == 0, result.stderr
+    assert [line for line in result.stderr.splitlines() if "not installed" in line] == [
+        next(line for line in result.stderr.splitlines() if line.endswith(said))
+    ], result.stderr
+    assert re.search(works, result.stderr) and "Traceback" not in result.stderr, result.stderr
+
+
+def test_run_demo_with_no_extra_names_the_extras_in_one_line() -> None:
+    code = (f"import sys\nfor name in {sorted(EXTRAS)!r}: sys.modules[name] = None\n"
+            "from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))")  # fmt: skip
+    result = subprocess.run([sys.executable, "-c", code, "run", "--demo", "--duration", "3", "--lcm-url", lcm_url(48)],
+                            capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert result.returncode == 2 and not result.stdout, result
+    assert result.stderr == (
+        "viewer-bridge run: no built-in config can run: this install has none of their extras: pip install "
+        "'viewer-bridge[ros]' or 'viewer-bridge[foxglove]' for the default config, or [zenoh] for -c "
+        "builtin:zenoh, [rerun] for -c builtin:rerun, [ign] for -c builtin:ign\n"
+    )

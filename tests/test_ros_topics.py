@@ -142,6 +142,7 @@ def test_rclpy_topics_reach_lcm_as_lcm_gen_reads_them_and_only_those_named(
     probe = RosProbe("ros_topics_publisher")
     try:
         bridge.wait_for_line(" running (")
+        bridge.wait_for_line("ros_topics: /joint_states | /lab/.* from ros onto LCM")  # said at start
         joints = probe.publisher("/joint_states", JOINT_STATE)
         sample = probe.publisher("/lab/sample", SAMPLE)
         other = probe.publisher("/joint_states_other", JOINT_STATE)  # matches no pattern in full
@@ -163,6 +164,14 @@ def test_rclpy_topics_reach_lcm_as_lcm_gen_reads_them_and_only_those_named(
         assert "joint_states_other" not in recorder.messages
         assert other.get_subscription_count() == 0  # looked at every second, never taken
         assert wait_for(lambda: stats_of(stats).get("ros_topics_ros", {}).get("messages_out") == 2, 30)
+        # lcm_bus hears what the bridge itself wrote on LCM: its own message, not a type to add.
+        held = lambda: stats_of(stats).get("lcm_bus", {}).get("held", {})  # noqa: E731
+        assert wait_for(lambda: "joint_states" in held(), 30), bridge.lines[-10:]
+        assert set(held()["joint_states"]) == set(held()["lab/sample"]) == {"own_message"}, held()
+        unknown = [
+            line for line in bridge.lines if "names no known LCM type" in line and SYNC_CHANNEL not in line
+        ]
+        assert not unknown, unknown
     finally:
         probe.close()
         assert bridge.stop() == 0

@@ -242,3 +242,69 @@ def test_a_chunk_whose_crc_does_not_match_ends_the_readable_part(
     assert "bad.mcap: ValueError: a chunk's CRC-32 does not match its records" in damage_line(
         capsys.readouterr().err
     )
+
+
+def big_joint_states_mcap(path: Path, count: int, joints: int) -> None:
+    """`count` JointStates of `joints` joints each (one CDR message, written again and again: quick
+    to write, slow enough to convert that an interrupt comes midway)."""
+    from mcap.writer import Writer
+
+    store = typestore()
+    message = {**JOINTS, "name": [f"joint{i}" for i in range(joints)], "position": [0.5] * joints,
+               "velocity": [0.25] * joints, "effort": [1.0] * joints}  # fmt: skip
+    data = serialized("sensor_msgs/msg/JointState", message)
+    with path.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile="ros2")
+        msgdef = store.generate_msgdef("sensor_msgs/msg/JointState", ros_version=2)[0]
+        schema = writer.register_schema("sensor_msgs/msg/JointState", "ros2msg", msgdef.encode())
+        channel = writer.register_channel("/joint_states", "cdr", schema)
+        for index in range(count):
+            writer.add_message(channel, log_time=index * 1000, data=data, publish_time=index * 1000)
+        writer.finish()
+
+
+def test_ctrl_c_during_a_bag_convert_keeps_a_readable_partial_log_and_no_real_name(tmp_path: Path) -> None:
+    import re
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    bag, out = tmp_path / "big.mcap", tmp_path / "out.lcmlog"
+    partial = tmp_path / "out.lcmlog.partial"
+    big_joint_states_mcap(bag, 100_000, 200)
+    child = subprocess.Popen([sys.executable, "-m", "viewer_bridge", "convert", str(bag), str(out)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 120
+        while not partial.exists() and child.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert partial.exists(), child.communicate(timeout=60)
+        child.send_signal(signal.SIGINT)
+        _, stderr = child.communicate(timeout=60)
+    finally:
+        child.kill()
+    assert child.returncode == 130, stderr
+    said = rf"^viewer-bridge convert: interrupted: (\d+) messages written to {re.escape(str(partial))}$"
+    match = re.search(said, stderr, re.M)
+    assert match and "Traceback" not in stderr, stderr
+    assert len(list(read_log(partial))) == int(match.group(1)) < 100_000
+    assert not out.exists()
+
+
+def test_lcm_types_out_that_is_a_file_is_refused_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    write_bag(tmp_path / "bag.mcap")
+    afile, out = tmp_path / "afile", tmp_path / "out.lcmlog"
+    afile.write_text("mine\n")
+    assert main(["convert", str(tmp_path / "bag.mcap"), str(out), "--lcm-types-out", str(afile)]) == 2
+    assert capsys.readouterr().err == (
+        f"viewer-bridge convert: --lcm-types-out {afile}: {afile} is a file, not a folder: "
+        "give a folder to write into\n"
+    )
+    assert afile.read_text() == "mine\n" and sorted(tmp_path.iterdir()) == [afile, tmp_path / "bag.mcap"]
+    inside = afile / "types"  # a folder under a file cannot be made either
+    assert main(["convert", str(tmp_path / "bag.mcap"), str(out), "--lcm-types-out", str(inside)]) == 2
+    assert f"{afile}, in its path, is a file" in capsys.readouterr().err and not out.exists()

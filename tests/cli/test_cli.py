@@ -138,18 +138,40 @@ def test_a_log_cut_short_is_read_to_its_last_whole_event_with_a_warning(
 def test_run_without_the_ros_extra_names_the_install_that_fixes_it() -> None:
     # As `pip install viewer-bridge` without `[ros]`: rclpy cannot be imported.
     code = "import sys; sys.modules['rclpy'] = None; from viewer_bridge.cli.main import main; sys.exit(main(sys.argv[1:]))"
+    # The built-in config: its ROS 2 routes left out in one line naming the extra, the rest runs.
     result = subprocess.run(
         [sys.executable, "-c", code, "run", "--duration", "1", "--set", "foxglove.port=0"],
         capture_output=True,
         text=True,
         timeout=60,
     )
-    assert result.returncode == 2, result.stderr
-    assert (
-        "the ros transport needs rclpy" in result.stderr
-        and "pip install 'viewer-bridge[ros]'" in result.stderr
-    )
+    assert result.returncode == 0, result.stderr
+    assert "the built-in config's 17 ROS 2 routes left out: they need rclpy, not installed: pip install " \
+           "'viewer-bridge[ros]'" in result.stderr  # fmt: skip
     assert "Traceback" not in result.stderr
+    # A config named with -c runs as written, or stops naming what it lacks.
+    named = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            code,
+            "run",
+            "-c",
+            "builtin:default",
+            "--duration",
+            "1",
+            "--set",
+            "foxglove.port=0",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert named.returncode == 2, named.stderr
+    assert (
+        "the ros transport needs rclpy" in named.stderr and "pip install 'viewer-bridge[ros]'" in named.stderr
+    )
+    assert "Traceback" not in named.stderr
 
 
 # A built-in translator with a bug: it raises at construction, as a plugin's might.
@@ -446,6 +468,12 @@ MISTAKES = [
     # `run` cannot feed routes through a log that is only written.
     (["demo", "--url", "file://MISSING/x.lcmlog?mode=w"], "the folder MISSING does not exist"),
     (["run", "--demo", "--lcm-url", "file://TMP/x.lcmlog?mode=w"], "--demo: the routes would read the demo on"),
+    # Patterns that can never match: a ROS 2 topic without its leading /, an LCM channel with one.
+    (["run", "--ros-topics", "joint_states"], "argument --ros-topics: 'joint_states' can never match a ROS 2 "
+     "topic (every topic name starts with /): did you mean '/joint_states'?"),
+    (["run", "--ros-topics", "/imu|^joint_states"], "'joint_states' can never match a ROS 2 topic"),
+    (["run", "--allow-commands", "/lcm_in/IIWA_COMMAND"], "argument --allow-commands: '/lcm_in/IIWA_COMMAND' can "
+     "never match an LCM channel (a channel is named without a leading /): did you mean 'IIWA_COMMAND'?"),
 ]  # fmt: skip
 
 

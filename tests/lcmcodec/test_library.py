@@ -221,8 +221,24 @@ def test_the_folder_of_an_lcm_gen_package_is_imported_from_its_parent(
     assert arm.packed_fingerprint == library.get("lab.robot.arm_state_t").packed_fingerprint
     assert str(tmp_path) not in sys.path
     (tmp_path / "empty").mkdir()
-    with pytest.raises(SchemaError, match="is a folder with neither .lcm files nor an __init__.py"):
+    with pytest.raises(SchemaError, match="is a folder with no .lcm files, no __init__.py, and no lcm-gen'd"):
         TypeLibrary.load([str(tmp_path / "empty")], drake=False)
+
+
+def test_the_folder_lcm_gen_wrote_into_is_understood_by_its_bare_name(
+    tmp_path: Path, library: TypeLibrary, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`lcm-gen -p --ppath gen ...` then `--lcm-types gen`: its packages and loose modules, not a
+    module named gen."""
+    generate_lcmgen(tmp_path / "gen")
+    sys.path_importer_cache.clear()
+    for name in [name for name in sys.modules if name.split(".")[0] in ("lab", "plain_status_t")]:
+        del sys.modules[name]  # imported from another folder by an earlier test
+    monkeypatch.chdir(tmp_path)
+    from_folder = TypeLibrary.load(["gen"], drake=False)
+    for name in ("lab.robot.arm_state_t", "plain_status_t"):
+        assert from_folder.get(name).packed_fingerprint == library.get(name).packed_fingerprint
+    assert from_folder.get("plain_status_t").source == f"module plain_status_t in {tmp_path / 'gen'}"
 
 
 def test_types_of_one_shape_share_a_fingerprint_and_the_channel_picks_among_them() -> None:

@@ -77,6 +77,8 @@ def test_the_table_shows_busy_routes_with_rates_and_folds_the_quiet_ones() -> No
     waiting = re.search(r"waiting for a subscriber: tf in (\d+\.\d)/s \(idle_skipped 30\)", last)
     assert waiting and 0 < float(waiting.group(1)) <= 30 / 0.5, last
     assert "1 more route without traffic: empty" in last
+    # A row of a route that sends nothing says why, in the piped line's words.
+    assert "idle in the table: broken (idle: no subscriber, idle_skipped 0)" in last
     assert "transport errors: lcm: 3 dropped by kernel" in last  # words, not a dict
     legend = next(line for line in lines if line.startswith("legend: "))
     assert legend.startswith("legend: idle_skipped: not translated: nobody subscribes"), legend
@@ -159,7 +161,7 @@ def test_log_lines_show_routes_with_traffic_and_count_the_rest(caplog: Any) -> N
         "transport errors: zenoh: 4 unsent no router",
         "legend: superseded: a newer message on its channel came first (policy latest: the newest is sent); "
         "max_hz_skipped: superseded while the route waited out its rate.max_hz (by design); "
-        "unsent: given to a transport that could not send it (a Zenoh session with no router); "
+        "unsent: given to a transport that could not send it (a Zenoh session with no router, no Rerun viewer); "
         "idle_skipped: not translated: nobody subscribes (the newest per channel goes out when one does)",
     ]
 

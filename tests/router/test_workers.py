@@ -151,3 +151,29 @@ def test_ctrl_c_stops_every_worker_and_exits_130(tmp_path: Path, recorder: LcmRe
     assert wait_for(lambda: all(gone(process) for process in family)), [p for p in family if not gone(p)]
     # The workers stopped as asked (closing their routes and sending their last stats), not killed.
     assert not any("did not stop" in line or "died" in line for line in bridge.lines), "\n".join(bridge.lines)
+
+
+def test_ctrl_c_at_a_terminal_reaches_every_process_and_says_one_line(tmp_path: Path) -> None:
+    """A terminal's Ctrl-C goes to the whole process group, workers included: the parent alone
+    answers it, in one line, and nothing prints a traceback."""
+    import os
+    import subprocess
+    import sys
+
+    stats = tmp_path / "stats.json"
+    command = [sys.executable, "-m", "viewer_bridge", "run", "--demo", "--workers", "2", "-q",
+               "--set", "foxglove.port=0", "--stats-json", str(stats), "--stats-period", "1"]  # fmt: skip
+    # A session of its own: its process group is the bridge and its workers, as at a terminal.
+    bridge = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                              start_new_session=True)  # fmt: skip
+    try:
+        assert wait_for(lambda: stats.exists() or bridge.poll() is not None, 120), bridge.communicate()
+        family = psutil.Process(bridge.pid).children(recursive=True)
+        os.killpg(bridge.pid, signal.SIGINT)
+        _, stderr = bridge.communicate(timeout=60)
+    finally:
+        bridge.kill()
+    assert bridge.returncode == 130, stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
+    assert stderr.splitlines()[-1] == "viewer-bridge run: interrupted: 2 workers stopped", stderr
+    assert all(not process.is_running() or process.status() == psutil.STATUS_ZOMBIE for process in family)

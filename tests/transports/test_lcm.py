@@ -15,6 +15,7 @@ import pytest
 from tests.conftest import lcm_url
 from viewer_bridge.transports import lcm as lcm_transport
 from viewer_bridge.transports.lcm import LcmSettings, LcmTransport, with_receive_buffer
+from viewer_bridge.util.hints import DEBUG_ENV
 
 pytestmark = pytest.mark.e2e  # starts peers or bridges (`./dev test --stress N` repeats it)
 
@@ -35,17 +36,30 @@ def test_a_udpm_url_asks_for_a_large_buffer_capped_by_the_kernel_limit() -> None
     assert with_receive_buffer("memq://") == "memq://"
 
 
-def test_the_limit_is_explained_once_with_the_sysctl_to_raise_it(caplog: pytest.LogCaptureFixture) -> None:
-    lcm_transport._granted.cache_clear()
+def test_the_limit_is_explained_once_per_machine_with_the_sysctl_to_raise_it(
+    caplog: pytest.LogCaptureFixture, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))  # a machine that never gave the hint
+    monkeypatch.delenv(DEBUG_ENV, raising=False)
     wanted = rmem_max() * 2
-    with caplog.at_level("INFO", logger="viewer_bridge"):
-        with_receive_buffer("udpm://239.255.76.67:7667?ttl=0", wanted)
-        with_receive_buffer("udpm://239.255.76.67:7668?ttl=0", wanted)
-    advice = [record.getMessage() for record in caplog.records if "rmem_max" in record.getMessage()]
-    assert advice == [
+
+    def advice() -> list[str]:  # a run (a process) of its own each time
+        lcm_transport._granted.cache_clear()
+        caplog.clear()
+        with caplog.at_level("INFO", logger="viewer_bridge"):
+            with_receive_buffer("udpm://239.255.76.67:7667?ttl=0", wanted)
+            with_receive_buffer("udpm://239.255.76.67:7668?ttl=0", wanted)
+        return [record.getMessage() for record in caplog.records if "rmem_max" in record.getMessage()]
+
+    said = [
         f"LCM receive buffer: {wanted // 1024} kB asked, the kernel allows {rmem_max() // 1024} kB "
         f"(net.core.rmem_max); for fewer drops under load: sudo sysctl -w net.core.rmem_max={wanted}"
     ]
+    assert advice() == said
+    assert (tmp_path / "viewer-bridge" / "hints" / "rmem_max").is_file()
+    assert advice() == []  # the next run on this machine: not again
+    monkeypatch.setenv(DEBUG_ENV, "1")  # --debug: again
+    assert advice() == said
 
 
 def test_what_the_kernel_drops_is_counted_as_the_transports_error() -> None:

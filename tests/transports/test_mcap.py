@@ -135,9 +135,12 @@ def test_a_live_router_records_what_arrives_on_lcm(tmp_path: Path) -> None:
         while not mcap.messages and time.monotonic() < deadline:  # UDP may drop one: publish again
             bus.publish("DRAKE_VIEWER_DRAW", draw_of(small_scene(), 1.0))
             time.sleep(0.05)
+        # Until it is closed, the file is live.mcap.partial: no file under the name is ever cut short.
+        assert not path.exists() and (tmp_path / "live.mcap.partial").is_file()
     finally:
         router.close()
     after_us = time.time_ns() // 1000
+    assert not (tmp_path / "live.mcap.partial").exists()
     written = read(path)
     assert written and {topic for topic, *_ in written} == {"/poses"}
     assert all(before_us * 1000 <= log_time <= after_us * 1000 for _, _, log_time, _ in written)

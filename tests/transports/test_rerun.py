@@ -6,9 +6,12 @@ written, a port in use."""
 
 from __future__ import annotations
 
+import re
+import signal
 import socket
 import subprocess
 import sys
+import time
 from collections import Counter, defaultdict
 from datetime import timedelta
 from pathlib import Path
@@ -19,6 +22,7 @@ import pytest
 import rerun as rr
 from rerun.chunk import RrdReader
 
+from tests.conftest import lcm_url
 from viewer_bridge.cli.log_convert import convert
 from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import ConvertError, DecodeError, TransportUnavailable
@@ -340,3 +344,71 @@ def test_the_served_data_names_only_loopback_and_rerun_pages_for_cors(tmp_path: 
             assert preflight(origin) == (200, None)  # answered, but a browser keeps the page out
     finally:
         transport.close()
+
+
+def _bridge_to_viewer(port: int, *more: str) -> subprocess.Popen[str]:
+    """`run -c builtin:rerun --demo` to a viewer's URL on `port`, its stderr a pipe (as under a
+    script, where colour codes would be noise)."""
+    return subprocess.Popen(
+        [sys.executable, "-m", "viewer_bridge", "run", "-c", "builtin:rerun", "--demo", "--lcm-url", lcm_url(49),
+         "--stats-period", "1", "--set", f"rerun.connect=rerun+http://127.0.0.1:{port}/proxy", *more],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+
+
+def _lines_until(stream: Any, text: str, lines: list[str]) -> None:
+    for line in stream:
+        lines.append(line)
+        if text in line:
+            return
+    raise AssertionError("".join(lines))
+
+
+def test_no_viewer_is_said_at_start_counted_as_unsent_and_does_not_hold_up_the_stop() -> None:
+    bridge = _bridge_to_viewer(_free_port(), "--duration", "120")
+    lines: list[str] = []
+    try:
+        assert bridge.stderr is not None
+        _lines_until(bridge.stderr, "rerun: no viewer answers at rerun+http://127.0.0.1:", lines)
+        assert "start one with `rerun`" in lines[-1]
+        _lines_until(bridge.stderr, "transport errors: rerun: ", lines)  # a stats period with draws
+        assert re.search(r"route rerun_scene: in \d+ out (\d+) errors 0 unsent [1-9]", "".join(lines)), lines
+        assert re.search(r"transport errors: rerun: \d+ unsent no viewer$", lines[-1]), lines[-1]
+        bridge.send_signal(signal.SIGINT)
+        asked = time.monotonic()
+        rest = bridge.communicate(timeout=60)[1]
+        stopped = time.monotonic() - asked
+    finally:
+        bridge.kill()
+    said = "".join(lines) + rest
+    assert bridge.returncode == 0, said
+    # The SDK's client, left unconnected, would wait 5 s for a viewer (and say so in Rust's log).
+    assert stopped < 4, (stopped, said)
+    assert "\x1b[" not in said and "re_grpc_client" not in said and "Traceback" not in said, said
+
+
+def test_a_viewer_started_later_gets_what_was_kept_for_it(tmp_path: Path) -> None:
+    """`rerun --save FILE` is a viewer's gRPC server that writes what it receives: started after the
+    bridge, it gets the scene logged before it came, and the draws."""
+    port = _free_port()
+    bridge = _bridge_to_viewer(port, "--duration", "120")
+    received = tmp_path / "received.rrd"
+    lines: list[str] = []
+    viewer = None
+    try:
+        assert bridge.stderr is not None
+        _lines_until(bridge.stderr, "transport errors: rerun: ", lines)  # logged, and kept
+        viewer = subprocess.Popen([str(Path(sys.executable).parent / "rerun"), "--port", str(port), "--save",
+                                   str(received)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)  # fmt: skip
+        _lines_until(bridge.stderr, "rerun: a viewer answered at ", lines)
+        _lines_until(bridge.stderr, "route rerun_scene: ", lines)  # a period later
+        bridge.send_signal(signal.SIGINT)
+        bridge.communicate(timeout=60)
+    finally:
+        bridge.kill()
+        if viewer is not None:
+            viewer.terminate()
+            viewer.wait(timeout=60)
+    rows = rows_by_entity(received)
+    assert any(path.startswith("/drake/") and path != "/drake/transforms" for path in rows), sorted(rows)[:10]
+    assert len(rows["/drake/transforms"]) > 1

@@ -17,6 +17,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn
 
+from viewer_bridge.config.commands import channel_pattern_problem, topic_pattern_problem
 from viewer_bridge.errors import UsageError
 from viewer_bridge.transports.lcm_url import log_to_write
 
@@ -55,6 +56,20 @@ def regex(text: str) -> str:
         re.compile(text)
     except re.error as error:
         raise argparse.ArgumentTypeError(f"{text!r} is not a regular expression: {error}") from None
+    return text
+
+
+def topic_regex(text: str) -> str:
+    """A regular expression that can match a ROS 2 topic (none of its alternatives lacks the leading /)."""
+    if (problem := topic_pattern_problem(regex(text))) is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return text
+
+
+def channel_regex(text: str) -> str:
+    """A regular expression that can match an LCM channel a command reaches (none begins with /)."""
+    if (problem := channel_pattern_problem(regex(text))) is not None:
+        raise argparse.ArgumentTypeError(problem)
     return text
 
 

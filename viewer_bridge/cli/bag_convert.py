@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -35,11 +36,17 @@ def wanted(args: Any) -> bool:
     return True
 
 
-def run(args: Any) -> int:
+def run(args: Any, stop: threading.Event | None = None) -> int:
     """Convert; print messages per topic, then each topic left out and each with bad messages; a
     damaged bag (cut short, rows that hold no message) exits 1, having converted what it could."""
     result = bag_to_lcm(
-        args.log, args.mcap, topics=args.topics, lcm_types_out=args.lcm_types_out, force=args.force
+        args.log,
+        args.mcap,
+        topics=args.topics,
+        lcm_types_out=args.lcm_types_out,
+        force=args.force,
+        stop=stop,
+        progress=True,
     )
     for topic, channel in result.channels.items():
         print(f"{result.written[topic]:8d}  {topic} -> {channel}")

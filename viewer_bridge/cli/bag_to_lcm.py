@@ -11,17 +11,21 @@ that does not convert is counted per topic, not written, and the conversion goes
 from __future__ import annotations
 
 import re
+import threading
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from viewer_bridge.cli.bag_files import DirectReader, cut_reason
-from viewer_bridge.errors import ConvertError, DecodeError
+from viewer_bridge.errors import ConvertError, DecodeError, Interrupted
 from viewer_bridge.lcmcodec.from_ros import LcmFromRos, definitions_from_msgdef, lcm_channel, map_ros_types
 from viewer_bridge.lcmcodec.ros_cdr import compile_ros_encoders
 from viewer_bridge.transports.lcm import LcmEvent, write_log
+from viewer_bridge.util.partial import check_output_folder, partial_output
+from viewer_bridge.util.progress import progress as progress_of
 
 __all__ = ["BagConversion", "bag_to_lcm", "is_ros_bag"]
 
@@ -61,14 +65,24 @@ def is_ros_bag(path: str | Path) -> bool:
 
 
 def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, lcm_types_out: str | Path | None = None,
-               force: bool = False) -> BagConversion:  # fmt: skip
+               force: bool = False, stop: threading.Event | None = None,
+               progress: bool = False) -> BagConversion:  # fmt: skip
     """Convert the topics of `bag` (those whose name fully matches the regex `topics`, default all)
     into the LCM log `out`; write the `.lcm` files of their types under `lcm_types_out` if given.
-    Raises `ConvertError` before writing anything when `out` exists (unless `force`) or no topic maps.
+    Raises `ConvertError` before writing anything when `out` exists (unless `force`) or is a
+    folder, `lcm_types_out` cannot be a folder, or no topic maps. The log is written as
+    `out.partial` and renamed once complete (`util/partial.py`); `stop` set midway (Ctrl-C) ends
+    it there, keeps `out.partial` (a readable log) and raises `Interrupted`. `progress`: shown on
+    stderr (`util/progress.py`).
     A damaged bag is converted as far as it can be read: `result.cut` and `result.damaged` say what was not."""
     target = Path(out)
+    if target.is_dir():
+        raise ConvertError(f"{target} is a folder, not a file")
     if target.exists() and not force:
         raise ConvertError(f"{target} exists (--force replaces it)")
+    if lcm_types_out is not None:
+        check_output_folder(Path(lcm_types_out), "--lcm-types-out")
+    stop = stop or threading.Event()
     result = BagConversion()
     pattern = re.compile(topics) if topics is not None else None
     reader = _open(Path(bag))
@@ -84,17 +98,24 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
             raise ConvertError(f"no topic of {bag} maps onto LCM: {reasons}")
         encoders = compile_ros_encoders(mapping, dict.fromkeys(c.msgtype for c in chosen))
         by_id = {c.id: (c.topic, result.channels[c.topic], encoders[c.msgtype]) for c in chosen}
-        events = _events(_readable(reader, chosen, result), by_id, result)
-        write_log(target, events)
-        if result.cut is not None:
-            read = sum(result.written.values()) + sum(result.bad.values()) + sum(result.damaged.values())
-            result.cut += f"; the {read} messages before it are converted, the rest is lost"
+        total = sum(getattr(c, "msgcount", 0) for c in chosen) or None  # rosbags' counts; none read directly
+        shown = progress_of("viewer-bridge convert", "converting", total, lambda done: f"{done:,} messages")
+        with partial_output(target) as partial, shown if progress else nullcontext(_no_progress) as advance:
+            events = _events(_readable(reader, chosen, result), by_id, result, stop, advance)
+            write_log(partial, events)
+            if stop.is_set():
+                raise Interrupted(sum(result.written.values()), partial)
+            if result.cut is not None:
+                read = sum(result.written.values()) + sum(result.bad.values()) + sum(result.damaged.values())
+                result.cut += f"; the {read} messages before it are converted, the rest is lost"
+            if lcm_types_out is not None:  # the types of the topics written, and what they nest
+                keep = {
+                    mapping.structs[name].lcm_name for name in _nested(mapping, {c.msgtype for c in chosen})
+                }
+                mapping.texts = {name: text for name, text in mapping.texts.items() if name in keep}
+                result.lcm_files = mapping.write(Path(lcm_types_out))
     finally:
         reader.close()
-    if lcm_types_out is not None:  # the types of the topics written, and what they nest
-        keep = {mapping.structs[name].lcm_name for name in _nested(mapping, {c.msgtype for c in chosen})}
-        mapping.texts = {name: text for name, text in mapping.texts.items() if name in keep}
-        result.lcm_files = mapping.write(Path(lcm_types_out))
     return result
 
 
@@ -172,13 +193,24 @@ def _channels(connections: list[Any], refused: dict[str, str], result: BagConver
     return chosen
 
 
+def _no_progress(count: int) -> None:
+    pass
+
+
 def _events(
-    messages: Iterator[tuple[Any, Any, Any]], by_id: dict[int, Any], result: BagConversion
+    messages: Iterator[tuple[Any, Any, Any]],
+    by_id: dict[int, Any],
+    result: BagConversion,
+    stop: threading.Event,
+    advance: Callable[[int], None],
 ) -> Iterator[LcmEvent]:
     # per message; into `result` at the end
     counts = dict.fromkeys((topic for topic, _, _ in by_id.values()), 0)
     try:
         for connection, timestamp_ns, data in messages:
+            if stop.is_set():
+                break
+            advance(1)
             topic, channel, encoder = by_id[connection.id]
             # sqlite keeps any type in any column
             if type(timestamp_ns) is not int or type(data) not in _DATA:

@@ -60,9 +60,22 @@ def add_command(add: AddCommand) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Convert; print messages per topic, what was skipped, and what was written (exit 1 when
-    something asked for was not done)."""
-    if bag_convert.wanted(args):  # a ROS 2 bag into an LCM log
-        return bag_convert.run(args)
+    something asked for was not done; 130 when Ctrl-C stopped it, saying what it kept)."""
+    # Ctrl-C (or a SIGTERM) stops after the message being converted: the output is closed properly
+    # and kept as NAME.partial (viewer_bridge/util/partial.py), in either direction.
+    stop = threading.Event()
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, lambda *_: stop.set())
+    try:
+        if bag_convert.wanted(args):  # a ROS 2 bag into an LCM log
+            return bag_convert.run(args, stop)
+        return _from_lcm_log(args, stop)
+    except Interrupted as interrupted:
+        print(f"viewer-bridge convert: {interrupted}", file=sys.stderr)
+        return 130
+
+
+def _from_lcm_log(args: argparse.Namespace, stop: threading.Event) -> int:
     from viewer_bridge.cli.log_convert import checked_output, convert  # MCAP: the foxglove extra; .rrd: rerun
 
     logging.basicConfig(level=logging.INFO, format="%(message)s")
@@ -72,26 +85,18 @@ def run(args: argparse.Namespace) -> int:
     config = load_config(args.config or ("builtin:rerun" if written_as == "rrd" else None)).with_lcm_types(
         args.lcm_types
     )
-    # Ctrl-C (or a SIGTERM) stops after the message being converted: the MCAP is closed properly.
-    stop = threading.Event()
-    for signal_number in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signal_number, lambda *_: stop.set())
-    try:
-        done = convert(
-            args.log,
-            args.mcap,
-            config,
-            progress=sys.stderr.isatty(),
-            schema=args.schema,
-            force=args.force,
-            config_name=args.config or "the built-in config",
-            stop=stop,
-            lcm_channels=args.lcm_channels,
-            output=written_as,
-        )
-    except Interrupted as interrupted:
-        print(f"viewer-bridge convert: {interrupted}", file=sys.stderr)
-        return 130
+    done = convert(
+        args.log,
+        args.mcap,
+        config,
+        progress=True,  # a bar on a terminal, a line per tenth on a pipe (when it takes seconds)
+        schema=args.schema,
+        force=args.force,
+        config_name=args.config or "the built-in config",
+        stop=stop,
+        lcm_channels=args.lcm_channels,
+        output=written_as,
+    )
     for line in done.skipped_lines():
         print(f"viewer-bridge convert: {line}", file=sys.stderr)
     for topic, count in sorted(done.messages.items()):

@@ -32,12 +32,10 @@ import os
 import re
 import threading
 from collections import Counter
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
-
-from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
 from viewer_bridge.config.bridge import BridgeConfig, Endpoint, Route
 from viewer_bridge.errors import ConvertError, Interrupted
@@ -47,6 +45,8 @@ from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import LCM, MessageType, Received
 from viewer_bridge.transports.lcm import read_log
 from viewer_bridge.transports.registry import TRANSPORTS
+from viewer_bridge.util.partial import partial_output
+from viewer_bridge.util.progress import progress as progress_of
 
 if TYPE_CHECKING:
     from viewer_bridge.transports.mcap import Profile
@@ -160,32 +160,28 @@ def convert(
     writes = _distinct([_narrowed(route, lcm_channels) for route in fitting])
     if not writes:
         raise ConvertError(f"no route of {config_name} reads LCM and writes {sink.what}")
-    partial = target.with_name(target.name + ".partial")
-    errors = _RouteErrors()
-    router = Router(_into(config, writes, sink, partial), view=errors)
-    written = router.transports[sink.transport]
-    messages: Counter[str] = written.messages  # type: ignore[attr-defined]  # both file transports count
-    channels: set[str] = set()
     stop = stop or threading.Event()
-    try:
-        with _progress_bar(Path(log_path).stat().st_size, progress) as advance:
-            for event in itertools.chain([first] if first is not None else [], events):
-                if stop.is_set():
-                    break
-                channels.add(event.channel)
-                router.feed("lcm", Received(event.channel, event.data, event.timestamp_us))
-                advance(len(event.data) + len(event.channel) + 36)  # roughly one event record
-    except BaseException:
-        router.close()
-        partial.unlink(missing_ok=True)  # a failure midway leaves no file that looks like output
-        raise
-    router.close()  # the file complete; each route's errors reported
-    if stop.is_set():
-        raise Interrupted(sum(messages.values()), partial)
-    if sum(messages.values()):
-        os.replace(partial, target)
-    else:  # an empty file would look like a result
-        partial.unlink(missing_ok=True)
+    channels: set[str] = set()
+    with partial_output(target) as partial:  # removed on a failure, kept (Interrupted) on a stop
+        errors = _RouteErrors()
+        router = Router(_into(config, writes, sink, partial), view=errors)
+        written = router.transports[sink.transport]
+        messages: Counter[str] = written.messages  # type: ignore[attr-defined]  # both file transports count
+        try:
+            size = Path(log_path).stat().st_size
+            with _progress(size, progress) as advance:
+                for event in itertools.chain([first] if first is not None else [], events):
+                    if stop.is_set():
+                        break
+                    channels.add(event.channel)
+                    router.feed("lcm", Received(event.channel, event.data, event.timestamp_us))
+                    advance(len(event.data) + len(event.channel) + 36)  # roughly one event record
+        finally:
+            router.close()  # the file complete (or closed properly); each route's errors reported
+        if stop.is_set():
+            raise Interrupted(sum(messages.values()), partial)
+        if not sum(messages.values()):  # an empty file would look like a result
+            partial.unlink(missing_ok=True)
     chunks = dict(getattr(written, "chunks", {}))  # the rerun transport counts chunks per entity
     return Conversion(
         target, chosen, dict(messages), chunks, errors.skipped, tuple(sorted(channels)), lcm_channels
@@ -332,22 +328,9 @@ def _check_target(log_path: Path, target: Path, force: bool) -> None:
         raise ConvertError(f"{target} exists: give another output file, or --force to replace it")
 
 
-@contextlib.contextmanager
-def _progress_bar(total: int, shown: bool) -> Iterator[Callable[[int], None]]:
-    """A progress bar over `total` bytes (when `shown`); yields the function that advances it."""
-    columns = (
-        TextColumn("converting"),
-        BarColumn(),
-        TextColumn("{task.percentage:>3.0f}%"),
-        TimeRemainingColumn(),
-    )
-    with Progress(*columns, disable=not shown, transient=True) as bar:
-        task = bar.add_task("convert", total=total)
-        done = 0
-
-        def advance(size: int) -> None:
-            nonlocal done
-            done += size
-            bar.update(task, completed=min(done, total))
-
-        yield advance
+def _progress(total: int, shown: bool) -> contextlib.AbstractContextManager[Callable[[int], None]]:
+    """The conversion's progress over the log's `total` bytes (`util/progress.py`), when `shown`."""
+    if not shown:
+        return contextlib.nullcontext(lambda size: None)
+    return progress_of("viewer-bridge convert", "converting", total,
+                       lambda done: f"{done / 1e6:.1f} of {total / 1e6:.1f} MB of the log")  # fmt: skip

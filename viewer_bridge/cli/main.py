@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import importlib.metadata
 import itertools
+import os
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any, Protocol
@@ -27,6 +28,7 @@ from viewer_bridge.cli import (
 from viewer_bridge.cli.arguments import AddCommand, Parser, fail, split_ros_args
 from viewer_bridge.errors import BridgeError, UsageError
 from viewer_bridge.transports.ros_names import ros_argument_problem
+from viewer_bridge.util.hints import DEBUG_ENV
 
 
 class Command(Protocol):
@@ -119,11 +121,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         if problem := ros_argument_problem(flag, value):
             parser.exit(2, f"viewer-bridge run: --ros-args: {flag} {value}: {problem}\n")
     handler: Callable[[argparse.Namespace], int] = args.handler
+    if args.debug:  # every once-per-machine hint said again, in worker processes too
+        os.environ[DEBUG_ENV] = "1"
     try:
         return handler(args)
     except BridgeError as error:  # a mistake in what was given, or what this machine lacks: one line
         return fail(args.command, str(error))
-    except KeyboardInterrupt:  # Ctrl-C before a command's own handling of it: no traceback
+    except KeyboardInterrupt:  # Ctrl-C before a command's own handling of it: one line, no traceback
+        print(f"viewer-bridge {args.command}: interrupted", file=sys.stderr)
         return 130
     except Exception as error:  # a bug: said as one, with its traceback under --debug
         if args.debug:

@@ -24,7 +24,7 @@ from viewer_bridge.cli.arguments import (
     worker_count,
 )
 from viewer_bridge.cli.play_keys import keys
-from viewer_bridge.cli.run import _foxglove_unless_installed, _status_view, _with_setting
+from viewer_bridge.cli.run import _builtin_for_this_install, _status_view, _with_setting
 from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import UsageError
 from viewer_bridge.router.router import Router
@@ -102,10 +102,10 @@ def run(args: argparse.Namespace) -> int:
         index.close()
         raise
     try:
-        without = _foxglove_unless_installed() if args.config is None else None
-        config = load_config(args.config, without=without)
+        named, without = _builtin_for_this_install() if args.config is None else (args.config, [])
+        config = load_config(named, without=without)
         for setting in args.set:
-            config = _with_setting(config, setting, args.config)
+            config = _with_setting(config, setting, named)
         if "lcm" not in config.transports():
             raise UsageError(
                 f"no route of {args.config or 'the built-in config'} reads LCM: nothing to play to"

@@ -4,12 +4,14 @@ into the venv, shown, or generated for a colcon workspace."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from viewer_bridge.cli.arguments import AddCommand
 from viewer_bridge.errors import UsageError
+from viewer_bridge.util.progress import Steps, steps
 
 # What generate says when pydrake is missing: the project ships Drake's viewer and driver types
 # (lcmtypes/), the others come with pydrake.
@@ -59,13 +61,19 @@ def add_command(add: AddCommand) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Generate, install or show: the LCM types' packages with --lcm-types (or for generate),
-    else the Jazzy packages PyPI lacks (tf2_msgs)."""
+    else the Jazzy packages PyPI lacks (tf2_msgs). Each step (a package written, built) is a line;
+    on a terminal the build under way stays below with its running time (`util/progress.py`)."""
+    if args.action != "install":  # quick: each line as it comes
+        return _run(args, Steps(terminal=False))
+    with steps() as told:  # builds of a minute or more: the one under way stays below
+        return _run(args, told)
+
+
+def _run(args: argparse.Namespace, told: Steps) -> int:
     from viewer_bridge.ros_build import interfaces as ros_interfaces
     from viewer_bridge.router.status import counted
 
-    def say(line: str) -> None:
-        print(line, file=sys.stderr)
-
+    say = told.say
     if args.action == "generate":  # the LCM types' packages: the project's and Drake's, and --lcm-types'
         if args.output is None:
             raise UsageError("generate needs -o DIR")
@@ -79,7 +87,9 @@ def run(args: argparse.Namespace) -> int:
     if args.lcm_types:
         definitions = _lcm_ros_definitions(args.lcm_types)
         if args.action == "install":
-            ros_interfaces.build(definitions, log=say, only=args.names or None, confirm=_confirm(args.yes))
+            ros_interfaces.build(
+                definitions, log=say, only=args.names or None, confirm=_confirm(args.yes, told)
+            )
         else:
             chosen = ros_interfaces.packages(definitions)
             digests = ros_interfaces.digests(chosen)
@@ -100,11 +110,11 @@ def run(args: argparse.Namespace) -> int:
                 if name not in ros_interfaces.INTERFACES:
                     print(f"{name}: installed (LCM types) in {sys.prefix}")
         return 0
-    ros_interfaces.install(args.names or None, log=say, confirm=_confirm(args.yes))
+    ros_interfaces.install(args.names or None, log=say, confirm=_confirm(args.yes, told))
     return 0
 
 
-def _confirm(yes: bool) -> Callable[[Sequence[str]], bool]:
+def _confirm(yes: bool, told: Steps | None = None) -> Callable[[Sequence[str]], bool]:
     """What `install` asks before pip installs the wheels a build needs: yes with --yes; the user
     when standard input is a terminal; otherwise a refusal naming --yes (a script never installs
     about a hundred distributions unasked)."""
@@ -118,7 +128,8 @@ def _confirm(yes: bool) -> Callable[[Sequence[str]], bool]:
                 f"building needs {what}: run again with --yes to allow it, or pip install "
                 "'viewer-bridge[ros,ros-build]' first"
             )
-        answer = input(f"viewer-bridge ros-interfaces: {what}? [y/N] ")
+        with told.paused() if told is not None else contextlib.nullcontext():  # no spinner over the question
+            answer = input(f"viewer-bridge ros-interfaces: {what}? [y/N] ")
         return answer.strip().lower() in ("y", "yes")
 
     return confirm

@@ -13,11 +13,12 @@ from rich.console import Console
 
 from viewer_bridge.cli.arguments import (
     AddCommand,
+    channel_regex,
     lcm_source,
     lcm_types_option,
     output_file,
     positive,
-    regex,
+    topic_regex,
     worker_count,
 )
 from viewer_bridge.config.bridge import BUILTIN_CONFIGS, BridgeConfig, load_config
@@ -25,7 +26,7 @@ from viewer_bridge.config.commands import COMMAND_FLAG
 from viewer_bridge.errors import ConfigError, UsageError
 from viewer_bridge.examples.demo import run_demo
 from viewer_bridge.router.router import Router
-from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines, StatusView
+from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines, StatusView, counted
 from viewer_bridge.router.workers import Workers
 from viewer_bridge.transports.lcm import DEFAULT_URL
 from viewer_bridge.transports.lcm_url import log_to_write
@@ -65,7 +66,7 @@ def add_command(add: AddCommand) -> None:
         COMMAND_FLAG,
         action="append",
         default=[],
-        type=regex,
+        type=channel_regex,
         metavar="REGEX",
         help="LCM channels (a regular expression matched against the whole name) that ROS 2 and Foxglove "
         "may command by publishing on /lcm_in/<channel> (repeatable; default: none, nothing is written)",
@@ -74,7 +75,7 @@ def add_command(add: AddCommand) -> None:
         "--ros-topics",
         action="append",
         default=[],
-        type=regex,
+        type=topic_regex,
         metavar="REGEX",
         help="ROS 2 topics (a regular expression matched against the whole name, e.g. '/joint_states|/imu') "
         "to carry onto LCM, each on the channel named by the topic without its leading / (repeatable; "
@@ -115,9 +116,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     view = _status_view(args.quiet)
     try:
-        without = _foxglove_unless_installed() if args.config is None else None
+        named, without = _builtin_for_this_install() if args.config is None else (args.config, [])
         config = (
-            load_config(args.config, without=without)
+            load_config(named, without=without)
             .with_lcm_types(args.lcm_types)
             .allowing_commands(args.allow_commands)
             .with_ros_topics(args.ros_topics)
@@ -125,9 +126,9 @@ def run(args: argparse.Namespace) -> int:
         if args.lcm_url:
             config = config.with_settings("lcm", url=args.lcm_url)
         for setting in args.set:
-            config = _with_setting(config, setting, args.config)
+            config = _with_setting(config, setting, named)
         if args.ros_args:
-            _uses(config, "ros", "--ros-args", args.config)
+            _uses(config, "ros", "--ros-args", named)
             config = config.with_settings("ros", ros_args=args.ros_args)
         if args.demo and log_to_write(_lcm_url(config)):
             raise UsageError(
@@ -164,37 +165,68 @@ def run(args: argparse.Namespace) -> int:
         stop_demo.set()
         if demo is not None:
             demo.join(timeout=2)
-    return 130 if isinstance(router, Workers) and signal.SIGINT in signals else 0
+    if isinstance(router, Workers) and signal.SIGINT in signals:  # every worker stopped and waited for
+        print(
+            f"viewer-bridge run: interrupted: {counted(len(router.processes()), 'worker')} stopped",
+            file=sys.stderr,
+        )
+        return 130
+    return 0
 
 
-def _foxglove_unless_installed() -> str | None:
-    """The built-in config serves ROS 2 and Foxglove. With `[ros]` alone, its Foxglove routes are
-    left out ("foxglove", said in one line naming the extra) and ROS 2 is served; a config the
-    user names (`-c`) runs as written, or stops naming what it lacks."""
+# The transports' names in the line that says which routes were left out.
+_SAID = {"ros": "ROS 2", "foxglove": "Foxglove", "zenoh": "Zenoh", "rerun": "Rerun", "ign": "ign-transport"}
+# The built-in configs tried, in order, when the default one has no route this install can run.
+_FALLBACKS = ("foxglove", "zenoh", "rerun", "ign")
+
+
+def _builtin_for_this_install() -> tuple[str | None, list[str]]:
+    """The built-in config to run when none is named (`-c`), and the transports to leave out of it.
+
+    One rule for every extra: the default config's routes on a transport whose extra is not
+    installed are left out, said in one line naming them and the extra that adds them. When none is
+    left (`[zenoh]` alone, say), the first built-in config whose every transport is installed runs
+    instead, said in one line; with none (the core alone), a `MissingExtra` names the extras. A
+    config the user names runs as written, or stops naming what it lacks."""
     from viewer_bridge.config.bridge import routes_on
-    from viewer_bridge.util.extras import EXTRAS
+    from viewer_bridge.util.extras import TRANSPORT_EXTRAS, lacking
 
-    lacking = [module for module, extra in EXTRAS.items() if extra == "foxglove" and not _importable(module)]
-    if not lacking:
-        return None
     routes = yaml.safe_load(BUILTIN_CONFIGS["default"])["routes"]
-    logging.getLogger(__name__).warning(
-        "viewer-bridge: the built-in config's %d Foxglove routes left out: they need %s, not installed: "
-        "pip install 'viewer-bridge[foxglove]'",
-        sum(routes_on(route, "foxglove") for route in routes),
-        lacking[0],
+    used = dict.fromkeys(
+        end["transport"] for route in routes for end in (route["source"], route["destination"])
     )
-    return "foxglove"
-
-
-def _importable(module: str) -> bool:
-    """Whether `module` can be found (one made missing, `sys.modules[name] = None`, counts as absent)."""
-    import importlib.util
-
-    try:
-        return importlib.util.find_spec(module) is not None
-    except (ImportError, ValueError):
-        return False
+    absent = {name: module for name in used if (module := lacking(name)) is not None}
+    if not absent:
+        return None, []
+    kept = [route for route in routes if not any(routes_on(route, name) for name in absent)]
+    extras = ",".join(dict.fromkeys(TRANSPORT_EXTRAS[name] for name in absent))
+    needs = f"{' and '.join(absent.values())}, not installed: pip install 'viewer-bridge[{extras}]'"
+    say = logging.getLogger(__name__).warning
+    if kept:
+        dropped = " and ".join(
+            f"{sum(routes_on(route, name) for route in routes)} {_SAID.get(name, name)} routes"
+            for name in absent
+        )
+        say("viewer-bridge: the built-in config's %s left out: they need %s", dropped, needs)
+        return None, list(absent)
+    for name in _FALLBACKS:
+        document = yaml.safe_load(BUILTIN_CONFIGS[name])
+        wanted = {
+            end["transport"]
+            for route in document["routes"]
+            for end in (route["source"], route["destination"])
+        }
+        if all(lacking(transport) is None for transport in wanted):
+            say("viewer-bridge: the built-in config's routes need %s; running -c builtin:%s, the built-in "
+                "config of what is installed", needs, name)  # fmt: skip
+            return f"builtin:{name}", []
+    others = [name for name in _FALLBACKS if name != "foxglove"]
+    raise UsageError(
+        "no built-in config can run: this install has none of their extras: pip install "
+        + " or ".join(f"'viewer-bridge[{TRANSPORT_EXTRAS[name]}]'" for name in absent)
+        + " for the default config, or "
+        + ", ".join(f"[{name}] for -c builtin:{name}" for name in others)
+    )
 
 
 def _status_view(quiet: bool) -> StatusView:

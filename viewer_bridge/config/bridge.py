@@ -28,6 +28,7 @@ translator reads and writes. Mistakes are `ConfigError`s with file, line and key
 
 from __future__ import annotations
 
+import difflib
 import re
 import string
 from collections.abc import Mapping, Sequence
@@ -45,7 +46,7 @@ from pydantic import (
     model_validator,
 )
 
-from viewer_bridge.config.commands import CommandPolicy, regular_expressions
+from viewer_bridge.config.commands import CommandPolicy, checked, topic_pattern_problem
 from viewer_bridge.config.resources import data_dir
 from viewer_bridge.config.yamldoc import KeyPath, YamlDocument
 from viewer_bridge.errors import ConfigError, InvalidName, UnknownName
@@ -154,7 +155,7 @@ class BridgeConfig(BaseModel):
     @field_validator("ros_topics")
     @classmethod
     def _regular_expressions(cls, patterns: list[str]) -> list[str]:
-        return regular_expressions(patterns)
+        return checked(patterns, topic_pattern_problem)
 
     @model_validator(mode="after")
     def _check(self, info: ValidationInfo) -> BridgeConfig:
@@ -442,9 +443,9 @@ BUILTIN_CONFIGS = _builtin_configs()
 DEFAULT_CONFIG = BUILTIN_CONFIGS["default"]
 
 
-def load_config(path: str | Path | None, *, without: str | None = None) -> BridgeConfig:
+def load_config(path: str | Path | None, *, without: Sequence[str] = ()) -> BridgeConfig:
     """The config in `path` (`builtin:NAME` for a built-in one), or the built-in default;
-    `without` a transport, the config less its routes on that transport and its section.
+    `without` transports, the config less its routes on those transports and their sections.
 
     Raises `ConfigError` with file:line:field.
     """
@@ -458,11 +459,30 @@ def load_config(path: str | Path | None, *, without: str | None = None) -> Bridg
         document = YamlDocument.read(path)
     if not isinstance(document.data, dict):
         raise ConfigError(document.path, 1, "", "the config must be a mapping with a 'routes' list")
-    if without is not None:
-        data = {key: value for key, value in document.data.items() if key != without}
-        data["routes"] = [route for route in data.get("routes") or [] if not routes_on(route, without)]
+    _check_top_level_keys(document)
+    if without:
+        data = {key: value for key, value in document.data.items() if key not in without}
+        data["routes"] = [
+            route for route in data.get("routes") or [] if not any(routes_on(route, name) for name in without)
+        ]
         document.data = data
     return document.validate(BridgeConfig, context={"document": document})
+
+
+def _check_top_level_keys(document: YamlDocument) -> None:
+    """A top-level key that is a misspelling of a config key or a transport (`rouets:`) is named,
+    with the key it means, before the check of the rest (which would say `routes: Field required`)."""
+    keys = list(BridgeConfig.model_fields)
+    transports = TRANSPORTS.names()
+    for key in document.data:
+        if isinstance(key, str) and key not in keys and key not in transports:
+            close = difflib.get_close_matches(key, [*keys, *transports], n=1)
+            if close:
+                raise document.error(
+                    (key,),
+                    f"unknown key {key!r} (did you mean {close[0]!r}?); known keys: {', '.join(keys)}, "
+                    f"and a transport's section ({', '.join(transports)})",
+                )
 
 
 def routes_on(route: Any, transport: str) -> bool:

@@ -21,7 +21,7 @@ LCM never changes it, so no sender on the bus can take a command's name (`channe
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from functools import cached_property
 from typing import TypeVar
 
@@ -72,6 +72,63 @@ def regular_expressions(patterns: Patterns) -> Patterns:
     return patterns
 
 
+def alternatives(pattern: str) -> list[str]:
+    """The top-level alternatives of a regex (`a|(b|c)|[|]` -> `a`, `(b|c)`, `[|]`), each
+    without a leading `^` (a full match anchors anyway)."""
+    parts, depth, start, index, in_class = [], 0, 0, 0, False
+    while index < len(pattern):
+        char = pattern[index]
+        if char == "\\":
+            index += 1  # the escaped character is no operator
+        elif in_class:
+            in_class = char != "]" or pattern[index - 1] == "["
+        elif char == "[":
+            in_class = True
+        elif char == "(":
+            depth += 1
+        elif char == ")":
+            depth -= 1
+        elif char == "|" and depth == 0:
+            parts.append(pattern[start:index])
+            start = index + 1
+        index += 1
+    parts.append(pattern[start:])
+    return [part.removeprefix("^") for part in parts]
+
+
+def topic_pattern_problem(pattern: str) -> str | None:
+    """Why a ROS 2 topic regex (`--ros-topics`, `ros_topics:`) can never match a topic, or None:
+    an alternative that begins with a name's character, where every ROS 2 topic begins with `/`."""
+    for part in alternatives(pattern):
+        if re.match(r"[A-Za-z0-9_~]", part):
+            meant = "/" + part.removeprefix("~")
+            return f"{part!r} can never match a ROS 2 topic (every topic name starts with /): did you mean {meant!r}?"
+    return None
+
+
+def channel_pattern_problem(pattern: str) -> str | None:
+    """Why an LCM channel regex (`--allow-commands`, `commands.allow`) can never match a channel a
+    command can reach, or None: an alternative that begins with `/`, a ROS 2 topic's way of
+    naming (the way back's topic `/lcm_in/<channel>` names the channel after `/lcm_in/`)."""
+    for part in alternatives(pattern):
+        if part.startswith("/"):
+            channel = part.removeprefix("/lcm_in/").lstrip("/")
+            return (
+                f"{part!r} can never match an LCM channel (a channel is named without a leading /): "
+                f"did you mean {channel!r}?"
+            )
+    return None
+
+
+def checked(patterns: Patterns, problem: Callable[[str], str | None]) -> Patterns:
+    """`patterns`, each a regular expression with no `problem`: a ValueError naming the first that
+    has one (a config's validators turn it into a ConfigError with its line)."""
+    for pattern in regular_expressions(patterns):
+        if (found := problem(pattern)) is not None:
+            raise ValueError(found)
+    return patterns
+
+
 class CommandPolicy(BaseModel):
     """A config's `commands:` section."""
 
@@ -86,7 +143,7 @@ class CommandPolicy(BaseModel):
     @field_validator("allow")
     @classmethod
     def _regular_expressions(cls, allow: tuple[str, ...]) -> tuple[str, ...]:
-        return regular_expressions(allow)
+        return checked(allow, channel_pattern_problem)
 
     @cached_property
     def _allowed(self) -> tuple[re.Pattern[str], ...]:

@@ -18,6 +18,7 @@ from typing import Any
 
 from viewer_bridge.errors import SchemaError
 from viewer_bridge.lcmcodec.schema import StructDef, constant_problem, fingerprint, name_problem, parse_lcm
+from viewer_bridge.util.partial import write_whole
 
 __all__ = [
     "LENGTH_SUFFIX",
@@ -94,7 +95,7 @@ class LcmFromRos:
             package, name = full_name.split(".")
             path = folder / package / f"{name}.lcm"
             path.parent.mkdir(parents=True, exist_ok=True)
-            path.write_text(text)
+            write_whole(path, text)  # a file under its name is always whole
             written.append(path)
         return written
 

@@ -239,8 +239,15 @@ class TypeLibrary:
                 _merge(structs, load_lcm_files(files))
             elif path.is_dir() and (path / "__init__.py").is_file() and path.name.isidentifier():
                 modules.append((path.name, path.resolve().parent))  # an lcm-gen'd package's folder
-            elif path.is_dir() and not _looks_like_module(source):
-                raise SchemaError(source, 0, "is a folder with neither .lcm files nor an __init__.py")
+            elif path.is_dir() and (generated := _generated_modules(path)):
+                modules.extend((name, path.resolve()) for name in generated)  # lcm-gen -p's --ppath
+            elif path.is_dir():
+                raise SchemaError(
+                    source,
+                    0,
+                    "is a folder with no .lcm files, no __init__.py, and no lcm-gen'd Python "
+                    "package or module in it (lcm-gen -p --ppath FOLDER writes FOLDER/<package>/)",
+                )
             elif path.is_file():
                 _merge(structs, load_lcm_files([path]))
             elif _looks_like_module(source):
@@ -396,6 +403,16 @@ def _difference(here: StructDef, there: StructDef) -> str:
 def _declaration(member: Member) -> str:
     """A member as a .lcm file declares it: `tlp.list items[n]`."""
     return f"{member.type_name} {member.name}" + "".join(f"[{dim.size}]" for dim in member.dims)
+
+
+def _generated_modules(folder: Path) -> list[str]:
+    """What `lcm-gen --python --ppath folder` wrote there, by import name: a package per LCM
+    package (a folder with an `__init__.py`), a module per type of no package (`foo_t.py`)."""
+    packages = [child.name for child in sorted(folder.iterdir())
+                if child.is_dir() and child.name.isidentifier() and (child / "__init__.py").is_file()]  # fmt: skip
+    loose = [child.stem for child in sorted(folder.glob("*.py"))
+             if child.stem.isidentifier() and "_get_packed_fingerprint" in child.read_text(errors="replace")]  # fmt: skip
+    return packages + loose
 
 
 def _looks_like_module(source: str) -> bool:

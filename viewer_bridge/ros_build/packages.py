@@ -12,6 +12,7 @@ from rosbags.typesys import get_types_from_msg
 from viewer_bridge.errors import RosInterfaceError
 from viewer_bridge.lcmcodec.rosnames import MESSAGE_PATTERN, PACKAGE_PATTERN
 from viewer_bridge.ros_build.messages import INTERFACES, message_text, named_type
+from viewer_bridge.util.partial import write_whole
 
 __all__ = [
     "GENERATED_MARK", "WHEEL_INCLUDES_CMAKE", "Package", "check_writable_package", "closure", "cmake_lists",
@@ -202,15 +203,16 @@ def write_package(package: Package, folder: Path) -> Path:
     of a type the package no longer has, from an earlier run, is removed), and the mark that lets
     a later run do so (`check_writable_package` must pass first)."""
     (folder / "msg").mkdir(parents=True, exist_ok=True)
-    (folder / GENERATED_MARK).write_text(_MARK_TEXT)
-    (folder / "package.xml").write_text(package_xml(package))
-    (folder / "CMakeLists.txt").write_text(cmake_lists(package))
+    # each file through its .partial (util/partial.py): a stop midway leaves no file cut short
+    write_whole(folder / GENERATED_MARK, _MARK_TEXT)
+    write_whole(folder / "package.xml", package_xml(package))
+    write_whole(folder / "CMakeLists.txt", cmake_lists(package))
     wanted = {f"{message}.msg" for message, _ in package.messages}
     for stale in (folder / "msg").glob("*.msg"):
         if stale.name not in wanted:
             stale.unlink()
     for message, text in package.messages:
-        (folder / "msg" / f"{message}.msg").write_text(text)
+        write_whole(folder / "msg" / f"{message}.msg", text)
     return folder
 
 

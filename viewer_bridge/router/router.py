@@ -30,7 +30,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from viewer_bridge.config.bridge import BridgeConfig, Route
+from viewer_bridge.config.bridge import ROS_TOPICS_TRANSLATOR, BridgeConfig, Route
 from viewer_bridge.config.commands import COMMAND_FLAG, CommandPolicy
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.router import stats
@@ -215,13 +215,26 @@ class Router:
             transport.start()
         where = ", ".join(transport.describe() for transport in self.transports.values())
         log.info("viewer-bridge: %s running (%s)", counted(len(self.routes), "route"), where)
+        self._say_ros_topics()
         self._say_commands()
+
+    def _say_ros_topics(self) -> None:
+        """One line naming the ROS 2 topics `ros_topics` carries onto LCM, and from where."""
+        if not self.config.ros_topics:
+            return
+        graphs = [runner.route.source.transport for runner in self.routes
+                  if runner.route.translator == ROS_TOPICS_TRANSLATOR]  # fmt: skip
+        log.info("viewer-bridge: ros_topics: %s from %s onto LCM, each on its topic's name without the leading /",
+                 " | ".join(self.config.ros_topics), ", ".join(dict.fromkeys(graphs)) or "no ROS graph")  # fmt: skip
 
     def _say_commands(self) -> None:
         """One line naming what may be commanded and from where, when routes write commands, and
         each source's warning when commands can come from past this machine."""
         sources = [runner.route.source.transport for runner in self.routes if runner.commands is not None]
         if not sources:
+            if self.config.commands.allow:  # allowed, and nothing could ever write them
+                log.warning("viewer-bridge: commands: %s allowed, but no route of the config writes LCM "
+                            "(ros_to_lcm): nothing will be commanded", self.config.commands.describe())  # fmt: skip
             return
         policy = self.config.commands
         if not policy.allow:

@@ -211,6 +211,7 @@ class RouteRunner:
         # By full name and type: lanes may share a topic, a channel's type may change (any LCM type).
         self._publishers: dict[tuple[str, MessageType], Publisher] = {}
         self._said = SaidOnce() if said is None else said  # a held (channel, kind) said once
+        self._own_channels: set[str] = set()  # where the bridge's own messages came back to this route
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"route {route.name}", daemon=True)
         self._logged: Counter[str] = Counter()
@@ -240,6 +241,8 @@ class RouteRunner:
         except Exception:  # a name the template cannot make: offered, and counted where it is made
             back_where = None
         if back_where != origin:
+            if len(self._own_channels) < MAX_HELD_CHANNELS:  # bounded: a flood of names is not kept
+                self._own_channels.add(received.channel)
             self.offer(received)  # a copy elsewhere (LCM X -> /lcm/X beside /lcm_in/X -> X): no loop
             return
         self.stats.messages_in += 1
@@ -508,7 +511,13 @@ class RouteRunner:
                 self._count(self.stats.warnings, "skipped_geometry", f"{message.channel}: {part}")
 
     def _held(self, message: Message, held: Held) -> None:
-        """A message held back on purpose: counted per channel and kind, said once per both."""
+        """A message held back on purpose: counted per channel and kind, said once per both. A
+        channel the bridge itself writes (`--ros-topics`' outputs, of LCM types it makes from ROS 2
+        types) is its own message however unknown its type: nothing for the user to fix."""
+        if held.kind == "unknown_type" and message.channel in self._own_channels:
+            held = Held(
+                "own_message", f"the bridge's own message (it writes {message.channel}): not copied back"
+            )
         self._tell_source(message, held)
         self._count_held(message.channel, held)
 
@@ -517,7 +526,8 @@ class RouteRunner:
             channel = OTHER_CHANNELS
         self.stats.held.setdefault(channel, Counter())[held.kind] += 1
         if self._said.first(channel, held.kind):
-            log.warning(
+            log.log(
+                logging.INFO if held.kind == "own_message" else logging.WARNING,  # by design, not a problem
                 "route %s: %s: %s (%s; counted, not said again)",
                 self.route.name,
                 channel,

@@ -91,7 +91,7 @@ LEGEND = {
     "superseded": "a newer message on its channel came first (policy latest: the newest is sent)",
     "mailbox_full": "the oldest waiting message pushed out (policy all: qos.depth was full)",
     "max_hz_skipped": "superseded while the route waited out its rate.max_hz (by design)",
-    "unsent": "given to a transport that could not send it (a Zenoh session with no router)",
+    "unsent": "given to a transport that could not send it (a Zenoh session with no router, no Rerun viewer)",
     "qos_incompatible": "a peer whose QoS cannot match the route's (nothing passes between them; the log says the fix)",
     "idle_skipped": "not translated: nobody subscribes (the newest per channel goes out when one does)",
     "stale": "older than max_age_ms when it would be sent",
@@ -127,6 +127,16 @@ def waiting_line(
         f"{name} in {rates[name][0]:.1f}/s (idle_skipped {routes[name]['idle_skipped']})" for name in names
     )
     return f"waiting for a subscriber: {', '.join(each)}"
+
+
+def idle_state(stats: dict[str, Any]) -> str:
+    """Why a lazy route sends nothing, as its line says it: `idle: no subscriber, idle_skipped 218`."""
+    return f"{stats['state']}, idle_skipped {stats['idle_skipped']}"
+
+
+def idle_line(routes: dict[str, dict[str, Any]], names: list[str]) -> str:
+    """The table's rows of idle routes, each with why, in the words of the piped lines."""
+    return "idle in the table: " + ", ".join(f"{name} ({idle_state(routes[name])})" for name in names)
 
 
 def quiet_line(routes: dict[str, dict[str, Any]], names: list[str], listed: bool) -> str:
@@ -205,9 +215,7 @@ class LogLines:
                 losses_of(stats),
                 _ms(latency["p50"]),
                 _ms(latency["p99"]),
-                f" ({stats['state']}, idle_skipped {stats['idle_skipped']})"
-                if stats["state"] != "active"
-                else "",
+                f" ({idle_state(stats)})" if stats["state"] != "active" else "",
                 f" held: {held}" if (held := held_of(stats)) else "",
             )
         if waiting := [name for name, stats in routes.items() if is_waiting(stats)]:
@@ -296,6 +304,8 @@ class LiveTable:
         title = (f"viewer-bridge: {counted(len(routes), 'route')} "
                  f"(rates over the last {self._rates.elapsed:.1f} s; latency in ms)")  # fmt: skip
         parts: list[Any] = [self._table(title, {name: routes[name] for name in shown}, rates)]
+        if idle := [name for name in shown if routes[name]["state"] != "active"]:  # why a row sends nothing
+            parts.append(Text(idle_line(routes, idle)))
         if waiting := [name for name, stats in routes.items() if is_waiting(stats)]:
             parts.append(Text(waiting_line(routes, waiting, rates)))
         if quiet := [name for name in routes if name not in shown and name not in waiting]:

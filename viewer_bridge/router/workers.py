@@ -254,6 +254,10 @@ class Workers:
         self.report()
         self.view.close()
 
+    def processes(self) -> list[int]:
+        """The worker slots (one process each while running), by index."""
+        return [worker.index for worker in self._workers]
+
     def snapshot(self) -> dict[str, Any]:
         """Every worker's last stats as one router's: routes in the config's order, the transports'
         error counts summed, and the restarts as the errors of `workers`."""
@@ -294,6 +298,9 @@ class _Sender:
 
 def _serve(index: int, config: BridgeConfig, stats_period: float, connection: Connection, level: int) -> None:
     """A worker process: its routes' router, until SIGTERM or its parent ends."""
+    # Ctrl-C reaches the whole process group: the parent alone answers it (it stops its workers
+    # with SIGTERM), so a worker ignores it for good, whatever a library unblocks or installs.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     logging.basicConfig(level=level, format=f"%(asctime)s worker {index}: %(message)s", datefmt="%H:%M:%S")
     try:
         router = Router(config, stats_period=stats_period, view=_Sender(connection))

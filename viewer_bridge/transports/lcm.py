@@ -28,6 +28,7 @@ from viewer_bridge.transports.lcm_playback import LogPlayer
 from viewer_bridge.transports.lcm_url import log_to_write
 from viewer_bridge.transports.playback import Timelines
 from viewer_bridge.util.channels import ChannelPattern
+from viewer_bridge.util.hints import first_time
 
 _log = logging.getLogger("viewer_bridge")
 # LCM's default (ttl=0 never leaves the host), or LCM_DEFAULT_URL as LCM's own tools read it, so
@@ -149,7 +150,7 @@ def with_receive_buffer(url: str, wanted: int = RECEIVE_BUFFER) -> str:
     The kernel's default (about 200 kB) holds three 1000-link draws: a burst, or a moment of a
     busy core, and the kernel drops datagrams before LCM sees them. The request is capped at
     `net.core.rmem_max`, the most the kernel grants (LCM would warn on every start otherwise);
-    when that is less than `wanted`, this says once how to raise it.
+    when that is less than `wanted`, this says how to raise it, once per machine (`util/hints.py`).
     """
     if not url.startswith("udpm://") or "recv_buf_size=" in url:
         return url
@@ -162,7 +163,7 @@ def _granted(wanted: int) -> int:
         allowed = int(_RMEM_MAX.read_text())
     except (OSError, ValueError):
         return wanted
-    if allowed < wanted:
+    if allowed < wanted and first_time("rmem_max"):  # once per machine (or under --debug)
         _log.info(
             "LCM receive buffer: %d kB asked, the kernel allows %d kB (net.core.rmem_max); for fewer "
             "drops under load: sudo sysctl -w net.core.rmem_max=%d",

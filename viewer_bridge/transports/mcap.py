@@ -18,10 +18,13 @@ clock (the config's `time:`): by default the receive time of the message it was 
 (`MessageTime`): the log's time when `convert` feeds the router a log, the bus's receive time
 live; with `time: sim`, Drake's sim time (the newest draw's, `Clock`). So a route whose destination is this transport
 records a live session, and `convert` is a router whose routes all end here.
+The file is written as `PATH.partial` and renamed to `PATH` when the transport closes, as every
+writer does.
 """
 
 from __future__ import annotations
 
+import os
 import threading
 from collections import Counter
 from collections.abc import Iterable
@@ -45,6 +48,7 @@ from viewer_bridge.transports.base import (
 )
 from viewer_bridge.transports.foxglove import FoxgloveContext, carried, require_schemas
 from viewer_bridge.util.extras import missing
+from viewer_bridge.util.partial import partial_path
 
 try:
     import foxglove
@@ -191,11 +195,13 @@ class McapTransport(Transport):
                 f"{settings.path} exists (mcap.path): give another file, or mcap.overwrite: true to replace it"
             )
         self._time = MessageTime() if time is None else time
+        # Written as PATH.partial, renamed when closed: a file under its name is whole (util/partial.py).
+        self._partial = partial_path(settings.path)
         self.file: _File
         if settings.profile == "ros2":
-            self.file = _Ros2File(settings.path)
+            self.file = _Ros2File(self._partial)
         else:
-            self.file = _FoxgloveFile(settings.path, FoxgloveContext() if context is None else context)
+            self.file = _FoxgloveFile(self._partial, FoxgloveContext() if context is None else context)
 
     @classmethod
     def create(cls, settings: TransportSettings, shared: Shared) -> McapTransport:
@@ -240,6 +246,8 @@ class McapTransport(Transport):
 
     def close(self) -> None:
         self.file.close()
+        if self._partial != self.settings.path:
+            os.replace(self._partial, self.settings.path)
 
 
 __all__ = [

@@ -1,9 +1,12 @@
 """Rerun as a transport: write-only, one recording stream with one or several sinks at once.
 
 * `connect`: a running viewer's gRPC URL (`rerun+http://127.0.0.1:9876/proxy`, where `rerun`
-  listens). The SDK's gRPC client connects in the background and keeps what is logged until a
-  viewer is there, so a viewer started after the bridge, or restarted, still gets the data; a
-  viewer that never comes costs memory up to the SDK's buffer, and nothing else stops.
+  listens). Whether a viewer answers there is said at start (with how to start one). Until one
+  does, what is logged is kept in the recording stream of the viewer (its own, `_Viewer`) and
+  counted as undelivered (`unsent`, and the transport's `unsent_no_viewer`); the SDK's gRPC client
+  is made once one answers (looked for every second), and gets what was kept. So a viewer started
+  after the bridge still gets the data, and one that never comes costs no wait at close: the
+  SDK's client, made and left unconnected, would wait 5 s for it when the stream closes.
 * `serve`: the bridge serves the data itself over gRPC on `host:grpc_port` and the web viewer
   (HTML, JS and Wasm) on `web_port`: the start-up line prints the URL a browser opens. The gRPC
   server keeps up to `memory_limit` of data for late viewers; static data (the scene) is never
@@ -25,15 +28,21 @@ import errno
 import logging
 import os
 import socket
+import sys
 import threading
 import uuid
 from collections import Counter
 from collections.abc import Mapping
 from pathlib import Path
-from urllib.parse import quote
+from urllib.parse import quote, urlsplit
 
-import rerun as rr
-import rerun.blueprint as rrb
+# The SDK's own log lines (Rust's, on stderr) with no colour codes on a pipe or a file; RUST_LOG,
+# if set, still says which. Before the SDK is imported: its logger is set up then.
+if not sys.stderr.isatty():
+    os.environ.setdefault("NO_COLOR", "1")
+
+import rerun as rr  # noqa: E402
+import rerun.blueprint as rrb  # noqa: E402
 
 from viewer_bridge.errors import BridgeError, InvalidName, TransportUnavailable
 from viewer_bridge.formats.rerun.schema import RERUN, Chunks
@@ -46,9 +55,12 @@ from viewer_bridge.transports.base import (
     TransportSettings,
     ValuePublisher,
 )
+from viewer_bridge.util.partial import partial_path
 
 VIEWER_URL = "rerun+http://127.0.0.1:9876/proxy"  # what `rerun` listens on by default
-_FLUSH_S = 10.0  # how long closing waits for the sinks to take what was logged
+_FLUSH_S = 10.0  # how long closing waits for the file and served sinks to take what was logged
+_VIEWER_FLUSH_S = 1.0  # how long closing waits for a connected viewer to take the rest
+_LOOK_EVERY_S = 1.0  # how often a viewer that has not answered is looked for
 
 log = logging.getLogger("viewer_bridge")
 
@@ -91,6 +103,64 @@ def _blueprint(settings: RerunSettings) -> rrb.Blueprint:
     return rrb.Blueprint(rrb.Spatial3DView(origin="/", name="Drake", eye_controls=eye), collapse_panels=True)
 
 
+def _address(url: str) -> tuple[str, int]:
+    """The host and port a viewer's gRPC URL names (9876, a viewer's own, when it names none)."""
+    parts = urlsplit(url)
+    return parts.hostname or "127.0.0.1", parts.port or 9876
+
+
+def _answers(address: tuple[str, int]) -> bool:
+    """Whether something accepts a connection at `address` (a viewer's gRPC server)."""
+    try:
+        socket.create_connection(address, timeout=0.5).close()
+    except OSError:
+        return False
+    return True
+
+
+class _Viewer:
+    """The `connect` sink: a recording stream of its own (the recording's id), which keeps what is
+    logged until a viewer answers at `url` and then hands it all to the SDK's gRPC client."""
+
+    def __init__(self, url: str, stream: rr.RecordingStream, blueprint: rrb.Blueprint) -> None:
+        self.url = url
+        self.stream = stream
+        self._blueprint = blueprint
+        self._address = _address(url)
+        self.connected = threading.Event()
+        self._stop = threading.Event()
+        self.answered_at_start = _answers(self._address)
+        if self.answered_at_start:
+            self._connect()
+        else:
+            threading.Thread(target=self._look, name="rerun viewer", daemon=True).start()
+
+    def _connect(self) -> None:
+        self.stream.set_sinks(rr.GrpcSink(self.url), default_blueprint=self._blueprint)
+        self.connected.set()
+
+    def _look(self) -> None:
+        while not self._stop.wait(_LOOK_EVERY_S):
+            if _answers(self._address):
+                self._connect()
+                log.info(
+                    "rerun: a viewer answered at %s: it gets what was kept for it (counted as unsent)",
+                    self.url,
+                )
+                return
+
+    def close(self) -> None:
+        """Hand a connected viewer the rest (waiting at most `_VIEWER_FLUSH_S`); drop what no viewer took."""
+        self._stop.set()
+        if not self.connected.is_set():
+            return
+        try:
+            self.stream.flush(timeout_sec=_VIEWER_FLUSH_S)
+        except RuntimeError as error:  # a viewer gone since: what it did not take is lost
+            log.warning("rerun: %s: %s", self.url, error)
+        self.stream.disconnect()
+
+
 class RerunTransport(Transport):
     """A Rerun recording stream to a viewer, a served web viewer and/or an .rrd file; publish only."""
 
@@ -111,7 +181,7 @@ class RerunTransport(Transport):
                     f"{settings.path} exists (rerun.path): give another file, or replace it with "
                     "--set rerun.overwrite=true (in a config: rerun.overwrite: true)"
                 )
-            self.partial = settings.path.with_name(settings.path.name + ".partial")
+            self.partial = partial_path(settings.path)  # itself when convert hands it its .partial
             try:
                 self.partial.open("wb").close()  # a folder that cannot be written fails here, in one line
             except OSError as error:
@@ -122,12 +192,20 @@ class RerunTransport(Transport):
         if settings.serve:
             self.grpc_port = _free_port(settings.host, settings.grpc_port, "rerun.grpc_port")
             self.web_port = _free_port("0.0.0.0", settings.web_port, "rerun.web_port")  # the SDK binds all
-        self.stream = rr.RecordingStream(
-            settings.application_id, recording_id=settings.recording_id or uuid.uuid4()
-        )
-        sinks: list[rr.sinks.LogSinkLike] = []
+        recording_id = settings.recording_id or uuid.uuid4()
+        blueprint = _blueprint(settings)
+        self.viewer: _Viewer | None = None
         if settings.connect:
-            sinks.append(rr.GrpcSink(settings.connect))
+            viewer_stream = rr.RecordingStream(settings.application_id, recording_id=recording_id)
+            self.viewer = _Viewer(settings.connect, viewer_stream, blueprint)
+            if not self.viewer.answered_at_start:
+                log.warning(
+                    "rerun: no viewer answers at %s: start one with `rerun` (it gets what was logged since; "
+                    "until then it is counted as unsent), or serve a web viewer with --set rerun.serve=true",
+                    settings.connect,
+                )
+        self.stream = rr.RecordingStream(settings.application_id, recording_id=recording_id)
+        sinks: list[rr.sinks.LogSinkLike] = []
         if settings.serve:
             sinks.append(
                 rr.GrpcServerSink(
@@ -136,7 +214,10 @@ class RerunTransport(Transport):
             )
         if self.partial is not None:
             sinks.append(rr.FileSink(self.partial))
-        self.stream.set_sinks(*sinks, default_blueprint=_blueprint(settings))
+        self.streams = [self.viewer.stream] if self.viewer is not None else []
+        if sinks:
+            self.stream.set_sinks(*sinks, default_blueprint=blueprint)
+            self.streams.append(self.stream)
         if settings.serve:
             try:
                 rr.serve_web_viewer(web_port=self.web_port, open_browser=False, connect_to=self.grpc_url)
@@ -145,6 +226,7 @@ class RerunTransport(Transport):
         self._lock = threading.Lock()
         self.messages: Counter[str] = Counter()
         self.chunks: Counter[str] = Counter()  # chunks sent per entity path (what `convert` reports)
+        self._publishers: list[Publisher] = []
 
     @property
     def grpc_url(self) -> str:
@@ -172,23 +254,31 @@ class RerunTransport(Transport):
 
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
         prefix = "" if name.strip("/") == "" else "/" + name.strip("/")
-        stream, lock, messages, entities = self.stream, self._lock, self.messages, self.chunks
+        streams, lock, messages, entities = self.streams, self._lock, self.messages, self.chunks
+        # Undelivered: nothing but a viewer to send to, and none has answered yet.
+        viewer_only = self.viewer.connected if self.viewer is not None and len(streams) == 1 else None
 
         def send(value: Chunks) -> None:
             chunks = value.chunks
             if prefix:
                 chunks = [chunk.with_entity_path(prefix + chunk.entity_path.rstrip("/")) for chunk in chunks]
-            rr.send_chunks(chunks, recording=stream)
+            for stream in streams:
+                rr.send_chunks(chunks, recording=stream)
             with lock:
                 messages[name] += 1
                 entities.update(chunk.entity_path for chunk in chunks)
+            if viewer_only is not None and not viewer_only.is_set():
+                publisher.unsent += 1
 
-        return ValuePublisher(Chunks, send)
+        publisher = ValuePublisher(Chunks, send)
+        self._publishers.append(publisher)
+        return publisher
 
     def describe(self) -> str:
         sinks = []
-        if self.settings.connect:
-            sinks.append(f"viewer {self.settings.connect}")
+        if self.viewer is not None:
+            answered = "a viewer answered" if self.viewer.connected.is_set() else "no viewer answers yet"
+            sinks.append(f"viewer {self.settings.connect} ({answered})")
         if self.settings.serve:
             sinks.append(f"web viewer {self.web_url} (data {self.grpc_url})")
         if self.settings.path is not None:
@@ -196,15 +286,23 @@ class RerunTransport(Transport):
         return "Rerun: " + ", ".join(sinks)
 
     def errors(self) -> Mapping[str, int]:
-        return {}
+        unsent = sum(publisher.unsent for publisher in self._publishers)
+        return {"unsent_no_viewer": unsent} if unsent else {}
 
     def close(self) -> None:
-        try:
-            self.stream.flush(timeout_sec=_FLUSH_S)
-        except RuntimeError as error:  # a viewer that never came: the other sinks are flushed anyway
-            log.warning("rerun: %s", error)
-        self.stream.disconnect()  # the file's footer written, servers and connections closed
-        if self.partial is not None and self.settings.path is not None:
+        if self.viewer is not None:
+            unsent = sum(publisher.unsent for publisher in self._publishers)
+            if unsent and not self.viewer.connected.is_set():
+                log.warning("rerun: no viewer answered at %s: the %d messages kept for it are dropped",
+                            self.viewer.url, unsent)  # fmt: skip
+            self.viewer.close()
+        if self.stream in self.streams:
+            try:
+                self.stream.flush(timeout_sec=_FLUSH_S)
+            except RuntimeError as error:
+                log.warning("rerun: %s", error)
+            self.stream.disconnect()  # the file's footer written, servers closed
+        if self.partial is not None and self.settings.path is not None and self.partial != self.settings.path:
             try:
                 os.replace(self.partial, self.settings.path)
             except OSError as error:

@@ -380,6 +380,7 @@ class RosTransport(Transport):
             from rclpy.executors import SingleThreadedExecutor
             from rclpy.node import Node
             from rclpy.parameter import Parameter
+            from rclpy.signals import SignalHandlerOptions
         except ImportError as error:
             raise missing(error, "the ros transport") from None
         self._context = Context()
@@ -387,7 +388,13 @@ class RosTransport(Transport):
         # An override beats the command line: set use_sim_time only when the config asks for it.
         overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, True)] if settings.use_sim_time else []
         with shared_memory_profile(settings.shared_memory_mb):  # read as the node makes the participant
-            rclpy.init(context=self._context, args=["viewer-bridge", "--ros-args", *settings.ros_args])
+            # No signal handlers of rclpy's: the bridge handles Ctrl-C and SIGTERM itself (a
+            # worker ignores Ctrl-C, its parent stops it), and rclpy's would raise KeyboardInterrupt.
+            rclpy.init(
+                context=self._context,
+                args=["viewer-bridge", "--ros-args", *settings.ros_args],
+                signal_handler_options=SignalHandlerOptions.NO,
+            )
             self.node = Node(
                 settings.node,
                 namespace=settings.namespace,

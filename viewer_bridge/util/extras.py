@@ -10,6 +10,7 @@ user without it reads one line naming the pip command, as a `MissingExtra`.
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from types import ModuleType
 
 from viewer_bridge.errors import MissingExtra
@@ -33,6 +34,33 @@ EXTRAS: dict[str, str] = {
 }
 
 
+# The built-in transports that need an extra -> that extra (a transport of the core or a plugin's: none).
+TRANSPORT_EXTRAS: dict[str, str] = {
+    "ros": "ros",
+    "foxglove": "foxglove",
+    "mcap": "foxglove",
+    "zenoh": "zenoh",
+    "rerun": "rerun",
+    "ign": "ign",
+}
+
+
+def lacking(transport: str) -> str | None:
+    """The first module `transport` needs that is not installed (its extra's, `EXTRAS`), or None."""
+    extra = TRANSPORT_EXTRAS.get(transport)
+    return next(
+        (module for module, owner in EXTRAS.items() if owner == extra and not importable(module)), None
+    )
+
+
+def importable(module: str) -> bool:
+    """Whether `module` can be found (one made missing, `sys.modules[name] = None`, counts as absent)."""
+    try:
+        return importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):
+        return False
+
+
 def missing(error: ImportError, needed_by: str) -> MissingExtra:
     """The `MissingExtra` for an `ImportError` of a module in `EXTRAS` (`all` for any other)."""
     module = (error.name or "").partition(".")[0] or "an optional module"
@@ -47,4 +75,4 @@ def require(module: str, needed_by: str) -> ModuleType:
         raise missing(error, needed_by) from None
 
 
-__all__ = ["EXTRAS", "missing", "require"]
+__all__ = ["EXTRAS", "TRANSPORT_EXTRAS", "importable", "lacking", "missing", "require"]
