@@ -200,6 +200,11 @@ class ConvertError(BridgeError):
     """A conversion that cannot start: the output would overwrite something, or nothing would be written."""
 
 
+class DamagedChunk(BridgeError):
+    """A bag's chunk whose records cannot be trusted (it inflates past the size it declares, does
+    not decompress, or fails its CRC): it is skipped, and the records around it still read."""
+
+
 class Interrupted(BridgeError):
     """A conversion stopped midway; `path` (`OUT.partial`) is a valid MCAP of `messages` messages."""
 
@@ -213,6 +218,7 @@ __all__ = [
     "BridgeError",
     "ConfigError",
     "ConvertError",
+    "DamagedChunk",
     "DecodeError",
     "EncodeError",
     "GltfError",

@@ -37,7 +37,7 @@ def wanted(args: Any) -> bool:
 
 def run(args: Any) -> int:
     """Convert; print messages per topic, then each topic left out and each with bad messages; a
-    damaged bag (cut short, rows that hold no message) exits 1, having converted what it could."""
+    damaged bag (cut short, rows that hold no message, chunks skipped) exits 1, having converted what it could."""
     result = bag_to_lcm(
         args.log, args.mcap, topics=args.topics, lcm_types_out=args.lcm_types_out, force=args.force
     )
@@ -51,6 +51,10 @@ def run(args: Any) -> int:
     for topic, count in result.damaged.items():
         print(f"viewer-bridge convert: {topic}: {count} rows of the bag are damaged, the first: "
               f"{result.first_damage[topic]}",
+              file=sys.stderr)  # fmt: skip
+    if result.damaged_chunks:
+        print(f"viewer-bridge convert: {args.log}: {len(result.damaged_chunks)} chunks are damaged and skipped, "
+              f"the first: {result.damaged_chunks[0]}",
               file=sys.stderr)  # fmt: skip
     if result.cut is not None:
         print(f"viewer-bridge convert: {args.log} is damaged: {result.cut}", file=sys.stderr)

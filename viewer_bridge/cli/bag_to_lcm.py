@@ -44,11 +44,12 @@ class BagConversion:
     damaged: Counter[str] = field(default_factory=Counter)
     first_damage: dict[str, str] = field(default_factory=dict)  # by topic
     cut: str | None = None  # where the bag's readable part ends, when it ends before the bag does
+    damaged_chunks: list[str] = field(default_factory=list)  # MCAP chunks skipped, each with why
 
     @property
     def complete(self) -> bool:
         """Whether every message the bag stores was read (converted, or refused as a bad message)."""
-        return self.cut is None and not self.damaged
+        return self.cut is None and not self.damaged and not self.damaged_chunks
 
 
 def is_ros_bag(path: str | Path) -> bool:
@@ -133,6 +134,7 @@ def _readable(reader: Any, connections: list[Any], result: BagConversion) -> Ite
         result.cut = cut_reason(error)
     if result.cut is None:
         result.cut = getattr(reader, "cut", None)  # the direct reader stops by itself and says where
+    result.damaged_chunks = list(getattr(reader, "damaged", []))  # and skips a damaged chunk
 
 
 def _definitions(connections: list[Any]) -> tuple[dict[str, tuple[list[Any], list[Any]]], dict[str, str]]:
