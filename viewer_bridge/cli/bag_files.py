@@ -127,7 +127,9 @@ def _mcap(path: Path, known: dict[tuple[str, str, str], Connection], found: list
         for op, at, record in _file_records(stream, os.fstat(stream.fileno()).st_size):
             if op == _OP_CHUNK:
                 try:
-                    yield from _chunk_messages(_chunk_records(record), schemas, channels, known, found, wanted)
+                    yield from _chunk_messages(
+                        _chunk_records(record), schemas, channels, known, found, wanted
+                    )
                 except DamagedChunk as error:
                     damaged.append(f"{path.name}: the chunk at byte {at}: {error}")
             elif op == _OP_MESSAGE:
