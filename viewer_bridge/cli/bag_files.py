@@ -242,25 +242,33 @@ def _chunk_records(chunk: memoryview) -> memoryview:
 def _inflated(compression: str, data: memoryview, size: int) -> bytes:
     """`data` decompressed as `compression` (`zstd` or `lz4`: one frame or several in a row),
     stopped one byte past `size`: a chunk that declares 100 bytes and would inflate to gigabytes
-    costs 101 bytes here, and is `DamagedChunk`."""
+    costs 101 bytes here, and is `DamagedChunk`. Asked for at most `_INFLATE_STEP` bytes a call
+    (lz4 allocates what it is allowed before it reads: a made-up size would be allocated whole)."""
     new, errors = _decompressor(compression)
     pieces: list[bytes] = []
     total, rest = 0, bytes(data)
     try:
-        while True:
+        while True:  # a frame
             decompressor = new()
-            piece = decompressor.decompress(rest, max_length=size + 1 - total)
-            total += len(piece)
-            pieces.append(piece)
-            if total > size:
-                raise DamagedChunk(f"it inflates past the {size} bytes it declares")
+            while True:
+                piece = decompressor.decompress(rest, max_length=min(size + 1 - total, _INFLATE_STEP))
+                rest = b""  # kept by the decompressor until it is used
+                total += len(piece)
+                pieces.append(piece)
+                if total > size:
+                    raise DamagedChunk(f"it inflates past the {size} bytes it declares")
+                if decompressor.eof or decompressor.needs_input or not piece:  # not piece: stuck
+                    break
             if not decompressor.eof:
                 raise DamagedChunk(f"its {compression} data ends inside a frame")
             rest = decompressor.unused_data
             if not rest:
-                return b"".join(pieces)  # one frame: that frame's bytes, not copied
+                return b"".join(pieces)  # one piece: that piece, not copied
     except errors as error:
         raise DamagedChunk(f"its {compression} data does not decompress: {error}") from None
+
+
+_INFLATE_STEP = 1 << 20
 
 
 def _decompressor(compression: str) -> tuple[Any, tuple[type[Exception], ...]]:
