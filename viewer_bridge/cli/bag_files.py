@@ -69,6 +69,7 @@ class DirectReader:
         for _ in self._read(None):
             pass
         self.cut = None  # said again when the messages are read
+        self.damaged_chunks = len(self.damaged)  # found while reading the topics
         self.damaged = []
 
     def messages(self, connections: list[Any]) -> Iterator[tuple[Any, int, bytes | memoryview]]:

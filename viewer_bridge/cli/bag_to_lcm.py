@@ -102,15 +102,19 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
 def _open(bag: Path) -> Any:
     """The reader of `bag`: an MCAP file's own (`bag_files`: in place, and as far as it is
     readable); rosbags' for a rosbag2 folder (its metadata, any storage), and when it refuses a
-    damaged one (a `.db3` with a damaged page), the folder's files read directly."""
+    damaged one (a `.db3` with a damaged page), the folder's files read directly. A folder's MCAP
+    files are read directly first: rosbags inflates a chunk whole whatever size it declares, so a
+    folder with a chunk that inflates past its size (or is otherwise damaged) is read directly."""
     from rosbags.rosbag2 import Reader, ReaderError
 
+    direct = DirectReader(bag)
     if bag.is_file():
-        direct = DirectReader(bag)
         if not direct.connections:
             raise ConvertError(
                 f"{bag} holds no CDR topic that can be read: {direct.cut or 'none is recorded'}"
             )
+        return direct
+    if direct.damaged_chunks and direct.connections:
         return direct
     try:
         reader = Reader(bag)
@@ -118,7 +122,6 @@ def _open(bag: Path) -> Any:
         return reader
     except ReaderError as error:
         refused = error
-    direct = DirectReader(bag)
     if not direct.connections:
         unreadable = f"; nothing of it is readable: {direct.cut}" if direct.cut else ""
         raise ConvertError(f"{bag} is not a ROS 2 bag rosbags can read: {refused}{unreadable}") from None

@@ -254,17 +254,17 @@ class TypeLibrary:
                 declared.setdefault(name, packed)
         check_references(structs)
         warnings: list[str] = []
-        packed: dict[str, bytes] = {}
+        packed_fingerprints: dict[str, bytes] = {}
         hashes = fingerprints(structs)
         for name, definition in structs.items():
             computed = hashes[name].to_bytes(8, "big")
-            packed[name] = declared.get(name, computed)
-            if packed[name] != computed:
+            packed_fingerprints[name] = declared.get(name, computed)
+            if packed_fingerprints[name] != computed:
                 warnings.append(
-                    f"{name} ({definition.where}): its class's fingerprint {packed[name].hex()} is not "
+                    f"{name} ({definition.where}): its class's fingerprint {packed_fingerprints[name].hex()} is not "
                     f"the {computed.hex()} its description gives; using the class's"
                 )
-        return cls(structs, packed, warnings, drake_left_out=drake and not drake_found)
+        return cls(structs, packed_fingerprints, warnings, drake_left_out=drake and not drake_found)
 
     def for_data(self, data: Buffer, channel: str = "") -> LcmType | None:
         """The type whose fingerprint starts `data`, or None.
