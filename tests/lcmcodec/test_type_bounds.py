@@ -107,6 +107,23 @@ def test_a_struct_of_100k_members_parses_in_linear_time() -> None:
     assert out.split() == ["100000", "True"]
 
 
+def test_many_types_sharing_a_wide_one_map_to_ros_in_linear_time() -> None:
+    """Row 6: each type was searched for a cycle through all it nests (20,000 types each holding
+    one that holds 20,000: minutes); now only within its recursive group."""
+    out = finishes("""
+        from viewer_bridge.lcmcodec.schema import parse_lcm, check_references
+        from viewer_bridge.lcmcodec.rosmsg import map_to_ros
+        n = 20_000
+        text = "".join(f"struct a{i} {{ hub h; }}\\n" for i in range(n))
+        text += "struct hub {" + "".join(f" b{i} m{i};" for i in range(n)) + " }\\n"
+        text += "".join(f"struct b{i} {{ int8_t x; }}\\n" for i in range(n))
+        structs = {s.full_name: s for s in parse_lcm(text)}
+        check_references(structs)
+        print(len(map_to_ros(structs).messages))
+    """)
+    assert out.split() == ["40001"]
+
+
 def test_a_type_at_the_nesting_limit_works_and_one_deeper_is_refused_naming_its_line(tmp_path: Path) -> None:
     """Row 7: a 5,000-type chain raised RecursionError; `MAX_NESTING` levels work end to end."""
     (tmp_path / "ok.lcm").write_text(chain(MAX_NESTING))

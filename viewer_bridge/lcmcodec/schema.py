@@ -223,7 +223,7 @@ def fingerprints(structs: Mapping[str, StructDef]) -> dict[str, int]:
     from anywhere, and is hashed once. Only within a recursive group is the path followed, within
     `MAX_HASH_STEPS`: without the memo, a diamond of 22 types (each holding two of the next) took
     four million steps."""
-    group = _recursive_groups(structs)
+    group = recursive_groups(structs)
     entered: dict[str, int] = {}
     bases: dict[str, int] = {}
     steps = 0
@@ -256,7 +256,7 @@ def fingerprints(structs: Mapping[str, StructDef]) -> dict[str, int]:
     return {name: hashed(struct, ()) for name, struct in structs.items()}
 
 
-def _recursive_groups(structs: Mapping[str, StructDef]) -> dict[str, int]:
+def recursive_groups(structs: Mapping[str, StructDef]) -> dict[str, int]:
     """Each type's recursive group (strongly connected component of the nesting graph), by number:
     Tarjan's algorithm, iterative so that no chain of types is too long for Python's stack. Groups
     are numbered as found, a group after every group it nests."""
@@ -303,7 +303,7 @@ def _recursive_groups(structs: Mapping[str, StructDef]) -> dict[str, int]:
 def nesting_depths(structs: Mapping[str, StructDef]) -> dict[str, int]:
     """Each type's nesting depth: the most struct levels a value of it can hold one inside another
     (a type of primitive members only: 1; a recursive group counts each of its types once)."""
-    group = _recursive_groups(structs)
+    group = recursive_groups(structs)
     members: dict[int, list[str]] = {}
     for name, number in group.items():
         members.setdefault(number, []).append(name)
@@ -648,4 +648,5 @@ __all__ = [
     "nested_closure",
     "nesting_depths",
     "parse_lcm",
+    "recursive_groups",
 ]
