@@ -242,6 +242,11 @@ class ConvertError(BridgeError):
     """A conversion that cannot start: the output would overwrite something, or nothing would be written."""
 
 
+class DamagedChunk(BridgeError):
+    """A bag's chunk whose records cannot be trusted (it inflates past the size it declares, does
+    not decompress, or fails its CRC): it is skipped, and the records around it still read."""
+
+
 class Interrupted(BridgeError):
     """A conversion stopped midway; `path` (`OUT.partial`) is a valid MCAP of `messages` messages."""
 
@@ -257,6 +262,7 @@ __all__ = [
     "ConfigError",
     "ConvertError",
     "CutShort",
+    "DamagedChunk",
     "DecodeError",
     "EncodeError",
     "GltfError",

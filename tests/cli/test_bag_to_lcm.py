@@ -223,7 +223,7 @@ def test_mcap_chunks_of_every_compression_and_none_read_alike(tmp_path: Path, co
     }
 
 
-def test_a_chunk_whose_crc_does_not_match_ends_the_readable_part(
+def test_a_chunk_whose_crc_does_not_match_is_skipped_and_the_rest_converts(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from mcap.reader import make_reader
@@ -237,11 +237,123 @@ def test_a_chunk_whose_crc_does_not_match_ends_the_readable_part(
     data[chunk.chunk_start_offset + chunk.chunk_length - 20] ^= 0xFF  # inside a message's numbers
     (tmp_path / "bad.mcap").write_bytes(bytes(data))
     assert main(["convert", str(tmp_path / "bad.mcap"), str(tmp_path / "out.lcmlog")]) == 1
-    before = chunk.message_start_time // 1_000_000
-    assert converted(tmp_path / "out.lcmlog") == list(range(before))
-    assert "bad.mcap: ValueError: a chunk's CRC-32 does not match its records" in damage_line(
-        capsys.readouterr().err
+    first, last = chunk.message_start_time // 1_000_000, chunk.message_end_time // 1_000_000
+    assert converted(tmp_path / "out.lcmlog") == [*range(first), *range(last + 1, 200)]
+    err = capsys.readouterr().err
+    assert (
+        f"1 chunks are damaged and skipped, the first: bad.mcap: the chunk at byte {chunk.chunk_start_offset}: "
+        "its CRC-32 does not match its records"
+    ) in err and "Traceback" not in err
+
+
+def zstd_bomb(inflated: int) -> bytes:
+    """A zstd frame that inflates to `inflated` zero bytes (a multiple of 128 KiB) from 4 bytes per
+    128 KiB: run-length blocks (RFC 8878: a block header of 3 bytes, then the one byte repeated)."""
+    block = 128 * 1024
+    frame = bytearray(b"\x28\xb5\x2f\xfd\x00\x38")  # magic; no content size; a 128 KiB window
+    count = inflated // block
+    for index in range(count):
+        last = index == count - 1
+        frame += ((block << 3) | (1 << 1) | last).to_bytes(3, "little") + b"\x00"
+    return bytes(frame)
+
+
+def mcap_with_bomb(path: Path, compression: str, bomb: bytes) -> tuple[int, int]:
+    """200 JointStates in uncompressed chunks, the third chunk replaced by one that declares 100
+    bytes and holds `bomb` compressed as `compression`; the first and last message time (ms) lost."""
+    import struct
+
+    from mcap.reader import make_reader
+
+    joints_mcap_as(path, "", 200)
+    data = path.read_bytes()
+    with path.open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    chunk = summary.chunk_indexes[2]
+    name = compression.encode()
+    body = struct.pack("<QQQI", 0, 0, 100, 0) + struct.pack("<I", len(name)) + name
+    body += struct.pack("<Q", len(bomb)) + bomb
+    record = struct.pack("<BQ", 0x06, len(body)) + body
+    start, end = chunk.chunk_start_offset, chunk.chunk_start_offset + chunk.chunk_length
+    path.write_bytes(data[:start] + record + data[end:])
+    return chunk.message_start_time // 1_000_000, chunk.message_end_time // 1_000_000
+
+
+def test_a_chunk_that_inflates_past_its_declared_size_costs_no_memory_and_is_skipped(tmp_path: Path) -> None:
+    """Issue 51 row 5: a 49 KB MCAP whose zstd chunk declares 100 bytes made `convert` hold 3.2 GB.
+    Here a 16 KB chunk of 512 MiB: the convert process stays well under 200 MiB, says the chunk is
+    damaged, converts the other chunks and exits 1."""
+    import subprocess
+    import sys
+
+    first, last = mcap_with_bomb(tmp_path / "bomb.mcap", "zstd", zstd_bomb(512 << 20))
+    assert (tmp_path / "bomb.mcap").stat().st_size < 64_000
+    out = tmp_path / "out.lcmlog"
+    # The peak is the process's own (VmHWM, its memory since exec): getrusage's would count the
+    # pytest process it was forked from.
+    convert = (
+        "import sys; from viewer_bridge.cli.main import main; code = main(sys.argv[1:]); "
+        "print(*[line for line in open('/proc/self/status') if line.startswith('VmHWM')], file=sys.stderr); "
+        "sys.exit(code)"
     )
+    command = [sys.executable, "-c", convert, "convert", str(tmp_path / "bomb.mcap"), str(out)]
+    process = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    said = process.stderr
+    assert process.returncode == 1, said
+    [peak_kib] = [int(line.split()[1]) for line in said.splitlines() if line.startswith("VmHWM")]
+    assert peak_kib < 200 * 1024, f"peak RSS {peak_kib // 1024} MiB"
+    assert "1 chunks are damaged and skipped, the first: bomb.mcap: the chunk at byte " in said
+    assert "it inflates past the 100 bytes it declares" in said and "Traceback" not in said
+    assert converted(out) == [*range(first), *range(last + 1, 200)]
+
+
+def test_an_lz4_chunk_is_inflated_no_further_than_its_declared_size(tmp_path: Path) -> None:
+    """The lz4 half of row 5: 64 MiB of zeros in a chunk that declares 100 bytes is refused having
+    inflated 101 bytes (Python's own allocations traced: far under the 64 MiB)."""
+    import tracemalloc
+
+    from lz4.frame import compress
+
+    first, last = mcap_with_bomb(tmp_path / "bomb.mcap", "lz4", compress(bytes(64 << 20)))
+    tracemalloc.start()
+    try:
+        result = bag_to_lcm(tmp_path / "bomb.mcap", tmp_path / "out.lcmlog")
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 16 << 20, f"peak {peak >> 20} MiB"
+    assert not result.complete and result.cut is None
+    [damage] = result.damaged_chunks
+    assert damage.startswith("bomb.mcap: the chunk at byte ") and "inflates past the 100 bytes" in damage
+    assert converted(tmp_path / "out.lcmlog") == [*range(first), *range(last + 1, 200)]
+
+
+def test_a_rosbag2_folders_mcap_chunk_is_inflated_no_further_than_its_declared_size(tmp_path: Path) -> None:
+    """rosbags inflates a folder's MCAP chunks whole: a folder whose file holds a chunk that
+    inflates past its size is read by the bridge's own reader instead, within the same bound."""
+    import tracemalloc
+
+    from lz4.frame import compress
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    with Writer(tmp_path / "bag", version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connection = writer.add_connection(
+            "/joint_states", "sensor_msgs/msg/JointState", typestore=typestore()
+        )
+        writer.write(connection, 0, serialized("sensor_msgs/msg/JointState", JOINTS))
+    [storage] = (tmp_path / "bag").glob("*.mcap")
+    first, last = mcap_with_bomb(storage, "lz4", compress(bytes(64 << 20)))
+    tracemalloc.start()
+    try:
+        result = bag_to_lcm(tmp_path / "bag", tmp_path / "out.lcmlog")
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 16 << 20, f"peak {peak >> 20} MiB"
+    [damage] = result.damaged_chunks
+    assert "inflates past the 100 bytes" in damage and not result.complete
+    assert converted(tmp_path / "out.lcmlog") == [*range(first), *range(last + 1, 200)]
 
 
 def big_joint_states_mcap(path: Path, count: int, joints: int) -> None:

@@ -58,6 +58,7 @@ def write_seeds(folder: Path) -> dict[str, int]:
     seeds.update(foxglove_seeds())
     seeds.update(lcm_type_seeds())
     seeds["ros_cdr_to_lcm"] = ros_cdr_seeds()
+    seeds["mcap_reader"] = mcap_seeds()
     seeds["lcm_codecs"] = [bytes([index]) + data for index, codec in enumerate(LCM_CODECS)
                            for data in seeds.get(codec.type_name, [])]  # fmt: skip
     for kind, inputs in seeds.items():
@@ -350,6 +351,22 @@ def discovery_seeds() -> list[bytes]:
     anything.pub.topic, anything.pub.address = DISCOVERY_ANY, "tcp://[::1]:40002"
     anything.pub.msg_pub.msg_type = "my.msgs.Thing"
     return [*seeds, datagram(anything)]
+
+
+def mcap_seeds() -> list[bytes]:
+    """Small MCAP files of JointStates after their magic bytes (the target adds it): chunks of
+    every compression and none, messages outside any chunk, and a chunk that declares 100 bytes
+    and inflates to 1 MiB."""
+    from tests.cli.test_bag_to_lcm import joints_mcap_as, mcap_with_bomb, zstd_bomb
+
+    files = []
+    with tempfile.TemporaryDirectory() as folder:
+        for compression in ("", "lz4", "zstd", "unchunked"):
+            joints_mcap_as(Path(folder) / "bag.mcap", compression, 6, chunk_size=256)
+            files.append((Path(folder) / "bag.mcap").read_bytes())
+        mcap_with_bomb(Path(folder) / "bomb.mcap", "zstd", zstd_bomb(1 << 20))
+        files.append((Path(folder) / "bomb.mcap").read_bytes())
+    return [data[len(b"\x89MCAP0\r\n") :] for data in files]
 
 
 def meldis_seeds() -> Seeds:

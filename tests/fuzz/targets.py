@@ -31,10 +31,12 @@ from pathlib import Path
 
 import numpy as np
 
+from viewer_bridge.cli import bag_files
 from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import (
     BadRequest,
     ConfigError,
+    DamagedChunk,
     DecodeError,
     EncodeError,
     FrameLimitError,
@@ -859,6 +861,32 @@ register(
     )
 )
 register(Target("origin_match", origin_match, (), ("origin_match",)))
+
+
+# --- a ROS 2 bag's MCAP file, as `convert` reads it ------------------------------------------------------
+
+_BAG = Path(tempfile.mkdtemp(prefix="fuzz-bag-")) / "bag.mcap"
+
+
+def mcap_reader(data: bytes) -> object:
+    """MCAP's magic bytes, then `data`, read as `convert` reads a bag (bag_files): once for its
+    topics, once more for every topic's messages. Whatever it holds, a chunk inflates at most one
+    byte past the size it declares (the fuzzer's 2 GB memory limit would catch more); a damaged
+    chunk is skipped (`DamagedChunk`, said), damage outside one ends the reading (`CutShort`, or
+    the `ValueError` or `struct.error` of a record too short for its fields: the reader says it)."""
+    _BAG.write_bytes(bag_files._MAGIC + data)
+    found: list[bag_files.Connection] = []
+    known: dict[tuple[str, str, str], bag_files.Connection] = {}
+    damaged: list[str] = []
+    for _ in bag_files._mcap(_BAG, known, found, None, damaged):
+        raise AssertionError("a message read while only the topics were asked for")
+    messages = [(connection.id, stamp, bytes(message)) for connection, stamp, message in
+                bag_files._mcap(_BAG, known, found, {c.id for c in found}, damaged)]  # fmt: skip
+    return messages, damaged
+
+
+register(Target("mcap_reader", mcap_reader, (bag_files.CutShort, DamagedChunk, ValueError, struct.error),
+                ("mcap_reader",)))  # fmt: skip
 
 
 # --- the config loader ----------------------------------------------------------------------------------

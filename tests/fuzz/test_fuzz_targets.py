@@ -9,6 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from tests.fuzz.targets import TARGETS
 from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import ConfigError
@@ -93,3 +95,34 @@ def test_an_origin_against_many_stars_is_matched_at_once() -> None:
     assert origin_matches(entry, "https://a-b-c-d-e-f.example") and not origin_matches(
         entry, "https://a-b/c-d-e-f.example"
     )
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4"])
+def test_an_mcap_chunk_declaring_more_than_any_machine_holds_is_a_damaged_chunk(compression: str) -> None:
+    """bench/fuzz.py's findings on mcap_reader (in its first thousands of runs): a chunk declaring
+    2^64 - 1 bytes raised OverflowError (zstd's `max_length` is an ssize_t) and MemoryError (lz4
+    allocates the `max_length` it is given before it reads). Each call now asks for at most 1 MiB."""
+    import struct
+
+    from lz4.frame import compress
+
+    data = zstd_compress(b"x" * 10) if compression == "zstd" else compress(b"x" * 10)
+    name = compression.encode()
+    body = struct.pack("<QQQI", 0, 0, (1 << 64) - 1, 0) + struct.pack("<I", len(name)) + name
+    body += struct.pack("<Q", len(data)) + data
+    messages, damaged = TARGETS["mcap_reader"].run(struct.pack("<BQ", 0x06, len(body)) + body)
+    assert (
+        messages == []
+        and damaged
+        == ["bag.mcap: the chunk at byte 8: it holds 10 bytes where it declares 18446744073709551615"] * 2
+    )  # read twice: for the topics, then for the messages
+
+
+def zstd_compress(data: bytes) -> bytes:
+    import sys
+
+    if sys.version_info >= (3, 14):
+        from compression import zstd
+    else:
+        from backports import zstd
+    return bytes(zstd.compress(data))

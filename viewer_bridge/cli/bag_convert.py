@@ -38,7 +38,7 @@ def wanted(args: Any) -> bool:
 
 def run(args: Any, stop: threading.Event | None = None) -> int:
     """Convert; print messages per topic, then each topic left out and each with bad messages; a
-    damaged bag (cut short, rows that hold no message) exits 1, having converted what it could."""
+    damaged bag (cut short, rows that hold no message, chunks skipped) exits 1, having converted what it could."""
     result = bag_to_lcm(
         args.log,
         args.mcap,
@@ -58,6 +58,10 @@ def run(args: Any, stop: threading.Event | None = None) -> int:
     for topic, count in result.damaged.items():
         print(f"viewer-bridge convert: {topic}: {count} rows of the bag are damaged, the first: "
               f"{result.first_damage[topic]}",
+              file=sys.stderr)  # fmt: skip
+    if result.damaged_chunks:
+        print(f"viewer-bridge convert: {args.log}: {len(result.damaged_chunks)} chunks are damaged and skipped, "
+              f"the first: {result.damaged_chunks[0]}",
               file=sys.stderr)  # fmt: skip
     if result.cut is not None:
         print(f"viewer-bridge convert: {args.log} is damaged: {result.cut}", file=sys.stderr)

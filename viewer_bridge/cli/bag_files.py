@@ -7,7 +7,11 @@ the file's order, as they were recorded. A `.db3` is read row by row in the orde
 (Python's sqlite3). Both read up to the first record or row that is cut or damaged, and say in
 `cut` where they stopped: rosbags reads a whole bag or refuses it, and an MCAP file cut short (a
 recording killed mid-chunk: no summary, no end magic) or a `.db3` with a damaged page still hold
-messages. The reader gives what rosbags' does: connections, then `(connection, log time ns, data)`.
+messages. An MCAP chunk whose records cannot be trusted (it inflates past the size it declares,
+does not decompress, fails its CRC) is skipped and said in `damaged`: the file's own record
+lengths still frame the records after it. A chunk is inflated at most to the size it declares
+(plus one byte, to see that it goes on), so a small file cannot make the reader hold gigabytes.
+The reader gives what rosbags' does: connections, then `(connection, log time ns, data)`.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from viewer_bridge.errors import CutShort
+from viewer_bridge.errors import CutShort, DamagedChunk
 
 __all__ = ["DirectReader", "cut_reason"]
 
@@ -56,10 +60,13 @@ class DirectReader:
     def __init__(self, bag: Path) -> None:
         self.files = _storage_files(bag)
         self.cut: str | None = None
+        self.damaged: list[str] = []  # the chunks skipped, each `file: the chunk at byte N: why`
         self.connections: list[Connection] = []
         for _ in self._read(None):
             pass
         self.cut = None  # said again when the messages are read
+        self.damaged_chunks = len(self.damaged)  # found while reading the topics
+        self.damaged = []
 
     def messages(self, connections: list[Any]) -> Iterator[tuple[Any, int, bytes | memoryview]]:
         return self._read({connection.id for connection in connections})
@@ -71,9 +78,11 @@ class DirectReader:
         """The messages of the connections `wanted` (None: none, the connections are found)."""
         known: dict[tuple[str, str, str], Connection] = {}  # the same topic in several files: one connection
         for path in self.files:
-            read = _db3 if path.suffix == ".db3" else _mcap
             try:
-                yield from read(path, known, self.connections, wanted)
+                if path.suffix == ".db3":
+                    yield from _db3(path, known, self.connections, wanted)
+                else:
+                    yield from _mcap(path, known, self.connections, wanted, self.damaged)
             except Exception as error:  # noqa: BLE001 - whatever the damage, the rest of the bag is unreadable
                 self.cut = f"{path.name}: {cut_reason(error)}"
                 return
@@ -102,18 +111,24 @@ def _connection(known: dict[tuple[str, str, str], Connection], found: list[Conne
 
 
 def _mcap(path: Path, known: dict[tuple[str, str, str], Connection], found: list[Connection],
-          wanted: set[int] | None) -> Iterator[tuple[Connection, int, bytes | memoryview]]:  # fmt: skip
+          wanted: set[int] | None, damaged: list[str]) -> Iterator[tuple[Connection, int, bytes | memoryview]]:  # fmt: skip
     """An MCAP file's messages in the file's order, each a view into the record read from the file:
     a byte of an image is copied from the file once, and once more into its LCM message. The MCAP
-    records (mcap.dev's specification): opcode, uint64 length, content, all little-endian."""
+    records (mcap.dev's specification): opcode, uint64 length, content, all little-endian. A
+    damaged chunk is skipped from where its damage is found, and said in `damaged`."""
     schemas: dict[int, tuple[str, str]] = {}  # id -> (name, ros2msg text)
     channels: dict[int, Connection] = {}
     with path.open("rb") as stream:
         if stream.read(len(_MAGIC)) != _MAGIC:
             raise ValueError("it does not start with MCAP's magic bytes")
-        for op, record in _file_records(stream, os.fstat(stream.fileno()).st_size):
+        for op, at, record in _file_records(stream, os.fstat(stream.fileno()).st_size):
             if op == _OP_CHUNK:
-                yield from _chunk_messages(_chunk_records(record), schemas, channels, known, found, wanted)
+                try:
+                    yield from _chunk_messages(
+                        _chunk_records(record), schemas, channels, known, found, wanted
+                    )
+                except DamagedChunk as error:
+                    damaged.append(f"{path.name}: the chunk at byte {at}: {error}")
             elif op == _OP_MESSAGE:
                 message = _message(record, 0, len(record), channels, wanted)
                 if message is not None:
@@ -131,11 +146,11 @@ def _chunk_messages(records: memoryview, schemas: dict[int, tuple[str, str]], ch
     at, end = 0, len(records)
     while at < end:  # a loop here, not a generator of records: a chunk may hold thousands of messages
         if at + _RECORD.size > end:
-            raise ValueError(f"a chunk ends inside a record's opcode and length, at its byte {at}")
+            raise DamagedChunk(f"it ends inside a record's opcode and length, at its byte {at}")
         op, length = _RECORD.unpack_from(records, at)
         start, at = at + _RECORD.size, at + _RECORD.size + length
         if at > end:
-            raise ValueError(f"a chunk's record of {length} bytes runs past the chunk's end")
+            raise DamagedChunk(f"its record of {length} bytes runs past its end")
         if op != _OP_MESSAGE:
             _definition(op, records[start:at], schemas, channels, known, found)
             continue
@@ -156,9 +171,10 @@ def _message(records: memoryview, start: int, stop: int, channels: dict[int, Con
     return connection, log_time, records[start + _MESSAGE.size : stop]
 
 
-def _file_records(stream: Any, size: int) -> Iterator[tuple[int, memoryview]]:
-    """The records of an MCAP file from where `stream` is, each read whole (a length past the
-    file's end is refused before anything is read: no allocation for a made-up length)."""
+def _file_records(stream: Any, size: int) -> Iterator[tuple[int, int, memoryview]]:
+    """The records of an MCAP file from where `stream` is, each read whole with where it starts (a
+    length past the file's end is refused before anything is read: no allocation for a made-up
+    length)."""
     while True:
         head = stream.read(_RECORD.size)
         if not head:
@@ -169,7 +185,7 @@ def _file_records(stream: Any, size: int) -> Iterator[tuple[int, memoryview]]:
         op, length = _RECORD.unpack(head)
         if length > size - at - _RECORD.size:
             raise CutShort(f"the file ends inside a record of {length} bytes at byte {at}: it was cut short")
-        yield op, memoryview(stream.read(length))
+        yield op, at, memoryview(stream.read(length))
 
 
 def _definition(op: int, record: memoryview, schemas: dict[int, tuple[str, str]], channels: dict[int, Connection],
@@ -203,31 +219,69 @@ _U16, _U16_U16, _U32, _U64 = (
 
 
 def _chunk_records(chunk: memoryview) -> memoryview:
-    """A chunk's records, decompressed and checked against its size and CRC."""
-    _, _, size, crc = _CHUNK.unpack_from(chunk)
-    compression, at = _string(chunk, _CHUNK.size)
-    records = _sized(chunk, at, 8)
-    if compression == "zstd":
-        records = memoryview(_zstd().decompress(records))
-    elif compression == "lz4":
-        from lz4.frame import decompress  # type: ignore[import-untyped]  # rosbags' dependency
-
-        records = memoryview(decompress(records))
-    elif compression:
-        raise ValueError(f"a chunk is compressed as {compression!r}, which this reader does not know")
+    """A chunk's records, decompressed (never past the size it declares) and checked against its
+    size and CRC; `DamagedChunk` says why they cannot be."""
+    try:
+        _, _, size, crc = _CHUNK.unpack_from(chunk)
+        compression, at = _string(chunk, _CHUNK.size)
+        records = _sized(chunk, at, 8)
+    except (struct.error, ValueError) as error:
+        raise DamagedChunk(f"its header is damaged: {error}") from None
+    if compression:
+        records = memoryview(_inflated(compression, records, size))
     if len(records) != size:
-        raise ValueError(f"a chunk holds {len(records)} bytes where it says {size}")
+        raise DamagedChunk(f"it holds {len(records)} bytes where it declares {size}")
     if crc and zlib.crc32(records) != crc:
-        raise ValueError("a chunk's CRC-32 does not match its records")
+        raise DamagedChunk("its CRC-32 does not match its records")
     return records
 
 
-def _zstd() -> Any:
-    if sys.version_info >= (3, 14):
-        from compression import zstd
-    else:
-        from backports import zstd  # rosbags' dependency
-    return zstd
+def _inflated(compression: str, data: memoryview, size: int) -> bytes:
+    """`data` decompressed as `compression` (`zstd` or `lz4`: one frame or several in a row),
+    stopped one byte past `size`: a chunk that declares 100 bytes and would inflate to gigabytes
+    costs 101 bytes here, and is `DamagedChunk`. Asked for at most `_INFLATE_STEP` bytes a call
+    (lz4 allocates what it is allowed before it reads: a made-up size would be allocated whole)."""
+    new, errors = _decompressor(compression)
+    pieces: list[bytes] = []
+    total, rest = 0, bytes(data)
+    try:
+        while True:  # a frame
+            decompressor = new()
+            while True:
+                piece = decompressor.decompress(rest, max_length=min(size + 1 - total, _INFLATE_STEP))
+                rest = b""  # kept by the decompressor until it is used
+                total += len(piece)
+                pieces.append(piece)
+                if total > size:
+                    raise DamagedChunk(f"it inflates past the {size} bytes it declares")
+                if decompressor.eof or decompressor.needs_input or not piece:  # not piece: stuck
+                    break
+            if not decompressor.eof:
+                raise DamagedChunk(f"its {compression} data ends inside a frame")
+            rest = decompressor.unused_data
+            if not rest:
+                return b"".join(pieces)  # one piece: that piece, not copied
+    except errors as error:
+        raise DamagedChunk(f"its {compression} data does not decompress: {error}") from None
+
+
+_INFLATE_STEP = 1 << 20
+
+
+def _decompressor(compression: str) -> tuple[Any, tuple[type[Exception], ...]]:
+    """A `compression`'s streaming decompressor class (each call one frame) and the errors it
+    raises on bad data."""
+    if compression == "zstd":
+        if sys.version_info >= (3, 14):
+            from compression import zstd
+        else:
+            from backports import zstd  # rosbags' dependency
+        return zstd.ZstdDecompressor, (zstd.ZstdError, EOFError)
+    if compression == "lz4":
+        from lz4.frame import LZ4FrameDecompressor  # type: ignore[import-untyped]  # rosbags' dependency
+
+        return LZ4FrameDecompressor, (RuntimeError, EOFError)
+    raise DamagedChunk(f"it is compressed as {compression!r}, which this reader does not know")
 
 
 def _sized(record: memoryview, at: int, width: int) -> memoryview:

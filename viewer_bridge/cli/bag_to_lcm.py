@@ -48,11 +48,12 @@ class BagConversion:
     damaged: Counter[str] = field(default_factory=Counter)
     first_damage: dict[str, str] = field(default_factory=dict)  # by topic
     cut: str | None = None  # where the bag's readable part ends, when it ends before the bag does
+    damaged_chunks: list[str] = field(default_factory=list)  # MCAP chunks skipped, each with why
 
     @property
     def complete(self) -> bool:
         """Whether every message the bag stores was read (converted, or refused as a bad message)."""
-        return self.cut is None and not self.damaged
+        return self.cut is None and not self.damaged and not self.damaged_chunks
 
 
 def is_ros_bag(path: str | Path) -> bool:
@@ -122,15 +123,19 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
 def _open(bag: Path) -> Any:
     """The reader of `bag`: an MCAP file's own (`bag_files`: in place, and as far as it is
     readable); rosbags' for a rosbag2 folder (its metadata, any storage), and when it refuses a
-    damaged one (a `.db3` with a damaged page), the folder's files read directly."""
+    damaged one (a `.db3` with a damaged page), the folder's files read directly. A folder's MCAP
+    files are read directly first: rosbags inflates a chunk whole whatever size it declares, so a
+    folder with a chunk that inflates past its size (or is otherwise damaged) is read directly."""
     from rosbags.rosbag2 import Reader, ReaderError
 
+    direct = DirectReader(bag)
     if bag.is_file():
-        direct = DirectReader(bag)
         if not direct.connections:
             raise ConvertError(
                 f"{bag} holds no CDR topic that can be read: {direct.cut or 'none is recorded'}"
             )
+        return direct
+    if direct.damaged_chunks and direct.connections:
         return direct
     try:
         reader = Reader(bag)
@@ -138,7 +143,6 @@ def _open(bag: Path) -> Any:
         return reader
     except ReaderError as error:
         refused = error
-    direct = DirectReader(bag)
     if not direct.connections:
         unreadable = f"; nothing of it is readable: {direct.cut}" if direct.cut else ""
         raise ConvertError(f"{bag} is not a ROS 2 bag rosbags can read: {refused}{unreadable}") from None
@@ -154,6 +158,7 @@ def _readable(reader: Any, connections: list[Any], result: BagConversion) -> Ite
         result.cut = cut_reason(error)
     if result.cut is None:
         result.cut = getattr(reader, "cut", None)  # the direct reader stops by itself and says where
+    result.damaged_chunks = list(getattr(reader, "damaged", []))  # and skips a damaged chunk
 
 
 def _definitions(connections: list[Any]) -> tuple[dict[str, tuple[list[Any], list[Any]]], dict[str, str]]:

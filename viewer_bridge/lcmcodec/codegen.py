@@ -298,13 +298,15 @@ class StructWriter:
         self.formats = formats  # names the generated code uses -> the objects behind them
         self.ident = idents[struct_.full_name]
         self.t = repr(struct_.full_name)
+        # By name, once: a struct of 10,000 sized arrays looks up 10,000 length fields.
+        self._indices = {member.name: index for index, member in enumerate(struct_.members)}
 
     def write(self) -> None:
         raise NotImplementedError
 
     def index_of(self, name: str) -> int:
         """The index of member `name` (a length field): the generated code holds it as `v<index>`."""
-        return next(index for index, member in enumerate(self.struct.members) if member.name == name)
+        return self._indices[name]
 
 
 class _Writes(Protocol):

@@ -11,13 +11,20 @@ CDR -> LCM transcoders from `RosStruct`s, the wire-level view kept beside each s
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from viewer_bridge.errors import SchemaError
-from viewer_bridge.lcmcodec.schema import StructDef, constant_problem, fingerprint, name_problem, parse_lcm
+from viewer_bridge.lcmcodec.schema import (
+    MAX_NESTING,
+    StructDef,
+    constant_problem,
+    fingerprint,
+    name_problem,
+    parse_lcm,
+)
 from viewer_bridge.util.partial import write_whole
 
 __all__ = [
@@ -162,16 +169,23 @@ def map_ros_types(definitions: Definitions, names: Iterable[str]) -> LcmFromRos:
     pending: dict[str, RosStruct] = {}
     order: list[str] = []
     for name in names:
-        _visit(definitions, name, pending, result.refused, order, ())
+        _visit(definitions, name, pending, result.refused, order)
     _refuse_shared_names(pending, result.refused)
+    cause = dict(result.refused)  # a refused type's first reason, said once by all that nest it
+    depth: dict[str, int] = {}  # struct levels, as `schema.nesting_depths` counts them
     for ros_name in order:
         struct = pending.get(ros_name)
         if struct is None or ros_name in result.refused:
             continue
         if any(f.nested in result.refused for f in struct.fields):
             bad = next(f for f in struct.fields if f.nested in result.refused)
-            result.refused[ros_name] = (
-                f"field {bad.name}: {bad.nested} is refused ({result.refused[bad.nested]})"
+            cause[ros_name] = cause[bad.nested]
+            result.refused[ros_name] = f"field {bad.name}: {bad.nested} is refused ({cause[ros_name]})"
+            continue
+        depth[ros_name] = 1 + max((depth.get(f.nested, 0) for f in struct.fields if f.nested), default=0)
+        if depth[ros_name] > MAX_NESTING:  # `order` has children first: the shallowest such type
+            cause[ros_name] = result.refused[ros_name] = (
+                f"it nests types {depth[ros_name]} levels deep, more than the {MAX_NESTING} a type may"
             )
             continue
         text = lcm_text(struct, definitions[ros_name][0], pending)
@@ -186,24 +200,36 @@ def map_ros_types(definitions: Definitions, names: Iterable[str]) -> LcmFromRos:
     return result
 
 
-def _visit(definitions: Definitions, name: str, pending: dict[str, RosStruct], refused: dict[str, str],
-           order: list[str], parents: tuple[str, ...]) -> None:  # fmt: skip
-    """Read `name` and what it nests, children first (so `order` has every type after its children)."""
-    if name in pending or name in refused or name in parents:
-        return
-    if name not in definitions:
-        refused[name] = "no definition (not in the Jazzy store nor among the .msg files given)"
-        return
-    try:
-        struct = _ros_struct(name, definitions[name])
-    except ValueError as error:
-        refused[name] = str(error)
-        return
-    for ros_field in struct.fields:
-        if ros_field.nested:
-            _visit(definitions, ros_field.nested, pending, refused, order, (*parents, name))
-    pending[name] = struct
-    order.append(name)
+def _visit(definitions: Definitions, root: str, pending: dict[str, RosStruct], refused: dict[str, str],
+           order: list[str]) -> None:  # fmt: skip
+    """Read `root` and what it nests, children first (so `order` has every type after its
+    children): a walk with a stack of its own, so that no chain of types is too long for Python's."""
+    reading: dict[str, RosStruct] = {}  # the types on the way down to the one read now
+    path: list[tuple[str, Iterator[str]]] = []  # and their nested types not yet read
+
+    def enter(name: str) -> None:
+        if name in pending or name in refused or name in reading:
+            return
+        if name not in definitions:
+            refused[name] = "no definition (not in the Jazzy store nor among the .msg files given)"
+            return
+        try:
+            reading[name] = _ros_struct(name, definitions[name])
+        except ValueError as error:
+            refused[name] = str(error)
+            return
+        path.append((name, iter([f.nested for f in reading[name].fields if f.nested])))
+
+    enter(root)
+    while path:
+        name, nested = path[-1]
+        child = next(nested, None)
+        if child is not None:
+            enter(child)
+            continue
+        path.pop()
+        pending[name] = reading.pop(name)
+        order.append(name)
 
 
 def _ros_struct(name: str, definition: tuple[list[Any], list[Any]]) -> RosStruct:

@@ -160,8 +160,9 @@ class JsonEncoder:
         # simply the length of the first of its arrays that is given: no search needed.
         self._sized: dict[str, list[Member]] | None = None
         if all(len(array.dims) == 1 for array in self._arrays):
-            self._sized = {member.name: [a for a in self._arrays if a.dims[0].size == member.name]
-                           for member in self._lengths}  # fmt: skip
+            self._sized = {member.name: [] for member in self._lengths}
+            for array in self._arrays:  # one pass: a struct may hold thousands of sized arrays
+                self._sized[array.dims[0].size].append(array)
         self._children = children
         self._min_sizes = min_sizes  # each type's fewest bytes of body (`codegen.min_sizes`)
         self._steps: list[tuple[Member, Encode]] = [

@@ -40,7 +40,7 @@ from viewer_bridge.lcmcodec.schema import (
     Member,
     StructDef,
     check_references,
-    fingerprint,
+    fingerprints,
     load_lcm_files,
     nested_closure,
 )
@@ -261,16 +261,17 @@ class TypeLibrary:
                 declared.setdefault(name, packed)
         check_references(structs)
         warnings: list[str] = []
-        fingerprints: dict[str, bytes] = {}
+        packed_fingerprints: dict[str, bytes] = {}
+        hashes = fingerprints(structs)
         for name, definition in structs.items():
-            computed = fingerprint(definition, structs).to_bytes(8, "big")
-            fingerprints[name] = declared.get(name, computed)
-            if fingerprints[name] != computed:
+            computed = hashes[name].to_bytes(8, "big")
+            packed_fingerprints[name] = declared.get(name, computed)
+            if packed_fingerprints[name] != computed:
                 warnings.append(
-                    f"{name} ({definition.where}): its class's fingerprint {fingerprints[name].hex()} is not "
+                    f"{name} ({definition.where}): its class's fingerprint {packed_fingerprints[name].hex()} is not "
                     f"the {computed.hex()} its description gives; using the class's"
                 )
-        return cls(structs, fingerprints, warnings, drake_left_out=drake and not drake_found)
+        return cls(structs, packed_fingerprints, warnings, drake_left_out=drake and not drake_found)
 
     def for_data(self, data: Buffer, channel: str = "") -> LcmType | None:
         """The type whose fingerprint starts `data`, or None.

@@ -18,7 +18,7 @@ from typing import Any
 
 from viewer_bridge.errors import NameRefused
 from viewer_bridge.lcmcodec.rosnames import constant_name, field_name, message_name, package_name
-from viewer_bridge.lcmcodec.schema import Member, StructDef
+from viewer_bridge.lcmcodec.schema import Member, StructDef, recursive_groups
 
 __all__ = ["ROS_PRIMITIVES", "RosMapping", "RosMessage", "map_to_ros", "ros_type_of"]
 
@@ -127,8 +127,9 @@ def map_to_ros(structs: Mapping[str, StructDef]) -> RosMapping:
         except NameRefused as error:
             refused[lcm_name] = str(error)
     _refuse_collisions(names, refused)
+    group = recursive_groups(structs)
     for lcm_name in structs:
-        if lcm_name not in refused and (cycle := _cycle(lcm_name, structs)):
+        if lcm_name not in refused and (cycle := _cycle(lcm_name, structs, group)):
             refused[lcm_name] = f"{lcm_name} contains itself ({' -> '.join(cycle)}); ROS 2 messages cannot"
     messages: dict[str, RosMessage] = {}
     for lcm_name in _dependency_order(structs):
@@ -228,8 +229,10 @@ def _nested(struct: StructDef) -> Iterator[str]:
             yield member.type_name
 
 
-def _cycle(start: str, structs: Mapping[str, StructDef]) -> list[str]:
-    """A path of struct names from `start` back to itself, or [] when there is none."""
+def _cycle(start: str, structs: Mapping[str, StructDef], group: Mapping[str, int]) -> list[str]:
+    """A path of struct names from `start` back to itself, or [] when there is none: searched
+    within `start`'s recursive group only (`schema.recursive_groups`), so that finding every
+    type's costs the types' size once, not once per type."""
     stack: list[tuple[str, list[str]]] = [(start, [start])]
     seen: set[str] = set()
     while stack:
@@ -237,7 +240,7 @@ def _cycle(start: str, structs: Mapping[str, StructDef]) -> list[str]:
         for child in _nested(structs[name]):
             if child == start:
                 return [*path, child]
-            if child not in seen:
+            if child not in seen and group[child] == group[start]:
                 seen.add(child)
                 stack.append((child, [*path, child]))
     return []

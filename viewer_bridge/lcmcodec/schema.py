@@ -44,6 +44,21 @@ INTEGER_RANGES: Mapping[str, tuple[int, int]] = {
 
 _MASK64 = (1 << 64) - 1
 
+# The shape a type may have (docs/lcm-types.md, "Limits"). lcm-gen's own rule: a constant array
+# size is above 0 and fits int32 (we hold a fixed array's element count, all its constant sizes
+# multiplied, to it too). Ours: no real type comes near these (Drake's and ROS 2's nest a few
+# levels and use one or two dimensions), and each is far under what Python parses and recurses:
+# a type nested deeper, or an array of more dimensions, is refused where it is declared, before
+# any code is generated for it.
+MAX_ARRAY_SIZE = (1 << 31) - 1
+MAX_DIMENSIONS = 32
+MAX_NESTING = (
+    64  # struct levels: a type holding a type holding ... (a recursive group counts each of its types)
+)
+# Steps (a struct hashed within a recursive group) one library's fingerprints may take: types that
+# nest each other recursively in many ways (a diamond within a cycle) would otherwise take 2^depth.
+MAX_HASH_STEPS = 200_000
+
 # What every generated message class (serde's `LcmMessage` and the classes made from it) defines
 # beside its fields: a member or constant of one of these names would replace the class's own.
 # tests/lcmcodec/test_serde.py holds this set to what the classes really define.
@@ -194,19 +209,114 @@ def nested_closure(structs: Mapping[str, StructDef], names: Iterable[str]) -> li
 
 def fingerprint(struct: StructDef, structs: Mapping[str, StructDef]) -> int:
     """The 64-bit fingerprint written in front of every encoded message of this type."""
-    return _recursive_hash(struct, structs, ())
+    closure = {name: structs[name] for name in nested_closure(structs, [struct.full_name])}
+    return fingerprints(closure)[struct.full_name]
 
 
-def _recursive_hash(struct: StructDef, structs: Mapping[str, StructDef], parents: tuple[str, ...]) -> int:
-    if struct.full_name in parents:
-        return 0
-    inner = parents + (struct.full_name,)
-    value = struct.base_hash()
-    for member in struct.members:
-        if not member.is_primitive:
-            value += _recursive_hash(structs[member.type_name], structs, inner)
-    value &= _MASK64
-    return ((value << 1) & _MASK64) + (value >> 63)
+def fingerprints(structs: Mapping[str, StructDef]) -> dict[str, int]:
+    """Every type's fingerprint, in time linear in the types' size (`structs` must hold every type
+    they nest; `check_references` has refused one nested too deeply).
+
+    LCM's rule hashes a type's children recursively, a type already among its parents counting 0.
+    That makes a child's hash depend on its parents only through those of its own recursive group
+    (the types it reaches that reach it back): a type entered from outside its group hashes alike
+    from anywhere, and is hashed once. Only within a recursive group is the path followed, within
+    `MAX_HASH_STEPS`: without the memo, a diamond of 22 types (each holding two of the next) took
+    four million steps."""
+    group = recursive_groups(structs)
+    entered: dict[str, int] = {}
+    bases: dict[str, int] = {}
+    steps = 0
+
+    def hashed(struct: StructDef, parents: tuple[str, ...]) -> int:
+        nonlocal steps
+        name = struct.full_name
+        if name in parents:
+            return 0
+        from_outside = not parents or group[parents[-1]] != group[name]
+        if from_outside and name in entered:
+            return entered[name]
+        steps += 1
+        if steps > MAX_HASH_STEPS:
+            raise SchemaError(struct.source, struct.line, f"{name}: its fingerprint takes more than "
+                              f"{MAX_HASH_STEPS} steps (recursive types nesting each other in too many ways)")  # fmt: skip
+        if name not in bases:
+            bases[name] = struct.base_hash()
+        value = bases[name]
+        inner = parents + (name,)
+        for member in struct.members:
+            if not member.is_primitive:
+                value += hashed(structs[member.type_name], inner)
+        value &= _MASK64
+        value = ((value << 1) & _MASK64) + (value >> 63)
+        if from_outside:
+            entered[name] = value
+        return value
+
+    return {name: hashed(struct, ()) for name, struct in structs.items()}
+
+
+def recursive_groups(structs: Mapping[str, StructDef]) -> dict[str, int]:
+    """Each type's recursive group (strongly connected component of the nesting graph), by number:
+    Tarjan's algorithm, iterative so that no chain of types is too long for Python's stack. Groups
+    are numbered as found, a group after every group it nests."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    group: dict[str, int] = {}
+    stack: list[str] = []
+    found = 0  # groups
+
+    def children(name: str) -> Iterator[str]:
+        return (m.type_name for m in structs[name].members if not m.is_primitive)
+
+    for root in structs:
+        if root in index:
+            continue
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        work = [(root, children(root))]
+        while work:
+            name, pending = work[-1]
+            for child in pending:
+                if child not in index:
+                    index[child] = low[child] = len(index)
+                    stack.append(child)
+                    work.append((child, children(child)))
+                    break
+                if child not in group:  # on the stack: in this name's group
+                    low[name] = min(low[name], index[child])
+            else:
+                work.pop()
+                if work:
+                    parent = work[-1][0]
+                    low[parent] = min(low[parent], low[name])
+                if low[name] == index[name]:
+                    while True:
+                        member = stack.pop()
+                        group[member] = found
+                        if member == name:
+                            break
+                    found += 1
+    return group
+
+
+def nesting_depths(structs: Mapping[str, StructDef]) -> dict[str, int]:
+    """Each type's nesting depth: the most struct levels a value of it can hold one inside another
+    (a type of primitive members only: 1; a recursive group counts each of its types once)."""
+    group = recursive_groups(structs)
+    members: dict[int, list[str]] = {}
+    for name, number in group.items():
+        members.setdefault(number, []).append(name)
+    depth: dict[int, int] = {}
+    for number in sorted(members):  # a group after every group it nests
+        below = (
+            depth[group[m.type_name]]
+            for name in members[number]
+            for m in structs[name].members
+            if not m.is_primitive and group[m.type_name] != number
+        )
+        depth[number] = len(members[number]) + max(below, default=0)
+    return {name: depth[number] for name, number in group.items()}
 
 
 # --- parsing ---------------------------------------------------------------------------------
@@ -341,22 +451,25 @@ class _Parser:
         name = self.identifier("a struct name", attribute=False)
         self.expect("{")
         comment = "\n".join(filter(None, (comment, self.trailing())))  # `struct s {  // what s is`
-        members: list[Member] = []
-        constants: list[Constant] = []
+        # By name, so that a struct of 100,000 members is parsed in linear time.
+        members: dict[str, Member] = {}
+        constants: dict[str, Constant] = {}
         while self.peek() != "}":
             if self.peek() == "const":
                 constant_comment = self.comment()
                 self.take()
                 for constant in self.parse_constants(constant_comment):
                     self.check_new_name(constant.name, members, constants)
-                    constants.append(constant)
+                    constants[constant.name] = constant
             else:
                 self.parse_members(members, constants)
         self.expect("}")
-        return StructDef(self.package, name, tuple(members), tuple(constants), self.path, line, comment)
+        return StructDef(
+            self.package, name, tuple(members.values()), tuple(constants.values()), self.path, line, comment
+        )
 
-    def check_new_name(self, name: str, members: list[Member], constants: list[Constant]) -> None:
-        if any(member.name == name for member in members) or any(c.name == name for c in constants):
+    def check_new_name(self, name: str, members: dict[str, Member], constants: dict[str, Constant]) -> None:
+        if name in members or name in constants:
             self.index -= 1
             raise self.error(f"{name!r} is declared twice")
 
@@ -397,20 +510,26 @@ class _Parser:
             raise self.error(f"{literal} does not fit in {type_name}")
         return value
 
-    def parse_members(self, earlier: list[Member], constants: list[Constant]) -> None:
-        """Parse one declaration (`type a[n], b;`) and append its members to `earlier`."""
+    def parse_members(self, earlier: dict[str, Member], constants: dict[str, Constant]) -> None:
+        """Parse one declaration (`type a[n], b;`) and add its members to `earlier`."""
         comment = self.comment()
         type_name = self.qualify(self.take())
         while True:
             name = self.identifier("a member name")
             self.check_new_name(name, earlier, constants)
             dims: list[Dimension] = []
+            elements = 1  # of the constant dimensions
             while self.peek() == "[":
+                if len(dims) == MAX_DIMENSIONS:
+                    raise self.error(f"{name!r} has more than {MAX_DIMENSIONS} array dimensions")
                 self.take()
                 dims.append(self.dimension(self.take(), earlier, constants))
+                elements *= 1 if dims[-1].is_variable else dims[-1].count
+                if elements > MAX_ARRAY_SIZE:
+                    raise self.error(f"{name!r} has more than {MAX_ARRAY_SIZE} elements (int32's largest)")
                 self.expect("]")
             ends = self.take()  # `;` or `,`: a comment after it on its line is this member's
-            earlier.append(Member(name, type_name, tuple(dims), comment, self.trailing()))
+            earlier[name] = Member(name, type_name, tuple(dims), comment, self.trailing())
             comment = ""
             if ends == ";":
                 return
@@ -427,26 +546,30 @@ class _Parser:
             return type_name
         return f"{self.package}.{type_name}"
 
-    def dimension(self, size: str, earlier: list[Member], constants: list[Constant]) -> Dimension:
+    def dimension(self, size: str, earlier: dict[str, Member], constants: dict[str, Constant]) -> Dimension:
         if size[:1].isdigit():
             try:
                 count = int(size, 0)
             except ValueError:
                 raise self.error(f"array size {size!r} is not a number") from None
-            if count <= 0:
-                raise self.error(f"array size must be positive, not {size}")
+            if not 0 < count <= MAX_ARRAY_SIZE:  # lcm-gen's rule
+                raise self.error(
+                    f"array size must be from 1 to {MAX_ARRAY_SIZE} (int32's largest), not {size}"
+                )
             return Dimension(size, is_variable=False)
-        for constant in constants:
-            if constant.name == size:
-                # lcm-gen hashes the constant's literal, as if it had been written in the brackets.
-                if constant.type_name not in INTEGER_TYPES or int(constant.value) <= 0:
-                    raise self.error(f"array size {size!r} must be a positive integer constant")
-                return Dimension(constant.text, is_variable=False)
-        for member in earlier:
-            if member.name == size:
-                if member.type_name not in INTEGER_TYPES or member.dims:
-                    raise self.error(f"array size {size!r} must be an integer scalar member")
-                return Dimension(size, is_variable=True)
+        constant = constants.get(size)
+        if constant is not None:
+            # lcm-gen hashes the constant's literal, as if it had been written in the brackets.
+            if constant.type_name not in INTEGER_TYPES or not 0 < int(constant.value) <= MAX_ARRAY_SIZE:
+                raise self.error(
+                    f"array size {size!r} must be an integer constant from 1 to {MAX_ARRAY_SIZE}"
+                )
+            return Dimension(constant.text, is_variable=False)
+        member = earlier.get(size)
+        if member is not None:
+            if member.type_name not in INTEGER_TYPES or member.dims:
+                raise self.error(f"array size {size!r} must be an integer scalar member")
+            return Dimension(size, is_variable=True)
         raise self.error(f"array size {size!r} is neither a constant nor an earlier member")
 
 
@@ -484,7 +607,8 @@ def load_lcm_files(paths: Iterable[Path]) -> dict[str, StructDef]:
 
 
 def check_references(structs: Mapping[str, StructDef]) -> None:
-    """Refuse a member whose struct type is not in `structs`, naming the file and line of its struct."""
+    """Refuse a member whose struct type is not in `structs`, and a type nested deeper than
+    `MAX_NESTING` levels, naming the file and line of its struct."""
     for struct in structs.values():
         for member in struct.members:
             if not member.is_primitive and member.type_name not in structs:
@@ -493,12 +617,21 @@ def check_references(structs: Mapping[str, StructDef]) -> None:
                     struct.line,
                     f"{struct.full_name}.{member.name}: unknown type {member.type_name!r}",
                 )
+    depths = nesting_depths(structs)
+    deepest = max(depths, key=lambda name: (depths[name], name), default=None)
+    if deepest is not None and depths[deepest] > MAX_NESTING:
+        struct = structs[deepest]
+        raise SchemaError(struct.source, struct.line, f"{deepest} nests types {depths[deepest]} levels deep, "
+                          f"more than the {MAX_NESTING} a type may")  # fmt: skip
 
 
 __all__ = [
     "Constant",
     "Dimension",
     "INTEGER_TYPES",
+    "MAX_ARRAY_SIZE",
+    "MAX_DIMENSIONS",
+    "MAX_NESTING",
     "MESSAGE_CLASS_ATTRIBUTES",
     "Member",
     "PRIMITIVE_FORMATS",
@@ -508,9 +641,12 @@ __all__ = [
     "check_references",
     "constant_problem",
     "fingerprint",
+    "fingerprints",
     "load_lcm_files",
     "load_schema_dir",
     "name_problem",
     "nested_closure",
+    "nesting_depths",
     "parse_lcm",
+    "recursive_groups",
 ]

@@ -14,7 +14,7 @@ import math
 import struct
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cache, cached_property
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -31,7 +31,8 @@ from viewer_bridge.lcmcodec.codegen import (
     string_error,
     truncated,
 )
-from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef, fingerprint
+from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
+from viewer_bridge.lcmcodec.schema import fingerprints as all_fingerprints
 
 _FINGERPRINT_FIELD = "<fingerprint>"
 
@@ -593,6 +594,7 @@ def compile_codecs(
     source = generate_source(new, sizes, finite)
     exec(compile(source, "<lcm codecs generated from lcm types>", "exec"), namespace)  # noqa: S102
     codecs: dict[str, StructCodec] = {}
+    computed = cache(lambda: all_fingerprints(structs))  # only when one is not given
     for name, definition in structs.items():
         if name in earlier:
             codecs[name] = earlier[name]
@@ -602,7 +604,7 @@ def compile_codecs(
         codec = StructCodec(
             definition=definition,
             message_class=message_class,
-            fingerprint=(fingerprints or {}).get(name) or fingerprint(definition, structs),
+            fingerprint=(fingerprints or {}).get(name) or computed()[name],
             min_size=sizes[name],
             _encode_body=namespace[f"{ident}_encode"],
             _decode_body=namespace[f"{ident}_decode"],
