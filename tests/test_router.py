@@ -342,7 +342,7 @@ BROKEN_CONFIGS = [
     # Options are the translator's model: a misspelt key and a wrong type are refused at load.
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n    options:\n      frmae_id: map\n", 7,
-     "routes.0.options.frmae_id", "unknown key 'frmae_id' (did you mean 'frame_id'?); known keys: frame_id"),
+     "routes.0.options.frmae_id", "unknown key 'frmae_id' (did you mean 'frame_id'?); known keys: stamp, frame_id"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_ign_model\n"
      "    destination: {transport: ign, name: /x}\n    options: {republish_s: soon}\n", 6,
      "routes.0.options.republish_s", "valid number"),
@@ -376,7 +376,7 @@ BROKEN_CONFIGS = [
     ("ros:\n  node: viewer-bridge\nroutes: []\n", 2, "ros.node",
      "'viewer-bridge' is not a valid ROS 2 node name: it has characters a ROS name cannot hold: '-'"),
     ("routes: []\nzmq: {port: 1}\n", 2, "zmq",
-     "'zmq' is not a config key (load_cache, lcm_types, drake_lcm_types, commands, ros_topics, workers, routes) "
+     "'zmq' is not a config key (load_cache, lcm_types, drake_lcm_types, commands, ros_topics, workers, time, routes) "
      "nor a transport"),
     ("routes:\n  - name: a\n    source: {transport: lcm, name: X}\n    translator: drake_to_pose_array\n"
      "    destination: {transport: ros, name: /x}\n  - name: a\n    source: {transport: lcm, name: X}\n"
