@@ -360,3 +360,20 @@ def test_keys_on_a_terminal_step_draws_change_speed_and_play(demo_log: Path) -> 
     assert code == 0, "".join(screen)
     assert termios.tcgetattr(follower)[3] & termios.ECHO == echo_before  # the terminal as it was
     os.close(follower)
+
+
+def test_indexing_shows_progress_as_other_long_work_does(
+    demo_log: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A log that takes a while to index says how far it is, in the command line's one way of
+    showing long work (here on a pipe: a line per tenth, once the work has run `QUIET_S`)."""
+    from viewer_bridge.cli.play import index_log
+    from viewer_bridge.util import progress
+
+    monkeypatch.setattr(progress, "QUIET_S", 0.0)  # as if the log were big enough to take seconds
+    index = index_log(str(demo_log), "play")
+    said = capsys.readouterr().err.splitlines()
+    assert len(index) == len(list(read_log(demo_log)))
+    assert said and all(line.startswith(f"viewer-bridge play: indexing {demo_log}: ") for line in said), said
+    assert "100%" in said[-1] and len(said) <= 11, said  # never a line per event
+    assert index_log(str(demo_log), "play", quiet=True) is not None and capsys.readouterr().err == ""

@@ -4,7 +4,6 @@ instant re-sent, requests refused or clamped with a note, the end reached."""
 
 from __future__ import annotations
 
-import io
 import logging
 import threading
 from pathlib import Path
@@ -14,7 +13,7 @@ import pytest
 from tests.peers import wait_for
 from viewer_bridge.errors import LogError
 from viewer_bridge.transports.lcm import LcmEvent, read_log, write_log
-from viewer_bridge.transports.lcm_log_index import LogIndex, ProgressLine
+from viewer_bridge.transports.lcm_log_index import LogIndex
 from viewer_bridge.transports.lcm_playback import LogPlayer
 from viewer_bridge.transports.playback import PlaybackRequest, PlaybackState, Status
 
@@ -107,17 +106,6 @@ def test_not_a_log_is_refused_and_an_empty_one_has_no_events(tmp_path: Path) -> 
         LogIndex.build(tmp_path / "text")
     (tmp_path / "empty").write_bytes(b"")
     assert len(LogIndex.build(tmp_path / "empty")) == 0
-
-
-def test_the_progress_line_is_throttled_and_closed() -> None:
-    stream = io.StringIO()
-    line = ProgressLine(Path("big.lcmlog"), stream, after_s=0)
-    for done in range(0, 100, 10):
-        line(done << 20, 100 << 20)
-    line(100 << 20, 100 << 20)
-    lines = stream.getvalue().splitlines()
-    assert 1 <= len(lines) <= 2, lines  # not a line per call: one at the first call, one at the end
-    assert lines[-1].startswith("indexing big.lcmlog: 100% (105 of 105 MB")
 
 
 class Played:

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from viewer_bridge.cli.arguments import AddCommand, input_file, lcm_types_option, output_file
+from viewer_bridge.cli.play import index_log
 from viewer_bridge.config.bridge import BridgeConfig, Route, destination_name, load_config
 from viewer_bridge.errors import BridgeError, UsageError
 from viewer_bridge.router.status import counted
@@ -29,7 +30,7 @@ from viewer_bridge.translators.drake_stream import role_of
 from viewer_bridge.translators.options import FrameOptions
 from viewer_bridge.translators.types import FRAME_TRANSFORMS_TYPE, RAW_IMAGE_TYPE, SCENE_UPDATE_TYPE
 from viewer_bridge.transports.base import MessageType, Received
-from viewer_bridge.transports.lcm_log_index import LogIndex, ProgressLine
+from viewer_bridge.transports.lcm_log_index import LogIndex
 from viewer_bridge.util.extras import missing
 
 if TYPE_CHECKING:
@@ -89,9 +90,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(
             f"no route of {args.config or 'the built-in config'} writes to Foxglove: no topic to lay out"
         )
-    index = (
-        LogIndex.build(args.log, ProgressLine(Path(args.log))) if args.log else None
-    )  # a big log: a progress line
+    index = index_log(args.log, "layout") if args.log else None
     try:
         if index is not None and len(index) == 0:
             raise UsageError(f"{args.log} holds no whole LCM event: no channel to lay out")

@@ -29,10 +29,11 @@ from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import UsageError
 from viewer_bridge.router.router import Router
 from viewer_bridge.transports.lcm import Publisher
-from viewer_bridge.transports.lcm_log_index import LogIndex, ProgressLine
+from viewer_bridge.transports.lcm_log_index import LogIndex
 from viewer_bridge.transports.lcm_playback import LogPlayer
 from viewer_bridge.transports.lcm_url import log_to_write
 from viewer_bridge.transports.playback import Timelines
+from viewer_bridge.util.progress import progress
 
 
 def add_command(add: AddCommand) -> None:
@@ -86,6 +87,26 @@ def add_command(add: AddCommand) -> None:
     )
 
 
+def index_log(log: str, command: str, quiet: bool = False) -> LogIndex:
+    """The log's index; while a big log is indexed, its progress (a bar on a terminal, a line per
+    tenth on a pipe: the command line's one way of showing long work)."""
+    path = Path(log)
+    size = path.stat().st_size if path.is_file() else None  # else LogIndex.build says what is wrong
+    if quiet or not size:
+        return LogIndex.build(path)
+    megabytes = size / 1e6
+    with progress(f"viewer-bridge {command}", f"indexing {log}", size,
+                  lambda done: f"{done / 1e6:,.0f} of {megabytes:,.0f} MB") as advance:  # fmt: skip
+        indexed = 0
+
+        def told(done: int, total: int) -> None:  # the index tells how far it is, the bar how much more
+            nonlocal indexed
+            advance(done - indexed)
+            indexed = done
+
+        return LogIndex.build(path, told)
+
+
 def run(args: argparse.Namespace) -> int:
     """Index the log, then route what it plays until it ends (nothing to seek with), Ctrl-C or SIGTERM."""
     if args.workers is not None and args.workers > 1:
@@ -93,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     if args.lcm_out and log_to_write(args.lcm_out) is None and args.lcm_out.startswith("file://"):
         raise UsageError(f"--lcm-out {args.lcm_out}: a log to write is file://PATH?mode=w")
     # indexed before the route table takes the terminal: its progress line is a line of its own
-    index = LogIndex.build(args.log, None if args.quiet else ProgressLine(Path(args.log)))
+    index = index_log(args.log, "play", quiet=args.quiet)
     if len(index) == 0:
         raise UsageError(f"{args.log} holds no whole LCM event: nothing to play")
     try:

@@ -18,12 +18,9 @@ import array
 import logging
 import mmap
 import struct
-import sys
-import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
 
 import numpy as np
 import numpy.typing as npt
@@ -202,33 +199,4 @@ def _scan(
     )
 
 
-class ProgressLine:
-    """Indexing progress on a stream (stderr), for a log big enough to take a while: at most
-    twice a second, rewritten in place on a terminal, a line at a time (every few seconds) otherwise."""
-
-    def __init__(self, path: Path, stream: TextIO | None = None, after_s: float = 0.5) -> None:
-        self.path = path
-        self.stream = stream or sys.stderr
-        self._started = time.monotonic()
-        self._after_s = after_s  # quiet for a log indexed quicker than this
-        self._terminal = self.stream.isatty()
-        self._next = self._started + after_s
-        self._shown = False
-
-    def __call__(self, done: int, total: int) -> None:
-        now = time.monotonic()
-        if done < total and now < self._next:
-            return
-        if done >= total and not self._shown:
-            return  # quick enough that nothing was said: nothing to close either
-        self._next = now + (0.5 if self._terminal else 5.0)
-        elapsed = max(now - self._started, 1e-9)
-        line = (f"indexing {self.path}: {100 * done / max(total, 1):.0f}% "
-                f"({done / 1e6:.0f} of {total / 1e6:.0f} MB, {done / 1e6 / elapsed:.0f} MB/s)")  # fmt: skip
-        end = "\n" if done >= total or not self._terminal else ""
-        self.stream.write(("\r" if self._terminal else "") + line + end)
-        self.stream.flush()
-        self._shown = True
-
-
-__all__ = ["LogIndex", "LoggedEvent", "ProgressLine", "SYNC"]
+__all__ = ["LogIndex", "LoggedEvent", "SYNC"]
