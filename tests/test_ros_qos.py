@@ -17,7 +17,7 @@ from typing import Any
 import drake as drake_lcmtypes
 import psutil
 import pytest
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 
 from tests.lcmcodec.ros_bag import lcmgen_decode
 from tests.lcmcodec.test_from_ros import lcm_gen_all
@@ -28,7 +28,7 @@ from tests.test_ros_topics import JOINT_STATE, JOINTS, ros_message, without_leng
 from tests.test_router import LcmRecorder
 from tests.zenoh_peers import free_lcm_url, stats_flags, stats_of
 from viewer_bridge.cli.main import main
-from viewer_bridge.transports.ros2 import message_class
+from viewer_bridge.transports.ros2 import message_class, qos_profile
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
@@ -37,12 +37,7 @@ IIWA_COMMAND = "drake_lcm_msgs/msg/LcmtIiwaCommand"
 
 
 def profile(depth: int, reliable: bool = True, latched: bool = False) -> QoSProfile:
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST,
-        depth=depth,
-        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
-    )
+    return qos_profile(depth, reliable, latched)  # what a peer publishes with: KEEP_LAST, these policies
 
 
 SENSOR_DATA = profile(5, reliable=False)  # rclpy's qos_profile_sensor_data

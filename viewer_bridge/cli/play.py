@@ -19,12 +19,11 @@ from viewer_bridge.cli.arguments import (
     input_file,
     lcm_source,
     non_negative,
-    output_file,
     positive,
     worker_count,
 )
 from viewer_bridge.cli.play_keys import keys
-from viewer_bridge.cli.run import _builtin_for_this_install, _status_view, _with_setting
+from viewer_bridge.cli.run import _builtin_for_this_install, _status_view, _with_setting, stats_options
 from viewer_bridge.config.bridge import load_config
 from viewer_bridge.errors import UsageError
 from viewer_bridge.router.router import Router
@@ -67,15 +66,7 @@ def add_command(add: AddCommand) -> None:
         "--start", type=non_negative, default=0.0, metavar="S", help="start S seconds after the log's start"
     )
     play.add_argument("--loop", action="store_true", help="play from the start again at the end")
-    play.add_argument(
-        "--stats-json",
-        type=output_file(),
-        metavar="PATH",
-        help="write per-route stats as JSON every period and at exit",
-    )
-    play.add_argument(
-        "--stats-period", type=positive, default=5.0, metavar="S", help="seconds between stats lines"
-    )
+    stats_options(play)
     play.add_argument(
         "--workers",
         type=worker_count,

@@ -81,15 +81,7 @@ def add_command(add: AddCommand) -> None:
         "to carry onto LCM, each on the channel named by the topic without its leading / (repeatable; "
         "default: none)",
     )
-    run.add_argument(
-        "--stats-json",
-        type=output_file(),
-        metavar="PATH",
-        help="write per-route stats as JSON every period and at exit",
-    )
-    run.add_argument(
-        "--stats-period", type=positive, default=5.0, metavar="S", help="seconds between stats lines"
-    )
+    stats_options(run)
     run.add_argument(
         "--duration", type=positive, metavar="S", help="stop after S seconds (default: until Ctrl-C)"
     )
@@ -103,6 +95,19 @@ def add_command(add: AddCommand) -> None:
     )
     run.add_argument(
         "-q", "--quiet", action="store_true", help="print only warnings and errors (no route table or lines)"
+    )
+
+
+def stats_options(command: argparse.ArgumentParser) -> None:
+    """The options of a command that runs routes and reports their stats (`run`, `play`)."""
+    command.add_argument(
+        "--stats-json",
+        type=output_file(),
+        metavar="PATH",
+        help="write per-route stats as JSON every period and at exit",
+    )
+    command.add_argument(
+        "--stats-period", type=positive, default=5.0, metavar="S", help="seconds between stats lines"
     )
 
 
