@@ -218,7 +218,9 @@ def compare(
                         result = run(route, Path(name), seconds, endpoint)
                     kept = best.setdefault(route, result)
                     for key, value in result.items():
-                        kept[key] = (max if key in ("delivered", "published") else min)(kept.get(key, value), value)
+                        kept[key] = (max if key in ("delivered", "published") else min)(
+                            kept.get(key, value), value
+                        )
     finally:
         router.close()  # type: ignore[no-untyped-call]
         os.sched_setaffinity(0, everywhere)
