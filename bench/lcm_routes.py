@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import struct
 import tempfile
 import threading
 import time
@@ -34,6 +35,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 from common import DdsCounter, Measure, Size, iiwa_status_bytes, settle
 from router import URL, Bridge
@@ -64,26 +66,52 @@ def bus_config(endpoint: str, route: str) -> str:
 
 
 class Counting:
-    """One Zenoh subscriber on every key under `prefix`; counts arrivals while `counting` is set."""
+    """One Zenoh subscriber on every key under `prefix`; counts arrivals while `counting` is set.
 
-    def __init__(self, endpoint: str, prefix: str) -> None:
+    With `stamp` (the message's `utime` as `publish(stamped=True)` sets it: a struct format and its
+    offset in what arrives), it keeps each arrival's latency from the publisher's `publish` too."""
+
+    def __init__(self, endpoint: str, prefix: str, stamp: tuple[str, int] | None = None) -> None:
         self.session = zenoh_session("client", {"connect": [endpoint]})
         self.counting = threading.Event()
         self.count = 0
+        self.latencies_us: list[int] = []
+        self._stamp = None if stamp is None else struct.Struct(stamp[0])
+        self._offset = 0 if stamp is None else stamp[1]
         self._held = self.session.declare_subscriber(f"{prefix}/**", self._arrived)
 
     def _arrived(self, sample: Any) -> None:
         if self.counting.is_set():
             self.count += 1
+            if self._stamp is not None:
+                [sent] = self._stamp.unpack_from(sample.payload.to_bytes(), self._offset)
+                self.latencies_us.append(time.time_ns() // 1000 - sent)
+
+    def latency_us(self) -> dict[str, float]:
+        """p50 and p99 of the latencies kept (empty without `stamp`)."""
+        if not self.latencies_us:
+            return {}
+        p50, p99 = np.percentile(self.latencies_us, [50, 99])
+        return {"latency_p50_us": float(p50), "latency_p99_us": float(p99)}
 
     def close(self) -> None:
         del self._held
         self.session.close()  # type: ignore[no-untyped-call]
 
 
-def publish(bus: LcmBus, seconds: float, rate_hz: float = RATE_HZ) -> int:
-    """Every channel at `rate_hz` for `seconds`, round-robin, paced by the clock; returns messages sent."""
+# Where an lcmt_iiwa_status's `utime` is: in its LCM bytes (after the 8-byte fingerprint, big-endian)
+# and in its CDR (after the 4-byte encapsulation header, little-endian), for `Counting`'s latency.
+LCM_STAMP = (">q", 8)
+CDR_STAMP = ("<q", 4)
+
+
+def publish(bus: LcmBus, seconds: float, rate_hz: float = RATE_HZ, stamped: bool = False) -> int:
+    """Every channel at `rate_hz` for `seconds`, round-robin, paced by the clock; returns messages
+    sent. `stamped`: each message's `utime` is the time it is published (microseconds since the
+    epoch), for the subscriber's latency."""
     data = iiwa_status_bytes()
+    head, tail = data[: LCM_STAMP[1]], data[LCM_STAMP[1] + 8 :]
+    stamp = struct.Struct(LCM_STAMP[0]).pack
     period = 1.0 / (rate_hz * len(CHANNELS))
     start = time.perf_counter()
     sent = 0
@@ -91,6 +119,8 @@ def publish(bus: LcmBus, seconds: float, rate_hz: float = RATE_HZ) -> int:
         due = start + sent * period
         while time.perf_counter() < due:
             pass
+        if stamped:
+            data = head + stamp(time.time_ns() // 1000) + tail
         bus.publish(CHANNELS[sent % len(CHANNELS)], data)
         sent += 1
     return sent
@@ -115,10 +145,12 @@ def run(
     """`route` (relay, lcm_bus, or dds: lcm_bus onto ROS 2 over DDS) at `rate_hz` per channel."""
     domain = int(os.environ.get("ROS_DOMAIN_ID") or 0)
     bridge = Bridge(dds_config() if route == "dds" else bus_config(endpoint, route), folder, core=0)
+    stamped = route != "dds" and rate_hz <= RATE_HZ  # latency at 10,000 a second; none at 30,000
+    stamp = (LCM_STAMP if route == "relay" else CDR_STAMP) if stamped else None
     subscriber: Counting | DdsCounter = (
         dds_counter()
         if route == "dds"
-        else Counting(endpoint, "lcm" if route == "relay" else f"{domain}/lcm")
+        else Counting(endpoint, "lcm" if route == "relay" else f"{domain}/lcm", stamp)
     )
     bus = LcmBus(URL)
     time.sleep(1.0)
@@ -127,7 +159,7 @@ def run(
     subscriber.counting.set()
     cpu_before = bridge.cpu_seconds()
     in_before, out_before = _messages(bridge.snapshot())
-    sent = publish(bus, seconds, rate_hz)
+    sent = publish(bus, seconds, rate_hz, stamped)
     # What was queued drains, and the stats file is written again (every second): until the
     # subscriber has every message and the stats count them all, at most 2 s.
     settle(lambda: subscriber.count >= sent and _messages(bridge.snapshot())[0] - in_before >= sent, 2.0)
@@ -143,6 +175,7 @@ def run(
         "published": 100.0 * published / max(sent, 1),
         "cpu_us_per_message": cpu / max(received, 1) * 1e6,
         "sent": float(sent),
+        **(subscriber.latency_us() if isinstance(subscriber, Counting) else {}),
     }
     print(f"   {route:<8} delivered {result['delivered']:6.2f}% of {sent} messages (the bridge published "
           f"{result['published']:6.2f}%), bridge CPU "
@@ -185,7 +218,9 @@ def compare(
                         result = run(route, Path(name), seconds, endpoint)
                     kept = best.setdefault(route, result)
                     for key, value in result.items():
-                        kept[key] = (max if key in ("delivered", "published") else min)(kept[key], value)
+                        kept[key] = (max if key in ("delivered", "published") else min)(
+                            kept.get(key, value), value
+                        )
     finally:
         router.close()  # type: ignore[no-untyped-call]
         os.sched_setaffinity(0, everywhere)

@@ -136,13 +136,22 @@ DISCOVERY_S = 10.0  # at most, for the subscriber to see the bridge's node (it t
 class Bridge:
     """`viewer-bridge run` as a process; `source` is the checkout whose `bridge` package runs."""
 
-    def __init__(self, config: str, folder: Path, core: int | None, source: Path | None = None) -> None:
+    def __init__(
+        self,
+        config: str,
+        folder: Path,
+        core: int | None,
+        source: Path | None = None,
+        prefix: tuple[str, ...] = (),
+        stats_period: float = 1.0,
+    ) -> None:
+        """`prefix`: what runs the process (valgrind, for bench/instructions.py)."""
         path = folder / "bench.yaml"
         path.write_text(config)
         self.stats = folder / "stats.json"
         self.stats.unlink(missing_ok=True)
-        command = [sys.executable, "-m", "viewer_bridge.cli.main", "run", "-c", str(path), "--lcm-url", URL,
-                   "--stats-json", str(self.stats), "--stats-period", "1"]  # fmt: skip
+        command = [*prefix, sys.executable, "-m", "viewer_bridge.cli.main", "run", "-c", str(path), "--lcm-url", URL,
+                   "--stats-json", str(self.stats), "--stats-period", f"{stats_period:g}"]  # fmt: skip
         preexec = (lambda: os.sched_setaffinity(0, {core})) if core is not None else None
         environment = dict(os.environ)
         if source is not None:  # that checkout's package first on the path (python -m puts cwd first)

@@ -59,6 +59,11 @@ def collecting() -> Iterator[list[Skipped]]:
         _collector.reset(token)
 
 
+# The list this thread (or `collecting` block) collects into, or None before `thread_collector`
+# set one: a C call, for the router's once-a-message ask.
+current_collector = _collector.get
+
+
 def thread_collector() -> list[Skipped]:
     """The list this thread collects skipped parts into, set for good on the first ask.
 
@@ -102,6 +107,7 @@ __all__ = [
     "SkippedGeometry",
     "T",
     "collecting",
+    "current_collector",
     "log",
     "part_failed",
     "per_geometry",

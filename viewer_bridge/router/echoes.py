@@ -174,9 +174,13 @@ class Echoes:
         kind = ClosingGuardedPublisher if isinstance(publisher, Closable) else GuardedPublisher
         return kind(publisher, guard, source, self._sending)
 
-    def deliver(self, transport: str, offer: Deliver, came_back: CameBack) -> Deliver:
+    def deliver(self, transport: str, offer: Deliver, came_back: CameBack, published: bool = True) -> Deliver:
         """What a route's subscription on `transport` calls: `came_back` for the bridge's own
-        messages coming back (with where they first came from), `offer` for every other."""
+        messages coming back (with where they first came from), `offer` for every other.
+        `published`: whether any route publishes on `transport`; when none does, nothing of the
+        bridge's can come back there, and `offer` itself is what is called (a call less a message)."""
+        if not published:
+            return offer
         with self._lock:
             guards = self._guards.setdefault(transport, {})  # filled later, as publishers are made
 

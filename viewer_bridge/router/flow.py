@@ -48,6 +48,9 @@ class Mailbox:
         # design: counted apart from drops (which say the bridge could not keep up).
         self._rate_limited = rate_limited
         self.rate_skipped = 0
+        # How many wait, kept by `put` and `take`: what the receiving thread asks of every message
+        # (whether to translate inline), read without the lock or a call.
+        self.waiting = 0
 
     @property
     def dropped(self) -> int:
@@ -69,6 +72,7 @@ class Mailbox:
                     self._fifo.popleft()
                     self.mailbox_full += 1
                 self._fifo.append(message)
+            self.waiting = len(self._latest) + len(self._fifo)
             self._ready.notify()
 
     def wait(self, timeout: float) -> bool:
@@ -80,11 +84,16 @@ class Mailbox:
         """The next message, or None when there is none (never waits)."""
         with self._ready:
             if self._latest:
-                return self._latest.popitem(last=False)[1]
-            return self._fifo.popleft() if self._fifo else None
+                message = self._latest.popitem(last=False)[1]
+            elif self._fifo:
+                message = self._fifo.popleft()
+            else:
+                return None
+            self.waiting -= 1
+            return message
 
     def __len__(self) -> int:
-        return len(self._latest) + len(self._fifo)
+        return self.waiting
 
 
 class _Bucket:
@@ -138,6 +147,9 @@ class InlineBudget:
 
     def spent(self, started: float, ended: float) -> None:
         """This thread translated inline from `started` to `ended` (time.perf_counter())."""
-        bucket = self._bucket()
+        try:  # once per message: no call for the bucket
+            bucket = self._threads.bucket
+        except AttributeError:
+            bucket = self._bucket()
         bucket.level = max(0.0, bucket.level - (ended - bucket.at) * self._share) + (ended - started)
         bucket.at = ended

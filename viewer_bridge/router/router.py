@@ -153,7 +153,8 @@ class Router:
         # one clear line at start, not an error per message.
         source.require(translator.reads[:1] + ((translator.replies,) if translator.replies else ()))
         self.transports[route.destination.transport].require(translator_class.writes(options))
-        deliver = self._echoes.deliver(route.source.transport, runner.offer, runner.came_back)
+        published = any(other.destination.transport == route.source.transport for other in self.config.routes)
+        deliver = self._echoes.deliver(route.source.transport, runner.offer, runner.came_back, published)
         source.subscribe(route.source.name, translator.reads[0], source_qos(runner), deliver)
         return runner
 

@@ -23,7 +23,7 @@ from typing import Any
 from viewer_bridge.config.bridge import Route, destination_name
 from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, Held
-from viewer_bridge.model.skipped import Skipped, thread_collector
+from viewer_bridge.model.skipped import Skipped, current_collector, thread_collector
 from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
 from viewer_bridge.router.stats import RouteStats
 from viewer_bridge.shared import MessageTime
@@ -108,7 +108,7 @@ class _Lane:
         self._publisher = publisher
         # Each output's publisher by index, while the output at that index is the same (a
         # translator adds outputs as it goes): no name or key made per message.
-        self._made: dict[int, tuple[Output, Publisher]] = {}
+        self.made: dict[int, tuple[Output, Publisher]] = {}
         self.skipped: dict[str, Message] = {}  # newest per channel, while nobody listened (lazy)
         self.listened_now = True
         self._checked_at = float("-inf")
@@ -117,18 +117,18 @@ class _Lane:
 
     def names(self) -> list[tuple[str, MessageType]]:
         """The (name, type) of each publisher it made: what it gives back when reclaimed."""
-        return [(self.name + output.suffix, output.type) for output, _ in self._made.values()]
+        return [(self.name + output.suffix, output.type) for output, _ in self.made.values()]
 
     def closable(self) -> bool:
         """Whether all it holds can be let go: every publisher it made frees its transport's state
         when closed (a Zenoh or gz publisher does not: such a lane is never reclaimed)."""
-        return all(isinstance(publisher, Closable) for _, publisher in self._made.values())
+        return all(isinstance(publisher, Closable) for _, publisher in self.made.values())
 
     def publisher(self, index: int) -> Publisher:
         output = self.translator.outputs[index]
-        made = self._made.get(index)
+        made = self.made.get(index)
         if made is None or made[0] is not output:
-            made = self._made[index] = (output, self._publisher(self.name + output.suffix, output))
+            made = self.made[index] = (output, self._publisher(self.name + output.suffix, output))
         return made[1]
 
     def listened(self) -> bool:
@@ -217,14 +217,29 @@ class RouteRunner:
         self._logged: Counter[str] = Counter()
 
     def offer(self, received: Received) -> None:
-        """Called on the transport's thread: keep the message if this route's source matches."""
+        """Called on the transport's thread: keep the message if this route's source matches, and
+        translate it right here when the route is idle and the thread's budget allows (else the
+        worker does). Once per message on every route: kept to few calls (`_translated_inline`
+        written out here), each of which costs as much as a small message's translation."""
         match = self.pattern.fullmatch(received.channel)
-        if match is not None:
-            self.stats.messages_in += 1
-            self.stats.bytes_in += len(received.data)
-            message = Message(received, match)
-            if not self._translated_inline(message):
-                self.mailbox.put(message)
+        if match is None:
+            return
+        stats = self.stats
+        stats.messages_in += 1
+        stats.bytes_in += len(received.data)
+        message = Message(received, match)
+        inline = self._inline
+        if inline is not None and not self.mailbox.waiting:
+            started = time.perf_counter()
+            quick = self._keeps_every and self._cost_s < QUICK_S
+            if (quick or inline.allows(started)) and self._turn.acquire(False):
+                try:
+                    self.handle(message)
+                finally:
+                    self._turn.release()
+                    inline.spent(started, time.perf_counter())
+                return
+        self.mailbox.put(message)
 
     def came_back(self, received: Received, origin: tuple[str, str]) -> None:
         """A message the bridge itself sent, come back (the loop guard, `viewer_bridge.router.echoes`)
@@ -261,22 +276,6 @@ class RouteRunner:
             self.stats.messages_in += 1
             self.stats.bytes_in += len(received.data)
             self.handle(Message(received, match))
-
-    def _translated_inline(self, message: Message) -> bool:
-        """Translate on the caller's thread when the route is idle and the budget allows."""
-        inline = self._inline
-        if inline is None or len(self.mailbox):
-            return False
-        started = time.perf_counter()
-        quick = self._keeps_every and self._cost_s < QUICK_S
-        if not (quick or inline.allows(started)) or not self._turn.acquire(False):
-            return False
-        try:
-            self.handle(message)
-        finally:
-            self._turn.release()
-            inline.spent(started, time.perf_counter())
-        return True
 
     def start(self) -> None:
         self._thread.start()
@@ -437,7 +436,7 @@ class RouteRunner:
     def handle(self, message: Message) -> None:
         """Translate and publish one message; errors are counted and reported, never raised."""
         try:
-            lane = self._lane(message)
+            lane = self._lanes.get(message.match.groups()) or self._lane(message)
             if lane.observes:
                 lane.translator.observe(message.received)
             if self._lazy:
@@ -458,7 +457,10 @@ class RouteRunner:
         self._translate(lane, message)
 
     def _translate(self, lane: _Lane, message: Message, latency: bool = True) -> None:
-        skipped = thread_collector()
+        # Once per message: calls are what a small message costs, so lookups are written out here.
+        skipped = current_collector()
+        if skipped is None:
+            skipped = thread_collector()
         skipped.clear()  # what a translation that raised left there was no part of a message sent
         started = time.perf_counter()
         try:
@@ -474,7 +476,8 @@ class RouteRunner:
             self._error(f"crash:{type(error).__name__}", f"{message.channel}: {traceback.format_exc()}")
             return
         spent = time.perf_counter() - started
-        self.stats.translate_ms.append(spent * 1e3)
+        stats = self.stats
+        stats.translate_ms.append(spent * 1e3)
         self._cost_s += (spent - self._cost_s) * 0.1
         if skipped:
             self._count_skipped(message, skipped)
@@ -483,22 +486,29 @@ class RouteRunner:
             return
         # Its receive time (what a file stamps its outputs with) and channel (the loop guard's origin).
         self._message_time.message = message.received
+        made = lane.made
         for index, payload in outputs:
             try:
+                kept = made.get(index)  # its publisher, while the output at `index` is the same
+                publisher = (
+                    kept[1]
+                    if kept is not None and kept[0] is lane.translator.outputs[index]
+                    else lane.publisher(index)
+                )
                 if payload.__class__ is bytes:  # nearly every payload: no ABC check on the hot path
-                    lane.publisher(index).publish(payload)
+                    publisher.publish(payload)
                 else:
-                    hand_over(lane.publisher(index), payload)
+                    hand_over(publisher, payload)
             except Held as held:  # its interface is being built: counted on the channel, the rest goes on
                 self._held(message, held)
                 continue
             except Exception as error:  # the transport refused: count it, go on with the rest
                 self._error(f"publish:{type(error).__name__}", f"{lane.name}: {error}")
                 continue
-            self.stats.messages_out += 1
-            self.stats.bytes_out += len(payload) if payload.__class__ is bytes else size_of(payload)
+            stats.messages_out += 1
+            stats.bytes_out += len(payload) if payload.__class__ is bytes else size_of(payload)
         if outputs and latency:
-            self.stats.latency_ms.append((time.time_ns() // 1000 - message.received.received_us) / 1e3)
+            stats.latency_ms.append((time.time_ns() // 1000 - message.received.received_us) / 1e3)
 
     def _count_skipped(self, message: Message, skipped: list[Skipped]) -> None:
         """The parts of a translated message left out (the rest of it is sent), counted and let go."""

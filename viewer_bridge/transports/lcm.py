@@ -27,7 +27,7 @@ from viewer_bridge.transports import base
 from viewer_bridge.transports.lcm_playback import LogPlayer
 from viewer_bridge.transports.lcm_url import log_to_write
 from viewer_bridge.transports.playback import Timelines
-from viewer_bridge.util.channels import ChannelPattern
+from viewer_bridge.util.channels import MAX_CHANNELS, ChannelPattern
 from viewer_bridge.util.hints import first_time
 
 _log = logging.getLogger("viewer_bridge")
@@ -349,6 +349,9 @@ class LcmTransport(base.Transport):
         super().__init__(settings)
         self.bus = open_bus(settings.url) if bus is None else bus
         self._routes: list[tuple[ChannelPattern, base.Deliver]] = []
+        # The routes a channel goes to, found once per channel name: one dictionary lookup a
+        # message. Bounded as a pattern's matches are: past that many names, matched each time.
+        self._delivers: dict[str, tuple[base.Deliver, ...]] = {}
 
     @classmethod
     def create(cls, settings: base.TransportSettings, shared: Shared) -> LcmTransport:
@@ -360,6 +363,7 @@ class LcmTransport(base.Transport):
         self, pattern: str, message_type: base.MessageType, qos: base.Qos, deliver: base.Deliver
     ) -> None:
         self._routes.append((ChannelPattern(pattern), deliver))
+        self._delivers.clear()
 
     def publisher(self, name: str, message_type: base.MessageType, qos: base.Qos) -> base.Publisher:
         bus = self.bus
@@ -370,10 +374,14 @@ class LcmTransport(base.Transport):
         self.bus.start()
 
     def _dispatch(self, channel: str, data: bytes, received_us: int) -> None:
-        message = None
-        for pattern, deliver in self._routes:
-            if pattern.fullmatch(channel):
-                message = message or base.Received(channel, data, received_us)
+        delivers = self._delivers.get(channel)
+        if delivers is None:
+            delivers = tuple(deliver for pattern, deliver in self._routes if pattern.fullmatch(channel))
+            if len(self._delivers) < MAX_CHANNELS:
+                self._delivers[channel] = delivers
+        if delivers:
+            message = base.Received(channel, data, received_us)
+            for deliver in delivers:
                 deliver(message)
 
     def describe(self) -> str:

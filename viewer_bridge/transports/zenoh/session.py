@@ -118,6 +118,9 @@ class Link:
         self._declares: list[Declare] = []
         self._held: list[object] = []  # Zenoh undeclares what is dropped
         self._transports: set[str] = set()
+        # Whether any Zenoh transport (to a router or a peer) is up now: asked on every put, so a
+        # plain attribute, kept by `_on_transport` (a property's call costs what a put's guard does).
+        self.connected = False
         self._lock = threading.Lock()
         self._stop = threading.Event()
         # Guards `_running` and `_closing`; its condition signals `close` when the last call returns.
@@ -128,11 +131,6 @@ class Link:
         self._running = 0  # callbacks inside Python now
         self._closing = False  # set by `close` under `_calls_lock`: no callback nor put starts after it
         self._thread = threading.Thread(target=self._keep_opening, name="zenoh open", daemon=True)
-
-    @property
-    def connected(self) -> bool:
-        """Whether any Zenoh transport (to a router or a peer) is up now."""
-        return bool(self._transports)
 
     def hold(self, handle: object) -> None:
         with self._lock:
@@ -212,6 +210,7 @@ class Link:
             self._transports.add(zid)
         else:
             self._transports.discard(zid)
+        self.connected = bool(self._transports)
 
     def _run(self, declare: Declare, session: zenoh.Session) -> None:
         try:
