@@ -105,6 +105,7 @@ class _Lane:
         self.translator = translator
         self.channel = channel  # the source channel it was made for (an exclusive claim's owner)
         self.used_at = now  # when it last had a message (the route's clock): a quiet lane is reclaimed
+        self.used = False  # a message came since the last reclaim scan (which then moves `used_at`)
         self._publisher = publisher
         # Each output's publisher by index, while the output at that index is the same (a
         # translator adds outputs as it goes): no name or key made per message.
@@ -339,13 +340,12 @@ class RouteRunner:
     def _lane(self, message: Message) -> _Lane:
         key = message.match.groups()
         lane = self._lanes.get(key)
-        now = self._clock()
         if lane is None:
+            now = self._clock()
             name = destination_name(self.route.destination.name, message.match, self._names, self.commands)
             self._admit(name, message.channel, now)
             translator, self.prototype = self.prototype or self._make_translator(), None
             lane = self._lanes[key] = _Lane(name, translator, self._publisher, message.channel, now)
-        lane.used_at = now
         return lane
 
     def admits(self, source_name: str) -> bool:
@@ -369,6 +369,9 @@ class RouteRunner:
         if now < self._reclaim_at:
             return
         idle_s = self.route.stream_idle_s
+        for lane in self._lanes.values():  # used since the last scan: used now, as far as a scan can tell
+            if lane.used:
+                lane.used_at, lane.used = now, False
         quiet = [key for key, lane in self._lanes.items() if now - lane.used_at >= idle_s and lane.closable()]
         gone = [self._lanes.pop(key) for key in quiet]
         kept = {lane.name for lane in self._lanes.values()}
@@ -437,6 +440,7 @@ class RouteRunner:
         """Translate and publish one message; errors are counted and reported, never raised."""
         try:
             lane = self._lanes.get(message.match.groups()) or self._lane(message)
+            lane.used = True  # no clock per message: the next reclaim scan dates it
             if lane.observes:
                 lane.translator.observe(message.received)
             if self._lazy:
