@@ -120,7 +120,7 @@ def render_request(
     ):
         raise BadRequest(
             f"width and height must be whole numbers, at most {max_width}x{max_height} (the server's "
-            f"limit, serve-render --max-image WIDTHxHEIGHT); asked for {fields['width'][:20]!r}x{fields['height'][:20]!r}"
+            f"limit, serve-render --max-image WIDTHxHEIGHT); asked for {_text(fields['width'])}x{_text(fields['height'])}"
         )
     if not 0 < numbers["near"] < numbers["far"] or numbers["focal_x"] <= 0 or numbers["focal_y"] <= 0:
         raise BadRequest("need 0 < near < far and positive focal lengths")
@@ -144,6 +144,11 @@ def render_request(
     out = io.BytesIO()
     pixels.save(out, format="PNG")
     return out.getvalue()
+
+
+def _text(value: bytes) -> str:
+    """A form value as the client sent it, in a reason (at most 20 characters)."""
+    return value[:20].decode(errors="replace")
 
 
 def _number(fields: dict[str, bytes], name: str) -> float:
