@@ -377,31 +377,17 @@ def big_joint_states_mcap(path: Path, count: int, joints: int) -> None:
 
 
 def test_ctrl_c_during_a_bag_convert_keeps_a_readable_partial_log_and_no_real_name(tmp_path: Path) -> None:
-    import re
-    import signal
-    import subprocess
     import sys
-    import time
+
+    from tests.cli.test_cli import interrupted_convert
 
     bag, out = tmp_path / "big.mcap", tmp_path / "out.lcmlog"
     partial = tmp_path / "out.lcmlog.partial"
     big_joint_states_mcap(bag, 100_000, 200)
-    child = subprocess.Popen([sys.executable, "-m", "viewer_bridge", "convert", str(bag), str(out)],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
-    try:
-        deadline = time.monotonic() + 120
-        while not partial.exists() and child.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.02)
-        assert partial.exists(), child.communicate(timeout=60)
-        child.send_signal(signal.SIGINT)
-        _, stderr = child.communicate(timeout=60)
-    finally:
-        child.kill()
-    assert child.returncode == 130, stderr
-    said = rf"^viewer-bridge convert: interrupted: (\d+) messages written to {re.escape(str(partial))}$"
-    match = re.search(said, stderr, re.M)
-    assert match and "Traceback" not in stderr, stderr
-    assert len(list(read_log(partial))) == int(match.group(1)) < 100_000
+    written = interrupted_convert(
+        [sys.executable, "-m", "viewer_bridge", "convert", str(bag), str(out)], partial
+    )
+    assert len(list(read_log(partial))) == written < 100_000
     assert not out.exists()
 
 
