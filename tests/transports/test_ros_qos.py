@@ -67,3 +67,22 @@ def test_a_mismatch_is_said_with_the_policy_and_the_key_that_fixes_it() -> None:
     assert "best_effort, volatile, depth 5" in said
     said = incompatible_publication("/drake/markers", "DURABILITY", Qos(10, True, False))
     assert "durability does not match" in said and "qos.durability" in said
+
+
+def test_a_switch_passes_each_message_once_whichever_subscription_brings_it_first() -> None:
+    from viewer_bridge.transports.ros2 import Switch
+
+    def info(sent: int, sequence: int) -> dict[str, int]:
+        return {"source_timestamp": sent, "publication_sequence_number": sequence}
+
+    switch = Switch(covered=(1_000, 2_000), ends=float("inf"))  # earlier subscriptions: from 1,000 to 2,000
+    # Live during the switch: both subscriptions bring it; the first copy passes, the second not.
+    assert not switch.delivered(info(2_500, 7), history=False)
+    assert switch.delivered(info(2_500, 7), history=True)
+    # In flight at the switch: the new (transient-local) one's history copy comes first and is
+    # dropped, the old one's live copy passes.
+    assert switch.delivered(info(1_900, 6), history=True)
+    assert not switch.delivered(info(1_900, 6), history=False)
+    # Published before the first subscription existed: history nobody delivered, passed once.
+    assert not switch.delivered(info(500, 1), history=True)
+    assert switch.delivered(info(500, 1), history=True)

@@ -157,9 +157,13 @@ class Switch:
         key = (sent, info["publication_sequence_number"])
         if key in self._keys:
             return True
+        if history and self.covered[0] <= sent < self.covered[1]:
+            # The old subscription delivered it live, or still will (it was in flight at the
+            # switch): not remembered, so that copy passes.
+            return True
         if len(self._keys) < MAX_SWITCH_KEYS:
             self._keys.add(key)
-        return history and self.covered[0] <= sent < self.covered[1]
+        return False
 
 
 class TopicSubscription:
