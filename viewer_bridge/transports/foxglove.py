@@ -280,13 +280,20 @@ class _Listener(ServerListener):
     """Clients subscribing to and unsubscribing from channels (the SDK calls it on its threads)."""
 
     def __init__(
-        self, channels: dict[int, _Channel], subscribers: _Subscribers, playback: FoxglovePlayback | None
+        self,
+        channels: dict[int, _Channel],
+        subscribers: _Subscribers,
+        playback: FoxglovePlayback | None,
+        subscribed: Callable[[], None] = lambda: None,
     ) -> None:
+        """`subscribed`: called as a client subscribes (the server tells the time again then)."""
         self._channels = channels
         self._subscribers = subscribers
         self._playback = playback
+        self._subscribed = subscribed
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
+        self._subscribed()
         self._subscribers.add(channel.id, client.id)  # counted even before `publisher` stores the channel
         found = self._channels.get(channel.id)
         if found is not None:  # not yet stored: nothing was published on it, nothing to send again
@@ -354,7 +361,7 @@ class FoxgloveTransport(Transport):
                 host="127.0.0.1",  # behind the front, which holds the public port
                 port=0,
                 context=self.context.context,
-                server_listener=_Listener(self._channels, self._subscribers, self._playback),
+                server_listener=_Listener(self._channels, self._subscribers, self._playback, self._tell_time),
                 **options,
             )
         except Exception as error:  # the SDK raises its own error types, e.g. for a port in use
@@ -423,6 +430,13 @@ class FoxgloveTransport(Transport):
         """Say to the client that published `message` why a route refused it (an error status)."""
         if self.clients is not None:
             self.clients.answer(message, error)
+
+    def _tell_time(self) -> None:
+        """The sim time again, as a client subscribes: a simulation that stands still (paused, or
+        ended) ticks no new time, and a client that joined after the last tick would see none."""
+        server = getattr(self, "server", None)  # the SDK may call before start_server returned
+        if self._sim_time and server is not None and self.clock.now_ns:
+            server.broadcast_time(self.clock.now_ns)
 
     def _log_time(self) -> Callable[[], int] | None:
         """What stamps each message: a played log's timeline, else the sim clock, else the SDK's now."""
