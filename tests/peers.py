@@ -87,12 +87,27 @@ class BridgeProcess:
     """`viewer-bridge run` in a process of its own (in `env`, by default this one's); its log lines
     are collected."""
 
+    stop_s = 15.0  # how long `stop` waits for it to end
+
     def __init__(
-        self, *args: str, env: Mapping[str, str] | None = None, max_files: int | None = None
+        self,
+        *args: str,
+        env: Mapping[str, str] | None = None,
+        max_files: int | None = None,
+        subcommand: str = "run",
     ) -> None:
-        """`max_files`: the bridge's open-file limit (RLIMIT_NOFILE, soft and hard), as `ulimit -n` sets it."""
+        """`max_files`: the bridge's open-file limit (RLIMIT_NOFILE, soft and hard), as `ulimit -n`
+        sets it; `subcommand`: `run`, or another that runs routes (`play`)."""
         # Never a fixed port: bridges may run side by side, and beside a user's own.
-        command = [sys.executable, "-m", "viewer_bridge.cli.main", "run", "--set", "foxglove.port=0", *args]
+        command = [
+            sys.executable,
+            "-m",
+            "viewer_bridge.cli.main",
+            subcommand,
+            "--set",
+            "foxglove.port=0",
+            *args,
+        ]
 
         def limit_files() -> None:
             if max_files is not None:
@@ -132,7 +147,7 @@ class BridgeProcess:
         if self.process.poll() is None:
             self.process.send_signal(2)
         try:
-            return self.process.wait(timeout=15)
+            return self.process.wait(timeout=self.stop_s)
         finally:
             self._reader.join(timeout=2)
 

@@ -24,7 +24,7 @@ from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from websockets.sync.client import ClientConnection, connect
 
 from tests.conftest import lcm_url
-from tests.peers import wait_for
+from tests.peers import BridgeProcess, wait_for
 from tests.test_router import LcmRecorder
 from viewer_bridge.transports.lcm import LcmEvent, read_log
 
@@ -33,20 +33,13 @@ WAIT = 60.0
 PLAYING, PAUSED, ENDED = 0, 1, 3
 
 
-class PlayProcess:
+class PlayProcess(BridgeProcess):
     """`viewer-bridge play` in a process of its own, its Foxglove server on a free port; its log lines kept."""
 
-    def __init__(self, *args: str) -> None:
-        command = [sys.executable, "-m", "viewer_bridge.cli.main", "play", "--set", "foxglove.port=0", *args]
-        self.process = subprocess.Popen(command, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True)
-        self.lines: list[str] = []
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
+    stop_s = 30.0  # it closes its player and index too
 
-    def _read(self) -> None:
-        assert self.process.stderr is not None
-        for line in self.process.stderr:
-            self.lines.append(line.rstrip())
+    def __init__(self, *args: str) -> None:
+        super().__init__(*args, subcommand="play")
 
     def port(self) -> int:
         deadline = time.monotonic() + WAIT
@@ -57,14 +50,6 @@ class PlayProcess:
             assert self.process.poll() is None, self.lines
             time.sleep(0.05)
         raise AssertionError(f"no start-up line: {self.lines}")
-
-    def stop(self) -> int:
-        if self.process.poll() is None:
-            self.process.send_signal(2)
-        try:
-            return self.process.wait(timeout=30)
-        finally:
-            self._reader.join(timeout=2)
 
 
 class PlaybackClient:
