@@ -17,7 +17,7 @@ from viewer_bridge.formats.ros.messages import to_cdr
 # the first call; pydantic and yaml with the format tables; protobuf with ign and Foxglove; PIL
 # with images; orjson with the tree viewer; rosbags with ROS message building.
 HEAVY = ["numpy", "pydantic", "yaml", "google.protobuf", "PIL", "orjson", "rosbags", "viewer_bridge.lcmcodec.codecs",
-         "viewer_bridge.config.mappings", "viewer_bridge.model.scene"]  # fmt: skip
+         "viewer_bridge.formats.mappings", "viewer_bridge.model.scene"]  # fmt: skip
 
 CHILD = """
 import json, sys

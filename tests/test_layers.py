@@ -34,12 +34,13 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.util.extras": 1,
     "viewer_bridge.errors": 1,
     "viewer_bridge.payload": 1,
-    "viewer_bridge.config.registry": 1,
-    "viewer_bridge.config.resources": 1,
+    "viewer_bridge.util.registry": 1,
+    "viewer_bridge.util.resources": 1,
+    "viewer_bridge.util.words": 1,
     "viewer_bridge.model.sim_time": 1,
     "viewer_bridge.util.lru": 1,
     "viewer_bridge.router.status": 1,
-    "viewer_bridge.config.commands": 1,
+    "viewer_bridge.transports.command_policy": 1,  # the allow-list: patterns over ROS and LCM names
     "viewer_bridge.transports.ros_names": 1,  # ROS names' rules: strings and errors alone (the allow-list maps with them)
     "viewer_bridge.cli": 1,
     "viewer_bridge.ros_build.messages": 1,
@@ -47,7 +48,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.model.scene": 2,
     "viewer_bridge.model.pose_math": 2,
     "viewer_bridge.lcmcodec": 2,
-    "viewer_bridge.config.yamldoc": 2,
+    "viewer_bridge.util.yamldoc": 2,
     "viewer_bridge.cli.arguments": 2,
     "viewer_bridge.cli.lcm_types": 2,
     "viewer_bridge.cli.ros_interfaces": 2,
@@ -65,7 +66,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.model.image": 3,
     "viewer_bridge.model.skipped": 3,
     # 4
-    "viewer_bridge.config.mappings": 4,
+    "viewer_bridge.formats.mappings": 4,  # the tables of mappings/, read into the scene model's terms
     "viewer_bridge.cli.mappings": 4,
     # 5
     "viewer_bridge.formats": 5,
@@ -185,6 +186,50 @@ def test_no_import_circle() -> None:
 
     for module in sorted(GRAPH):
         visit(module, ())
+
+
+def folder_of(module: str) -> str:
+    """The folder (or top-level module) of `viewer_bridge/` that `module` lives in."""
+    return ".".join(module.split(".")[:2])
+
+
+def folder_graph() -> dict[str, set[str]]:
+    """Folder -> the other folders its modules import: the house drawn a folder a room."""
+    graph: dict[str, set[str]] = {}
+    for module, names in GRAPH.items():
+        if module == "viewer_bridge":
+            continue  # the facade is the top: it may name any folder
+        targets = {
+            folder_of(name) for name in names if name != "viewer_bridge" and not holds_only_a_docstring(name)
+        }
+        graph.setdefault(folder_of(module), set()).update(targets - {folder_of(module)})
+    return graph
+
+
+def test_folders_stack_as_floors() -> None:
+    """Folder by folder the imports form no circle, so every folder stands on one floor above all
+    it imports: a reader climbs the package from `errors` to `cli` without ever going back down."""
+    graph = folder_graph()
+    assert len(graph) > 10 and any(graph.values()), graph
+    floors: dict[str, int] = {}
+
+    def floor(folder: str, path: tuple[str, ...]) -> int:
+        if folder in path:
+            raise AssertionError(
+                "folders import each other: " + " -> ".join((*path[path.index(folder) :], folder))
+            )
+        if folder not in floors:
+            floors[folder] = 1 + max(
+                (floor(below, (*path, folder)) for below in graph.get(folder, ())), default=0
+            )
+        return floors[folder]
+
+    for folder in sorted(graph):
+        floor(folder, ())
+    climb = ["errors", "util", "lcmcodec", "formats", "transports", "translators", "config", "router", "cli"]
+    assert [floors[f"viewer_bridge.{folder}"] for folder in climb] == sorted(
+        {floors[f"viewer_bridge.{f}"] for f in climb}
+    ), floors
 
 
 def test_transports_use_format_code_only_through_schema_modules() -> None:

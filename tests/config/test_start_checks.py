@@ -7,8 +7,12 @@ from pathlib import Path
 import pytest
 
 from viewer_bridge.config.bridge import load_config
-from viewer_bridge.config.commands import alternatives, channel_pattern_problem, topic_pattern_problem
 from viewer_bridge.errors import ConfigError
+from viewer_bridge.transports.command_policy import (
+    alternatives,
+    channel_pattern_problem,
+    topic_pattern_problem,
+)
 
 
 def test_alternatives_split_only_at_the_top_level() -> None:

@@ -1,4 +1,4 @@
-"""Routes that write commands (viewer_bridge/config/commands.py, viewer_bridge/router/runner.py): only the
+"""Routes that write commands (viewer_bridge/transports/command_policy.py, viewer_bridge/router/runner.py): only the
 channels the config allows, only fresh messages, and a bounded number of streams per route."""
 
 from __future__ import annotations
@@ -10,7 +10,6 @@ from typing import Any, ClassVar
 import pytest
 
 from viewer_bridge.config.bridge import Route
-from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, ConfigError, Held
 from viewer_bridge.router.runner import MAX_HELD_CHANNELS, OTHER_CHANNELS, RouteRunner
 from viewer_bridge.translators.base import Output, Outputs, Translator
@@ -22,6 +21,7 @@ from viewer_bridge.transports.base import (
     Publisher,
     Received,
 )
+from viewer_bridge.transports.command_policy import CommandPolicy
 
 WAIT = 60.0
 
@@ -301,7 +301,7 @@ def test_the_allow_list_is_the_table_of_command_names() -> None:
     """Literal names (plain characters, escaped punctuation, `|` between them) give their tokens to
     their channels; a name the list allows as it is keeps it; two allowed channels on one name are
     said."""
-    from viewer_bridge.config.commands import literal_channels
+    from viewer_bridge.transports.command_policy import literal_channels
 
     assert literal_channels(r"IIWA-COMMAND|WSG\.COMMAND") == ["IIWA-COMMAND", "WSG.COMMAND"]
     assert literal_channels(r"IIWA\ COMMAND") == ["IIWA COMMAND"]

@@ -272,7 +272,7 @@ def test_held_messages_show_once_per_kind_with_their_channels(caplog: Any) -> No
 
 
 def test_counts_are_singular_or_plural() -> None:
-    from viewer_bridge.router.status import counted
+    from viewer_bridge.util.words import counted
 
     assert [counted(n, "route") for n in (0, 1, 2)] == ["0 routes", "1 route", "2 routes"]
 

@@ -17,8 +17,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn
 
-from viewer_bridge.config.commands import channel_pattern_problem, topic_pattern_problem
 from viewer_bridge.errors import UsageError
+from viewer_bridge.transports.command_policy import channel_pattern_problem, topic_pattern_problem
 from viewer_bridge.transports.lcm_url import log_to_write
 
 

@@ -23,7 +23,6 @@ from viewer_bridge.cli.arguments import AddCommand, input_file, lcm_types_option
 from viewer_bridge.cli.play import index_log
 from viewer_bridge.config.bridge import BridgeConfig, Route, destination_name, load_config
 from viewer_bridge.errors import BridgeError, UsageError
-from viewer_bridge.router.status import counted
 from viewer_bridge.shared import Shared
 from viewer_bridge.translators.base import Translator
 from viewer_bridge.translators.drake_stream import role_of
@@ -32,6 +31,7 @@ from viewer_bridge.translators.types import FRAME_TRANSFORMS_TYPE, RAW_IMAGE_TYP
 from viewer_bridge.transports.base import MessageType, Received
 from viewer_bridge.transports.lcm_log_index import LogIndex
 from viewer_bridge.util.extras import missing
+from viewer_bridge.util.words import counted
 
 if TYPE_CHECKING:
     from viewer_bridge.formats.foxglove.layout import LayoutTopics

@@ -36,7 +36,7 @@ def run(args: Any) -> int:
         raise UsageError(f"unknown action {args.action}")
     definitions, wanted = load_ros_definitions(args.ros_types)
     mapping = map_ros_types(definitions, wanted)
-    from viewer_bridge.router.status import counted
+    from viewer_bridge.util.words import counted
 
     written = mapping.write(args.output)
     for path in written:

@@ -40,13 +40,14 @@ from typing import TYPE_CHECKING, Any, Literal
 from viewer_bridge.config.bridge import BridgeConfig, Endpoint, Route
 from viewer_bridge.errors import ConvertError, Interrupted
 from viewer_bridge.router.router import Router
-from viewer_bridge.router.status import LEGEND, Snapshot, counted, routes_of
+from viewer_bridge.router.status import LEGEND, Snapshot, routes_of
 from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import LCM, MessageType, Received
 from viewer_bridge.transports.lcm import read_log
 from viewer_bridge.transports.registry import TRANSPORTS
 from viewer_bridge.util.partial import partial_output
 from viewer_bridge.util.progress import progress as progress_of
+from viewer_bridge.util.words import counted
 
 if TYPE_CHECKING:
     from viewer_bridge.transports.mcap import Profile

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from viewer_bridge.cli.arguments import AddCommand
-from viewer_bridge.config.mappings import format_names, reference_markdown
+from viewer_bridge.formats.mappings import format_names, reference_markdown
 
 
 def add_command(add: AddCommand) -> None:

@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, told: Steps) -> int:
     from viewer_bridge.ros_build import interfaces as ros_interfaces
-    from viewer_bridge.router.status import counted
+    from viewer_bridge.util.words import counted
 
     say = told.say
     if args.action == "generate":  # the LCM types' packages: the project's and Drake's, and --lcm-types'

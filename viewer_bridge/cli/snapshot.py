@@ -21,7 +21,7 @@ from viewer_bridge.cli.arguments import (
 )
 from viewer_bridge.errors import SceneError, UsageError
 from viewer_bridge.model.skipped import collecting
-from viewer_bridge.router.status import counted
+from viewer_bridge.util.words import counted
 
 
 def add_command(add: AddCommand) -> None:

@@ -46,17 +46,17 @@ from pydantic import (
     model_validator,
 )
 
-from viewer_bridge.config.commands import CommandPolicy, checked, topic_pattern_problem
-from viewer_bridge.config.resources import data_dir
-from viewer_bridge.config.yamldoc import KeyPath, YamlDocument
 from viewer_bridge.errors import ConfigError, InvalidName, UnknownName
 from viewer_bridge.lcmcodec.from_ros import lcm_channel
 from viewer_bridge.shared import TimeSource
 from viewer_bridge.translators.base import Translator, TranslatorOptions
 from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import MessageType, Transport, TransportSettings
+from viewer_bridge.transports.command_policy import CommandPolicy, checked, topic_pattern_problem
 from viewer_bridge.transports.registry import TRANSPORTS
 from viewer_bridge.transports.ros_names import ChannelNames, name_token
+from viewer_bridge.util.resources import data_dir
+from viewer_bridge.util.yamldoc import KeyPath, YamlDocument
 
 
 class _Strict(BaseModel):

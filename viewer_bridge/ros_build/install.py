@@ -324,7 +324,7 @@ def _build_all(
         pip = [python, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", *wheels]
         first_log.write_text("")
         _run(pip, f"pip install for {todo[0].name}", first_log)
-    from viewer_bridge.router.status import counted  # here: the router imports this module
+    from viewer_bridge.util.words import counted
 
     with tempfile.TemporaryDirectory(prefix="viewer-bridge-ros-") as temp:
         for package in todo:

@@ -31,20 +31,21 @@ from pathlib import Path
 from typing import Any
 
 from viewer_bridge.config.bridge import ROS_TOPICS_TRANSLATOR, BridgeConfig, Route
-from viewer_bridge.config.commands import COMMAND_FLAG, CommandPolicy
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.router import stats
 from viewer_bridge.router.echoes import Echoes
 from viewer_bridge.router.flow import InlineBudget
 from viewer_bridge.router.runner import Destinations, PublisherFor, RouteRunner, SaidOnce
-from viewer_bridge.router.status import LogLines, StatusView, counted
+from viewer_bridge.router.status import LogLines, StatusView
 from viewer_bridge.shared import RosDefinitions, Shared, definitions_of
 from viewer_bridge.translators.base import Output, Translator
 from viewer_bridge.translators.load_cache import LoadCache
 from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import DEPTH, DURABILITY, RELIABILITY, Publisher, Qos, Received, Transport
+from viewer_bridge.transports.command_policy import COMMAND_FLAG, CommandPolicy
 from viewer_bridge.transports.registry import TRANSPORTS
 from viewer_bridge.transports.ros_names import ChannelNames
+from viewer_bridge.util.words import counted
 
 log = logging.getLogger("viewer_bridge")
 

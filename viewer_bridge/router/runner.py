@@ -21,7 +21,6 @@ from collections.abc import Callable
 from typing import Any
 
 from viewer_bridge.config.bridge import Route, destination_name
-from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, Held
 from viewer_bridge.model.skipped import Skipped, current_collector, thread_collector
 from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
@@ -29,6 +28,7 @@ from viewer_bridge.router.stats import RouteStats
 from viewer_bridge.shared import MessageTime
 from viewer_bridge.translators.base import Output, Translator
 from viewer_bridge.transports.base import Closable, MessageType, Publisher, Received, hand_over, size_of
+from viewer_bridge.transports.command_policy import CommandPolicy
 from viewer_bridge.transports.ros_names import ChannelNames
 from viewer_bridge.util.channels import ChannelPattern
 

@@ -23,6 +23,8 @@ from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
+from viewer_bridge.util.words import counted
+
 log = logging.getLogger("viewer_bridge")
 
 Snapshot = dict[str, Any]  # route name -> its stats (`RouteStats.snapshot`); "transports" -> errors
@@ -34,11 +36,6 @@ class StatusView(Protocol):
 
     def close(self) -> None:
         """The bridge is stopping: leave the last state on screen."""
-
-
-def counted(count: int, noun: str, plural: str | None = None) -> str:
-    """`1 route`, `2 routes`: a count and its noun, singular or plural (`noun` + s unless given)."""
-    return f"{count} {noun}" if count == 1 else f"{count} {plural or noun + 's'}"
 
 
 def routes_of(snapshot: Snapshot) -> dict[str, dict[str, Any]]:

@@ -35,8 +35,9 @@ from viewer_bridge.config.bridge import BridgeConfig, Route
 from viewer_bridge.errors import BridgeError, UsageError
 from viewer_bridge.router import stats
 from viewer_bridge.router.router import Router
-from viewer_bridge.router.status import LogLines, StatusView, counted
+from viewer_bridge.router.status import LogLines, StatusView
 from viewer_bridge.transports.registry import TRANSPORTS
+from viewer_bridge.util.words import counted
 
 log = logging.getLogger("viewer_bridge")
 

@@ -67,7 +67,7 @@ class Translator:
 
     `commands` marks a translator whose outputs command a robot-facing bus (the generic way back
     to LCM): the router writes only the destinations the config's `commands.allow` names, and
-    drops what is older than the route's `max_age_ms` (`viewer_bridge.config.commands`).
+    drops what is older than the route's `max_age_ms` (`viewer_bridge.transports.command_policy`).
 
     `exclusive` marks a translator each of whose destinations carries one source's stream (a
     ROS 2 topic its own LCM channel): a stream for a destination that another stream of any of

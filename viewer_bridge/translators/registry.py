@@ -6,8 +6,8 @@ an entry point in the group `viewer_bridge.translators` naming a `Translator` su
 
 from __future__ import annotations
 
-from viewer_bridge.config.registry import Registry
 from viewer_bridge.translators.base import Translator
+from viewer_bridge.util.registry import Registry
 
 _BUILTINS = {
     "drake_to_marker_array": "drake_ros:DrakeToMarkerArray",

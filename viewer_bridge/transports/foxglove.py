@@ -39,7 +39,6 @@ from urllib.parse import urlencode
 
 from pydantic import Field, field_validator
 
-from viewer_bridge.config.commands import CommandPolicy
 from viewer_bridge.errors import BridgeError, TransportUnavailable
 from viewer_bridge.formats.foxglove.schema import schema
 from viewer_bridge.shared import Clock, Shared
@@ -55,6 +54,7 @@ from viewer_bridge.transports.base import (
     Transport,
     TransportSettings,
 )
+from viewer_bridge.transports.command_policy import CommandPolicy
 from viewer_bridge.transports.foxglove_clients import CLIENT_ENCODINGS, MAX_CLIENT_CHANNELS, ClientPublishing
 from viewer_bridge.transports.foxglove_front import MAX_CLIENT_MESSAGE, MAX_CLIENTS, SubprotocolFront
 from viewer_bridge.transports.origins import FOXGLOVE_APPS, Origins, is_origin_pattern

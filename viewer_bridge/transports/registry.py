@@ -5,8 +5,8 @@ subclass (see `viewer_bridge.transports.base`).
 
 from __future__ import annotations
 
-from viewer_bridge.config.registry import Registry
 from viewer_bridge.transports.base import Transport
+from viewer_bridge.util.registry import Registry
 
 TRANSPORTS: Registry[Transport] = Registry(
     "transport",

@@ -7,9 +7,9 @@ from types import ModuleType
 import pytest
 
 from tests.formats.ign.oracle import xyz
-from viewer_bridge.config.mappings import tables
 from viewer_bridge.errors import SceneError
 from viewer_bridge.formats.ign.model import model, scene_from_model
+from viewer_bridge.formats.mappings import tables
 from viewer_bridge.model.scene import Box, Geometry, HalfSpace, Link, Scene
 
 

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from viewer_bridge.config.mappings import ShapeRule
+from viewer_bridge.formats.mappings import ShapeRule
 from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, cdr_string, time_parts
 from viewer_bridge.formats.ros.markers import (
     DELETE_ALL,

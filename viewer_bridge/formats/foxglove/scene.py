@@ -13,8 +13,8 @@ from foxglove_schemas_protobuf.LinePrimitive_pb2 import LinePrimitive
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
-from viewer_bridge.config.mappings import FormatTables
 from viewer_bridge.formats.gltf import write_gltf
+from viewer_bridge.formats.mappings import FormatTables
 from viewer_bridge.model.lowering import triangle_mesh
 from viewer_bridge.model.scene import Geometry, Line, Link, Pose, Scene, Shape, Triad
 from viewer_bridge.model.skipped import per_geometry

@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from viewer_bridge.config.mappings import FormatTables, ShapeRule
 from viewer_bridge.errors import SceneError
 from viewer_bridge.formats.ign.schema import MESSAGES
+from viewer_bridge.formats.mappings import FormatTables, ShapeRule
 from viewer_bridge.model.scene import FileContents, InMemoryMesh, Line, Shape, TriangleMesh
 
 

@@ -25,8 +25,8 @@ from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from google.protobuf.message import DecodeError as ProtobufDecodeError
 from google.protobuf.message import Message
 
-from viewer_bridge.config.mappings import tables
 from viewer_bridge.errors import DecodeError
+from viewer_bridge.formats.mappings import tables
 
 # name -> fields (name, number, type, repeated). Types are scalar protobuf types or message names.
 _SCHEMA: dict[str, list[tuple[str, int, str, bool]]] = {

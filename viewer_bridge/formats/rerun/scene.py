@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
-from viewer_bridge.config.mappings import FormatTables, ShapeRule
 from viewer_bridge.errors import SceneError
+from viewer_bridge.formats.mappings import FormatTables, ShapeRule
 from viewer_bridge.formats.rerun.chunks import entity_path, static_chunk
 from viewer_bridge.formats.rerun.schema import Chunks
 from viewer_bridge.model.scene import (

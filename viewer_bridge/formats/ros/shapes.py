@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from viewer_bridge.config.mappings import ShapeRule
 from viewer_bridge.errors import SceneError
+from viewer_bridge.formats.mappings import ShapeRule
 from viewer_bridge.formats.ros.cdr import CDR_LE, U32, CdrWriter
 from viewer_bridge.formats.ros.message_types import MESH, PLANE, SOLID_PRIMITIVE, TypedCdr
 from viewer_bridge.formats.ros.tables import TABLES

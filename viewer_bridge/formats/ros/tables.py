@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from viewer_bridge.config.mappings import FormatTables
 from viewer_bridge.errors import SceneError
+from viewer_bridge.formats.mappings import FormatTables
 from viewer_bridge.model.scene import InMemoryMesh, Line, MeshFile, PointCloud, Triad, TriangleMesh
 
 

@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 import orjson
 
-from viewer_bridge.config.mappings import FormatTables
+from viewer_bridge.formats.mappings import FormatTables
 from viewer_bridge.formats.tree_viewer.common import DEFAULT_PREFIX
 from viewer_bridge.formats.tree_viewer.envelope import Request, encode, envelope
 from viewer_bridge.model.scene import (

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-_PACKAGE = Path(__file__).resolve().parents[1]  # viewer_bridge/, above this config/ folder
+_PACKAGE = Path(__file__).resolve().parents[1]  # viewer_bridge/, above this util/ folder
 
 
 def data_dir(name: str) -> Path:

@@ -8,12 +8,12 @@ import pytest
 from rosbags.typesys import Stores, get_typestore
 
 from viewer_bridge.cli.main import main
-from viewer_bridge.config.mappings import format_names, load_tables, reference_markdown, tables
-from viewer_bridge.config.resources import data_dir
-from viewer_bridge.config.yamldoc import YamlDocument
 from viewer_bridge.errors import ConfigError
+from viewer_bridge.formats.mappings import format_names, load_tables, reference_markdown, tables
 from viewer_bridge.lcmcodec.codecs import GEOMETRY_DATA
 from viewer_bridge.model.scene import SHAPE_KINDS, Box, Capsule, Cylinder, Ellipsoid, MeshFile, Sphere
+from viewer_bridge.util.resources import data_dir
+from viewer_bridge.util.yamldoc import YamlDocument
 
 
 def test_drake_codes_are_the_schemas() -> None:

@@ -31,11 +31,11 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from viewer_bridge.config.resources import data_dir
-from viewer_bridge.config.yamldoc import KeyPath, YamlDocument
 from viewer_bridge.errors import ConfigError, SceneError
 from viewer_bridge.model.lowering import LOWERINGS
 from viewer_bridge.model.scene import SHAPE_KINDS, Pose, Shape, shape_kind
+from viewer_bridge.util.resources import data_dir
+from viewer_bridge.util.yamldoc import KeyPath, YamlDocument
 
 # A function that writes what a table's terms cannot (a mesh's vertices, say): the fields it sets.
 Encoder = Callable[..., dict[str, Any]]
