@@ -406,3 +406,28 @@ def test_lcm_types_out_that_is_a_file_is_refused_before_any_work(
     inside = afile / "types"  # a folder under a file cannot be made either
     assert main(["convert", str(tmp_path / "bag.mcap"), str(out), "--lcm-types-out", str(inside)]) == 2
     assert f"{afile}, in its path, is a file" in capsys.readouterr().err and not out.exists()
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_a_rosbag2_folder_of_either_storage_converts_with_one_topic_list(
+    storage: str, tmp_path: Path
+) -> None:
+    """A folder of either storage is read by the same reader as an MCAP file; a folder whose
+    files rosbag2 compressed whole is opened by rosbags' reader instead, and converts the same."""
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
+
+    data = serialized("sensor_msgs/msg/JointState", JOINTS)
+    plugin = StoragePlugin.SQLITE3 if storage == "sqlite3" else StoragePlugin.MCAP
+    for name, whole_files in (("plain", False), ("compressed", True)):
+        writer = Writer(tmp_path / name, version=9, storage_plugin=plugin)
+        if whole_files:
+            writer.set_compression(CompressionMode.FILE, CompressionFormat.ZSTD)
+        with writer:
+            connection = writer.add_connection(
+                "/joint_states", "sensor_msgs/msg/JointState", typestore=typestore()
+            )
+            for index in range(30):
+                writer.write(connection, index * 1_000_000, data)
+        assert main(["convert", str(tmp_path / name), str(tmp_path / f"{name}.lcmlog")]) == 0
+        assert converted(tmp_path / f"{name}.lcmlog") == list(range(30))
+    assert not list((tmp_path / "plain").glob("*.zstd")) and list((tmp_path / "compressed").glob("*.zstd"))

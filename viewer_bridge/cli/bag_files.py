@@ -62,27 +62,35 @@ class DirectReader:
         self.cut: str | None = None
         self.damaged: list[str] = []  # the chunks skipped, each `file: the chunk at byte N: why`
         self.connections: list[Connection] = []
-        for _ in self._read(None):
-            pass
+        # the same topic in several files (or found twice): one connection, the same id on every read
+        self._known: dict[tuple[str, str, str], Connection] = {}
+        for path in self.files:
+            if path.suffix == ".mcap" and _summary_connections(path, self._known, self.connections):
+                continue  # the file's summary lists its channels: no need to read its chunks for them
+            for _ in self._read([path], None):
+                pass
+            if self.cut is not None:
+                break
         self.cut = None  # said again when the messages are read
         self.damaged_chunks = len(self.damaged)  # found while reading the topics
         self.damaged = []
 
     def messages(self, connections: list[Any]) -> Iterator[tuple[Any, int, bytes | memoryview]]:
-        return self._read({connection.id for connection in connections})
+        return self._read(self.files, {connection.id for connection in connections})
 
     def close(self) -> None:
         """Nothing stays open between reads."""
 
-    def _read(self, wanted: set[int] | None) -> Iterator[tuple[Connection, int, bytes | memoryview]]:
+    def _read(
+        self, files: list[Path], wanted: set[int] | None
+    ) -> Iterator[tuple[Connection, int, bytes | memoryview]]:
         """The messages of the connections `wanted` (None: none, the connections are found)."""
-        known: dict[tuple[str, str, str], Connection] = {}  # the same topic in several files: one connection
-        for path in self.files:
+        for path in files:
             try:
                 if path.suffix == ".db3":
-                    yield from _db3(path, known, self.connections, wanted)
+                    yield from _db3(path, self._known, self.connections, wanted)
                 else:
-                    yield from _mcap(path, known, self.connections, wanted, self.damaged)
+                    yield from _mcap(path, self._known, self.connections, wanted, self.damaged)
             except Exception as error:  # noqa: BLE001 - whatever the damage, the rest of the bag is unreadable
                 self.cut = f"{path.name}: {cut_reason(error)}"
                 return
@@ -108,6 +116,38 @@ def _connection(known: dict[tuple[str, str, str], Connection], found: list[Conne
         known[key] = Connection(len(known), topic, msgtype, MessageDefinition(definition))
         found.append(known[key])
     return known[key]
+
+
+def _summary_connections(
+    path: Path, known: dict[tuple[str, str, str], Connection], found: list[Connection]
+) -> bool:
+    """The connections of an MCAP file read from its summary section (where a finished file
+    repeats its schemas and channels), without inflating a chunk; False when the file has no
+    footer, no summary or no channel in it (cut short, or written without): then its records are
+    read. Whatever the summary says, the messages are still read from the data section."""
+    with path.open("rb") as stream:
+        size = os.fstat(stream.fileno()).st_size
+        footer_at = size - len(_MAGIC) - _RECORD.size - _FOOTER.size
+        if footer_at < len(_MAGIC):
+            return False
+        stream.seek(footer_at)
+        tail = stream.read()
+        if tail[-len(_MAGIC) :] != _MAGIC or _RECORD.unpack_from(tail) != (_OP_FOOTER, _FOOTER.size):
+            return False
+        summary_start, offsets_start, _ = _FOOTER.unpack_from(tail, _RECORD.size)
+        summary_end = offsets_start or footer_at
+        if not len(_MAGIC) <= summary_start < summary_end <= footer_at:
+            return False
+        stream.seek(summary_start)
+        records = memoryview(stream.read(summary_end - summary_start))
+    schemas: dict[int, tuple[str, str]] = {}
+    channels: dict[int, Connection] = {}
+    try:
+        for _ in _chunk_messages(records, schemas, channels, known, found, None):
+            pass
+    except (DamagedChunk, struct.error, ValueError):
+        return False
+    return bool(channels)
 
 
 def _mcap(path: Path, known: dict[tuple[str, str, str], Connection], found: list[Connection],
@@ -206,8 +246,9 @@ def _definition(op: int, record: memoryview, schemas: dict[int, tuple[str, str]]
 
 
 _MAGIC = b"\x89MCAP0\r\n"
-_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_DATA_END = 0x03, 0x04, 0x05, 0x06, 0x0F
+_OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_DATA_END = 0x02, 0x03, 0x04, 0x05, 0x06, 0x0F
 _RECORD = struct.Struct("<BQ")
+_FOOTER = struct.Struct("<QQI")  # summary start, summary offsets start, summary CRC-32
 _MESSAGE = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time; then the data
 _CHUNK = struct.Struct("<QQQI")  # start time, end time, uncompressed size, uncompressed CRC-32 (0: none)
 _U16, _U16_U16, _U32, _U64 = (

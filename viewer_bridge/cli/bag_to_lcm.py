@@ -121,32 +121,22 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
 
 
 def _open(bag: Path) -> Any:
-    """The reader of `bag`: an MCAP file's own (`bag_files`: in place, and as far as it is
-    readable); rosbags' for a rosbag2 folder (its metadata, any storage), and when it refuses a
-    damaged one (a `.db3` with a damaged page), the folder's files read directly. A folder's MCAP
-    files are read directly first: rosbags inflates a chunk whole whatever size it declares, so a
-    folder with a chunk that inflates past its size (or is otherwise damaged) is read directly."""
+    """The reader of `bag`, an MCAP file or a rosbag2 folder: the project's own (`bag_files`: in
+    place, and as far as it is readable) for MCAP and `.db3` storage alike. rosbags' opens only
+    what that cannot: a folder whose storage files rosbag2 compressed whole (`bag_0.mcap.zstd`)."""
+    direct = DirectReader(bag)
+    if direct.connections:
+        return direct
+    if direct.files or bag.is_file():
+        raise ConvertError(f"{bag} holds no CDR topic that can be read: {direct.cut or 'none is recorded'}")
     from rosbags.rosbag2 import Reader, ReaderError
 
-    direct = DirectReader(bag)
-    if bag.is_file():
-        if not direct.connections:
-            raise ConvertError(
-                f"{bag} holds no CDR topic that can be read: {direct.cut or 'none is recorded'}"
-            )
-        return direct
-    if direct.damaged_chunks and direct.connections:
-        return direct
     try:
         reader = Reader(bag)
         reader.open()
         return reader
     except ReaderError as error:
-        refused = error
-    if not direct.connections:
-        unreadable = f"; nothing of it is readable: {direct.cut}" if direct.cut else ""
-        raise ConvertError(f"{bag} is not a ROS 2 bag rosbags can read: {refused}{unreadable}") from None
-    return direct
+        raise ConvertError(f"{bag} is not a ROS 2 bag that can be read: {error}") from None
 
 
 def _readable(reader: Any, connections: list[Any], result: BagConversion) -> Iterator[tuple[Any, Any, Any]]:

@@ -4,7 +4,7 @@ Two profiles (`mcap: {profile: ...}`, what `viewer-bridge convert --schema` choo
 
 * `ros2`: CDR messages, each topic with the `ros2msg` schema rosbags generates for its type
   (what ROS 2 tools and Foxglove read), topic names rooted with `/` as a node in the root
-  namespace names them;
+  namespace names them, written by the foxglove-sdk's MCAP writer from a context of its own;
 * `foxglove`: Foxglove's protobuf messages (SceneUpdate, FrameTransforms), written by the
   foxglove-sdk's own MCAP writer from the router's one Foxglove context: where the config also
   runs the Foxglove server, the server and the file get every message logged to either
@@ -52,7 +52,7 @@ from viewer_bridge.util.partial import partial_path
 
 try:
     import foxglove
-    from mcap.writer import Writer
+    from foxglove.mcap import MCAPWriteOptions
 except ImportError as error:
     raise missing(error, "the mcap transport (viewer-bridge convert)") from None
 
@@ -80,17 +80,19 @@ class _File(Protocol):
 
 
 class _Ros2File:
-    """ROS 2 CDR messages through the mcap library's writer (routes on several threads share it:
-    one lock around it)."""
+    """ROS 2 CDR messages through the foxglove-sdk's MCAP writer (the one writer of the package:
+    bench/mcap_files.py measures it against the mcap library's), from a context of its own so
+    that no Foxglove server of the router sees these channels."""
 
     def __init__(self, path: Path) -> None:
-        self._file = path.open("wb")
-        self._writer = Writer(self._file)
-        self._writer.start(profile="ros2", library="viewer-bridge")
+        self._context = foxglove.Context()
+        options = MCAPWriteOptions(profile="ros2")
+        self._writer = foxglove.open_mcap(
+            path, allow_overwrite=True, context=self._context, writer_options=options
+        )
         self._store = get_typestore(Stores.ROS2_JAZZY)
-        self._schemas: dict[str, int] = {}
-        self._channels: dict[tuple[str, str], int] = {}  # by topic and type
-        self._lock = threading.Lock()
+        self._channels: dict[tuple[str, str], foxglove.Channel] = {}  # by topic and type
+        self._lock = threading.Lock()  # for the channels and counts: the SDK's log is thread-safe
         self.messages: Counter[str] = Counter()
 
     @staticmethod
@@ -105,36 +107,33 @@ class _Ros2File:
     def publisher(self, topic: str, message_type: MessageType, time: MessageTime, clock: Clock) -> Publisher:
         topic = topic if topic.startswith("/") else f"/{topic}"  # as a node in the root namespace names it
         with self._lock:
-            channel_id = self._channel(topic, message_type)
-        writer, lock, messages = self._writer, self._lock, self.messages
+            channel = self._channel(topic, message_type)
+        lock, messages = self._lock, self.messages
 
         def write(data: bytes) -> None:
-            time_ns = clock.log_time_ns(time.received_us)
             with lock:
                 messages[topic] += 1
-                writer.add_message(channel_id, time_ns, data, time_ns)
+            channel.log(data, log_time=clock.log_time_ns(time.received_us))
 
         return CallPublisher(write)
 
-    def _channel(self, topic: str, message_type: MessageType) -> int:
+    def _channel(self, topic: str, message_type: MessageType) -> foxglove.Channel:
         typename = message_type.name
         if (topic, typename) not in self._channels:  # a topic of any LCM type may change type
-            if typename not in self._schemas:
-                definition = message_type.definition
-                if definition is None:
-                    text, _ = self._store.generate_msgdef(typename, ros_version=2)
-                else:
-                    text = definition.ros2msg
-                self._schemas[typename] = self._writer.register_schema(typename, "ros2msg", text.encode())
-            self._channels[(topic, typename)] = self._writer.register_channel(
-                topic, CDR, self._schemas[typename]
+            definition = message_type.definition
+            text = (
+                self._store.generate_msgdef(typename, ros_version=2)[0]
+                if definition is None
+                else definition.ros2msg
+            )
+            schema = foxglove.Schema(name=typename, encoding="ros2msg", data=text.encode())
+            self._channels[(topic, typename)] = foxglove.Channel(
+                topic, schema=schema, message_encoding=CDR, context=self._context
             )
         return self._channels[(topic, typename)]
 
     def close(self) -> None:
-        with self._lock:
-            self._writer.finish()  # type: ignore[no-untyped-call]
-            self._file.close()
+        self._writer.close()
 
 
 class _FoxgloveFile:
