@@ -119,11 +119,12 @@ class LcmTypes:
             return known
 
     def _own_codec(self, message: LcmMessage) -> StructCodec | None:
-        """The codec of `message`'s class when the class is this store's, else None."""
+        """This store's codec of `message`'s type when the message's class is that type's, else None."""
         codec: StructCodec | None = getattr(type(message), "_codec", None)
         if codec is None or codec.type_name not in self._names:
             return None
-        return codec if self.library.codecs(codec.type_name)[codec.type_name] is codec else None
+        own = self.library.codecs(codec.type_name)[codec.type_name]
+        return own if own.message_class is type(message) else None
 
     @cached_property
     def _names(self) -> frozenset[str]:

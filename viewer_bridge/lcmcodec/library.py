@@ -210,7 +210,6 @@ class TypeLibrary:
         self.drake_left_out = drake_left_out
         self._mapping: RosMapping = map_to_ros(self._structs)
         self._lock = threading.Lock()
-        self._codecs: dict[str, StructCodec] = {}  # every type's, compiled once: one class per type
         self._codec_sets: dict[str, dict[str, StructCodec]] = {}
         self._transcoders: dict[str, CdrTranscoder] = {}
         self._encoders: dict[str, LcmEncoder] = {}
@@ -338,20 +337,17 @@ class TypeLibrary:
         }
 
     def codecs(self, full_name: str) -> dict[str, StructCodec]:
-        """The LCM codecs of `full_name` and of every type it nests, NaN and infinities allowed.
-        Each type's codec is generated once per library, when a type that needs it is first asked
-        for, and then shared: a nested type has one message class wherever it is nested."""
+        """The LCM codecs of `full_name` and of every type it nests, NaN and infinities allowed
+        (`codec.strict` refuses them). Each type's code is generated once in the process, when a
+        type that needs it is first asked for, and then shared (`serde`'s one registry): a type has
+        one message class wherever it is nested, in this library, another or `codecs.CODECS`."""
         with self._lock:
             if full_name not in self._codec_sets:
                 closure = self._closure(full_name)
                 fingerprints = {
                     name: int.from_bytes(self._types[name].packed_fingerprint, "big") for name in closure
                 }
-                compiled = {name: self._codecs[name] for name in closure if name in self._codecs}
-                self._codecs.update(
-                    compile_codecs(closure, finite=False, fingerprints=fingerprints, compiled=compiled)
-                )
-                self._codec_sets[full_name] = {name: self._codecs[name] for name in closure}
+                self._codec_sets[full_name] = compile_codecs(closure, finite=False, fingerprints=fingerprints)
             return self._codec_sets[full_name]
 
     def _transcoder(self, full_name: str) -> CdrTranscoder:
