@@ -60,14 +60,39 @@ def test_a_nested_type_has_one_class_wherever_it_is_nested(store: LcmTypes) -> N
     assert store.decode(store.encode(point(x=2.0))) == store.get("drake.lcmt_point")(x=2.0)
 
 
-def test_another_stores_classes_are_refused(store: LcmTypes) -> None:
-    other = lcm_types(TRANSLATOR_CORPUS, drake=False)
-    with pytest.raises(EncodeError, match=f"{ARM}.<message>: not a message of this store"):
-        store.encode(_arm(other))
+def test_stores_of_one_type_share_its_class_and_another_definitions_is_refused(
+    store: LcmTypes, tmp_path: Path
+) -> None:
+    other = lcm_types(TRANSLATOR_CORPUS, drake=False)  # the same types: the same classes (one registry)
+    assert other.get(ARM) is store.get(ARM)
+    assert store.decode(store.encode(_arm(other))) == _arm(store)
+    (tmp_path / "point.lcm").write_text("package vbtest_geo; struct point3_t { double x; }")
+    foreign = lcm_types(tmp_path, drake=False).get(POINT)  # another type of the same name
+    with pytest.raises(EncodeError, match=f"{POINT}.<message>: not a message of this store"):
+        store.encode(foreign())
     arm = _arm(store)
-    arm.toolTip = other.get(POINT)()
+    arm.toolTip = foreign()
     with pytest.raises(EncodeError, match="toolTip: expected vbtest_geo.point3_t"):
         store.encode(arm)
+
+
+def test_the_viewer_codecs_and_a_store_share_classes_and_nan_round_trips(store: LcmTypes) -> None:
+    """One registry: a message decoded with `codecs.DRAW` is one the store encodes, and the other
+    way; NaN and infinities pass both ways unless the strict decoder is asked for."""
+    from viewer_bridge.lcmcodec.codecs import DRAW
+
+    message = DRAW.message_class(timestamp=3, num_links=1, link_name=["a"], robot_num=[0],
+                                 position=[[math.nan, 0.0, math.inf]], quaternion=[[1.0, 0.0, 0.0, 0.0]])  # fmt: skip
+    data = DRAW.encode(message)
+    decoded = DRAW.decode(data)
+    assert math.isnan(decoded.position[0][0]) and decoded.position[0][2] == math.inf
+    assert DRAW.encode(decoded) == data
+    assert store.encode(decoded) == data
+    assert type(store.decode(data)) is DRAW.message_class
+    assert DRAW.encode(store.decode(data)) == data
+    with pytest.raises(DecodeError, match=r"position\[0\]\[0\] at byte 30: non-finite value nan"):
+        DRAW.strict.decode(data)
+    assert DRAW.strict.message_class is DRAW.message_class and DRAW.strict.lenient is DRAW
 
 
 def test_a_dict_has_the_ros_2_names_flat_arrays_and_json_ready_bytes(store: LcmTypes) -> None:

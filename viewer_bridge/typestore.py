@@ -100,14 +100,14 @@ class LcmTypes:
         """A whole LCM buffer as a dict of ROS 2 field names, JSON-ready (`json.dumps` takes it):
         nested messages dicts, arrays flat lists, a byte array `{"utf8": text}` or `{"base64": ...}`.
         `from_dict` takes it back. Its type as `decode` finds it; bad bytes: DecodeError."""
-        return self._of(data, typename).to_json(data, bytes_summary=False)
+        return self._of(data, typename).to_dict(data, bytes_summary=False)
 
     def from_dict(self, value: Mapping[str, object], typename: str) -> bytes:
         """The LCM bytes of a dict of ROS 2 field names, as `to_dict` gives (or a Foxglove client
         sends: a missing field is its zero, a missing length field is derived from its arrays, a
         byte array may be a list or a base64 string). A type with no ROS 2 form or a value that is
         no message of it, non-finite floats included: JsonValueError naming the field."""
-        return self._type(typename).from_json(dict(value))
+        return self._type(typename).from_dict(dict(value))
 
     def _type(self, typename: str) -> LcmType:
         try:
@@ -119,11 +119,12 @@ class LcmTypes:
             return known
 
     def _own_codec(self, message: LcmMessage) -> StructCodec | None:
-        """The codec of `message`'s class when the class is this store's, else None."""
+        """This store's codec of `message`'s type when the message's class is that type's, else None."""
         codec: StructCodec | None = getattr(type(message), "_codec", None)
         if codec is None or codec.type_name not in self._names:
             return None
-        return codec if self.library.codecs(codec.type_name)[codec.type_name] is codec else None
+        own = self.library.codecs(codec.type_name)[codec.type_name]
+        return own if own.message_class is type(message) else None
 
     @cached_property
     def _names(self) -> frozenset[str]:

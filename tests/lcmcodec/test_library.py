@@ -1,4 +1,4 @@
-"""TypeLibrary: where types come from, conflicts and errors, lookups, and to_json."""
+"""TypeLibrary: where types come from, conflicts and errors, lookups, and to_dict."""
 
 from __future__ import annotations
 
@@ -163,14 +163,14 @@ def test_lookups(library: TypeLibrary) -> None:
         library.get("lab.robot.nothing_t")
 
 
-def test_to_json_summarises_bytes_unless_asked(library: TypeLibrary) -> None:
+def test_to_dict_summarises_bytes_unless_asked(library: TypeLibrary) -> None:
     status = library.get("plain_status_t")
     body = struct.pack(">qd?", 5, float("nan"), True) + struct.pack(">dddI", 1, 2, 3, 3) + b"ab\0"
     data = status.packed_fingerprint + body + struct.pack(">i2f2b", 2, 0.5, -1.0, 3, -4) + PLAIN_TAIL
-    record = status.to_json(data)
+    record = status.to_dict(data)
     # NaN kept
     assert record["timestamp"] == 5 and record["ok"] is True and record["value"] != record["value"]
-    # ROS 2 names, as from_json takes
+    # ROS 2 names, as from_dict takes
     assert record["where"] == {"x": 1.0, "y": 2.0, "z": 3.0, "frame_id": "ab"}
     assert record["fixed_shorts"] == [1, -2, 3]
     assert record["samples"] == [0.5, -1.0] and record["codes"] == [3, -4] and record["tags"] == ["a", ""]
@@ -189,11 +189,14 @@ def test_to_json_summarises_bytes_unless_asked(library: TypeLibrary) -> None:
         )
     )
     encoded = message.encode()
-    assert comms.to_json(encoded)["data"] == {"bytes": 8, "crc32": f"{zlib.crc32(payload):08x}"}
-    assert comms.to_json(encoded, bytes_summary=False)["data"] == {"utf8": '{"a": 1}'}
-    assert comms.from_json(comms.to_json(encoded, bytes_summary=False)) == encoded  # exact inverses
+    assert comms.to_dict(encoded)["data"] == {"bytes": 8, "crc32": f"{zlib.crc32(payload):08x}"}
+    assert comms.to_dict(encoded, bytes_summary=False)["data"] == {"utf8": '{"a": 1}'}
+    assert comms.from_dict(comms.to_dict(encoded, bytes_summary=False)) == encoded  # exact inverses
     with pytest.raises(DecodeError, match="viewer2_comms_t"):
-        comms.to_json(encoded[:-1])
+        comms.to_dict(encoded[:-1])
+    # the older names are aliases of the same two
+    assert comms.to_json(encoded) == comms.to_dict(encoded)
+    assert comms.from_json(comms.to_json(encoded, bytes_summary=False)) == encoded
 
 
 @pytest.mark.parametrize(

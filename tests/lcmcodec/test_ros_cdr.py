@@ -264,3 +264,46 @@ def test_a_count_of_2_31_elements_is_refused_before_anything_is_allocated(
         tracemalloc.stop()
     assert caught.value.field == field and "2147483647" in caught.value.reason, caught.value
     assert peak < 1 << 20
+
+
+def _pose() -> Any:
+    from viewer_bridge.formats.ros.messages import make
+
+    return make("geometry_msgs/msg/Pose", position=make("geometry_msgs/msg/Point", x=1.0, y=-2.0, z=3.5),
+                orientation=make("geometry_msgs/msg/Quaternion", w=1.0))  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("ros_type", "values"),
+    [
+        ("geometry_msgs/msg/Pose", None),
+        ("std_msgs/msg/String", {"data": "héllo"}),
+        ("std_msgs/msg/Bool", {"data": True}),
+    ],
+)
+def test_one_generator_both_mappings_give_the_same_lcm_bytes_and_errors(
+    ros_type: str, values: dict[str, Any] | None
+) -> None:
+    """A ROS 2 type with no sequence and no unsigned integer maps onto an LCM struct whose own ROS 2
+    form is the type itself: the ROS 2 mapping and the LCM types' one (`lcm_wire`) give the one
+    generator the same wire fields, so the same LCM bytes and the same errors."""
+    from viewer_bridge.formats.ros.messages import make, to_cdr
+    from viewer_bridge.lcmcodec.cdr_to_lcm import compile_encoders, lcm_wire
+
+    mapping = map_ros_types(load_ros_definitions([ros_type])[0], [ros_type])
+    lcm_name = mapping.structs[ros_type].lcm_name
+    fields = [(f.name, f.base, f.kind, f.count) for f in lcm_wire(mapping.lcm)[lcm_name].fields]
+    # an LCM byte is ROS 2's byte, which the mapping writes as uint8 (the same wire)
+    assert fields == [(f.name, f.base, f.kind, f.count) for f in mapping.structs[ros_type].fields]
+    cdr = to_cdr(_pose() if values is None else make(ros_type, **values))
+    ros = compile_ros_encoders(mapping, [ros_type], keep_layouts=False)[ros_type]
+    fingerprints = {s.lcm_name: mapping.packed_fingerprint(s.ros_name) for s in mapping.structs.values()}
+    lcm = compile_encoders(mapping.lcm, fingerprints, [lcm_name])[lcm_name]
+    assert ros.encode(cdr) == lcm.encode(cdr) == lcm.encode(cdr)  # the second: its kept layout
+    for cut in (4, len(cdr) - 1):
+        with pytest.raises(DecodeError) as by_ros:
+            ros.encode(cdr[:cut])
+        with pytest.raises(DecodeError) as by_lcm:
+            lcm.encode(cdr[:cut])
+        assert (by_ros.value.field, by_ros.value.offset, by_ros.value.reason) == (
+            by_lcm.value.field, by_lcm.value.offset, by_lcm.value.reason)  # fmt: skip

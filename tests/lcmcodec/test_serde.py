@@ -90,7 +90,7 @@ def test_default_constructed_messages_encode() -> None:
 )
 def test_bad_draw_names_type_field_and_offset(data: bytes, field: str, offset: int, reason: str) -> None:
     with pytest.raises(DecodeError) as caught:
-        DRAW.decode(data)
+        DRAW.strict.decode(data)
     error = caught.value
     assert (error.type_name, error.field, error.offset) == ("drake.lcmt_viewer_draw", field, offset)
     assert reason in error.reason
@@ -102,7 +102,7 @@ def test_nested_errors_carry_the_whole_field_path() -> None:
     link = CODECS["drake.lcmt_viewer_link_data"].message_class(name="a", num_geom=1, geom=[geometry])
     data = LOAD_ROBOT.message_class(num_links=1, link=[link]).encode()
     with pytest.raises(DecodeError) as caught:
-        LOAD_ROBOT.decode(data)
+        LOAD_ROBOT.strict.decode(data)
     assert caught.value.field == "link[0].geom[0].float_data[0]"
     assert caught.value.type_name == "drake.lcmt_viewer_load_robot"
     assert data[caught.value.offset : caught.value.offset + 4] == struct.pack(">f", float("nan"))
@@ -184,7 +184,7 @@ def test_long_arrays_match_lcm_gen(links: int, lcmgen: dict[str, type]) -> None:
     nan_at = len(data) - 16 * links + 4 * 9  # quaternion[2][1]
     broken = data[:nan_at] + struct.pack(">f", float("nan")) + data[nan_at + 4 :]
     with pytest.raises(DecodeError) as caught:
-        DRAW.decode(broken)
+        DRAW.strict.decode(broken)
     assert (caught.value.field, caught.value.offset) == ("quaternion[2][1]", nan_at)
 
 

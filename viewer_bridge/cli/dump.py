@@ -46,7 +46,7 @@ def describe(
         return record
     record["type"] = known.full_name
     try:
-        record["message"] = known.to_json(event.data, bytes_summary=bytes_summary)
+        record["message"] = known.to_dict(event.data, bytes_summary=bytes_summary)
     except DecodeError as error:
         record["error"] = str(error)
     return record

@@ -148,7 +148,7 @@ def _plot_fields(shared: Shared, announced: Announced) -> list[str]:
     if first is None or lcm_type is None or lcm_type.ros_type != announced.type.name:
         return []
     try:
-        return numeric_paths(lcm_type.to_json(first.data, bytes_summary=False))
+        return numeric_paths(lcm_type.to_dict(first.data, bytes_summary=False))
     except BridgeError as error:  # bad bytes under a known fingerprint
         log.warning("viewer-bridge layout: %s: %s: no field to plot", announced.channel, error)
         return []

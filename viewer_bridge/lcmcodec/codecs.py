@@ -1,9 +1,16 @@
-"""The strict LCM codecs for the types in `lcmtypes/`, generated from the schemas when first imported.
+"""The LCM codecs of the types in `lcmtypes/`, generated from the schemas when first imported.
+
+They come from `serde`'s one registry, as every type store's do: a message of one is a message of
+the other (`viewer_bridge.lcm_types().encode(DRAW.decode(data))` works). Like LCM, they pass NaN
+and infinities both ways; `codec.strict` is the same codec whose decoder refuses them with a
+`DecodeError` naming the field and offset, which the viewer's formats use (a pose, a geometry or a
+contact force must be finite).
 
 Usage::
 
     message = DRAW.decode(data)          # a drake.lcmt_viewer_draw message
     assert DRAW.encode(message) == data  # byte-identical to lcm-gen's output
+    DRAW.strict.decode(data)             # the same, or DecodeError for a NaN or infinity
 """
 
 from __future__ import annotations
@@ -14,7 +21,7 @@ from viewer_bridge.util.resources import data_dir
 
 SCHEMA_DIR = data_dir("lcmtypes")
 STRUCTS: dict[str, StructDef] = load_schema_dir(SCHEMA_DIR)
-CODECS: dict[str, StructCodec] = compile_codecs(STRUCTS)
+CODECS: dict[str, StructCodec] = compile_codecs(STRUCTS, finite=False)
 
 LOAD_ROBOT = CODECS["drake.lcmt_viewer_load_robot"]
 LINK_DATA = CODECS["drake.lcmt_viewer_link_data"]

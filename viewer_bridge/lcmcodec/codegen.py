@@ -1,10 +1,11 @@
 """What every generated codec shares: the source writer, reads and checks, size bounds and errors.
 
 Three directions are generated or planned per struct: LCM <-> Python objects (`serde`), LCM -> CDR
-(`cdr`), CDR -> LCM (`cdr_to_lcm`), and JSON -> LCM (`json_to_lcm`) builds its plan from the same
-size bounds. Whatever they have in common lives here once, under public names: the generated code
-calls these helpers by name (each compiler puts them in its namespace), and the generators share
-one writer and one base class.
+(`cdr`), CDR -> LCM (`cdr_to_lcm`, one generator for LCM types and mapped ROS 2 types alike), and
+JSON -> LCM (`json_to_lcm`) builds its plan from the same size bounds. Whatever they have in
+common lives here once, under public names: the generated code calls these helpers by name (each
+compiler puts them in its namespace), and the generators share one writer, one base class and the
+emitters of what two directions write alike (a child's call, CDR scalar runs' starts).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ __all__ = [
     "StructWriter",
     "U32_BE",
     "U32_LE",
+    "aligned_starts",
     "bad_count",
     "call_child",
     "closure_min_sizes",
@@ -267,6 +269,18 @@ def call_child(out: SourceWriter, statement: str, error_class: str, type_literal
     out.line(f"except {error_class} as error:")
     with out.indent():
         out.line(f"raise error.within({type_literal}, {field}) from None")
+
+
+def aligned_starts(phase: int, sizes: list[int]) -> list[int]:
+    """Where consecutive CDR primitives of `sizes` bytes start, counted from the first one's position,
+    when that position is `phase` modulo 8 (each is aligned to its size): a generated run of CDR
+    scalars is read with one `struct` per phase."""
+    starts, position = [], phase
+    for size in sizes:
+        position += -position & (size - 1)
+        starts.append(position - phase)
+        position += size
+    return starts
 
 
 def scalar_runs(definition: StructDef) -> Iterator[tuple[bool, list[tuple[int, Member]]]]:

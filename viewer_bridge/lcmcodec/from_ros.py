@@ -67,6 +67,9 @@ class RosField:
     nested: str = ""
     kind: str = "scalar"  # "scalar", "array" (fixed `count` elements) or "sequence" (at most `count`, 0: any)
     count: int = 0
+    # An LCM type's sequence (`cdr_to_lcm.lcm_wire`): the LCM dimensions its count must equal, each
+    # a length field's name or a literal size. A mapped ROS 2 type's has none: its count is written.
+    lengths: tuple[str, ...] = ()
 
     @property
     def length_field(self) -> str:

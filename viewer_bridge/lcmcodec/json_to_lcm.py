@@ -8,7 +8,7 @@ nest themselves). What JSON may say, and what it must not (docs/PROTOCOLS.md, "A
 - The value is an object whose keys are the ROS 2 field names (`joint_position`, not LCM's
   `jointPosition`); a nested message is an object; every array is one flat list in row-major
   order, as the ROS 2 message holds it; a byte array (`uint8[]`) is a list of 0..255, a
-  base64 string, or the `{"base64": ...}` or `{"utf8": ...}` object `LcmType.to_json` writes.
+  base64 string, or the `{"base64": ...}` or `{"utf8": ...}` object `LcmType.to_dict` writes.
 - A missing field takes its zero value: 0, 0.0, false, "", an all-zero nested message, a fixed
   array of zeros, an empty variable array.
 - A missing length field is derived from the arrays it sizes (`num_joints` from the length of
@@ -276,7 +276,7 @@ class JsonEncoder:
 
     def _bytes(self, member: Member, ros: str, items: Any) -> Any:
         """A byte array given as text, as its list of 0..255: a base64 string (as Foxglove's
-        clients send it), or the `{"base64": ...}` or `{"utf8": ...}` object `to_json` writes.
+        clients send it), or the `{"base64": ...}` or `{"utf8": ...}` object `to_dict` writes.
         Any other value (a list, a missing one), or any other member's, is returned as it is."""
         if member.type_name != "byte":
             return items

@@ -1,4 +1,4 @@
-"""Any decoded LCM message as plain JSON-ready values: the form `LcmType.from_json` takes back.
+"""Any decoded LCM message as plain JSON-ready values: the form `LcmType.from_dict` takes back.
 
 A message is an object whose keys are its ROS 2 field names (`rosnames.field_names`); numbers,
 strings and booleans stay themselves, a nested message is an object, and every array is one flat

@@ -94,7 +94,7 @@ _CDR_LE = b"\x00\x01"
 # (through a Python float a signalling NaN would turn quiet); a bool as a byte, checked to be 0 or 1
 # when CDR (an LCM bool is read by "?": any byte but 0 is true).
 _LCM_CODES = {**{name: code for name, (code, _) in PRIMITIVE_FORMATS.items()}, "float": "I", "boolean": "B"}
-# ROS 2 primitive -> (CDR size, little-endian code, LCM's big-endian code): `ros_cdr._WIRE`'s.
+# ROS 2 primitive -> (CDR size, little-endian code, LCM's big-endian code): `cdr_to_lcm.WIRE`.
 Wire = Mapping[str, tuple[int, str, str]]
 _frombuffer, _BYTE = np.frombuffer, np.dtype(np.uint8)  # looked up once: the fast path is a few calls
 

@@ -9,7 +9,7 @@ Usage::
 
     back = library.for_ros_type("drake_lcm_msgs/msg/LcmtIiwaCommand")  # or "drake_lcm_msgs/LcmtIiwaCommand"
     lcm = back.from_cdr(cdr)                                       # a ROS 2 message -> LCM bytes
-    lcm = back.from_json({"utime": 1, "joint_position": [0.0] * 7})  # a Foxglove client's JSON -> LCM bytes
+    lcm = back.from_dict({"utime": 1, "joint_position": [0.0] * 7})  # a Foxglove client's JSON -> LCM bytes
 
 Types come from `.lcm` files, folders of them (searched recursively) and lcm-gen'd Python
 modules by import name; the project's own `lcmtypes/` always, and pydrake's `drake` module when
@@ -100,8 +100,8 @@ class LcmType:
         self.to_cdr = self._transcoder.transcode  # type: ignore[method-assign]
         return self.to_cdr(data)
 
-    def to_json(self, data: Buffer, *, bytes_summary: bool = True) -> dict[str, object]:
-        """Every field, JSON-ready, in the form `from_json` takes back: keys the ROS 2 field names
+    def to_dict(self, data: Buffer, *, bytes_summary: bool = True) -> dict[str, object]:
+        """Every field, JSON-ready, in the form `from_dict` takes back: keys the ROS 2 field names
         (`joint_position`; a type with no ROS 2 form for its names keeps its LCM ones), arrays
         flat in row-major order, nested messages as objects. A byte array is its size and CRC-32
         unless `bytes_summary` is False, then `{"utf8": text}` or `{"base64": ...}`. Bad bytes:
@@ -137,13 +137,13 @@ class LcmType:
         self.from_cdr = self._encoder.encode  # type: ignore[method-assign]  # as `to_cdr`: a call less
         return self.from_cdr(data)
 
-    def from_json(self, value: object) -> bytes:
+    def from_dict(self, value: object) -> bytes:
         """A JSON value (already parsed: dicts, lists, str, int, float, bool, None) with the ROS 2
         message's field names, as the whole LCM message (fingerprint first).
 
         - An object per message, keys the ROS 2 field names (`joint_position`); arrays flat in
           row-major order as the ROS 2 message holds them; a byte array a list of 0..255, a
-          base64 string, or the `{"base64": ...}` or `{"utf8": ...}` object `to_json` writes.
+          base64 string, or the `{"base64": ...}` or `{"utf8": ...}` object `to_dict` writes.
         - A missing field takes its zero value (0, false, "", an all-zero nested message, a fixed
           array of zeros, an empty variable array).
         - A missing length field is derived from the arrays it sizes (`num_joints` from
@@ -164,6 +164,14 @@ class LcmType:
         if self.refused is not None:
             raise JsonValueError(self.full_name, "", f"has no ROS 2 form: {self.refused}")
         return self._json_encoder.encode(value)
+
+    def to_json(self, data: Buffer, *, bytes_summary: bool = True) -> dict[str, object]:
+        """An alias of `to_dict`, kept for code written before the one name: use `to_dict`."""
+        return self.to_dict(data, bytes_summary=bytes_summary)
+
+    def from_json(self, value: object) -> bytes:
+        """An alias of `from_dict`, kept for code written before the one name: use `from_dict`."""
+        return self.from_dict(value)
 
     @cached_property
     def _transcoder(self) -> CdrTranscoder:
@@ -202,7 +210,6 @@ class TypeLibrary:
         self.drake_left_out = drake_left_out
         self._mapping: RosMapping = map_to_ros(self._structs)
         self._lock = threading.Lock()
-        self._codecs: dict[str, StructCodec] = {}  # every type's, compiled once: one class per type
         self._codec_sets: dict[str, dict[str, StructCodec]] = {}
         self._transcoders: dict[str, CdrTranscoder] = {}
         self._encoders: dict[str, LcmEncoder] = {}
@@ -330,20 +337,17 @@ class TypeLibrary:
         }
 
     def codecs(self, full_name: str) -> dict[str, StructCodec]:
-        """The LCM codecs of `full_name` and of every type it nests, NaN and infinities allowed.
-        Each type's codec is generated once per library, when a type that needs it is first asked
-        for, and then shared: a nested type has one message class wherever it is nested."""
+        """The LCM codecs of `full_name` and of every type it nests, NaN and infinities allowed
+        (`codec.strict` refuses them). Each type's code is generated once in the process, when a
+        type that needs it is first asked for, and then shared (`serde`'s one registry): a type has
+        one message class wherever it is nested, in this library, another or `codecs.CODECS`."""
         with self._lock:
             if full_name not in self._codec_sets:
                 closure = self._closure(full_name)
                 fingerprints = {
                     name: int.from_bytes(self._types[name].packed_fingerprint, "big") for name in closure
                 }
-                compiled = {name: self._codecs[name] for name in closure if name in self._codecs}
-                self._codecs.update(
-                    compile_codecs(closure, finite=False, fingerprints=fingerprints, compiled=compiled)
-                )
-                self._codec_sets[full_name] = {name: self._codecs[name] for name in closure}
+                self._codec_sets[full_name] = compile_codecs(closure, finite=False, fingerprints=fingerprints)
             return self._codec_sets[full_name]
 
     def _transcoder(self, full_name: str) -> CdrTranscoder:

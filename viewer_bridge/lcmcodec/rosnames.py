@@ -64,7 +64,7 @@ def field_name(name: str) -> str:
 
 
 def field_names(struct: StructDef) -> dict[str, str]:
-    """Each member's name in a message's dict or JSON (`LcmType.to_json`, `from_json`): its ROS 2
+    """Each member's name in a message's dict or JSON (`LcmType.to_dict`, `from_dict`): its ROS 2
     field name. A struct with no ROS 2 form for them all (a name with none, two names with one)
     keeps its LCM names, so that `viewer-bridge dump` still shows every field."""
     try:

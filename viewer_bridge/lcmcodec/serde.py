@@ -12,9 +12,10 @@ from __future__ import annotations
 import itertools
 import math
 import struct
+import threading
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass
-from functools import cache, cached_property
+from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -31,7 +32,7 @@ from viewer_bridge.lcmcodec.codegen import (
     string_error,
     truncated,
 )
-from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
+from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef, nested_closure
 from viewer_bridge.lcmcodec.schema import fingerprints as all_fingerprints
 
 _FINGERPRINT_FIELD = "<fingerprint>"
@@ -94,10 +95,29 @@ class StructCodec:
     min_size: int  # body size with every variable array empty and every string empty
     _encode_body: Callable[[LcmMessage, list[bytes]], None]
     _decode_body: Callable[[Buffer, int, int], tuple[LcmMessage, int]]
+    finite: bool = True  # the strictness flag: this codec's decoder refuses NaN and infinities
+    # The type and every type it nests, with their fingerprints: what its sibling is compiled from.
+    _closure: Mapping[str, tuple[StructDef, int]] = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def type_name(self) -> str:
         return self.definition.full_name
+
+    @cached_property
+    def strict(self) -> StructCodec:
+        """This type's codec whose decoder refuses NaN and infinities (itself when it does): the
+        same class and encoder, from the one registry."""
+        return self if self.finite else self._sibling(True)
+
+    @cached_property
+    def lenient(self) -> StructCodec:
+        """This type's codec whose decoder passes NaN and infinities, as LCM does (itself when it does)."""
+        return self._sibling(False) if self.finite else self
+
+    def _sibling(self, finite: bool) -> StructCodec:
+        structs = {name: definition for name, (definition, _) in self._closure.items()}
+        fingerprints = {name: value for name, (_, value) in self._closure.items()}
+        return compile_codecs(structs, finite=finite, fingerprints=fingerprints)[self.type_name]
 
     def constant(self, name: str) -> int | float:
         """The value of a `const` declared in the schema (e.g. `BOX`)."""
@@ -528,18 +548,127 @@ def _flatten_bytes(value: Any, shape: Sequence[int], type_name: str, field: str)
 
 
 def generate_source(
-    structs: Mapping[str, StructDef], min_sizes: Mapping[str, int], finite: bool = True
+    structs: Mapping[str, StructDef],
+    min_sizes: Mapping[str, int],
+    finite: bool = True,
+    decoders_only: frozenset[str] = frozenset(),
 ) -> str:
-    """The Python source of every class, decoder and encoder for `structs`."""
+    """The Python source of every class, decoder and encoder for `structs`; of the decoder alone
+    for those in `decoders_only` (their class and encoder exist: the namespace holds them)."""
     out = SourceWriter()
-    for definition in structs.values():
+    for name, definition in structs.items():
         generator = _StructGenerator(definition, min_sizes, out, finite)
-        generator.write_class()
+        if name not in decoders_only:
+            generator.write_class()
+            generator.write_encoder()
         generator.write_decoder()
-        generator.write_encoder()
         generator.write_formats()
         out.line("")
     return out.source()
+
+
+# The helpers' names are capitalised or start with one underscore; every name the generated code
+# defines is `<ident>_<what>`, and `_ident` doubles each underscore of a type's name, so none of
+# those starts with a single one: no type's name can take a helper's (or a builtin's).
+_HELPERS: Mapping[str, Any] = {
+    "LcmMessage": LcmMessage,
+    "DecodeError": DecodeError,
+    "EncodeError": EncodeError,
+    "_Struct": struct.Struct,
+    "_U32": _U32,
+    "_U32_unpack_from": _U32.unpack_from,
+    "_str": str,
+    "_frombuffer": np.frombuffer,
+    "_isfinite_array": np.isfinite,
+    "_unpack_from": struct.unpack_from,
+    "_pack": struct.pack,
+    "_prod": math.prod,
+    "_isfinite": math.isfinite,
+    "_nest": _nest,
+    "_flatten": _flatten,
+    "_flatten_bytes": _flatten_bytes,
+    "_truncated": truncated,
+    "_bad_count": bad_count,
+    "_check_finite": _check_finite,
+    "_check_rows": _check_rows,
+    "_string_error": string_error,
+    "_unexpected_fields": _unexpected_fields,
+    "_ENCODE_ERRORS": _ENCODE_ERRORS,
+}
+
+# A type's identity in the registry: its name, fingerprint, and the members and constants of it and
+# of every type it nests (the fingerprint leaves constants out, and a class carries them).
+_Key = tuple[str, int, tuple[tuple[str, tuple[Member, ...], tuple[Any, ...]], ...]]
+
+
+@dataclass
+class _Generated:
+    """One type's generated code, shared by every codec of it: one class, one encoder, a decoder
+    per strictness (compiled when first asked for), and the codec of each."""
+
+    message_class: type[LcmMessage]
+    encode_body: Callable[[LcmMessage, list[bytes]], None]
+    decode_bodies: dict[bool, Callable[[Buffer, int, int], tuple[LcmMessage, int]]]
+    codecs: dict[bool, StructCodec]
+
+
+class _Registry:
+    """The one registry of LCM codecs in the process: a type (`_Key`) is generated once, whoever
+    asks (the viewer's `CODECS`, any number of type stores), so its messages are of one class and
+    any codec of the type encodes them. Strictness (`finite`) is a decoder's, not a class's."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._types: dict[_Key, _Generated] = {}
+
+    def compile(
+        self, structs: Mapping[str, StructDef], finite: bool, fingerprints: Mapping[str, int]
+    ) -> dict[str, StructCodec]:
+        with self._lock:
+            keys = {name: _key(structs, name, fingerprints[name]) for name in structs}
+            namespace: dict[str, Any] = dict(_HELPERS)
+            for name, key in keys.items():  # what the new code calls of a type generated before
+                known = self._types.get(key)
+                if known is not None:
+                    ident = _ident(name)
+                    namespace[f"{ident}_class"] = known.message_class
+                    namespace[f"{ident}_encode"] = known.encode_body
+                    if finite in known.decode_bodies:
+                        namespace[f"{ident}_decode"] = known.decode_bodies[finite]
+            new = {name: structs[name] for name, key in keys.items() if not self._has(key, finite)}
+            if new:
+                sizes = min_sizes(structs)
+                have_class = frozenset(name for name in new if keys[name] in self._types)
+                source = generate_source(new, sizes, finite, have_class)
+                exec(compile(source, "<lcm codecs generated from lcm types>", "exec"), namespace)  # noqa: S102
+                for name, definition in new.items():
+                    ident = _ident(name)
+                    known = self._types.get(keys[name])
+                    if known is None:
+                        known = self._types[keys[name]] = _Generated(
+                            namespace[f"{ident}_class"], namespace[f"{ident}_encode"], {}, {}
+                        )
+                    known.decode_bodies[finite] = namespace[f"{ident}_decode"]
+                    closure = {n: (structs[n], fingerprints[n]) for n in nested_closure(structs, [name])}
+                    codec = StructCodec(definition, known.message_class, fingerprints[name], sizes[name],
+                                        known.encode_body, known.decode_bodies[finite], finite, closure)  # fmt: skip
+                    known.codecs[finite] = codec
+                    if not hasattr(known.message_class, "_codec"):
+                        known.message_class._codec = codec  # `message.encode()`: any codec writes the same
+            return {name: self._types[key].codecs[finite] for name, key in keys.items()}
+
+    def _has(self, key: _Key, finite: bool) -> bool:
+        """Whether the type has its decoder of this strictness already."""
+        known = self._types.get(key)
+        return known is not None and finite in known.decode_bodies
+
+
+def _key(structs: Mapping[str, StructDef], name: str, fingerprint: int) -> _Key:
+    closure = sorted(nested_closure(structs, [name]))
+    return name, fingerprint, tuple((n, structs[n].members, structs[n].constants) for n in closure)
+
+
+_REGISTRY = _Registry()
 
 
 def compile_codecs(
@@ -547,71 +676,21 @@ def compile_codecs(
     *,
     finite: bool = True,
     fingerprints: Mapping[str, int] | None = None,
-    compiled: Mapping[str, StructCodec] | None = None,
 ) -> dict[str, StructCodec]:
-    """Generate, compile and wrap the codecs of every struct in `structs`.
+    """The codecs of every struct in `structs` (which holds every type they nest), from the one
+    registry: each type is generated once in the process and its class shared by every codec of it.
 
-    `finite` refuses NaN and infinite floats (the viewer's messages never carry them); a generic
-    type's decoder passes them through. `fingerprints` overrides computed ones (an lcm-gen'd
-    class's own, which is what its publisher writes). `compiled`: codecs made earlier (with the
-    same `finite`) for some of `structs`, reused rather than generated again, so that a nested
-    type has one message class wherever it is nested."""
-    earlier = dict(compiled or {})
-    # The helpers' names are capitalised or start with one underscore; every name the generated
-    # code defines is `<ident>_<what>`, and `_ident` doubles each underscore of a type's name, so
-    # none of those starts with a single one: no type's name can take a helper's (or a builtin's).
-    namespace: dict[str, Any] = {
-        "LcmMessage": LcmMessage,
-        "DecodeError": DecodeError,
-        "EncodeError": EncodeError,
-        "_Struct": struct.Struct,
-        "_U32": _U32,
-        "_U32_unpack_from": _U32.unpack_from,
-        "_str": str,
-        "_frombuffer": np.frombuffer,
-        "_isfinite_array": np.isfinite,
-        "_unpack_from": struct.unpack_from,
-        "_pack": struct.pack,
-        "_prod": math.prod,
-        "_isfinite": math.isfinite,
-        "_nest": _nest,
-        "_flatten": _flatten,
-        "_flatten_bytes": _flatten_bytes,
-        "_truncated": truncated,
-        "_bad_count": bad_count,
-        "_check_finite": _check_finite,
-        "_check_rows": _check_rows,
-        "_string_error": string_error,
-        "_unexpected_fields": _unexpected_fields,
-        "_ENCODE_ERRORS": _ENCODE_ERRORS,
-    }
-    for name, codec in earlier.items():  # what the new code calls of a type compiled before
-        ident = _ident(name)
-        namespace.update({f"{ident}_class": codec.message_class, f"{ident}_encode": codec._encode_body,
-                          f"{ident}_decode": codec._decode_body})  # fmt: skip
-    sizes = min_sizes(structs)
-    new = {name: definition for name, definition in structs.items() if name not in earlier}
-    source = generate_source(new, sizes, finite)
-    exec(compile(source, "<lcm codecs generated from lcm types>", "exec"), namespace)  # noqa: S102
-    codecs: dict[str, StructCodec] = {}
-    computed = cache(lambda: all_fingerprints(structs))  # only when one is not given
-    for name, definition in structs.items():
-        if name in earlier:
-            codecs[name] = earlier[name]
-            continue
-        ident = _ident(name)
-        message_class: type[LcmMessage] = namespace[f"{ident}_class"]
-        codec = StructCodec(
-            definition=definition,
-            message_class=message_class,
-            fingerprint=(fingerprints or {}).get(name) or computed()[name],
-            min_size=sizes[name],
-            _encode_body=namespace[f"{ident}_encode"],
-            _decode_body=namespace[f"{ident}_decode"],
-        )
-        message_class._codec = codec
-        codecs[name] = codec
-    return codecs
+    `finite` is the strictness flag: its decoders refuse NaN and infinite floats with a
+    `DecodeError` naming the field and offset (the viewer's formats ask for it: a pose or a
+    geometry must be finite); without it they pass them, as LCM does. Encoding never checks:
+    whatever a strict or lenient codec encodes, the lenient one decodes back. `fingerprints`
+    overrides computed ones (an lcm-gen'd class's own, which is what its publisher writes)."""
+    given = dict(fingerprints or {})
+    missing = [name for name in structs if not given.get(name)]
+    if missing:
+        computed = all_fingerprints(structs)
+        given.update({name: computed[name] for name in missing})
+    return _REGISTRY.compile(structs, finite, given)
 
 
 __all__ = [

@@ -107,7 +107,7 @@ class DrakeLinkToMarkerArray(Translator):
     outputs = (Output("", ros_type(MARKER_ARRAY)),)
 
     def translate(self, message: Received) -> Outputs:
-        link = link_from_lcm(LINK_DATA.decode(message.data))
+        link = link_from_lcm(LINK_DATA.strict.decode(message.data))
         scene = Scene((link,))
         return [(0, marker_array_cdr(scene, self.options.table_overrides(), delete_all=False))]
 

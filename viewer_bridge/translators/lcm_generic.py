@@ -86,7 +86,7 @@ class RosToLcm(Translator):
         lcm_type = self.lcm_type(message)
         assert message.message_type is not None  # lcm_type refused a message without one
         if message.message_type.encoding == JSON:
-            return [(0, lcm_type.from_json(parse_json(message.data, lcm_type.full_name)))]
+            return [(0, lcm_type.from_dict(parse_json(message.data, lcm_type.full_name)))]
         return [(0, lcm_type.from_cdr(message.data))]
 
     def lcm_type(self, message: Received) -> LcmType:

@@ -26,7 +26,7 @@ class LcmToRerunScalars(Translator):
 
     def translate(self, message: Received) -> Outputs:
         lcm_type = self.shared.lcm_types.type_of(message.data, message.channel)
-        fields = lcm_type.to_json(message.data)
+        fields = lcm_type.to_dict(message.data)
         sim_us = sim_time_us(fields)
         parts = [
             received_chunk(entity_path(*path), message.received_us, [scalars])

@@ -61,7 +61,7 @@ def test_draw_fast_path_refuses_what_is_not_finite_like_the_generic_decoder(
     decoder.decode(_drake_draw(1.0))  # the names are known: the next draw takes the fast path
     bad = _drake_draw(value, other)
     with pytest.raises(DecodeError) as expected:
-        DRAW.decode(bad)
+        DRAW.strict.decode(bad)
     with warnings.catch_warnings(record=True) as shown:
         for data in (bad, bytearray(bad), memoryview(bad)):
             with pytest.raises(DecodeError) as caught:

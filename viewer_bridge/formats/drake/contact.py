@@ -31,7 +31,7 @@ _TYPE = CONTACT_RESULTS.type_name
 
 def decode_contact_results(data: Buffer) -> ContactResults:
     """`CONTACT_RESULTS` bytes as `ContactResults`; `DecodeError` for anything malformed."""
-    return contact_results_from_lcm(CONTACT_RESULTS.decode(data))
+    return contact_results_from_lcm(CONTACT_RESULTS.strict.decode(data))
 
 
 def contact_results_from_lcm(message: LcmMessage) -> ContactResults:

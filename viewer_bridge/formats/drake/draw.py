@@ -79,7 +79,7 @@ class DrawDecoder:
     float32 arrays (views of one copy of the draw's floats, checked finite), the robot numbers
     as a read-only big-endian int32 array. One decoded draw may feed several routes: never
     change the arrays. Anything irregular is handed to the generic decoder, so the same inputs
-    raise the same `DecodeError`s as `DRAW.decode`.
+    raise the same `DecodeError`s as `DRAW.strict.decode`.
     """
 
     def __init__(self) -> None:
@@ -117,7 +117,7 @@ class DrawDecoder:
 
     @staticmethod
     def _generic(data: Buffer) -> LinkPoses:
-        return poses_from_draw(DRAW.decode(data))
+        return poses_from_draw(DRAW.strict.decode(data))
 
     def _new_layout(self, data: bytes) -> _DrawLayout | None:
         """Parse the name block and keep its layout; None when the draw is not well formed."""

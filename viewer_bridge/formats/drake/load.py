@@ -182,7 +182,7 @@ def _link_geometries(link: LcmMessage, prefix: str, type_name: str = _LOAD_TYPE)
 
 def decode_load(data: Buffer) -> Scene:
     """Bytes of an `lcmt_viewer_load_robot` straight to a scene."""
-    return scene_from_load(LOAD_ROBOT.decode(data))
+    return scene_from_load(LOAD_ROBOT.strict.decode(data))
 
 
 def _mesh_array(shape: TriangleMesh) -> dict[str, Any]:

@@ -32,7 +32,7 @@ def cloud_from_lcm(data: Buffer) -> StampedPointCloud:
     Raises `DecodeError` naming the field for bytes that are not one, for sizes that do not fit
     its data, and for a non-finite point in a message flagged IS_STRICTLY_FINITE.
     """
-    message = POINT_CLOUD.decode(data)
+    message = POINT_CLOUD.strict.decode(data)
     layout = Layout(
         fields=tuple(PointField(f.name, f.byte_offset, f.datatype, f.count) for f in message.fields),
         width=message.width,

@@ -1,6 +1,6 @@
 """Any LCM message's numbers as Rerun `Scalars`: one entity per field path, so each plots alone.
 
-A message (as `LcmType.to_json` gives it) is walked field by field: a number or a boolean is one
+A message (as `LcmType.to_dict` gives it) is walked field by field: a number or a boolean is one
 scalar at its path (`joint_position_measured` with 7 values is one entity with 7 series), a
 nested message adds its field names to the path, an array of messages their indices
 (`plan/3/utime`). Strings and byte arrays are no numbers and are left out.

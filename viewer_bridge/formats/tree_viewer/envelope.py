@@ -63,7 +63,7 @@ def decode(data: Buffer) -> Request:
     Raises `DecodeError` for bytes that are no envelope, and `RequestRejected` (with the response
     status) for a wrong format or version, bad JSON, or JSON that is no object.
     """
-    message = VIEWER2_COMMS.decode(data)
+    message = VIEWER2_COMMS.strict.decode(data)
     if message.format != FORMAT:
         raise RequestRejected(ERROR_UNKNOWN_FORMAT, f"{_ENVELOPE}.format: unknown format {message.format!r}")
     major, minor = message.format_version_major, message.format_version_minor
