@@ -42,7 +42,7 @@ from viewer_bridge.formats.ros.message_types import WORLD, TypedCdr
 from viewer_bridge.formats.tree_viewer.common import DEFAULT_PREFIX, JsonObject
 
 if TYPE_CHECKING:
-    from viewer_bridge.lcmcodec.serde import Buffer
+    from viewer_bridge.lcmcodec.codegen import Buffer
     from viewer_bridge.model.image import Image
     from viewer_bridge.model.scene import LinkPoses, Scene
 

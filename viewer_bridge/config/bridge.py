@@ -489,18 +489,3 @@ def routes_on(route: Any, transport: str) -> bool:
     """Whether a route, as a config's YAML has it, reads or writes `transport`."""
     ends = [route.get(end) for end in ("source", "destination")] if isinstance(route, dict) else []
     return any(isinstance(end, dict) and end.get("transport") == transport for end in ends)
-
-
-__all__ = [
-    "BUILTIN_CONFIGS",
-    "DEFAULT_CONFIG",
-    "BridgeConfig",
-    "ConfigError",
-    "Endpoint",
-    "Route",
-    "clock_routes",
-    "destination_name",
-    "load_config",
-    "ros_topic_routes",
-    "routes_on",
-]

@@ -38,8 +38,6 @@ from viewer_bridge.lcmcodec.layout import Layout, LayoutKeeper, learn_lcm_layout
 from viewer_bridge.lcmcodec.rosnames import field_name
 from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
 
-__all__ = ["LcmEncoder", "compile_encoders"]
-
 _CDR_LE = b"\x00\x01"
 _HEADER = 4
 # How a scalar is read and written: as itself, except a float32, which goes as its raw bits (Python

@@ -612,12 +612,3 @@ def compile_codecs(
         message_class._codec = codec
         codecs[name] = codec
     return codecs
-
-
-__all__ = [
-    "Buffer",
-    "LcmMessage",
-    "StructCodec",
-    "compile_codecs",
-    "generate_source",
-]

@@ -11,7 +11,8 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from viewer_bridge.formats.ign.schema import Package
-from viewer_bridge.formats.ros.tf import WORLD, FrameNames
+from viewer_bridge.formats.ros.message_types import WORLD
+from viewer_bridge.formats.ros.tf import FrameNames
 from viewer_bridge.model.image import Intrinsics
 from viewer_bridge.shared import Clock
 from viewer_bridge.translators.base import TranslatorOptions
@@ -97,12 +98,3 @@ class CameraInfoOptions(BaseModel):
         cx = base.cx if self.cx is None else self.cx
         cy = base.cy if self.cy is None else self.cy
         return Intrinsics(base.width, base.height, base.fx, base.fy, cx, cy)
-
-
-__all__ = [
-    "CameraInfoOptions",
-    "FrameOptions",
-    "IgnOptions",
-    "MarkerOptions",
-    "StampOptions",
-]

@@ -198,6 +198,3 @@ class CommandPolicy(BaseModel):
             f"LCM channel {channel} may not be commanded{named}: run with {COMMAND_FLAG} "
             f"'{re.escape(channel)}', or name it in the config's commands: {{allow: [...]}}"
         )
-
-
-__all__ = ["COMMAND_FLAG", "DEFAULT_MAX_AGE_MS", "CommandPolicy", "literal_channels", "regular_expressions"]

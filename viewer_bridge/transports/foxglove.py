@@ -481,12 +481,3 @@ class FoxgloveTransport(Transport):
         self.clock.unlisten(self._broadcast_time)
         self.front.close()
         self.server.stop()
-
-
-__all__ = [
-    "FoxgloveContext",
-    "FoxgloveSettings",
-    "FoxgloveTransport",
-    "log",
-    "require_schemas",
-]

@@ -16,7 +16,8 @@ import numpy.typing as npt
 
 from viewer_bridge.errors import EncodeError
 from viewer_bridge.lcmcodec.codecs import DRAW
-from viewer_bridge.lcmcodec.serde import Buffer, LcmMessage
+from viewer_bridge.lcmcodec.codegen import Buffer
+from viewer_bridge.lcmcodec.serde import LcmMessage
 from viewer_bridge.model.scene import LinkPoses
 
 

@@ -21,7 +21,8 @@ import numpy as np
 from viewer_bridge.errors import DecodeError, ShapeDataError
 from viewer_bridge.formats.mappings import FormatTables
 from viewer_bridge.lcmcodec.codecs import GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT
-from viewer_bridge.lcmcodec.serde import Buffer, LcmMessage
+from viewer_bridge.lcmcodec.codegen import Buffer
+from viewer_bridge.lcmcodec.serde import LcmMessage
 from viewer_bridge.model.scene import (
     FileContents,
     Geometry,

@@ -97,8 +97,3 @@ class FrameTransformsEncoder:
         places = np.asarray(doubles, dtype=np.int64).reshape(-1, 7)
         self._double_bytes = (places[:, :, None] + np.arange(8)).reshape(-1)
         self._stamp_bytes = np.asarray(stamps, dtype=np.int64).reshape(-1)
-
-
-__all__ = [
-    "FrameTransformsEncoder",
-]

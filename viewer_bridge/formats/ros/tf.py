@@ -82,10 +82,3 @@ class TransformsEncoder:
 
 
 _STAMP_ITEM = np.dtype((np.void, CDR_TIME.size))
-
-
-__all__ = [
-    "FrameNames",
-    "TransformsEncoder",
-    "WORLD",
-]

@@ -280,14 +280,3 @@ def _undeclare(handle: object) -> None:
     # in use on another thread ("Already borrowed"): the session's close ends it
     except RuntimeError as error:
         _log.warning("Zenoh: undeclaring %r at close: %s", handle, error)
-
-
-__all__ = [
-    "Declare",
-    "Link",
-    "as_non_daemon",
-    "ROUTER_ENDPOINT",
-    "make_config",
-    "overrides_from_env",
-    "session_config",
-]

@@ -403,10 +403,3 @@ class ZenohTransport(Transport):
         if self._discovery.is_alive():
             self._discovery.join(timeout=2)
         self.link.close()
-
-
-__all__ = [
-    "ZenohSettings",
-    "ZenohTransport",
-    "key_problem",
-]
