@@ -46,7 +46,7 @@ from pydantic import (
     model_validator,
 )
 
-from viewer_bridge.errors import ConfigError, InvalidName, UnknownName
+from viewer_bridge.errors import ConfigError, InvalidName, InvalidSetting, UnknownName
 from viewer_bridge.lcmcodec.from_ros import lcm_channel
 from viewer_bridge.shared import TimeSource
 from viewer_bridge.translators.base import Translator, TranslatorOptions
@@ -109,7 +109,7 @@ class Route(_Strict):
         try:
             re.compile(source.name)
         except re.error as error:
-            raise ValueError(f"name is not a regular expression: {error}") from None
+            raise InvalidSetting(f"name is not a regular expression: {error}") from None
         return source
 
     @model_validator(mode="after")
@@ -355,7 +355,7 @@ def _check_template(template: str, groups: int) -> None:
     try:
         _Template().format(template, "x", *(["x"] * groups))
     except (IndexError, KeyError, ValueError) as error:
-        raise ValueError(
+        raise InvalidName(
             f"destination name {template!r} does not fit a source with {groups} groups "
             f"(use {{0}}..{{{groups}}}, with :lower, :path, :topic, :channel or :lcm): {error}"
         ) from None

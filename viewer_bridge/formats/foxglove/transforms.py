@@ -64,6 +64,8 @@ class FrameTransformsEncoder:
         self._stamp_bytes = np.zeros(0, dtype=np.int64)
 
     def encode(self, poses: LinkPoses, stamp: tuple[int, int]) -> bytes:
+        """The `foxglove.FrameTransforms` of `poses`, stamped `stamp` (sec, nanosec); it raises nothing
+        of its own (the arrays are a decoded draw's)."""
         timestamp = _length_delimited(1, _timestamp(stamp))
         key = (poses.names, len(timestamp))
         if (
