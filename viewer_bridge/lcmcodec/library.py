@@ -47,7 +47,6 @@ from viewer_bridge.lcmcodec.schema import (
 )
 from viewer_bridge.lcmcodec.serde import StructCodec, compile_codecs
 
-__all__ = ["LcmType", "TypeLibrary", "ros_named", "ros_topic_for_channel"]
 
 _T = TypeVar("_T")
 _Compile = Callable[[Mapping[str, StructDef], Mapping[str, bytes], list[str]], dict[str, _T]]

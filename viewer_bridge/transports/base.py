@@ -360,6 +360,7 @@ def hand_over(publisher: Publisher, payload: Payload) -> None:
 
 
 __all__ = [
+    "CARRIED_DEFINITION",
     "CDR",
     "CallPublisher",
     "Closable",
@@ -367,6 +368,7 @@ __all__ = [
     "DEPTH",
     "DURABILITY",
     "Decoded",
+    "Definition",
     "Deliver",
     "Exposure",
     "JSON",
