@@ -328,7 +328,7 @@ class _Template(string.Formatter):
         # Only group numbers: `{1.path}` or `{1[a]}` would reach into the group's str (found by
         # bench/fuzz.py as an AttributeError escaping the config check).
         if not field_name.isdigit():
-            raise ValueError(f"{{{field_name}}} is not a group number")
+            raise InvalidName(f"{{{field_name}}} is not a group number")
         return super().get_field(field_name, args, kwargs)
 
     def format_field(self, value: Any, format_spec: str) -> str:
@@ -346,7 +346,7 @@ class _Template(string.Formatter):
         if format_spec == "lcm":  # a ROS 2 topic as the LCM channel it is carried on: "/a/b" -> "a/b"
             return lcm_channel(text)
         if format_spec:
-            raise ValueError(f"unknown format spec {format_spec!r}")
+            raise InvalidName(f"unknown format spec {format_spec!r}")
         return text
 
 

@@ -36,7 +36,7 @@ from viewer_bridge.lcmcodec.json_to_lcm import JsonEncoder, compile_json_encoder
 from viewer_bridge.lcmcodec.jsonview import message_json
 from viewer_bridge.lcmcodec.pymodule import structs_from_module
 from viewer_bridge.lcmcodec.rosmsg import RosMapping, map_to_ros
-from viewer_bridge.lcmcodec.rosnames import field_path, ros_topic_for_channel
+from viewer_bridge.lcmcodec.rosnames import field_path
 from viewer_bridge.lcmcodec.schema import (
     Member,
     StructDef,
@@ -46,7 +46,6 @@ from viewer_bridge.lcmcodec.schema import (
     nested_closure,
 )
 from viewer_bridge.lcmcodec.serde import StructCodec, compile_codecs
-
 
 _T = TypeVar("_T")
 _Compile = Callable[[Mapping[str, StructDef], Mapping[str, bytes], list[str]], dict[str, _T]]
