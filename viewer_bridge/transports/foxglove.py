@@ -189,7 +189,7 @@ class FoxgloveSettings(TransportSettings):
         for entry in entries:
             if not is_origin_pattern(entry):
                 raise InvalidSetting(f"{entry!r} is no origin: write scheme://host[:port] (no path), with * for any "
-                                 "run of characters but '/', or '*' alone for every origin")  # fmt: skip
+                                     "run of characters but '/', or '*' alone for every origin")  # fmt: skip
         return entries
 
 
