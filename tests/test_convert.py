@@ -26,7 +26,7 @@ from tests.formats.ign import oracle as ign_oracle
 from tests.formats.ros import oracle as ros_oracle
 from tests.formats.tree_viewer import oracle as tree_oracle
 from viewer_bridge import convert, streams
-from viewer_bridge.errors import DecodeError, SceneError
+from viewer_bridge.errors import DecodeError, InvalidSetting, SceneError, UnknownName
 from viewer_bridge.examples.demo import DEMO_MESH, demo_poses, demo_scene
 from viewer_bridge.examples.scenes import demo_contact_results
 from viewer_bridge.formats.drake.draw import DrawDecoder
@@ -186,6 +186,21 @@ def test_pose_array_to_draw_takes_the_names_from_the_load() -> None:
 def test_cdr_to_rclpy_is_rclpys_own_message() -> None:
     pose_array = convert.draw_to_pose_array(DRAW_BYTES)
     assert convert.cdr_to_rclpy(pose_array, POSE_ARRAY) == deserialize_message(pose_array, PoseArray)
+    # A type its package does not have, and bytes that are no CDR of the type: typed errors.
+    with pytest.raises(
+        UnknownName, match="'geometry_msgs/msg/PoseArrays' .did you mean 'geometry_msgs/msg/PoseArray'"
+    ):
+        convert.cdr_to_rclpy(pose_array, "geometry_msgs/msg/PoseArrays")
+    with pytest.raises(
+        DecodeError, match=r"^geometry_msgs/msg/PoseArray.<message> at byte 0: failed to deserialize"
+    ):
+        convert.cdr_to_rclpy(pose_array[:9], POSE_ARRAY)
+
+
+def test_an_option_out_of_range_is_invalid_setting() -> None:
+    data = CONTACT_RESULTS.encode(contact_results_to_lcm(demo_contact_results()))
+    with pytest.raises(InvalidSetting, match="force_scale"):
+        convert.contacts_to_marker_array(data, force_scale=-1.0)
 
 
 def test_bad_bytes_are_a_decode_error() -> None:

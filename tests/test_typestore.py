@@ -15,7 +15,7 @@ from hypothesis import HealthCheck, assume, given, settings
 
 import viewer_bridge
 from tests.lcmcodec.corpus import CORPUS, TRANSLATOR_CORPUS, expected, generate_lcmgen, lcmgen_messages
-from viewer_bridge.errors import DecodeError, EncodeError, JsonValueError
+from viewer_bridge.errors import DecodeError, EncodeError, JsonValueError, UnknownName
 from viewer_bridge.lcmcodec.library import LcmType
 from viewer_bridge.lcmcodec.schema import StructDef
 from viewer_bridge.typestore import LcmTypes, lcm_types
@@ -46,8 +46,15 @@ def test_types_and_get(store: LcmTypes) -> None:
     assert {ARM, POINT, "vbtest_lab.tree_node_t", "drake.lcmt_viewer_draw"} <= set(store.types)
     assert list(store.types) == sorted(store.types)
     assert store.get("vbtest_lab_lcm_msgs/msg/ArmStatusT") is store.get(ARM)  # by its ROS 2 type too
-    with pytest.raises(KeyError, match="vbtest_lab.nothing_t"):
+    with pytest.raises(KeyError, match="vbtest_lab.nothing_t"):  # callers that catch KeyError still do
         store.get("vbtest_lab.nothing_t")
+    # every method that takes a type's name: one typed error, naming the closest known type
+    for call in (lambda name: store.from_cdr(b"", name), lambda name: store.from_dict({}, name),
+                 lambda name: store.decode(b"", name), lambda name: store.to_dict(b"", name)):  # fmt: skip
+        with pytest.raises(
+            UnknownName, match=r"^unknown LCM or ROS 2 type 'vbtest_lab.arm_statu_t' .did you mean"
+        ):
+            call("vbtest_lab.arm_statu_t")
 
 
 def test_a_nested_type_has_one_class_wherever_it_is_nested(store: LcmTypes) -> None:

@@ -115,8 +115,13 @@ class ConfigError(BridgeError):
         super().__init__(f"{where}: {key}: {reason}" if key else f"{where}: {reason}")
 
 
-class UnknownName(BridgeError):
-    """A name no registry knows (a transport, a translator): names the closest known ones."""
+_LISTED_NAMES = 60  # more known names than this (a type store's hundreds) are counted, not listed
+
+
+class UnknownName(BridgeError, KeyError):
+    """A name no registry knows (a transport, a translator, a type store's type): names the
+    closest known one, and the known ones when they are few enough to read. (A `KeyError` too,
+    as a lookup by an unknown key is.)"""
 
     def __init__(self, kind: str, name: str, known: list[str]) -> None:
         self.kind = kind
@@ -124,7 +129,10 @@ class UnknownName(BridgeError):
         self.known = known
         close = difflib.get_close_matches(name, known, n=1)
         hint = f"did you mean {close[0]!r}? " if close else ""
-        super().__init__(f"unknown {kind} {name!r} ({hint}known: {', '.join(known)})")
+        listed = f"known: {', '.join(known)}" if len(known) <= _LISTED_NAMES else f"{len(known)} known"
+        super().__init__(f"unknown {kind} {name!r} ({hint}{listed})")
+
+    __str__ = BaseException.__str__  # the message as written: KeyError's own would quote it
 
 
 class NameRefused(BridgeError, ValueError):
@@ -140,6 +148,13 @@ class InvalidName(BridgeError, ValueError):
     """A channel, topic or key name a transport cannot subscribe to or publish on, or a node or
     namespace name it cannot take; says why. (A `ValueError` too, so that the settings models'
     validators may raise it.)"""
+
+
+class InvalidSetting(BridgeError, ValueError):
+    """A setting's value that cannot be used as given (a pattern that is no regular expression,
+    an origin, a Zenoh endpoint or key Zenoh refuses, options that contradict each other); says
+    why. (A `ValueError` too, so that the settings models' validators may raise it: the config
+    then names the file, line and key.)"""
 
 
 # Files and documents others wrote.
@@ -273,6 +288,7 @@ __all__ = [
     "InflateError",
     "Interrupted",
     "InvalidName",
+    "InvalidSetting",
     "JsonValueError",
     "LogError",
     "MissingExtra",

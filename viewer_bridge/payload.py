@@ -13,8 +13,6 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from typing import Self
 
-__all__ = ["Payload", "Value", "size_of"]
-
 
 class Value(ABC):
     """An encoded message as an object, handed as it is to a transport in the router's process

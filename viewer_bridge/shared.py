@@ -171,6 +171,3 @@ class Shared:
         """Have `get(make)` return `made` (e.g. a cache with the config's folder), before anyone asks."""
         with self._lock:
             self._made[make] = made
-
-
-__all__ = ["Clock", "Made", "MessageTime", "RosDefinitions", "Shared", "TimeSource", "definitions_of"]

@@ -27,18 +27,23 @@ import os
 from collections.abc import Mapping
 from functools import cached_property
 
-from viewer_bridge.errors import DecodeError, EncodeError
+from viewer_bridge.errors import DecodeError, EncodeError, UnknownName
 from viewer_bridge.lcmcodec.codegen import Buffer
 from viewer_bridge.lcmcodec.library import LcmType, TypeLibrary, ros_named
 from viewer_bridge.lcmcodec.serde import LcmMessage, StructCodec
 
-__all__ = ["LcmMessage", "LcmTypes", "lcm_types"]
+__all__ = ["LcmMessage", "LcmType", "LcmTypes", "TypeLibrary", "lcm_types"]
 
 
 def lcm_types(*sources: str | os.PathLike[str], drake: bool = True) -> LcmTypes:
     """The project's LCM types, Drake's (when `drake` and pydrake is installed), and those of
     `sources`: `.lcm` files, folders of them (searched recursively), lcm-gen'd Python modules by
-    import name, or the folder of an lcm-gen'd package. A bad source: `SchemaError` (file:line)."""
+    import name, or the folder of an lcm-gen'd package.
+
+    Raises:
+        SchemaError: a source that is no `.lcm` file, folder or importable module, or a schema
+            that does not parse or resolve (file:line).
+    """
     return LcmTypes(TypeLibrary.load([os.fspath(source) for source in sources], drake=drake))
 
 
@@ -59,14 +64,21 @@ class LcmTypes:
 
     def get(self, typename: str) -> type[LcmMessage]:
         """The message class of a type (LCM full name or ROS 2 type): `get("lab.point3_t")(x=1.0)`.
-        An unknown name: KeyError."""
+
+        Raises:
+            UnknownName: `typename` names no type of this store (a `KeyError` too).
+        """
         full_name = self._type(typename).full_name
         return self.library.codecs(full_name)[full_name].message_class
 
     def decode(self, data: Buffer, typename: str | None = None) -> LcmMessage:
         """The message of a whole LCM buffer (fingerprint first), of the type its fingerprint names
-        (types of one shape share one: the first by name, unless `typename` says which). Bad bytes,
-        an unknown fingerprint or another type's: DecodeError."""
+        (types of one shape share one: the first by name, unless `typename` says which).
+
+        Raises:
+            DecodeError: bad bytes, an unknown fingerprint, or another type's.
+            UnknownName: `typename` names no type of this store (a `KeyError` too).
+        """
         known = self._of(data, typename)
         codec = self.library.codecs(known.full_name)[known.full_name]
         try:
@@ -76,7 +88,11 @@ class LcmTypes:
 
     def encode(self, message: LcmMessage) -> bytes:
         """The LCM bytes of a message of one of this store's classes (`get`, `decode`), fingerprint
-        first, as lcm-gen writes them. A value that does not fit its field: EncodeError."""
+        first, as lcm-gen writes them.
+
+        Raises:
+            EncodeError: a value that does not fit its field, or a message of no class of this store.
+        """
         codec = self._own_codec(message)
         if codec is None:
             name = getattr(type(message), "_type_name", "") or type(message).__name__
@@ -85,7 +101,12 @@ class LcmTypes:
 
     def to_cdr(self, data: Buffer, typename: str | None = None) -> bytes:
         """The CDR (header first) of the ROS 2 message of a whole LCM buffer (its type as `decode`
-        finds it). A type with no ROS 2 form, bad bytes or an unknown fingerprint: DecodeError."""
+        finds it).
+
+        Raises:
+            DecodeError: a type with no ROS 2 form, bad bytes, or an unknown fingerprint.
+            UnknownName: `typename` names no type of this store (a `KeyError` too).
+        """
         known = self._of(data, typename)
         try:
             return known.to_cdr(data)
@@ -93,20 +114,35 @@ class LcmTypes:
             raise ros_named(error) from None
 
     def from_cdr(self, cdr: Buffer, typename: str) -> bytes:
-        """The LCM bytes of the CDR of a type's ROS 2 message: `to_cdr`'s inverse. Bad CDR: DecodeError."""
+        """The LCM bytes of the CDR of a type's ROS 2 message: `to_cdr`'s inverse.
+
+        Raises:
+            DecodeError: bad CDR, or a type with no ROS 2 form.
+            UnknownName: `typename` names no type of this store (a `KeyError` too).
+        """
         return self._type(typename).from_cdr(cdr)
 
     def to_dict(self, data: Buffer, typename: str | None = None) -> dict[str, object]:
         """A whole LCM buffer as a dict of ROS 2 field names, JSON-ready (`json.dumps` takes it):
         nested messages dicts, arrays flat lists, a byte array `{"utf8": text}` or `{"base64": ...}`.
-        `from_dict` takes it back. Its type as `decode` finds it; bad bytes: DecodeError."""
+        `from_dict` takes it back. Its type as `decode` finds it.
+
+        Raises:
+            DecodeError: bad bytes, an unknown fingerprint, or a type with no ROS 2 form.
+            UnknownName: `typename` names no type of this store (a `KeyError` too).
+        """
         return self._of(data, typename).to_dict(data, bytes_summary=False)
 
     def from_dict(self, value: Mapping[str, object], typename: str) -> bytes:
         """The LCM bytes of a dict of ROS 2 field names, as `to_dict` gives (or a Foxglove client
         sends: a missing field is its zero, a missing length field is derived from its arrays, a
-        byte array may be a list or a base64 string). A type with no ROS 2 form or a value that is
-        no message of it, non-finite floats included: JsonValueError naming the field."""
+        byte array may be a list or a base64 string).
+
+        Raises:
+            JsonValueError: a value that is no message of the type (non-finite floats included),
+                naming the field, or a type with no ROS 2 form.
+            UnknownName: `typename` names no type of this store (a `KeyError` too).
+        """
         return self._type(typename).from_dict(dict(value))
 
     def _type(self, typename: str) -> LcmType:
@@ -115,7 +151,7 @@ class LcmTypes:
         except KeyError:
             known = self.library.for_ros_type(typename)
             if known is None:
-                raise KeyError(f"{typename!r} is no LCM type or ROS 2 type of this store") from None
+                raise UnknownName("LCM or ROS 2 type", typename, list(self.types)) from None
             return known
 
     def _own_codec(self, message: LcmMessage) -> StructCodec | None:

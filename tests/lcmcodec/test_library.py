@@ -14,7 +14,8 @@ import pytest
 from tests.lcmcodec.corpus import CORPUS, PLAIN_TAIL, generate_lcmgen
 from viewer_bridge.errors import DecodeError, SchemaError
 from viewer_bridge.lcmcodec.codecs import STRUCTS
-from viewer_bridge.lcmcodec.library import LcmType, TypeLibrary, ros_topic_for_channel
+from viewer_bridge.lcmcodec.library import LcmType, TypeLibrary
+from viewer_bridge.lcmcodec.rosnames import ros_topic_for_channel
 
 
 @pytest.fixture(scope="module")

@@ -272,24 +272,3 @@ def split_ros_args(words: Sequence[str]) -> tuple[list[str], list[str]]:
                 )
         index += 1  # past the `--`
     return own, ros
-
-
-__all__ = [
-    "AddCommand",
-    "IMAGE_SUFFIXES",
-    "MAX_IMAGE_SIDE",
-    "Parser",
-    "byte_count",
-    "camera",
-    "fail",
-    "field_of_view",
-    "image_size",
-    "input_file",
-    "lcm_source",
-    "lcm_types_option",
-    "output_file",
-    "port",
-    "positive",
-    "regex",
-    "split_ros_args",
-]

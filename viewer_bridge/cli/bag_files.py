@@ -28,8 +28,6 @@ from typing import Any
 
 from viewer_bridge.errors import CutShort, DamagedChunk
 
-__all__ = ["DirectReader", "cut_reason"]
-
 
 @dataclass(frozen=True)
 class MessageDefinition:

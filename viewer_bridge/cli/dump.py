@@ -19,8 +19,6 @@ from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec.library import TypeLibrary
 from viewer_bridge.transports.lcm import LcmEvent
 
-__all__ = ["as_json", "as_text", "default_library", "describe"]
-
 
 @cache
 def default_library() -> TypeLibrary:

@@ -125,6 +125,3 @@ def keys(player: LogPlayer) -> Iterator[Keys | None]:
     finally:
         reader.stop()
         termios.tcsetattr(fd, termios.TCSADRAIN, saved)
-
-
-__all__ = ["DRAWS", "HELP", "Keys", "SPEEDS", "keys", "on_a_terminal"]

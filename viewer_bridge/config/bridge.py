@@ -46,7 +46,7 @@ from pydantic import (
     model_validator,
 )
 
-from viewer_bridge.errors import ConfigError, InvalidName, UnknownName
+from viewer_bridge.errors import ConfigError, InvalidName, InvalidSetting, UnknownName
 from viewer_bridge.lcmcodec.from_ros import lcm_channel
 from viewer_bridge.shared import TimeSource
 from viewer_bridge.translators.base import Translator, TranslatorOptions
@@ -109,7 +109,7 @@ class Route(_Strict):
         try:
             re.compile(source.name)
         except re.error as error:
-            raise ValueError(f"name is not a regular expression: {error}") from None
+            raise InvalidSetting(f"name is not a regular expression: {error}") from None
         return source
 
     @model_validator(mode="after")
@@ -328,7 +328,7 @@ class _Template(string.Formatter):
         # Only group numbers: `{1.path}` or `{1[a]}` would reach into the group's str (found by
         # bench/fuzz.py as an AttributeError escaping the config check).
         if not field_name.isdigit():
-            raise ValueError(f"{{{field_name}}} is not a group number")
+            raise InvalidName(f"{{{field_name}}} is not a group number")
         return super().get_field(field_name, args, kwargs)
 
     def format_field(self, value: Any, format_spec: str) -> str:
@@ -346,7 +346,7 @@ class _Template(string.Formatter):
         if format_spec == "lcm":  # a ROS 2 topic as the LCM channel it is carried on: "/a/b" -> "a/b"
             return lcm_channel(text)
         if format_spec:
-            raise ValueError(f"unknown format spec {format_spec!r}")
+            raise InvalidName(f"unknown format spec {format_spec!r}")
         return text
 
 
@@ -355,7 +355,7 @@ def _check_template(template: str, groups: int) -> None:
     try:
         _Template().format(template, "x", *(["x"] * groups))
     except (IndexError, KeyError, ValueError) as error:
-        raise ValueError(
+        raise InvalidName(
             f"destination name {template!r} does not fit a source with {groups} groups "
             f"(use {{0}}..{{{groups}}}, with :lower, :path, :topic, :channel or :lcm): {error}"
         ) from None
@@ -489,18 +489,3 @@ def routes_on(route: Any, transport: str) -> bool:
     """Whether a route, as a config's YAML has it, reads or writes `transport`."""
     ends = [route.get(end) for end in ("source", "destination")] if isinstance(route, dict) else []
     return any(isinstance(end, dict) and end.get("transport") == transport for end in ends)
-
-
-__all__ = [
-    "BUILTIN_CONFIGS",
-    "DEFAULT_CONFIG",
-    "BridgeConfig",
-    "ConfigError",
-    "Endpoint",
-    "Route",
-    "clock_routes",
-    "destination_name",
-    "load_config",
-    "ros_topic_routes",
-    "routes_on",
-]

@@ -10,8 +10,6 @@ import importlib.util
 from collections.abc import Callable
 from typing import cast
 
-__all__ = ["EXAMPLES", "INSTALL_HINT", "drake_missing", "run_example"]
-
 INSTALL_HINT = "pip install 'viewer-bridge[drake]'"
 
 # name -> what it publishes (the module viewer_bridge.examples.<name> has `run(url, seconds)`).

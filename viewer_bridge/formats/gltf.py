@@ -387,11 +387,3 @@ def _add_accessor(document: dict[str, Any], blob: bytearray, values: np.ndarray[
     document["accessors"].append(accessor)
     blob += values.tobytes()
     return len(document["accessors"]) - 1
-
-
-__all__ = [
-    "GltfMesh",
-    "GltfScene",
-    "read_gltf",
-    "write_gltf",
-]

@@ -31,7 +31,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from viewer_bridge.errors import ConfigError, SceneError
+from viewer_bridge.errors import SceneError
 from viewer_bridge.model.lowering import LOWERINGS
 from viewer_bridge.model.scene import SHAPE_KINDS, Pose, Shape, shape_kind
 from viewer_bridge.util.resources import data_dir
@@ -507,15 +507,3 @@ def _fields_cell(rule: ShapeRule) -> str:
     if rule.encoder:
         cells.append(f"encoder `{rule.encoder}`")
     return "; ".join(cells)
-
-
-__all__ = [
-    "ConfigError",
-    "ShapeRule",
-    "Table",
-    "Term",
-    "format_names",
-    "load_tables",
-    "reference_markdown",
-    "tables",
-]

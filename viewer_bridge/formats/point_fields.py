@@ -223,21 +223,3 @@ def write_points(
     if cloud.normals is not None:
         table[:, -3:] = cloud.normals
     return tuple(fields), point_step, table.tobytes()
-
-
-__all__ = [
-    "DATATYPES",
-    "DRAKE_RGB",
-    "FLOAT32",
-    "Layout",
-    "NORMALS",
-    "PCL_RGB_BIG",
-    "PCL_RGB_LITTLE",
-    "PointField",
-    "RGB_NAMES",
-    "RgbOrder",
-    "UINT32",
-    "XYZ",
-    "read_points",
-    "write_points",
-]

@@ -100,17 +100,3 @@ def exact_key(values: Sequence[float]) -> bytes:
     """Floats as a dict key for caching their encoding: 0.0 and -0.0 are equal as floats (and
     hash alike) but are written differently, so the key is their bits."""
     return struct.pack(f"<{len(values)}d", *values)
-
-
-__all__ = [
-    "PoseWriter",
-    "double_keys",
-    "doubles",
-    "exact_key",
-    "key",
-    "length_delimited",
-    "string_field",
-    "submessage",
-    "varint",
-    "varint_field",
-]

@@ -42,8 +42,6 @@ from viewer_bridge.lcmcodec.codegen import (
 from viewer_bridge.lcmcodec.layout import CDR_HEADER, Layout, LayoutKeeper, learn_lcm_layout
 from viewer_bridge.lcmcodec.schema import PRIMITIVE_FORMATS, Member, StructDef
 
-__all__ = ["CDR_HEADER", "CdrTranscoder", "compile_transcoders"]
-
 Chunks = list[Any]  # what b"".join takes: bytes, memoryviews, arrays, numpy arrays
 # A float32 scalar moves as its raw bits ("I"): through a Python float a signalling NaN would turn quiet.
 _LE_CODES = {"int8_t": "b", "int16_t": "h", "int32_t": "i", "int64_t": "q", "float": "I", "double": "d",

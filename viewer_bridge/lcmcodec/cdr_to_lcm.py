@@ -50,8 +50,6 @@ from viewer_bridge.lcmcodec.layout import Layout, LayoutKeeper, learn_lcm_layout
 from viewer_bridge.lcmcodec.rosnames import field_name
 from viewer_bridge.lcmcodec.schema import StructDef
 
-__all__ = ["WIRE", "LcmEncoder", "compile_encoders", "compile_wire", "lcm_wire"]
-
 _CDR_LE = b"\x00\x01"
 _HEADER = 4
 # ROS 2 primitive -> (CDR size, little-endian struct code, LCM's big-endian struct code). A float32

@@ -15,8 +15,9 @@ Usage::
 
 from __future__ import annotations
 
+from viewer_bridge.lcmcodec.codegen import Buffer
 from viewer_bridge.lcmcodec.schema import StructDef, load_schema_dir
-from viewer_bridge.lcmcodec.serde import Buffer, LcmMessage, StructCodec, compile_codecs
+from viewer_bridge.lcmcodec.serde import LcmMessage, StructCodec, compile_codecs
 from viewer_bridge.util.resources import data_dir
 
 SCHEMA_DIR = data_dir("lcmtypes")

@@ -29,27 +29,6 @@ from viewer_bridge.lcmcodec.schema import (
     nested_closure,
 )
 
-__all__ = [
-    "Buffer",
-    "SourceWriter",
-    "StructWriter",
-    "U32_BE",
-    "U32_LE",
-    "aligned_starts",
-    "bad_count",
-    "call_child",
-    "closure_min_sizes",
-    "compile_generated",
-    "element_min_size",
-    "min_sizes",
-    "new_message",
-    "scalar_runs",
-    "string_error",
-    "string_stop",
-    "swapped",
-    "truncated",
-]
-
 Buffer = bytes | bytearray | memoryview
 ReadLength = Callable[[Any, int], tuple[int]]  # a uint32 at an offset: big-endian (LCM) or little (CDR)
 U32_BE: ReadLength = struct.Struct(">I").unpack_from

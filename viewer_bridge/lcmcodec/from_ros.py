@@ -27,17 +27,6 @@ from viewer_bridge.lcmcodec.schema import (
 )
 from viewer_bridge.util.partial import write_whole
 
-__all__ = [
-    "LENGTH_SUFFIX",
-    "LcmFromRos",
-    "definitions_from_msgdef",
-    "lcm_channel",
-    "RosField",
-    "RosStruct",
-    "load_ros_definitions",
-    "map_ros_types",
-]
-
 Definitions = Mapping[str, tuple[list[Any], list[Any]]]  # rosbags' fielddefs
 
 # ROS 2 primitive -> LCM member type. Unsigned integers LCM lacks widen to the next signed type;

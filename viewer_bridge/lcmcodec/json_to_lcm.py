@@ -47,8 +47,6 @@ from viewer_bridge.lcmcodec.codegen import closure_min_sizes, element_min_size
 from viewer_bridge.lcmcodec.rosnames import field_names
 from viewer_bridge.lcmcodec.schema import INTEGER_RANGES, PRIMITIVE_FORMATS, Member, StructDef
 
-__all__ = ["MESSAGE_LIMIT", "JsonEncoder", "compile_json_encoders"]
-
 MESSAGE_LIMIT = 64 << 20  # bytes of LCM; LCM's UDP multicast carries at most about 4 GB, nobody sends that
 _FLOAT32_MAX = 3.4028234663852886e38
 _MISSING = object()

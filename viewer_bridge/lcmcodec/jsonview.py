@@ -17,8 +17,6 @@ from viewer_bridge.lcmcodec.rosnames import field_names
 from viewer_bridge.lcmcodec.schema import Member
 from viewer_bridge.lcmcodec.serde import LcmMessage
 
-__all__ = ["message_json"]
-
 
 def message_json(message: LcmMessage, *, bytes_summary: bool = True) -> dict[str, object]:
     """Every field of `message` under its JSON name, JSON-ready."""

@@ -79,9 +79,6 @@ except ImportError:  # built without a compiler (hatch_build.py warned): the Pyt
         return None
 
 
-__all__ = ["COMPILED_MOVER", "LAYOUTS", "Layout", "LayoutKeeper", "MoveProgram", "PythonLayout", "learn_lcm_layout",
-           "learn_ros_layout"]  # fmt: skip
-
 LAYOUTS: Final = 16  # sizes kept per type (a robot sends one or two)
 LAYOUT_BYTES: Final = 16384
 STRUCT_VALUES: Final = 256

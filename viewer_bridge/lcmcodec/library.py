@@ -31,11 +31,12 @@ from viewer_bridge.errors import DecodeError, Held, JsonValueError, SchemaError
 from viewer_bridge.lcmcodec.cdr import CdrTranscoder, compile_transcoders
 from viewer_bridge.lcmcodec.cdr_to_lcm import LcmEncoder, compile_encoders
 from viewer_bridge.lcmcodec.codecs import STRUCTS
+from viewer_bridge.lcmcodec.codegen import Buffer
 from viewer_bridge.lcmcodec.json_to_lcm import JsonEncoder, compile_json_encoders
 from viewer_bridge.lcmcodec.jsonview import message_json
 from viewer_bridge.lcmcodec.pymodule import structs_from_module
 from viewer_bridge.lcmcodec.rosmsg import RosMapping, map_to_ros
-from viewer_bridge.lcmcodec.rosnames import field_path, ros_topic_for_channel
+from viewer_bridge.lcmcodec.rosnames import field_path
 from viewer_bridge.lcmcodec.schema import (
     Member,
     StructDef,
@@ -44,9 +45,7 @@ from viewer_bridge.lcmcodec.schema import (
     load_lcm_files,
     nested_closure,
 )
-from viewer_bridge.lcmcodec.serde import Buffer, StructCodec, compile_codecs
-
-__all__ = ["LcmType", "TypeLibrary", "ros_named", "ros_topic_for_channel"]
+from viewer_bridge.lcmcodec.serde import StructCodec, compile_codecs
 
 _T = TypeVar("_T")
 _Compile = Callable[[Mapping[str, StructDef], Mapping[str, bytes], list[str]], dict[str, _T]]

@@ -32,8 +32,6 @@ from viewer_bridge.lcmcodec.schema import (
     name_problem,
 )
 
-__all__ = ["LoadedClass", "is_lcm_class", "structs_from_module"]
-
 LoadedClass = tuple[StructDef, bytes]  # the definition and the class's own packed fingerprint
 
 

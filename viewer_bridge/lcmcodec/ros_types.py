@@ -21,8 +21,6 @@ from viewer_bridge.lcmcodec.cdr_to_lcm import LcmEncoder
 from viewer_bridge.lcmcodec.from_ros import map_ros_types
 from viewer_bridge.lcmcodec.ros_cdr import compile_ros_encoders
 
-__all__ = ["InstalledDefinitions", "RosTypesOnLcm", "install_prefixes"]
-
 Definition = tuple[list[Any], list[Any]]  # rosbags' fielddefs of one type: constants, fields
 
 

@@ -20,8 +20,6 @@ from viewer_bridge.errors import NameRefused
 from viewer_bridge.lcmcodec.rosnames import constant_name, field_name, message_name, package_name
 from viewer_bridge.lcmcodec.schema import Member, StructDef, recursive_groups
 
-__all__ = ["ROS_PRIMITIVES", "RosMapping", "RosMessage", "map_to_ros", "ros_type_of"]
-
 ROS_PRIMITIVES: Mapping[str, str] = {
     "int8_t": "int8",
     "int16_t": "int16",

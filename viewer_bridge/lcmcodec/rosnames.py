@@ -21,17 +21,6 @@ from viewer_bridge.errors import NameRefused
 if TYPE_CHECKING:
     from viewer_bridge.lcmcodec.schema import StructDef
 
-__all__ = [
-    "MESSAGE_PATTERN",
-    "PACKAGE_PATTERN",
-    "constant_name",
-    "field_name",
-    "field_names",
-    "field_path",
-    "message_name",
-    "package_name",
-    "ros_topic_for_channel",
-]
 
 # rosidl_adapter's patterns for valid names (the one set of them: ros_build checks packages by them too).
 # each used with fullmatch: `$` takes "name\n"

@@ -623,30 +623,3 @@ def check_references(structs: Mapping[str, StructDef]) -> None:
         struct = structs[deepest]
         raise SchemaError(struct.source, struct.line, f"{deepest} nests types {depths[deepest]} levels deep, "
                           f"more than the {MAX_NESTING} a type may")  # fmt: skip
-
-
-__all__ = [
-    "Constant",
-    "Dimension",
-    "INTEGER_TYPES",
-    "MAX_ARRAY_SIZE",
-    "MAX_DIMENSIONS",
-    "MAX_NESTING",
-    "MESSAGE_CLASS_ATTRIBUTES",
-    "Member",
-    "PRIMITIVE_FORMATS",
-    "PRIMITIVE_TYPES",
-    "STRING_MIN_SIZE",
-    "StructDef",
-    "check_references",
-    "constant_problem",
-    "fingerprint",
-    "fingerprints",
-    "load_lcm_files",
-    "load_schema_dir",
-    "name_problem",
-    "nested_closure",
-    "nesting_depths",
-    "parse_lcm",
-    "recursive_groups",
-]

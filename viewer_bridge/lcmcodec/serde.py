@@ -691,12 +691,3 @@ def compile_codecs(
         computed = all_fingerprints(structs)
         given.update({name: computed[name] for name in missing})
     return _REGISTRY.compile(structs, finite, given)
-
-
-__all__ = [
-    "Buffer",
-    "LcmMessage",
-    "StructCodec",
-    "compile_codecs",
-    "generate_source",
-]

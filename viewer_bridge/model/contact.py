@@ -180,22 +180,3 @@ def _arrows(
         )
         for start, end in zip(starts[keep], ends[keep], strict=True)
     ]
-
-
-__all__ = [
-    "ContactBody",
-    "ContactDrawOptions",
-    "ContactResults",
-    "ContactSurface",
-    "FORCE_COLOR",
-    "FORCE_LINK",
-    "HydroelasticContact",
-    "MOMENT_COLOR",
-    "MOMENT_LINK",
-    "PRESSURE_STOPS",
-    "PointContacts",
-    "SURFACE_LINK",
-    "contact_scene",
-    "pressure_colors",
-    "pressure_range",
-]

@@ -262,24 +262,3 @@ def depth_from_rep117(image: Image) -> Image:
     metres[np.isneginf(metres)] = DEPTH_32F_TOO_CLOSE
     metres[np.isnan(metres)] = np.inf
     return replace(image, pixels=metres)
-
-
-__all__ = [
-    "DEPTH_16U_TOO_CLOSE",
-    "DEPTH_16U_TOO_FAR",
-    "DEPTH_32F_TOO_CLOSE",
-    "EncodedImage",
-    "FileFormat",
-    "Image",
-    "Intrinsics",
-    "JPEG_QUALITY",
-    "Layout",
-    "MILLIMETRES_PER_METRE",
-    "NO_DISTORTION",
-    "NO_ROTATION",
-    "Pixels",
-    "depth_from_rep117",
-    "depth_rep117",
-    "encode_file",
-    "preview",
-]

@@ -181,16 +181,3 @@ LOWERINGS: dict[str, Lowering] = {
     "capsule_parts": Lowering(capsule_parts, ("cylinder", "sphere")),
     "triangle_mesh": Lowering(triangle_mesh_parts, ("triangle_mesh",)),
 }
-
-
-__all__ = [
-    "HALF_SPACE_BOX",
-    "HALF_SPACE_OFFSET",
-    "LOWERINGS",
-    "Lowering",
-    "arrow_mesh",
-    "capsule_parts",
-    "half_space_box",
-    "triangle_mesh",
-    "triangle_mesh_parts",
-]

@@ -180,16 +180,3 @@ def _rotation_coefficients() -> FloatArray:
 
 _ROTATE = _rotation_coefficients()
 _IDENTITY_COLUMN = np.array([1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
-
-
-__all__ = [
-    "QUATERNION_TOLERANCE",
-    "PartsOnLinks",
-    "pose_rows_xyzw",
-    "quaternion_product",
-    "rotation_matrix",
-    "unit_quaternions",
-    "write_pose_rows_xyzw",
-    "wxyz_from_xyzw",
-    "xyzw_from_wxyz",
-]

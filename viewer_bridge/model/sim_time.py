@@ -26,11 +26,3 @@ def sec_nsec_from_us(time_us: int) -> tuple[int, int]:
 def us_from_sec_nsec(seconds: int, nanoseconds: int) -> int:
     """A stamp as microseconds (Drake's `utime`, e.g. of `lcmt_point_cloud`)."""
     return int(seconds) * 1_000_000 + int(nanoseconds) // 1000
-
-
-__all__ = [
-    "ms_from_sec_nsec",
-    "sec_nsec_from_ms",
-    "sec_nsec_from_us",
-    "us_from_sec_nsec",
-]

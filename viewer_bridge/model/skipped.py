@@ -100,16 +100,3 @@ def _skip(skipped: Skipped) -> None:
         log.warning("%s", skipped)
     else:
         collector.append(skipped)
-
-
-__all__ = [
-    "Skipped",
-    "SkippedGeometry",
-    "T",
-    "collecting",
-    "current_collector",
-    "log",
-    "part_failed",
-    "per_geometry",
-    "thread_collector",
-]

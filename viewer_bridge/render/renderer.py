@@ -217,14 +217,3 @@ def depth_mm(image: np.ndarray[Any, Any], min_depth: float, max_depth: float) ->
     out[near] = 0
     out[inside] = np.clip(np.round(z[inside] * 1000.0), 0, 65534).astype(np.uint16)
     return out
-
-
-__all__ = [
-    "BACKGROUND",
-    "Camera",
-    "DEFAULT_CACHE_BYTES",
-    "MeshCache",
-    "Renderer",
-    "depth_mm",
-    "rgb8",
-]

@@ -334,18 +334,3 @@ def make_server(
             log.debug("render server: " + format, *args)
 
     return http.server.ThreadingHTTPServer((host, port), Handler)
-
-
-__all__ = [
-    "Admission",
-    "BadRequest",
-    "DEFAULT_MAX_IMAGE",
-    "DEFAULT_MAX_REQUESTS",
-    "DEFAULT_MAX_UPLOAD",
-    "RenderThread",
-    "log",
-    "make_server",
-    "parse_form",
-    "render_gate",
-    "render_request",
-]

@@ -170,15 +170,3 @@ def events_from(source: str, duration: float) -> list[LcmEvent]:
     if Path(source).is_file():
         return list(read_log(source))
     return list(Subscription(source).events(duration))
-
-
-__all__ = [
-    "default_camera",
-    "events_from",
-    "latest_contacts",
-    "latest_scene",
-    "look_at",
-    "snapshot",
-    "with_contacts",
-    "without_links",
-]

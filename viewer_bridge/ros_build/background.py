@@ -23,8 +23,6 @@ from pathlib import Path
 from viewer_bridge.errors import BridgeError
 from viewer_bridge.ros_build import interfaces as ros_interfaces
 
-__all__ = ["BuildState", "BuildStatus", "InterfaceBuilder"]
-
 log = logging.getLogger("viewer_bridge")
 
 

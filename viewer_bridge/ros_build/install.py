@@ -32,11 +32,6 @@ from viewer_bridge.ros_build.packages import (
     write_package,
 )
 
-__all__ = [
-    "APT_PACKAGES", "BUILD_WHEELS", "RUNTIME_WHEELS", "Confirm", "build", "built", "current", "digests", "install",
-    "log_path", "missing", "uninstall",
-]  # fmt: skip
-
 # Asked, with the wheels a build would pip install (their own dependencies come too), before pip
 # runs: True to go on; False or an exception to install nothing.
 Confirm = Callable[[Sequence[str]], bool]

@@ -19,36 +19,77 @@ venv, their locking, logs and stamps, and uninstall).
 """
 
 from viewer_bridge.ros_build.install import (
-    APT_PACKAGES,
-    BUILD_WHEELS,
-    RUNTIME_WHEELS,
-    Confirm,
-    build,
-    built,
-    current,
-    digests,
-    install,
-    log_path,
-    missing,
-    uninstall,
+    APT_PACKAGES as APT_PACKAGES,
 )
-from viewer_bridge.ros_build.messages import INTERFACES, Interface, message_text
+from viewer_bridge.ros_build.install import (
+    BUILD_WHEELS as BUILD_WHEELS,
+)
+from viewer_bridge.ros_build.install import (
+    RUNTIME_WHEELS as RUNTIME_WHEELS,
+)
+from viewer_bridge.ros_build.install import (
+    Confirm as Confirm,
+)
+from viewer_bridge.ros_build.install import (
+    build as build,
+)
+from viewer_bridge.ros_build.install import (
+    built as built,
+)
+from viewer_bridge.ros_build.install import (
+    current as current,
+)
+from viewer_bridge.ros_build.install import (
+    digests as digests,
+)
+from viewer_bridge.ros_build.install import (
+    install as install,
+)
+from viewer_bridge.ros_build.install import (
+    log_path as log_path,
+)
+from viewer_bridge.ros_build.install import (
+    missing as missing,
+)
+from viewer_bridge.ros_build.install import (
+    uninstall as uninstall,
+)
+from viewer_bridge.ros_build.messages import (
+    INTERFACES as INTERFACES,
+)
+from viewer_bridge.ros_build.messages import (
+    Interface as Interface,
+)
+from viewer_bridge.ros_build.messages import (
+    message_text as message_text,
+)
 from viewer_bridge.ros_build.packages import (
-    GENERATED_MARK,
-    WHEEL_INCLUDES_CMAKE,
-    Package,
-    check_writable_package,
-    cmake_lists,
-    generate_packages,
-    interface_package,
-    package_xml,
-    packages,
-    write_package,
+    GENERATED_MARK as GENERATED_MARK,
 )
-
-__all__ = [
-    "APT_PACKAGES", "INTERFACES", "BUILD_WHEELS", "GENERATED_MARK", "RUNTIME_WHEELS", "WHEEL_INCLUDES_CMAKE",
-    "Confirm", "Interface", "Package", "build", "built", "check_writable_package", "cmake_lists", "current", "digests",
-    "generate_packages", "install", "interface_package", "log_path", "message_text", "missing", "package_xml",
-    "packages", "uninstall", "write_package",
-]  # fmt: skip
+from viewer_bridge.ros_build.packages import (
+    WHEEL_INCLUDES_CMAKE as WHEEL_INCLUDES_CMAKE,
+)
+from viewer_bridge.ros_build.packages import (
+    Package as Package,
+)
+from viewer_bridge.ros_build.packages import (
+    check_writable_package as check_writable_package,
+)
+from viewer_bridge.ros_build.packages import (
+    cmake_lists as cmake_lists,
+)
+from viewer_bridge.ros_build.packages import (
+    generate_packages as generate_packages,
+)
+from viewer_bridge.ros_build.packages import (
+    interface_package as interface_package,
+)
+from viewer_bridge.ros_build.packages import (
+    package_xml as package_xml,
+)
+from viewer_bridge.ros_build.packages import (
+    packages as packages,
+)
+from viewer_bridge.ros_build.packages import (
+    write_package as write_package,
+)

@@ -14,8 +14,6 @@ from viewer_bridge.errors import RosInterfaceError
 if TYPE_CHECKING:
     from rosbags.interfaces.typing import FieldDesc, Typesdict
 
-__all__ = ["INTERFACES", "Interface", "message_text", "named_type"]
-
 
 @dataclass(frozen=True)
 class Interface:

@@ -14,11 +14,6 @@ from viewer_bridge.lcmcodec.rosnames import MESSAGE_PATTERN, PACKAGE_PATTERN
 from viewer_bridge.ros_build.messages import INTERFACES, message_text, named_type
 from viewer_bridge.util.partial import write_whole
 
-__all__ = [
-    "GENERATED_MARK", "WHEEL_INCLUDES_CMAKE", "Package", "check_writable_package", "closure", "cmake_lists",
-    "generate_packages", "interface_package", "package_xml", "packages", "write_package",
-]  # fmt: skip
-
 
 @dataclass(frozen=True)
 class Package:

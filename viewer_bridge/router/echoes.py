@@ -193,6 +193,3 @@ class Echoes:
                 came_back(message, origin)
 
         return deliver
-
-
-__all__ = ["LIMIT", "WINDOW_S", "CameBack", "EchoGuard", "Echoes", "GuardedPublisher", "Origin"]

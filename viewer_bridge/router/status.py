@@ -350,16 +350,3 @@ class LiveTable:
 
     def close(self) -> None:
         self._live.stop()
-
-
-__all__ = [
-    "LiveTable",
-    "LogLines",
-    "Snapshot",
-    "StatusView",
-    "errors_of",
-    "is_shown",
-    "log",
-    "routes_of",
-    "warnings_of",
-]

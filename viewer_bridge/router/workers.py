@@ -328,6 +328,3 @@ def _serve(index: int, config: BridgeConfig, stats_period: float, connection: Co
     router.run()
     if stopped.is_set():
         raise SystemExit(128 + signal.SIGTERM)
-
-
-__all__ = ["Workers", "place"]

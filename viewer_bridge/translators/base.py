@@ -72,6 +72,13 @@ class Translator:
     `exclusive` marks a translator each of whose destinations carries one source's stream (a
     ROS 2 topic its own LCM channel): a stream for a destination that another stream of any of
     the router's routes carries is held (`channel_taken`), the first kept.
+
+    Raises:
+        pydantic.ValidationError: options its `Options` model refuses (a `ValueError`; a config
+            names the file and line instead).
+        TypeError: a class that declares `replies` made with no `reply=` (a bug in the caller,
+            not bad input). Its `reply` raises `RuntimeError` when a class that declares no
+            `replies` answers (a bug in the translator).
     """
 
     Options: ClassVar[type[TranslatorOptions]] = TranslatorOptions

@@ -15,8 +15,7 @@ from typing import Any
 from viewer_bridge.formats.drake.contact import decode_contact_results
 from viewer_bridge.formats.ign.contact import contacts_message
 from viewer_bridge.formats.ros.contact import WrenchEncoder, contact_marker_array_cdr
-from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, WRENCH_STAMPED
-from viewer_bridge.formats.ros.tf import WORLD
+from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, WORLD, WRENCH_STAMPED
 from viewer_bridge.formats.tree_viewer import envelope
 from viewer_bridge.formats.tree_viewer.requests import load_requests
 from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene

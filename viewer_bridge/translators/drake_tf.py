@@ -22,8 +22,8 @@ import numpy as np
 
 from viewer_bridge.formats.ros.cdr import time_parts, time_parts_from_us
 from viewer_bridge.formats.ros.markers import marker_array_in_link_frames_cdr
-from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, TF_MESSAGE
-from viewer_bridge.formats.ros.tf import WORLD, TransformsEncoder
+from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, TF_MESSAGE, WORLD
+from viewer_bridge.formats.ros.tf import TransformsEncoder
 from viewer_bridge.model.scene import LinkPoses, Scene
 from viewer_bridge.translators.base import Output, Outputs
 from viewer_bridge.translators.drake_stream import DrakeTranslator, PerLoadTranslator

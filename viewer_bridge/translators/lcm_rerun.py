@@ -15,8 +15,6 @@ from viewer_bridge.translators.base import Output, Outputs, Translator
 from viewer_bridge.translators.types import ANY_LCM_TYPE, RERUN_CHUNKS_TYPE
 from viewer_bridge.transports.base import Received
 
-__all__ = ["LcmToRerunScalars"]
-
 
 class LcmToRerunScalars(Translator):
     """Any known LCM type -> one `Scalars` entity per numeric field, at the message's times."""

@@ -45,8 +45,3 @@ class LoadCache:
     def get(self, channel: str) -> bytes | None:
         with self._lock:
             return self._loads.get(channel)
-
-
-__all__ = [
-    "LoadCache",
-]

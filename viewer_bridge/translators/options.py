@@ -10,8 +10,10 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from viewer_bridge.errors import InvalidSetting
 from viewer_bridge.formats.ign.schema import Package
-from viewer_bridge.formats.ros.tf import WORLD, FrameNames
+from viewer_bridge.formats.ros.message_types import WORLD
+from viewer_bridge.formats.ros.tf import FrameNames
 from viewer_bridge.model.image import Intrinsics
 from viewer_bridge.shared import Clock
 from viewer_bridge.translators.base import TranslatorOptions
@@ -84,7 +86,7 @@ class CameraInfoOptions(BaseModel):
         by_fov = self.fov_x is not None or self.fov_y is not None
         by_focal = self.fx is not None and self.fy is not None
         if by_fov == by_focal:
-            raise ValueError("give either fov_y (and/or fov_x), or fx and fy")
+            raise InvalidSetting("give either fov_y (and/or fov_x), or fx and fy")
         return self
 
     def intrinsics(self) -> Intrinsics:
@@ -97,12 +99,3 @@ class CameraInfoOptions(BaseModel):
         cx = base.cx if self.cx is None else self.cx
         cy = base.cy if self.cy is None else self.cy
         return Intrinsics(base.width, base.height, base.fx, base.fy, cx, cy)
-
-
-__all__ = [
-    "CameraInfoOptions",
-    "FrameOptions",
-    "IgnOptions",
-    "MarkerOptions",
-    "StampOptions",
-]

@@ -57,5 +57,3 @@ TRANSLATORS: Registry[Translator] = Registry(
     {name: f"viewer_bridge.translators.{target}" for name, target in _BUILTINS.items()},
     Translator,
 )
-
-__all__ = ["TRANSLATORS"]

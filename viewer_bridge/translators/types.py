@@ -64,21 +64,3 @@ def ign_type(name: str, package: Package | None = None) -> MessageType:
     """An ign/gz protobuf message by its short name (`Pose_V`), which the ign transport spells in
     its package; or, with `package`, by its full name in that one (`ignition.msgs.Pose_V`)."""
     return MessageType(name if package is None else type_name(name, package), PROTOBUF)
-
-
-__all__ = [
-    "CAMERA_CALIBRATION_TYPE",
-    "COMPRESSED_IMAGE_TYPE",
-    "CONTACT_TYPE",
-    "DRAW_TYPE",
-    "ENVELOPE_TYPE",
-    "FRAME_TRANSFORMS_TYPE",
-    "IMAGE_ARRAY_TYPE",
-    "LINK_DATA_TYPE",
-    "LOAD_TYPE",
-    "POINT_CLOUD_TYPE",
-    "RAW_IMAGE_TYPE",
-    "SCENE_UPDATE_TYPE",
-    "ign_type",
-    "ros_type",
-]

@@ -222,18 +222,30 @@ class Transport(ABC):
 
     @classmethod
     def check_source(cls, name: str) -> None:
-        """Raise `InvalidName` when `name` cannot be subscribed to (checked at config load)."""
+        """Refuse a source `name` this transport cannot subscribe to (checked at config load).
+
+        Raises:
+            InvalidName: `name` cannot be subscribed to; says why.
+        """
         return None
 
     @classmethod
     def check_destination(cls, name: str) -> None:
-        """Raise `InvalidName` when `name` cannot be published on (checked at config load, on the
-        destination template filled in with sample groups)."""
+        """Refuse a destination `name` this transport cannot publish on (checked at config load, on
+        the destination template filled in with sample groups).
+
+        Raises:
+            InvalidName: `name` cannot be published on; says why.
+        """
         return None
 
     def require(self, message_types: Iterable[MessageType]) -> None:
-        """Raise `TransportUnavailable`, saying what to install, for a type this process cannot
-        send or receive here (called once at start for every type the routes use)."""
+        """Refuse a type this process cannot send or receive here (called once at start for every
+        type the routes use).
+
+        Raises:
+            TransportUnavailable: a type whose support is not installed; says what to install.
+        """
         return None
 
     @abstractmethod
@@ -316,10 +328,10 @@ class ClosingPublisher(CallPublisher):
         self.close = close
 
 
-ValueType = TypeVar("ValueType", bound=Value)
+_ValueType = TypeVar("_ValueType", bound=Value)
 
 
-class ValuePublisher(CallPublisher, Generic[ValueType]):
+class ValuePublisher(CallPublisher, Generic[_ValueType]):
     """A publisher that takes values of one type as they are (`publish_value`), for a transport
     in the router's process; bytes it is given (from a publisher wrapping it, or a test) are
     decoded into one first."""
@@ -328,8 +340,8 @@ class ValuePublisher(CallPublisher, Generic[ValueType]):
 
     def __init__(
         self,
-        kind: type[ValueType],
-        publish_value: Callable[[ValueType], None],
+        kind: type[_ValueType],
+        publish_value: Callable[[_ValueType], None],
         count: Callable[[], int] | None = None,
     ) -> None:
         super().__init__(lambda data: publish_value(kind.decode(data)), count)
@@ -348,6 +360,7 @@ def hand_over(publisher: Publisher, payload: Payload) -> None:
 
 
 __all__ = [
+    "CARRIED_DEFINITION",
     "CDR",
     "CallPublisher",
     "Closable",
@@ -355,6 +368,7 @@ __all__ = [
     "DEPTH",
     "DURABILITY",
     "Decoded",
+    "Definition",
     "Deliver",
     "Exposure",
     "JSON",

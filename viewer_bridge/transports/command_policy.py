@@ -27,6 +27,7 @@ from typing import TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from viewer_bridge.errors import InvalidSetting
 from viewer_bridge.transports.ros_names import name_token
 
 COMMAND_FLAG = "--allow-commands"
@@ -62,13 +63,13 @@ def literal_channels(pattern: str) -> list[str]:
 
 
 def regular_expressions(patterns: Patterns) -> Patterns:
-    """`patterns`, each checked to compile: a ValueError naming the first that does not (a config's
-    validators turn it into a ConfigError with its line)."""
+    """`patterns`, each checked to compile: an `InvalidSetting` (a ValueError) naming the first that
+    does not (a config's validators turn it into a ConfigError with its line)."""
     for pattern in patterns:
         try:
             re.compile(pattern)
         except re.error as error:
-            raise ValueError(f"{pattern!r} is not a regular expression: {error}") from None
+            raise InvalidSetting(f"{pattern!r} is not a regular expression: {error}") from None
     return patterns
 
 
@@ -121,11 +122,11 @@ def channel_pattern_problem(pattern: str) -> str | None:
 
 
 def checked(patterns: Patterns, problem: Callable[[str], str | None]) -> Patterns:
-    """`patterns`, each a regular expression with no `problem`: a ValueError naming the first that
-    has one (a config's validators turn it into a ConfigError with its line)."""
+    """`patterns`, each a regular expression with no `problem`: an `InvalidSetting` (a ValueError)
+    naming the first that has one (a config's validators turn it into a ConfigError with its line)."""
     for pattern in regular_expressions(patterns):
         if (found := problem(pattern)) is not None:
-            raise ValueError(found)
+            raise InvalidSetting(found)
     return patterns
 
 
@@ -198,6 +199,3 @@ class CommandPolicy(BaseModel):
             f"LCM channel {channel} may not be commanded{named}: run with {COMMAND_FLAG} "
             f"'{re.escape(channel)}', or name it in the config's commands: {{allow: [...]}}"
         )
-
-
-__all__ = ["COMMAND_FLAG", "DEFAULT_MAX_AGE_MS", "CommandPolicy", "literal_channels", "regular_expressions"]

@@ -102,6 +102,3 @@ def shared_memory_profile(
             yield path
         finally:
             del environ[PROFILE_VARIABLE]
-
-
-__all__ = ["profile_xml", "shared_memory_profile", "why_not_applied"]

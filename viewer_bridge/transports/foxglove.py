@@ -39,7 +39,7 @@ from urllib.parse import urlencode
 
 from pydantic import Field, field_validator
 
-from viewer_bridge.errors import BridgeError, TransportUnavailable
+from viewer_bridge.errors import BridgeError, InvalidSetting, TransportUnavailable
 from viewer_bridge.formats.foxglove.schema import schema
 from viewer_bridge.shared import Clock, Shared
 from viewer_bridge.transports.base import (
@@ -188,8 +188,8 @@ class FoxgloveSettings(TransportSettings):
     def _origins(cls, entries: list[str]) -> list[str]:
         for entry in entries:
             if not is_origin_pattern(entry):
-                raise ValueError(f"{entry!r} is no origin: write scheme://host[:port] (no path), with * for any "
-                                 "run of characters but '/', or '*' alone for every origin")  # fmt: skip
+                raise InvalidSetting(f"{entry!r} is no origin: write scheme://host[:port] (no path), with * for any "
+                                     "run of characters but '/', or '*' alone for every origin")  # fmt: skip
         return entries
 
 
@@ -481,12 +481,3 @@ class FoxgloveTransport(Transport):
         self.clock.unlisten(self._broadcast_time)
         self.front.close()
         self.server.stop()
-
-
-__all__ = [
-    "FoxgloveContext",
-    "FoxgloveSettings",
-    "FoxgloveTransport",
-    "log",
-    "require_schemas",
-]

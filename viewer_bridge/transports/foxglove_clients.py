@@ -41,16 +41,6 @@ from viewer_bridge.transports.base import CDR, JSON, Deliver, MessageType, Recei
 from viewer_bridge.transports.foxglove_front import Connection
 from viewer_bridge.transports.websocket_frames import BINARY, TEXT, Message
 
-__all__ = [
-    "CLIENT_ENCODINGS",
-    "ClientChannel",
-    "ClientPublishing",
-    "ERROR",
-    "MAX_CLIENT_CHANNELS",
-    "ros_type_name",
-    "status",
-]
-
 log = logging.getLogger(__name__)
 CLIENT_ENCODINGS = (CDR, JSON)  # what the bridge reads from clients (serverInfo's supportedEncodings)
 ERROR = 2  # a status message's level: 0 info, 1 warning, 2 error

@@ -949,38 +949,3 @@ def _spare_file() -> int | None:
         return os.open(os.devnull, os.O_RDONLY | os.O_CLOEXEC)
     except OSError:
         return None
-
-
-__all__ = [
-    "ACCEPT_BACKOFF_SECONDS",
-    "CHUNK",
-    "HANDSHAKE_SECONDS",
-    "INJECT_WAIT_SECONDS",
-    "MAX_CLIENTS",
-    "MAX_CLIENT_MESSAGE",
-    "MAX_HANDSHAKES",
-    "MAX_HEAD",
-    "MAX_PENDING",
-    "MAX_SDK_TEXT",
-    "MAX_SUBSCRIPTIONS",
-    "OLDER_NAMES",
-    "RESUBSCRIBE_DELAYS",
-    "Connection",
-    "Reader",
-    "Receiving",
-    "RequestHead",
-    "Resubscriptions",
-    "SDK_SUBPROTOCOL",
-    "Stream",
-    "SubprotocolFront",
-    "foxglove_gate",
-    "handshake_budget",
-    "header_values",
-    "http_response",
-    "log",
-    "naming",
-    "older_name_asked",
-    "origin_refusal",
-    "read_head",
-    "subprotocols",
-]

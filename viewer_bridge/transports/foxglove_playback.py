@@ -74,6 +74,3 @@ class FoxglovePlayback:
             sdk_state(answer.state)
         )  # every client: the last request wins for all
         return None
-
-
-__all__ = ["FoxglovePlayback", "sdk_state"]

@@ -296,11 +296,3 @@ class IgnTransport(Transport):
 
     def close(self) -> None:
         self.node.close()
-
-
-__all__ = [
-    "IgnNode",
-    "IgnSettings",
-    "IgnTransport",
-    "log",
-]

@@ -283,22 +283,3 @@ def is_tcp_address(address: str) -> bool:
     """What an ign-transport publisher advertises: `tcp://host:port` (IPv6 hosts in brackets)."""
     match = _TCP_ADDRESS.fullmatch(address)
     return match is not None and 0 < int(match.group(1)) < 65536
-
-
-__all__ = [
-    "ANY_TYPE",
-    "Callback",
-    "Discovery",
-    "HEARTBEAT_S",
-    "Record",
-    "Remote",
-    "Report",
-    "SILENCE_S",
-    "STATISTICS_VERSION",
-    "Send",
-    "Subscription",
-    "WIRE_VERSION",
-    "datagram",
-    "is_tcp_address",
-    "subscription",
-]

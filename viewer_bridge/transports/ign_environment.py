@@ -96,14 +96,3 @@ def _relays(text: str) -> tuple[str, ...]:
         except ValueError:
             log.warning("GZ_RELAY: %r is not an IPv4 address: left out", part)
     return tuple(relays)
-
-
-__all__ = [
-    "DISCOVERY_GROUP",
-    "MESSAGE_PORT",
-    "NodeEnvironment",
-    "SERVICE_PORT",
-    "log",
-    "read_environment",
-    "variable",
-]

@@ -306,7 +306,7 @@ class LogReplay:
             self._thread.join(timeout=2)
 
 
-def open_bus(url: str) -> LcmBus | LogReplay:
+def _open_bus(url: str) -> LcmBus | LogReplay:
     """A live bus for an LCM URL; a replay for `file://PATH[?speed=S]` or a path to a log file.
 
     `file://PATH?mode=w` (or `a`) is a bus too: LCM writes what is published on it into PATH."""
@@ -347,7 +347,7 @@ class LcmTransport(base.Transport):
     def __init__(self, settings: LcmSettings, bus: LcmBus | LogReplay | LogPlayer | None = None) -> None:
         """`bus`: where the messages come from instead of `settings.url` (a log `play` plays)."""
         super().__init__(settings)
-        self.bus = open_bus(settings.url) if bus is None else bus
+        self.bus = _open_bus(settings.url) if bus is None else bus
         self._routes: list[tuple[ChannelPattern, base.Deliver]] = []
         # The routes a channel goes to, found once per channel name: one dictionary lookup a
         # message. Bounded as a pattern's matches are: past that many names, matched each time.
@@ -410,7 +410,6 @@ __all__ = [
     "RECEIVE_BUFFER",
     "Subscription",
     "kernel_drops",
-    "open_bus",
     "read_log",
     "with_receive_buffer",
     "write_log",

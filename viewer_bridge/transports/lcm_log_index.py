@@ -197,6 +197,3 @@ def _scan(
         np.frombuffer(ids, np.int32).copy(),
         names,
     )
-
-
-__all__ = ["LogIndex", "LoggedEvent", "SYNC"]

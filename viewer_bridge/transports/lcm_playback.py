@@ -257,6 +257,3 @@ class LogPlayer:
         for pattern, callback in self._subscribers:
             if pattern.fullmatch(event.channel):
                 callback(event.channel, event.data, time.time_ns() // 1000)
-
-
-__all__ = ["LcmOut", "LogPlayer", "TICK_S"]

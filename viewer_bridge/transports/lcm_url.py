@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-__all__ = ["log_to_write"]
-
 
 def log_to_write(url: str) -> str | None:
     """The path of the log a `file://PATH?mode=w` (or `mode=a`) URL writes, else None.

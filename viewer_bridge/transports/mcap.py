@@ -247,10 +247,3 @@ class McapTransport(Transport):
         self.file.close()
         if self._partial != self.settings.path:
             os.replace(self._partial, self.settings.path)
-
-
-__all__ = [
-    "McapSettings",
-    "McapTransport",
-    "Profile",
-]

@@ -24,15 +24,6 @@ from collections.abc import Callable, Iterable
 
 from viewer_bridge.errors import HttpRefusal
 
-__all__ = [
-    "ANY_ORIGIN",
-    "FOXGLOVE_APPS",
-    "OriginGate",
-    "Origins",
-    "is_origin_pattern",
-    "origin_matches",
-]
-
 log = logging.getLogger("viewer_bridge")
 
 ANY_ORIGIN = "*"  # as a whole entry: every origin passes (the check is off)

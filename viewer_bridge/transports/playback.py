@@ -117,6 +117,3 @@ class PlaybackClock:
                 self.playing = playing
             if speed is not None:
                 self.speed = speed
-
-
-__all__ = ["Answer", "PlaybackClock", "PlaybackRequest", "PlaybackState", "Status", "Timeline", "Timelines"]

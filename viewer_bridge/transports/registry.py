@@ -22,5 +22,3 @@ TRANSPORTS: Registry[Transport] = Registry(
     },
     Transport,
 )
-
-__all__ = ["TRANSPORTS"]

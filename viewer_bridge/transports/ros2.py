@@ -605,12 +605,3 @@ class RosTransport(Transport):
             rclpy.shutdown(context=self._context)
         if self._thread.is_alive():
             self._thread.join(timeout=2)
-
-
-__all__ = [
-    "BUILDABLE_INTERFACES",
-    "RosSettings",
-    "RosTransport",
-    "message_class",
-    "qos_profile",
-]

@@ -180,15 +180,3 @@ def ros_argument_problem(flag: str, value: str) -> str | None:
         if problem := topic_problem(topic):
             return f"{topic!r} is not a valid ROS 2 topic name: {problem}"
     return None
-
-
-__all__ = [
-    "ChannelNames",
-    "MAX_NAMESPACE_LENGTH",
-    "MAX_NODE_NAME_LENGTH",
-    "name_token",
-    "namespace_problem",
-    "node_name_problem",
-    "ros_argument_problem",
-    "topic_problem",
-]

@@ -88,14 +88,3 @@ def _config_key(policy: str) -> str:
     """The config key of a DDS policy named by the middleware (`RELIABILITY` -> `reliability`)."""
     name = policy.lower()
     return name if name in (RELIABILITY, DURABILITY) else f"{RELIABILITY}/{DURABILITY}"
-
-
-__all__ = [
-    "DEFAULT_MAX_DEPTH",
-    "Offered",
-    "describe",
-    "followed",
-    "incompatible_publication",
-    "incompatible_subscription",
-    "same_profile",
-]

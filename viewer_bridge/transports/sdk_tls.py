@@ -30,8 +30,6 @@ from dataclasses import dataclass
 
 from viewer_bridge.errors import HandshakeError
 
-__all__ = ["SdkCertificate", "SdkLink", "TLS_CHUNK"]
-
 TLS_CHUNK = 256 * 1024  # raw bytes read from the SDK's socket at a time (the relay's own CHUNK)
 
 # --- Ed25519 (RFC 8032, section 5.1) ---------------------------------------------------------

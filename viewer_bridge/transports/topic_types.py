@@ -79,6 +79,3 @@ class TopicTypes:
                 return
             self._said.add((topic, name))
         log.warning("viewer-bridge: %s is of type %s, %s: not subscribed (said once)", topic, name, why)
-
-
-__all__ = ["ANY", "EVERY", "TopicTypes", "found_in_graph", "lcm_message_type", "ros_message_type"]

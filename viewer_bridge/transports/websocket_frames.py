@@ -19,18 +19,6 @@ from dataclasses import dataclass
 
 from viewer_bridge.errors import FrameLimitError
 
-__all__ = [
-    "BINARY",
-    "MAX_FRAGMENTS",
-    "TEXT",
-    "ClientMessages",
-    "Message",
-    "Piece",
-    "RelayedStream",
-    "text_frame",
-    "unmask",
-]
-
 CONTINUATION, TEXT, BINARY = 0, 1, 2
 # frames of one message (its fragments, and control frames between them): no client sends more
 # (a browser never fragments); each costs the reader as much as a byte of payload a thousand times

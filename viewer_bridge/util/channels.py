@@ -32,6 +32,3 @@ class ChannelPattern:
             if len(self._matches) < MAX_CHANNELS:
                 self._matches[channel] = match
         return match  # type: ignore[return-value]
-
-
-__all__ = ["MAX_CHANNELS", "ChannelPattern"]

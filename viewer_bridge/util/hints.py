@@ -32,6 +32,3 @@ def first_time(hint: str) -> bool:
     except OSError:
         pass
     return True
-
-
-__all__ = ["DEBUG_ENV", "first_time", "hints_folder"]

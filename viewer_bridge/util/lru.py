@@ -61,10 +61,3 @@ class SizedLru(Generic[K, V]):
     def values(self) -> list[V]:
         """The values held, least recently used first."""
         return [value for value, _ in self._entries.values()]
-
-
-__all__ = [
-    "K",
-    "SizedLru",
-    "V",
-]

@@ -19,8 +19,6 @@ from pathlib import Path
 
 from viewer_bridge.errors import Interrupted, UsageError
 
-__all__ = ["check_output_folder", "partial_output", "partial_path", "write_whole"]
-
 
 def partial_path(target: Path) -> Path:
     """`NAME.partial` beside `target`; `target` itself when it is a `.partial` already (`convert`

@@ -132,6 +132,3 @@ def steps(terminal: bool | None = None, stream: TextIO | None = None) -> Iterato
         yield told
     finally:
         told.close()
-
-
-__all__ = ["EVERY_S", "QUIET_S", "Advance", "Steps", "progress", "steps"]

@@ -17,8 +17,3 @@ def data_dir(name: str) -> Path:
         if candidate.is_dir():
             return candidate
     raise FileNotFoundError(f"viewer-bridge data folder {name!r} is missing from the installation")
-
-
-__all__ = [
-    "data_dir",
-]

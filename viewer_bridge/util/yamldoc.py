@@ -139,10 +139,3 @@ def _fields_at(model: type[BaseModel], loc: tuple[Any, ...]) -> list[str]:
 def _reason(detail: Any) -> str:
     message = str(detail["msg"])
     return message.removeprefix("Value error, ")
-
-
-__all__ = [
-    "KeyPath",
-    "Model",
-    "YamlDocument",
-]

@@ -16,7 +16,8 @@ import numpy as np
 
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec.codecs import CONTACT_RESULTS
-from viewer_bridge.lcmcodec.serde import Buffer, LcmMessage
+from viewer_bridge.lcmcodec.codegen import Buffer
+from viewer_bridge.lcmcodec.serde import LcmMessage
 from viewer_bridge.model.contact import (
     ContactBody,
     ContactResults,
@@ -119,10 +120,3 @@ def _fan(values: list[int], field: str) -> tuple[IntArray, IntArray]:
     corner_offsets = np.array(offsets, dtype=np.int64).reshape(-1, 3)
     triangles: IntArray = np.asarray(values, dtype=np.int64)[corner_offsets] if offsets else corner_offsets
     return triangles, corner_offsets
-
-
-__all__ = [
-    "contact_results_from_lcm",
-    "decode_contact_results",
-    "triangles_from_polygons",
-]

@@ -16,7 +16,8 @@ import numpy.typing as npt
 
 from viewer_bridge.errors import EncodeError
 from viewer_bridge.lcmcodec.codecs import DRAW
-from viewer_bridge.lcmcodec.serde import Buffer, LcmMessage
+from viewer_bridge.lcmcodec.codegen import Buffer
+from viewer_bridge.lcmcodec.serde import LcmMessage
 from viewer_bridge.model.scene import LinkPoses
 
 
@@ -88,6 +89,11 @@ class DrawDecoder:
         self._layout = _NO_LAYOUT
 
     def decode(self, data: Buffer) -> LinkPoses:
+        """The poses of one `lcmt_viewer_draw`, as arrays (read-only: never change them).
+
+        Raises:
+            DecodeError: bytes that are no `lcmt_viewer_draw`, naming the field and offset.
+        """
         if not isinstance(data, bytes):
             data = bytes(data)  # bytes compare in place; a view of a copy stays valid
         known = self._layout
@@ -166,6 +172,11 @@ class DrawEncoder:
         self._names_block = b""
 
     def encode(self, poses: LinkPoses) -> bytes:
+        """The `lcmt_viewer_draw` of `poses`.
+
+        Raises:
+            EncodeError: arrays whose lengths differ from the names', or a value past float32's range.
+        """
         count = len(poses)
         if poses.names != self._names:
             self._names_block = b"".join(_encode_string(name) for name in poses.names)

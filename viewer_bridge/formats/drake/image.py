@@ -31,7 +31,7 @@ from PIL import Image as PilImage
 from viewer_bridge.errors import DecodeError, EncodeError, InflateError
 from viewer_bridge.formats.drake.inflate import inflate
 from viewer_bridge.lcmcodec.codecs import HEADER, IMAGE, IMAGE_ARRAY
-from viewer_bridge.lcmcodec.serde import Buffer
+from viewer_bridge.lcmcodec.codegen import Buffer
 from viewer_bridge.model.image import EncodedImage, FileFormat, Image, Layout, Pixels
 
 TYPE_NAME = IMAGE_ARRAY.type_name
@@ -327,23 +327,3 @@ def _lcm_image(image: Image, compress: bool) -> Any:
         channel_type=channel_type,
         compression_method=ZLIB if compress else NOT_COMPRESSED,
     )
-
-
-__all__ = [
-    "CHANNEL_DTYPES",
-    "CHANNEL_TYPES",
-    "ImageArray",
-    "JPEG",
-    "LAYOUTS",
-    "MAX_COMPRESSION_RATIO",
-    "NOT_COMPRESSED",
-    "PIXEL_FORMATS",
-    "PNG",
-    "PackedImage",
-    "TYPE_NAME",
-    "ZLIB",
-    "ZLIB_LEVEL",
-    "images_to_lcm",
-    "read_image_array",
-    "unpack",
-]

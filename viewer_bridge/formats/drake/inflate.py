@@ -121,14 +121,3 @@ inflate_libz = _libz_inflater(POOL)
 # The zlib stream `data` inflated: at most `size` bytes (fewer when the stream is shorter), or
 # `InflateError` for a stream that would give more, is corrupt, ends early or has bytes after it.
 inflate: Callable[[bytes | memoryview, int], Bytes] = inflate_libz or inflate_python
-
-
-__all__ = [
-    "BufferPool",
-    "Bytes",
-    "DEFLATE_MAX_RATIO",
-    "POOL",
-    "inflate",
-    "inflate_libz",
-    "inflate_python",
-]

@@ -21,7 +21,8 @@ import numpy as np
 from viewer_bridge.errors import DecodeError, ShapeDataError
 from viewer_bridge.formats.mappings import FormatTables
 from viewer_bridge.lcmcodec.codecs import GEOMETRY_DATA, LINK_DATA, LOAD_ROBOT
-from viewer_bridge.lcmcodec.serde import Buffer, LcmMessage
+from viewer_bridge.lcmcodec.codegen import Buffer
+from viewer_bridge.lcmcodec.serde import LcmMessage
 from viewer_bridge.model.scene import (
     FileContents,
     Geometry,
@@ -135,7 +136,7 @@ def _file_contents(entry: dict[str, Any], where: str) -> FileContents:
     return FileContents(data, extension, hint)
 
 
-def geometry_from_lcm(message: LcmMessage) -> Geometry:
+def _geometry_from_lcm(message: LcmMessage) -> Geometry:
     """One `lcmt_viewer_geometry_data` as a scene geometry (raises `ShapeDataError`)."""
     if message.type == MESH:  # three kinds of mesh, told apart by string_data: code, not table
         shape = _mesh(message.float_data, message.string_data)
@@ -173,7 +174,7 @@ def _link_geometries(link: LcmMessage, prefix: str, type_name: str = _LOAD_TYPE)
     geometries = []
     for index, geometry in enumerate(link.geom):
         try:
-            geometries.append(geometry_from_lcm(geometry))
+            geometries.append(_geometry_from_lcm(geometry))
         except ShapeDataError as error:
             field = f"{prefix}.geom[{index}].{error.field}".lstrip(".")
             raise DecodeError(type_name, field, error.offset, error.reason, unit=error.unit) from None
@@ -221,7 +222,7 @@ def _in_memory_json(mesh_file: FileContents, supporting: Any) -> str:
     return json.dumps({"in_memory_mesh": root}, separators=(",", ":"), sort_keys=True)
 
 
-def geometry_to_lcm(geometry: Geometry) -> LcmMessage:
+def _geometry_to_lcm(geometry: Geometry) -> LcmMessage:
     """One scene geometry as Drake writes it (a half-space becomes Drake's box)."""
     ((rule, shape, pose),) = TABLES["geometry_data"].expand(geometry.shape, geometry.pose)
     fields = {"float_data": [], "string_data": ""} | rule.values(shape)
@@ -237,24 +238,21 @@ def geometry_to_lcm(geometry: Geometry) -> LcmMessage:
     )
 
 
-def link_to_lcm(link: Link) -> LcmMessage:
-    geoms = per_geometry(link, lambda _, geometry: geometry_to_lcm(geometry))
+def _link_to_lcm(link: Link) -> LcmMessage:
+    geoms = per_geometry(link, lambda _, geometry: _geometry_to_lcm(geometry))
     return LINK_DATA.message_class(name=link.name, robot_num=link.robot_num, num_geom=len(geoms), geom=geoms)
 
 
 def load_from_scene(scene: Scene) -> LcmMessage:
     """The `lcmt_viewer_load_robot` that describes the scene's geometry."""
-    links = [link_to_lcm(link) for link in scene.links]
+    links = [_link_to_lcm(link) for link in scene.links]
     return LOAD_ROBOT.message_class(num_links=len(links), link=links)
 
 
 __all__ = [
     "TABLES",
     "decode_load",
-    "geometry_from_lcm",
-    "geometry_to_lcm",
     "link_from_lcm",
-    "link_to_lcm",
     "load_from_scene",
     "scene_from_load",
 ]

@@ -17,7 +17,7 @@ from viewer_bridge.formats.point_fields import (
     write_points,
 )
 from viewer_bridge.lcmcodec.codecs import POINT_CLOUD, POINT_CLOUD_FIELD
-from viewer_bridge.lcmcodec.serde import Buffer
+from viewer_bridge.lcmcodec.codegen import Buffer
 from viewer_bridge.model.scene import StampedPointCloud, frame_name
 
 TYPE_NAME = POINT_CLOUD.type_name
@@ -79,12 +79,3 @@ def cloud_to_lcm(stamped: StampedPointCloud) -> bytes:
     message.filler_size, message.filler = filler, b"\0" * filler
     message.data_size, message.data = len(data), data
     return POINT_CLOUD.encode(message)
-
-
-__all__ = [
-    "IS_BIGENDIAN",
-    "IS_STRICTLY_FINITE",
-    "TYPE_NAME",
-    "cloud_from_lcm",
-    "cloud_to_lcm",
-]

@@ -63,11 +63,3 @@ def camera_calibration(intrinsics: Intrinsics, frame_id: str, stamp: tuple[int, 
                                 P=intrinsics.p())  # fmt: skip
     message.timestamp.seconds, message.timestamp.nanos = stamp
     return message.SerializeToString()
-
-
-__all__ = [
-    "camera_calibration",
-    "compressed_image",
-    "raw_image",
-    "timestamp",
-]

@@ -101,6 +101,3 @@ def message_path(topic: str, field: str) -> str:
     if _PLAIN_TOPIC.fullmatch(topic):
         return topic + field
     return '"' + topic.replace("\\", "\\\\").replace('"', '\\"') + '"' + field
-
-
-__all__ = ["PLOT_FIELDS", "LayoutTopics", "foxglove_layout", "message_path", "numeric_paths"]

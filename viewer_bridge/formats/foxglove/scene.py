@@ -104,9 +104,3 @@ def _polyline(shape: Shape) -> dict[str, Any]:
 TABLES = FormatTables(
     "foxglove", {"glb_model": _glb_model, "triad_lines": _triad_lines, "polyline": _polyline}
 )
-
-
-__all__ = [
-    "TABLES",
-    "scene_update",
-]

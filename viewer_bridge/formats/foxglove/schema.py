@@ -35,13 +35,3 @@ def schema(type_name: str) -> bytes:
     for file in files.values():
         file.CopyToProto(descriptor_set.file.add())
     return descriptor_set.SerializeToString()
-
-
-__all__ = [
-    "CAMERA_CALIBRATION",
-    "COMPRESSED_IMAGE",
-    "FRAME_TRANSFORMS",
-    "RAW_IMAGE",
-    "SCENE_UPDATE",
-    "schema",
-]

@@ -64,6 +64,8 @@ class FrameTransformsEncoder:
         self._stamp_bytes = np.zeros(0, dtype=np.int64)
 
     def encode(self, poses: LinkPoses, stamp: tuple[int, int]) -> bytes:
+        """The `foxglove.FrameTransforms` of `poses`, stamped `stamp` (sec, nanosec); it raises nothing
+        of its own (the arrays are a decoded draw's)."""
         timestamp = _length_delimited(1, _timestamp(stamp))
         key = (poses.names, len(timestamp))
         if (
@@ -97,8 +99,3 @@ class FrameTransformsEncoder:
         places = np.asarray(doubles, dtype=np.int64).reshape(-1, 7)
         self._double_bytes = (places[:, :, None] + np.arange(8)).reshape(-1)
         self._stamp_bytes = np.asarray(stamps, dtype=np.int64).reshape(-1)
-
-
-__all__ = [
-    "FrameTransformsEncoder",
-]

@@ -70,8 +70,3 @@ def _add_contact(
 
 def _set(vector: Any, values: FloatArray) -> None:
     vector.x, vector.y, vector.z = (float(value) for value in values)
-
-
-__all__ = [
-    "contacts_message",
-]

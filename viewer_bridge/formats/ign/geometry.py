@@ -143,11 +143,3 @@ def _parse_obj(text: str) -> TriangleMesh:
     if face_array.size and (face_array.min() < 0 or face_array.max() >= len(vertex_array)):
         raise SceneError("Geometry: mesh array OBJ refers to a vertex it does not have")
     return TriangleMesh(vertex_array, face_array)
-
-
-__all__ = [
-    "TABLES",
-    "fill_geometry",
-    "geometry_message",
-    "shape_from_geometry",
-]

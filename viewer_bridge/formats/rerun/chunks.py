@@ -17,8 +17,6 @@ from rerun.chunk import Chunk
 
 from viewer_bridge.formats.rerun.schema import RECEIVE_TIME, SIM_TIME, Chunks
 
-__all__ = ["Stamp", "entity_path", "received_chunk", "static_chunk", "time_columns", "timed_chunk"]
-
 
 @dataclass(frozen=True, slots=True)
 class Stamp:

@@ -20,8 +20,6 @@ from viewer_bridge.model.contact import (
     pressure_range,
 )
 
-__all__ = ["contact_archetypes"]
-
 
 def contact_archetypes(results: ContactResults, options: ContactDrawOptions) -> dict[str, list[Any]]:
     """Archetypes by entity name under the contacts' entity: `forces`, `moments`, `surfaces/<i>`.

@@ -17,8 +17,6 @@ import rerun as rr
 from viewer_bridge.errors import SceneError
 from viewer_bridge.model.image import MILLIMETRES_PER_METRE, Image, Intrinsics, Layout
 
-__all__ = ["image_archetype", "pinhole"]
-
 _COLOR_MODELS = {
     Layout.GRAY: rr.ColorModel.L,
     Layout.RGB: rr.ColorModel.RGB,

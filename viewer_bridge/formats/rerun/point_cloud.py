@@ -12,10 +12,8 @@ from typing import Any
 import numpy as np
 import rerun as rr
 
-from viewer_bridge.formats.ros.tf import WORLD
+from viewer_bridge.formats.ros.message_types import WORLD
 from viewer_bridge.model.scene import LinkPoses, StampedPointCloud
-
-__all__ = ["cloud_archetypes", "frame_arrows"]
 
 _AXIS_COLORS = np.array([[255, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255]], dtype=np.uint8)
 

@@ -13,8 +13,6 @@ from typing import Any
 
 import rerun as rr
 
-__all__ = ["numeric_fields", "scalars_of", "sim_time_us"]
-
 FieldPath = tuple[str, ...]
 
 # Drake's and most labs' LCM types say when a message was made in this field (microseconds).

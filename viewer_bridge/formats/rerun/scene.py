@@ -37,8 +37,6 @@ from viewer_bridge.model.scene import (
 )
 from viewer_bridge.model.skipped import per_geometry
 
-__all__ = ["MEDIA_TYPES", "link_entity", "scene_chunks"]
-
 # What Asset3D reads, by file extension (Rerun's MediaType names); other mesh files are skipped.
 MEDIA_TYPES = {
     ".glb": rr.MediaType.GLB,

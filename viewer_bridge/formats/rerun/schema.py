@@ -36,8 +36,6 @@ RECEIVE_TIME = "receive_time"
 
 _LENGTH = struct.Struct("<I")
 
-__all__ = ["CHUNKS", "RECEIVE_TIME", "RERUN", "SIM_TIME", "Chunks", "decode_batches", "encode_batches"]
-
 
 class Chunks(Value):
     """One `rerun.Chunks` message: the SDK's chunks, and how many bytes of component data their

@@ -24,8 +24,6 @@ from viewer_bridge.formats.rerun.chunks import Stamp
 from viewer_bridge.formats.rerun.schema import RECEIVE_TIME, SIM_TIME, Chunks
 from viewer_bridge.model.scene import LinkPoses
 
-__all__ = ["TransformsEncoder"]
-
 _TIMESTAMP = pa.timestamp("ns")
 _DURATION = pa.duration("ns")
 

@@ -180,19 +180,3 @@ class CdrReader:
         length = self.count(field, 1)
         start = self.take(length, 1, field)
         return self.buffer[start : start + length]
-
-
-__all__ = [
-    "CDR_LE",
-    "CDR_TIME",
-    "CdrReader",
-    "CdrWriter",
-    "FRONT_PADDING",
-    "POSE_ITEM",
-    "U32",
-    "cdr_string",
-    "cdr_string_4",
-    "payload_items",
-    "time_parts",
-    "time_parts_from_us",
-]

@@ -48,10 +48,3 @@ class WrenchEncoder:
         prefix = CDR_LE + CDR_TIME.pack(*stamp) + self._frame
         rows = np.ascontiguousarray(contact_wrenches(results), dtype="<f8")
         return [prefix + row.tobytes() for row in rows]
-
-
-__all__ = [
-    "WrenchEncoder",
-    "contact_marker_array_cdr",
-    "contact_wrenches",
-]

@@ -178,19 +178,3 @@ def image_from_cdr(data: bytes | memoryview) -> StampedImage:
     strides = (step, pixel_size, dtype.itemsize)
     pixels: Pixels = np.ndarray((height, width, layout.channels), channel, rows, 0, strides)
     return StampedImage(frame_id, time_us, Image(layout.value, time_us, layout, pixels))
-
-
-__all__ = [
-    "CAMERA_INFO",
-    "COMPRESSED_IMAGE",
-    "CameraInfoEncoder",
-    "ENCODINGS",
-    "IMAGE",
-    "LAYOUTS",
-    "StampedImage",
-    "camera_info_cdr",
-    "compressed_image_to_cdr",
-    "encoding",
-    "image_from_cdr",
-    "image_to_cdr",
-]

@@ -76,9 +76,3 @@ def cloud_from_cdr(data: bytes | memoryview) -> StampedPointCloud:
     rgb_order = PCL_RGB_BIG if big_endian else PCL_RGB_LITTLE
     cloud = read_points(points, layout, type_name=POINT_CLOUD2, rgb_order=rgb_order)
     return StampedPointCloud(cloud, frame, time_us)
-
-
-__all__ = [
-    "cloud_from_cdr",
-    "cloud_to_cdr",
-]

@@ -43,13 +43,18 @@ class PoseArrayEncoder:
     """
 
     def __init__(self, frame_id: str = "world") -> None:
+        """Made once per frame id: `EncodeError` when a CDR string cannot carry it (a NUL)."""
         self.frame_id = frame_id
         self._frame = cdr_string_4(frame_id, "header.frame_id")
         self._padding = b"\0" * (-(8 + len(self._frame) + 4) % 8)
         self._layout(0)
 
     def encode(self, poses: LinkPoses, stamp: tuple[int, int] | None = None) -> bytes:
-        """The draw as a PoseArray stamped `stamp` (sec, nanosec), by default its sim time."""
+        """The draw as a PoseArray stamped `stamp` (sec, nanosec), by default its sim time.
+
+        Raises:
+            EncodeError: a sim time past int32 seconds, which `builtin_interfaces/Time` cannot hold.
+        """
         if len(poses) != len(self._rows):
             self._layout(len(poses))
         stamp_bytes = _stamp_bytes(poses.timestamp_ms) if stamp is None else CDR_TIME.pack(*stamp)

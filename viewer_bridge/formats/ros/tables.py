@@ -98,8 +98,3 @@ TABLES = FormatTables(
         "line_strip": _line_strip,
     },
 )
-
-
-__all__ = [
-    "TABLES",
-]

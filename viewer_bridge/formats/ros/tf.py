@@ -48,6 +48,11 @@ class TransformsEncoder:
         self._layout(())
 
     def encode(self, poses: LinkPoses, stamp: tuple[int, int]) -> bytes:
+        """The `tf2_msgs/TFMessage` CDR of `poses`, stamped `stamp` (sec, nanosec).
+
+        Raises:
+            EncodeError: a frame name a CDR string cannot carry (a NUL, text that is no Unicode).
+        """
         if poses.names is not self._names and poses.names != self._names:  # one tuple while they repeat
             self._layout(poses.names)
         write_pose_rows_xyzw(self._rows, poses.positions, poses.quaternions_wxyz)
@@ -82,10 +87,3 @@ class TransformsEncoder:
 
 
 _STAMP_ITEM = np.dtype((np.void, CDR_TIME.size))
-
-
-__all__ = [
-    "FrameNames",
-    "TransformsEncoder",
-    "WORLD",
-]

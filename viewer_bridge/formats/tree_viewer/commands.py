@@ -158,6 +158,3 @@ _SHAPE_READERS: dict[str, Callable[[dict[str, Any], str], Shape]] = {
     "planar_lidar": _planar_lidar_shape,
     "line": _line_shape,
 }
-
-
-__all__ = ["geometry_from_command", "pose_from_transform"]

@@ -9,5 +9,3 @@ JsonObject = dict[str, object]
 """A JSON object (a request as the tree viewer is sent it, its response): values are str, int,
 float, bool, None, and lists and objects of them. Typed `object` rather than as a recursive
 union, which `typing.get_type_hints` cannot resolve outside this module."""
-
-__all__ = ["DEFAULT_PREFIX", "JsonObject"]

@@ -9,7 +9,7 @@ import orjson
 
 from viewer_bridge.errors import RequestRejected
 from viewer_bridge.lcmcodec.codecs import VIEWER2_COMMS
-from viewer_bridge.lcmcodec.serde import Buffer
+from viewer_bridge.lcmcodec.codegen import Buffer
 
 FORMAT = "treeviewer_json"
 VERSION = (1, 0)

@@ -164,6 +164,8 @@ class SettransformEncoder:
         self._slots = np.zeros((0, 8, 2), np.uint64)
 
     def encode(self, poses: LinkPoses, utime: int = 0) -> bytes:
+        """The tree viewer's `settransform` request of `poses` as JSON bytes, `timestamp` `utime`
+        (0: their sim time); it raises nothing of its own (the arrays are a decoded draw's)."""
         utime = int(utime or poses.timestamp_ms * 1000)
         start = b'{"timestamp":%d,"setgeometry":[],"settransform":[' % utime
         end = b'],"delete":[]}'

@@ -64,10 +64,12 @@ class TreeState:
             return {"timestamp": echo_time(request), "status": ERROR_HANDLING_REQUEST, "error": str(error)}
 
     def apply(self, request: JsonObject) -> JsonObject:
-        """Apply one request; returns the response payload (status, missing_paths).
+        """Apply one request; returns the response payload (status, missing_paths). When it raises,
+        the tree is unchanged.
 
-        Raises `RequestRejected` (-4) for an unknown command and `SceneError` (-3) for a bad one;
-        the tree is then unchanged.
+        Raises:
+            RequestRejected: an unknown command (status -4).
+            SceneError: a bad command (status -3).
         """
         unknown = sorted(set(request) - _REQUEST_KEYS)
         if unknown:

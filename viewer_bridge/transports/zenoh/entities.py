@@ -277,18 +277,3 @@ class Graph:
         with self._lock:
             tokens = list(self._tokens.values())
         return [(t, t.topic) for t in tokens if t.kind == keys.PUBLISHER and t.topic is not None]
-
-
-__all__ = [
-    "Errors",
-    "Graph",
-    "LastValues",
-    "LcmPublisher",
-    "Matching",
-    "RosPublisher",
-    "ask_last_values",
-    "declare_put",
-    "declare_subscriber",
-    "is_cdr",
-    "ros_receiver",
-]

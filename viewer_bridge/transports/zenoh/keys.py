@@ -306,32 +306,3 @@ def wildcard(key: str) -> bool:
     for the concrete keys (a rule applies only where its key expression covers the put's): so a
     sample must come on the concrete key it is for, or it is dropped."""
     return "*" in key
-
-
-__all__ = [
-    "ADMIN_SPACE",
-    "ATTACHMENT",
-    "ATTACHMENT_SIZE",
-    "Attachment",
-    "DataKey",
-    "ENTITY_KINDS",
-    "NodeName",
-    "Token",
-    "TokenQos",
-    "TopicEntity",
-    "TopicType",
-    "attachment",
-    "data_key",
-    "dds_type_name",
-    "demangle",
-    "gid",
-    "mangle",
-    "parse_attachment",
-    "parse_data_key",
-    "parse_qos_part",
-    "parse_token",
-    "qos_part",
-    "ros_type_name",
-    "topic_type",
-    "wildcard",
-]

@@ -22,6 +22,8 @@ from typing import Any, ParamSpec, TypeVar
 
 import zenoh
 
+from viewer_bridge.errors import InvalidSetting
+
 _log = logging.getLogger("viewer_bridge")
 ROUTER_ENDPOINT = "tcp/localhost:7447"  # rmw_zenohd's
 # Without a config file: a client of the local router that listens nowhere and scouts no multicast.
@@ -69,16 +71,16 @@ def session_config(
 
 
 def make_config(file: str | None, pairs: Sequence[tuple[str, str]]) -> zenoh.Config:
-    """A `zenoh.Config`; `ValueError` naming the file or the key Zenoh refuses."""
+    """A `zenoh.Config`; `InvalidSetting` (a ValueError) naming the file or the key Zenoh refuses."""
     try:
         config = zenoh.Config.from_file(file) if file else zenoh.Config()
     except zenoh.ZError as error:
-        raise ValueError(f"Zenoh config file {file}: {_reason(error)}") from None
+        raise InvalidSetting(f"Zenoh config file {file}: {_reason(error)}") from None
     for key, value in pairs:
         try:
             config.insert_json5(key, value)
         except zenoh.ZError as error:
-            raise ValueError(f"Zenoh config {key}={value}: {_reason(error)}") from None
+            raise InvalidSetting(f"Zenoh config {key}={value}: {_reason(error)}") from None
     return config
 
 
@@ -280,14 +282,3 @@ def _undeclare(handle: object) -> None:
     # in use on another thread ("Already borrowed"): the session's close ends it
     except RuntimeError as error:
         _log.warning("Zenoh: undeclaring %r at close: %s", handle, error)
-
-
-__all__ = [
-    "Declare",
-    "Link",
-    "as_non_daemon",
-    "ROUTER_ENDPOINT",
-    "make_config",
-    "overrides_from_env",
-    "session_config",
-]

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import Field, ValidationInfo, field_validator
 
-from viewer_bridge.errors import InvalidName, TransportUnavailable
+from viewer_bridge.errors import InvalidName, InvalidSetting, TransportUnavailable
 from viewer_bridge.shared import Shared
 from viewer_bridge.transports.base import (
     CDR,
@@ -86,7 +86,7 @@ class ZenohSettings(TransportSettings):
     def _valid_ros_name(cls, name: str, info: ValidationInfo) -> str:
         problem = node_name_problem(name) if info.field_name == "node" else namespace_problem(name)
         if problem is not None:
-            raise ValueError(f"{name!r} is not a valid ROS 2 {info.field_name}: {problem}")
+            raise InvalidName(f"{name!r} is not a valid ROS 2 {info.field_name}: {problem}")
         return name
 
     @field_validator("connect", "listen")
@@ -94,14 +94,14 @@ class ZenohSettings(TransportSettings):
     def _valid_endpoints(cls, endpoints: list[str] | None) -> list[str] | None:
         for endpoint in endpoints or ():
             if problem := endpoint_problem(endpoint):
-                raise ValueError(f"{endpoint!r} is not a Zenoh endpoint: {problem}")
+                raise InvalidSetting(f"{endpoint!r} is not a Zenoh endpoint: {problem}")
         return endpoints
 
     @field_validator("lcm_prefix")
     @classmethod
     def _valid_prefix(cls, prefix: str) -> str:
         if problem := key_problem(prefix):
-            raise ValueError(f"{prefix!r} cannot start a Zenoh key: {problem}")
+            raise InvalidName(f"{prefix!r} cannot start a Zenoh key: {problem}")
         return prefix
 
 
@@ -403,10 +403,3 @@ class ZenohTransport(Transport):
         if self._discovery.is_alive():
             self._discovery.join(timeout=2)
         self.link.close()
-
-
-__all__ = [
-    "ZenohSettings",
-    "ZenohTransport",
-    "key_problem",
-]
