@@ -84,7 +84,7 @@ def test_the_table_shows_busy_routes_with_rates_and_folds_the_quiet_ones() -> No
     assert rows["broken"][-1] == "no subscriber"
     assert "transport errors: lcm: 3 dropped by kernel" in last  # words, not a dict
     legend = next(line for line in lines if line.startswith("legend: "))
-    assert legend.startswith("legend: idle_skipped: not translated: nobody subscribes"), legend
+    assert legend.startswith("legend: idle_skipped: not translated: no subscriber"), legend
 
 
 def test_at_80_columns_every_number_is_whole_and_unsent_shows_in_the_row() -> None:
@@ -141,6 +141,10 @@ def test_at_100_columns_idle_rows_say_why_and_the_title_is_one_line() -> None:
     assert rows["tf"][-1] == rows[long_name][-1] == "no subscriber", "\n".join(lines)
     assert rows["poses"][-1] == rows["shapes"][-1] == ""
     assert "304" in rows["tf"] and "58" in rows["tf"] and "137.23" in rows["shapes"]
+    assert (
+        "legend: superseded: a newer message on its channel came first (policy latest: the newest is sent)"
+        in lines
+    )
 
 
 def test_at_80_columns_a_busy_demo_keeps_its_totals() -> None:
@@ -194,7 +198,7 @@ def test_log_lines_show_routes_with_traffic_and_count_the_rest(caplog: Any) -> N
         "legend: superseded: a newer message on its channel came first (policy latest: the newest is sent); "
         "max_hz_skipped: superseded while the route waited out its rate.max_hz (by design); "
         "unsent: given to a transport that could not send it (a Zenoh session with no router, no Rerun viewer); "
-        "idle_skipped: not translated: nobody subscribes (the newest per channel goes out when one does)",
+        "idle_skipped: not translated: no subscriber (the newest per channel goes out when one comes)",
     ]
 
 

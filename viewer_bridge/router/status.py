@@ -92,7 +92,7 @@ LEGEND = {
     "max_hz_skipped": "superseded while the route waited out its rate.max_hz (by design)",
     "unsent": "given to a transport that could not send it (a Zenoh session with no router, no Rerun viewer)",
     "qos_incompatible": "a peer whose QoS cannot match the route's (nothing passes between them; the log says the fix)",
-    "idle_skipped": "not translated: nobody subscribes (the newest per channel goes out when one does)",
+    "idle_skipped": "not translated: no subscriber (the newest per channel goes out when one comes)",
     "stale": "older than max_age_ms when it would be sent",
     "not_allowed": "a command channel --allow-commands does not name",
     "unknown_type": "no known LCM type (--lcm-types names the folder of its .lcm files)",
@@ -141,11 +141,24 @@ def quiet_line(routes: dict[str, dict[str, Any]], names: list[str], listed: bool
     )
 
 
-def legend(terms: Iterable[str]) -> str | None:
-    """One line explaining `terms` (counters of `LEGEND`), in its order; None for none."""
+def _meanings(terms: Iterable[str]) -> list[str]:
+    """`term: meaning` of each of `terms` (counters of `LEGEND`), in its order."""
     wanted = set(terms)
-    said = [f"{term}: {meaning}" for term, meaning in LEGEND.items() if term in wanted]
+    return [f"{term}: {meaning}" for term, meaning in LEGEND.items() if term in wanted]
+
+
+def legend(terms: Iterable[str]) -> str | None:
+    """One line explaining `terms`; None for none."""
+    said = _meanings(terms)
     return "legend: " + "; ".join(said) if said else None
+
+
+def legend_lines(terms: Iterable[str]) -> list[str]:
+    """The legend as the table shows it: a counter a line, aligned under the first (one line of
+    several wrapped at the terminal's width was hard to read): `legend: superseded: ...`,
+    `        idle_skipped: ...`."""
+    pad = " " * len("legend: ")
+    return [("legend: " if index == 0 else pad) + said for index, said in enumerate(_meanings(terms))]
 
 
 def terms_of(routes: dict[str, dict[str, Any]]) -> list[str]:
@@ -311,8 +324,7 @@ class LiveTable:
                 parts.append(Text(f"{name} held back: {held}", style="yellow"))
         if "transports" in snapshot:
             parts.append(Text(f"transport errors: {transports_line(snapshot['transports'])}", style="red"))
-        if said := legend(terms_of(routes)):
-            parts.append(Text(said, style="dim"))
+        parts.extend(Text(line, style="dim") for line in legend_lines(terms_of(routes)))
         self._live.update(Group(*parts), refresh=True)
 
     def _table(self, routes: dict[str, dict[str, Any]], rates: dict[str, tuple[float, float]]) -> Table:
