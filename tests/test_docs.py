@@ -53,6 +53,8 @@ SUBSTITUTIONS: list[tuple[str, str, str]] = [
     (r"\bviewer-bridge play (?!.*foxglove\.port=)", "viewer-bridge play --set foxglove.port=0 ",
      "any free port: other bridges may be running here"),
     (r"127\.0\.0\.1:7447", "127.0.0.1:{zenoh_port}", "a free port: a Zenoh router may be running here"),
+    (r"zenoh\.mode=router --duration", "zenoh.mode=router --set 'zenoh.listen=[tcp/127.0.0.1:{zenoh_port}]' --duration",
+     "a free port for the bridge as a router (it listens on 7447 by default): a Zenoh router may be running here"),
     (r"\[-c CONFIG\]", "-c builtin:default", "the optional argument, given"),
     (r"\[--host 127\.0\.0\.1\] \[--port 8000\] \[--max-upload BYTES\]",
      "--host 127.0.0.1 --port {port} --max-upload 1000000", "the optional arguments, given; a free port"),

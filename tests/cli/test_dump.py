@@ -38,6 +38,17 @@ def test_a_labs_type_given_a_library_with_bytes_summarised() -> None:
     assert "  tip:" in text and "    frame_id: ''" in text
 
 
+def test_json_carries_byte_arrays_whole_as_from_json_takes_them_back() -> None:
+    library = TypeLibrary.load([str(CORPUS)], drake=False)
+    known = library.get("lab.robot.arm_state_t")
+    codec = library.codecs("lab.robot.arm_state_t")["lab.robot.arm_state_t"]
+    for blob, expected in [(b"abc", {"utf8": "abc"}), (b"\xff\x00\x01", {"base64": "/wAB"})]:
+        data = codec.encode(codec.message_class(cols=3, blob=blob, grid=[], robotName="left"))
+        record = json.loads(as_json(LcmEvent("LEFT_ARM", data, 0), library))
+        assert record["message"]["blob"] == expected
+        assert known.from_json(record["message"]) == data
+
+
 def _refuse(constant: str) -> None:
     raise ValueError(f"not JSON: {constant}")
 

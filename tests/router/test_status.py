@@ -66,10 +66,12 @@ def test_the_table_shows_busy_routes_with_rates_and_folds_the_quiet_ones() -> No
         "warn",
         "p50",
         "p99",
+        "idle",
     ]
     rows = {cells[0]: cells[1:] for cells in map(table_cells, lines) if cells}
     assert set(rows) == {"poses", "broken"}  # traffic, or an error even while idle
-    rate_in, rate_out, total_in, total_out, errors, warnings, p50, p99 = rows["poses"]
+    rate_in, rate_out, total_in, total_out, errors, warnings, p50, p99, idle = rows["poses"]
+    assert idle == ""
     assert 0 < float(rate_in) == float(rate_out) <= 30 / 0.5 and (total_in, total_out) == ("30", "30")
     assert (errors, warnings, p50, p99) == ("0", "2", "0.25", "1.50")
     assert rows["broken"][4] == "5"  # errors
@@ -77,11 +79,12 @@ def test_the_table_shows_busy_routes_with_rates_and_folds_the_quiet_ones() -> No
     waiting = re.search(r"waiting for a subscriber: tf in (\d+\.\d)/s \(idle_skipped 30\)", last)
     assert waiting and 0 < float(waiting.group(1)) <= 30 / 0.5, last
     assert "1 more route without traffic: empty" in last
-    # A row of a route that sends nothing says why, in the piped line's words.
-    assert "idle in the table: broken (idle: no subscriber, idle_skipped 0)" in last
+    # A row of a route that sends nothing says why in its own row, in the piped line's words
+    # (`idle: no subscriber`: the column's heading and the row's cell).
+    assert rows["broken"][-1] == "no subscriber"
     assert "transport errors: lcm: 3 dropped by kernel" in last  # words, not a dict
     legend = next(line for line in lines if line.startswith("legend: "))
-    assert legend.startswith("legend: idle_skipped: not translated: nobody subscribes"), legend
+    assert legend.startswith("legend: idle_skipped: not translated: no subscriber"), legend
 
 
 def test_at_80_columns_every_number_is_whole_and_unsent_shows_in_the_row() -> None:
@@ -109,6 +112,39 @@ def test_at_80_columns_every_number_is_whole_and_unsent_shows_in_the_row() -> No
     assert "357" in rows["poses"]  # unsent, in the route's own row
     every_cell = [cell for cells in rows.values() for cell in cells]
     assert all(re.fullmatch(r"\d+(\.\d+)?|-", cell) for cell in every_cell), "\n".join(lines)
+
+
+def test_at_100_columns_idle_rows_say_why_and_the_title_is_one_line() -> None:
+    """The demo's table on a 100x30 terminal: busy rows and rows of lazy routes that lost draws
+    while nobody subscribed; each idle row says why in its own cell, no number is cut."""
+    out = io.StringIO()
+    table = LiveTable(Console(file=out, force_terminal=True, width=100, color_system=None))
+    latency = {"p50": 0.37, "p99": 1.61, "max": 2.0}
+    idle = {"superseded": 58, "idle_skipped": 246}
+    time.sleep(0.5)  # rates per second over half a second
+    table.show({
+        "tf": route(304, 0, "idle: no subscriber", **idle),
+        "foxglove_transforms": route(300, 0, "idle: no subscriber", **idle),
+        "poses": route(300, 242, superseded=58, latency_ms=latency),
+        "shapes": route(4, 9, latency_ms={"p50": 137.23, "p99": 137.23, "max": 137.23}),
+        "lcm_in": route(0, 0),
+    })  # fmt: skip
+    table.close()
+    lines = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", out.getvalue()).splitlines()
+    assert max(map(len, lines)) <= 100, "\n".join(lines)
+    assert any(line.startswith("viewer-bridge: 5 routes (rates over the last ") and line.endswith("latency in ms)")
+               for line in lines), "\n".join(lines)  # fmt: skip
+    headings = next(cells for cells in (line.strip("┃ ").split("┃") for line in lines if "┃" in line))
+    assert [h.strip() for h in headings][-1] == "idle"
+    rows = {cells[0]: cells[1:] for cells in map(table_cells, lines) if cells}
+    long_name = next(name for name in rows if name.startswith("foxglove_"))  # shortened, maybe
+    assert rows["tf"][-1] == rows[long_name][-1] == "no subscriber", "\n".join(lines)
+    assert rows["poses"][-1] == rows["shapes"][-1] == ""
+    assert "304" in rows["tf"] and "58" in rows["tf"] and "137.23" in rows["shapes"]
+    assert (
+        "legend: superseded: a newer message on its channel came first (policy latest: the newest is sent)"
+        in lines
+    )
 
 
 def test_at_80_columns_a_busy_demo_keeps_its_totals() -> None:
@@ -162,7 +198,7 @@ def test_log_lines_show_routes_with_traffic_and_count_the_rest(caplog: Any) -> N
         "legend: superseded: a newer message on its channel came first (policy latest: the newest is sent); "
         "max_hz_skipped: superseded while the route waited out its rate.max_hz (by design); "
         "unsent: given to a transport that could not send it (a Zenoh session with no router, no Rerun viewer); "
-        "idle_skipped: not translated: nobody subscribes (the newest per channel goes out when one does)",
+        "idle_skipped: not translated: no subscriber (the newest per channel goes out when one comes)",
     ]
 
 

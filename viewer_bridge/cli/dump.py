@@ -1,7 +1,8 @@
 """Render LCM events of any known type as readable text or as one JSON object per message.
 
-The types are a `TypeLibrary`'s (the project's, Drake's and whatever `--lcm-types` names); a byte
-array is shown as its size and CRC-32 unless `bytes_summary` is False, then as UTF-8 text or base64.
+The types are a `TypeLibrary`'s (the project's, Drake's and whatever `--lcm-types` names). JSON
+carries a byte array whole, as `{"utf8": text}` or `{"base64": ...}` (what `from_json` and the type
+store's `from_dict` take back); text shows it as its size and CRC-32 (`bytes_summary`).
 JSON has no NaN or infinity: such a float is written as the string "NaN", "Infinity" or
 "-Infinity" (the words JavaScript and Python's own parser use), so that every line is valid JSON.
 """
@@ -50,9 +51,9 @@ def describe(
     return record
 
 
-def as_json(event: LcmEvent, library: TypeLibrary | None = None, *, bytes_summary: bool = True) -> str:
+def as_json(event: LcmEvent, library: TypeLibrary | None = None, *, bytes_summary: bool = False) -> str:
     """One line of valid JSON: channel, time, size, fingerprint, type and message (or error);
-    a NaN or infinite float as a string ("NaN", "Infinity", "-Infinity")."""
+    a NaN or infinite float as a string ("NaN", "Infinity", "-Infinity"), byte arrays whole."""
     record = describe(event, library, bytes_summary=bytes_summary)
     try:  # almost every message is finite: the walk that replaces non-finite floats is the exception
         return json.dumps(record, separators=(",", ":"), allow_nan=False)

@@ -106,6 +106,16 @@ def _primitive_mesh(shape: Box | Sphere | Ellipsoid | Cylinder | Capsule | HalfS
     return mesh
 
 
+def import_trimesh() -> None:
+    """Import trimesh now, if not yet (1 to 2.5 s with scipy on a busy core, once per process).
+
+    A translator of Drake's scenes calls this when it is made, before the route starts: imported
+    on the first load instead, the load's shapes went out 1 to 2 s late (`shapes` latency p50
+    1460 ms where reading and converting the demo's meshes takes about 0.1 s), and every other
+    route fell behind meanwhile (a second of draws superseded) while the import held the GIL."""
+    import trimesh  # noqa: F401
+
+
 def _tessellated(shape: Box | Sphere | Ellipsoid | Cylinder | Capsule | HalfSpace) -> TriangleMesh:
     import trimesh  # here, not at the top: importing a converter must stay cheap (about 0.5 s with scipy)
 

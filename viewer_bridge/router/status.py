@@ -3,9 +3,11 @@
 The router hands a view a snapshot of every route's counters once per stats period
 (`Router.snapshot`); the view alone decides how it looks. On a terminal, `LiveTable` keeps one
 table on screen, a row per route that carries traffic or has a subscriber, with rates per second
-since the last snapshot; lazy routes that receive traffic nobody subscribes to are one line
-(`waiting for a subscriber`, with their in-rates), the routes with no traffic another, and a
-legend explains the counters that appear; it fits the terminal's width without cutting a number.
+since the last snapshot (a row that sends nothing for want of a subscriber says so in its `idle`
+cell, in the words of the logged line); lazy routes that receive traffic nobody subscribes to are
+one line (`waiting for a subscriber`, with their in-rates), the routes with no traffic another,
+and a legend explains the counters that appear; it fits the terminal's width without cutting a
+number.
 Logs, CI and pipes get `LogLines`: a plain line per route with traffic (or losses), the same
 text every period, easy to grep, the same two lines, and the legend of each counter the first
 time it appears.
@@ -90,7 +92,7 @@ LEGEND = {
     "max_hz_skipped": "superseded while the route waited out its rate.max_hz (by design)",
     "unsent": "given to a transport that could not send it (a Zenoh session with no router, no Rerun viewer)",
     "qos_incompatible": "a peer whose QoS cannot match the route's (nothing passes between them; the log says the fix)",
-    "idle_skipped": "not translated: nobody subscribes (the newest per channel goes out when one does)",
+    "idle_skipped": "not translated: no subscriber (the newest per channel goes out when one comes)",
     "stale": "older than max_age_ms when it would be sent",
     "not_allowed": "a command channel --allow-commands does not name",
     "unknown_type": "no known LCM type (--lcm-types names the folder of its .lcm files)",
@@ -131,11 +133,6 @@ def idle_state(stats: dict[str, Any]) -> str:
     return f"{stats['state']}, idle_skipped {stats['idle_skipped']}"
 
 
-def idle_line(routes: dict[str, dict[str, Any]], names: list[str]) -> str:
-    """The table's rows of idle routes, each with why, in the words of the piped lines."""
-    return "idle in the table: " + ", ".join(f"{name} ({idle_state(routes[name])})" for name in names)
-
-
 def quiet_line(routes: dict[str, dict[str, Any]], names: list[str], listed: bool) -> str:
     """The routes nothing arrived on, counted (and named when `listed`)."""
     more = "more " if len(names) < len(routes) else ""  # beside the other lines, or all of them
@@ -144,11 +141,24 @@ def quiet_line(routes: dict[str, dict[str, Any]], names: list[str], listed: bool
     )
 
 
-def legend(terms: Iterable[str]) -> str | None:
-    """One line explaining `terms` (counters of `LEGEND`), in its order; None for none."""
+def _meanings(terms: Iterable[str]) -> list[str]:
+    """`term: meaning` of each of `terms` (counters of `LEGEND`), in its order."""
     wanted = set(terms)
-    said = [f"{term}: {meaning}" for term, meaning in LEGEND.items() if term in wanted]
+    return [f"{term}: {meaning}" for term, meaning in LEGEND.items() if term in wanted]
+
+
+def legend(terms: Iterable[str]) -> str | None:
+    """One line explaining `terms`; None for none."""
+    said = _meanings(terms)
     return "legend: " + "; ".join(said) if said else None
+
+
+def legend_lines(terms: Iterable[str]) -> list[str]:
+    """The legend as the table shows it: a counter a line, aligned under the first (one line of
+    several wrapped at the terminal's width was hard to read): `legend: superseded: ...`,
+    `        idle_skipped: ...`."""
+    pad = " " * len("legend: ")
+    return [("legend: " if index == 0 else pad) + said for index, said in enumerate(_meanings(terms))]
 
 
 def terms_of(routes: dict[str, dict[str, Any]]) -> list[str]:
@@ -248,8 +258,11 @@ COLUMNS: dict[str, Cell] = {
     "qos_incompatible": lambda stats, rates: str(stats.get("qos_incompatible", 0)),
     "p50": lambda stats, rates: _ms(stats["latency_ms"]["p50"]),
     "p99": lambda stats, rates: _ms(stats["latency_ms"]["p99"]),
+    # why a row sends nothing, as the logged line says it (`idle: no subscriber`): heading and cell
+    "idle": lambda stats, rates: "" if stats["state"] == "active" else stats["state"].removeprefix("idle: "),
 }
-ZERO_HIDDEN = ("warn", *LOSSES)  # shown only when some row has one
+ZERO_HIDDEN = ("warn", *LOSSES, "idle")  # shown only when some row has one (not 0, not empty)
+TEXT = ("route", "idle")  # left-aligned
 OPTIONAL = ("p99", "in", "out", "p50")  # dropped first when the terminal is narrow
 ROUTE_MIN = 12  # characters of a route's name kept, at least, when the terminal is narrow
 STYLES = {
@@ -300,9 +313,8 @@ class LiveTable:
         shown = [name for name, stats in routes.items() if is_shown(stats)]
         title = (f"viewer-bridge: {counted(len(routes), 'route')} "
                  f"(rates over the last {self._rates.elapsed:.1f} s; latency in ms)")  # fmt: skip
-        parts: list[Any] = [self._table(title, {name: routes[name] for name in shown}, rates)]
-        if idle := [name for name in shown if routes[name]["state"] != "active"]:  # why a row sends nothing
-            parts.append(Text(idle_line(routes, idle)))
+        # the title a line of its own: as the table's title it wrapped at the table's width
+        parts: list[Any] = [Text(title), self._table({name: routes[name] for name in shown}, rates)]
         if waiting := [name for name, stats in routes.items() if is_waiting(stats)]:
             parts.append(Text(waiting_line(routes, waiting, rates)))
         if quiet := [name for name in routes if name not in shown and name not in waiting]:
@@ -312,20 +324,17 @@ class LiveTable:
                 parts.append(Text(f"{name} held back: {held}", style="yellow"))
         if "transports" in snapshot:
             parts.append(Text(f"transport errors: {transports_line(snapshot['transports'])}", style="red"))
-        if said := legend(terms_of(routes)):
-            parts.append(Text(said, style="dim"))
+        parts.extend(Text(line, style="dim") for line in legend_lines(terms_of(routes)))
         self._live.update(Group(*parts), refresh=True)
 
-    def _table(
-        self, title: str, routes: dict[str, dict[str, Any]], rates: dict[str, tuple[float, float]]
-    ) -> Table:
+    def _table(self, routes: dict[str, dict[str, Any]], rates: dict[str, tuple[float, float]]) -> Table:
         cells = {
             heading: [
                 name if heading == "route" else cell(stats, rates[name]) for name, stats in routes.items()
             ]
             for heading, cell in COLUMNS.items()
         }
-        headings = [h for h in COLUMNS if h not in ZERO_HIDDEN or any(value != "0" for value in cells[h])]
+        headings = [h for h in COLUMNS if h not in ZERO_HIDDEN or any(v not in ("0", "") for v in cells[h])]
         widths = {h: max([len(h), *(len(value) for value in cells[h])]) for h in headings}
         widths["route"] = min(widths["route"], max(ROUTE_MIN, len("route")))  # what may shrink
         for optional in OPTIONAL:  # a column takes its width, a space either side and a rule
@@ -334,12 +343,17 @@ class LiveTable:
             headings.remove(optional)
         # The route's name gets what the numbers leave (rich crops a table that does not fit).
         names = self._console.width - 4 - sum(widths[h] + 3 for h in headings if h != "route")
-        table = Table(title=title, title_justify="left", expand=False)
+        table = Table(expand=False)
         for heading in headings:
             if heading == "route":
                 table.add_column(heading, no_wrap=True, overflow="ellipsis", max_width=max(ROUTE_MIN, names))
-            else:  # a number is never cut: its column is as wide as its widest value
-                table.add_column(heading, justify="right", no_wrap=True, min_width=widths[heading])
+            else:  # a number (or why idle) is never cut: its column is as wide as its widest value
+                table.add_column(
+                    heading,
+                    justify="left" if heading in TEXT else "right",
+                    no_wrap=True,
+                    min_width=widths[heading],
+                )
         for row in range(len(routes)):
             values = [cells[heading][row] for heading in headings]
             table.add_row(*(

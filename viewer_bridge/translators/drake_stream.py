@@ -18,6 +18,7 @@ from viewer_bridge.errors import DecodeError
 from viewer_bridge.formats.drake.draw import DrawDecoder
 from viewer_bridge.formats.drake.load import decode_load
 from viewer_bridge.lcmcodec.codecs import DRAW, LOAD_ROBOT
+from viewer_bridge.model.lowering import import_trimesh
 from viewer_bridge.model.scene import LinkPoses, Scene
 from viewer_bridge.shared import Clock
 from viewer_bridge.translators.base import Outputs, Translator
@@ -132,6 +133,7 @@ class DrakeTranslator(DrawReader):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.drake = DrakeStream(self.shared.get(LoadCache), self.draw_poses)
+        import_trimesh()  # a scene may have meshes: ready before its load comes, not on it
 
     def observe(self, message: Received) -> None:
         self.drake.observe(message)

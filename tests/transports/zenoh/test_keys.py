@@ -174,6 +174,24 @@ def test_without_a_file_the_bridge_is_a_client_of_the_local_router_listening_now
     }
 
 
+def test_a_router_dials_no_router_and_listens_on_this_machine_where_its_clients_connect() -> None:
+    from viewer_bridge.transports.zenoh.session import described, make_config
+
+    for environ, settings in [
+        ({}, {"mode": "router", "connect": None, "listen": None}),
+        ({"ZENOH_CONFIG_OVERRIDE": "mode='router'"}, {"mode": None, "connect": None, "listen": None}),
+    ]:
+        file, pairs = session_config(None, settings, {}, environ)
+        assert described(make_config(file, pairs)) == ("router", [], ["tcp/127.0.0.1:7447"])
+    # what it is told still wins; a peer dials the local router as a client does
+    file, pairs = session_config(
+        None, {"mode": "router", "connect": ["tcp/10.0.0.1:7447"], "listen": None}, {}, {}
+    )
+    assert described(make_config(file, pairs)) == ("router", ["tcp/10.0.0.1:7447"], ["tcp/127.0.0.1:7447"])
+    file, pairs = session_config(None, {"mode": "peer", "connect": None, "listen": None}, {}, {})
+    assert described(make_config(file, pairs)) == ("peer", ["tcp/localhost:7447"], [])
+
+
 def test_a_config_file_and_overrides_as_rmw_zenoh_reads_them() -> None:
     override = 'connect/endpoints=["tcp/10.0.0.1:7447"];mode="peer";no_equals;transport/link/tls/x=a=b'
     file, pairs = _config(ZENOH_SESSION_CONFIG_URI="/etc/zenoh.json5", ZENOH_CONFIG_OVERRIDE=override)

@@ -29,6 +29,7 @@ from tests.zenoh_peers import (
     data_key,
     decode,
     free_lcm_url,
+    free_port,
     stats_flags,
     stats_of,
 )
@@ -368,6 +369,36 @@ def test_lazy_routes_wake_on_an_rmw_zenoh_subscriber_or_any_zenoh_subscriber(
     finally:
         assert process.stop() == 0
         peer.close()
+
+
+def test_the_bridge_as_a_router_dials_no_router_counts_nothing_unsent_and_serves_its_clients(
+    tmp_path: Path,
+) -> None:
+    url = free_lcm_url()
+    stats = tmp_path / "stats.json"
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    config = str(write_config(tmp_path, DRAWS_OVER_ZENOH))
+    process = BridgeProcess("-c", config, "--lcm-url", url, "--set", "zenoh.mode=router",
+                            "--set", f"zenoh.listen=[{endpoint}]", *stats_flags(stats))  # fmt: skip
+    route = lambda name: stats_of(stats).get(name, {})  # noqa: E731
+    try:
+        start = process.wait_for_line(" running (")
+        assert f"Zenoh router, listening on {endpoint}:" in start  # and dialing nothing
+        with drawing(url, 0.05, load=True):
+            # No one connected: published into a router no one reaches, which is no loss.
+            assert wait_for(lambda: route("poses").get("messages_out", 0) >= 5)
+            assert route("poses").get("unsent", 0) == 0
+            assert "unsent_no_router" not in zenoh_errors(stats)
+            peer = RmwZenohPeer(endpoint, DOMAIN)  # a client of the bridge itself
+            try:
+                poses_in = peer.subscribe("/drake/poses", "geometry_msgs/msg/PoseArray")
+                assert wait_for(lambda: len(poses_in) >= 3)
+            finally:
+                peer.close()
+        assert "unsent_no_router" not in zenoh_errors(stats)
+    finally:
+        assert process.stop() == 0
+    assert not any("7447" in line for line in process.lines)
 
 
 # --- a router that is down at start, killed and started again --------------------------------------------

@@ -3,13 +3,16 @@
 `session_config` builds the configuration the way rmw_zenoh does (docs/PROTOCOLS.md section 10):
 a Zenoh config file (`ZENOH_SESSION_CONFIG_URI`, or the transport's own `config_file`), else the
 bridge's defaults: client mode to `tcp/localhost:7447`, where `rmw_zenohd` listens, with no
-listening port and no multicast scouting; then `ZENOH_CONFIG_OVERRIDE` (`key=value;key=value`),
-then the transport's settings. TLS, mTLS and user/password are Zenoh config keys, passed through.
+listening port and no multicast scouting (a router instead dials no router and listens on
+`tcp/127.0.0.1:7447`, where its clients connect); then `ZENOH_CONFIG_OVERRIDE`
+(`key=value;key=value`), then the transport's settings. TLS, mTLS and user/password are Zenoh
+config keys, passed through.
 
 `Link` opens the session. A client cannot open without a router, so a router that is down at
 start is tried again every second while the other routes run; once open, Zenoh itself reconnects
 after a router restart and declares the session's subscribers and tokens again. `connected`
-says whether any Zenoh transport (a router, a peer) is up now, for counting what cannot be sent.
+says whether a client's router is up now, for counting what cannot be sent; a peer or a router
+routes by itself, so what it publishes with no one connected has merely no subscriber.
 """
 
 from __future__ import annotations
@@ -26,13 +29,11 @@ from viewer_bridge.errors import InvalidSetting
 
 _log = logging.getLogger("viewer_bridge")
 ROUTER_ENDPOINT = "tcp/localhost:7447"  # rmw_zenohd's
-# Without a config file: a client of the local router that listens nowhere and scouts no multicast.
-_DEFAULTS = (
-    ("mode", '"client"'),
-    ("connect/endpoints", json.dumps([ROUTER_ENDPOINT])),
-    ("listen/endpoints", "[]"),
-    ("scouting/multicast/enabled", "false"),
-)
+ROUTER_LISTEN = "tcp/127.0.0.1:7447"  # where the bridge as a router waits for its clients: this machine's
+# Without a config file: a client (or a peer) of the local router that listens nowhere and scouts
+# no multicast; a router (which is the local router) dials none and listens where clients connect.
+_DEFAULTS = (("connect/endpoints", json.dumps([ROUTER_ENDPOINT])), ("listen/endpoints", "[]"))
+_ROUTER_DEFAULTS = (("connect/endpoints", "[]"), ("listen/endpoints", json.dumps([ROUTER_LISTEN])))
 # Always: the publication caches that serve TRANSIENT_LOCAL history need timestamped samples.
 _REQUIRED = (("timestamping/enabled", "true"),)
 
@@ -61,13 +62,36 @@ def session_config(
     `options`: any Zenoh config keys (`transport/link/tls/root_ca_certificate`: a path).
     """
     file = config_file or environ.get("ZENOH_SESSION_CONFIG_URI") or None
-    pairs = [] if file else list(_DEFAULTS)
-    pairs += overrides_from_env(environ.get("ZENOH_CONFIG_OVERRIDE", ""))
+    chosen = overrides_from_env(environ.get("ZENOH_CONFIG_OVERRIDE", ""))
     for key, value in settings.items():
         if value is not None:
-            pairs.append((f"{key}/endpoints" if key in ("connect", "listen") else key, json.dumps(value)))
-    pairs += [(key, json.dumps(value)) for key, value in options.items()]
-    return file, pairs + list(_REQUIRED)
+            chosen.append((f"{key}/endpoints" if key in ("connect", "listen") else key, json.dumps(value)))
+    chosen += [(key, json.dumps(value)) for key, value in options.items()]
+    pairs = [] if file else _defaults(_chosen_mode(chosen))
+    return file, pairs + chosen + list(_REQUIRED)
+
+
+def _chosen_mode(pairs: Sequence[tuple[str, str]]) -> str:
+    """The mode the last `mode` pair sets (its JSON5 string unquoted), else client."""
+    modes = [value.strip().strip("\"'") for key, value in pairs if key.strip("/") == "mode"]
+    return modes[-1] if modes else "client"
+
+
+def _defaults(mode: str) -> list[tuple[str, str]]:
+    endpoints = _ROUTER_DEFAULTS if mode == "router" else _DEFAULTS
+    return [("mode", json.dumps(mode)), *endpoints, ("scouting/multicast/enabled", "false")]
+
+
+def described(config: zenoh.Config) -> tuple[str, list[str], list[str]]:
+    """The mode a made config opens in, the endpoints it connects to and those it listens on
+    (Zenoh keeps an endpoint list per mode where its defaults differ by mode)."""
+    mode = json.loads(config.get_json("mode")) or "peer"  # Zenoh's own default
+
+    def endpoints(key: str) -> list[str]:
+        value = json.loads(config.get_json(f"{key}/endpoints"))
+        return list(value.get(mode, []) if isinstance(value, dict) else value)
+
+    return mode, endpoints("connect"), endpoints("listen")
 
 
 def make_config(file: str | None, pairs: Sequence[tuple[str, str]]) -> zenoh.Config:
@@ -112,17 +136,22 @@ class Link:
       the opener, discovery), they were daemons, and one still waking from its closed channel
       when the interpreter finalised aborted it (1 stop in 13 under busy cores: issue 40)."""
 
-    def __init__(self, config: Callable[[], zenoh.Config], where: str, retry_s: float = 1.0) -> None:
+    def __init__(
+        self, config: Callable[[], zenoh.Config], where: str, retry_s: float = 1.0, client: bool = True
+    ) -> None:
         self._config = config  # a new Config per attempt: opening consumes it
         self.where = where
+        self._client = client
         self._retry_s = retry_s
         self.session: zenoh.Session | None = None
         self._declares: list[Declare] = []
         self._held: list[object] = []  # Zenoh undeclares what is dropped
         self._transports: set[str] = set()
-        # Whether any Zenoh transport (to a router or a peer) is up now: asked on every put, so a
-        # plain attribute, kept by `_on_transport` (a property's call costs what a put's guard does).
-        self.connected = False
+        # Whether a put can leave: a client's only while a Zenoh transport (to its router) is up,
+        # a peer's or router's always (it routes by itself; with no one connected, no one subscribed).
+        # Asked on every put, so a plain attribute, kept by `_on_transport` (a property's call costs
+        # what a put's guard does).
+        self.connected = not client
         self._lock = threading.Lock()
         self._stop = threading.Event()
         # Guards `_running` and `_closing`; its condition signals `close` when the last call returns.
@@ -212,7 +241,7 @@ class Link:
             self._transports.add(zid)
         else:
             self._transports.discard(zid)
-        self.connected = bool(self._transports)
+        self.connected = bool(self._transports) or not self._client
 
     def _run(self, declare: Declare, session: zenoh.Session) -> None:
         try:

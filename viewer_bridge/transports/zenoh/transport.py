@@ -69,8 +69,8 @@ def _topic_type(message_type: MessageType) -> keys.TopicType:
 
 class ZenohSettings(TransportSettings):
     mode: Literal["client", "peer", "router"] | None = None  # None: client, or the config file's
-    connect: list[str] | None = None  # None: tcp/localhost:7447 (rmw_zenohd), or the config file's
-    listen: list[str] | None = None  # None: no listening port, or the config file's
+    connect: list[str] | None = None  # None: tcp/localhost:7447 (rmw_zenohd; a router: none), or the file's
+    listen: list[str] | None = None  # None: no listening port (a router: tcp/127.0.0.1:7447), or the file's
     config_file: str | None = None  # a Zenoh JSON5 config; None: ZENOH_SESSION_CONFIG_URI, if set
     config: dict[
         str, Any
@@ -176,15 +176,16 @@ class ZenohTransport(Transport):
             raise missing(error, "the zenoh transport") from None
         wanted = {"mode": settings.mode, "connect": settings.connect, "listen": settings.listen}
         file, pairs = session.session_config(settings.config_file, wanted, settings.config, os.environ)
-        session.make_config(file, pairs)  # a bad file or key: refused now, not at every attempt
-        mode = settings.mode or ("client" if file is None else f"as {file} says")
-        endpoints = settings.connect or ([] if file else [session.ROUTER_ENDPOINT])
-        self._where = f"{mode}, connecting to {', '.join(endpoints) or 'no endpoint'}"
-        if settings.listen:  # a router or a peer others connect to: where, for the start line
-            self._where = (
-                f"{mode}, listening on {', '.join(settings.listen)}, connecting to {', '.join(endpoints)}"
-            )
-        self.link: Link = session.Link(lambda: session.make_config(file, pairs), self._where)
+        # a bad file or key: refused now, not at every attempt
+        mode, connect, listen = session.described(session.make_config(file, pairs))
+        # for the start line: where it listens (a router, a peer others connect to) and what it dials
+        where = [f"listening on {', '.join(listen)}"] if listen else []
+        if connect or not listen:
+            where.append(f"connecting to {', '.join(connect) or 'no endpoint'}")
+        self._where = ", ".join([mode, *where])
+        self.link: Link = session.Link(
+            lambda: session.make_config(file, pairs), self._where, client=mode == "client"
+        )
         self.domain = (
             settings.domain_id
             if settings.domain_id is not None
