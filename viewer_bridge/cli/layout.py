@@ -21,7 +21,8 @@ from typing import TYPE_CHECKING
 
 from viewer_bridge.cli.arguments import AddCommand, input_file, lcm_types_option, output_file
 from viewer_bridge.cli.play import index_log
-from viewer_bridge.config.bridge import BridgeConfig, Route, destination_name, load_config
+from viewer_bridge.config.bridge import BridgeConfig, Route, destination_name
+from viewer_bridge.config.options import RunOptions, config_of
 from viewer_bridge.errors import BridgeError, UsageError
 from viewer_bridge.shared import Shared
 from viewer_bridge.translators.base import Translator
@@ -85,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         from viewer_bridge.formats.foxglove.layout import foxglove_layout
     except ImportError as error:
         raise missing(error, "viewer-bridge layout") from None
-    config = load_config(args.config).with_lcm_types(args.lcm_types)
+    config = config_of(RunOptions(config=args.config, lcm_types=args.lcm_types))
     if not any(route.destination.transport == "foxglove" for route in config.routes):
         raise UsageError(
             f"no route of {args.config or 'the built-in config'} writes to Foxglove: no topic to lay out"
