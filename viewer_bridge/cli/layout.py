@@ -27,6 +27,7 @@ from viewer_bridge.errors import BridgeError, UsageError
 from viewer_bridge.shared import Shared
 from viewer_bridge.translators.base import Translator
 from viewer_bridge.translators.drake_stream import role_of
+from viewer_bridge.translators.load_cache import LoadCache
 from viewer_bridge.translators.options import FrameOptions
 from viewer_bridge.translators.types import FRAME_TRANSFORMS_TYPE, RAW_IMAGE_TYPE, SCENE_UPDATE_TYPE
 from viewer_bridge.transports.base import MessageType, Received
@@ -115,7 +116,8 @@ def layout_topics(config: BridgeConfig, index: LogIndex | None) -> LayoutTopics:
     from viewer_bridge.formats.foxglove.layout import PLOT_FIELDS, LayoutTopics, message_path
     from viewer_bridge.lcmcodec.library import TypeLibrary
 
-    shared = Shared(TypeLibrary.load(config.lcm_types, drake=config.drake_lcm_types) if index else None)
+    lcm_types = TypeLibrary.load(config.lcm_types, drake=config.drake_lcm_types) if index else None
+    shared = Shared(lcm_types, given=[LoadCache()])  # the loads of this one look, in memory
     channels = _channels(index) if index is not None else [(name, None) for name in DRAKE_DEFAULT_CHANNELS]
     announced = list(_announced(config, shared, channels))
     scenes = [each for each in announced if each.type == SCENE_UPDATE_TYPE]

@@ -31,7 +31,6 @@ from viewer_bridge.transports.lcm import Publisher
 from viewer_bridge.transports.lcm_log_index import LogIndex
 from viewer_bridge.transports.lcm_playback import LogPlayer
 from viewer_bridge.transports.lcm_url import log_to_write
-from viewer_bridge.transports.playback import Timelines
 from viewer_bridge.util.progress import progress
 
 
@@ -144,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
             stats_json=args.stats_json,
             stats_period=args.stats_period,
             view=view,
-            provided={Timelines: Timelines(player)},
+            timeline=player,
         )
     except BaseException:
         view.close()

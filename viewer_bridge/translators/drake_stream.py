@@ -131,7 +131,7 @@ class DrakeTranslator(DrawReader):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.drake = DrakeStream(self.shared.get(LoadCache), self.draw_poses)
+        self.drake = DrakeStream(self.shared.given(LoadCache), self.draw_poses)
 
     def observe(self, message: Received) -> None:
         self.drake.observe(message)
