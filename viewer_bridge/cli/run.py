@@ -122,7 +122,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     view = status_view(args.quiet)
     try:
-        config = config_of(run_options(args))
+        options = run_options(args)  # the command line's say about the config, as one record
+        config = config_of(options)
         if args.demo and log_to_write(_lcm_url(config)):
             raise UsageError(
                 f"--demo: the routes would read the demo on {_lcm_url(config)}, a log LCM only writes; "
