@@ -246,3 +246,13 @@ def _count_raw(topics: list[tuple[str, str]], counting: Any, counts: Any, totals
             time.sleep(0.001)
     node.destroy_node()  # type: ignore[no-untyped-call]
     rclpy.shutdown()
+
+
+def flat_stats(document: dict[str, Any]) -> dict[str, Any]:
+    """A `--stats-json` document as the benches read it, route names and `transports` at the top,
+    whichever shape the bridge wrote: a baseline checkout may predate the versioned one (`schema`
+    1: `routes` and `transports` apart, docs/configuration.md)."""
+    if "schema" not in document:
+        return document
+    transports = {"transports": document["transports"]} if document.get("transports") else {}
+    return {**document["routes"], **transports}

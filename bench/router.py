@@ -38,7 +38,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
-from common import Measure, Size, settle
+from common import Measure, Size, flat_stats, settle
 
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
@@ -167,7 +167,7 @@ class Bridge:
 
     def snapshot(self) -> dict:  # type: ignore[type-arg]
         try:
-            return json.loads(self.stats.read_text())  # type: ignore[no-any-return]
+            return flat_stats(json.loads(self.stats.read_text()))
         except (OSError, ValueError):
             return {}
 

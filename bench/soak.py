@@ -38,6 +38,7 @@ from typing import Any
 from unittest import mock
 
 import numpy as np
+from common import flat_stats
 
 from viewer_bridge.config.bridge import DEFAULT_CONFIG
 from viewer_bridge.formats.drake.draw import DrawEncoder
@@ -97,7 +98,7 @@ class Bridge:
 
     def snapshot(self) -> dict[str, Any]:
         try:
-            return json.loads(self.stats.read_text())  # type: ignore[no-any-return]
+            return flat_stats(json.loads(self.stats.read_text()))
         except (OSError, ValueError):
             return {}
 

@@ -64,6 +64,7 @@ from common import (
     DdsCounter,
     Measure,
     Size,
+    flat_stats,
     iiwa_status_bytes,
     machine_busy_seconds,
     paced,
@@ -128,7 +129,7 @@ class Bridge:
         """Stop it (SIGINT, as Ctrl-C), and its last stats: written as it closes."""
         self.process.send_signal(2)
         self.process.wait(timeout=30)
-        return json.loads(self.stats.read_text())  # type: ignore[no-any-return]
+        return flat_stats(json.loads(self.stats.read_text()))
 
 
 def without(config: str, *names: str) -> str:

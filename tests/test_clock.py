@@ -27,6 +27,7 @@ from tests.transports.test_foxglove import SUBPROTOCOLS, foxglove_port
 from viewer_bridge.config.bridge import DEFAULT_CONFIG, load_config
 from viewer_bridge.examples.scenes import draw_of, small_scene
 from viewer_bridge.shared import Clock, Shared
+from viewer_bridge.translators.load_cache import LoadCache
 from viewer_bridge.transports.lcm import LcmBus
 
 SIM_SECONDS = 4242.125  # Drake's sim time in the draws: nowhere near the wall clock
@@ -61,7 +62,7 @@ def test_every_stamping_translator_follows_the_clock_unless_its_route_says(time_
     from viewer_bridge.translators.registry import TRANSLATORS
     from viewer_bridge.transports.base import Received
 
-    shared = Shared(time=time_source)  # type: ignore[arg-type]
+    shared = Shared(time=time_source, given=[LoadCache()])  # type: ignore[arg-type]
     received = Received("DRAKE_VIEWER_DRAW", draw_of(small_scene(), SIM_SECONDS), 1_700_000_000_250_000)
     expected = SIM_NS if time_source == "sim" else 1_700_000_000_250_000_000
 

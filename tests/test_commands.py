@@ -54,7 +54,7 @@ def as_json(message: Any) -> bytes:
 
 def held(stats: Path, route: str, channel: str) -> int:
     try:
-        counts = json.loads(stats.read_text())[route]["held"]
+        counts = json.loads(stats.read_text())["routes"][route]["held"]
     except (OSError, ValueError, KeyError):
         return 0
     return int(counts.get(f"/lcm_in/{channel}", {}).get("not_allowed", 0))

@@ -90,6 +90,7 @@ LAYERS: dict[str, int] = {
     "viewer_bridge.render.server": 7,
     # 8
     "viewer_bridge.config.bridge": 8,
+    "viewer_bridge.config.options": 8,
     "viewer_bridge.examples": 8,
     "viewer_bridge.cli.example": 8,
     # 9

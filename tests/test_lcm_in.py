@@ -124,7 +124,7 @@ def stats(tmp_path: Path) -> Path:
 
 def route_stats(path: Path, route: str) -> dict[str, Any]:
     try:
-        return dict(json.loads(path.read_text())[route])
+        return dict(json.loads(path.read_text())["routes"][route])
     except (OSError, ValueError, KeyError):
         return {}
 

@@ -114,8 +114,8 @@ class ZenohSide:
 
 def stats_of(path: Path) -> dict[str, Any]:
     try:
-        return dict(json.loads(path.read_text()))
-    except (OSError, ValueError):
+        return dict(json.loads(path.read_text())["routes"])
+    except (OSError, ValueError, KeyError):
         return {}
 
 

@@ -99,7 +99,7 @@ def test_a_plugin_transport_and_translator_carry_a_drake_draw(plugin_installed: 
     assert (stamp_ms, frame_id) == (1234, "world")
     assert np.array_equal(positions, [[0.5, -0.25, 1.0], [0.0, 0.125, 2.0]])
     assert np.array_equal(xyzw, [[0, 0, 0, 1.0], [0, 0, 1.0, 0]])
-    stats = router.snapshot()
+    stats = router.snapshot()["routes"]
     assert stats["json"]["errors"] == {} and stats["poses"]["messages_out"] == 1
 
 

@@ -144,7 +144,7 @@ def test_drake_simulation_reaches_ros_through_the_bridge(probe: RosProbe, tmp_pa
     dimensions = {(p.type, tuple(np.float32(p.dimensions).tolist())) for p in primitives}
     assert (1, tuple(np.float32([0.1, 0.2, 0.3]).tolist())) in dimensions
     assert (3, tuple(np.float32([0.3, 0.04]).tolist())) in dimensions
-    stats = json.loads((tmp_path / "stats.json").read_text())
+    stats = json.loads((tmp_path / "stats.json").read_text())["routes"]
     assert stats["poses"]["messages_out"] >= 1 and stats["markers"]["errors"] == {}
 
 
@@ -309,7 +309,7 @@ def test_a_malformed_message_is_counted_and_nothing_valid_is_lost(probe: RosProb
         assert bridge.stop() == 0
         bus.close()
     assert [_stamp_ms(m.header.stamp) for m in received if _stamp_ms(m.header.stamp)] == list(range(1, 101))
-    route = json.loads(stats.read_text())["poses"]
+    route = json.loads(stats.read_text())["routes"]["poses"]
     assert route["errors"] == {"DecodeError": 2}
     assert route["dropped"] == 0
     warnings = [line for line in bridge.lines if "DecodeError" in line]
@@ -479,7 +479,7 @@ def test_lazy_routes_translate_only_while_someone_listens(probe: RosProbe, tmp_p
             time.sleep(0.02)
 
     def stats() -> dict[str, Any]:
-        return json.loads(stats_path.read_text()) if stats_path.exists() else {}  # type: ignore[no-any-return]
+        return json.loads(stats_path.read_text())["routes"] if stats_path.exists() else {}  # type: ignore[no-any-return]
 
     try:
         bridge.wait_for_line(" running (")
@@ -696,7 +696,7 @@ def test_a_log_replays_through_the_routes_and_the_bridge_stops_at_its_end(
         capture_output=True, text=True, timeout=60,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
-    route = json.loads(stats.read_text())["poses"]
+    route = json.loads(stats.read_text())["routes"]["poses"]
     draws = len(list(read_log(drake_log, "DRAKE_VIEWER_DRAW_ILLUSTRATION")))
     assert route["messages_in"] == route["messages_out"] == draws and route["errors"] == {}
 

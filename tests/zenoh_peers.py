@@ -49,12 +49,17 @@ def stats_flags(path: Path) -> list[str]:
     return ["--stats-json", str(path), "--stats-period", "0.5"]
 
 
-def stats_of(path: Path) -> dict[str, Any]:
+def written_stats(path: Path) -> dict[str, Any]:
     """The stats the bridge wrote last to `path` ({} before the first, or while it writes)."""
     try:
         return dict(json.loads(path.read_text()))
     except (OSError, ValueError):
         return {}
+
+
+def stats_of(path: Path) -> dict[str, Any]:
+    """Each route's stats the bridge wrote last to `path`, by name ({} before the first)."""
+    return dict(written_stats(path).get("routes", {}))
 
 
 def _config(mode: str, **keys: Any) -> zenoh.Config:

@@ -140,6 +140,10 @@ class NameRefused(BridgeError, ValueError):
     names it."""
 
 
+class NotGiven(BridgeError, LookupError):
+    """What a router's `Shared` was asked for and not given when it was made (`Shared.given`)."""
+
+
 class PluginError(BridgeError):
     """An installed plugin's entry point that is not what its group needs (not a `Transport`...)."""
 
@@ -295,6 +299,7 @@ __all__ = [
     "NameRefused",
     "NoLayout",
     "NotAnLcmType",
+    "NotGiven",
     "PluginError",
     "RequestRejected",
     "RosInterfaceError",

@@ -6,15 +6,20 @@ four things of its own, none specific to Drake: the receive time of the message 
 are being published (`MessageTime`), the bridge's one clock (`Clock`: receive or sim time, what
 every stamp and log time is), the LCM types the router knows,
 and the ROS 2 interface definitions the ros transport may build packages from. Everything else
-(one Foxglove context for the live server and an MCAP file, the Drake translators' load cache)
-is made once per router by whoever asks first, through `Shared.get(make)`, and is opaque here.
+is opaque here: what the router's config decides (its `CommandPolicy`, a `LoadCache` with its
+folder, the `Timelines` that `viewer-bridge play` plays) is given when the `Shared` is made and
+read with `Shared.given(kind)`, which names a kind it was not given; what needs no config (one
+Foxglove context for the live server and an MCAP file, the draw decoders) is made once per router
+by whoever asks first, through `Shared.get(make)`.
 """
 
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import TYPE_CHECKING, Literal, Protocol, TypeVar, cast
+
+from viewer_bridge.errors import NotGiven
 
 if TYPE_CHECKING:
     from viewer_bridge.lcmcodec.library import TypeLibrary
@@ -134,20 +139,23 @@ class Shared:
     (the config's `time:`), the LCM types
     it knows (`lcm_types`, loaded once at start from the config's `lcm_types`), the definitions of
     the ROS 2 interface packages that may be built while it runs (`ros_definitions`, or None), and
-    whatever is made once per router on first ask (`get(FoxgloveContext)`: the live server and an
-    MCAP file log to one; `get(LoadCache)`: every route's last Drake load). Two routers share
-    nothing."""
+    what its maker `given` it (`given(LoadCache)`: every route's last Drake load, kept in the
+    config's folder; `given(CommandPolicy)`: the channels commands may write), and whatever is made
+    once per router on first ask (`get(FoxgloveContext)`: the live server and an MCAP file log to
+    one). Two routers share nothing."""
 
     def __init__(
         self,
         lcm_types: TypeLibrary | None = None,
         ros_definitions: RosDefinitions | None = None,
         time: TimeSource = "receive",
+        given: Iterable[object] = (),
     ) -> None:
         self.message_time = MessageTime()
         self.clock = Clock(time)
         self._lcm_types = lcm_types
         self.ros_definitions = ros_definitions
+        self._given = {type(made): made for made in given}  # by class: one of each
         self._made: dict[Callable[..., object], object] = {}
         self._lock = threading.Lock()  # translators are made on the routes' threads
 
@@ -167,7 +175,11 @@ class Shared:
                 self._made[make] = make(*arguments)
             return cast(Made, self._made[make])
 
-    def provide(self, make: Callable[[], Made], made: Made) -> None:
-        """Have `get(make)` return `made` (e.g. a cache with the config's folder), before anyone asks."""
-        with self._lock:
-            self._made[make] = made
+    def given(self, kind: type[Made]) -> Made:
+        """The `kind` this `Shared` was given when it was made; `NotGiven` when it was given none
+        (no default is guessed: a router gives what its config decides)."""
+        if kind not in self._given:
+            raise NotGiven(
+                f"this Shared was given no {kind.__name__} when it was made (Shared(..., given=[...]))"
+            )
+        return cast(Made, self._given[kind])

@@ -515,7 +515,7 @@ def test_ros_args_end_at_a_double_dash(tmp_path: Path) -> None:
         "--ros-args", "-r", "__ns:=/sim1", "--", "--duration", "20",
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
-    poses = json.loads(stats.read_text())["poses"]
+    poses = json.loads(stats.read_text())["routes"]["poses"]
     assert poses["messages_in"] == 60 and poses["messages_out"] >= 1  # the whole log, replayed
 
 

@@ -145,7 +145,7 @@ def test_run_publishes_every_other_shape_and_counts_the_warning(tmp_path: Path) 
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     assert f"mesh file {GONE} does not exist" in result.stderr
-    shapes = json.loads(stats.read_text())["shapes"]
+    shapes = json.loads(stats.read_text())["routes"]["shapes"]
     assert shapes["warnings"] == {"skipped_geometry": 1} and shapes["errors"] == {}
     assert shapes["messages_out"] > 0
 

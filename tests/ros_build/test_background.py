@@ -175,8 +175,8 @@ def test_a_route_waits_for_its_build_while_the_others_flow_then_publishes(
         sender.start()
         # The installed type flows while the other two packages are built (or fail to).
         assert probe.wait_for(lambda: len(texts) >= 5, timeout=60), "the installed type's route did not flow"
-        waiting = router.snapshot()["late"]["held"].get("VB_LATE", {}).get("waiting_for_build", 0)
-        assert waiting > 0 and router.snapshot()["late"]["messages_out"] == 0
+        waiting = router.snapshot()["routes"]["late"]["held"].get("VB_LATE", {}).get("waiting_for_build", 0)
+        assert waiting > 0 and router.snapshot()["routes"]["late"]["messages_out"] == 0
         assert router.transports["ros"].builder is not None  # type: ignore[attr-defined]
         builder: InterfaceBuilder = router.transports["ros"].builder  # type: ignore[attr-defined]
         assert builder.wait(ROUTER, timeout=900).state is BuildState.READY
@@ -184,7 +184,7 @@ def test_a_route_waits_for_its_build_while_the_others_flow_then_publishes(
         # Built after this process started, and importable in it: the subscriber needs its class.
         counters = probe.subscribe("/vb_test/late", COUNTER)
         assert probe.wait_for(lambda: len(counters) >= 3, timeout=60), "the built type was never published"
-        assert wait_for(lambda: router.snapshot()["broken"]["errors"].get(BUILD_FAILED, 0) > 0)
+        assert wait_for(lambda: router.snapshot()["routes"]["broken"]["errors"].get(BUILD_FAILED, 0) > 0)
         # The other way: the route from ROS 2 subscribed once the type was built.
         back: list[bytes] = []
         bus.subscribe("VB_BACK", lambda _, data: back.append(data))
@@ -198,7 +198,7 @@ def test_a_route_waits_for_its_build_while_the_others_flow_then_publishes(
         probe.close()
     first = counters[0]
     assert first.label == f"n{first.count}" and list(first.values) == [first.count, -first.count, 0.5]
-    stats = router.snapshot()
+    stats = router.snapshot()["routes"]
     late, broken, text = stats["late"], stats["broken"], stats["text"]
     assert late["messages_out"] >= 3 and late["errors"] == {}
     assert late["held"]["VB_LATE"]["waiting_for_build"] >= waiting  # dropped while waiting, counted

@@ -17,7 +17,7 @@ from typing import Any
 from rich.console import Console
 
 from tests.conftest import lcm_url
-from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines
+from viewer_bridge.router.status import STATS_SCHEMA, ConsoleLog, LiveTable, LogLines, Snapshot
 
 
 def route(messages_in: int, messages_out: int, state: str = "active", **counts: Any) -> dict[str, Any]:
@@ -33,6 +33,12 @@ def route(messages_in: int, messages_out: int, state: str = "active", **counts: 
     }  # fmt: skip
 
 
+def snapshot(routes: dict[str, Any]) -> Snapshot:
+    """The snapshot of `routes` by name ("transports": the transports' error counts)."""
+    transports = routes.pop("transports", {})
+    return {"schema": STATS_SCHEMA, "routes": routes, "transports": transports}
+
+
 def table_cells(line: str) -> list[str]:
     """The cells of a table row as drawn (empty for any other line)."""
     return [cell.strip() for cell in line.strip().strip("│").split("│")] if line.startswith("│") else []
@@ -41,16 +47,16 @@ def table_cells(line: str) -> list[str]:
 def test_the_table_shows_busy_routes_with_rates_and_folds_the_quiet_ones() -> None:
     out = io.StringIO()
     table = LiveTable(Console(file=out, force_terminal=True, width=200, color_system=None))
-    table.show({"poses": route(0, 0), "tf": route(0, 0), "broken": route(0, 0)})
+    table.show(snapshot({"poses": route(0, 0), "tf": route(0, 0), "broken": route(0, 0)}))
     time.sleep(0.5)
     latency = {"p50": 0.25, "p99": 1.5, "max": 2.0}
-    table.show({
+    table.show(snapshot({
         "poses": route(30, 30, latency_ms=latency, warnings={"skipped_geometry": 2}),
         "tf": route(30, 0, "idle: no subscriber", idle_skipped=30),
         "broken": route(5, 0, "idle: no subscriber", errors={"DecodeError": 5}),
         "empty": route(0, 0),
         "transports": {"lcm": {"errors": {"dropped_by_kernel": 3}}},
-    })  # fmt: skip
+    }))  # fmt: skip
     table.close()
     last = out.getvalue().split("viewer-bridge: 4 routes")[-1]  # the last frame drawn
     lines = last.splitlines()
@@ -94,11 +100,11 @@ def test_at_80_columns_every_number_is_whole_and_unsent_shows_in_the_row() -> No
     table = LiveTable(Console(file=out, force_terminal=True, width=80, color_system=None))
     busy = {"p50": 1234.5, "p99": 98765.25, "max": 1e5}
     time.sleep(0.5)  # rates per second over half a second
-    table.show({
+    table.show(snapshot({
         "foxglove_camera_images_unnamed": route(12345678, 1234567, latency_ms=busy, superseded=4567,
                                                 warnings={"skipped_geometry": 89}, errors={"DecodeError": 123456}),
         "poses": route(468, 357, unsent=357, latency_ms=busy),
-    })  # fmt: skip
+    }))  # fmt: skip
     table.close()
     lines = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", out.getvalue()).splitlines()  # without cursor moves
     assert max(map(len, lines)) <= 80, "\n".join(lines)
@@ -122,13 +128,13 @@ def test_at_100_columns_idle_rows_say_why_and_the_title_is_one_line() -> None:
     latency = {"p50": 0.37, "p99": 1.61, "max": 2.0}
     idle = {"superseded": 58, "idle_skipped": 246}
     time.sleep(0.5)  # rates per second over half a second
-    table.show({
+    table.show(snapshot({
         "tf": route(304, 0, "idle: no subscriber", **idle),
         "foxglove_transforms": route(300, 0, "idle: no subscriber", **idle),
         "poses": route(300, 242, superseded=58, latency_ms=latency),
         "shapes": route(4, 9, latency_ms={"p50": 137.23, "p99": 137.23, "max": 137.23}),
         "lcm_in": route(0, 0),
-    })  # fmt: skip
+    }))  # fmt: skip
     table.close()
     lines = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", out.getvalue()).splitlines()
     assert max(map(len, lines)) <= 100, "\n".join(lines)
@@ -151,10 +157,10 @@ def test_at_80_columns_a_busy_demo_keeps_its_totals() -> None:
     out = io.StringIO()
     table = LiveTable(Console(file=out, force_terminal=True, width=80, color_system=None))
     latency = {"p50": 0.29, "p99": 148.25, "max": 150.0}
-    table.show({"foxglove_transforms": route(46770, 46770), "poses": route(46770, 46769)})
+    table.show(snapshot({"foxglove_transforms": route(46770, 46770), "poses": route(46770, 46769)}))
     time.sleep(0.5)  # then 30 more: about 60 a second, as the demo sends
-    table.show({"foxglove_transforms": route(46800, 46800, latency_ms=latency, mailbox_full=5),
-                "poses": route(46800, 46799, latency_ms=latency)})  # fmt: skip
+    table.show(snapshot({"foxglove_transforms": route(46800, 46800, latency_ms=latency, mailbox_full=5),
+                "poses": route(46800, 46799, latency_ms=latency)}))  # fmt: skip
     table.close()
     lines = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", out.getvalue()).splitlines()
     last = lines[max(i for i, line in enumerate(lines) if "┃ route" in line) :]
@@ -180,14 +186,14 @@ def test_at_80_columns_a_busy_demo_keeps_its_totals() -> None:
 
 def test_log_lines_show_routes_with_traffic_and_count_the_rest(caplog: Any) -> None:
     with caplog.at_level("INFO", logger="viewer_bridge"):
-        LogLines().show({
+        LogLines().show(snapshot({
             "poses": route(3, 3, latency_ms={"p50": 0.25, "p99": 1.5, "max": 2.0}),
             "tf": route(2, 0, "idle: no subscriber", idle_skipped=2),
             "slow": route(5, 2, warnings={"skipped_geometry": 1}, max_hz_skipped=3, superseded=1),
             "zenoh_poses": route(4, 4, unsent=4),
             "empty": route(0, 0),
             "transports": {"zenoh": {"errors": {"unsent_no_router": 4}}},
-        })  # fmt: skip
+        }))  # fmt: skip
     assert [record.getMessage() for record in caplog.records] == [
         "route poses: in 3 out 3 errors 0 latency p50 0.25 p99 1.50 ms",
         "route slow: in 5 out 2 errors 0 warnings 1 superseded 1 max_hz_skipped 3 latency p50 - p99 - ms",
@@ -214,10 +220,12 @@ def test_log_lines_explain_each_counter_once(caplog: Any) -> None:
     """The legend after the lines names only counters not explained yet: a log is not repeated."""
     lines = LogLines()
     with caplog.at_level("INFO", logger="viewer_bridge"):
-        lines.show({"poses": route(3, 3, mailbox_full=1)})
-        lines.show({"poses": route(6, 6, mailbox_full=2)})
+        lines.show(snapshot({"poses": route(3, 3, mailbox_full=1)}))
+        lines.show(snapshot({"poses": route(6, 6, mailbox_full=2)}))
         lines.show(
-            {"poses": route(9, 9, mailbox_full=2), "cmd": {**route(1, 0), "held": {"X": {"stale": 1}}}}
+            snapshot(
+                {"poses": route(9, 9, mailbox_full=2), "cmd": {**route(1, 0), "held": {"X": {"stale": 1}}}}
+            )
         )
     said = [record.getMessage() for record in caplog.records if record.getMessage().startswith("legend: ")]
     assert said == [
@@ -291,7 +299,7 @@ def test_held_messages_show_once_per_kind_with_their_channels(caplog: Any) -> No
     }
     bus = {**route(12, 0), "held": held}
     with caplog.at_level("INFO", logger="viewer_bridge"):
-        LogLines().show({"bus": bus})
+        LogLines().show(snapshot({"bus": bus}))
     assert [record.getMessage() for record in caplog.records] == [
         "route bus: in 12 out 0 errors 0 latency p50 - p99 - ms "
         "held: unknown_type 5 (MYSTERY, OTHER), waiting_for_build 7 (IIWA_STATUS)",
@@ -300,7 +308,7 @@ def test_held_messages_show_once_per_kind_with_their_channels(caplog: Any) -> No
     ]
     out = io.StringIO()
     table = LiveTable(Console(file=out, force_terminal=True, width=200, color_system=None))
-    table.show({"bus": bus})
+    table.show(snapshot({"bus": bus}))
     table.close()
     assert (
         "bus held back: unknown_type 5 (MYSTERY, OTHER), waiting_for_build 7 (IIWA_STATUS)" in out.getvalue()
@@ -334,7 +342,7 @@ def test_a_qos_mismatch_shows_in_the_row_the_line_and_the_legend(caplog: Any) ->
     mismatched = {**route(0, 0), "qos_incompatible": 2}
     out = io.StringIO()
     table = LiveTable(Console(file=out, force_terminal=True, width=120, color_system=None))
-    table.show({"forced": mismatched, "idle": route(0, 0)})
+    table.show(snapshot({"forced": mismatched, "idle": route(0, 0)}))
     table.close()
     drawn = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", out.getvalue()).splitlines()
     heading = next(line for line in drawn if "qos_incompatible" in line)  # rich draws it with ┃
@@ -342,7 +350,7 @@ def test_a_qos_mismatch_shows_in_the_row_the_line_and_the_legend(caplog: Any) ->
     rows = {cells[0]: cells for cells in map(table_cells, drawn) if cells}
     assert rows["forced"][header.index("qos_incompatible")] == "2", "\n".join(drawn)
     with caplog.at_level("INFO", logger="viewer_bridge"):
-        LogLines().show({"forced": mismatched})
+        LogLines().show(snapshot({"forced": mismatched}))
     said = [record.getMessage() for record in caplog.records]
     assert any(line.startswith("route forced:") and "qos_incompatible 2" in line for line in said), said
     assert any(line.startswith("legend: qos_incompatible: ") for line in said), said

@@ -96,7 +96,7 @@ def test_two_workers_put_out_what_one_process_does(tmp_path: Path, recorder: Lcm
             assert any(re.search(r"worker 1 \(pid \d+\): relay_b$", line) for line in bridge.lines), (
                 bridge.lines
             )
-        stats = json.loads((tmp_path / f"stats{workers}.json").read_text())  # merged: both routes
+        stats = json.loads((tmp_path / f"stats{workers}.json").read_text())["routes"]  # merged: both routes
         assert {name: stats[name]["messages_out"] for name in ("relay_a", "relay_b")} == {
             "relay_a": COUNT, "relay_b": COUNT
         }  # fmt: skip
@@ -140,7 +140,7 @@ def test_a_killed_worker_is_restarted_and_the_other_flows_on(tmp_path: Path, rec
     assert a_before > 20
     stats = json.loads((tmp_path / "stats2.json").read_text())
     assert stats["transports"]["workers"]["errors"] == {"restarted": 1}
-    assert stats["relay_b"]["messages_out"] >= len(b_by_then)
+    assert stats["routes"]["relay_b"]["messages_out"] >= len(b_by_then)
 
 
 def test_ctrl_c_stops_every_worker_and_exits_130(tmp_path: Path, recorder: LcmRecorder) -> None:

@@ -393,5 +393,5 @@ def test_client_and_server_routes_carry_the_demo_scene_through_the_tree_viewer(t
     assert {"demo::shapes::box_0", "demo::shapes::trianglemesh_6"} <= {
         ns.replace("/", "::") for ns in namespaces
     }
-    routes = json.loads(stats.read_text())
+    routes = json.loads(stats.read_text())["routes"]
     assert routes["to_director"]["messages_out"] > 0 and routes["as_director"]["messages_out"] > 0

@@ -230,7 +230,7 @@ def test_every_draw_through_the_router_is_in_the_rrd_with_its_values(tmp_path: P
         if step % 20 == 0:
             router.feed("lcm", Received("DRAKE_VIEWER_DRAW", data[: len(data) // 2]))  # cut short
             router.feed("lcm", Received("DRAKE_VIEWER_DRAW", b"\x00" * 16))  # no load, no draw
-    stats = router.snapshot()["draws"]
+    stats = router.snapshot()["routes"]["draws"]
     router.close()
     assert stats["errors"] == {"DecodeError": 6} and stats["messages_out"] == len(draws)
     by_time: dict[int, dict[str, dict[str, Any]]] = defaultdict(dict)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from viewer_bridge.cli import bag_convert
 from viewer_bridge.cli.arguments import AddCommand, fail, lcm_types_option, output_file, regex
-from viewer_bridge.config.bridge import load_config
+from viewer_bridge.config.options import RunOptions, config_of
 from viewer_bridge.errors import Interrupted
 
 
@@ -82,9 +82,8 @@ def _from_lcm_log(args: argparse.Namespace, stop: threading.Event) -> int:
     # refused before any work
     written_as = checked_output(Path(args.log), Path(args.mcap), args.force, args.format)
     # An .rrd file is a Rerun recording: builtin:rerun's routes unless a config is given.
-    config = load_config(args.config or ("builtin:rerun" if written_as == "rrd" else None)).with_lcm_types(
-        args.lcm_types
-    )
+    named = args.config or ("builtin:rerun" if written_as == "rrd" else None)
+    config = config_of(RunOptions(config=named, lcm_types=args.lcm_types))
     done = convert(
         args.log,
         args.mcap,

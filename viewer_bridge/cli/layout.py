@@ -21,11 +21,13 @@ from typing import TYPE_CHECKING
 
 from viewer_bridge.cli.arguments import AddCommand, input_file, lcm_types_option, output_file
 from viewer_bridge.cli.play import index_log
-from viewer_bridge.config.bridge import BridgeConfig, Route, destination_name, load_config
+from viewer_bridge.config.bridge import BridgeConfig, Route, destination_name
+from viewer_bridge.config.options import RunOptions, config_of
 from viewer_bridge.errors import BridgeError, UsageError
 from viewer_bridge.shared import Shared
 from viewer_bridge.translators.base import Translator
 from viewer_bridge.translators.drake_stream import role_of
+from viewer_bridge.translators.load_cache import LoadCache
 from viewer_bridge.translators.options import FrameOptions
 from viewer_bridge.translators.types import FRAME_TRANSFORMS_TYPE, RAW_IMAGE_TYPE, SCENE_UPDATE_TYPE
 from viewer_bridge.transports.base import MessageType, Received
@@ -85,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
         from viewer_bridge.formats.foxglove.layout import foxglove_layout
     except ImportError as error:
         raise missing(error, "viewer-bridge layout") from None
-    config = load_config(args.config).with_lcm_types(args.lcm_types)
+    config = config_of(RunOptions(config=args.config, lcm_types=args.lcm_types))
     if not any(route.destination.transport == "foxglove" for route in config.routes):
         raise UsageError(
             f"no route of {args.config or 'the built-in config'} writes to Foxglove: no topic to lay out"
@@ -114,7 +116,8 @@ def layout_topics(config: BridgeConfig, index: LogIndex | None) -> LayoutTopics:
     from viewer_bridge.formats.foxglove.layout import PLOT_FIELDS, LayoutTopics, message_path
     from viewer_bridge.lcmcodec.library import TypeLibrary
 
-    shared = Shared(TypeLibrary.load(config.lcm_types, drake=config.drake_lcm_types) if index else None)
+    lcm_types = TypeLibrary.load(config.lcm_types, drake=config.drake_lcm_types) if index else None
+    shared = Shared(lcm_types, given=[LoadCache()])  # the loads of this one look, in memory
     channels = _channels(index) if index is not None else [(name, None) for name in DRAKE_DEFAULT_CHANNELS]
     announced = list(_announced(config, shared, channels))
     scenes = [each for each in announced if each.type == SCENE_UPDATE_TYPE]

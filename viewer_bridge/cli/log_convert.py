@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from viewer_bridge.config.bridge import BridgeConfig, Endpoint, Route
 from viewer_bridge.errors import ConvertError, Interrupted
 from viewer_bridge.router.router import Router
-from viewer_bridge.router.status import LEGEND, Snapshot, routes_of
+from viewer_bridge.router.status import LEGEND, Snapshot
 from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import LCM, MessageType, Received
 from viewer_bridge.transports.lcm import read_log
@@ -298,7 +298,7 @@ class _RouteErrors:
         self.skipped: dict[tuple[str, str], int] = {}
 
     def show(self, snapshot: Snapshot) -> None:
-        for name, stats in routes_of(snapshot).items():
+        for name, stats in snapshot["routes"].items():
             counts = Counter(stats["errors"]) + Counter(stats["warnings"])
             if counts:
                 log.warning("route %s: %s", name, dict(counts))

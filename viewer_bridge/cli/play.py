@@ -23,15 +23,14 @@ from viewer_bridge.cli.arguments import (
     worker_count,
 )
 from viewer_bridge.cli.play_keys import keys
-from viewer_bridge.cli.run import _builtin_for_this_install, _status_view, _with_setting, stats_options
-from viewer_bridge.config.bridge import load_config
+from viewer_bridge.cli.run import stats_options, status_view
+from viewer_bridge.config.options import RunOptions, config_of
 from viewer_bridge.errors import UsageError
 from viewer_bridge.router.router import Router
 from viewer_bridge.transports.lcm import Publisher
 from viewer_bridge.transports.lcm_log_index import LogIndex
 from viewer_bridge.transports.lcm_playback import LogPlayer
 from viewer_bridge.transports.lcm_url import log_to_write
-from viewer_bridge.transports.playback import Timelines
 from viewer_bridge.util.progress import progress
 
 
@@ -98,6 +97,11 @@ def index_log(log: str, command: str, quiet: bool = False) -> LogIndex:
         return LogIndex.build(path, told)
 
 
+def run_options(args: argparse.Namespace) -> RunOptions:
+    """What `play`'s command line says about the config, as one record."""
+    return RunOptions(config=args.config, this_install=True, settings=args.set)
+
+
 def run(args: argparse.Namespace) -> int:
     """Index the log, then route what it plays until it ends (nothing to seek with), Ctrl-C or SIGTERM."""
     if args.workers is not None and args.workers > 1:
@@ -109,15 +113,12 @@ def run(args: argparse.Namespace) -> int:
     if len(index) == 0:
         raise UsageError(f"{args.log} holds no whole LCM event: nothing to play")
     try:
-        view = _status_view(args.quiet)
+        view = status_view(args.quiet)
     except BaseException:
         index.close()
         raise
     try:
-        named, without = _builtin_for_this_install() if args.config is None else (args.config, [])
-        config = load_config(named, without=without)
-        for setting in args.set:
-            config = _with_setting(config, setting, named)
+        config = config_of(run_options(args))
         if "lcm" not in config.transports():
             raise UsageError(
                 f"no route of {args.config or 'the built-in config'} reads LCM: nothing to play to"
@@ -142,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
             stats_json=args.stats_json,
             stats_period=args.stats_period,
             view=view,
-            provided={Timelines: Timelines(player)},
+            timeline=player,
         )
     except BaseException:
         view.close()

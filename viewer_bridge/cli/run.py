@@ -8,7 +8,6 @@ import signal
 import sys
 import threading
 
-import yaml
 from rich.console import Console
 
 from viewer_bridge.cli.arguments import (
@@ -21,8 +20,9 @@ from viewer_bridge.cli.arguments import (
     topic_regex,
     worker_count,
 )
-from viewer_bridge.config.bridge import BUILTIN_CONFIGS, BridgeConfig, load_config
-from viewer_bridge.errors import ConfigError, UsageError
+from viewer_bridge.config.bridge import BUILTIN_CONFIGS, BridgeConfig
+from viewer_bridge.config.options import RunOptions, config_of
+from viewer_bridge.errors import UsageError
 from viewer_bridge.examples.demo import run_demo
 from viewer_bridge.router.router import Router
 from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines, StatusView
@@ -120,22 +120,10 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"no built-in config {name!r} (known: {', '.join(BUILTIN_CONFIGS)})")
         print(BUILTIN_CONFIGS[name], end="")
         return 0
-    view = _status_view(args.quiet)
+    view = status_view(args.quiet)
     try:
-        named, without = _builtin_for_this_install() if args.config is None else (args.config, [])
-        config = (
-            load_config(named, without=without)
-            .with_lcm_types(args.lcm_types)
-            .allowing_commands(args.allow_commands)
-            .with_ros_topics(args.ros_topics)
-        )
-        if args.lcm_url:
-            config = config.with_settings("lcm", url=args.lcm_url)
-        for setting in args.set:
-            config = _with_setting(config, setting, named)
-        if args.ros_args:
-            _uses(config, "ros", "--ros-args", named)
-            config = config.with_settings("ros", ros_args=args.ros_args)
+        options = run_options(args)  # the command line's say about the config, as one record
+        config = config_of(options)
         if args.demo and log_to_write(_lcm_url(config)):
             raise UsageError(
                 f"--demo: the routes would read the demo on {_lcm_url(config)}, a log LCM only writes; "
@@ -180,62 +168,21 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-# The transports' names in the line that says which routes were left out.
-_SAID = {"ros": "ROS 2", "foxglove": "Foxglove", "zenoh": "Zenoh", "rerun": "Rerun", "ign": "ign-transport"}
-# The built-in configs tried, in order, when the default one has no route this install can run.
-_FALLBACKS = ("foxglove", "zenoh", "rerun", "ign")
-
-
-def _builtin_for_this_install() -> tuple[str | None, list[str]]:
-    """The built-in config to run when none is named (`-c`), and the transports to leave out of it.
-
-    One rule for every extra: the default config's routes on a transport whose extra is not
-    installed are left out, said in one line naming them and the extra that adds them. When none is
-    left (`[zenoh]` alone, say), the first built-in config whose every transport is installed runs
-    instead, said in one line; with none (the core alone), a `MissingExtra` names the extras. A
-    config the user names runs as written, or stops naming what it lacks."""
-    from viewer_bridge.config.bridge import routes_on
-    from viewer_bridge.util.extras import TRANSPORT_EXTRAS, lacking
-
-    routes = yaml.safe_load(BUILTIN_CONFIGS["default"])["routes"]
-    used = dict.fromkeys(
-        end["transport"] for route in routes for end in (route["source"], route["destination"])
-    )
-    absent = {name: module for name in used if (module := lacking(name)) is not None}
-    if not absent:
-        return None, []
-    kept = [route for route in routes if not any(routes_on(route, name) for name in absent)]
-    extras = ",".join(dict.fromkeys(TRANSPORT_EXTRAS[name] for name in absent))
-    needs = f"{' and '.join(absent.values())}, not installed: pip install 'viewer-bridge[{extras}]'"
-    say = logging.getLogger(__name__).warning
-    if kept:
-        dropped = " and ".join(
-            f"{sum(routes_on(route, name) for route in routes)} {_SAID.get(name, name)} routes"
-            for name in absent
-        )
-        say("viewer-bridge: the built-in config's %s left out: they need %s", dropped, needs)
-        return None, list(absent)
-    for name in _FALLBACKS:
-        document = yaml.safe_load(BUILTIN_CONFIGS[name])
-        wanted = {
-            end["transport"]
-            for route in document["routes"]
-            for end in (route["source"], route["destination"])
-        }
-        if all(lacking(transport) is None for transport in wanted):
-            say("viewer-bridge: the built-in config's routes need %s; running -c builtin:%s, the built-in "
-                "config of what is installed", needs, name)  # fmt: skip
-            return f"builtin:{name}", []
-    others = [name for name in _FALLBACKS if name != "foxglove"]
-    raise UsageError(
-        "no built-in config can run: this install has none of their extras: pip install "
-        + " or ".join(f"'viewer-bridge[{TRANSPORT_EXTRAS[name]}]'" for name in absent)
-        + " for the default config, or "
-        + ", ".join(f"[{name}] for -c builtin:{name}" for name in others)
+def run_options(args: argparse.Namespace) -> RunOptions:
+    """What `run`'s command line says about the config, as one record."""
+    return RunOptions(
+        config=args.config,
+        this_install=True,
+        lcm_types=args.lcm_types,
+        allow_commands=args.allow_commands,
+        ros_topics=args.ros_topics,
+        lcm_url=args.lcm_url,
+        settings=args.set,
+        ros_args=args.ros_args,
     )
 
 
-def _status_view(quiet: bool) -> StatusView:
+def status_view(quiet: bool) -> StatusView:
     """A live route table when stdout is a terminal; plain log lines on stderr otherwise."""
     level = logging.WARNING if quiet else logging.INFO
     if quiet or not sys.stdout.isatty():
@@ -244,47 +191,6 @@ def _status_view(quiet: bool) -> StatusView:
     console = Console()
     logging.basicConfig(level=level, handlers=[ConsoleLog(console)])
     return LiveTable(console)
-
-
-def _with_setting(config: BridgeConfig, setting: str, config_name: str | None) -> BridgeConfig:
-    """`TRANSPORT.KEY=VALUE` (the value read as YAML: 9000 is a number, true a bool) applied; a
-    section of the config's own (`commands.max_age_ms=500`) is set the same way, and a plain
-    top-level key of its own (`time=sim`) as `KEY=VALUE`."""
-    name, equals, value = setting.partition("=")
-    transport, _, key = name.partition(".")
-    if equals and not key and name in _TOP_LEVEL_KEYS:
-        try:
-            return config.with_keys(**{name: yaml.safe_load(value)})
-        except ConfigError as error:
-            raise UsageError(f"--set {setting}: {error.key}: {error.reason}") from None
-    if not (transport and key and equals):
-        raise UsageError(
-            f"--set {setting!r}: expected TRANSPORT.KEY=VALUE, e.g. foxglove.port=9000, "
-            f"or KEY=VALUE for one of {', '.join(_TOP_LEVEL_KEYS)}"
-        )
-    if transport not in BridgeConfig.model_fields:
-        _uses(config, transport, f"--set {setting}", config_name)
-    try:
-        return config.with_settings(transport, **{key: yaml.safe_load(value)})
-    except ConfigError as error:
-        raise UsageError(f"--set {setting}: {error.key}: {error.reason}") from None
-
-
-# The config's own top-level keys that `--set KEY=VALUE` sets (lists and sections have options or dots).
-_TOP_LEVEL_KEYS = ("time", "workers", "load_cache", "drake_lcm_types")
-
-
-def _uses(config: BridgeConfig, transport: str, option: str, config_name: str | None) -> None:
-    """Warn about an option for a transport that no route of the config uses: it does nothing.
-    (A warning, not a refusal: one command line may serve several configs, e.g. in scripts.)"""
-    used = config.transports()
-    if transport not in used:
-        print(
-            f"viewer-bridge run: warning: {option} does nothing: no route of "
-            f"{config_name or 'the built-in config'} uses the {transport} transport "
-            f"(its routes use: {', '.join(used) or 'none'})",
-            file=sys.stderr,
-        )
 
 
 def _lcm_url(config: BridgeConfig) -> str:

@@ -25,10 +25,9 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 from viewer_bridge.config.bridge import ROS_TOPICS_TRANSLATOR, BridgeConfig, Route
 from viewer_bridge.lcmcodec.library import TypeLibrary
@@ -36,13 +35,14 @@ from viewer_bridge.router import stats
 from viewer_bridge.router.echoes import Echoes
 from viewer_bridge.router.flow import InlineBudget
 from viewer_bridge.router.runner import Destinations, PublisherFor, RouteRunner, SaidOnce
-from viewer_bridge.router.status import LogLines, StatusView
+from viewer_bridge.router.status import LogLines, Snapshot, StatusView, snapshot_of
 from viewer_bridge.shared import RosDefinitions, Shared, definitions_of
 from viewer_bridge.translators.base import Output, Translator
 from viewer_bridge.translators.load_cache import LoadCache
 from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import DEPTH, DURABILITY, RELIABILITY, Publisher, Qos, Received, Transport
-from viewer_bridge.transports.command_policy import COMMAND_FLAG, CommandPolicy
+from viewer_bridge.transports.command_policy import COMMAND_FLAG
+from viewer_bridge.transports.playback import Timeline, Timelines
 from viewer_bridge.transports.registry import TRANSPORTS
 from viewer_bridge.transports.ros_names import ChannelNames
 from viewer_bridge.util.words import counted
@@ -84,12 +84,11 @@ class Router:
         stats_period: float = 5.0,
         view: StatusView | None = None,
         ros_definitions: RosDefinitions | None = None,
-        provided: Mapping[Callable[[], Any], Any] | None = None,
+        timeline: Timeline | None = None,
     ) -> None:
         """`ros_definitions`: where the ros transport finds the `.msg` definitions of an interface
         package it lacks, to build it while the other routes run (see `RosDefinitions`).
-        `provided`: what `Shared.get(make)` returns for each `make`, before the transports are made
-        (`viewer-bridge play` provides the timeline of the log it plays)."""
+        `timeline`: what the transports play and clients drive (`viewer-bridge play`'s log), or None."""
         self.config = config
         self.stats_json = Path(stats_json) if stats_json else None
         self.stats_period = stats_period
@@ -99,12 +98,10 @@ class Router:
         # building one the ros transport lacks), one Foxglove context, the message time, the last
         # Drake load per channel (kept in the config's folder, if it names one), the clock (`time:`).
         lcm_types = TypeLibrary.load(config.lcm_types, drake=config.drake_lcm_types)
-        self.shared = Shared(lcm_types, ros_definitions or definitions_of(lcm_types), config.time)
-        self.shared.provide(LoadCache, LoadCache(config.load_cache))
-        # a server offers publishing only when it can land
-        self.shared.provide(CommandPolicy, config.commands)
-        for make, made in (provided or {}).items():
-            self.shared.provide(make, made)
+        # What the config decides, given to them: the load cache (in its folder), the commands'
+        # allow-list (a server offers publishing only when a command can land), the timeline played.
+        given = (LoadCache(config.load_cache), config.commands, Timelines(timeline))
+        self.shared = Shared(lcm_types, ros_definitions or definitions_of(lcm_types), config.time, given)
         for warning in lcm_types.warnings:
             log.warning("viewer-bridge: %s", warning)
         self.transports: dict[str, Transport] = {}
@@ -313,13 +310,10 @@ class Router:
         for transport in self.transports.values():
             transport.close()
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self) -> Snapshot:
         """Per route stats; transports' own error counts under `transports`."""
-        snapshot: dict[str, Any] = {runner.route.name: runner.snapshot() for runner in self.routes}
-        errors = {name: dict(t.errors()) for name, t in self.transports.items() if t.errors()}
-        if errors:
-            snapshot["transports"] = {name: {"errors": counts} for name, counts in errors.items()}
-        return snapshot
+        routes = {runner.route.name: runner.snapshot() for runner in self.routes}
+        return snapshot_of(routes, {name: dict(t.errors()) for name, t in self.transports.items()})
 
     def report(self) -> None:
         """The routes' stats to the status view, and to the JSON file when asked for."""

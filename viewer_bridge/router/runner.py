@@ -18,13 +18,13 @@ import time
 import traceback
 from collections import Counter
 from collections.abc import Callable
-from typing import Any
 
 from viewer_bridge.config.bridge import Route, destination_name
 from viewer_bridge.errors import BridgeError, Held
 from viewer_bridge.model.skipped import Skipped, current_collector, thread_collector
 from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
 from viewer_bridge.router.stats import RouteStats
+from viewer_bridge.router.status import RouteSnapshot
 from viewer_bridge.shared import MessageTime
 from viewer_bridge.translators.base import Output, Translator
 from viewer_bridge.transports.base import Closable, MessageType, Publisher, Received, hand_over, size_of
@@ -581,9 +581,8 @@ class RouteRunner:
             return "idle: no subscriber"
         return "active"
 
-    def snapshot(self) -> dict[str, Any]:
-        snapshot = self.stats.snapshot(self.mailbox, self.state())
+    def snapshot(self) -> RouteSnapshot:
         # What the transport could not send, by the route that gave it (the publishers are shared
         # by name within a route only, so each is counted once).
-        snapshot["unsent"] = sum(publisher.unsent for publisher in list(self._publishers.values()))
-        return snapshot
+        unsent = sum(publisher.unsent for publisher in list(self._publishers.values()))
+        return self.stats.snapshot(self.mailbox, self.state(), unsent)

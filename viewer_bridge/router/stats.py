@@ -10,12 +10,11 @@ from collections import Counter, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from viewer_bridge.router.flow import Mailbox
-from viewer_bridge.router.status import StatusView
+from viewer_bridge.router.status import Percentiles, RouteSnapshot, Snapshot, StatusView
 
 _SAMPLES = 4096  # latency and translate-time samples kept per route (a ring)
 
@@ -39,9 +38,9 @@ class RouteStats:
     translate_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
     latency_ms: deque[float] = field(default_factory=lambda: deque(maxlen=_SAMPLES))
 
-    def snapshot(self, mailbox: Mailbox, state: str) -> dict[str, Any]:
+    def snapshot(self, mailbox: Mailbox, state: str, unsent: int) -> RouteSnapshot:
         """The counters as `--stats-json` writes them; `dropped` is the sum of `superseded` and
-        `mailbox_full` (what it said before they were apart)."""
+        `mailbox_full` (what it said before they were apart); `unsent` is the transport's count."""
         return {
             "state": state,
             "messages_in": self.messages_in,
@@ -61,10 +60,11 @@ class RouteStats:
             "queued": len(mailbox),
             "translate_ms": _percentiles(self.translate_ms),
             "latency_ms": _percentiles(self.latency_ms),
+            "unsent": unsent,
         }
 
 
-def _percentiles(samples: deque[float]) -> dict[str, float | None]:
+def _percentiles(samples: deque[float]) -> Percentiles:
     if not samples:
         return {"p50": None, "p99": None, "max": None}
     values = np.fromiter(samples, dtype=np.float64)
@@ -76,7 +76,7 @@ _log = logging.getLogger(__name__)
 _skipped = threading.Event()  # a report was skipped (said once)
 
 
-def report_safely(snapshot: Callable[[], dict[str, Any]], view: StatusView, stats_json: Path | None) -> None:
+def report_safely(snapshot: Callable[[], Snapshot], view: StatusView, stats_json: Path | None) -> None:
     """`report` of what `snapshot` makes; one that fails for want of a file (EMFILE: the process
     is out of them), a full disk or the like is skipped, said once: the stats never stop the bridge."""
     try:
@@ -87,7 +87,7 @@ def report_safely(snapshot: Callable[[], dict[str, Any]], view: StatusView, stat
             _log.warning("a stats report was skipped (%s); the next is tried at its time (said once)", error)
 
 
-def report(snapshot: dict[str, Any], view: StatusView, stats_json: Path | None) -> None:
+def report(snapshot: Snapshot, view: StatusView, stats_json: Path | None) -> None:
     """A snapshot to the status view, and to the JSON file when asked for (replaced whole, so a
     reader never sees half of it)."""
     view.show(snapshot)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Iterable
-from typing import Any, Protocol
+from typing import Any, Final, Literal, Protocol, TypedDict
 
 from rich.console import Console, Group
 from rich.live import Live
@@ -29,7 +29,66 @@ from viewer_bridge.util.words import counted
 
 log = logging.getLogger("viewer_bridge")
 
-Snapshot = dict[str, Any]  # route name -> its stats (`RouteStats.snapshot`); "transports" -> errors
+# The shape of a stats snapshot: what the router hands its view each period, what a worker sends
+# its parent, and what `--stats-json` writes (docs/configuration.md, "Flow, errors and stats").
+# Plain dicts when the program runs (pickled through a worker's pipe, dumped as JSON as they are);
+# the types say which keys each holds. A change of a key or its meaning is a new STATS_SCHEMA.
+STATS_SCHEMA: Final = 1
+
+
+class Percentiles(TypedDict):
+    """The recent samples' percentiles in ms, rounded to 0.1 us; None before the first sample."""
+
+    p50: float | None
+    p99: float | None
+    max: float | None
+
+
+class RouteSnapshot(TypedDict):
+    """A route's counters (`RouteStats.snapshot`), since the bridge started."""
+
+    state: str  # "active", or why a lazy route translates nothing ("idle: no subscriber")
+    messages_in: int
+    messages_out: int
+    bytes_in: int
+    bytes_out: int
+    idle_skipped: int
+    qos_incompatible: int
+    streams_reclaimed: int
+    errors: dict[str, int]  # by kind (the exception's class, or a named cause)
+    warnings: dict[str, int]  # by kind
+    held: dict[str, dict[str, int]]  # channel -> kind -> messages held back on purpose
+    superseded: int
+    mailbox_full: int
+    dropped: int  # superseded + mailbox_full
+    max_hz_skipped: int
+    queued: int  # waiting in the route's mailbox now
+    translate_ms: Percentiles
+    latency_ms: Percentiles
+    unsent: int  # given to the destination's transport, which could not send it
+
+
+class TransportSnapshot(TypedDict):
+    """A transport's own error counts, by kind (`dropped_by_kernel`, `unsent_no_router`, `restarted`)."""
+
+    errors: dict[str, int]
+
+
+class Snapshot(TypedDict):
+    """Every route's counters, by name in the config's order, and the transports' own errors."""
+
+    schema: int  # STATS_SCHEMA
+    routes: dict[str, RouteSnapshot]
+    transports: dict[str, TransportSnapshot]  # only the transports that counted an error
+
+
+def snapshot_of(routes: dict[str, RouteSnapshot], transports: dict[str, dict[str, int]]) -> Snapshot:
+    """A snapshot of `routes`' counters and the transports' error counts (those with none left out)."""
+    return {
+        "schema": STATS_SCHEMA,
+        "routes": routes,
+        "transports": {name: {"errors": counts} for name, counts in transports.items() if counts},
+    }
 
 
 class StatusView(Protocol):
@@ -40,20 +99,16 @@ class StatusView(Protocol):
         """The bridge is stopping: leave the last state on screen."""
 
 
-def routes_of(snapshot: Snapshot) -> dict[str, dict[str, Any]]:
-    return {name: stats for name, stats in snapshot.items() if name != "transports"}
-
-
-def errors_of(stats: dict[str, Any]) -> int:
+def errors_of(stats: RouteSnapshot) -> int:
     return sum(stats["errors"].values())
 
 
-def warnings_of(stats: dict[str, Any]) -> int:
+def warnings_of(stats: RouteSnapshot) -> int:
     """What a route left out but carried on with (a geometry a target cannot draw, say)."""
     return sum(stats["warnings"].values())
 
 
-def held_of(stats: dict[str, Any]) -> str:
+def held_of(stats: RouteSnapshot) -> str:
     """Messages held back on purpose, by kind with their channels: `unknown_type 12 (FOO, BAR)`."""
     kinds: dict[str, tuple[int, list[str]]] = {}
     for channel, counts in stats.get("held", {}).items():
@@ -63,12 +118,12 @@ def held_of(stats: dict[str, Any]) -> str:
     return ", ".join(f"{kind} {total} ({', '.join(channels)})" for kind, (total, channels) in kinds.items())
 
 
-def unsent_of(stats: dict[str, Any]) -> int:
+def unsent_of(stats: RouteSnapshot) -> int:
     """What a route published that its transport could not send (a Zenoh session with no router)."""
     return int(stats.get("unsent", 0))
 
 
-def transports_line(transports: dict[str, Any]) -> str:
+def transports_line(transports: dict[str, TransportSnapshot]) -> str:
     """The transports' own error counts in words: `zenoh: 366 unsent no router; lcm: 3 dropped by kernel`."""
     return "; ".join(
         f"{name}: "
@@ -82,7 +137,8 @@ def _ms(value: float | None) -> str:
 
 
 # What a route could not carry, by cause, as the stats name them (0 is not shown).
-LOSSES = ("superseded", "mailbox_full", "max_hz_skipped", "unsent", "qos_incompatible")
+Loss = Literal["superseded", "mailbox_full", "max_hz_skipped", "unsent", "qos_incompatible"]
+LOSSES: tuple[Loss, ...] = ("superseded", "mailbox_full", "max_hz_skipped", "unsent", "qos_incompatible")
 
 # What each counter that may appear means, in a few words: the legend names those that appear
 # (docs/configuration.md, "Flow, errors and stats", says more of each). `held` kinds too.
@@ -105,7 +161,7 @@ LEGEND = {
 }
 
 
-def is_shown(stats: dict[str, Any]) -> bool:
+def is_shown(stats: RouteSnapshot) -> bool:
     """A route worth a row: it lost or failed something, or it carries traffic for a subscriber.
     Lazy routes waiting for a subscriber and routes nothing arrived on are a line each."""
     if errors_of(stats) or any(stats.get(loss, 0) for loss in LOSSES):
@@ -113,13 +169,13 @@ def is_shown(stats: dict[str, Any]) -> bool:
     return bool(stats["state"] == "active" and (stats["messages_in"] > 0 or stats["messages_out"] > 0))
 
 
-def is_waiting(stats: dict[str, Any]) -> bool:
+def is_waiting(stats: RouteSnapshot) -> bool:
     """A lazy route that receives traffic nobody subscribes to (and lost nothing)."""
     return not is_shown(stats) and stats["state"] != "active"
 
 
 def waiting_line(
-    routes: dict[str, dict[str, Any]], names: list[str], rates: dict[str, tuple[float, float]]
+    routes: dict[str, RouteSnapshot], names: list[str], rates: dict[str, tuple[float, float]]
 ) -> str:
     """The routes waiting for a subscriber, each with its in-rate and what it did not translate."""
     each = (
@@ -128,12 +184,12 @@ def waiting_line(
     return f"waiting for a subscriber: {', '.join(each)}"
 
 
-def idle_state(stats: dict[str, Any]) -> str:
+def idle_state(stats: RouteSnapshot) -> str:
     """Why a lazy route sends nothing, as its line says it: `idle: no subscriber, idle_skipped 218`."""
     return f"{stats['state']}, idle_skipped {stats['idle_skipped']}"
 
 
-def quiet_line(routes: dict[str, dict[str, Any]], names: list[str], listed: bool) -> str:
+def quiet_line(routes: dict[str, RouteSnapshot], names: list[str], listed: bool) -> str:
     """The routes nothing arrived on, counted (and named when `listed`)."""
     more = "more " if len(names) < len(routes) else ""  # beside the other lines, or all of them
     return f"{counted(len(names), more + 'route')} without traffic" + (
@@ -161,9 +217,11 @@ def legend_lines(terms: Iterable[str]) -> list[str]:
     return [("legend: " if index == 0 else pad) + said for index, said in enumerate(_meanings(terms))]
 
 
-def terms_of(routes: dict[str, dict[str, Any]]) -> list[str]:
+def terms_of(routes: dict[str, RouteSnapshot]) -> list[str]:
     """The counters a view of `routes` shows that a legend explains."""
-    terms = {loss for stats in routes.values() if is_shown(stats) for loss in LOSSES if stats.get(loss, 0)}
+    terms: set[str] = {
+        loss for stats in routes.values() if is_shown(stats) for loss in LOSSES if stats.get(loss, 0)
+    }
     terms |= {kind for stats in routes.values() for kinds in stats.get("held", {}).values() for kind in kinds}
     if any(is_waiting(stats) for stats in routes.values()):
         terms.add("idle_skipped")
@@ -178,7 +236,7 @@ class Rates:
         self._previous_at = time.monotonic()
         self.elapsed = 0.0
 
-    def of(self, routes: dict[str, dict[str, Any]]) -> dict[str, tuple[float, float]]:
+    def of(self, routes: dict[str, RouteSnapshot]) -> dict[str, tuple[float, float]]:
         now = time.monotonic()
         self.elapsed, self._previous_at = max(now - self._previous_at, 1e-9), now
         rates = {}
@@ -190,7 +248,7 @@ class Rates:
         return rates
 
 
-def losses_of(stats: dict[str, Any]) -> str:
+def losses_of(stats: RouteSnapshot) -> str:
     """A route's losses in words, those that are not 0: ` superseded 5 unsent 2`."""
     return "".join(f" {loss} {stats[loss]}" for loss in LOSSES if stats.get(loss, 0))
 
@@ -206,7 +264,7 @@ class LogLines:
         self._explained: set[str] = set()  # legend terms said already
 
     def show(self, snapshot: Snapshot) -> None:
-        routes = routes_of(snapshot)
+        routes = snapshot["routes"]
         rates = self._rates.of(routes)
         for name, stats in routes.items():
             if not is_shown(stats):
@@ -229,7 +287,7 @@ class LogLines:
             log.info("%s", waiting_line(routes, waiting, rates))
         if quiet := [name for name, stats in routes.items() if not is_shown(stats) and not is_waiting(stats)]:
             log.info("%s", quiet_line(routes, quiet, listed=False))
-        if "transports" in snapshot:
+        if snapshot["transports"]:
             log.info("transport errors: %s", transports_line(snapshot["transports"]))
         if said := legend(term for term in terms_of(routes) if term not in self._explained):
             log.info("%s", said)
@@ -242,7 +300,7 @@ class LogLines:
 # The table's columns: (heading, what a row shows). Columns of counts that are 0 in every row are
 # left out; if the rest is still wider than the terminal, OPTIONAL columns go, in this order, so
 # that no number is ever cut (only a route's name may be shortened, with an ellipsis).
-Cell = Callable[[dict[str, Any], tuple[float, float]], str]
+Cell = Callable[[RouteSnapshot, tuple[float, float]], str]
 COLUMNS: dict[str, Cell] = {
     "route": lambda stats, rates: "",  # filled in with the name
     "in/s": lambda stats, rates: f"{rates[0]:.1f}",
@@ -308,7 +366,7 @@ class LiveTable:
         self._rates = Rates()
 
     def show(self, snapshot: Snapshot) -> None:
-        routes = routes_of(snapshot)
+        routes = snapshot["routes"]
         rates = self._rates.of(routes)
         shown = [name for name, stats in routes.items() if is_shown(stats)]
         title = (f"viewer-bridge: {counted(len(routes), 'route')} "
@@ -322,12 +380,12 @@ class LiveTable:
         for name, stats in routes.items():
             if held := held_of(stats):
                 parts.append(Text(f"{name} held back: {held}", style="yellow"))
-        if "transports" in snapshot:
+        if snapshot["transports"]:
             parts.append(Text(f"transport errors: {transports_line(snapshot['transports'])}", style="red"))
         parts.extend(Text(line, style="dim") for line in legend_lines(terms_of(routes)))
         self._live.update(Group(*parts), refresh=True)
 
-    def _table(self, routes: dict[str, dict[str, Any]], rates: dict[str, tuple[float, float]]) -> Table:
+    def _table(self, routes: dict[str, RouteSnapshot], rates: dict[str, tuple[float, float]]) -> Table:
         cells = {
             heading: [
                 name if heading == "route" else cell(stats, rates[name]) for name, stats in routes.items()

@@ -29,13 +29,12 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
 from pathlib import Path
-from typing import Any
 
 from viewer_bridge.config.bridge import BridgeConfig, Route
 from viewer_bridge.errors import BridgeError, UsageError
 from viewer_bridge.router import stats
 from viewer_bridge.router.router import Router
-from viewer_bridge.router.status import LogLines, StatusView
+from viewer_bridge.router.status import LogLines, RouteSnapshot, Snapshot, StatusView, snapshot_of
 from viewer_bridge.transports.registry import TRANSPORTS
 from viewer_bridge.util.words import counted
 
@@ -89,7 +88,7 @@ class _Worker:
     finished: bool = False  # it ended on its own, as a router ends when its replayed log has
     failures: int = 0  # deaths in a row before it started: the wait before the next try doubles
     restart_at: float | None = None
-    snapshot: dict[str, Any] = field(default_factory=dict)
+    snapshot: Snapshot = field(default_factory=lambda: snapshot_of({}, {}))  # its router's last
 
     def routes(self) -> str:
         return ", ".join(route.name for route in self.config.routes)
@@ -259,24 +258,20 @@ class Workers:
         """The worker slots (one process each while running), by index."""
         return [worker.index for worker in self._workers]
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self) -> Snapshot:
         """Every worker's last stats as one router's: routes in the config's order, the transports'
         error counts summed, and the restarts as the errors of `workers`."""
-        routes: dict[str, Any] = {}
+        routes: dict[str, RouteSnapshot] = {}
         for worker in self._workers:
-            routes.update({name: counts for name, counts in worker.snapshot.items() if name != "transports"})
-        merged: dict[str, Any] = {
-            route.name: routes[route.name] for route in self.config.routes if route.name in routes
-        }
+            routes.update(worker.snapshot["routes"])
         errors: dict[str, Counter[str]] = {}
         for worker in self._workers:
-            for name, entry in worker.snapshot.get("transports", {}).items():
+            for name, entry in worker.snapshot["transports"].items():
                 errors.setdefault(name, Counter()).update(entry["errors"])
         if self.restarts:
             errors["workers"] = Counter(restarted=self.restarts)
-        if errors:
-            merged["transports"] = {name: {"errors": dict(counts)} for name, counts in errors.items()}
-        return merged
+        in_order = {route.name: routes[route.name] for route in self.config.routes if route.name in routes}
+        return snapshot_of(in_order, {name: dict(counts) for name, counts in errors.items()})
 
     def report(self) -> None:
         """The routes' stats to the status view, and to the JSON file when asked for."""
@@ -289,7 +284,7 @@ class _Sender:
     def __init__(self, connection: Connection) -> None:
         self._connection = connection
 
-    def show(self, snapshot: dict[str, Any]) -> None:
+    def show(self, snapshot: Snapshot) -> None:
         with contextlib.suppress(OSError):  # the parent is gone: the watch on it stops this worker
             self._connection.send(snapshot)
 

@@ -19,6 +19,7 @@ from typing import Any, ClassVar
 from pydantic import BaseModel, ConfigDict
 
 from viewer_bridge.shared import Shared
+from viewer_bridge.translators.load_cache import LoadCache
 from viewer_bridge.transports.base import MessageType, Payload, Received
 
 
@@ -57,9 +58,10 @@ class Translator:
     interface installed?) use it, never `outputs`.
 
     Made as `Translator(options)`, with two keyword arguments the router gives:
-    - `shared`: what the translators (and transports) of one router share, made once per router
-      on first ask (`shared.get(LoadCache)`, the draw decoders of `drake_stream`); a translator
-      made alone gets a `Shared` of its own. Nothing is shared between routers or kept in a module.
+    - `shared`: what the translators (and transports) of one router share, given by the router
+      (`shared.given(LoadCache)`) or made once per router on first ask (the draw decoders of
+      `drake_stream`); a translator made alone gets a `Shared` of its own, its loads in memory.
+      Nothing is shared between routers or kept in a module.
     - `reply`: publishes back on the source's transport, `reply(channel, bytes)`: how a protocol
       with requests and responses, like the tree viewer's, answers. Required when the class
       declares `replies`; fixed for the translator's life (never set after it is made).
@@ -100,7 +102,7 @@ class Translator:
             if isinstance(options, TranslatorOptions)
             else self.Options.model_validate(dict(options or {}))
         )
-        self.shared = Shared() if shared is None else shared
+        self.shared = Shared(given=[LoadCache()]) if shared is None else shared
         if reply is None and self.replies is not None:
             raise TypeError(f"{type(self).__name__} answers with {self.replies}: give it reply=")
         self.reply: Reply = _no_reply if reply is None else reply

@@ -132,7 +132,7 @@ class DrakeTranslator(DrawReader):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.drake = DrakeStream(self.shared.get(LoadCache), self.draw_poses)
+        self.drake = DrakeStream(self.shared.given(LoadCache), self.draw_poses)
         import_trimesh()  # a scene may have meshes: ready before its load comes, not on it
 
     def observe(self, message: Received) -> None:

@@ -389,9 +389,9 @@ class FoxgloveTransport(Transport):
     def create(cls, settings: TransportSettings, shared: Shared) -> FoxgloveTransport:
         assert isinstance(settings, FoxgloveSettings)
         # without an allowed channel nothing clients publish lands
-        accept = bool(shared.get(CommandPolicy).allow)
+        accept = bool(shared.given(CommandPolicy).allow)
         # an MCAP file logs to it too
-        timeline = shared.get(Timelines).timeline  # `viewer-bridge play`'s
+        timeline = shared.given(Timelines).timeline  # `viewer-bridge play`'s
         return cls(
             settings,
             shared.get(FoxgloveContext),

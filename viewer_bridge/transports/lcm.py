@@ -356,7 +356,7 @@ class LcmTransport(base.Transport):
     @classmethod
     def create(cls, settings: base.TransportSettings, shared: Shared) -> LcmTransport:
         assert isinstance(settings, LcmSettings)
-        played = shared.get(Timelines).timeline  # `viewer-bridge play`: the log it plays is the bus
+        played = shared.given(Timelines).timeline  # `viewer-bridge play`: the log it plays is the bus
         return cls(settings, played if isinstance(played, LogPlayer) else None)
 
     def subscribe(

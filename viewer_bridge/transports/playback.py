@@ -3,7 +3,7 @@
 Nothing here knows a log format or a client protocol: a played log (`viewer_bridge.transports.
 lcm_playback.LogPlayer`) is a `Timeline`, and a server whose clients have a timeline of their own
 (Foxglove's playback bar) drives it through `request` and follows it through `watch`. A router
-finds the timeline it plays, if any, in its `Shared` (`shared.get(Timelines).timeline`).
+finds the timeline it plays, if any, in its `Shared` (`shared.given(Timelines).timeline`).
 """
 
 from __future__ import annotations
@@ -72,8 +72,8 @@ class Timeline(Protocol):
 
 
 class Timelines:
-    """A router's slot for the timeline it plays (`Shared.get(Timelines)`): None unless a command
-    that plays one (`viewer-bridge play`) put it there before the transports were made."""
+    """A router's slot for the timeline it plays (`Shared.given(Timelines)`): None unless a command
+    that plays one (`viewer-bridge play`) gave the router one."""
 
     def __init__(self, timeline: Timeline | None = None) -> None:
         self.timeline = timeline

@@ -32,6 +32,7 @@ from tests.zenoh_peers import (
     free_port,
     stats_flags,
     stats_of,
+    written_stats,
 )
 from viewer_bridge.config.bridge import load_config
 from viewer_bridge.formats.drake.draw import DrawEncoder
@@ -90,7 +91,7 @@ def bridge(endpoint: str, *args: str, stats: Path | None = None) -> BridgeProces
 
 
 def zenoh_errors(path: Path) -> dict[str, int]:
-    return stats_of(path).get("transports", {}).get("zenoh", {}).get("errors", {})  # type: ignore[no-any-return]
+    return written_stats(path).get("transports", {}).get("zenoh", {}).get("errors", {})  # type: ignore[no-any-return]
 
 
 @contextlib.contextmanager
