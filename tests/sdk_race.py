@@ -141,4 +141,3 @@ class ChannelMaker:
         for topic in sorted(self.topics):
             self._made.append(foxglove.Channel(topic, message_encoding="json", context=self._context))
             time.sleep(0.02)
-
