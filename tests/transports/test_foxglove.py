@@ -568,7 +568,7 @@ def test_a_closed_publisher_takes_its_channel_away_and_the_transport_forgets_it(
         assert client.pump(60, lambda: "/lcm/JUNK" in client.channels), client.log()
         publisher.close()
         assert client.pump(60, lambda: "/lcm/JUNK" not in client.channels), client.log()
-        assert transport._channels == {} and transport.context._asked_by == {}
+        assert transport.topics() == [] and transport.context.topics() == []
         again = transport.publisher("/lcm/JUNK", transforms, Qos())
         client.subscribe("/lcm/JUNK")
         assert client.pump(60, lambda: again.subscriber_count() == 1)
