@@ -654,7 +654,7 @@ def _read_along(stream: bytes, chunk: int) -> tuple[list[Message], list[str], li
         for message in reader.feed(memoryview(stream)[start : start + chunk]):
             messages.append(message)
             publishing.message(connection, message)
-            if len(publishing._channels.get(connection, {})) > FOXGLOVE_MAX_CHANNELS:
+            if publishing.remembered()[0] > FOXGLOVE_MAX_CHANNELS:  # one client here
                 raise AssertionError("a client kept more channels than max_channels")
     for message in messages:
         if message.opcode not in (TEXT, BINARY) or len(message.payload) > FOXGLOVE_MAX_MESSAGE:
@@ -672,7 +672,7 @@ def _read_along(stream: bytes, chunk: int) -> tuple[list[Message], list[str], li
         if re.fullmatch(FOXGLOVE_ROUTE, received.channel) is None or received.origin is not connection:
             raise AssertionError(f"delivered {received.channel!r} from {received.origin!r}")
     publishing.closed(connection)
-    if publishing._channels or publishing._said:
+    if publishing.remembered() != (0, 0):
         raise AssertionError("a closed connection is still remembered")
     return messages, connection.said, delivered
 

@@ -7,14 +7,16 @@
 //     advertises a client channel known by `name` (the topic unless given), printed back as
 //     {"event": "advertised", "name", "id"};
 //   {"op": "publish", "name": ..., "data": <base64>}  sends one message on that channel.
-// It ends when its stdin closes.
+// It ends when its stdin closes. With --no-resubscribe it never subscribes again by itself after
+// the server refused a subscription (see "status" below): what the bridge must then do for it.
 //
-//   node foxglove_client.js ws://127.0.0.1:8765 /drake/scene /drake/transforms
+//   node foxglove_client.js [--no-resubscribe] ws://127.0.0.1:8765 /drake/scene /drake/transforms
 const { FoxgloveClient } = require("@foxglove/ws-protocol");
 const readline = require("readline");
 const { WebSocket } = require("ws");
 
-const [url, ...topics] = process.argv.slice(2);
+const resubscribes = !process.argv.includes("--no-resubscribe");
+const [url, ...topics] = process.argv.slice(2).filter((arg) => arg !== "--no-resubscribe");
 const print = (event) => process.stdout.write(JSON.stringify(event) + "\n");
 
 const ws = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL]);
@@ -55,7 +57,7 @@ client.on("status", (status) => {
   // client, so a subscription sent at once can be refused as an unknown channel: send it again.
   const refused = /Unknown channel ID: (\d+)/.exec(status.message);
   const channelId = refused ? Number(refused[1]) : undefined;
-  if (wanted.has(channelId) && (retries.get(channelId) ?? 0) < 10) {
+  if (resubscribes && wanted.has(channelId) && (retries.get(channelId) ?? 0) < 10) {
     retries.set(channelId, (retries.get(channelId) ?? 0) + 1);
     subscribeTo(channelId);
   }

@@ -117,10 +117,10 @@ def test_uploads_together_stay_within_max_upload_and_the_rest_wait_their_turn_in
 
     second = threading.Thread(target=request, args=("second", 800))
     second.start()
-    assert wait_for(lambda: admission._requests == 2, 60)
+    assert wait_for(lambda: admission.requests == 2, 60)
     third = threading.Thread(target=request, args=("third", 100))  # it fits, but waits behind the second
     third.start()
-    assert wait_for(lambda: admission._requests == 3, 60)
+    assert wait_for(lambda: admission.requests == 3, 60)
     assert not admission.enter(1)  # a fourth: over max_requests, refused at once
     time.sleep(0.2)  # nothing may enter meanwhile (a correct Admission never lets them: no flakiness)
     assert order == []

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import pytest
@@ -63,11 +64,13 @@ class Sent:
 
 
 def runner_for(
-    policy: CommandPolicy, route: Route | None = None
+    policy: CommandPolicy, route: Route | None = None, publish: Callable[[bytes], None] | None = None
 ) -> tuple[RouteRunner, Sent, list[BridgeError]]:
+    """A command route's runner; what it sends goes to `Sent`, or to `publish` when given."""
     sent, told = Sent(), []
+    publisher_for = sent.publisher if publish is None else lambda name, output: CallPublisher(publish)
     runner = RouteRunner(
-        route or command_route(), lambda: PassCommands({}), sent.publisher,
+        route or command_route(), lambda: PassCommands({}), publisher_for,
         rejected=lambda message, error: told.append(error), commands=policy,
     )  # fmt: skip
     return runner, sent, told
@@ -109,11 +112,11 @@ def test_a_pattern_that_is_no_regular_expression_is_a_config_error(tmp_path: Any
 
 
 def stalled(
-    runner: RouteRunner, stall_s: float, send_for_s: float, count: int = 100
-) -> tuple[list[int], int]:
+    route: Route, policy: CommandPolicy, stall_s: float, send_for_s: float, count: int = 100
+) -> tuple[RouteRunner, list[int], int]:
     """The route's publisher stalls for `stall_s` on its first message (as a blocked socket or a
     busy core would), while `count` commands arrive over the first `send_for_s` seconds. Returns
-    the receive times of what was sent after the stall, and when the stall ended."""
+    the runner, the receive times of what was sent after the stall, and when the stall ended."""
     release, stalling = threading.Event(), threading.Event()
     published: list[int] = []
 
@@ -123,7 +126,7 @@ def stalled(
             release.wait(WAIT)
         published.append(int(data))
 
-    runner._publisher_for = lambda name, output: CallPublisher(publish)  # type: ignore[assignment]
+    runner, _, _ = runner_for(policy, route, publish)
     runner.start()
     try:
         # stalls its thread
@@ -143,14 +146,14 @@ def stalled(
     finally:
         runner.stop()
         runner.join(timeout=5)
-    return published[1:], resumed_us
+    return runner, published[1:], resumed_us
 
 
 def test_a_stalled_command_route_sends_at_most_one_afterwards_and_nothing_stale() -> None:
     """The stall in the receiving thread: 100 commands meanwhile, over the whole 2 s stall."""
     route = command_route(rate={"policy": "latest"})
-    runner, _, _ = runner_for(CommandPolicy(allow=(".*",), max_age_ms=200), route)
-    after, resumed_us = stalled(runner, stall_s=2.0, send_for_s=2.0)
+    policy = CommandPolicy(allow=(".*",), max_age_ms=200)
+    runner, after, resumed_us = stalled(route, policy, stall_s=2.0, send_for_s=2.0)
     assert len(after) <= 1, after
     for received_us in after:
         # at most the age limit when taken (+ the handover)
@@ -161,8 +164,8 @@ def test_a_stalled_command_route_sends_at_most_one_afterwards_and_nothing_stale(
 def test_commands_that_went_stale_during_a_stall_are_never_sent() -> None:
     """100 commands in the first half second of a 2 s stall: all older than 200 ms when it ends."""
     route = command_route(rate={"policy": "latest"})
-    runner, _, _ = runner_for(CommandPolicy(allow=(".*",), max_age_ms=200), route)
-    after, _ = stalled(runner, stall_s=2.0, send_for_s=0.5)
+    policy = CommandPolicy(allow=(".*",), max_age_ms=200)
+    runner, after, _ = stalled(route, policy, stall_s=2.0, send_for_s=0.5)
     assert after == []
     assert runner.snapshot()["held"]["/lcm_in/IIWA_COMMAND"]["stale"] == 1  # the newest, taken and dropped
 

@@ -30,9 +30,10 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import ClientConnection, connect
 from websockets.typing import Origin, Subprotocol
 
-from tests.conftest import lcm_url, publish_until
+from tests.conftest import CHILDREN, lcm_url, publish_until
 from tests.formats import oracle
 from tests.peers import BridgeProcess
+from tests.sdk_race import making_channels
 from tests.test_router import LcmRecorder, start_drake
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
@@ -96,11 +97,18 @@ class FoxgloveClient:
 
 class WsProtocolClient:
     """Foxglove's `@foxglove/ws-protocol` FoxgloveClient in a Node.js process, subscribed to
-    `topics` as they are advertised; it prints what it receives as JSON lines."""
+    `topics` as they are advertised; it prints what it receives as JSON lines. With `resubscribe`
+    False it never subscribes again after the server refused a subscription."""
 
-    def __init__(self, port: int, *topics: str) -> None:
-        command = ["node", str(NODE_CLIENT), f"ws://127.0.0.1:{port}", *topics]
-        self.process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    def __init__(self, port: int, *topics: str, resubscribe: bool = True) -> None:
+        once = [] if resubscribe else ["--no-resubscribe"]
+        command = ["node", str(NODE_CLIENT), *once, f"ws://127.0.0.1:{port}", *topics]
+        # A process group of its own, in this session: the kernel schedules a session as one group
+        # (autogroup), and tests/sdk_race.py needs the client weighed as this process's threads are.
+        self.process = subprocess.Popen(
+            command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, process_group=0
+        )
+        CHILDREN.add(self.process)  # ended with the test all the same
         self.subprotocol: str | None = None
         self.events: list[dict[str, Any]] = []  # every line, errors included (shown when a wait fails)
         self.channels: dict[str, dict[str, Any]] = {}  # topic -> advertised channel
@@ -503,6 +511,47 @@ def test_a_client_that_subscribes_before_its_channel_is_stored_is_counted(
         transport.close()
 
 
+def test_a_client_that_never_subscribes_again_gets_every_topic_advertised_during_the_sdks_race() -> None:
+    """Foxglove's ws-protocol client, told not to subscribe again by itself, subscribes to each
+    topic the moment it is advertised, while the transport makes the topics on a thread the SDK's
+    subscribe race catches (tests/sdk_race.py): every topic's message reaches it, since the front
+    sends each subscription the SDK refused again. Without that repair this fails."""
+    from viewer_bridge.transports.base import PROTOBUF, MessageType, Publisher, Qos
+    from viewer_bridge.transports.foxglove import FoxgloveSettings, FoxgloveTransport
+
+    transport = FoxgloveTransport(FoxgloveSettings(port=0))
+    topics = [f"/race/{index}" for index in range(30)]
+    client = WsProtocolClient(transport.port, *topics, resubscribe=False)
+    publishers: list[Publisher] = []
+
+    def make() -> None:
+        for topic in topics:
+            publishers.append(
+                transport.publisher(topic, MessageType("foxglove.FrameTransforms", PROTOBUF), Qos())
+            )
+            time.sleep(0.02)
+
+    try:
+        assert client.pump(60, lambda: bool(client.seen("serverInfo"))), client.log()
+        with making_channels(make, peers=[client.process.pid]):
+            pass
+        assert len(publishers) == len(topics)
+        deadline = time.monotonic() + 60
+        while not all(each.subscriber_count() for each in publishers) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        for publisher in publishers:
+            publisher.publish(FrameTransforms().SerializeToString())
+        assert client.pump(60, lambda: set(client.messages) == set(topics)), (
+            sorted(set(topics) - set(client.messages)),
+            client.seen("status"),
+        )
+        assert not [status for status in client.seen("status") if "Unknown channel" in status["message"]]
+        assert transport.errors().get("resubscribed", 0) >= 1, transport.errors()  # the race did happen
+    finally:
+        client.close()
+        transport.close()
+
+
 def test_a_closed_publisher_takes_its_channel_away_and_the_transport_forgets_it() -> None:
     """A route lets a quiet stream go (`stream_idle_s`) by closing its publisher: clients see the
     channel unadvertised, and the transport keeps nothing of it, so a flood of names that comes and
@@ -519,7 +568,7 @@ def test_a_closed_publisher_takes_its_channel_away_and_the_transport_forgets_it(
         assert client.pump(60, lambda: "/lcm/JUNK" in client.channels), client.log()
         publisher.close()
         assert client.pump(60, lambda: "/lcm/JUNK" not in client.channels), client.log()
-        assert transport._channels == {} and transport.context._asked_by == {}
+        assert transport.topics() == [] and transport.context.topics() == []
         again = transport.publisher("/lcm/JUNK", transforms, Qos())
         client.subscribe("/lcm/JUNK")
         assert client.pump(60, lambda: again.subscriber_count() == 1)

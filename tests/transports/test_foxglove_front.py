@@ -1,7 +1,8 @@
 """Who may connect to the Foxglove server: the front's origin check (403) and its limits per
 client (503 past `max_clients`; channels and message size, refused with a status), against the
 `websockets` package's client, which sends an `Origin` header only when told to. And the
-front's answer to the SDK's subscribe race, against a server of that package standing for the SDK."""
+front's answer to the SDK's subscribe race, against a server of that package standing for the SDK,
+and against the installed foxglove-sdk's own server (tests/sdk_race.py brings the race on)."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
+from foxglove import Context, start_server
 from pydantic import ValidationError
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import ClientConnection, connect
@@ -25,6 +27,7 @@ from websockets.sync.server import ServerConnection, serve
 from websockets.typing import Origin, Subprotocol
 
 from tests.fuzz.targets import RecordingConnection
+from tests.sdk_race import ChannelMaker, EagerClient, Subscribers, making_channels
 from viewer_bridge.errors import HandshakeError
 from viewer_bridge.transports import foxglove_front
 from viewer_bridge.transports.base import CDR, MessageType, Qos, Received
@@ -285,7 +288,7 @@ def test_what_a_client_leaves_behind_is_bounded_and_forgotten_when_it_goes() -> 
         publishing.message(
             connection, Message(TEXT, json.dumps({"op": "unadvertise", "channelIds": [index]}).encode())
         )
-    assert len(connection.said) == 3000 and len(publishing._said) == 1000  # the most recent kept
+    assert len(connection.said) == 3000 and publishing.remembered() == (0, 1000)  # the most recent kept
     huge = {"id": 1, "topic": "/lcm_in/" + "x" * 1_000_000, "encoding": "protobuf"}
     publishing.message(
         connection, Message(TEXT, json.dumps({"op": "advertise", "channels": [huge]}).encode())
@@ -293,7 +296,7 @@ def test_what_a_client_leaves_behind_is_bounded_and_forgotten_when_it_goes() -> 
     assert len(json.loads(connection.said[-1])["message"]) < 1100  # a megabyte topic is not repeated whole
     publishing.message(connection, Message(BINARY, b"", "longer than 2048 bytes"))
     publishing.closed(connection)
-    assert not publishing._said and not publishing._channels
+    assert publishing.remembered() == (0, 0)
 
 
 # --- A subscription the SDK refuses before it has listed the channel it advertised ---------------------
@@ -431,7 +434,7 @@ def test_what_a_client_leaves_for_resubscribing_is_bounded() -> None:
         subscribe = {"op": "subscribe", "subscriptions": [{"id": index, "channelId": index}]}
         subscriptions.client_said(json.dumps(subscribe).encode())
         subscriptions.server_said(json.dumps({"op": "advertise", "channels": [{"id": index}]}).encode())
-    assert len(subscriptions._subscriptions) == len(subscriptions._advertised) == MAX_SUBSCRIPTIONS
+    assert subscriptions.remembered() == (MAX_SUBSCRIPTIONS, MAX_SUBSCRIPTIONS)
     oldest, newest = (json.dumps({"op": "status", "level": 2, "message": f"Unknown channel ID: {channel}"}).encode()
                       for channel in (0, 3 * MAX_SUBSCRIPTIONS - 1))  # fmt: skip
     assert subscriptions.server_said(oldest) is None  # forgotten: its status passes
@@ -442,6 +445,84 @@ def test_what_a_client_leaves_for_resubscribing_is_bounded() -> None:
         assert subscriptions.server_said(junk) is None
     subscriptions.client_said(b'{"op": "unsubscribe", "subscriptionIds": [%d]}' % (3 * MAX_SUBSCRIPTIONS - 1))
     assert subscriptions.server_said(newest) is None  # nothing of the client's left to send again
+
+
+# --- The same race on the installed foxglove-sdk's own server (tests/sdk_race.py provokes it) ----------
+
+
+@pytest.fixture
+def sdk_server() -> Iterator[tuple[Context, Subscribers, int]]:
+    """A foxglove-sdk server on a context of its own: the context, what it took subscriptions of,
+    and its port."""
+    context, subscribers = Context(), Subscribers()
+    server = start_server(host="127.0.0.1", port=0, context=context, server_listener=subscribers)
+    yield context, subscribers, server.port
+    server.stop()
+
+
+def test_the_sdk_drops_a_subscription_sent_the_moment_its_channel_is_advertised(
+    sdk_server: tuple[Context, Subscribers, int],
+) -> None:
+    """Without the front: the race the front repairs, shown on the SDK's server (if this fails
+    with nothing refused, the SDK may have fixed its race: the front's repair could go)."""
+    context, subscribers, port = sdk_server
+    maker = ChannelMaker(context, 40)
+    client = EagerClient(port)
+    try:
+        with making_channels(maker):
+            pass
+        # Every subscription answered one way or the other: taken, or refused with the status.
+        assert wait_until(lambda: subscribers.subscribed() | set(client.refused()) == maker.topics), (
+            subscribers.subscribed(),
+            client.statuses,
+        )
+        refused = client.refused()
+    finally:
+        client.close()
+    assert refused, "no subscription of an advertised channel was refused"
+    assert not set(refused) & subscribers.subscribed()  # dropped: the SDK's listener never heard of them
+
+
+def test_through_the_front_every_subscription_sent_the_moment_its_channel_is_advertised_is_taken(
+    sdk_server: tuple[Context, Subscribers, int],
+) -> None:
+    context, subscribers, port = sdk_server
+    front = SubprotocolFront("127.0.0.1", 0, port)
+    maker = ChannelMaker(context, 40)
+    client = EagerClient(front.port)
+    try:
+        with making_channels(maker):
+            pass
+        assert wait_until(lambda: subscribers.subscribed() == maker.topics), (
+            sorted(maker.topics - subscribers.subscribed()),
+            client.statuses,
+        )
+        assert client.statuses == []  # no error reached the client
+        assert front.errors().get("resubscribed", 0) >= 1  # the race happened, and was repaired
+    finally:
+        client.close()
+        front.close()
+
+
+def test_the_front_reads_the_sdks_own_words_for_an_unknown_channel(
+    sdk_server: tuple[Context, Subscribers, int],
+) -> None:
+    """The front knows the refusal by the text and level of the SDK's status: if a new SDK says
+    it otherwise, this fails (and the repair would silently stop working)."""
+    _, _, port = sdk_server
+    channel = 4_000_000  # never made: the SDK answers as it does in its race
+    with connect(
+        f"ws://127.0.0.1:{port}", subprotocols=[Subprotocol("foxglove.sdk.v1")], open_timeout=WAIT
+    ) as ws:
+        assert json.loads(ws.recv(timeout=WAIT))["op"] == "serverInfo"
+        subscribe = json.dumps({"op": "subscribe", "subscriptions": [{"id": 8, "channelId": channel}]})
+        ws.send(subscribe)
+        status = ws.recv(timeout=WAIT)
+    assert isinstance(status, str)
+    subscriptions = Resubscriptions()  # as if the SDK had advertised the channel to this client
+    subscriptions.server_said(json.dumps({"op": "advertise", "channels": [{"id": channel}]}).encode())
+    subscriptions.client_said(subscribe.encode())
+    assert subscriptions.server_said(status.encode()) == (channel, RESUBSCRIBE_DELAYS[0]), status
 
 
 # --- Hostile connections at the door (issue 51) -------------------------------------------------------------

@@ -23,4 +23,4 @@ def test_a_flood_of_names_is_matched_each_time_past_the_bound(monkeypatch: pytes
     for index in range(100):
         match = pattern.fullmatch(f"C{index}")
         assert match is not None and match.group(1) == f"C{index}"
-    assert len(pattern._matches) == 3  # memory never grows with the names
+    assert pattern.remembered == 3  # memory never grows with the names

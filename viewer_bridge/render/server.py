@@ -207,6 +207,12 @@ class Admission:
         self._queue: list[object] = []  # the waiting ones' tickets, first come first
         self._changed = threading.Condition()
 
+    @property
+    def requests(self) -> int:
+        """The requests in now: waiting or admitted."""
+        with self._changed:
+            return self._requests
+
     def enter(self, length: int) -> bool:
         """Whether a request with an upload of `length` bytes is in (then `leave` it): False when
         `max_requests` are in already, or when its turn did not come within `wait_s`."""

@@ -229,15 +229,17 @@ def terms_of(routes: dict[str, RouteSnapshot]) -> list[str]:
 
 
 class Rates:
-    """Messages in and out per second of each route, since the previous snapshot."""
+    """Messages in and out per second of each route, since the previous snapshot (`clock`: the
+    seconds they are measured in)."""
 
-    def __init__(self) -> None:
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self._clock = clock
         self._previous: dict[str, tuple[int, int]] = {}  # route -> (in, out) at the last snapshot
-        self._previous_at = time.monotonic()
+        self._previous_at = clock()
         self.elapsed = 0.0
 
     def of(self, routes: dict[str, RouteSnapshot]) -> dict[str, tuple[float, float]]:
-        now = time.monotonic()
+        now = self._clock()
         self.elapsed, self._previous_at = max(now - self._previous_at, 1e-9), now
         rates = {}
         for name, stats in routes.items():
@@ -259,8 +261,8 @@ class LogLines:
     transports' own errors, and a legend of the counters not explained yet in this run: what a
     log or CI needs, not 30 idle lines."""
 
-    def __init__(self) -> None:
-        self._rates = Rates()
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self._rates = Rates(clock)
         self._explained: set[str] = set()  # legend terms said already
 
     def show(self, snapshot: Snapshot) -> None:
@@ -359,11 +361,11 @@ class ConsoleLog(logging.Handler):
 class LiveTable:
     """A table redrawn in place on the console, with log records printed above it."""
 
-    def __init__(self, console: Console) -> None:
+    def __init__(self, console: Console, clock: Callable[[], float] = time.monotonic) -> None:
         self._console = console
         self._live = Live(Text("starting routes ..."), console=console, auto_refresh=False, transient=False)
         self._live.start()
-        self._rates = Rates()
+        self._rates = Rates(clock)
 
     def show(self, snapshot: Snapshot) -> None:
         routes = snapshot["routes"]

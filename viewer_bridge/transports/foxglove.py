@@ -115,6 +115,11 @@ class FoxgloveContext:
         self._asked_by: dict[str, str] = {}  # topic -> the transport that first asked for it
         self._lock = threading.Lock()
 
+    def topics(self) -> list[str]:
+        """The topics a transport has asked a channel for and not given up."""
+        with self._lock:
+            return sorted(self._asked_by)
+
     def forget(self, topic: str) -> None:
         """`topic` has no channel any more (its stream went quiet): the next to ask is the first."""
         with self._lock:
@@ -453,6 +458,10 @@ class FoxgloveTransport(Transport):
             channel, qos.latched, self._subscribers, self._log_time(), self._forget
         )
         return publisher
+
+    def topics(self) -> list[str]:
+        """The topics it publishes now (a publisher closed takes its topic away)."""
+        return sorted(publisher.channel.topic() for publisher in list(self._channels.values()))
 
     def _forget(self, channel: _Channel) -> None:
         self._channels.pop(channel.id, None)

@@ -99,6 +99,11 @@ class ClientPublishing:
         with self._lock:
             return dict(self._errors)
 
+    def remembered(self) -> tuple[int, int]:
+        """What it keeps of its clients: (channels they advertise, statuses said to them recently)."""
+        with self._lock:
+            return sum(map(len, self._channels.values())), len(self._said)
+
     # --- a front's Reader: called on each client's relay thread
 
     def message(self, connection: Connection, message: Message) -> None:

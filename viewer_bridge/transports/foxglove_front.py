@@ -384,6 +384,11 @@ class Resubscriptions:
             self._attempts[each] = self._attempts.get(each, 0) + 1
         return channel, RESUBSCRIBE_DELAYS[attempt]
 
+    def remembered(self) -> tuple[int, int]:
+        """How many (subscriptions, channels advertised) it keeps, each at most MAX_SUBSCRIPTIONS."""
+        with self._lock:
+            return len(self._subscriptions), len(self._advertised)
+
     def subscribe_op(self, channel: int) -> tuple[str, int] | None:
         """The subscribe op of the client's subscriptions of `channel` it has not ended, and how
         many they are; None when it has ended them all."""

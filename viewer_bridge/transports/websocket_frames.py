@@ -110,6 +110,11 @@ class ClientMessages:
         self._drop = 0  # payload bytes of a skipped frame still to come
         self._fragments = 0  # frames of the message under way (0: none under way)
 
+    @property
+    def held_bytes(self) -> int:
+        """The bytes it holds, not yet consumed (a partial header or payload)."""
+        return len(self._buffer)
+
     def feed(self, chunk: bytes | memoryview) -> list[Message]:
         self._buffer += chunk
         messages: list[Message] = []
@@ -198,6 +203,11 @@ class RelayedStream:
     def between(self) -> bool:
         """True when the pieces returned so far end with a whole message (a frame may go in now)."""
         return not self._in_message and (self._left == 0 or self._held is not None)
+
+    @property
+    def held_bytes(self) -> int:
+        """The bytes it holds back: a text frame as far as it has come, and a header cut short."""
+        return len(self._held or b"") + len(self._header)
 
     def feed(self, chunk: memoryview, cut_first_end: bool = False) -> list[Piece]:
         """Consume `chunk`; its bytes in pieces (those held back come in a later call's pieces)."""

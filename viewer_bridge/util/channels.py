@@ -25,6 +25,11 @@ class ChannelPattern:
         self.pattern = re.compile(pattern)
         self._matches: dict[str, re.Match[str] | None] = {}
 
+    @property
+    def remembered(self) -> int:
+        """How many names' matches are kept (at most MAX_CHANNELS)."""
+        return len(self._matches)
+
     def fullmatch(self, channel: str) -> re.Match[str] | None:
         match = self._matches.get(channel, _UNSEEN)
         if match is _UNSEEN:
