@@ -73,7 +73,7 @@ from common import (
 from router import DEFAULT_ALL, DEFAULT_LATEST, DISCOVERY_S, URL, frame, scene
 from zenoh_routes import _free_port, zenoh_session
 
-from viewer_bridge.config.bridge import BUILTIN_CONFIGS, load_config
+from viewer_bridge.config.bridge import BUILTIN_CONFIGS, DEFAULT_CONFIG, load_config
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.router.workers import place
@@ -100,7 +100,7 @@ BUS_HALVES = ("WORKERS_IIWA_[01][0-9]", "WORKERS_IIWA_[23][0-9]")  # the split l
 class Bridge:
     """`viewer-bridge run -c FILE --workers N` as a process, on `cores` (None: any)."""
 
-    def __init__(self, config: str, workers: int, folder: Path, cores: set[int] | None) -> None:
+    def __init__(self, config: str, workers: int | str, folder: Path, cores: set[int] | None) -> None:
         path = folder / "workers.yaml"
         path.write_text(config)
         self.stats = folder / "stats.json"
@@ -111,7 +111,7 @@ class Bridge:
         self.process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, preexec_fn=preexec)
         assert self.process.stderr is not None
         self.placement: list[str] = []  # the parent's line per worker: its pid and its routes
-        ready = " running (" if workers == 1 else " running"
+        ready = " running"  # "N routes running (...)" in one process, "N workers running" with workers
         for line in self.process.stderr:
             if ": worker " in line and " (pid " in line:
                 self.placement.append(line.split("viewer-bridge: ", 1)[-1].strip())
@@ -184,17 +184,26 @@ def draws(names: tuple[str, ...], how_many: int = 64) -> list[bytes]:
 
 
 def draw_run(
-    label: str, config: str, workers: int, pinned: bool, folder: Path, seconds: float
+    label: str,
+    config: str,
+    workers: int | str,
+    pinned: bool,
+    folder: Path,
+    seconds: float,
+    large: bool = True,
+    counted: list[str] | None = None,
 ) -> dict[str, float]:
-    """One bridge, 1000-link draws at 2 kHz: delivered per route, and CPU per draw."""
+    """One bridge, 1000-link draws at 2 kHz: delivered per route, and CPU per draw; `large`: with
+    `ros.shared_memory_mb: 32` (`LARGE_MESSAGES`); `counted`: the routes subscribed to (default:
+    those of `DRAW_TOPICS` in the config)."""
     the_scene = scene(LINKS)
     encoded = draws(tuple(link.name for link in the_scene.links))
     everywhere = os.sched_getaffinity(0)
     if pinned:
         os.sched_setaffinity(0, {1})  # the publisher and the subscribers; the bridge gets CPU 0
     try:
-        bridge = Bridge(LARGE_MESSAGES + config, workers, folder, {0} if pinned else None)
-        routes = routes_of(config)
+        bridge = Bridge((LARGE_MESSAGES if large else "") + config, workers, folder, {0} if pinned else None)
+        routes = counted or routes_of(config)
         counter = DdsCounter({route: DRAW_TOPICS[route] for route in routes})
         bus = LcmBus(URL)
         settle(counter.sees_bridge, DISCOVERY_S)
@@ -258,6 +267,18 @@ DRAW_SETUPS = {  # label -> (config, workers, pinned to CPU 0)
     # every draw when a late one may wait, where `latest` gives up the older of two at each stall.
     "2 workers, pinned by worker: K, policy all": (with_workers(DEFAULT_ALL, SPLIT_DRAWS), 2, False),
 }
+
+
+# The held-out soak's shape: the built-in default config as it ships (every route, lazy ones idle, no
+# larger DDS segment), an rclpy subscriber on poses and TF only, `--workers` 1, 2 and auto.
+SOAK_CONFIG = DEFAULT_CONFIG.replace("port: 8765", "port: 0")  # any free port: the machine is shared
+SOAK_ROUTES = ["poses", "tf"]
+SOAK_SETUPS = {"default config, --workers 1": "1", "default config, --workers 2": "2",
+               "default config, --workers auto": "auto"}  # fmt: skip
+
+
+def soak_run(label: str, workers: str, folder: Path, seconds: float) -> dict[str, float]:
+    return draw_run(label, SOAK_CONFIG, workers, False, folder, seconds, large=False, counted=SOAK_ROUTES)
 
 
 # 2. Small messages ---------------------------------------------------------------------------
@@ -390,6 +411,11 @@ BUS_SETUPS = {"1 worker": 1, "2 workers, lcm_bus split and pinned": 2}
 # Both ----------------------------------------------------------------------------------------
 
 
+def load_average() -> str:
+    """The machine's load over the last 1, 5 and 15 minutes, and its cores: how busy it was."""
+    return f"{' '.join(Path('/proc/loadavg').read_text().split()[:3])} on {os.cpu_count()} cores"
+
+
 def keep(best: dict[str, dict[str, float]], label: str, result: dict[str, float]) -> None:
     """`best[label]` is the better round, whole (its figures are not mixed with another round's): the
     one that delivered more (draws: the least delivered route; small messages: per second)."""
@@ -410,6 +436,12 @@ def compare(
             for _ in range(rounds):
                 for label, (config, workers, pinned) in DRAW_SETUPS.items():
                     keep(best, label, draw_run(label, config, workers, pinned, folder, seconds))
+        if "soak" in parts:
+            print(f"0. the held-out soak's shape: {LINKS}-link draws at {DRAW_HZ:g} Hz for {seconds:g} s, the "
+                  f"built-in default config, an rclpy subscriber on poses and tf; load {load_average()}")  # fmt: skip
+            for _ in range(rounds):
+                for label, workers in SOAK_SETUPS.items():
+                    keep(best, label, soak_run(label, workers, folder, seconds))
         if "bus" in parts:
             endpoint = f"tcp/127.0.0.1:{_free_port()}"
             print(f"2. {len(BUS_CHANNELS)} channels of lcmt_iiwa_status at {BUS_HZ:g} Hz each for {seconds:g} s "
@@ -523,14 +555,14 @@ def main() -> None:
     )
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--only", choices=["draws", "bus"], help="one of the two loads")
+    parser.add_argument("--only", choices=["soak", "draws", "bus"], help="one of the loads")
     parser.add_argument("--publish", nargs=3, metavar=("URL", "CHANNELS", "HZ"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.publish:
         url, channels, rate = args.publish
         publisher_child(url, channels.split(","), float(rate))
         return
-    best = compare(args.seconds, args.rounds, (args.only,) if args.only else ("draws", "bus"))
+    best = compare(args.seconds, args.rounds, (args.only,) if args.only else ("soak", "draws", "bus"))
     print("\nbest of the rounds:")
     for label, figures in best.items():
         print(f"   {label:<36} " + ", ".join(f"{key} {value:.4g}" for key, value in figures.items()))
