@@ -549,18 +549,158 @@ def whole_run(setup: str, two: dict[str, float], one: dict[str, float]) -> list[
     ]  # fmt: skip
 
 
+# 3. A model past this machine ------------------------------------------------------------------
+#
+# CPU per message of the bus load, per worker, as the worker count N grows, for three designs:
+#   every worker reads every datagram (today): a worker pays `receive` for every message on the bus
+#     and `work` for its 1/N share:        receive + work / N          (the bus: N * receive + work)
+#   one receiver hands channels to workers over pipes: the receiver pays receive + send for every
+#     message, a worker (take + work) for its share: the receiver's receive + send caps the rate
+#   channels split across multicast groups (or filtered by channel in the kernel) by worker: a
+#     worker reads only its share:         (receive + work) / N
+# `receive` and `work` are fitted to the two measured points (the bridge's CPU per message with
+# --workers 1 and 2: c1 = receive + work, c2 = 2 receive + work); send and take are a pipe's, measured.
+
+MODEL_WORKERS = (1, 2, 3, 4, 6, 8, 12, 16)
+DESIGNS = ("every worker reads all", "one receiver, pipes", "multicast group per worker")
+
+
+def fit(one: float, two: float) -> tuple[float, float]:
+    """(receive, work) in us per message from the bridge's CPU per message with 1 and 2 workers."""
+    receive = max(0.0, two - one)
+    return receive, max(0.0, one - receive)
+
+
+def _take(connection: Any, count: int, answer: Any) -> None:
+    started = time.process_time()
+    for _ in range(count):
+        connection.recv_bytes()
+    answer.send(time.process_time() - started)
+
+
+def pipe_costs(size: int = 700, count: int = 20000) -> tuple[float, float]:
+    """(send, take) CPU us per message of `size` bytes through a pipe to another process."""
+    import multiprocessing
+
+    spawn = multiprocessing.get_context("spawn")
+    take, give = spawn.Pipe(duplex=False)
+    answer_in, answer_out = spawn.Pipe(duplex=False)
+    child = spawn.Process(target=_take, args=(take, count, answer_out))
+    child.start()
+    data = b"x" * size
+    started = time.process_time()
+    for _ in range(count):
+        give.send_bytes(data)
+    sent = time.process_time() - started
+    taken = answer_in.recv()
+    child.join()
+    return sent / count * 1e6, taken / count * 1e6
+
+
+def model(
+    receive: float, work: float, send: float, take: float, workers: int
+) -> dict[str, tuple[float, float]]:
+    """Per design: (the most messages a second it carries when each process has a core of its own,
+    the CPU us a message costs its processes together)."""
+    every = receive + work / workers
+    receiver, share = receive + send, (take + work) / workers  # the receiver is a process more
+    split = (receive + work) / workers
+    return {
+        DESIGNS[0]: (1e6 / every, workers * receive + work),
+        DESIGNS[1]: (1e6 / max(receiver, share), receive + send + take + work),
+        DESIGNS[2]: (1e6 / split, receive + work),
+    }
+
+
+def model_table(one: float, two: float, send: float, take: float) -> str:
+    receive, work = fit(one, two)
+    lines = [f"measured: --workers 1 {one:.1f} us/message, --workers 2 {two:.1f} (both processes); fitted: "
+             f"receive {receive:.1f} us, work {work:.1f} us a message; a pipe: send {send:.1f}, take {take:.1f} us",
+             "| workers | " + " | ".join(f"{d}: most msgs/s | CPU us/msg, all processes" for d in DESIGNS) + " |",
+             "|---:|" + "---:|---:|" * len(DESIGNS)]  # fmt: skip
+    for workers in MODEL_WORKERS:
+        row = model(receive, work, send, take, workers)
+        cells = " | ".join(f"{row[d][0]:,.0f} | {row[d][1]:.1f}" for d in DESIGNS)
+        measured = {
+            1: f" (measured: {1e6 / one:,.0f}, {one:.1f})",
+            2: f" (measured: {2e6 / two:,.0f}, {two:.1f})",
+        }
+        lines.append(f"| {workers}{measured.get(workers, '')} | {cells} |")
+    return "\n".join(lines)
+
+
+def model_figure(path: Path, one: float, two: float, send: float, take: float) -> None:
+    """The model's most messages a second against workers, one line per design, as a PNG."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    receive, work = fit(one, two)
+    width, height, margin = 900, 520, 80
+    image = Image.new("RGB", (width, height), "white")
+    draw = ImageDraw.Draw(image)
+    font = ImageFont.truetype("/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", 15)
+    rates = {d: [model(receive, work, send, take, n)[d][0] for n in range(1, 17)] for d in DESIGNS}
+    top = max(max(values) for values in rates.values()) * 1.05
+
+    def at(workers: int, rate: float) -> tuple[float, float]:
+        return (margin + (workers - 1) / 15 * (width - 2 * margin),
+                height - margin - rate / top * (height - 2 * margin))  # fmt: skip
+
+    draw.line([at(1, 0), at(16, 0)], fill="black")
+    draw.line([at(1, 0), at(1, top)], fill="black")
+    for workers in (1, 2, 4, 8, 12, 16):
+        x, y = at(workers, 0)
+        draw.text((x - 5, y + 8), str(workers), fill="black", font=font)
+    for step in range(0, 6):
+        rate = top * step / 5
+        x, y = at(1, rate)
+        draw.text((x - 72, y - 8), f"{rate / 1000:,.0f}k", fill="black", font=font)
+    draw.text((width / 2 - 60, height - 35), "worker processes", fill="black", font=font)
+    draw.text((margin, 15), f"most messages a second, each process on a core (fit: receive {receive:.1f} us, "
+              f"work {work:.1f} us, pipe {send:.1f} + {take:.1f} us)", fill="black", font=font)  # fmt: skip
+    for index, (design, color) in enumerate(
+        zip(DESIGNS, ("firebrick", "darkorange", "seagreen"), strict=True)
+    ):
+        draw.line([at(n, rate) for n, rate in enumerate(rates[design], start=1)], fill=color, width=3)
+        draw.text((margin + 20, 45 + 20 * index), design, fill=color, font=font)
+    for workers, busiest in ((1, one), (2, two / 2)):  # measured: a worker's share of the 2 is half the sum
+        x, y = at(workers, 1e6 / busiest)
+        draw.ellipse([x - 5, y - 5, x + 5, y + 5], outline="black", width=2)
+    image.save(path)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--only", choices=["soak", "draws", "bus"], help="one of the loads")
+    parser.add_argument(
+        "--only", choices=["soak", "draws", "bus", "model"], help="one of the loads, or the model"
+    )
+    parser.add_argument(
+        "--fit",
+        nargs=2,
+        type=float,
+        metavar=("C1", "C2"),
+        help="the model from these us/message with 1 and 2 workers, without measuring them",
+    )
+    parser.add_argument("--figure", type=Path, help="with --only model: draw the model as this PNG")
     parser.add_argument("--publish", nargs=3, metavar=("URL", "CHANNELS", "HZ"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.publish:
         url, channels, rate = args.publish
         publisher_child(url, channels.split(","), float(rate))
+        return
+    if args.only == "model":
+        if args.fit:
+            one, two = args.fit
+        else:
+            best = compare(args.seconds, args.rounds, ("bus",))
+            one, two = (best[label]["cpu_us_per_message"] for label in BUS_SETUPS)
+        send, take = pipe_costs()
+        print(model_table(one, two, send, take))
+        if args.figure:
+            model_figure(args.figure, one, two, send, take)
         return
     best = compare(args.seconds, args.rounds, (args.only,) if args.only else ("soak", "draws", "bus"))
     print("\nbest of the rounds:")

@@ -9,10 +9,17 @@ one status view and `--stats-json`, restarts a worker that dies (counted and log
 run on), and on Ctrl-C or SIGTERM stops them all and waits for them.
 
 Placement (`place`): a route pinned with `worker: K` runs on worker K. The others are grouped by
-source, transport and pattern (routes that read the same messages share one decode and one
-stream state, and stay together), and each group goes to the worker with the fewest routes so
-far. Only routes whose transports may be opened by several processes at once
-(`Transport.several_processes`: a bus, not a server's port or a file) leave worker 0.
+source, transport and pattern, and groups that may read a same channel (one's pattern matches a
+name the other's reads) are merged: routes that read the same messages share one receive, one
+decode and one stream state, and stay together. Each group goes to the worker with the fewest
+routes so far, or to worker 0 when it reads what a route kept there reads. Only routes whose
+transports may be opened by several processes at once (`Transport.several_processes`: a bus,
+not a server's port or a file) leave worker 0.
+
+Every worker still reads every LCM datagram (LCM has no per-channel socket), so on a machine
+with fewer free cores than the workers and their peers a worker costs more than it brings: the
+parent watches how long its workers wait for a core and says so (`viewer_bridge.router.cores`),
+and `--workers auto` counts the free cores.
 """
 
 from __future__ import annotations
