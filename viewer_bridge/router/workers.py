@@ -150,6 +150,21 @@ def _expand(items: list[tuple[Any, Any]]) -> list[str]:
     return names
 
 
+def _member(items: list[tuple[Any, Any]]) -> str:
+    """A character a set `[...]` matches: its first member, or for `[^...]` one it does not list."""
+    if items and items[0][0] is re_constants.NEGATE:
+        listed = {chr(value) for kind, value in items if kind is re_constants.LITERAL}
+        return next(character for character in "x_0Z" if character not in listed)
+    for kind, value in items:
+        if kind is re_constants.LITERAL:
+            return chr(value)
+        if kind is re_constants.RANGE:
+            return chr(value[0])
+        if kind is re_constants.CATEGORY:
+            return "0" if "DIGIT" in str(value) else "x"
+    return "x"
+
+
 def _choices(opcode: Any, argument: Any) -> list[str]:
     """The strings one parsed regex item stands for, a sample; [] for what matches no character."""
     if opcode is re_constants.LITERAL:
@@ -157,12 +172,7 @@ def _choices(opcode: Any, argument: Any) -> list[str]:
     if opcode is re_constants.ANY:
         return ["x"]
     if opcode is re_constants.IN:
-        for kind, value in argument:
-            if kind is re_constants.LITERAL:
-                return [chr(value)]
-            if kind is re_constants.RANGE:
-                return [chr(value[0])]
-        return ["x"]
+        return [_member(argument)]
     if opcode is re_constants.BRANCH:
         return [name for branch in argument[1] for name in _expand(list(branch))][:_MAX_EXAMPLES]
     if opcode is re_constants.SUBPATTERN:
