@@ -11,8 +11,8 @@ import pytest
 
 from tests.router.test_placement import relay
 from viewer_bridge.config.bridge import BridgeConfig, load_config
-from viewer_bridge.router.cores import CoreSample, CoreWatch, auto_workers, competing, useful_workers
-from viewer_bridge.router.workers import Snapshot, Started
+from viewer_bridge.router.cores import CoreSample, CoreWatch, competing
+from viewer_bridge.router.workers import Snapshot, Started, auto_workers, useful_workers
 
 FOUR_SOURCES = BridgeConfig.model_validate({"routes": [relay(name, name.upper()) for name in "abcd"]})
 

@@ -25,10 +25,9 @@ from viewer_bridge.cli.arguments import (
 from viewer_bridge.config.bridge import BUILTIN_CONFIGS, BridgeConfig, load_config
 from viewer_bridge.errors import ConfigError, UsageError
 from viewer_bridge.examples.demo import run_demo
-from viewer_bridge.router.cores import auto_workers
 from viewer_bridge.router.router import Router
 from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines, StatusView
-from viewer_bridge.router.workers import Workers
+from viewer_bridge.router.workers import Workers, auto_workers
 from viewer_bridge.transports.command_policy import COMMAND_FLAG
 from viewer_bridge.transports.lcm import DEFAULT_URL
 from viewer_bridge.transports.lcm_url import log_to_write

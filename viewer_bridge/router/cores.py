@@ -6,10 +6,9 @@ of its routes' share. Where the machine has fewer free cores than the workers an
 simulation publishing, the viewers subscribing), a second worker takes a core the first one, the
 publisher or a subscriber needed, and delivers less than one worker did. So:
 
-- `auto_workers`: a worker per core left free once one is kept for the peers (which the bridge
-  cannot see before they start), and no more than the config's routes can use (`place` over as
-  many workers as routes: a worker per group of routes), at least 1, and enough for every
-  route's `worker: K`.
+- `usable_cores`, `busy_cores_now`: what `--workers auto` (`workers.auto_workers`) counts: a
+  worker per core left free once `PEER_CORES` is kept for the peers (which the bridge cannot see
+  before they start), and no more than the config's routes can use.
 - `CoreWatch`: once per stats period, the time the workers' threads spent ready to run but waiting
   for a core (the scheduler's run-queue delay, /proc/PID/task/*/schedstat), against the time they
   ran; `competing` says when that delay is a large share of their work, with what the machine did.
@@ -17,14 +16,10 @@ publisher or a subscriber needed, and delivers less than one worker did. So:
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
-
-from viewer_bridge.config.bridge import BridgeConfig
 
 PEER_CORES = 1  # kept free for the publishers and subscribers on the same machine
 WAIT_SHARE = 0.25  # run-queue delay per second run above which workers compete for cores
@@ -68,43 +63,6 @@ def busy_cores_now(seconds: float = _SAMPLE_S) -> float:
     before, started = machine_busy_seconds()[0], time.monotonic()
     time.sleep(seconds)
     return (machine_busy_seconds()[0] - before) / (time.monotonic() - started)
-
-
-def useful_workers(config: BridgeConfig) -> int:
-    """The most workers `config`'s routes can use: a worker per group of routes `place` makes, and
-    at least one past every route's `worker: K`."""
-    from viewer_bridge.router.workers import place  # workers.py imports this module
-
-    pinned = max((route.worker + 1 for route in config.routes if route.worker is not None), default=1)
-    groups = sum(1 for routes in place(config, max(pinned, len(config.routes), 1)) if routes)
-    return max(groups, pinned, 1)
-
-
-class WorkerCount(NamedTuple):
-    """What `--workers auto` chose, and from what."""
-
-    workers: int
-    cores: int  # usable by the bridge
-    busy: float  # cores the machine kept busy before the bridge started
-    useful: int  # the most workers the routes can use
-
-    def why(self) -> str:
-        return (
-            f"--workers auto: {self.workers} ({self.cores} usable cores, {self.busy:.1f} busy, "
-            f"{PEER_CORES} kept for the peers; the routes can use {self.useful})"
-        )
-
-
-def auto_workers(config: BridgeConfig, cores: int | None = None, busy: float | None = None) -> WorkerCount:
-    """`--workers auto`: the cores free of other work (`cores`: default this process's usable cores;
-    `busy`: default how many cores the machine keeps busy now), less `PEER_CORES`, at most
-    `useful_workers(config)`, at least 1 (and enough for every route's `worker: K`)."""
-    cores = usable_cores() if cores is None else cores
-    busy = busy_cores_now() if busy is None else busy
-    spare = math.floor(max(0.0, cores - busy) + 0.25) - PEER_CORES  # 0.75 of a core free counts as one
-    pinned = max((route.worker + 1 for route in config.routes if route.worker is not None), default=1)
-    useful = useful_workers(config)
-    return WorkerCount(max(1, pinned, min(spare, useful)), cores, busy, useful)
 
 
 @dataclass(frozen=True)
@@ -164,4 +122,4 @@ class CoreWatch:
         )
 
 
-__all__ = ["CoreSample", "CoreWatch", "WorkerCount", "auto_workers", "competing", "useful_workers"]
+__all__ = ["PEER_CORES", "CoreSample", "CoreWatch", "busy_cores_now", "competing", "usable_cores"]

@@ -27,6 +27,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import logging
+import math
 import multiprocessing
 import os
 import re
@@ -45,7 +46,7 @@ from typing import Any, NamedTuple
 from viewer_bridge.config.bridge import BridgeConfig, Route
 from viewer_bridge.errors import BridgeError, UsageError
 from viewer_bridge.router import stats
-from viewer_bridge.router.cores import CoreWatch, competing
+from viewer_bridge.router.cores import PEER_CORES, CoreWatch, busy_cores_now, competing, usable_cores
 from viewer_bridge.router.router import Router
 from viewer_bridge.router.status import LogLines, StatusView
 from viewer_bridge.transports.registry import TRANSPORTS
@@ -189,6 +190,41 @@ def _spreadable(route: Route) -> bool:
     """Whether a route may run outside worker 0: every process may open both of its transports."""
     ends = (route.source.transport, route.destination.transport)
     return all(TRANSPORTS.get(name).several_processes for name in ends)
+
+
+def useful_workers(config: BridgeConfig) -> int:
+    """The most workers `config`'s routes can use: a worker per group of routes `place` makes, and
+    at least one past every route's `worker: K`."""
+    pinned = max((route.worker + 1 for route in config.routes if route.worker is not None), default=1)
+    groups = sum(1 for routes in place(config, max(pinned, len(config.routes), 1)) if routes)
+    return max(groups, pinned, 1)
+
+
+class WorkerCount(NamedTuple):
+    """What `--workers auto` chose, and from what."""
+
+    workers: int
+    cores: int  # usable by the bridge
+    busy: float  # cores the machine kept busy before the bridge started
+    useful: int  # the most workers the routes can use
+
+    def why(self) -> str:
+        return (
+            f"--workers auto: {self.workers} ({self.cores} usable cores, {self.busy:.1f} busy, "
+            f"{PEER_CORES} kept for the peers; the routes can use {self.useful})"
+        )
+
+
+def auto_workers(config: BridgeConfig, cores: int | None = None, busy: float | None = None) -> WorkerCount:
+    """`--workers auto`: the cores free of other work (`cores`: default this process's usable cores;
+    `busy`: default how many cores the machine keeps busy now), less `PEER_CORES`, at most
+    `useful_workers(config)`, at least 1 (and enough for every route's `worker: K`)."""
+    cores = usable_cores() if cores is None else cores
+    busy = busy_cores_now() if busy is None else busy
+    spare = math.floor(max(0.0, cores - busy) + 0.25) - PEER_CORES  # 0.75 of a core free counts as one
+    pinned = max((route.worker + 1 for route in config.routes if route.worker is not None), default=1)
+    useful = useful_workers(config)
+    return WorkerCount(max(1, pinned, min(spare, useful)), cores, busy, useful)
 
 
 @dataclass
@@ -463,4 +499,13 @@ def _serve(index: int, config: BridgeConfig, stats_period: float, connection: Co
         raise SystemExit(128 + signal.SIGTERM)
 
 
-__all__ = ["Snapshot", "Started", "WorkerMessage", "Workers", "place"]
+__all__ = [
+    "Snapshot",
+    "Started",
+    "WorkerCount",
+    "WorkerMessage",
+    "Workers",
+    "auto_workers",
+    "place",
+    "useful_workers",
+]
