@@ -122,9 +122,8 @@ def worker_count(text: str) -> int:
     return _whole(text, "a number of workers", 1, 256, "workers are 1 to 256")
 
 
-AUTO = (
-    "auto"  # --workers auto: the bridge counts the free cores (`viewer_bridge.router.workers.auto_workers`)
-)
+# --workers auto: the bridge counts the free cores (`viewer_bridge.router.workers.auto_workers`).
+AUTO = "auto"
 
 
 def worker_count_or_auto(text: str) -> int | str:
