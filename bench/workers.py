@@ -74,7 +74,7 @@ from common import (
 from router import DEFAULT_ALL, DEFAULT_LATEST, DISCOVERY_S, URL, frame, scene
 from zenoh_routes import _free_port, zenoh_session
 
-from viewer_bridge.config.bridge import BUILTIN_CONFIGS, load_config
+from viewer_bridge.config.bridge import BUILTIN_CONFIGS, DEFAULT_CONFIG, load_config
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import load_from_scene
 from viewer_bridge.router.workers import place
@@ -101,7 +101,7 @@ BUS_HALVES = ("WORKERS_IIWA_[01][0-9]", "WORKERS_IIWA_[23][0-9]")  # the split l
 class Bridge:
     """`viewer-bridge run -c FILE --workers N` as a process, on `cores` (None: any)."""
 
-    def __init__(self, config: str, workers: int, folder: Path, cores: set[int] | None) -> None:
+    def __init__(self, config: str, workers: int | str, folder: Path, cores: set[int] | None) -> None:
         path = folder / "workers.yaml"
         path.write_text(config)
         self.stats = folder / "stats.json"
@@ -112,7 +112,7 @@ class Bridge:
         self.process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, preexec_fn=preexec)
         assert self.process.stderr is not None
         self.placement: list[str] = []  # the parent's line per worker: its pid and its routes
-        ready = " running (" if workers == 1 else " running"
+        ready = " running"  # "N routes running (...)" in one process, "N workers running" with workers
         for line in self.process.stderr:
             if ": worker " in line and " (pid " in line:
                 self.placement.append(line.split("viewer-bridge: ", 1)[-1].strip())
@@ -185,17 +185,26 @@ def draws(names: tuple[str, ...], how_many: int = 64) -> list[bytes]:
 
 
 def draw_run(
-    label: str, config: str, workers: int, pinned: bool, folder: Path, seconds: float
+    label: str,
+    config: str,
+    workers: int | str,
+    pinned: bool,
+    folder: Path,
+    seconds: float,
+    large: bool = True,
+    counted: list[str] | None = None,
 ) -> dict[str, float]:
-    """One bridge, 1000-link draws at 2 kHz: delivered per route, and CPU per draw."""
+    """One bridge, 1000-link draws at 2 kHz: delivered per route, and CPU per draw; `large`: with
+    `ros.shared_memory_mb: 32` (`LARGE_MESSAGES`); `counted`: the routes subscribed to (default:
+    those of `DRAW_TOPICS` in the config)."""
     the_scene = scene(LINKS)
     encoded = draws(tuple(link.name for link in the_scene.links))
     everywhere = os.sched_getaffinity(0)
     if pinned:
         os.sched_setaffinity(0, {1})  # the publisher and the subscribers; the bridge gets CPU 0
     try:
-        bridge = Bridge(LARGE_MESSAGES + config, workers, folder, {0} if pinned else None)
-        routes = routes_of(config)
+        bridge = Bridge((LARGE_MESSAGES if large else "") + config, workers, folder, {0} if pinned else None)
+        routes = counted or routes_of(config)
         counter = DdsCounter({route: DRAW_TOPICS[route] for route in routes})
         bus = LcmBus(URL)
         settle(counter.sees_bridge, DISCOVERY_S)
@@ -259,6 +268,18 @@ DRAW_SETUPS = {  # label -> (config, workers, pinned to CPU 0)
     # every draw when a late one may wait, where `latest` gives up the older of two at each stall.
     "2 workers, pinned by worker: K, policy all": (with_workers(DEFAULT_ALL, SPLIT_DRAWS), 2, False),
 }
+
+
+# The held-out soak's shape: the built-in default config as it ships (every route, lazy ones idle, no
+# larger DDS segment), an rclpy subscriber on poses and TF only, `--workers` 1, 2 and auto.
+SOAK_CONFIG = DEFAULT_CONFIG.replace("port: 8765", "port: 0")  # any free port: the machine is shared
+SOAK_ROUTES = ["poses", "tf"]
+SOAK_SETUPS = {"default config, --workers 1": "1", "default config, --workers 2": "2",
+               "default config, --workers auto": "auto"}  # fmt: skip
+
+
+def soak_run(label: str, workers: str, folder: Path, seconds: float) -> dict[str, float]:
+    return draw_run(label, SOAK_CONFIG, workers, False, folder, seconds, large=False, counted=SOAK_ROUTES)
 
 
 # 2. Small messages ---------------------------------------------------------------------------
@@ -391,6 +412,11 @@ BUS_SETUPS = {"1 worker": 1, "2 workers, lcm_bus split and pinned": 2}
 # Both ----------------------------------------------------------------------------------------
 
 
+def load_average() -> str:
+    """The machine's load over the last 1, 5 and 15 minutes, and its cores: how busy it was."""
+    return f"{' '.join(Path('/proc/loadavg').read_text().split()[:3])} on {os.cpu_count()} cores"
+
+
 def keep(best: dict[str, dict[str, float]], label: str, result: dict[str, float]) -> None:
     """`best[label]` is the better round, whole (its figures are not mixed with another round's): the
     one that delivered more (draws: the least delivered route; small messages: per second)."""
@@ -411,6 +437,12 @@ def compare(
             for _ in range(rounds):
                 for label, (config, workers, pinned) in DRAW_SETUPS.items():
                     keep(best, label, draw_run(label, config, workers, pinned, folder, seconds))
+        if "soak" in parts:
+            print(f"0. the held-out soak's shape: {LINKS}-link draws at {DRAW_HZ:g} Hz for {seconds:g} s, the "
+                  f"built-in default config, an rclpy subscriber on poses and tf; load {load_average()}")  # fmt: skip
+            for _ in range(rounds):
+                for label, workers in SOAK_SETUPS.items():
+                    keep(best, label, soak_run(label, workers, folder, seconds))
         if "bus" in parts:
             endpoint = f"tcp/127.0.0.1:{_free_port()}"
             print(f"2. {len(BUS_CHANNELS)} channels of lcmt_iiwa_status at {BUS_HZ:g} Hz each for {seconds:g} s "
@@ -518,20 +550,165 @@ def whole_run(setup: str, two: dict[str, float], one: dict[str, float]) -> list[
     ]  # fmt: skip
 
 
+# 3. A model past this machine ------------------------------------------------------------------
+#
+# CPU per message of the bus load, per worker, as the worker count N grows, for three designs:
+#   every worker reads every datagram (today): a worker pays `receive` for every message on the bus
+#     and `work` for its 1/N share:        receive + work / N          (the bus: N * receive + work)
+#   one receiver hands channels to workers over pipes: the receiver pays receive + send for every
+#     message, a worker (take + work) for its share: the receiver's receive + send caps the rate
+#   channels split across multicast groups (or filtered by channel in the kernel) by worker: a
+#     worker reads only its share:         (receive + work) / N
+# `receive` and `work` are fitted to the two measured points (the bridge's CPU per message taken in
+# with --workers 1 and 2: c1 = receive + work, c2 = 2 receive + work); send and take are a pipe's,
+# measured.
+
+MODEL_WORKERS = (1, 2, 3, 4, 6, 8, 12, 16)
+DESIGNS = ("every worker reads all", "one receiver, pipes", "multicast group per worker")
+
+
+def fit(one: float, two: float) -> tuple[float, float]:
+    """(receive, work) in us per message from the bridge's CPU per message with 1 and 2 workers."""
+    receive = max(0.0, two - one)
+    return receive, max(0.0, one - receive)
+
+
+def _take(connection: Any, count: int, answer: Any) -> None:
+    started = time.process_time()
+    for _ in range(count):
+        connection.recv_bytes()
+    answer.send(time.process_time() - started)
+
+
+def pipe_costs(size: int = 700, count: int = 20000) -> tuple[float, float]:
+    """(send, take) CPU us per message of `size` bytes through a pipe to another process."""
+    import multiprocessing
+
+    spawn = multiprocessing.get_context("spawn")
+    take, give = spawn.Pipe(duplex=False)
+    answer_in, answer_out = spawn.Pipe(duplex=False)
+    child = spawn.Process(target=_take, args=(take, count, answer_out))
+    child.start()
+    data = b"x" * size
+    started = time.process_time()
+    for _ in range(count):
+        give.send_bytes(data)
+    sent = time.process_time() - started
+    taken = answer_in.recv()
+    child.join()
+    return sent / count * 1e6, taken / count * 1e6
+
+
+def model(
+    receive: float, work: float, send: float, take: float, workers: int
+) -> dict[str, tuple[float, float]]:
+    """Per design: (the most messages a second it carries when each process has a core of its own,
+    the CPU us a message costs its processes together)."""
+    every = receive + work / workers
+    receiver, share = receive + send, (take + work) / workers  # the receiver is a process more
+    split = (receive + work) / workers
+    return {
+        DESIGNS[0]: (1e6 / every, workers * receive + work),
+        DESIGNS[1]: (1e6 / max(receiver, share), receive + send + take + work),
+        DESIGNS[2]: (1e6 / split, receive + work),
+    }
+
+
+def model_table(one: float, two: float, send: float, take: float) -> str:
+    receive, work = fit(one, two)
+    lines = [f"measured: --workers 1 {one:.1f} us/message, --workers 2 {two:.1f} (both processes); fitted: "
+             f"receive {receive:.1f} us, work {work:.1f} us a message; a pipe: send {send:.1f}, take {take:.1f} us",
+             "| workers | " + " | ".join(f"{d}: most msgs/s | CPU us/msg, all processes" for d in DESIGNS) + " |",
+             "|---:|" + "---:|---:|" * len(DESIGNS)]  # fmt: skip
+    for workers in MODEL_WORKERS:
+        row = model(receive, work, send, take, workers)
+        cells = " | ".join(f"{row[d][0]:,.0f} | {row[d][1]:.1f}" for d in DESIGNS)
+        measured = {
+            1: f" (measured: {1e6 / one:,.0f}, {one:.1f})",
+            2: f" (measured: {2e6 / two:,.0f}, {two:.1f})",
+        }
+        lines.append(f"| {workers}{measured.get(workers, '')} | {cells} |")
+    return "\n".join(lines)
+
+
+def model_figure(path: Path, one: float, two: float, send: float, take: float) -> None:
+    """The model's most messages a second against workers, one line per design, as a PNG."""
+    from PIL import Image, ImageDraw, ImageFont
+
+    receive, work = fit(one, two)
+    width, height, margin = 900, 520, 80
+    image = Image.new("RGB", (width, height), "white")
+    draw = ImageDraw.Draw(image)
+    font = ImageFont.truetype("/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf", 15)
+    rates = {d: [model(receive, work, send, take, n)[d][0] for n in range(1, 17)] for d in DESIGNS}
+    top = max(max(values) for values in rates.values()) * 1.05
+
+    def at(workers: int, rate: float) -> tuple[float, float]:
+        return (margin + (workers - 1) / 15 * (width - 2 * margin),
+                height - margin - rate / top * (height - 2 * margin))  # fmt: skip
+
+    draw.line([at(1, 0), at(16, 0)], fill="black")
+    draw.line([at(1, 0), at(1, top)], fill="black")
+    for workers in (1, 2, 4, 8, 12, 16):
+        x, y = at(workers, 0)
+        draw.text((x - 5, y + 8), str(workers), fill="black", font=font)
+    for step in range(0, 6):
+        rate = top * step / 5
+        x, y = at(1, rate)
+        draw.text((x - 72, y - 8), f"{rate / 1000:,.0f}k", fill="black", font=font)
+    draw.text((width / 2 - 60, height - 35), "worker processes", fill="black", font=font)
+    draw.text((margin, 15), f"most messages a second, each process on a core (fit: receive {receive:.1f} us, "
+              f"work {work:.1f} us, pipe {send:.1f} + {take:.1f} us)", fill="black", font=font)  # fmt: skip
+    for index, (design, color) in enumerate(
+        zip(DESIGNS, ("firebrick", "darkorange", "seagreen"), strict=True)
+    ):
+        draw.line([at(n, rate) for n, rate in enumerate(rates[design], start=1)], fill=color, width=3)
+        draw.text((margin + 20, 45 + 20 * index), design, fill=color, font=font)
+    for workers, busiest in ((1, one), (2, two / 2)):  # measured: a worker's share of the 2 is half the sum
+        x, y = at(workers, 1e6 / busiest)
+        draw.ellipse([x - 5, y - 5, x + 5, y + 5], outline="black", width=2)
+    image.save(path)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--seconds", type=float, default=10.0)
     parser.add_argument("--rounds", type=int, default=2)
-    parser.add_argument("--only", choices=["draws", "bus"], help="one of the two loads")
+    parser.add_argument(
+        "--only", choices=["soak", "draws", "bus", "model"], help="one of the loads, or the model"
+    )
+    parser.add_argument(
+        "--fit",
+        nargs=2,
+        type=float,
+        metavar=("C1", "C2"),
+        help="the model from these us/message with 1 and 2 workers, without measuring them",
+    )
+    parser.add_argument("--figure", type=Path, help="with --only model: draw the model as this PNG")
     parser.add_argument("--publish", nargs=3, metavar=("URL", "CHANNELS", "HZ"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.publish:
         url, channels, rate = args.publish
         publisher_child(url, channels.split(","), float(rate))
         return
-    best = compare(args.seconds, args.rounds, (args.only,) if args.only else ("draws", "bus"))
+    if args.only == "model":
+        if args.fit:
+            one, two = args.fit
+        else:
+            best = compare(args.seconds, args.rounds, ("bus",))
+            # Per message the routes took in: a bridge short of a core leaves some to the kernel
+            # (dropped unread), and CPU per message sent would count those as free.
+            one, two = (
+                100.0 * best[label]["cpu_us_per_message"] / best[label]["taken_in"] for label in BUS_SETUPS
+            )
+        send, take = pipe_costs()
+        print(model_table(one, two, send, take))
+        if args.figure:
+            model_figure(args.figure, one, two, send, take)
+        return
+    best = compare(args.seconds, args.rounds, (args.only,) if args.only else ("soak", "draws", "bus"))
     print("\nbest of the rounds:")
     for label, figures in best.items():
         print(f"   {label:<36} " + ", ".join(f"{key} {value:.4g}" for key, value in figures.items()))

@@ -68,3 +68,28 @@ def test_a_bad_count_or_pin_is_refused_at_load_with_its_line(tmp_path: Path, tex
     with pytest.raises(ConfigError) as refused:
         load_config(path)
     assert where in str(refused.value)
+
+
+def test_groups_that_read_a_same_channel_share_a_worker() -> None:
+    # "DRAW_(A|B)" reads DRAW_A, which "DRAW_.*" and "(?:LOAD|DRAW)_A" read too: one worker receives
+    # and decodes it once; "OTHER" reads nothing of theirs and goes to the other worker.
+    config = BridgeConfig.model_validate({"routes": [
+        relay("scene", "(?:LOAD|DRAW)_A"), relay("draws", "DRAW_(A|B)"), relay("other", "OTHER"),
+        relay("any_draw", "DRAW_.*"),
+    ]})  # fmt: skip
+    assert placed(config, 2) == [["scene", "draws", "any_draw"], ["other"]]
+
+
+def test_a_group_that_reads_what_worker_0_must_read_joins_worker_0() -> None:
+    # The Zenoh route must stay on worker 0; the LCM relay of its channel joins it there.
+    config = BridgeConfig.model_validate({"routes": [
+        relay("z", "DRAW", destination="zenoh"), relay("draws", "DRAW(_A)?"), relay("other", "OTHER"),
+    ]})  # fmt: skip
+    assert placed(config, 2) == [["z", "draws"], ["other"]]
+
+
+def test_the_default_config_keeps_every_route_of_drakes_draws_on_one_worker() -> None:
+    [first, *rest] = placed(load_config(None), 2)
+    draws = {"tf", "link_markers", "markers", "poses", "foxglove_scene", "foxglove_transforms"}
+    assert draws <= set(first)
+    assert all(not draws & set(routes) for routes in rest)

@@ -181,3 +181,19 @@ def test_ctrl_c_at_a_terminal_reaches_every_process_and_says_one_line(tmp_path: 
 
     # every process of the group ends, if a moment after the parent under load
     assert wait_for(lambda: all(gone(process) for process in family), 60), [p for p in family if not gone(p)]
+
+
+def test_workers_auto_says_what_it_counted_and_runs_that_many(tmp_path: Path, recorder: LcmRecorder) -> None:
+    config = write_config(tmp_path, CONFIG)
+    bridge = BridgeProcess("-c", str(config), "--lcm-url", recorder.url, "--workers", "auto")
+    try:
+        chosen = bridge.wait_for_line("--workers auto: ")
+        match = re.search(r"--workers auto: (\d+) \((\d+) usable cores, [\d.]+ busy, 1 kept for the peers; "
+                          r"the routes can use 2\)", chosen)  # fmt: skip
+        assert match, chosen
+        workers, cores = int(match.group(1)), int(match.group(2))
+        assert 1 <= workers <= min(2, max(1, cores - 1))
+        bridge.wait_for_line(f"{workers} workers running" if workers > 1 else "2 routes running")
+    finally:
+        code = bridge.stop()
+    assert code == (130 if workers > 1 else 0), "\n".join(bridge.lines)

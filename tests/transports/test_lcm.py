@@ -142,3 +142,42 @@ def test_a_stats_report_that_cannot_be_made_is_skipped_and_said_once(
     assert (
         len([record for record in caplog.records if "stats report was skipped" in record.getMessage()]) <= 1
     )
+
+
+@pytest.mark.parametrize(
+    ("patterns", "subscribed"),
+    [
+        (["DRAKE_VIEWER_DRAW(_A|_B)?", "CONTACT_RESULTS", "DIRECTOR_<([^<>]*)>"],
+         "((CONTACT_RESULTS)|(DIRECTOR_<([^<>]*)>)|(DRAKE_VIEWER_DRAW(_A|_B)?))"),
+        (["A", "(?!LCM_SELF_TEST$)(.*)"], ".*"),  # a lookahead: POSIX has none
+        (["A(?:_X)?"], "((A(_X)?))"),  # a group that captures nothing is a group
+        (["A_\\d+"], ".*"),  # an escape POSIX reads otherwise
+        (["A.*?"], ".*"),  # lazy
+        ([], ".*"),
+    ],
+)  # fmt: skip
+def test_the_bus_subscribes_to_the_routes_channels_when_lcm_reads_them_as_python(
+    patterns: list[str], subscribed: str
+) -> None:
+    assert lcm_transport.lcm_filter(patterns) == subscribed
+
+
+def test_lcm_drops_the_channels_no_route_reads_before_python_sees_them() -> None:
+    url = lcm_url(22)
+    bus = lcm_transport.LcmBus(url)
+    seen: list[str] = []
+    bus.subscribe(
+        lcm_transport.lcm_filter(["A(_X|_Y)?", "B_[0-9]+"]), lambda channel, *_: seen.append(channel)
+    )
+    bus.start()
+    sender = lcm_transport.Publisher(url)
+    try:
+        for channel in ("A_X", "NOISE", "A_Z", "B_12", "AA", "B_", "A"):
+            sender.publish(channel, b"x" * 2000)  # past a short message: LCM's fragment path
+        sender.publish("A_Y", b"last")
+        deadline = time.monotonic() + 60
+        while "A_Y" not in seen and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert seen == ["A_X", "B_12", "A", "A_Y"]
+    finally:
+        bus.close()

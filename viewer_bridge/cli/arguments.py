@@ -122,6 +122,15 @@ def worker_count(text: str) -> int:
     return _whole(text, "a number of workers", 1, 256, "workers are 1 to 256")
 
 
+# --workers auto: the bridge counts the free cores (`viewer_bridge.router.workers.auto_workers`).
+AUTO = "auto"
+
+
+def worker_count_or_auto(text: str) -> int | str:
+    """A number of worker processes (1 to 256), or `auto`."""
+    return AUTO if text.strip().lower() == AUTO else worker_count(text)
+
+
 def _whole(text: str, what: str, low: int, high: int | None, rule: str) -> int:
     """`text` as a whole number from `low` to `high` (None: no limit); `rule` says the range."""
     try:

@@ -11,6 +11,7 @@ import threading
 from rich.console import Console
 
 from viewer_bridge.cli.arguments import (
+    AUTO,
     AddCommand,
     channel_regex,
     lcm_source,
@@ -18,7 +19,7 @@ from viewer_bridge.cli.arguments import (
     output_file,
     positive,
     topic_regex,
-    worker_count,
+    worker_count_or_auto,
 )
 from viewer_bridge.config.bridge import BUILTIN_CONFIGS, BridgeConfig
 from viewer_bridge.config.options import RunOptions, config_of
@@ -26,7 +27,7 @@ from viewer_bridge.errors import UsageError
 from viewer_bridge.examples.demo import run_demo
 from viewer_bridge.router.router import Router
 from viewer_bridge.router.status import ConsoleLog, LiveTable, LogLines, StatusView
-from viewer_bridge.router.workers import Workers
+from viewer_bridge.router.workers import Workers, auto_workers
 from viewer_bridge.transports.command_policy import COMMAND_FLAG
 from viewer_bridge.transports.lcm import DEFAULT_URL
 from viewer_bridge.transports.lcm_url import log_to_write
@@ -89,14 +90,25 @@ def add_command(add: AddCommand) -> None:
     run.add_argument("--demo", action="store_true", help="also publish the demo scene on the LCM URL")
     run.add_argument(
         "--workers",
-        type=worker_count,
+        type=worker_count_or_auto,
         metavar="N",
         help="run the routes on N worker processes, placed by their source (default: the config's "
-        "workers, 1: all in this process); a route's worker: K pins it; Ctrl-C exits 130",
+        "workers, 1: all in this process); a route's worker: K pins it; Ctrl-C exits 130; auto: a "
+        "worker per core left free once one is kept for the peers, at most one per group of routes "
+        "that read different channels, at least 1",
     )
     run.add_argument(
         "-q", "--quiet", action="store_true", help="print only warnings and errors (no route table or lines)"
     )
+
+
+def _worker_count(asked: int | str | None, config: BridgeConfig) -> int:
+    """--workers N, or what `auto` counts (said in a line), or the config's `workers`."""
+    if asked != AUTO:
+        return int(asked or config.workers)
+    chosen = auto_workers(config)
+    logging.getLogger("viewer_bridge").info("viewer-bridge: %s", chosen.why())
+    return chosen.workers
 
 
 def stats_options(command: argparse.ArgumentParser) -> None:
@@ -129,7 +141,7 @@ def run(args: argparse.Namespace) -> int:
                 f"--demo: the routes would read the demo on {_lcm_url(config)}, a log LCM only writes; "
                 "record the demo itself with `viewer-bridge demo --url URL`"
             )
-        workers = args.workers or config.workers
+        workers = _worker_count(args.workers, config)
         if workers > 1:  # the routes on worker processes, this one merging their stats
             router: Router | Workers = Workers(config, workers, args.stats_json, args.stats_period, view)
         else:

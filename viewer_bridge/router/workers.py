@@ -9,18 +9,28 @@ one status view and `--stats-json`, restarts a worker that dies (counted and log
 run on), and on Ctrl-C or SIGTERM stops them all and waits for them.
 
 Placement (`place`): a route pinned with `worker: K` runs on worker K. The others are grouped by
-source, transport and pattern (routes that read the same messages share one decode and one
-stream state, and stay together), and each group goes to the worker with the fewest routes so
-far. Only routes whose transports may be opened by several processes at once
-(`Transport.several_processes`: a bus, not a server's port or a file) leave worker 0.
+source, transport and pattern, and groups that may read a same channel (one's pattern matches a
+name the other's reads) are merged: routes that read the same messages share one receive, one
+decode and one stream state, and stay together. Each group goes to the worker with the fewest
+routes so far, or to worker 0 when it reads what a route kept there reads. Only routes whose
+transports may be opened by several processes at once (`Transport.several_processes`: a bus,
+not a server's port or a file) leave worker 0.
+
+Every worker still reads every LCM datagram (LCM has no per-channel socket), so on a machine
+with fewer free cores than the workers and their peers a worker costs more than it brings: the
+parent watches how long its workers wait for a core and says so (`viewer_bridge.router.cores`),
+and `--workers auto` counts the free cores.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
+import math
 import multiprocessing
 import os
+import re
 import signal
 import threading
 import time
@@ -29,10 +39,14 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
 from pathlib import Path
+from re import _constants as re_constants  # type: ignore[attr-defined]  # `_examples` reads a pattern
+from re import _parser as re_parser  # type: ignore[attr-defined]
+from typing import Any, NamedTuple
 
 from viewer_bridge.config.bridge import BridgeConfig, Route
 from viewer_bridge.errors import BridgeError, UsageError
 from viewer_bridge.router import stats
+from viewer_bridge.router.cores import PEER_CORES, CoreWatch, busy_cores_now, competing, usable_cores
 from viewer_bridge.router.router import Router
 from viewer_bridge.router.status import LogLines, RouteSnapshot, Snapshot, StatusView, snapshot_of
 from viewer_bridge.transports.registry import TRANSPORTS
@@ -45,6 +59,23 @@ _CONTEXT = multiprocessing.get_context("spawn")
 _POLL = 0.1  # seconds between the parent's looks at its workers
 _STOP_WAIT = 15.0  # seconds a stopping worker has to close its transports before it is killed
 _RESTART_DELAY_MAX = 10.0  # the longest wait before restarting a worker that keeps dying at start
+_COMPETING_REPEAT_S = 60.0  # while workers compete for cores, said again at most this often
+
+
+class Started(NamedTuple):
+    """A worker's first message: its router has started (its routes are subscribed)."""
+
+    pid: int
+
+
+class Stats(NamedTuple):
+    """A worker's stats, once per stats period and once as it stops (`Router.snapshot`'s)."""
+
+    stats: Snapshot
+
+
+# What a worker sends its parent over its pipe: small records, pickled as a class name and a tuple.
+WorkerMessage = Started | Stats
 
 
 def place(config: BridgeConfig, workers: int) -> list[list[Route]]:
@@ -63,16 +94,137 @@ def place(config: BridgeConfig, workers: int) -> list[list[Route]]:
             groups.setdefault((route.source.transport, route.source.name), []).append(route)
         else:
             placed[0].append(route)
-    for group in groups.values():
+    for group in _sharing(list(groups.values())):
+        # A group that reads what a route kept on worker 0 reads joins it there: one receive and
+        # one decode of those messages, not a second worker's for the same ones.
+        if workers > 1 and any(_overlap(group[0], route) for route in placed[0] if route.worker is None):
+            placed[0].extend(group)
+            continue
         fewest = min(range(workers), key=lambda index: len(placed[index]))
         placed[fewest].extend(group)
     return placed
+
+
+def _sharing(groups: list[list[Route]]) -> list[list[Route]]:
+    """`groups` (routes of one source pattern each), those that may read a same channel merged,
+    in the order of their first route."""
+    merged: list[list[Route]] = []
+    for group in groups:
+        joined = [other for other in merged if _overlap(group[0], other[0])]
+        whole = [route for other in joined for route in other] + group
+        merged = [other for other in merged if not any(other is j for j in joined)] + [whole]
+    order = {id(route): index for index, group in enumerate(groups) for route in group}
+    return sorted((sorted(group, key=lambda r: order[id(r)]) for group in merged),
+                  key=lambda group: order[id(group[0])])  # fmt: skip
+
+
+def _overlap(one: Route, other: Route) -> bool:
+    """Whether two routes may read a same channel: one's pattern matches a name the other's reads
+    (`_examples`: a sample of them). A guess that errs one way: an overlap it misses only costs a
+    second receive and decode, as placing by pattern alone did."""
+    if one.source.transport != other.source.transport:
+        return False
+    first, second = re.compile(one.source.name), re.compile(other.source.name)
+    return any(second.fullmatch(name) for name in _examples(one.source.name)) or any(
+        first.fullmatch(name) for name in _examples(other.source.name)
+    )
+
+
+_MAX_EXAMPLES = 64
+
+
+@functools.cache
+def _examples(pattern: str) -> frozenset[str]:
+    """Names `pattern` matches, a sample: each branch's, an optional part with and without, the
+    fewest repeats otherwise, a set's first member. Lookarounds and anchors are left out, so a
+    name may not match in the end (`_overlap` checks with the pattern itself)."""
+    return frozenset(_expand(list(re_parser.parse(pattern))))
+
+
+def _expand(items: list[tuple[Any, Any]]) -> list[str]:
+    names = [""]
+    for opcode, argument in items:
+        choices = _choices(opcode, argument)
+        if not choices:
+            continue
+        names = [name + choice for name in names for choice in choices][:_MAX_EXAMPLES]
+    return names
+
+
+def _member(items: list[tuple[Any, Any]]) -> str:
+    """A character a set `[...]` matches: its first member, or for `[^...]` one it does not list."""
+    if items and items[0][0] is re_constants.NEGATE:
+        listed = {chr(value) for kind, value in items if kind is re_constants.LITERAL}
+        return next(character for character in "x_0Z" if character not in listed)
+    for kind, value in items:
+        if kind is re_constants.LITERAL:
+            return chr(value)
+        if kind is re_constants.RANGE:
+            return chr(value[0])
+        if kind is re_constants.CATEGORY:
+            return "0" if "DIGIT" in str(value) else "x"
+    return "x"
+
+
+def _choices(opcode: Any, argument: Any) -> list[str]:
+    """The strings one parsed regex item stands for, a sample; [] for what matches no character."""
+    if opcode is re_constants.LITERAL:
+        return [chr(argument)]
+    if opcode is re_constants.ANY:
+        return ["x"]
+    if opcode is re_constants.IN:
+        return [_member(argument)]
+    if opcode is re_constants.BRANCH:
+        return [name for branch in argument[1] for name in _expand(list(branch))][:_MAX_EXAMPLES]
+    if opcode is re_constants.SUBPATTERN:
+        return _expand(list(argument[-1]))
+    if opcode in (re_constants.MAX_REPEAT, re_constants.MIN_REPEAT):
+        low, _, item = argument
+        once = _expand(list(item))
+        many = [name * max(low, 1) for name in once]
+        return ([""] if low == 0 else []) + many
+    return []  # anchors, lookarounds, group references: no character of their own
 
 
 def _spreadable(route: Route) -> bool:
     """Whether a route may run outside worker 0: every process may open both of its transports."""
     ends = (route.source.transport, route.destination.transport)
     return all(TRANSPORTS.get(name).several_processes for name in ends)
+
+
+def useful_workers(config: BridgeConfig) -> int:
+    """The most workers `config`'s routes can use: a worker per group of routes `place` makes, and
+    at least one past every route's `worker: K`."""
+    pinned = max((route.worker + 1 for route in config.routes if route.worker is not None), default=1)
+    groups = sum(1 for routes in place(config, max(pinned, len(config.routes), 1)) if routes)
+    return max(groups, pinned, 1)
+
+
+class WorkerCount(NamedTuple):
+    """What `--workers auto` chose, and from what."""
+
+    workers: int
+    cores: int  # usable by the bridge
+    busy: float  # cores the machine kept busy before the bridge started
+    useful: int  # the most workers the routes can use
+
+    def why(self) -> str:
+        return (
+            f"--workers auto: {self.workers} ({self.cores} usable cores, {self.busy:.1f} busy, "
+            f"{PEER_CORES} kept for the peers; the routes can use {self.useful})"
+        )
+
+
+def auto_workers(config: BridgeConfig, cores: int | None = None, busy: float | None = None) -> WorkerCount:
+    """`--workers auto`: the cores free of other work (`cores`: default this process's usable cores;
+    `busy`: default how many cores the machine keeps busy now), less `PEER_CORES`, at most
+    `useful_workers(config)`, at least 1 (and enough for every route's `worker: K`)."""
+    cores = usable_cores() if cores is None else cores
+    busy = busy_cores_now() if busy is None else busy
+    spare = math.floor(max(0.0, cores - busy) + 0.25) - PEER_CORES  # 0.75 of a core free counts as one
+    pinned = max((route.worker + 1 for route in config.routes if route.worker is not None), default=1)
+    useful = useful_workers(config)
+    return WorkerCount(max(1, pinned, min(spare, useful)), cores, busy, useful)
 
 
 @dataclass
@@ -82,7 +234,7 @@ class _Worker:
     index: int
     config: BridgeConfig  # the config with only this worker's routes
     process: BaseProcess | None = None
-    connection: Connection | None = None  # the parent's end: snapshots and "started" arrive here
+    connection: Connection | None = None  # the parent's end: `WorkerMessage`s arrive here
     started: bool = False  # the current process has started its router
     ever_started: bool = False
     finished: bool = False  # it ended on its own, as a router ends when its replayed log has
@@ -113,6 +265,9 @@ class Workers:
         self.stats_period = stats_period
         self.view = view or LogLines()
         self.restarts = 0
+        self.competing = 0  # stats periods in which the workers competed for cores (`cores.competing`)
+        self._cores = CoreWatch()
+        self._competing_said_at: float | None = None
         self._stop = threading.Event()
         self._started = False
         self._workers = [
@@ -169,7 +324,7 @@ class Workers:
                 self._spawn(worker)
 
     def _read(self, worker: _Worker) -> None:
-        """Every message waiting from a worker: `("started",)` once, then snapshots."""
+        """Every message waiting from a worker: `Started` once, then `Stats`."""
         while worker.connection is not None and worker.connection.poll():
             try:
                 message = worker.connection.recv()
@@ -177,11 +332,11 @@ class Workers:
                 worker.connection.close()
                 worker.connection = None
                 return
-            if message == ("started",):
+            if isinstance(message, Started):
                 worker.started = worker.ever_started = True
                 worker.failures = 0
-            else:
-                worker.snapshot = message
+            elif isinstance(message, Stats):
+                worker.snapshot = message.stats
 
     def _ended(self, worker: _Worker, restart: bool) -> None:
         """A worker's process has ended: finished, or died (restarted unless the start failed)."""
@@ -208,6 +363,20 @@ class Workers:
         worker.started = False
         worker.restart_at = time.monotonic() + delay
 
+    def _watch_cores(self) -> None:
+        """Whether the workers competed for cores since the last look: counted, and said (once a
+        minute at most while it lasts)."""
+        pids = [worker.process.pid for worker in self._workers if worker.alive() and worker.process]
+        sample = self._cores.sample([pid for pid in pids if pid is not None])
+        said = competing(sample) if sample is not None else None
+        if said is None:
+            return
+        self.competing += 1
+        now = time.monotonic()
+        if self._competing_said_at is None or now - self._competing_said_at >= _COMPETING_REPEAT_S:
+            self._competing_said_at = now
+            log.warning("viewer-bridge: %s", said)
+
     def stop(self) -> None:
         """Stop the workers and return from `run` (a signal handler calls it)."""
         self._stop.set()
@@ -225,6 +394,7 @@ class Workers:
                 self._poll()
                 if time.monotonic() >= next_report:
                     next_report += self.stats_period
+                    self._watch_cores()
                     self.report()
         finally:
             self.close()
@@ -286,7 +456,7 @@ class _Sender:
 
     def show(self, snapshot: Snapshot) -> None:
         with contextlib.suppress(OSError):  # the parent is gone: the watch on it stops this worker
-            self._connection.send(snapshot)
+            self._connection.send(Stats(snapshot))
 
     def close(self) -> None:
         pass
@@ -319,7 +489,7 @@ def _serve(index: int, config: BridgeConfig, stats_period: float, connection: Co
 
         threading.Thread(target=orphaned, daemon=True).start()
     router.start()
-    connection.send(("started",))
+    connection.send(Started(os.getpid()))
     router.run()
     if stopped.is_set():
         raise SystemExit(128 + signal.SIGTERM)

@@ -331,6 +331,24 @@ def _open_bus(url: str) -> LcmBus | LogReplay:
     return LcmBus(url)
 
 
+# The patterns LCM's C library (POSIX extended regular expressions) reads as Python does: plain
+# characters, groups ((?:...) read as (...)), alternation, ., [sets] and greedy ?, * and +; no
+# other (?...), no \\ escapes, {n,m} or lazy quantifiers.
+_POSIX_ALIKE = re.compile(r"[A-Za-z0-9_<>/. ()|?*+\[\]^$-]*")
+_NOT_POSIX = re.compile(r"\(\?|[?*+]\?")
+
+
+def lcm_filter(patterns: list[str]) -> str:
+    """The channel regex the bus subscribes with: any of `patterns`, when LCM's C library reads each
+    as Python does, else `.*`. LCM's receiving thread drops a channel no subscription matches
+    before Python wakes for it, so a process reads in Python only its routes' channels (a worker
+    beside others on the same bus, most of all); the router still matches each route's pattern."""
+    posix = sorted({pattern.replace("(?:", "(") for pattern in patterns})  # a group either way
+    if not posix or any(not _POSIX_ALIKE.fullmatch(p) or _NOT_POSIX.search(p) for p in posix):
+        return ".*"
+    return "(" + "|".join(f"({pattern})" for pattern in posix) + ")"
+
+
 class LcmSettings(base.TransportSettings):
     url: str = DEFAULT_URL  # a live bus, or a log to replay: file://LOG?speed=S
 
@@ -370,7 +388,9 @@ class LcmTransport(base.Transport):
         return base.ClosingPublisher(lambda data: bus.publish(name, data))  # it holds nothing
 
     def start(self) -> None:
-        self.bus.subscribe(".*", self._dispatch)
+        self.bus.subscribe(
+            lcm_filter([pattern.pattern.pattern for pattern, _ in self._routes]), self._dispatch
+        )
         self.bus.start()
 
     def _dispatch(self, channel: str, data: bytes, received_us: int) -> None:
