@@ -348,7 +348,7 @@ def _instrument_generated_code() -> None:
     atheris = sys.modules.get("atheris")
     if atheris is None:
         return
-    functions = [_GENERIC.get(name)._transcoder._body for name in GENERIC_TYPES]
+    functions = [_GENERIC.get(name).transcoder._body for name in GENERIC_TYPES]
     functions += [_GENERIC.codecs(name)[name]._decode_body for name in GENERIC_TYPES]
     for namespace in {id(function.__globals__): function.__globals__ for function in functions}.values():
         for value in list(namespace.values()):
@@ -379,7 +379,7 @@ _GENERATED_ONLY: dict[str, CdrTranscoder] = {}  # transcoders that keep no layou
 def _generated_only(known: LcmType) -> CdrTranscoder:
     """`known`'s transcoder that runs the generated code on every message."""
     if known.full_name not in _GENERATED_ONLY:
-        closure = _GENERIC._closure(known.full_name)
+        closure = _GENERIC.closure(known.full_name)
         fingerprints = {name: _GENERIC.get(name).packed_fingerprint for name in closure}
         compiled = compile_transcoders(closure, fingerprints, [known.full_name], keep_layouts=False)
         _GENERATED_ONLY[known.full_name] = compiled[known.full_name]
@@ -433,7 +433,7 @@ def _instrument_back_code() -> None:
     if atheris is None:
         return
     for name in BACK_TYPES:
-        namespace = _GENERIC.get(name)._encoder._body.__globals__
+        namespace = _GENERIC.get(name).encoder._body.__globals__
         for value in list(namespace.values()):
             if inspect.isfunction(value) and value.__code__.co_filename.startswith("<cdr"):
                 atheris.instrument_func(value)
@@ -462,7 +462,7 @@ def lcm_back_cdr(data: bytes) -> object:
     known = _GENERIC.get(BACK_TYPES[data[0] % len(BACK_TYPES)] if data else BACK_TYPES[0])
     cdr = data[1:]
     lcm = known.from_cdr(cdr)
-    if known._encoder._encode(cdr) != lcm:
+    if known.encoder.generated(cdr) != lcm:
         raise AssertionError("the kept layout and the generated code disagree")
     _lcm_is_valid(known, lcm)
     return lcm
@@ -541,7 +541,7 @@ def _ros_names(known: LcmType) -> list[str]:
     """Every ROS 2 field name of `known` and of the types it nests."""
     from viewer_bridge.lcmcodec.rosnames import field_name
 
-    return sorted({field_name(member.name) for definition in known._library._closure(known.full_name).values()
+    return sorted({field_name(member.name) for definition in _GENERIC.closure(known.full_name).values()
                    for member in definition.members})  # fmt: skip
 
 

@@ -240,7 +240,7 @@ def test_bytes_bytearray_and_memoryview_give_the_same_cdr(
 
 def _transcoders(library: TypeLibrary, name: str) -> tuple[CdrTranscoder, CdrTranscoder]:
     """The transcoder of `name` that keeps layouts, and one that only runs the generated code."""
-    closure = library._closure(name)
+    closure = library.closure(name)
     fingerprints = {each: library.get(each).packed_fingerprint for each in closure}
     kept = compile_transcoders(closure, fingerprints, [name])[name]
     return kept, compile_transcoders(closure, fingerprints, [name], keep_layouts=False)[name]
@@ -263,7 +263,7 @@ def test_kept_layouts_give_the_generated_codes_bytes(
         want = generated.transcode(data)
         assert kept.transcode(data) == want
         assert kept.transcode(data) == want
-        assert len(data) in kept._layouts or len(kept._layouts) == 16
+        assert len(data) in kept.layouts or len(kept.layouts) == 16
 
     check()
 
@@ -275,11 +275,11 @@ def test_kept_layouts_agree_with_the_generated_code(library: TypeLibrary, classe
     the generated code alone says."""
     kept, generated = _transcoders(library, "lab.robot.arm_state_t")
     data = arm_state(classes).encode()
-    assert kept.transcode(data) == generated.transcode(data) and len(kept._layouts) == 1
-    assert kept._layouts[len(data)] is not None  # bools among sequences: gathered, then made 0 or 1
+    assert kept.transcode(data) == generated.transcode(data) and len(kept.layouts) == 1
+    assert kept.layouts[len(data)] is not None  # bools among sequences: gathered, then made 0 or 1
 
     assert_damage_agrees(kept.transcode, generated.transcode, data, changes=3, examples=400)
-    assert len(kept._layouts) == 1  # every message of that size met the kept layout first
+    assert len(kept.layouts) == 1  # every message of that size met the kept layout first
 
 
 @pytest.mark.usefixtures("mover")
@@ -297,7 +297,7 @@ def test_a_kept_layout_takes_only_messages_of_its_own_shape(
     assert len(first) == len(second)
     for data in (first, second, first):
         assert kept.transcode(data) == generated.transcode(data)
-    assert list(kept._layouts) == [len(first)] and kept._layouts[len(first)] is not None
+    assert list(kept.layouts) == [len(first)] and kept.layouts[len(first)] is not None
     flags = first.index(b"\1\0", first.index(b"\0\1\2") + 3)  # flags [True, False], after fixedBlob
     true_as_two = first[:flags] + b"\2" + first[flags + 1 :]
     assert kept.transcode(true_as_two) == kept.transcode(first) == generated.transcode(true_as_two)

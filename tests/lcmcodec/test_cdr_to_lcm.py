@@ -302,15 +302,15 @@ struct mix_t { int8_t n; boolean flags[n]; float f[n]; int16_t m; int64_t big[m]
 
 
 @pytest.mark.usefixtures("mover")
-def test_a_kept_layout_takes_only_messages_of_its_own_shape(iiwa: LcmType) -> None:
+def test_a_kept_layout_takes_only_messages_of_its_own_shape() -> None:
     """(7, 7) and (6, 8) joints and torques give CDR of one size: the second must not be read
     with the first's layout; nor a message whose length field disagrees with its count."""
+    iiwa = TypeLibrary.load().get("drake.lcmt_iiwa_command")  # its own: no layout the other mover learnt
     seven = iiwa.to_cdr(_iiwa_command(7, 7).encode())
     six = iiwa.to_cdr(_iiwa_command(6, 8).encode())
     assert len(seven) == len(six)
-    iiwa._encoder._layouts.clear()  # the module's type: what the other mover learnt
     assert iiwa.from_cdr(seven) == _iiwa_command(7, 7).encode()
-    assert len(iiwa._encoder._layouts) == 1
+    assert len(iiwa.encoder.layouts) == 1
     assert iiwa.from_cdr(six) == _iiwa_command(6, 8).encode()
     assert iiwa.from_cdr(seven) == _iiwa_command(7, 7).encode()
     lying = bytearray(seven)
@@ -328,8 +328,8 @@ def test_kept_layouts_agree_with_the_generated_code(tmp_path: Any) -> None:
         ">b2?2fh4qd?", 2, True, False, 0.5, -1.0, 2, 1, 2, 3, 4, 9.5, True
     )
     cdr = known.to_cdr(lcm)
-    assert known.from_cdr(cdr) == lcm and known._encoder._layouts
-    assert_damage_agrees(known.from_cdr, known._encoder._encode, cdr, changes=4, examples=400)
+    assert known.from_cdr(cdr) == lcm and known.encoder.layouts
+    assert_damage_agrees(known.from_cdr, known.encoder.generated, cdr, changes=4, examples=400)
     flags = bytearray(cdr)
     flags[4 + 9] = 2  # after the header: n at 0, its count at 4..8, the flags at 8 and 9
     _refused(known, bytes(flags), "flags[1]", "bool byte 2")
@@ -344,9 +344,9 @@ def test_kept_layouts_of_strings_nesting_and_many_values_agree_with_the_generate
     generated code alone says."""
     arm = TypeLibrary.load([str(CORPUS)], drake=False).get("lab.robot.arm_state_t")  # its own: no layouts yet
     cdr = arm.to_cdr(arm_state(classes).encode())
-    assert arm.from_cdr(cdr) == arm_state(classes).encode() and len(arm._encoder._layouts) == 1
-    assert_damage_agrees(arm.from_cdr, arm._encoder._encode, cdr, changes=3, examples=300)
-    assert list(arm._encoder._layouts) == [len(cdr)]
+    assert arm.from_cdr(cdr) == arm_state(classes).encode() and len(arm.encoder.layouts) == 1
+    assert_damage_agrees(arm.from_cdr, arm.encoder.generated, cdr, changes=3, examples=300)
+    assert list(arm.encoder.layouts) == [len(cdr)]
     (tmp_path / "wide.lcm").write_text(
         "package wide; struct wide_t { int16_t n; int64_t big[n]; float f[3]; }"
     )
@@ -354,10 +354,10 @@ def test_kept_layouts_of_strings_nesting_and_many_values_agree_with_the_generate
     lcm = wide.packed_fingerprint + struct.pack(">h300q3f", 300, *range(-150, 150), 0.5, -2.0, 1e9)
     cdr = wide.to_cdr(lcm)
     assert wide.from_cdr(cdr) == lcm == wide.from_cdr(cdr)
-    found = wide._encoder._layouts[len(cdr)]
+    found = wide.encoder.layouts[len(cdr)]
     # 304 values: gathered
     assert type(found) is MoveProgram if mover == "compiled" else found.gather is not None
-    assert_damage_agrees(wide.from_cdr, wide._encoder._encode, cdr, changes=2, examples=200)
+    assert_damage_agrees(wide.from_cdr, wide.encoder.generated, cdr, changes=2, examples=200)
 
 
 @pytest.mark.usefixtures("mover")
@@ -369,7 +369,7 @@ def test_kept_layouts_are_bounded_per_type(tmp_path: Any) -> None:
     messages = [known.packed_fingerprint + struct.pack(f">i{n}d", n, *range(n)) for n in range(LAYOUTS + 4)]
     for lcm in messages * 2:
         assert known.from_cdr(known.to_cdr(lcm)) == lcm
-    assert len(known._encoder._layouts) == len(known._transcoder._layouts) == LAYOUTS
+    assert len(known.encoder.layouts) == len(known.transcoder.layouts) == LAYOUTS
 
 
 @pytest.mark.usefixtures("mover")
@@ -384,5 +384,5 @@ def test_float32_bits_are_carried_unchanged(tmp_path: Any) -> None:
     assert (
         cdr == b"\0\1\0\0" + signalling[::-1] + struct.pack("<iI", 2, 2) + signalling[::-1] + b"\0\0\x80\xff"
     )
-    assert known.from_cdr(cdr) == lcm and known._encoder._layouts
+    assert known.from_cdr(cdr) == lcm and known.encoder.layouts
     assert known.from_cdr(cdr) == lcm  # through the kept layout

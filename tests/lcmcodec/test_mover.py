@@ -225,7 +225,7 @@ def test_the_compiled_mover_is_built_and_used_here() -> None:
     status = TypeLibrary.load().get("drake.lcmt_iiwa_status")
     data = _status(7).encode()
     assert status.to_cdr(data) == status.to_cdr(data)
-    assert type(status._transcoder._layouts[len(data)]) is MoveProgram
+    assert type(status.transcoder.layouts[len(data)]) is MoveProgram
 
 
 def _status(joints: int) -> Any:
@@ -257,9 +257,9 @@ def _assert_agrees(kept: Callable[[bytes], bytes], generated: Callable[[bytes], 
 def _assert_guarded(keeper: Any, kept: Callable[[bytes], bytes], data: bytes) -> None:
     """`data` (of a kept layout) truncated, or any byte of a shape value altered, or a count
     claiming 2^31 elements: the generated code's own error, as without a layout."""
-    generated = keeper._convert
+    generated = keeper.generated
     assert kept(data) == generated(data)
-    found = keeper._layouts[len(data)]
+    found = keeper.layouts[len(data)]
     assert found is not None
     for cut in (1, 4, 8, len(data) - 1):
         assert isinstance(outcome(kept, data[:-cut]), str)  # a DecodeError's text
@@ -280,16 +280,16 @@ def test_iiwa_status_to_cdr_gives_the_generated_codes_bytes() -> None:
     """lcmt_iiwa_status as its joint count changes (each size learnt, then met), damaged where its
     shape is: the kept layouts' bytes or errors are the generated code's."""
     status = TypeLibrary.load().get("drake.lcmt_iiwa_status")
-    keeper = status._transcoder
+    keeper = status.transcoder
     for joints in (7, 7, 0, 3, 7, 12, 3, 0):
         data = _status(joints).encode()
-        assert status.to_cdr(data) == keeper._convert(data) == status.to_cdr(data)
-    assert len(keeper._layouts) == 4
+        assert status.to_cdr(data) == keeper.generated(data) == status.to_cdr(data)
+    assert len(keeper.layouts) == 4
     data = _status(7).encode()
     _assert_guarded(keeper, status.to_cdr, data)
     huge = data[:16] + struct.pack(">i", -(1 << 31)) + data[20:]  # num_joints
     assert isinstance(outcome(status.to_cdr, huge), str)
-    _assert_agrees(status.to_cdr, keeper._convert, huge)
+    _assert_agrees(status.to_cdr, keeper.generated, huge)
 
 
 @pytest.mark.usefixtures("mover")
@@ -297,17 +297,17 @@ def test_cdr_to_iiwa_command_gives_the_generated_codes_bytes() -> None:
     """CDR -> lcmt_iiwa_command, as its joint and torque counts change, damaged where its shape
     is (the header, both length fields, both sequence counts), or a count claiming 2^31."""
     command = TypeLibrary.load().get("drake.lcmt_iiwa_command")
-    keeper = command._encoder
+    keeper = command.encoder
     for joints, torques in ((7, 7), (7, 7), (7, 0), (6, 8), (0, 0), (7, 7)):
         lcm = _command(joints, torques).encode()
         cdr = command.to_cdr(lcm)
-        assert command.from_cdr(cdr) == lcm == keeper._convert(cdr) == command.from_cdr(cdr)
+        assert command.from_cdr(cdr) == lcm == keeper.generated(cdr) == command.from_cdr(cdr)
     cdr = command.to_cdr(_command(7, 7).encode())
     _assert_guarded(keeper, command.from_cdr, cdr)
     count = cdr.index(struct.pack("<I", 7), 4 + 12)  # joint_position's count, after utime and num_joints
     huge = cdr[:count] + struct.pack("<I", 1 << 31) + cdr[count + 4 :]
     assert isinstance(outcome(command.from_cdr, huge), str)
-    _assert_agrees(command.from_cdr, keeper._convert, huge)
+    _assert_agrees(command.from_cdr, keeper.generated, huge)
 
 
 def test_a_program_beyond_its_bound_leaves_the_python_movers_bounds_to_say(tmp_path: Path) -> None:
@@ -320,10 +320,10 @@ def test_a_program_beyond_its_bound_leaves_the_python_movers_bounds_to_say(tmp_p
         + struct.pack(">i", 2000)
         + b"".join(struct.pack(">I2s", 2, b"a\0") for _ in range(2000))
     )
-    cdr = words._transcoder._convert(lcm)
+    cdr = words.transcoder.generated(lcm)
     assert words.to_cdr(lcm) == words.to_cdr(lcm) == cdr and words.from_cdr(cdr) == words.from_cdr(cdr) == lcm
-    assert type(words._transcoder._layouts[len(lcm)]) is not MoveProgram
-    assert type(words._encoder._layouts[len(cdr)]) is not MoveProgram
+    assert type(words.transcoder.layouts[len(lcm)]) is not MoveProgram
+    assert type(words.encoder.layouts[len(cdr)]) is not MoveProgram
 
 
 # --- the build hook -----------------------------------------------------------------------------------------

@@ -178,10 +178,10 @@ def test_kept_layouts_agree_with_the_generated_code(mapping: LcmFromRos, ros_typ
     a uint64's top bit, a string's UTF-8), converts or fails as the generated code alone says."""
     data = serialized(ros_type, JOINTS if ros_type.startswith("sensor") else GRIPPER)
     [kept] = compile_ros_encoders(mapping, [ros_type]).values()
-    assert kept.encode(data) == kept.encode(data) and len(kept._layouts) == 1
+    assert kept.encode(data) == kept.encode(data) and len(kept.layouts) == 1
     generated = compile_ros_encoders(mapping, [ros_type], keep_layouts=False)[ros_type]
     assert_damage_agrees(kept.encode, generated.encode, data, changes=3, examples=300)
-    assert len(kept._layouts) == 1  # every message of that size met the kept layout first
+    assert len(kept.layouts) == 1  # every message of that size met the kept layout first
 
 
 def test_kept_layouts_of_many_widened_values_agree_with_the_generated_code(mover: str) -> None:
@@ -196,7 +196,7 @@ def test_kept_layouts_of_many_widened_values_agree_with_the_generated_code(mover
     [kept] = compile_ros_encoders(mapping, [ros_type]).values()
     generated = compile_ros_encoders(mapping, [ros_type], keep_layouts=False)[ros_type]
     assert kept.encode(data) == kept.encode(data) == generated.encode(data)
-    found = kept._layouts[len(data)]
+    found = kept.layouts[len(data)]
     assert (
         type(found) is MoveProgram if mover == "compiled" else found is not None and found.gather is not None
     )

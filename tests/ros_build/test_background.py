@@ -132,11 +132,14 @@ BUILD_FAILED = "publish:TransportUnavailable"  # a failed build refuses each mes
 @pytest.fixture
 def translators(monkeypatch: pytest.MonkeyPatch) -> None:
     """The test translators, as a plugin's would be found by name."""
-    loaded: dict[str, type[Translator]] = TRANSLATORS._loaded  # type: ignore[assignment]
-    monkeypatch.setitem(loaded, "vbtest_counter_cdr", CounterCdr)
-    monkeypatch.setitem(loaded, "vbtest_bad_cdr", BadCdr)
-    monkeypatch.setitem(loaded, "vbtest_string_cdr", StringCdr)
-    monkeypatch.setitem(loaded, "vbtest_counter_text", CounterText)
+    ours: dict[str, type[Translator]] = {
+        "vbtest_counter_cdr": CounterCdr,
+        "vbtest_bad_cdr": BadCdr,
+        "vbtest_string_cdr": StringCdr,
+        "vbtest_counter_text": CounterText,
+    }
+    found = TRANSLATORS.get  # every look-up (the config's, the router's) goes through `get`
+    monkeypatch.setattr(TRANSLATORS, "get", lambda name: ours.get(name) or found(name))
 
 
 @pytest.fixture

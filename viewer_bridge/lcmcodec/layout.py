@@ -59,6 +59,7 @@ import math
 import struct
 from collections.abc import Callable, Mapping
 from operator import itemgetter
+from types import MappingProxyType
 from typing import Any, Final, NamedTuple, final
 
 import numpy as np
@@ -141,6 +142,16 @@ class LayoutKeeper:
     def _convert(self, data: Buffer) -> bytes:
         """The generated code's way: every check, every error named."""
         raise NotImplementedError
+
+    @property
+    def layouts(self) -> Mapping[int, Layout | None]:
+        """The kept layouts by message size (None: that size had none), read only."""
+        return MappingProxyType(self._layouts)
+
+    def generated(self, data: Buffer) -> bytes:
+        """`data` converted by the generated code alone, never a kept layout: what `convert`'s
+        bytes and errors must agree with."""
+        return self._convert(data)
 
     def convert(self, data: Buffer) -> bytes:
         """`data` converted: through its kept layout when it has one, else the generated code."""

@@ -96,7 +96,7 @@ class LcmType:
             raise DecodeError(self.full_name, "<type>", 0, f"has no ROS 2 form: {self.refused}")
         # Later calls go straight to the transcoder, bound on this instance: a message of a kept
         # layout takes about a microsecond, and a call in between is a tenth of it.
-        self.to_cdr = self._transcoder.transcode  # type: ignore[method-assign]
+        self.to_cdr = self.transcoder.transcode  # type: ignore[method-assign]
         return self.to_cdr(data)
 
     def to_dict(self, data: Buffer, *, bytes_summary: bool = True) -> dict[str, object]:
@@ -133,7 +133,7 @@ class LcmType:
         """
         if self.refused is not None:
             raise DecodeError(self.full_name, "<type>", 0, f"has no ROS 2 form: {self.refused}")
-        self.from_cdr = self._encoder.encode  # type: ignore[method-assign]  # as `to_cdr`: a call less
+        self.from_cdr = self.encoder.encode  # type: ignore[method-assign]  # as `to_cdr`: a call less
         return self.from_cdr(data)
 
     def from_dict(self, value: object) -> bytes:
@@ -173,11 +173,13 @@ class LcmType:
         return self.from_dict(value)
 
     @cached_property
-    def _transcoder(self) -> CdrTranscoder:
+    def transcoder(self) -> CdrTranscoder:
+        """The compiled LCM -> CDR path of this type (`to_cdr`), generated when first asked for."""
         return self._library._transcoder(self.full_name)
 
     @cached_property
-    def _encoder(self) -> LcmEncoder:
+    def encoder(self) -> LcmEncoder:
+        """The compiled CDR -> LCM path of this type (`from_cdr`), generated when first asked for."""
         return self._library._encoder(self.full_name)
 
     @cached_property
@@ -342,7 +344,7 @@ class TypeLibrary:
         one message class wherever it is nested, in this library, another or `codecs.CODECS`."""
         with self._lock:
             if full_name not in self._codec_sets:
-                closure = self._closure(full_name)
+                closure = self.closure(full_name)
                 fingerprints = {
                     name: int.from_bytes(self._types[name].packed_fingerprint, "big") for name in closure
                 }
@@ -365,12 +367,12 @@ class TypeLibrary:
         """`cache[full_name]`, made by `compile_` from the type's closure when first asked for."""
         with self._lock:
             if full_name not in cache:
-                closure = self._closure(full_name)
+                closure = self.closure(full_name)
                 fingerprints = {name: self._types[name].packed_fingerprint for name in closure}
                 cache.update(compile_(closure, fingerprints, [full_name]))
             return cache[full_name]
 
-    def _closure(self, full_name: str) -> dict[str, StructDef]:
+    def closure(self, full_name: str) -> dict[str, StructDef]:
         """`full_name`'s definition and those of every type it nests, at any depth."""
         return {name: self._structs[name] for name in nested_closure(self._structs, [full_name])}
 
