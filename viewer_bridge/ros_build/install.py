@@ -63,7 +63,7 @@ BUILD_WHEELS = (
     "ros-jazzy-rosidl-core-generators",
     "ros-jazzy-python-cmake-module",
 )
-APT_PACKAGES = "cmake g++ make python3-dev"
+APT_PACKAGES = "cmake g++ ninja-build python3-dev"
 
 
 def _site_packages(prefix: Path) -> Path:
