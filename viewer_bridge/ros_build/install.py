@@ -254,18 +254,14 @@ def _run(
         raise RosInterfaceError(f"{step} failed (exit {returncode}); its log: {log_path}")
 
 
-# Where a build tool says how far it is: Ninja's `[12/140] Building C object ...`, make's `[ 45%] ...`.
+# Where Ninja says how far it is: `[12/140] Building C object ...` (make's shares are not counted).
 _NINJA_STEP = re.compile(r"\[(\d+)/(\d+)\] ")
-_MAKE_SHARE = re.compile(r"\[\s*(\d+)%\] ")
 
 
 def _steps_of(line: str) -> tuple[int, int] | None:
-    """(done, total) of a build tool's progress line, or None for any other line."""
+    """(done, total) of Ninja's progress line, or None for any other line."""
     ninja = _NINJA_STEP.match(line)
-    if ninja:
-        return int(ninja[1]), int(ninja[2])
-    make = _MAKE_SHARE.match(line)
-    return (int(make[1]), 100) if make else None
+    return (int(ninja[1]), int(ninja[2])) if ninja else None
 
 
 def install(
