@@ -214,6 +214,17 @@ def test_a_prefix_that_cannot_be_written_is_one_line(tmp_path: Path) -> None:
     )
 
 
+def test_a_build_into_the_venv_has_the_c_type_supports_rclpy_uses_and_no_cpp_ones(corpus_built: None) -> None:
+    lib = Path(sys.prefix) / "lib"
+    for part in ("generator_c", "typesupport_c", "typesupport_fastrtps_c", "typesupport_introspection_c"):
+        assert (lib / f"lib{MAIN}__rosidl_{part}.so").is_file()
+    for part in ("typesupport_cpp", "typesupport_fastrtps_cpp", "typesupport_introspection_cpp"):
+        assert not (lib / f"lib{MAIN}__rosidl_{part}.so").exists()
+    assert not (Path(sys.prefix) / "include" / MAIN / MAIN / "msg" / "joint_sample.hpp").exists()
+    # a workspace's package keeps them all: C++ nodes may use it
+    assert "AMENT_EXTENSIONS" not in ros_interfaces.cmake_lists(ros_interfaces.packages(DEFINITIONS)[1])
+
+
 def test_a_current_build_builds_nothing(corpus_built: None, capsys: pytest.CaptureFixture[str]) -> None:
     assert ros_interfaces.build(DEFINITIONS, log=print) == []
     assert capsys.readouterr().out == ""

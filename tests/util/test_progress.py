@@ -83,3 +83,37 @@ def test_steps_on_a_terminal_print_each_line_and_leave_no_spinner() -> None:
         told.say("built tf2_msgs in 9.7 s")
     lines = [line for line in out.getvalue().splitlines() if line.strip()]
     assert "building tf2_msgs (2 types) into /venv" in lines[0] and "built tf2_msgs in 9.7 s" in lines[1]
+
+
+def test_a_part_of_known_size_on_a_pipe_is_a_line_per_tenth_after_the_quiet_seconds(clock: Clock) -> None:
+    from viewer_bridge.util.progress import steps
+
+    out = io.StringIO()
+    with steps(terminal=False, stream=out) as told:
+        told.say("building a_msgs (2 types) into /venv")
+        told.part("building a_msgs", 1, 20, lambda done: f"{done} of 20 build steps")  # quick: nothing
+        clock.now += QUIET_S
+        for done in range(2, 21):
+            told.part("building a_msgs", done, 20, lambda done: f"{done} of 20 build steps")
+        told.say("built a_msgs in 2.0 s")
+    tenths = [
+        f"building a_msgs: {tenth * 10}%: {tenth * 2} of 20 build steps (2 s)" for tenth in range(1, 11)
+    ]
+    assert out.getvalue().splitlines() == [
+        "building a_msgs (2 types) into /venv",
+        *tenths,
+        "built a_msgs in 2.0 s",
+    ]
+
+
+def test_a_part_on_a_terminal_is_a_bar_that_leaves_nothing_behind() -> None:
+    from viewer_bridge.util.progress import steps
+
+    out = io.StringIO()
+    with steps(terminal=True, stream=out) as told:
+        told.say("building a_msgs (2 types) into /venv")
+        for done in range(1, 21):
+            told.part("building a_msgs", done, 20, lambda done: f"{done} of 20 build steps")
+        told.say("built a_msgs in 2.0 s")
+    lines = [line for line in out.getvalue().splitlines() if line.strip()]
+    assert "building a_msgs (2 types) into /venv" in lines[0] and "built a_msgs in 2.0 s" in lines[1]

@@ -4,12 +4,14 @@
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
 from viewer_bridge.cli.arguments import AddCommand
 from viewer_bridge.errors import UsageError
 from viewer_bridge.lcmcodec.from_ros import load_ros_definitions, map_ros_types
+from viewer_bridge.util.progress import progress
 
 
 def add_command(add: AddCommand) -> None:
@@ -34,11 +36,16 @@ def run(args: Any) -> int:
     stderr counts what was written and left out."""
     if args.action != "generate":
         raise UsageError(f"unknown action {args.action}")
+    started = time.monotonic()
     definitions, wanted = load_ros_definitions(args.ros_types)
     mapping = map_ros_types(definitions, wanted)
     from viewer_bridge.util.words import counted
 
-    written = mapping.write(args.output)
+    words = counted(len(mapping.texts), "type")
+    # the types are read and mapped, then written: long work (a whole store) says how far, past 2 s
+    with progress("viewer-bridge lcm-types", "writing", len(mapping.texts), lambda done: f"{done} of {words}",
+                  started=started) as advance:  # fmt: skip
+        written = mapping.write(args.output, wrote=lambda _: advance(1))
     for path in written:
         print(path)
     for ros_name, reason in mapping.refused.items():

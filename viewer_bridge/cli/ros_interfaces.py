@@ -6,12 +6,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from viewer_bridge.cli.arguments import AddCommand
 from viewer_bridge.errors import UsageError
-from viewer_bridge.util.progress import Steps, steps
+from viewer_bridge.util.progress import Steps, progress, steps
 
 # What generate says when pydrake is missing: the project ships Drake's viewer and driver types
 # (lcmtypes/), the others come with pydrake.
@@ -62,23 +63,48 @@ def add_command(add: AddCommand) -> None:
 def run(args: argparse.Namespace) -> int:
     """Generate, install or show: the LCM types' packages with --lcm-types (or for generate),
     else the Jazzy packages PyPI lacks (tf2_msgs). Each step (a package written, built) is a line;
-    on a terminal the build under way stays below with its running time (`util/progress.py`)."""
+    on a terminal the build under way stays below with its running time and a bar of its build
+    steps, on a pipe a line per tenth of them once it has run 2 s (`util/progress.py`)."""
     if args.action != "install":  # quick: each line as it comes
         return _run(args, Steps(terminal=False))
     with steps() as told:  # builds of a minute or more: the one under way stays below
         return _run(args, told)
 
 
+def _advanced(told: Steps) -> Callable[[str, int, int], None]:
+    """How a package's build steps are told: `building drake_lcm_msgs: 40%: 56 of 140 build steps (6 s)`."""
+
+    def advanced(name: str, done: int, total: int) -> None:
+        told.part(
+            f"viewer-bridge ros-interfaces: building {name}",
+            done,
+            total,
+            lambda done: f"{done} of {total} build steps",
+        )
+
+    return advanced
+
+
 def _run(args: argparse.Namespace, told: Steps) -> int:
     from viewer_bridge.ros_build import interfaces as ros_interfaces
+    from viewer_bridge.ros_build.packages import closure
     from viewer_bridge.util.words import counted
 
     say = told.say
     if args.action == "generate":  # the LCM types' packages: the project's and Drake's, and --lcm-types'
         if args.output is None:
             raise UsageError("generate needs -o DIR")
+        started = time.monotonic()
         documented = _lcm_ros_definitions(args.lcm_types, comments=True, warn=say)
-        for folder in ros_interfaces.generate_packages(documented, args.output, only=args.names or None):
+        chosen = closure(ros_interfaces.packages(documented), args.names or None)
+        total = sum(len(package.messages) for package in chosen)
+        words = counted(total, "type")
+        with progress("viewer-bridge ros-interfaces", "writing", total, lambda done: f"{done} of {words}",
+                      started=started) as advance:  # fmt: skip
+            folders = ros_interfaces.generate_packages(
+                documented, args.output, only=args.names or None, wrote=lambda _: advance(1)
+            )
+        for folder in folders:
             print(folder)
             written = sorted(path.stem for path in (folder / "msg").glob("*.msg"))
             say(f"viewer-bridge ros-interfaces: wrote {folder.name}: {counted(len(written), 'type')} "
@@ -88,7 +114,11 @@ def _run(args: argparse.Namespace, told: Steps) -> int:
         definitions = _lcm_ros_definitions(args.lcm_types)
         if args.action == "install":
             ros_interfaces.build(
-                definitions, log=say, only=args.names or None, confirm=_confirm(args.yes, told)
+                definitions,
+                log=say,
+                only=args.names or None,
+                confirm=_confirm(args.yes, told),
+                advanced=_advanced(told),
             )
         else:
             chosen = ros_interfaces.packages(definitions)
@@ -110,7 +140,9 @@ def _run(args: argparse.Namespace, told: Steps) -> int:
                 if name not in ros_interfaces.INTERFACES:
                     print(f"{name}: installed (LCM types) in {sys.prefix}")
         return 0
-    ros_interfaces.install(args.names or None, log=say, confirm=_confirm(args.yes, told))
+    ros_interfaces.install(
+        args.names or None, log=say, confirm=_confirm(args.yes, told), advanced=_advanced(told)
+    )
     return 0
 
 

@@ -11,7 +11,7 @@ CDR -> LCM transcoders from `RosStruct`s, the wire-level view kept beside each s
 from __future__ import annotations
 
 import re
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -87,8 +87,9 @@ class LcmFromRos:
         definition = self.lcm[self.structs[ros_name].lcm_name]
         return fingerprint(definition, self.lcm).to_bytes(8, "big")
 
-    def write(self, folder: Path) -> list[Path]:
-        """One `.lcm` file per struct, as `folder/<package>/<Name>.lcm`; returns the paths."""
+    def write(self, folder: Path, wrote: Callable[[Path], None] | None = None) -> list[Path]:
+        """One `.lcm` file per struct, as `folder/<package>/<Name>.lcm`; returns the paths
+        (`wrote` hears each as it is written)."""
         written = []
         for full_name, text in sorted(self.texts.items()):
             package, name = full_name.split(".")
@@ -96,6 +97,8 @@ class LcmFromRos:
             path.parent.mkdir(parents=True, exist_ok=True)
             write_whole(path, text)  # a file under its name is always whole
             written.append(path)
+            if wrote is not None:
+                wrote(path)
         return written
 
 

@@ -17,6 +17,7 @@ import sysconfig
 import tempfile
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -31,6 +32,10 @@ from viewer_bridge.ros_build.packages import (
     packages,
     write_package,
 )
+
+# Told how far a package's build has come: its name, and the steps done of all its build tool
+# runs (compiling a file, running a generator) as the tool counts them.
+Advanced = Callable[[str, int, int], None]
 
 # Asked, with the wheels a build would pip install (their own dependencies come too), before pip
 # runs: True to go on; False or an exception to install nothing.
@@ -53,7 +58,7 @@ BUILD_WHEELS = (
     "ros-jazzy-rosidl-core-generators",
     "ros-jazzy-python-cmake-module",
 )
-APT_PACKAGES = "cmake g++ make python3-dev"
+APT_PACKAGES = "cmake g++ ninja-build python3-dev"
 
 
 def _site_packages(prefix: Path) -> Path:
@@ -101,7 +106,9 @@ def digests(chosen: Sequence[Package]) -> dict[str, str]:
     it uses (a nested type that changes changes the code generated for the types that hold it)."""
     found: dict[str, str] = {}
     for package in chosen:  # in dependency order: a package's depends come first
-        digest = hashlib.sha256(package_xml(package).encode() + cmake_lists(package).encode())
+        digest = hashlib.sha256(
+            package_xml(package).encode() + cmake_lists(package, python_only=True).encode()
+        )
         for message, text in package.messages:
             digest.update(f"\0{message}\0{text}".encode())
         for depend in package.depends:
@@ -210,14 +217,46 @@ def _locked(prefix: Path) -> Iterator[None]:
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def _run(command: Sequence[str], step: str, log_path: Path, env: dict[str, str] | None = None) -> None:
-    """Run one step, its output appended to `log_path`; a failure is one line naming the log."""
+def _run(
+    command: Sequence[str],
+    step: str,
+    log_path: Path,
+    env: dict[str, str] | None = None,
+    heard: Callable[[str], None] | None = None,
+) -> None:
+    """Run one step, its output appended to `log_path` (and each line to `heard`, when given); a
+    failure is one line naming the log."""
     with log_path.open("a") as log:
         log.write(f"$ {' '.join(command)}\n")
         log.flush()
-        result = subprocess.run(command, stdout=log, stderr=subprocess.STDOUT, env=env)
-    if result.returncode != 0:
-        raise RosInterfaceError(f"{step} failed (exit {result.returncode}); its log: {log_path}")
+        if heard is None:
+            returncode = subprocess.run(command, stdout=log, stderr=subprocess.STDOUT, env=env).returncode
+        else:
+            with subprocess.Popen(
+                command,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT,
+                env=env,
+                text=True,
+                errors="replace",
+            ) as process:
+                assert process.stdout is not None
+                for line in process.stdout:
+                    log.write(line)
+                    heard(line)
+            returncode = process.returncode
+    if returncode != 0:
+        raise RosInterfaceError(f"{step} failed (exit {returncode}); its log: {log_path}")
+
+
+# Where Ninja says how far it is: `[12/140] Building C object ...` (make's shares are not counted).
+_NINJA_STEP = re.compile(r"\[(\d+)/(\d+)\] ")
+
+
+def _steps_of(line: str) -> tuple[int, int] | None:
+    """(done, total) of Ninja's progress line, or None for any other line."""
+    ninja = _NINJA_STEP.match(line)
+    return (int(ninja[1]), int(ninja[2])) if ninja else None
 
 
 def install(
@@ -226,12 +265,14 @@ def install(
     jobs: int = 2,
     log: Callable[[str], None] | None = None,
     confirm: Confirm | None = None,
+    advanced: Advanced | None = None,
 ) -> list[str]:
     """Build and install the interface packages `names` (default: all) that `prefix` lacks.
 
     Returns the names built; nothing is done when all are installed already. pip installs the
     `ros-build` wheels first when some are missing, once `confirm` (when given) agrees. Raises
     RosInterfaceError, naming the failing step and its log, when a tool is missing or a step fails.
+    `log` hears a line as each package starts and ends, `advanced` how far each build has come.
     """
     root = Path(prefix)
     wanted = list(INTERFACES) if names is None else list(dict.fromkeys(names))
@@ -246,7 +287,7 @@ def install(
     with _locked(root):
         absent = missing(root)  # again: another process may have built them meanwhile
         todo = [interface_package(name) for name in wanted if name in absent]
-        _build_all(todo, digests(todo), root, jobs, log, confirm=confirm)
+        _build_all(todo, digests(todo), root, jobs, log, confirm=confirm, advanced=advanced)
         still = sorted({package.name for package in todo} & set(missing(root)))
         if still:
             raise RosInterfaceError(f"{', '.join(still)} built but not found installed in {root}")
@@ -261,6 +302,7 @@ def build(
     only: Iterable[str] | None = None,
     install_wheels: bool = True,
     confirm: Confirm | None = None,
+    advanced: Advanced | None = None,
 ) -> list[str]:
     """Build the interface packages of `definitions` into `prefix`, each that is not installed
     from the same sources already (see `digests`), each after the packages it uses.
@@ -270,7 +312,7 @@ def build(
     a build fails, or naming the folder when `prefix` cannot be written. `install_wheels=False`
     (a running bridge: what arrives on a bus must never install software) refuses, naming what
     to install, where wheels the build needs are missing, instead of pip installing them; with it,
-    `confirm` (when given) is asked first.
+    `confirm` (when given) is asked first. `log` and `advanced` hear as `install`'s do.
     """
     root = Path(prefix)
     chosen = closure(packages(definitions), only)
@@ -280,7 +322,7 @@ def build(
     _writable(root)
     with _locked(root):  # again once locked: another process may have built them meanwhile
         todo = [package for package in chosen if not current(package, wanted[package.name], root)]
-        _build_all(todo, wanted, root, jobs, log, install_wheels, confirm)
+        _build_all(todo, wanted, root, jobs, log, install_wheels, confirm, advanced)
     return [package.name for package in todo]
 
 
@@ -292,9 +334,12 @@ def _build_all(
     log: Callable[[str], None] | None,
     install_wheels: bool = True,
     confirm: Confirm | None = None,
+    advanced: Advanced | None = None,
 ) -> None:
-    """Build `todo` in order into `root` (the caller holds the lock), pip installing what is
-    missing once `confirm` agrees (or, without `install_wheels`, refusing to)."""
+    """Build `todo` into `root` (the caller holds the lock), pip installing what is missing once
+    `confirm` agrees (or, without `install_wheels`, refusing to). Up to `jobs` packages build at
+    once, each once the packages of `todo` it uses are built: a package's configure step and its
+    generators run one process at a time, so two packages keep two cores busier than one."""
     if not todo:
         return
     say = log or (lambda _: None)
@@ -321,16 +366,43 @@ def _build_all(
         _run(pip, f"pip install for {todo[0].name}", first_log)
     from viewer_bridge.util.words import counted
 
-    with tempfile.TemporaryDirectory(prefix="viewer-bridge-ros-") as temp:
+    def build_one(package: Package, first: Sequence[Future[None]]) -> None:
+        for used in first:
+            used.result()  # a package it uses failed: that failure is the one said
+        say(f"building {package.name} ({counted(len(package.messages), 'type')}) into {root}")
+        start = time.monotonic()
+        path = log_path(root, package.name)
+        path.write_text("")
+        uninstall([package.name], root)  # built before from other sources: none of it stays
+        heard = None if advanced is None else _hearing(package.name, advanced)
+        _build(package, root, python, Path(temp) / package.name, jobs, path, heard)
+        _stamp(root, package.name).write_text(wanted[package.name] + "\n")
+        say(f"built {package.name} in {time.monotonic() - start:.1f} s")
+
+    with (
+        tempfile.TemporaryDirectory(prefix="viewer-bridge-ros-") as temp,
+        ThreadPoolExecutor(max_workers=max(1, jobs), thread_name_prefix="ros-build") as pool,
+    ):
+        # `todo` is in dependency order: a package waits only on packages submitted (so started) before it
+        builds: dict[str, Future[None]] = {}
         for package in todo:
-            say(f"building {package.name} ({counted(len(package.messages), 'type')}) into {root}")
-            start = time.monotonic()
-            path = log_path(root, package.name)
-            path.write_text("")
-            uninstall([package.name], root)  # built before from other sources: none of it stays
-            _build(package, root, python, Path(temp) / package.name, jobs, path)
-            _stamp(root, package.name).write_text(wanted[package.name] + "\n")
-            say(f"built {package.name} in {time.monotonic() - start:.1f} s")
+            first = [builds[depend] for depend in package.depends if depend in builds]
+            builds[package.name] = pool.submit(build_one, package, first)
+        for future in builds.values():  # the first failure in order is raised, once all have ended
+            future.exception()
+        for future in builds.values():
+            future.result()
+
+
+def _hearing(name: str, advanced: Advanced) -> Callable[[str], None]:
+    """What hears a build tool's lines and tells `advanced` of each progress line."""
+
+    def heard(line: str) -> None:
+        steps = _steps_of(line)
+        if steps is not None:
+            advanced(name, *steps)
+
+    return heard
 
 
 def _is_interface(wheel: str, prefix: Path) -> bool:
@@ -340,20 +412,30 @@ def _is_interface(wheel: str, prefix: Path) -> bool:
     return (prefix / "share" / "ament_index" / "resource_index" / "packages" / name).exists()
 
 
-def _build(package: Package, prefix: Path, python: str, folder: Path, jobs: int, log_path: Path) -> None:
+def _build(
+    package: Package,
+    prefix: Path,
+    python: str,
+    folder: Path,
+    jobs: int,
+    log_path: Path,
+    heard: Callable[[str], None] | None = None,
+) -> None:
     name = package.name
     source, build = folder / "source", folder / "build"
-    write_package(package, source)
+    write_package(package, source, python_only=True)
     env = dict(os.environ, AMENT_PREFIX_PATH=str(prefix))  # without it: "No 'rosidl_typesupport_c' found"
     env.pop("CMAKE_PREFIX_PATH", None)  # a sourced ROS install's, if any: only this prefix's packages
-    generator = [] if shutil.which("make") else ["-G", "Ninja"]
+    # Ninja when there is one: it runs rosidl's generators and the compilers with less waiting than
+    # make's nested makefiles, and counts its steps (`heard` makes the progress of them)
+    generator = ["-G", "Ninja"] if shutil.which("ninja") else []
     configure = [
         "cmake", "-S", str(source), "-B", str(build), *generator,
         f"-DCMAKE_PREFIX_PATH={prefix}", f"-DCMAKE_INSTALL_PREFIX={prefix}",
         f"-DPython3_EXECUTABLE={python}", "-DBUILD_TESTING=OFF",
     ]  # fmt: skip
     _run(configure, f"configuring {name}", log_path, env)
-    _run(["cmake", "--build", str(build), "--parallel", str(jobs)], f"building {name}", log_path, env)
+    _run(["cmake", "--build", str(build), "--parallel", str(jobs)], f"building {name}", log_path, env, heard)
     _run(["cmake", "--install", str(build)], f"installing {name}", log_path, env)
     manifest = build / "install_manifest.txt"
     if manifest.exists():  # what `uninstall` removes (pip cannot: cmake --install writes no RECORD)

@@ -3,7 +3,7 @@ and its folder written for a colcon workspace (`generate_packages`) or for a bui
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -152,11 +152,26 @@ endforeach()
 """
 
 
-def cmake_lists(package: Package) -> str:
-    """rosidl_generate_interfaces of the package's messages, DEPENDENCIES the packages they nest."""
+# A package built into the venv serves rclpy, which reaches a type through its C type support
+# (rosidl_typesupport_c, dispatching to the Fast DDS and introspection ones): rosidl's C++
+# generators, more than half of a build's compiler time, are left out, and each C type support
+# library (C++ sources that all include the same headers) is compiled as one unit. Not for a
+# workspace's packages, which C++ nodes may use.
+_PYTHON_ONLY_CMAKE = """list(FILTER AMENT_EXTENSIONS_rosidl_generate_idl_interfaces EXCLUDE REGEX "^rosidl_[a-z_]+_cpp:")
+"""
+_ONE_UNIT_CMAKE = """foreach(part typesupport_fastrtps_c typesupport_introspection_c typesupport_c generator_py)
+  set_target_properties(${PROJECT_NAME}__rosidl_${part} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE 0)
+endforeach()
+"""
+
+
+def cmake_lists(package: Package, python_only: bool = False) -> str:
+    """rosidl_generate_interfaces of the package's messages, DEPENDENCIES the packages they nest;
+    `python_only` (a build into the venv) with rosidl's C generators only (_PYTHON_ONLY_CMAKE)."""
     find = "".join(f"find_package({depend} REQUIRED)\n" for depend in package.depends)
     files = " ".join(f'"{file}"' for file in package.files())
     depends = f" DEPENDENCIES {' '.join(package.depends)}" if package.depends else ""
+    before, after = (_PYTHON_ONLY_CMAKE, _ONE_UNIT_CMAKE) if python_only else ("", "")
     return f"""cmake_minimum_required(VERSION 3.21)
 project({package.name})
 
@@ -164,8 +179,8 @@ find_package(ament_cmake REQUIRED)
 {find}find_package(rosidl_default_generators REQUIRED)
 
 {WHEEL_INCLUDES_CMAKE}
-rosidl_generate_interfaces(${{PROJECT_NAME}} {files}{depends})
-ament_export_dependencies(rosidl_default_runtime)
+{before}rosidl_generate_interfaces(${{PROJECT_NAME}} {files}{depends})
+{after}ament_export_dependencies(rosidl_default_runtime)
 ament_package()
 """
 
@@ -193,38 +208,47 @@ def check_writable_package(folder: Path) -> None:
         )
 
 
-def write_package(package: Package, folder: Path) -> Path:
-    """`package`'s sources in `folder`: package.xml, CMakeLists.txt and msg/*.msg (a `.msg` file
-    of a type the package no longer has, from an earlier run, is removed), and the mark that lets
-    a later run do so (`check_writable_package` must pass first)."""
+def write_package(
+    package: Package, folder: Path, python_only: bool = False, wrote: Callable[[str], None] | None = None
+) -> Path:
+    """`package`'s sources in `folder`: package.xml, CMakeLists.txt (see `cmake_lists`) and
+    msg/*.msg (a `.msg` file of a type the package no longer has, from an earlier run, is removed),
+    and the mark that lets a later run do so (`check_writable_package` must pass first). `wrote`
+    hears the name of each message written."""
     (folder / "msg").mkdir(parents=True, exist_ok=True)
     # each file through its .partial (util/partial.py): a stop midway leaves no file cut short
     write_whole(folder / GENERATED_MARK, _MARK_TEXT)
     write_whole(folder / "package.xml", package_xml(package))
-    write_whole(folder / "CMakeLists.txt", cmake_lists(package))
+    write_whole(folder / "CMakeLists.txt", cmake_lists(package, python_only))
     wanted = {f"{message}.msg" for message, _ in package.messages}
     for stale in (folder / "msg").glob("*.msg"):
         if stale.name not in wanted:
             stale.unlink()
     for message, text in package.messages:
         write_whole(folder / "msg" / f"{message}.msg", text)
+        if wrote is not None:
+            wrote(message)
     return folder
 
 
 def generate_packages(
-    definitions: Mapping[str, str], out_dir: str | Path, only: Iterable[str] | None = None
+    definitions: Mapping[str, str],
+    out_dir: str | Path,
+    only: Iterable[str] | None = None,
+    wrote: Callable[[str], None] | None = None,
 ) -> list[Path]:
     """One complete ROS 2 interface package per package of `definitions`, each in `out_dir/<name>`
     (what a colcon workspace's `src/` holds); returns their folders, each after those it uses.
 
     `only` restricts it to those packages and the ones of `definitions` they use; a name that is
     not a package of `definitions` is a RosInterfaceError naming it. So is a package folder that
-    exists and was not written by this function (`check_writable_package`): then nothing is written."""
+    exists and was not written by this function (`check_writable_package`): then nothing is written.
+    `wrote` hears the name of each message written."""
     root = Path(out_dir)
     chosen = closure(packages(definitions), only)
     try:
         for package in chosen:  # every folder before any is written: all or nothing
             check_writable_package(root / package.name)
-        return [write_package(package, root / package.name) for package in chosen]
+        return [write_package(package, root / package.name, wrote=wrote) for package in chosen]
     except OSError as error:
         raise RosInterfaceError(f"cannot write the interface packages to {root}: {error.strerror}") from None
