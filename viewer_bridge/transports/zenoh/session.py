@@ -160,6 +160,28 @@ class Link:
 
         return guarded
 
+    def putting(self, put: Callable[..., None]) -> Callable[[bytes, bytes | None], None]:
+        """A publisher's `put` guarded as `calling` guards a callback, called with the payload and
+        its attachment (or None) as they are: no tuple or dict of arguments made per message."""
+
+        running = self._running
+
+        def guarded(payload: bytes, attachment: bytes | None = None) -> None:
+            running.append(None)  # as in `calling`
+            try:
+                if not self._closing:
+                    if attachment is None:
+                        put(payload)
+                    else:
+                        put(payload, attachment=attachment)
+            finally:
+                running.pop()
+                if self._closing and not running:
+                    with self._calls:
+                        self._calls.notify_all()
+
+        return guarded
+
     def when_open(self, declare: Declare) -> None:
         """Run `declare(session)` now if the session is open, else once it opens."""
         with self._lock:
