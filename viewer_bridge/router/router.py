@@ -143,6 +143,7 @@ class Router:
             self.shared.get(ChannelNames),
             self.shared.get(SaidOnce),
             self.shared.get(Destinations) if translator_class.exclusive else None,
+            plain_destination=self.transports[route.destination.transport].plain_publishers,
         )
         translator = runner.prototype
         assert translator is not None
@@ -154,6 +155,8 @@ class Router:
         published = any(other.destination.transport == route.source.transport for other in self.config.routes)
         deliver = self._echoes.deliver(route.source.transport, runner.offer, runner.came_back, published)
         source.subscribe(route.source.name, translator.reads[0], source_qos(runner), deliver)
+        if deliver == runner.offer:  # no loop guard between: the route's express path may serve it
+            source.offer_express(deliver, runner.express)
         return runner
 
     def _publisher_factory(self, route: Route) -> PublisherFor:

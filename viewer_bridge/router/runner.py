@@ -22,12 +22,21 @@ from collections.abc import Callable
 from viewer_bridge.config.bridge import Route, destination_name
 from viewer_bridge.errors import BridgeError, Held
 from viewer_bridge.model.skipped import Skipped, current_collector, thread_collector
+from viewer_bridge.router.echoes import GuardedPublisher
 from viewer_bridge.router.flow import InlineBudget, Mailbox, Message
 from viewer_bridge.router.stats import RouteStats
 from viewer_bridge.router.status import RouteSnapshot
 from viewer_bridge.shared import MessageTime
 from viewer_bridge.translators.base import Output, Translator
-from viewer_bridge.transports.base import Closable, MessageType, Publisher, Received, hand_over, size_of
+from viewer_bridge.transports.base import (
+    Closable,
+    Express,
+    MessageType,
+    Publisher,
+    Received,
+    hand_over,
+    size_of,
+)
 from viewer_bridge.transports.command_policy import CommandPolicy
 from viewer_bridge.transports.ros_names import ChannelNames
 from viewer_bridge.util.channels import ChannelPattern
@@ -46,6 +55,15 @@ RECLAIM_SCAN_S = 1.0
 # A `policy: all` route whose translations take less than this on average translates inline
 # past the thread's budget: a few wake-ups' worth (20-60 us each on the 2-core test VM).
 QUICK_S = 100e-6
+# The express path (`RouteRunner.express`) leaves one message in this many to the full path, which
+# times it (`translate_ms`, latency), asks for listeners when due, and fills the inline budget for
+# the messages carried since: the stats sample the stream instead of costing every message.
+EXPRESS_SAMPLE = 128
+# The express path carries messages up to this size: a quick translation of one takes microseconds
+# (a copy, a transcoding), so it needs no timing. A larger one takes the full path, whose timing
+# keeps a slow route to the inline budget. A size, not a time: the same on any machine, and under
+# valgrind (bench/instructions.py), where every time is some 50 times longer.
+EXPRESS_MAX_BYTES = 64 * 1024
 
 
 class SaidOnce:
@@ -112,9 +130,12 @@ class _Lane:
         self.made: dict[int, tuple[Output, Publisher]] = {}
         self.skipped: dict[str, Message] = {}  # newest per channel, while nobody listened (lazy)
         self.listened_now = True
-        self._checked_at = float("-inf")
+        self.checked_at = float("-inf")  # when `listened` last asked the publishers
         # Whether the translator keeps books on every message: most do not (no call per message).
         self.observes = type(translator).observe is not Translator.observe
+        self.reclaimed = False  # let go (`RouteRunner._reclaim`): its express path carries no more
+        self.express: Express | None = None  # its express path, made for the publishers it had then
+        self.express_made = 0  # how many publishers it had then
 
     def names(self) -> list[tuple[str, MessageType]]:
         """The (name, type) of each publisher it made: what it gives back when reclaimed."""
@@ -138,8 +159,8 @@ class _Lane:
         Raises `Held` when an output cannot have a publisher yet (its interface is being built):
         nothing to translate for, nobody to ask."""
         now = time.monotonic()
-        if now - self._checked_at >= _LISTENERS_CHECK_S:
-            self._checked_at = now
+        if now - self.checked_at >= _LISTENERS_CHECK_S:
+            self.checked_at = now
             counts = [
                 self.publisher(index).subscriber_count() for index in range(len(self.translator.outputs))
             ]
@@ -167,6 +188,7 @@ class RouteRunner:
         said: SaidOnce | None = None,
         destinations: Destinations | None = None,
         clock: Callable[[], float] = time.monotonic,
+        plain_destination: bool = False,
     ) -> None:
         """`commands`: the policy of a route that writes commands (its destinations must be
         allowed; its messages expire after `max_age_ms`), or None for any other route. `names`:
@@ -174,7 +196,9 @@ class RouteRunner:
         the router's routes have logged once (a held channel), or None for the route's own.
         `destinations`: the router's, for a route whose translator is exclusive (each destination
         carries one stream), else None. `clock`: seconds, for how long a stream has been quiet
-        (`stream_idle_s`; a test's own clock)."""
+        (`stream_idle_s`; a test's own clock). `plain_destination`: the destination transport's
+        publishers read nothing but their bytes (`Transport.plain_publishers`), so the route may
+        have an express path (`express`)."""
         self.route = route
         self.commands = commands
         self._destinations = destinations
@@ -216,6 +240,20 @@ class RouteRunner:
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name=f"route {route.name}", daemon=True)
         self._logged: Counter[str] = Counter()
+        # The express path: for a quick `policy: all` route whose translator makes a message's one
+        # payload from its bytes alone (`Translator.relays`, `Translator.quick`), onto publishers
+        # that take bytes alone, with no age limit to check per message.
+        translator_class = type(self.prototype)
+        self._expressible = (
+            plain_destination
+            and self._inline is not None
+            and self._keeps_every
+            and self._max_age_us is None
+            and self.commands is None
+            and (translator_class.relays or translator_class.quick is not Translator.quick)
+        )
+        self._countdown = EXPRESS_SAMPLE  # messages to the next one left to the full path
+        self._owed = 0  # messages the express path carried that the inline budget has not been charged
 
     def offer(self, received: Received) -> None:
         """Called on the transport's thread: keep the message if this route's source matches, and
@@ -238,7 +276,9 @@ class RouteRunner:
                     self.handle(message)
                 finally:
                     self._turn.release()
-                    inline.spent(started, time.perf_counter())
+                    # this message, and as many again as the express path carried since the last
+                    owed, self._owed = self._owed, 0
+                    inline.spent(started, time.perf_counter(), 1 + owed)
                 return
         self.mailbox.put(message)
 
@@ -266,6 +306,98 @@ class RouteRunner:
         self._count_held(
             received.channel, Held("own_message", "the bridge's own message, come back: not sent again")
         )
+
+    def express(self, channel: str) -> Express | None:
+        """This route's express path for `channel`, when it is the channel's only route
+        (`Transport.offer_express`), or None while it has none: a function of a message's bytes
+        that translates (`Translator.quick`, or the bytes as they are) and publishes on the
+        transport's thread with none of the full path's calls (no `Received`, no `Message`, no
+        clock per message but a lazy route's, no stats sample), and says False when the message
+        must take the full path: the route busy (its worker has messages, or holds its turn), a
+        message over `EXPRESS_MAX_BYTES`, a lazy route with nobody listening (asked here when due,
+        as the full path asks) or messages kept for when someone does, a type or an output it has
+        not seen, anything raised (the full path does it again and
+        counts it), or one message in `EXPRESS_SAMPLE`, which the full path times for the stats
+        and the inline budget. Made once a lane has publishers (its stream's first message took
+        the full path), again when it has more."""
+        if not self._expressible:
+            return None
+        match = self.pattern.fullmatch(channel)
+        lane = None if match is None else self._lanes.get(match.groups())
+        if lane is None or lane.reclaimed or not lane.made:
+            return None
+        if lane.express is None or lane.express_made != len(lane.made):
+            lane.express, lane.express_made = self._express_lane(lane), len(lane.made)
+        return lane.express
+
+    def _express_lane(self, lane: _Lane) -> Express | None:
+        """`lane`'s express path over the publishers it has now, or None when one of them is
+        guarded against echoes (it reads the message's channel, which this path does not set)."""
+        publishers: dict[int, Publisher] = {}
+        for index, (output, publisher) in lane.made.items():
+            if isinstance(publisher, GuardedPublisher) or output is not lane.translator.outputs[index]:
+                return None
+            publishers[index] = publisher
+        translator = lane.translator
+        quick = None if translator.relays else translator.quick
+        relayed = publishers.get(0)
+        if quick is None and relayed is None:
+            return None
+        stats, mailbox, turn, lazy, monotonic = (
+            self.stats,
+            self.mailbox,
+            self._turn,
+            self._lazy,
+            time.monotonic,
+        )
+
+        def carry(data: bytes) -> bool:
+            # Once per message: every line here is what a small message costs.
+            size = len(data)
+            if mailbox.waiting or lane.reclaimed or size > EXPRESS_MAX_BYTES:
+                return False
+            countdown = self._countdown - 1
+            if countdown <= 0:  # the sample: the full path times it, and charges the budget for the rest
+                self._countdown, self._owed = EXPRESS_SAMPLE, EXPRESS_SAMPLE - 1
+                return False
+            self._countdown = countdown
+            if lazy:
+                # Its listeners asked for when due, here, as the full path would ask.
+                if monotonic() - lane.checked_at >= _LISTENERS_CHECK_S:
+                    try:
+                        lane.listened()
+                    except Held:  # an output's publisher cannot be made yet: the full path counts it
+                        return False
+                if lane.skipped or not lane.listened_now:
+                    return False
+            # Its turn free, the mailbox empty: nothing of this route's is being translated, and only this
+            # thread could give its worker more (the worker takes the turn meanwhile only to look
+            # at lazy lanes' kept messages, which this lane has none of), so the order holds
+            # without taking the turn (a lock's acquire is the dearest call here).
+            if turn.locked():
+                return False
+            try:
+                if quick is None:
+                    publisher, payload = relayed, data
+                else:
+                    made = quick(data)
+                    if made is None:
+                        return False
+                    index, payload = made
+                    publisher = publishers.get(index)
+                    if publisher is None:
+                        return False
+                publisher.publish(payload)  # type: ignore[union-attr]
+            except Exception:  # the full path translates and publishes it again, and counts what fails
+                return False
+            lane.used = True
+            stats.messages_in += 1
+            stats.bytes_in += size
+            stats.messages_out += 1
+            stats.bytes_out += len(payload)
+            return True
+
+        return carry
 
     def feed(self, received: Received) -> None:
         """Offline (no worker running): translate and publish at once, on the caller's thread, if
@@ -374,6 +506,8 @@ class RouteRunner:
                 lane.used_at, lane.used = now, False
         quiet = [key for key, lane in self._lanes.items() if now - lane.used_at >= idle_s and lane.closable()]
         gone = [self._lanes.pop(key) for key in quiet]
+        for lane in gone:
+            lane.reclaimed = True
         kept = {lane.name for lane in self._lanes.values()}
         for lane in gone:
             if self._destinations is not None:

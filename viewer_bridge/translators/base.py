@@ -75,6 +75,11 @@ class Translator:
     ROS 2 topic its own LCM channel): a stream for a destination that another stream of any of
     the router's routes carries is held (`channel_taken`), the first kept.
 
+    `relays` marks a translator whose one output is each message's bytes as they are, and `quick`
+    is overridden by one that can make a message's one payload from its bytes alone: the router
+    then carries most messages of a quick `policy: all` route on its express path
+    (`viewer_bridge.router.runner.RouteRunner.express`), with neither `observe` nor `translate`.
+
     Raises:
         pydantic.ValidationError: options its `Options` model refuses (a `ValueError`; a config
             names the file and line instead).
@@ -89,6 +94,7 @@ class Translator:
     replies: ClassVar[MessageType | None] = None
     commands: ClassVar[bool] = False
     exclusive: ClassVar[bool] = False
+    relays: ClassVar[bool] = False
 
     def __init__(
         self,
@@ -111,6 +117,13 @@ class Translator:
     def writes(cls, options: TranslatorOptions) -> tuple[MessageType, ...]:
         """Every type a translator with these options may publish (by default, its `outputs`')."""
         return tuple(dict.fromkeys(output.type for output in cls.outputs))
+
+    def quick(self, data: bytes) -> tuple[int, bytes] | None:
+        """The one (output index, payload bytes) a message of these bytes makes, with nothing else
+        done (no state kept, no part skipped, nothing `observe` would do left undone), or None when
+        this message needs `observe` and `translate` (a type not seen yet). Only overridden by a
+        translator that can: the base's is never called (the router checks for an override)."""
+        return None
 
     def observe(self, message: Received) -> None:
         """Bookkeeping every message gets, translated or not (a lazy route with no subscriber)."""

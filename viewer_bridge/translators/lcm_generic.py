@@ -59,6 +59,10 @@ class LcmToRos(Translator):
         index, lcm_type = self._output(message)
         return [(index, lcm_type.to_cdr(message.data))]
 
+    def quick(self, data: bytes) -> tuple[int, bytes] | None:
+        found = self._by_fingerprint.get(data[:8])  # a type seen before: its output is there already
+        return None if found is None else (found[0], found[1].to_cdr(data))
+
     def _output(self, message: Received) -> tuple[int, LcmType]:
         """The output of this message's type (added the first time the type is seen), and the type."""
         fingerprint = bytes(message.data[:8])

@@ -16,6 +16,7 @@ class LcmRelay(Translator):
 
     reads = (ANY_LCM,)
     outputs = (Output("", ANY_LCM),)
+    relays = True
 
     def translate(self, message: Received) -> Outputs:
         return [(0, message.data)]

@@ -129,6 +129,11 @@ class Received:
 
 
 Deliver = Callable[[Received], None]  # called on the transport's thread: hand over and return
+# A route's express path for one channel (`Transport.offer_express`): called with a message's bytes
+# alone, on the transport's thread; True when it carried the message, False when the message must
+# take the full path (a `Received` delivered as usual).
+Express = Callable[[bytes], bool]
+ExpressFor = Callable[[str], Express | None]  # a channel's express path, or None for none now
 
 
 @dataclass(frozen=True, slots=True)
@@ -205,6 +210,10 @@ class Transport(ABC):
     # Whether its CDR sources are ROS 2 topics found in a ROS graph (DDS, rmw_zenoh): where
     # `ros_topics` looks for the topics it carries onto LCM.
     ros_graph: ClassVar[bool] = False
+    # Whether its publishers read nothing but the bytes they are given (not the `MessageTime` of
+    # the message being published, as a file's log time does): then a route may publish on them
+    # from its express path, which skips that store (`viewer_bridge.router.runner`).
+    plain_publishers: ClassVar[bool] = False
 
     def __init__(self, settings: TransportSettings) -> None:
         self.settings = settings
@@ -254,6 +263,14 @@ class Transport(ABC):
 
         A message that matches several subscriptions is one `Received` handed to each.
         """
+
+    def offer_express(self, deliver: Deliver, express_for: ExpressFor) -> None:
+        """For a channel whose only route is the one `deliver` serves, `express_for(channel)` may
+        give that route's express path: a transport that can use one (a live LCM bus, where a
+        small message's Python calls are most of its cost) calls it with the bytes alone, and
+        delivers as usual when it returns False. Asked again after each message that took the full
+        path. Others ignore it (the default)."""
+        return None
 
     @abstractmethod
     def publisher(self, name: str, message_type: MessageType, qos: Qos) -> Publisher:
@@ -371,6 +388,8 @@ __all__ = [
     "Definition",
     "Deliver",
     "Exposure",
+    "Express",
+    "ExpressFor",
     "JSON",
     "LCM",
     "MessageType",

@@ -219,7 +219,8 @@ class LcmBus:
         self._lcm = _open(with_receive_buffer(url))
         self._port = _udpm_port(url)
         self._drops = 0  # the last count of kernel_drops read
-        self._stop = threading.Event()
+        # Read once per message: a plain attribute, not an Event (whose `is_set` is a Python call).
+        self._stopping = False
         self._thread = threading.Thread(target=self._run, name=f"lcm {url}", daemon=True)
 
     def kernel_drops(self) -> int:
@@ -241,6 +242,11 @@ class LcmBus:
         # socket buffer, a route's mailbox); the router keeps the callback quick (`InlineBudget`).
         subscription.set_queue_capacity(0)
 
+    def subscribe_bytes(self, channel: str, handler: Callable[[str, bytes], None]) -> None:
+        """As `subscribe`, the handler called by LCM itself with (channel, data): no call in
+        between, no clock read (the handler reads it when it needs it)."""
+        self._lcm.subscribe(channel, handler).set_queue_capacity(0)  # as `subscribe`'s
+
     def publish(self, channel: str, data: bytes) -> None:
         self._lcm.publish(channel, data)
 
@@ -248,11 +254,12 @@ class LcmBus:
         self._thread.start()
 
     def _run(self) -> None:
-        while not self._stop.is_set():
-            self._lcm.handle_timeout(100)
+        handle_timeout = self._lcm.handle_timeout
+        while not self._stopping:
+            handle_timeout(100)
 
     def close(self) -> None:
-        self._stop.set()
+        self._stopping = True
         if self._thread.is_alive():
             self._thread.join(timeout=2)
 
@@ -369,7 +376,12 @@ class LcmTransport(base.Transport):
         self._routes: list[tuple[ChannelPattern, base.Deliver]] = []
         # The routes a channel goes to, found once per channel name: one dictionary lookup a
         # message. Bounded as a pattern's matches are: past that many names, matched each time.
-        self._delivers: dict[str, tuple[base.Deliver, ...]] = {}
+        # With them, the express path's maker of the channel's one route, if it offers one.
+        self._delivers: dict[str, tuple[tuple[base.Deliver, ...], base.ExpressFor | None]] = {}
+        self._express_for: dict[base.Deliver, base.ExpressFor] = {}  # by the deliver it stands beside
+        # A live bus's channels whose one route carries them on its express path (`offer_express`):
+        # one dictionary lookup and that call a message, no `Received` made. Bounded as `_delivers`.
+        self._express: dict[str, base.Express] = {}
 
     @classmethod
     def create(cls, settings: base.TransportSettings, shared: Shared) -> LcmTransport:
@@ -382,27 +394,51 @@ class LcmTransport(base.Transport):
     ) -> None:
         self._routes.append((ChannelPattern(pattern), deliver))
         self._delivers.clear()
+        self._express.clear()
+
+    def offer_express(self, deliver: base.Deliver, express_for: base.ExpressFor) -> None:
+        self._express_for[deliver] = express_for
+        self._delivers.clear()
+        self._express.clear()
 
     def publisher(self, name: str, message_type: base.MessageType, qos: base.Qos) -> base.Publisher:
         bus = self.bus
         return base.ClosingPublisher(lambda data: bus.publish(name, data))  # it holds nothing
 
     def start(self) -> None:
-        self.bus.subscribe(
-            lcm_filter([pattern.pattern.pattern for pattern, _ in self._routes]), self._dispatch
-        )
+        channels = lcm_filter([pattern.pattern.pattern for pattern, _ in self._routes])
+        if isinstance(self.bus, LcmBus):  # live: each message tries its route's express path first
+            self.bus.subscribe_bytes(channels, self._on_message)
+        else:
+            self.bus.subscribe(channels, self._dispatch)
         self.bus.start()
 
+    def _on_message(self, channel: str, data: bytes) -> None:
+        """LCM's handler on a live bus: the channel's express path when it has one and takes the
+        message, else every matching route as usual."""
+        express = self._express.get(channel)
+        if express is not None and express(data):
+            return
+        self._dispatch(channel, data, time.time_ns() // 1000)
+
     def _dispatch(self, channel: str, data: bytes, received_us: int) -> None:
-        delivers = self._delivers.get(channel)
-        if delivers is None:
+        found = self._delivers.get(channel)
+        if found is None:
             delivers = tuple(deliver for pattern, deliver in self._routes if pattern.fullmatch(channel))
+            found = (delivers, self._express_for.get(delivers[0]) if len(delivers) == 1 else None)
             if len(self._delivers) < MAX_CHANNELS:
-                self._delivers[channel] = delivers
+                self._delivers[channel] = found
+        delivers, express_for = found
         if delivers:
             message = base.Received(channel, data, received_us)
             for deliver in delivers:
                 deliver(message)
+        if express_for is not None:  # after the full path: whether the route has one now
+            express = express_for(channel)
+            if express is None:
+                self._express.pop(channel, None)
+            elif len(self._express) < MAX_CHANNELS:
+                self._express[channel] = express
 
     def describe(self) -> str:
         return f"LCM {self.bus.url}{' (played)' if isinstance(self.bus, LogPlayer) else ''}"

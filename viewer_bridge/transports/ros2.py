@@ -362,6 +362,7 @@ class RosTransport(Transport):
     encodings = frozenset({CDR})
     several_processes = True  # a node per process in one graph
     ros_graph = True
+    plain_publishers = True
 
     @classmethod
     def check_source(cls, name: str) -> None:

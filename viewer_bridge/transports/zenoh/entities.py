@@ -112,7 +112,7 @@ class LcmPublisher:
         self.unsent = 0  # published while no router (or peer) was connected
 
         def declare(session: zenoh.Session) -> None:
-            self._put = link.calling(declare_put(session, key, Qos(qos.depth, qos.reliable)))
+            self._put = link.putting(declare_put(session, key, Qos(qos.depth, qos.reliable)))
 
         link.when_open(declare)
 
@@ -151,7 +151,7 @@ class RosPublisher:
             declared = token(str(session.zid()))
             self._topic = declared.topic
             self._gid = keys.gid(declared.key())
-            self._put = link.calling(declare_put(session, key, qos))
+            self._put = link.putting(declare_put(session, key, qos))
             link.hold(session.liveliness().declare_token(declared.key()))
 
         link.when_open(declare)
@@ -163,7 +163,7 @@ class RosPublisher:
             if put is None:
                 return
         self._sequence += 1
-        put(data, attachment=keys.ATTACHMENT.pack(self._sequence, time.time_ns(), 16, self._gid))
+        put(data, keys.ATTACHMENT.pack(self._sequence, time.time_ns(), 16, self._gid))
 
     def subscriber_count(self) -> int:
         """rmw_zenoh subscribers by their tokens; else 1 while any Zenoh subscriber matches."""

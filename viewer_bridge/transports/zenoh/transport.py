@@ -156,6 +156,7 @@ class ZenohTransport(Transport):
     Settings = ZenohSettings
     encodings = frozenset({CDR, LCM})
     ros_graph = True  # rmw_zenoh's
+    plain_publishers = True
     settings: ZenohSettings
 
     @classmethod

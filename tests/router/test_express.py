@@ -1,0 +1,162 @@
+"""A route's express path (viewer_bridge/router/runner.py `RouteRunner.express`): the messages it
+carries are published and counted as the full path's, one in `EXPRESS_SAMPLE` is left to the full
+path for the stats, and it declines whenever the full path must decide (the route busy, a lazy
+route's listeners gone, a lane let go, a type not seen yet). And the LCM transport that uses it."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import drake as drake_lcmtypes
+
+from tests.router.test_runner import generic_route
+from viewer_bridge.config.bridge import Route
+from viewer_bridge.router.flow import InlineBudget
+from viewer_bridge.router.runner import EXPRESS_MAX_BYTES, EXPRESS_SAMPLE, RouteRunner
+from viewer_bridge.translators.base import Output
+from viewer_bridge.translators.registry import TRANSLATORS
+from viewer_bridge.transports.base import CallPublisher, ClosingPublisher, Qos, Received
+from viewer_bridge.transports.lcm import LcmSettings, LcmTransport
+
+
+def relay_runner(sent: list[bytes], plain: bool = True, **route: Any) -> RouteRunner:
+    config = Route.model_validate(
+        {"name": "relay", "source": {"transport": "lcm", "name": "(X.*)"}, "translator": "lcm_relay",
+         "destination": {"transport": "zenoh", "name": "{1}"}, "rate": {"policy": "all"}, **route}
+    )  # fmt: skip
+    return RouteRunner(
+        config,
+        lambda: TRANSLATORS.get("lcm_relay")({}),
+        lambda name, output: ClosingPublisher(sent.append, close=lambda: None),
+        InlineBudget(),
+        plain_destination=plain,
+    )
+
+
+def carry(runner: RouteRunner, channel: str, data: bytes) -> bool:
+    """As the LCM transport does: the express path if there is one and it takes the message, else
+    the full path (after which the express path is asked for again); whether it was express."""
+    express = runner.express(channel)
+    if express is not None and express(data):
+        return True
+    runner.offer(Received(channel, data))
+    return False
+
+
+def test_the_express_path_carries_and_counts_what_the_full_path_would_and_leaves_it_a_sample() -> None:
+    sent: list[bytes] = []
+    runner = relay_runner(sent)
+    assert runner.express("X1") is None  # no lane yet: its first message takes the full path
+    messages = [bytes([index % 256]) * (1 + index % 7) for index in range(10 * EXPRESS_SAMPLE)]
+    expressed = sum(carry(runner, "X1", data) for data in messages)
+    assert sent == messages  # every message, in order
+    stats = runner.stats
+    assert (stats.messages_in, stats.messages_out) == (len(messages), len(messages))
+    assert stats.bytes_in == stats.bytes_out == sum(map(len, messages))
+    full = len(messages) - expressed  # the first, and one in EXPRESS_SAMPLE after it
+    assert 10 <= full <= 11 and len(stats.translate_ms) == len(stats.latency_ms) == full
+
+
+def test_no_express_path_where_the_full_path_must_decide() -> None:
+    sent: list[bytes] = []
+    assert relay_runner(sent, plain=False).express("X1") is None  # a file stamps its message's time
+    assert relay_runner(sent, rate={"policy": "all", "max_hz": 10}).express("X1") is None
+    runner = relay_runner(sent)
+    carry(runner, "X1", b"first")
+    express = runner.express("X1")
+    assert express is not None and runner.express("Y") is None  # not the route's channel
+    with runner._turn:  # its worker translates: the message waits its turn in the mailbox
+        assert not express(b"busy")
+        runner.offer(Received("X1", b"busy"))
+    assert not express(b"behind")  # one waits in the mailbox: the next goes behind it
+    runner.offer(Received("X1", b"behind"))
+    while (message := runner.mailbox.take()) is not None:  # the worker's turn (not running here)
+        runner.handle(message)
+    assert express(b"after") and sent == [b"first", b"busy", b"behind", b"after"]
+    assert not express(bytes(EXPRESS_MAX_BYTES + 1))  # a large one: the full path times it
+
+
+def test_a_stream_let_go_has_no_express_path() -> None:
+    sent: list[bytes] = []
+    now = [0.0]
+    config = Route.model_validate(
+        {"name": "relay", "source": {"transport": "lcm", "name": "(X.*)"}, "translator": "lcm_relay",
+         "destination": {"transport": "zenoh", "name": "{1}"}, "rate": {"policy": "all"}, "max_streams": 1,
+         "stream_idle_s": 1.0}
+    )  # fmt: skip
+    runner = RouteRunner(
+        config,
+        lambda: TRANSLATORS.get("lcm_relay")({}),
+        lambda name, output: ClosingPublisher(sent.append, close=lambda: None),
+        InlineBudget(),
+        clock=lambda: now[0],
+        plain_destination=True,
+    )
+    carry(runner, "X1", b"1")
+    express = runner.express("X1")
+    assert express is not None and express(b"2")
+    now[0] = 5.0
+    carry(runner, "X2", b"3")  # held: X1 was used since the last look (which dates it now)
+    now[0] = 10.0
+    carry(runner, "X2", b"4")  # X1 has been quiet past stream_idle_s: its lane goes to X2
+    assert not express(b"5")  # X1's old lane carries no more
+    assert runner.express("X1") is None and sent == [b"1", b"2", b"4"]
+
+
+def test_a_lazy_route_with_nobody_listening_any_more_takes_the_full_path_and_skips() -> None:
+    listeners = [1]
+    published: list[bytes] = []
+
+    def publisher_for(name: str, output: Output) -> CallPublisher:
+        return CallPublisher(published.append, lambda: listeners[0])
+
+    runner = RouteRunner(
+        generic_route(lazy=True),
+        lambda: TRANSLATORS.get("lcm_to_ros")({}),
+        publisher_for,
+        InlineBudget(),
+        plain_destination=True,
+    )
+    data = drake_lcmtypes.lcmt_iiwa_status().encode()
+    carry(runner, "IIWA_STATUS", data)
+    assert carry(runner, "IIWA_STATUS", data)  # a known type, someone listens: express
+    assert published[0] == published[1]  # the same CDR as the full path's
+    listeners[0] = 0
+    deadline = time.monotonic() + 30
+    while runner.stats.idle_skipped == 0 and time.monotonic() < deadline:  # asked again within 0.25 s
+        carry(runner, "IIWA_STATUS", data)
+        time.sleep(0.01)
+    assert runner.stats.idle_skipped == 1
+    assert not carry(runner, "IIWA_STATUS", data) and runner.stats.idle_skipped == 2
+    other = drake_lcmtypes.lcmt_iiwa_command().encode()
+    listeners[0] = 1
+    time.sleep(0.3)
+    assert not carry(runner, "IIWA_STATUS", other)  # a type not seen yet: the full path adds its output
+
+
+def test_the_lcm_transport_carries_a_channel_on_its_routes_express_path() -> None:
+    """A live bus (memq: in this process): each message of a channel whose one route offers an
+    express path is carried by it, but the sampled ones; the channel's other routes' would not be."""
+    transport = LcmTransport(LcmSettings(url="memq://"))
+    sent: list[bytes] = []
+    runner = relay_runner(sent)
+    both: list[Received] = []
+    any_lcm = TRANSLATORS.get("lcm_relay").reads[0]
+    transport.subscribe("(X.*)", any_lcm, Qos(), runner.offer)
+    transport.offer_express(runner.offer, runner.express)
+    transport.subscribe("Y", any_lcm, Qos(), both.append)
+    transport.start()
+    try:
+        messages = [bytes([index % 256]) * 8 for index in range(4 * EXPRESS_SAMPLE)]
+        for data in messages:
+            transport.bus.publish("X1", data)
+            transport.bus.publish("Y", data)
+        deadline = time.monotonic() + 30
+        while (len(sent) < len(messages) or len(both) < len(messages)) and time.monotonic() < deadline:
+            time.sleep(0.01)
+    finally:
+        transport.close()
+    assert sent == messages and [received.data for received in both] == messages
+    assert runner.stats.messages_in == len(messages)
+    assert len(runner.stats.translate_ms) <= 5  # the first and the samples timed: the rest express
