@@ -17,7 +17,7 @@ from typing import Any
 from rich.console import Console
 
 from tests.conftest import lcm_url
-from viewer_bridge.router.status import STATS_SCHEMA, ConsoleLog, LiveTable, LogLines, Snapshot
+from viewer_bridge.router.status import LEGEND, STATS_SCHEMA, ConsoleLog, LiveTable, LogLines, Snapshot
 
 
 def route(messages_in: int, messages_out: int, state: str = "active", **counts: Any) -> dict[str, Any]:
@@ -150,6 +150,29 @@ def test_at_100_columns_idle_rows_say_why_and_the_title_is_one_line() -> None:
         "legend: superseded: a newer message on its channel came first (policy latest: the newest is sent)"
         in lines
     )
+
+
+def test_at_100_columns_every_legend_line_fits_and_a_long_meaning_goes_on_under_itself() -> None:
+    """The longest meanings (unsent, qos_incompatible, name_collision) wrap in the legend's
+    indentation, not at the terminal's edge."""
+    out, now = io.StringIO(), [0.0]
+    table = LiveTable(Console(file=out, force_terminal=True, width=100, color_system=None), lambda: now[0])
+    now[0] += 0.5
+    table.show(snapshot({
+        "poses": route(300, 242, superseded=58),
+        "zenoh_poses": {**route(9, 9, unsent=9), "qos_incompatible": 1},
+        "lcm_bus": {**route(12, 0), "held": {"a-b": {"name_collision": 12}}},
+    }))  # fmt: skip
+    table.close()
+    lines = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", out.getvalue()).splitlines()
+    assert max(map(len, lines)) <= 100, "\n".join(lines)
+    # the longest meanings go on under themselves, in the legend's indentation
+    last = max(i for i, line in enumerate(lines) if line.startswith("legend: "))  # the last drawing's
+    legend = [line for line in lines[last:] if line.strip()]
+    assert all(line.startswith(" " * len("legend: ")) for line in legend[1:]), "\n".join(legend)
+    told = " ".join(line.strip() for line in legend)
+    for term in ("superseded", "unsent", "qos_incompatible", "name_collision"):
+        assert f"{term}: {LEGEND[term]}" in told, "\n".join(legend)
 
 
 def test_at_80_columns_a_busy_demo_keeps_its_totals() -> None:

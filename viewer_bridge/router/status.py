@@ -16,6 +16,7 @@ time it appears.
 from __future__ import annotations
 
 import logging
+import textwrap
 import time
 from collections.abc import Callable, Iterable
 from typing import Any, Final, Literal, Protocol, TypedDict
@@ -197,10 +198,15 @@ def quiet_line(routes: dict[str, RouteSnapshot], names: list[str], listed: bool)
     )
 
 
+def _terms_meanings(terms: Iterable[str]) -> list[tuple[str, str]]:
+    """`(term, meaning)` of each of `terms` (counters of `LEGEND`), in its order."""
+    wanted = set(terms)
+    return [(term, meaning) for term, meaning in LEGEND.items() if term in wanted]
+
+
 def _meanings(terms: Iterable[str]) -> list[str]:
     """`term: meaning` of each of `terms` (counters of `LEGEND`), in its order."""
-    wanted = set(terms)
-    return [f"{term}: {meaning}" for term, meaning in LEGEND.items() if term in wanted]
+    return [f"{term}: {meaning}" for term, meaning in _terms_meanings(terms)]
 
 
 def legend(terms: Iterable[str]) -> str | None:
@@ -209,12 +215,20 @@ def legend(terms: Iterable[str]) -> str | None:
     return "legend: " + "; ".join(said) if said else None
 
 
-def legend_lines(terms: Iterable[str]) -> list[str]:
+def legend_lines(terms: Iterable[str], width: int | None = None) -> list[str]:
     """The legend as the table shows it: a counter a line, aligned under the first (one line of
     several wrapped at the terminal's width was hard to read): `legend: superseded: ...`,
-    `        idle_skipped: ...`."""
+    `        idle_skipped: ...`. A meaning longer than `width` columns goes on under itself."""
     pad = " " * len("legend: ")
-    return [("legend: " if index == 0 else pad) + said for index, said in enumerate(_meanings(terms))]
+    lines = []
+    for index, (term, meaning) in enumerate(_terms_meanings(terms)):
+        first = ("legend: " if index == 0 else pad) + f"{term}: "
+        if width is None:
+            lines.append(first + meaning)
+        else:  # at least 20 columns of meaning on a line, however narrow the terminal
+            lines.extend(textwrap.wrap(meaning, max(width, len(first) + 20), initial_indent=first,
+                                       subsequent_indent=" " * len(first), break_on_hyphens=False))  # fmt: skip
+    return lines
 
 
 def terms_of(routes: dict[str, RouteSnapshot]) -> list[str]:
@@ -384,7 +398,7 @@ class LiveTable:
                 parts.append(Text(f"{name} held back: {held}", style="yellow"))
         if snapshot["transports"]:
             parts.append(Text(f"transport errors: {transports_line(snapshot['transports'])}", style="red"))
-        parts.extend(Text(line, style="dim") for line in legend_lines(terms_of(routes)))
+        parts.extend(Text(line, style="dim") for line in legend_lines(terms_of(routes), self._console.width))
         self._live.update(Group(*parts), refresh=True)
 
     def _table(self, routes: dict[str, RouteSnapshot], rates: dict[str, tuple[float, float]]) -> Table:
