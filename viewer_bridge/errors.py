@@ -267,12 +267,16 @@ class DamagedChunk(BridgeError):
 
 
 class Interrupted(BridgeError):
-    """A conversion stopped midway; `path` (`OUT.partial`) is a valid MCAP of `messages` messages."""
+    """A conversion stopped midway; `path` (`OUT.partial`) is a valid file of `messages` messages,
+    or, when none was written yet, removed (util/partial.py)."""
 
     def __init__(self, messages: int, path: Path) -> None:
         self.messages = messages
         self.path = path
-        super().__init__(f"interrupted: {messages} messages written to {path}")
+        kept = (
+            f"{messages} messages written to {path}" if messages else "no message written yet: nothing kept"
+        )
+        super().__init__(f"interrupted: {kept}")
 
 
 __all__ = [

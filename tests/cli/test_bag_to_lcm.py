@@ -431,3 +431,65 @@ def test_a_rosbag2_folder_of_either_storage_converts_with_one_topic_list(
         assert main(["convert", str(tmp_path / name), str(tmp_path / f"{name}.lcmlog")]) == 0
         assert converted(tmp_path / f"{name}.lcmlog") == list(range(30))
     assert not list((tmp_path / "plain").glob("*.zstd")) and list((tmp_path / "compressed").glob("*.zstd"))
+
+
+def test_a_stop_before_the_first_message_keeps_no_partial_log(tmp_path: Path) -> None:
+    """As in the other direction: an LCM log with no event would look like a result."""
+    import threading
+
+    from viewer_bridge.errors import Interrupted
+
+    bag, out = tmp_path / "bag.mcap", tmp_path / "out.lcmlog"
+    joint_states_mcap(bag, 50)
+    stop = threading.Event()
+    stop.set()  # Ctrl-C came before the first message
+    with pytest.raises(Interrupted, match=r"^interrupted: no message written yet: nothing kept$"):
+        bag_to_lcm(bag, out, stop=stop)
+    assert sorted(tmp_path.iterdir()) == [bag]
+
+
+def test_the_bag_says_how_many_messages_its_chosen_topics_hold(tmp_path: Path) -> None:
+    """The progress' total, without reading a message: an MCAP file's summary statistics, a
+    `.db3`'s rows, per topic; an MCAP file cut short (no summary) does not say."""
+    from collections import Counter
+
+    from viewer_bridge.cli.bag_files import DirectReader
+
+    write_bag(tmp_path / "bag.mcap")
+    reader = DirectReader(tmp_path / "bag.mcap")
+    recorded = Counter(topic for topic, _, _ in SAMPLES)
+    assert {c.topic: reader.message_count([c]) for c in reader.connections} == recorded
+    assert reader.message_count(reader.connections) == len(SAMPLES)
+    rosbag2_db3(tmp_path / "folder", 30)
+    assert (
+        DirectReader(tmp_path / "folder").message_count(DirectReader(tmp_path / "folder").connections) == 30
+    )
+    joint_states_mcap(tmp_path / "whole.mcap", 300)
+    assert (
+        DirectReader(tmp_path / "whole.mcap").message_count(DirectReader(tmp_path / "whole.mcap").connections)
+        == 300
+    )
+    data = (tmp_path / "whole.mcap").read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(data[: len(data) * 2 // 3])
+    cut = DirectReader(tmp_path / "cut.mcap")
+    assert cut.connections and cut.message_count(cut.connections) is None
+
+
+def test_a_bag_convert_on_a_pipe_says_its_progress_per_tenth_of_the_chosen_topics(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import re
+
+    from viewer_bridge.util import progress as progress_module
+
+    monkeypatch.setattr(progress_module, "QUIET_S", 0.0)  # as if the conversion took long
+    bag = tmp_path / "bag.mcap"
+    write_bag(bag)
+    assert len(SAMPLES) > 3 and sum(topic in ("/joint_states", "/imu") for topic, _, _ in SAMPLES) == 3
+    bag_to_lcm(bag, tmp_path / "out.lcmlog", topics="/joint_states|/imu", progress=True)
+    said = [re.sub(r" \(\d+ s\)$", "", line) for line in capsys.readouterr().err.splitlines()]
+    assert said == [  # of the 3 messages of the topics chosen, not the bag's 7
+        "viewer-bridge convert: converting: 30%: 1 of 3 messages",
+        "viewer-bridge convert: converting: 60%: 2 of 3 messages",
+        "viewer-bridge convert: converting: 100%: 3 of 3 messages",
+    ]

@@ -312,13 +312,30 @@ def test_ctrl_c_during_convert_leaves_a_readable_partial_file_and_exits_130(tmp_
     assert not out.exists()
 
 
-def interrupted_convert(command: list[str], partial: Path) -> int:
-    """Run a `convert` and Ctrl-C it once it has begun writing `partial`: it exits 130, with no
-    traceback, saying in one line how many messages it kept there (returned)."""
+def test_ctrl_c_before_the_first_message_is_written_keeps_nothing_and_says_so(tmp_path: Path) -> None:
+    """A `.partial` with no message in it would look like a result: the Ctrl-C removes it."""
+    # Events no route writes come first (the stop is looked at between events): the interrupt
+    # lands while nothing is written yet.
+    log = tmp_path / "late.lcmlog"
+    nobody = (LcmEvent("NOBODY_READS_THIS", b"12345678", i) for i in range(1_000_000))
+    write_log(log, [*nobody, *read_log(demo_log(tmp_path / "demo.lcmlog", 10))])
+    out, partial = tmp_path / "out.mcap", tmp_path / "out.mcap.partial"
+    assert (
+        interrupted_convert([*CLI, "convert", str(log), str(out)], partial, written_beyond=0) == 0
+    )  # as soon as it is there
+    assert not partial.exists() and not out.exists()
+
+
+def interrupted_convert(command: list[str], partial: Path, written_beyond: int = 1 << 16) -> int:
+    """Run a `convert` and Ctrl-C it once it has written `written_beyond` bytes into `partial`
+    (some messages: a `.partial` with none is not kept): it exits 130, with no traceback, saying in
+    one line how many messages it kept there (returned; 0: it says nothing is kept)."""
     child = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 120
-        while not partial.exists() and child.poll() is None and time.monotonic() < deadline:
+        while child.poll() is None and time.monotonic() < deadline:
+            if partial.exists() and partial.stat().st_size >= written_beyond:
+                break
             time.sleep(0.02)
         assert partial.exists(), child.communicate(timeout=60)
         child.send_signal(signal.SIGINT)
@@ -326,10 +343,13 @@ def interrupted_convert(command: list[str], partial: Path) -> int:
     finally:
         child.kill()
     assert child.returncode == 130, stderr
-    said = rf"^viewer-bridge convert: interrupted: (\d+) messages written to {re.escape(str(partial))}$"
+    said = (
+        rf"^viewer-bridge convert: interrupted: "
+        rf"(?:(\d+) messages written to {re.escape(str(partial))}|no message written yet: nothing kept)$"
+    )
     match = re.search(said, stderr, re.M)
     assert match and "Traceback" not in stderr, stderr
-    return int(match.group(1))
+    return int(match.group(1) or 0)
 
 
 # --- convert: says what it did -------------------------------------------------------------------------

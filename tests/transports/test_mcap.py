@@ -170,7 +170,24 @@ def test_an_mcap_file_is_no_source_and_replaces_a_file_only_when_asked(tmp_path:
             )
         )
     Router(config({"path": existing, "overwrite": True}, poses)).close()
-    assert existing.read_bytes().startswith(b"\x89MCAP")
+    # a session that wrote no message keeps no file: the one there stays, and no .partial is left
+    assert existing.read_bytes() == b"keep" and sorted(tmp_path.iterdir()) == [existing]
+    router = Router(config({"path": existing, "overwrite": True}, poses))
+    feed(router, "DRAKE_VIEWER_DRAW", draw_of(small_scene(), 1.0), 1_000_000)
+    router.close()
+    assert [topic for topic, *_ in read(existing)] == ["/poses"]
+
+
+def test_a_session_that_wrote_no_message_keeps_no_file_and_says_so(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    path = tmp_path / "quiet.mcap"
+    with caplog.at_level(logging.INFO, logger="viewer_bridge"):
+        Router(
+            config({"path": path}, route("poses", "drake_to_pose_array", "mcap", "/poses", DRAW_ROUTE))
+        ).close()
+    assert not list(tmp_path.iterdir())
+    assert f"{path}: no message was written: nothing kept" in caplog.messages
 
 
 def test_the_foxglove_server_and_a_foxglove_file_share_one_context(tmp_path: Path) -> None:

@@ -6,6 +6,7 @@ written, a port in use."""
 
 from __future__ import annotations
 
+import logging
 import re
 import signal
 import socket
@@ -215,6 +216,17 @@ def _random_draw(rng: np.random.Generator, step: int, links: int) -> LinkPoses:
     quaternions /= np.linalg.norm(quaternions, axis=1, keepdims=True)
     names = tuple(f"plant::arm{link % 3}::link {link}" for link in range(links))  # a space: one path part
     return LinkPoses(step, names, np.zeros(links, np.int32), rng.normal(size=(links, 3)), quaternions)
+
+
+def test_a_recording_of_no_message_keeps_no_file_and_says_so(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """As for MCAP: an `.rrd` of nothing but the SDK's own properties would look like a result."""
+    out = tmp_path / "quiet.rrd"
+    with caplog.at_level(logging.INFO, logger="viewer_bridge"):
+        _draws_router(out).close()
+    assert not list(tmp_path.iterdir())
+    assert f"{out}: no message was written: nothing kept" in caplog.messages
 
 
 def test_every_draw_through_the_router_is_in_the_rrd_with_its_values(tmp_path: Path) -> None:

@@ -21,6 +21,7 @@ import sqlite3
 import struct
 import sys
 import zlib
+from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -62,16 +63,34 @@ class DirectReader:
         self.connections: list[Connection] = []
         # the same topic in several files (or found twice): one connection, the same id on every read
         self._known: dict[tuple[str, str, str], Connection] = {}
+        # messages per connection id as the files say (an MCAP summary's statistics, a .db3's rows)
+        self._counts: Counter[int] | None = Counter()
         for path in self.files:
-            if path.suffix == ".mcap" and _summary_connections(path, self._known, self.connections):
-                continue  # the file's summary lists its channels: no need to read its chunks for them
-            for _ in self._read([path], None):
-                pass
+            listed, counts = (
+                _summary_connections(path, self._known, self.connections)
+                if path.suffix == ".mcap"
+                else (False, Counter[int]())
+            )
+            if not listed:  # its records are read for its channels (a .db3's rows counted meanwhile)
+                for _ in self._read([path], None, counts):
+                    pass
+            if self._counts is None or counts is None or _UNCOUNTED in counts:
+                self._counts = None  # a file that does not say: no total
+            else:
+                self._counts += counts
             if self.cut is not None:
+                self._counts = None
                 break
         self.cut = None  # said again when the messages are read
         self.damaged_chunks = len(self.damaged)  # found while reading the topics
         self.damaged = []
+
+    def message_count(self, connections: list[Any]) -> int | None:
+        """How many messages the bag holds on `connections`, when every file says (without reading
+        its messages); None when one does not (an MCAP file cut short, or without statistics)."""
+        if self._counts is None:
+            return None
+        return sum(self._counts[connection.id] for connection in connections)
 
     def messages(self, connections: list[Any]) -> Iterator[tuple[Any, int, bytes | memoryview]]:
         return self._read(self.files, {connection.id for connection in connections})
@@ -80,13 +99,14 @@ class DirectReader:
         """Nothing stays open between reads."""
 
     def _read(
-        self, files: list[Path], wanted: set[int] | None
+        self, files: list[Path], wanted: set[int] | None, counts: Counter[int] | None = None
     ) -> Iterator[tuple[Connection, int, bytes | memoryview]]:
-        """The messages of the connections `wanted` (None: none, the connections are found)."""
+        """The messages of the connections `wanted` (None: none, the connections are found; a
+        `.db3`'s rows are counted per connection into `counts`)."""
         for path in files:
             try:
                 if path.suffix == ".db3":
-                    yield from _db3(path, self._known, self.connections, wanted)
+                    yield from _db3(path, self._known, self.connections, wanted, counts)
                 else:
                     yield from _mcap(path, self._known, self.connections, wanted, self.damaged)
             except Exception as error:  # noqa: BLE001 - whatever the damage, the rest of the bag is unreadable
@@ -118,24 +138,25 @@ def _connection(known: dict[tuple[str, str, str], Connection], found: list[Conne
 
 def _summary_connections(
     path: Path, known: dict[tuple[str, str, str], Connection], found: list[Connection]
-) -> bool:
+) -> tuple[bool, Counter[int] | None]:
     """The connections of an MCAP file read from its summary section (where a finished file
     repeats its schemas and channels), without inflating a chunk; False when the file has no
     footer, no summary or no channel in it (cut short, or written without): then its records are
-    read. Whatever the summary says, the messages are still read from the data section."""
+    read. Whatever the summary says, the messages are still read from the data section. With it,
+    the messages per connection id its Statistics record counts (None without one)."""
     with path.open("rb") as stream:
         size = os.fstat(stream.fileno()).st_size
         footer_at = size - len(_MAGIC) - _RECORD.size - _FOOTER.size
         if footer_at < len(_MAGIC):
-            return False
+            return False, None
         stream.seek(footer_at)
         tail = stream.read()
         if tail[-len(_MAGIC) :] != _MAGIC or _RECORD.unpack_from(tail) != (_OP_FOOTER, _FOOTER.size):
-            return False
+            return False, None
         summary_start, offsets_start, _ = _FOOTER.unpack_from(tail, _RECORD.size)
         summary_end = offsets_start or footer_at
         if not len(_MAGIC) <= summary_start < summary_end <= footer_at:
-            return False
+            return False, None
         stream.seek(summary_start)
         records = memoryview(stream.read(summary_end - summary_start))
     schemas: dict[int, tuple[str, str]] = {}
@@ -143,9 +164,33 @@ def _summary_connections(
     try:
         for _ in _chunk_messages(records, schemas, channels, known, found, None):
             pass
+        return bool(channels), _statistics(records, channels)
     except (DamagedChunk, struct.error, ValueError):
-        return False
-    return bool(channels)
+        return False, None
+
+
+def _statistics(records: memoryview, channels: dict[int, Connection]) -> Counter[int] | None:
+    """The messages per connection id of the Statistics record among a summary's `records` (its
+    `channel_message_counts`: a uint32 byte length, then uint16 channel id, uint64 count pairs);
+    None without one, or when it counts messages but not per channel (the map is optional)."""
+    at = 0
+    while at + _RECORD.size <= len(records):
+        op, length = _RECORD.unpack_from(records, at)
+        start, at = at + _RECORD.size, at + _RECORD.size + length
+        if op != _OP_STATISTICS:
+            continue
+        record = records[start:at]
+        (messages,) = _U64.unpack_from(record)
+        pairs = _sized(record, _STATISTICS.size, 4)
+        if messages and not pairs:
+            return None
+        counts: Counter[int] = Counter()
+        for pair in range(0, len(pairs) - _COUNT.size + 1, _COUNT.size):
+            channel_id, count = _COUNT.unpack_from(pairs, pair)
+            if channel_id in channels:
+                counts[channels[channel_id].id] += count
+        return counts
+    return None
 
 
 def _mcap(path: Path, known: dict[tuple[str, str, str], Connection], found: list[Connection],
@@ -245,9 +290,15 @@ def _definition(op: int, record: memoryview, schemas: dict[int, tuple[str, str]]
 
 _MAGIC = b"\x89MCAP0\r\n"
 _OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_DATA_END = 0x02, 0x03, 0x04, 0x05, 0x06, 0x0F
+_OP_STATISTICS = 0x0B
 _RECORD = struct.Struct("<BQ")
 _FOOTER = struct.Struct("<QQI")  # summary start, summary offsets start, summary CRC-32
 _MESSAGE = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time; then the data
+# Statistics: message, schema, channel, attachment, metadata and chunk counts, first and last message
+# times; then the messages per channel
+_STATISTICS = struct.Struct("<QHIIIIQQ")
+_COUNT = struct.Struct("<HQ")  # a channel id, its messages
+_UNCOUNTED = -1  # no connection's id: in a file's counts, the file could not count its messages
 _CHUNK = struct.Struct("<QQQI")  # start time, end time, uncompressed size, uncompressed CRC-32 (0: none)
 _U16, _U16_U16, _U32, _U64 = (
     struct.Struct("<H"),
@@ -338,7 +389,8 @@ def _string(record: memoryview, at: int) -> tuple[str, int]:
 
 
 def _db3(path: Path, known: dict[tuple[str, str, str], Connection], found: list[Connection],
-         wanted: set[int] | None) -> Iterator[tuple[Connection, int, bytes | memoryview]]:  # fmt: skip
+         wanted: set[int] | None,
+         counts: Counter[int] | None = None) -> Iterator[tuple[Connection, int, bytes | memoryview]]:  # fmt: skip
     database = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
     try:
         tables = {row[0] for row in database.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
@@ -354,6 +406,14 @@ def _db3(path: Path, known: dict[tuple[str, str, str], Connection], found: list[
         ):
             if serialization == "cdr":
                 topics[topic_id] = _connection(known, found, topic, msgtype, definitions.get(msgtype, ""))
+        if counts is not None:  # the rows per topic, for the progress' total (sqlite reads no blob for it)
+            try:
+                query = "SELECT topic_id, COUNT(*) FROM messages GROUP BY topic_id"
+                for topic_id, rows in database.execute(query).fetchall():
+                    if topic_id in topics:
+                        counts[topics[topic_id].id] += rows
+            except sqlite3.DatabaseError:  # a damaged page: said when the messages are read; no total
+                counts[_UNCOUNTED] = 1
         if not wanted:
             return
         for topic_id, stamp, data in database.execute(

@@ -99,8 +99,7 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
             raise ConvertError(f"no topic of {bag} maps onto LCM: {reasons}")
         encoders = compile_ros_encoders(mapping, dict.fromkeys(c.msgtype for c in chosen))
         by_id = {c.id: (c.topic, result.channels[c.topic], encoders[c.msgtype]) for c in chosen}
-        total = sum(getattr(c, "msgcount", 0) for c in chosen) or None  # rosbags' counts; none read directly
-        shown = progress_of("viewer-bridge convert", "converting", total, lambda done: f"{done:,} messages")
+        shown = progress_of("viewer-bridge convert", "converting", *_progress_total(reader, chosen))
         with partial_output(target) as partial, shown if progress else nullcontext(_no_progress) as advance:
             events = _events(_readable(reader, chosen, result), by_id, result, stop, advance)
             write_log(partial, events)
@@ -186,6 +185,19 @@ def _channels(connections: list[Any], refused: dict[str, str], result: BagConver
         else:  # the same topic recorded twice (two connections): one channel
             chosen.append(connection)
     return chosen
+
+
+def _progress_total(reader: Any, chosen: list[Any]) -> tuple[int | None, Callable[[int], str]]:
+    """The messages of the `chosen` topics, when the bag says how many (an MCAP file's statistics,
+    a `.db3`'s rows, rosbags' metadata): the progress' total (None: not known); and how it says
+    how far it has come."""
+    if isinstance(reader, DirectReader):
+        total = reader.message_count(chosen) or None
+    else:
+        total = sum(connection.msgcount for connection in chosen) or None
+    if total is None:
+        return None, lambda done: f"{done:,} messages"
+    return total, lambda done: f"{done:,} of {total:,} messages"
 
 
 def _no_progress(count: int) -> None:

@@ -24,7 +24,6 @@ writer does.
 
 from __future__ import annotations
 
-import os
 import threading
 from collections import Counter
 from collections.abc import Iterable
@@ -48,7 +47,7 @@ from viewer_bridge.transports.base import (
 )
 from viewer_bridge.transports.foxglove import FoxgloveContext, carried, require_schemas
 from viewer_bridge.util.extras import missing
-from viewer_bridge.util.partial import partial_path
+from viewer_bridge.util.partial import finish, partial_path
 
 try:
     import foxglove
@@ -245,5 +244,5 @@ class McapTransport(Transport):
 
     def close(self) -> None:
         self.file.close()
-        if self._partial != self.settings.path:
-            os.replace(self._partial, self.settings.path)
+        if self._partial != self.settings.path:  # a live session's (convert renames its own)
+            finish(self._partial, self.settings.path, sum(self.messages.values()))

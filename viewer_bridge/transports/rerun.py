@@ -55,7 +55,7 @@ from viewer_bridge.transports.base import (
     TransportSettings,
     ValuePublisher,
 )
-from viewer_bridge.util.partial import partial_path
+from viewer_bridge.util.partial import finish, partial_path
 
 VIEWER_URL = "rerun+http://127.0.0.1:9876/proxy"  # what `rerun` listens on by default
 _FLUSH_S = 10.0  # how long closing waits for the file and served sinks to take what was logged
@@ -303,7 +303,7 @@ class RerunTransport(Transport):
                 log.warning("rerun: %s", error)
             self.stream.disconnect()  # the file's footer written, servers closed
         if self.partial is not None and self.settings.path is not None and self.partial != self.settings.path:
-            try:
-                os.replace(self.partial, self.settings.path)
+            try:  # a live session's (convert renames its own)
+                finish(self.partial, self.settings.path, sum(self.messages.values()))
             except OSError as error:
                 raise BridgeError(f"{self.settings.path}: {error.strerror or error}") from None

@@ -5,19 +5,24 @@ only once complete, so a file under its real name is always a whole result.
 What is left when the writing stops midway is the same for every writer: a failure (an
 exception) removes the `.partial`; a stop on purpose (`Interrupted`, raised by the writer when
 Ctrl-C set its stop event, once it closed the file properly) keeps it, and the error says what it
-holds. A Ctrl-C that lands outside such a writer's loop (a `KeyboardInterrupt`) counts as a
-failure: nothing is kept.
+holds, unless it holds no message yet: then it is removed, and the error says nothing is kept (an
+empty file would look like a result). A live session's file (`run` into an MCAP or `.rrd`) ends
+the same way when the session does (`finish`). A Ctrl-C that lands outside such a writer's loop (a
+`KeyboardInterrupt`) counts as a failure: nothing is kept.
 """
 
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import shutil
 from collections.abc import Iterator
 from pathlib import Path
 
 from viewer_bridge.errors import Interrupted, UsageError
+
+log = logging.getLogger("viewer_bridge")
 
 
 def partial_path(target: Path) -> Path:
@@ -30,18 +35,31 @@ def partial_path(target: Path) -> Path:
 def partial_output(target: str | Path) -> Iterator[Path]:
     """Yields the path to write (`target`'s `.partial`); renames it to `target` when the block ends
     normally (a writer that chose to write nothing leaves no `.partial` and gets no `target`).
-    `Interrupted` keeps the `.partial`; any other exception removes it."""
+    `Interrupted` keeps the `.partial`, unless it holds no message; any other exception removes it."""
     final = Path(target)
     partial = partial_path(final)
     try:
         yield partial
-    except Interrupted:
+    except Interrupted as stopped:
+        if not stopped.messages:  # its error says so: nothing kept
+            _remove(partial)
         raise
     except BaseException:
         _remove(partial)
         raise
     if partial.exists() or partial.is_symlink():
         os.replace(partial, final)
+
+
+def finish(partial: Path, final: Path, messages: int) -> None:
+    """A live session's file, closed: `partial` renamed to `final` and said (`messages` in it), or
+    removed when it holds no message, and said so."""
+    if not messages:
+        _remove(partial)
+        log.warning("%s: no message was written: nothing kept", final)
+        return
+    os.replace(partial, final)
+    log.info("wrote %s: %d messages", final, messages)
 
 
 def write_whole(path: Path, text: str) -> None:
