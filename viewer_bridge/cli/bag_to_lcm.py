@@ -73,8 +73,9 @@ def bag_to_lcm(bag: str | Path, out: str | Path, *, topics: str | None = None, l
     Raises `ConvertError` before writing anything when `out` exists (unless `force`) or is a
     folder, `lcm_types_out` cannot be a folder, or no topic maps. The log is written as
     `out.partial` and renamed once complete (`util/partial.py`); `stop` set midway (Ctrl-C) ends
-    it there, keeps `out.partial` (a readable log) and raises `Interrupted`. `progress`: shown on
-    stderr (`util/progress.py`).
+    it there, keeps `out.partial` (a readable log; none when no message was written yet) and
+    raises `Interrupted`. `progress`: shown on stderr (`util/progress.py`), of the total the bag
+    says it holds on the topics chosen, when it says.
     A damaged bag is converted as far as it can be read: `result.cut` and `result.damaged` say what was not."""
     target = Path(out)
     if target.is_dir():

@@ -16,7 +16,7 @@ not used. Messages carry the log's receive time. Nothing is lost: the output is 
 existing file is replaced only when asked (`force`), and the MCAP is written as `OUT.partial`,
 renamed to `OUT` once complete. Stopped midway (`stop` set, e.g. by Ctrl-C), the MCAP is closed
 properly (readable, with what was written so far) and left as `OUT.partial`: `Interrupted` says
-how many messages it holds.
+how many messages it holds (none: the file is removed, and it says nothing is kept).
 
 What a conversion wrote comes back as a `Conversion`: its counts, and the channels it skipped
 and why, for the command line to say in one line each (`summary`, `skipped_lines`).
