@@ -160,3 +160,28 @@ def test_the_lcm_transport_carries_a_channel_on_its_routes_express_path() -> Non
     assert sent == messages and [received.data for received in both] == messages
     assert runner.stats.messages_in == len(messages)
     assert len(runner.stats.translate_ms) <= 5  # the first and the samples timed: the rest express
+
+
+def test_a_channel_of_one_type_is_transcoded_directly_and_another_type_takes_the_full_path() -> None:
+    """`lcm_to_ros` on a channel of one type: the express path calls its transcoder alone
+    (`Translator.direct`), and a message it cannot make (another fingerprint, the same size: the
+    kept layout compares it) goes to the full path, which holds it as an unknown type."""
+    published: list[bytes] = []
+    runner = RouteRunner(
+        generic_route(lazy=False),
+        lambda: TRANSLATORS.get("lcm_to_ros")({}),
+        lambda name, output: CallPublisher(published.append, lambda: 1),
+        InlineBudget(),
+        plain_destination=True,
+    )
+    data = drake_lcmtypes.lcmt_iiwa_status().encode()
+    carry(runner, "IIWA_STATUS", data)
+    translator = runner._lanes[("IIWA_STATUS",)].translator
+    index, make = translator.direct() or (None, None)
+    assert index == 0 and make is not None and make(data) == published[0]
+    assert carry(runner, "IIWA_STATUS", data) and published[1] == published[0]  # express, same CDR
+    unknown = bytes(8) + data[8:]  # a fingerprint no known type has
+    assert not carry(runner, "IIWA_STATUS", unknown)
+    assert runner.stats.held == {"IIWA_STATUS": {"unknown_type": 1}} and len(published) == 2
+    assert carry(runner, "IIWA_STATUS", data) and len(published) == 3
+
