@@ -363,3 +363,24 @@ def test_without_a_compiler_the_build_warns_and_stays_pure_python(
         assert not hatch_build.extension_path(tmp_path).exists()
     assert len(warnings) == 2 and all("not compiled" in w and "pure-Python" in w for w in warnings)
     assert "/bin/false" in warnings[0] and "no-such-cc" in warnings[1]
+
+
+def test_a_transcoders_kept_programs_move_in_one_call_or_say_none() -> None:
+    """`LayoutKeeper.kept` (the express path's transcoder): a message of a kept size gives the
+    generated code's bytes; one of a size not kept, of a shape value altered, or not bytes, None
+    (the caller then converts it as usual); programs of another kind than a dict, a TypeError."""
+    from viewer_bridge.lcmcodec._mover import move_kept
+
+    status = TypeLibrary.load().get("drake.lcmt_iiwa_status")
+    keeper = status.transcoder
+    seven = _status(7).encode()
+    status.to_cdr(seven)
+    kept = keeper.kept()
+    assert kept is not None and kept(seven) == keeper.generated(seven)
+    assert kept(_status(5).encode()) is None  # a size not kept yet
+    for at in _shape_bytes(keeper.layouts[len(seven)]):  # type: ignore[arg-type]
+        assert kept(seven[:at] + bytes([seven[at] ^ 0xFF]) + seven[at + 1 :]) is None, at
+    assert kept(bytearray(seven)) is None  # type: ignore[arg-type]
+    assert move_kept({len(seven): None}, seven) is None and move_kept({len(seven): (1, 2)}, seven) is None
+    with pytest.raises(TypeError):
+        move_kept([], seven)  # type: ignore[arg-type]

@@ -160,3 +160,57 @@ def test_the_lcm_transport_carries_a_channel_on_its_routes_express_path() -> Non
     assert sent == messages and [received.data for received in both] == messages
     assert runner.stats.messages_in == len(messages)
     assert len(runner.stats.translate_ms) <= 5  # the first and the samples timed: the rest express
+
+
+def test_a_channel_of_one_type_is_transcoded_directly_and_another_type_takes_the_full_path() -> None:
+    """`lcm_to_ros` on a channel of one type: the express path calls its transcoder alone
+    (`Translator.direct`), and a message it cannot make (another fingerprint, the same size: the
+    kept layout compares it) goes to the full path, which holds it as an unknown type."""
+    published: list[bytes] = []
+    runner = RouteRunner(
+        generic_route(lazy=False),
+        lambda: TRANSLATORS.get("lcm_to_ros")({}),
+        lambda name, output: CallPublisher(published.append, lambda: 1),
+        InlineBudget(),
+        plain_destination=True,
+    )
+    data = drake_lcmtypes.lcmt_iiwa_status().encode()
+    carry(runner, "IIWA_STATUS", data)
+    translator = runner._lanes[("IIWA_STATUS",)].translator
+    index, make = translator.direct() or (None, None)
+    assert index == 0 and make is not None and make(data) == published[0]
+    assert carry(runner, "IIWA_STATUS", data) and published[1] == published[0]  # express, same CDR
+    unknown = bytes(8) + data[8:]  # a fingerprint no known type has
+    assert not carry(runner, "IIWA_STATUS", unknown)
+    assert runner.stats.held == {"IIWA_STATUS": {"unknown_type": 1}} and len(published) == 2
+    assert carry(runner, "IIWA_STATUS", data) and len(published) == 3
+
+
+def test_behind_the_loop_guard_only_the_channels_the_bridge_may_write_lose_the_express_path() -> None:
+    """`router.unwritten`: the default config (its way back writes what `commands.allow` allows,
+    nothing unless told) guards no channel, so each route reading LCM keeps its express path; with
+    `--allow-commands IIWA_COMMAND` that channel alone is read by the guard. A route writing LCM
+    under a template may write any channel (every one guarded), one with a plain name that name."""
+    from viewer_bridge.config.bridge import BridgeConfig, load_config
+    from viewer_bridge.router.router import unwritten
+
+    def express_for(channel: str) -> Any:
+        return f"express {channel}"
+
+    default = load_config(None)
+    assert any(route.destination.transport == "lcm" for route in default.routes)  # its way back
+    assert unwritten(default, "lcm", express_for)("IIWA_COMMAND") == "express IIWA_COMMAND"
+    allowing = unwritten(default.allowing_commands(["IIWA_COMMAND"]), "lcm", express_for)
+    assert allowing("IIWA_COMMAND") is None and allowing("IIWA_STATUS") == "express IIWA_STATUS"
+
+    def writing(name: str) -> BridgeConfig:
+        return BridgeConfig.model_validate(
+            {"lcm": {"url": "memq://"}, "routes": [
+                {"name": "out", "source": {"transport": "lcm", "name": "(X.*)"}, "translator": "lcm_relay",
+                 "destination": {"transport": "lcm", "name": name}}]}
+        )  # fmt: skip
+
+    assert unwritten(writing("{1}_COPY"), "lcm", express_for)("Y") is None
+    plain = unwritten(writing("X_COPY"), "lcm", express_for)
+    assert plain("X_COPY") is None and plain("X1") == "express X1"
+    assert unwritten(writing("X_COPY"), "zenoh", express_for)("X_COPY") == "express X_COPY"

@@ -234,9 +234,38 @@ done:
     return result;
 }
 
+/* move_kept(programs, data): `data` (bytes) moved by the program `programs` (a dict by message
+ * size) keeps for its size, or None when it keeps none (a size not seen, one without a program, a
+ * Python layout) or the program does not fit: what a kept layout's converter does before its
+ * generated code, in one call (the express path's, viewer_bridge/router/runner.py). */
+static PyObject *move_kept(PyObject *module, PyObject *const *args, Py_ssize_t nargs) {
+    if (nargs != 2 || !PyDict_Check(args[0])) {
+        PyErr_SetString(PyExc_TypeError, "move_kept(programs, data) takes a dict and the data");
+        return NULL;
+    }
+    if (!PyBytes_CheckExact(args[1]))
+        return Py_NewRef(Py_None);
+    PyObject *size = PyLong_FromSsize_t(PyBytes_GET_SIZE(args[1]));
+    if (size == NULL)
+        return NULL;
+    PyObject *program = PyDict_GetItemWithError(args[0], size); /* borrowed */
+    Py_DECREF(size);
+    if (program == NULL)
+        return PyErr_Occurred() ? NULL : Py_NewRef(Py_None);
+    if (!PyBytes_Check(program)) /* a Python layout (a tuple), or None: no program */
+        return Py_NewRef(Py_None);
+    Py_INCREF(program); /* held while it runs, whatever happens to the dict */
+    PyObject *pair[2] = {program, args[1]};
+    PyObject *result = move(module, pair, 2);
+    Py_DECREF(program);
+    return result;
+}
+
 static PyMethodDef methods[] = {
     {"move", (PyCFunction)(void (*)(void))move, METH_FASTCALL,
      "move(program, data, /) -> bytes | None: `data` converted by a move program, or None when it does not fit."},
+    {"move_kept", (PyCFunction)(void (*)(void))move_kept, METH_FASTCALL,
+     "move_kept(programs, data, /) -> bytes | None: `data` moved by the program kept for its size, or None."},
     {NULL, NULL, 0, NULL},
 };
 

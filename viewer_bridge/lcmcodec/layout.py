@@ -58,6 +58,7 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Callable, Mapping
+from functools import partial
 from operator import itemgetter
 from types import MappingProxyType
 from typing import Any, Final, NamedTuple, final
@@ -78,6 +79,12 @@ except ImportError:  # built without a compiler (hatch_build.py warned): the Pyt
 
     def _move(program: Buffer, data: Buffer, /) -> bytes | None:  # no program is built: never called
         return None
+
+
+try:  # one call for a converter's kept program (an extension built before it was added has none)
+    from viewer_bridge.lcmcodec._mover import move_kept as _move_kept
+except ImportError:
+    _move_kept = None  # type: ignore[assignment]
 
 
 LAYOUTS: Final = 16  # sizes kept per type (a robot sends one or two)
@@ -152,6 +159,14 @@ class LayoutKeeper:
         """`data` converted by the generated code alone, never a kept layout: what `convert`'s
         bytes and errors must agree with."""
         return self._convert(data)
+
+    def kept(self) -> Callable[[bytes], bytes | None] | None:
+        """A function that converts a message through its kept compiled program in one C call,
+        or says None when it has none that fits (then `convert` does it: the generated code, and
+        learning its layout); None while no compiled program is kept, or none can be."""
+        if _move_kept is None or not any(type(layout) is MoveProgram for layout in self._layouts.values()):
+            return None
+        return partial(_move_kept, self._layouts)
 
     def convert(self, data: Buffer) -> bytes:
         """`data` converted: through its kept layout when it has one, else the generated code."""

@@ -40,7 +40,17 @@ from viewer_bridge.shared import RosDefinitions, Shared, definitions_of
 from viewer_bridge.translators.base import Output, Translator
 from viewer_bridge.translators.load_cache import LoadCache
 from viewer_bridge.translators.registry import TRANSLATORS
-from viewer_bridge.transports.base import DEPTH, DURABILITY, RELIABILITY, Publisher, Qos, Received, Transport
+from viewer_bridge.transports.base import (
+    DEPTH,
+    DURABILITY,
+    RELIABILITY,
+    Express,
+    ExpressFor,
+    Publisher,
+    Qos,
+    Received,
+    Transport,
+)
 from viewer_bridge.transports.command_policy import COMMAND_FLAG
 from viewer_bridge.transports.playback import Timeline, Timelines
 from viewer_bridge.transports.registry import TRANSPORTS
@@ -72,6 +82,33 @@ def source_qos(runner: RouteRunner) -> Qos:
     if commands:
         return replace(qos, depth=1, follow=frozenset(follow), admits=runner.admits)
     return replace(qos, follow=frozenset(follow))
+
+
+def unwritten(config: BridgeConfig, transport: str, express_for: ExpressFor) -> ExpressFor:
+    """`express_for` for the channels of `transport` that no route may write, None for the
+    others: only a message on a channel the bridge itself writes can be its own come back, so
+    only those need the loop guard to read each message. A route that writes commands writes
+    only what `commands.allow` allows (`CommandPolicy.allows`), any other its destination's
+    name, or any name when that is a template (`{1}`)."""
+    commands = config.commands
+    names: set[str] = set()
+    allowed = False
+    for route in config.routes:
+        if route.destination.transport != transport:
+            continue
+        if TRANSLATORS.get(route.translator).commands:
+            allowed = True
+        elif "{" in route.destination.name:
+            return lambda channel: None  # it may write any channel: every one is guarded
+        else:
+            names.add(route.destination.name)
+
+    def express_unwritten(channel: str) -> Express | None:
+        if channel in names or (allowed and commands.allows(channel)):
+            return None
+        return express_for(channel)
+
+    return express_unwritten
 
 
 class Router:
@@ -157,6 +194,8 @@ class Router:
         source.subscribe(route.source.name, translator.reads[0], source_qos(runner), deliver)
         if deliver == runner.offer:  # no loop guard between: the route's express path may serve it
             source.offer_express(deliver, runner.express)
+        else:  # the guard reads the channels the bridge may write there; the others may go express
+            source.offer_express(deliver, unwritten(self.config, route.source.transport, runner.express))
         return runner
 
     def _publisher_factory(self, route: Route) -> PublisherFor:

@@ -340,9 +340,18 @@ class RouteRunner:
             publishers[index] = publisher
         translator = lane.translator
         quick = None if translator.relays else translator.quick
-        relayed = publishers.get(0)
-        if quick is None and relayed is None:
-            return None
+        # One output for most messages (a relay's, or `Translator.direct`'s): its publisher fixed
+        # here, the payload made by one call (or none), with no tuple made and none looked up.
+        make: Callable[[bytes], bytes | None] | None = None
+        if quick is None:
+            fixed = publishers.get(0)
+            if fixed is None:
+                return None
+        else:
+            direct = translator.direct()
+            fixed = None if direct is None else publishers.get(direct[0])
+            if direct is not None and fixed is not None:  # else `quick` finds the output has none
+                make = direct[1]
         stats, mailbox, turn, lazy, monotonic = (
             self.stats,
             self.mailbox,
@@ -377,10 +386,11 @@ class RouteRunner:
             if turn.locked():
                 return False
             try:
-                if quick is None:
-                    publisher, payload = relayed, data
-                else:
-                    made = quick(data)
+                payload = data if quick is None else None if make is None else make(data)
+                if payload is not None:
+                    publisher = fixed
+                else:  # `quick` (or `direct`'s function could not make it)
+                    made = quick(data)  # type: ignore[misc]
                     if made is None:
                         return False
                     index, payload = made

@@ -125,6 +125,13 @@ class Translator:
         translator that can: the base's is never called (the router checks for an override)."""
         return None
 
+    def direct(self) -> tuple[int, Callable[[bytes], bytes | None]] | None:
+        """For the express path, while the translator's outputs stay as they are now: an output
+        and a function that makes, in one call (no Python frame of its own), that output's payload
+        from a message's bytes, or says None for a message it cannot make (then `quick` does); None
+        when there is no such function. Only asked of a translator that overrides `quick`."""
+        return None
+
     def observe(self, message: Received) -> None:
         """Bookkeeping every message gets, translated or not (a lazy route with no subscriber)."""
 

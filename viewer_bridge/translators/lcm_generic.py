@@ -30,6 +30,7 @@ generated LCM type is a `NotAnLcmType` naming the topic and the type, and bad by
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from typing import Any
 
 from viewer_bridge.errors import DecodeError, Held, NotAnLcmType
@@ -62,6 +63,15 @@ class LcmToRos(Translator):
     def quick(self, data: bytes) -> tuple[int, bytes] | None:
         found = self._by_fingerprint.get(data[:8])  # a type seen before: its output is there already
         return None if found is None else (found[0], found[1].to_cdr(data))
+
+    def direct(self) -> tuple[int, Callable[[bytes], bytes | None]] | None:
+        if len(self._by_fingerprint) != 1:  # a channel of several types: `quick` finds each one's output
+            return None
+        [(index, lcm_type)] = self._by_fingerprint.values()
+        # Its transcoder's kept compiled programs, by size: a program compares the fingerprint, so
+        # another type's message (or one of a size not kept) is None, and `quick` takes it.
+        kept = lcm_type.transcoder.kept()
+        return None if kept is None else (index, kept)
 
     def _output(self, message: Received) -> tuple[int, LcmType]:
         """The output of this message's type (added the first time the type is seen), and the type."""
