@@ -78,6 +78,19 @@ class _File(Protocol):
     def close(self) -> None: ...
 
 
+def _logging(channel: foxglove.Channel, topic: str, lock: threading.Lock, messages: Counter[str],
+             time: MessageTime, clock: Clock) -> Publisher:  # fmt: skip
+    """A publisher logging each message on `channel` at the bridge's log time, counted per topic
+    under `lock` (the SDK's log is thread-safe; the counts are not)."""
+
+    def write(data: bytes) -> None:
+        with lock:
+            messages[topic] += 1
+        channel.log(data, log_time=clock.log_time_ns(time.received_us))
+
+    return CallPublisher(write)
+
+
 class _Ros2File:
     """ROS 2 CDR messages through the foxglove-sdk's MCAP writer (the one writer of the package:
     bench/mcap_files.py measures it against the mcap library's), from a context of its own so
@@ -107,14 +120,7 @@ class _Ros2File:
         topic = topic if topic.startswith("/") else f"/{topic}"  # as a node in the root namespace names it
         with self._lock:
             channel = self._channel(topic, message_type)
-        lock, messages = self._lock, self.messages
-
-        def write(data: bytes) -> None:
-            with lock:
-                messages[topic] += 1
-            channel.log(data, log_time=clock.log_time_ns(time.received_us))
-
-        return CallPublisher(write)
+        return _logging(channel, topic, self._lock, self.messages, time, clock)
 
     def _channel(self, topic: str, message_type: MessageType) -> foxglove.Channel:
         typename = message_type.name
@@ -153,14 +159,7 @@ class _FoxgloveFile:
 
     def publisher(self, topic: str, message_type: MessageType, time: MessageTime, clock: Clock) -> Publisher:
         channel = self._context.channel(topic, message_type, "mcap")
-        lock, messages = self._lock, self.messages
-
-        def write(data: bytes) -> None:
-            with lock:
-                messages[topic] += 1
-            channel.log(data, log_time=clock.log_time_ns(time.received_us))
-
-        return CallPublisher(write)
+        return _logging(channel, topic, self._lock, self.messages, time, clock)
 
     def close(self) -> None:
         self._writer.close()
