@@ -28,10 +28,13 @@ from typing import Any
 
 from viewer_bridge.errors import DecodeError
 from viewer_bridge.lcmcodec.codegen import (
+    COUNT_AFTER_PAD,
     Buffer,
     StructWriter,
     bad_count,
     call_child,
+    cdr_glue,
+    cdr_packers,
     compile_generated,
     element_min_size,
     new_message,
@@ -49,7 +52,6 @@ _LE_CODES = {"int8_t": "b", "int16_t": "h", "int32_t": "i", "int64_t": "q", "flo
 _BE_CODES = {name: "I" if name == "float" else code for name, (code, _) in PRIMITIVE_FORMATS.items()}
 _BOOLS = bytes([0] + [1] * 255)  # LCM reads any non-zero byte as true; CDR wants 0 or 1
 _ZEROS = [bytes(n) for n in range(8)]
-_COUNT_AFTER_PAD = [struct.Struct(f"<{pad}xI") for pad in range(4)]  # a uint32 after `pad` zero bytes
 _FIELD_FINGERPRINT = "<fingerprint>"
 _VIEW_FROM = 4096  # bytes
 
@@ -101,26 +103,9 @@ def _string(
     """One string: LCM's big-endian length to CDR's little-endian one (both count the NUL)."""
     stop = string_stop(buf, off, end, type_name, field)
     pad = -pos & 3
-    out.append(_COUNT_AFTER_PAD[pad].pack(stop - off - 4))
+    out.append(COUNT_AFTER_PAD[pad].pack(stop - off - 4))
     out.append(buf[off + 4 : stop])
     return stop, pos + pad + stop - off
-
-
-@lru_cache(maxsize=4096)
-def _glue(phase: int, count: int, size: int, sequence: bool) -> tuple[bytes, int]:
-    """The bytes before an array of `count` elements of `size` bytes at a position of `phase`
-    modulo 8 (padding, and a sequence's uint32 count), and how far the position moves in all."""
-    glue = b""
-    position = phase
-    if sequence:
-        pad = -position & 3
-        glue = _COUNT_AFTER_PAD[pad].pack(count)
-        position += pad + 4
-    if count:  # an empty array is not aligned (as rosbags and Fast CDR write it)
-        pad = -position & (size - 1)
-        glue += bytes(pad)
-        position += pad + count * size
-    return glue, position - phase
 
 
 @lru_cache(maxsize=1024)
@@ -133,7 +118,7 @@ def _run_glue(
     glues: list[bytes] = []
     position = phase
     for _ in range(many):
-        glue, step = _glue(position & 7, count, size, True)
+        glue, step = cdr_glue(position & 7, count, size, True)
         glues.append(glue)
         position += step
     cuts = tuple(slice(i * count, (i + 1) * count) for i in range(many))
@@ -278,16 +263,8 @@ class _Generator(StructWriter):
         total = sum(sizes)
         name = f"{self.ident}_S{len(self.formats)}"
         self.formats[name] = struct.Struct(">" + "".join(_BE_CODES[m.type_name] for _, m in run))
-        packers = []
-        for phase in range(8):
-            fmt, position = "<", phase
-            for (_, member), size in zip(run, sizes, strict=True):
-                pad = -position & (size - 1)
-                fmt += "x" * pad + _LE_CODES[member.type_name]
-                position += pad + size
-            packers.append(struct.Struct(fmt))
-        self.formats[name + "_LE"] = packers
-        self.formats[name + "_N"] = [packer.size for packer in packers]
+        codes = [(_LE_CODES[member.type_name], size) for (_, member), size in zip(run, sizes, strict=True)]
+        self.formats[name + "_LE"], self.formats[name + "_N"] = cdr_packers(codes)
         out.line(f"if off + {total} > end:")
         with out.indent():
             position = 0
@@ -315,7 +292,7 @@ class _Generator(StructWriter):
         out.line(f"n = _check_count({self.t}, {member.name!r}, off, end, ({shape},), {element})")
         if not fixed:
             out.line("p = -pos & 3")
-            out.line("out.append(_COUNT_AFTER_PAD[p].pack(n))")
+            out.line("out.append(COUNT_AFTER_PAD[p].pack(n))")
             out.line("pos += p + 4")
         if member.type_name in ("byte", "int8_t"):
             out.line("out.append(buf[off:off + n])")
@@ -351,10 +328,10 @@ def compile_transcoders(
         "_truncated": truncated,
         "_check_count": _check_count,
         "_string": _string,
-        "_COUNT_AFTER_PAD": _COUNT_AFTER_PAD,
+        "COUNT_AFTER_PAD": COUNT_AFTER_PAD,
         "_ZEROS": _ZEROS,
         "_bad_count": bad_count,
-        "_glue": _glue,
+        "_glue": cdr_glue,
         "_run_glue": _run_glue,
         "_shared_count_error": _shared_count_error,
         "_view": memoryview,

@@ -10,6 +10,7 @@ emitters of what two directions write alike (a child's call, CDR scalar runs' st
 
 from __future__ import annotations
 
+import functools
 import math
 import struct
 import sys
@@ -276,6 +277,43 @@ def scalar_runs(definition: StructDef) -> Iterator[tuple[bool, list[tuple[int, M
         yield False, [(index, member)]
     if run:
         yield True, run
+
+
+# --- writing CDR: what the LCM -> CDR transcoders and the value writers emit alike ---------------
+
+COUNT_AFTER_PAD = [struct.Struct(f"<{pad}xI") for pad in range(4)]  # a uint32 after `pad` zero bytes
+
+
+def cdr_packers(codes: list[tuple[str, int]]) -> tuple[list[struct.Struct], list[int]]:
+    """A run of CDR scalars (little-endian `struct` codes with their sizes) as one packer per
+    position modulo 8, each with the padding that aligns every scalar to its size, and the bytes
+    each packer writes. A run written at position `pos` is `packers[pos & 7]`."""
+    packers = []
+    for phase in range(8):
+        fmt, position = "<", phase
+        for code, size in codes:
+            pad = -position & (size - 1)
+            fmt += "x" * pad + code
+            position += pad + size
+        packers.append(struct.Struct(fmt))
+    return packers, [packer.size for packer in packers]
+
+
+@functools.lru_cache(maxsize=4096)
+def cdr_glue(phase: int, count: int, size: int, sequence: bool) -> tuple[bytes, int]:
+    """The bytes before an array of `count` elements of `size` bytes at a position of `phase`
+    modulo 8 (padding, and a sequence's uint32 count), and how far the position moves in all."""
+    glue = b""
+    position = phase
+    if sequence:
+        pad = -position & 3
+        glue = COUNT_AFTER_PAD[pad].pack(count)
+        position += pad + 4
+    if count:  # an empty array is not aligned (as rosbags and Fast CDR write it)
+        pad = -position & (size - 1)
+        glue += bytes(pad)
+        position += pad + count * size
+    return glue, position - phase
 
 
 class StructWriter:

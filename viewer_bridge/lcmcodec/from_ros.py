@@ -195,6 +195,17 @@ def map_ros_types(definitions: Definitions, names: Iterable[str]) -> LcmFromRos:
     return result
 
 
+def wire_structs(definitions: Definitions, name: str) -> dict[str, RosStruct]:
+    """`name` and every type it nests as wire structs (children first), for writing CDR; raises
+    `SchemaError` naming the first type that has no definition or cannot be read."""
+    pending: dict[str, RosStruct] = {}
+    refused: dict[str, str] = {}
+    _visit(definitions, name, pending, refused, [])
+    for refused_name, reason in refused.items():
+        raise SchemaError(f"<{name}>", 0, f"{refused_name}: {reason}")
+    return pending
+
+
 def _visit(definitions: Definitions, root: str, pending: dict[str, RosStruct], refused: dict[str, str],
            order: list[str]) -> None:  # fmt: skip
     """Read `root` and what it nests, children first (so `order` has every type after its
