@@ -177,3 +177,17 @@ def test_fixed_arrays_and_bounded_sequences_are_checked() -> None:
 def test_an_unknown_type_is_a_schema_error() -> None:
     with pytest.raises(SchemaError, match="no_such_msgs/msg/Nothing"):
         ros_writer("no_such_msgs/msg/Nothing")
+
+
+def test_defaults_and_fields_by_name_are_rosbags_defaults() -> None:
+    from viewer_bridge.formats.ros.messages import make, to_cdr
+
+    for name in TYPES:
+        writer = ros_writer(name)
+        assert writer.write(writer.default) == writer.write_fields({}) == to_cdr(make(name)), name
+    plane = ros_writer("shape_msgs/msg/Plane")
+    assert plane.write_fields({"coef": [0.0, 0.0, 1.0, -2.0]}) == to_cdr(
+        make("shape_msgs/msg/Plane", coef=[0, 0, 1, -2])
+    )
+    with pytest.raises(EncodeError, match=r"Plane\.normal: no such field"):
+        plane.write_fields({"normal": [0.0, 0.0, 1.0]})

@@ -310,7 +310,7 @@ class FormatTables:
     """A format's tables with its encoders bound to the rules that name them, read on first use.
 
     A format module holds one, made from the functions that write what a table cannot express
-    (`FormatTables("ros", {"mesh": _mesh_message, ...})`); `TABLES["marker"]` is then a `Table`
+    (`FormatTables("ros", {"mesh": _mesh, ...})`); `TABLES["marker"]` is then a `Table`
     whose rules yield all their values (`rule.values(shape, ...)`), with no dispatch of its own.
     """
 

@@ -61,11 +61,26 @@ _PACK_ERRORS = (struct.error, TypeError, OverflowError, ValueError)
 class RosWriter:
     """The compiled CDR writer of one ROS 2 type (`ros_writer` makes and keeps them)."""
 
-    def __init__(self, type_name: str, marks: tuple[str, ...], body: Any, shape: Any) -> None:
+    def __init__(
+        self, type_name: str, marks: tuple[str, ...], body: Any, shape: Any, default: tuple[Any, ...]
+    ) -> None:
         self.type_name = type_name
         self.marks = marks
+        self.default = default  # the message with every field at ROS's default (0, "", empty)
         self._body = body
         self._shape = shape  # the field names, nested as the value is: for naming a bad value
+        self._index = {name: index for index, (name, _) in enumerate(shape)}
+
+    def write_fields(self, fields: Mapping[str, Any]) -> bytes:
+        """The CDR of the message whose top-level fields are `fields` by name, the others at
+        their defaults (for messages made field by field, e.g. from a table's values)."""
+        value = list(self.default)
+        for name, field in fields.items():
+            index = self._index.get(name)
+            if index is None:
+                raise EncodeError(self.type_name, name, "no such field")
+            value[index] = field
+        return self.write(tuple(value))
 
     def write(self, value: Any) -> bytes:
         """The CDR of `value`, with its encapsulation header. Raises `EncodeError` (see the module)."""
@@ -111,7 +126,8 @@ def compile_writer(
         raise EncodeError(type_name, sorted(unused)[0], "no such field to mark")
     namespace: dict[str, Any] = {**_HELPERS, **generator.names}
     exec(compile(generator.out.source(), f"<cdr writer {type_name}>", "exec"), namespace)  # noqa: S102
-    return RosWriter(type_name, marks, namespace[root], generator.shape(type_name))
+    shape = generator.shape(type_name)
+    return RosWriter(type_name, marks, namespace[root], shape, _default(structs, type_name))
 
 
 # --- the pieces of a struct, flattened: nested structs written inline ----------------------------
@@ -349,6 +365,20 @@ class _Generator:
         if not bases or len(set(bases)) != 1:
             return None
         return bases[0], len(bases)
+
+
+def _default(structs: Mapping[str, RosStruct], type_name: str) -> tuple[Any, ...]:
+    """A message of `type_name` with ROS's defaults: zero, false, empty strings and sequences."""
+    values: list[Any] = []
+    for field in structs[type_name].fields:
+        if field.nested:
+            element: Any = _default(structs, field.nested)
+        else:
+            element = "" if field.base == "string" else False if field.base == "bool" else 0
+        values.append(
+            element if field.kind == "scalar" else [element] * field.count if field.kind == "array" else []
+        )
+    return tuple(values)
 
 
 def _walk(structs: Mapping[str, RosStruct], type_name: str) -> Iterator[RosField]:

@@ -2,23 +2,26 @@
 
 from __future__ import annotations
 
-import struct
 from typing import Any
 
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import link_from_lcm
-from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, time_parts, time_parts_from_us
+from viewer_bridge.formats.ros.cdr import CDR_LE, U32, time_parts, time_parts_from_us
 from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_cdr
 from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, MESH, PLANE, POSE_ARRAY, SOLID_PRIMITIVE
 from viewer_bridge.formats.ros.poses import PoseArrayEncoder, pose_array_arrays, poses_from_pose_array_cdr
 from viewer_bridge.formats.ros.shapes import shapes_cdr
 from viewer_bridge.lcmcodec.codecs import LINK_DATA
+from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.scene import Scene
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions
 from viewer_bridge.translators.drake_stream import DrakeTranslator, DrawReader, PerLoadTranslator
 from viewer_bridge.translators.options import MarkerOptions, StampOptions
 from viewer_bridge.translators.types import DRAW_TYPE, LINK_DATA_TYPE, LOAD_TYPE, ros_type
 from viewer_bridge.transports.base import LCM, MessageType, Received
+
+_CLOCK = "rosgraph_msgs/msg/Clock"
+_BYTES = "std_msgs/msg/UInt8MultiArray"
 
 
 class DrakeToMarkerArray(DrakeTranslator):
@@ -73,11 +76,11 @@ class DrakeToClock(DrawReader):
     config's `time: sim` makes a route of it to `/clock`: `viewer_bridge.config.bridge`)."""
 
     reads = (DRAW_TYPE,)
-    outputs = (Output("", ros_type("rosgraph_msgs/msg/Clock")),)
+    outputs = (Output("", ros_type(_CLOCK)),)
 
     def translate(self, message: Received) -> Outputs:
-        seconds, nanoseconds = time_parts(self.draw_poses(message).timestamp_ms)
-        return [(0, CDR_LE + CDR_TIME.pack(seconds, nanoseconds))]
+        stamp = time_parts(self.draw_poses(message).timestamp_ms)
+        return [(0, ros_writer(_CLOCK).write((stamp,)))]
 
 
 class DrakeToShapes(PerLoadTranslator):
@@ -139,16 +142,19 @@ class RosPoseArrayToDrakeDraw(Translator):
         return [(0, self.encoder.encode(poses))]
 
 
-_BYTES_PREFIX = struct.Struct("<4sIII")  # encapsulation, layout.dim (empty), layout.data_offset, data length
-
-
 class LcmBytesToRos(Translator):
     """Any LCM message -> its bytes in a `std_msgs/UInt8MultiArray`: no translation at all,
     the baseline the benchmarks measure the translators against."""
 
     reads = (MessageType("*", LCM),)
-    outputs = (Output("", ros_type("std_msgs/msg/UInt8MultiArray")),)
+    outputs = (Output("", ros_type(_BYTES)),)
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        # Everything before the data's count (no dimensions, offset 0), where the writer marks it.
+        empty, marks = ros_writer(_BYTES, ("data",)).write_marked((([], 0), b""))
+        self._head = empty[: len(CDR_LE) + marks["data"][0]]
 
     def translate(self, message: Received) -> Outputs:
         data = message.data
-        return [(0, _BYTES_PREFIX.pack(CDR_LE, 0, 0, len(data)) + data)]
+        return [(0, self._head + U32.pack(len(data)) + data)]

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.formats.mappings import ShapeRule
-from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, cdr_string, time_parts
+from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, time_parts
 from viewer_bridge.formats.ros.markers import (
     DELETE_ALL,
     MarkerSpec,
@@ -26,6 +26,7 @@ from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, POSE_ARRAY, TF
 from viewer_bridge.formats.ros.messages import make
 from viewer_bridge.formats.ros.tables import TABLES
 from viewer_bridge.formats.ros.tf import FrameNames
+from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene
 from viewer_bridge.model.pose_math import pose_rows_xyzw
 from viewer_bridge.model.scene import Geometry, LinkPoses, Pose, Scene, Shape, link_poses_from_xyzw
@@ -92,17 +93,21 @@ def poses_from_pose_array(
 class PoseStampedEncoder:
     """draw arrays -> one `geometry_msgs/PoseStamped` CDR per link, in the draw's order.
 
-    Layout: stamp, frame_id string, pad to 8, 7 float64. Everything before the pose is the same
-    for every link of a frame, so each message is that prefix plus 56 bytes of one row.
+    Everything before the pose (the stamp, the frame id) is the same for every link of a frame,
+    and the pose is last: each message is that prefix plus 56 bytes of one row. The generated
+    writer says where the stamp and the pose are.
     """
 
     def __init__(self, frame_id: str = "world") -> None:
         self.frame_id = frame_id
-        frame = cdr_string(frame_id, "header.frame_id")
-        self._frame = frame + b"\0" * (-(8 + len(frame)) % 8)
+        writer = ros_writer(POSE_STAMPED, ("header.stamp", "pose"))
+        message, marks = writer.write_marked((((0, 0), frame_id), ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0))))
+        self._stamp_at = len(CDR_LE) + marks["header.stamp"][0]
+        self._head = message[: len(CDR_LE) + marks["pose"][0]]
 
     def encode(self, poses: LinkPoses) -> list[bytes]:
-        prefix = CDR_LE + CDR_TIME.pack(*time_parts(poses.timestamp_ms)) + self._frame
+        stamp = CDR_TIME.pack(*time_parts(poses.timestamp_ms))
+        prefix = self._head[: self._stamp_at] + stamp + self._head[self._stamp_at + len(stamp) :]
         return [prefix + row for row in map(bytes, pose_rows_xyzw(poses.positions, poses.quaternions_wxyz))]
 
 
@@ -145,6 +150,14 @@ def _shape_message(rule: ShapeRule, shape: Shape, target: str) -> Any:
     typename = rule.message or target
     if rule.type_code is not None:
         values["type"] = rule.type_code
+    if typename == "shape_msgs/msg/Mesh":  # the table gives arrays: here, a message per point
+        values["vertices"] = [
+            make("geometry_msgs/msg/Point", x=x, y=y, z=z) for x, y, z in values["vertices"].tolist()
+        ]
+        values["triangles"] = [
+            make("shape_msgs/msg/MeshTriangle", vertex_indices=np.asarray(row, dtype=np.uint32))
+            for row in values["triangles"]
+        ]
     return make(typename, **values)
 
 

@@ -13,14 +13,14 @@ their 16-bit forms, mono8, mono16, bayer_*8/16); depth as 16UC1 (millimetres, RE
 
 from __future__ import annotations
 
-import struct
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from viewer_bridge.errors import DecodeError, EncodeError
-from viewer_bridge.formats.ros.cdr import CDR_TIME, U32, CdrReader, CdrWriter
+from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, CdrReader
+from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.image import (
     NO_DISTORTION,
     NO_ROTATION,
@@ -34,7 +34,6 @@ from viewer_bridge.model.image import (
 IMAGE = "sensor_msgs/msg/Image"
 COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"
 CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
-_TWO_U32 = struct.Struct("<II")
 
 # Encodings by name: (encoding, layout, one channel's numpy type). Read and written alike.
 _NAMED = (
@@ -70,66 +69,49 @@ def encoding(image: Image) -> str:
 
 
 def image_to_cdr(image: Image, frame_id: str, stamp: tuple[int, int]) -> bytes:
-    """`sensor_msgs/Image` CDR: the header, then the pixels in one copy (rows back to back)."""
+    """`sensor_msgs/Image` CDR: the header, then the pixels in one copy (rows back to back).
+
+    Raises `EncodeError` for a frame id a CDR string cannot carry, or pixels ROS has no encoding for.
+    """
     rows = image.packed_rows()
-    writer = CdrWriter()
-    writer.pack(CDR_TIME, *stamp)
-    writer.string(frame_id, "header.frame_id")
-    writer.pack(_TWO_U32, image.height, image.width)
-    writer.string(encoding(image), "encoding")
-    writer.add(b"\1" if image.big_endian else b"\0")
-    writer.pack(
-        _TWO_U32, image.width * image.layout.channels * rows.dtype.itemsize, rows.nbytes
-    )  # step, size
-    return b"".join([*writer.chunks, rows.reshape(-1).view(np.uint8).data])
+    step = image.width * image.layout.channels * rows.dtype.itemsize
+    pixels = rows.reshape(-1).view(np.uint8).data
+    header = (stamp, frame_id)
+    value = (header, image.height, image.width, encoding(image), image.big_endian, step, pixels)
+    return ros_writer(IMAGE).write(value)
 
 
 def compressed_image_to_cdr(image: EncodedImage, frame_id: str, stamp: tuple[int, int]) -> bytes:
     """`sensor_msgs/CompressedImage` CDR of the bytes as they came (`format` jpeg or png)."""
-    writer = CdrWriter()
-    writer.pack(CDR_TIME, *stamp)
-    writer.string(frame_id, "header.frame_id")
-    writer.string(image.format, "format")
-    writer.pack(U32, len(image.data))
-    return b"".join([*writer.chunks, image.data])
+    return ros_writer(COMPRESSED_IMAGE).write(((stamp, frame_id), image.format, image.data))
 
 
 class CameraInfoEncoder:
-    """`sensor_msgs/CameraInfo` CDR for one camera and frame: the message is made once, and each
-    image's stamp written into a copy of it (the stamp is the first field)."""
+    """`sensor_msgs/CameraInfo` CDR for one camera and frame: the message is written once, and
+    each image's stamp written into a copy of it where the writer marked it."""
 
     def __init__(self, intrinsics: Intrinsics, frame_id: str) -> None:
         self.intrinsics = intrinsics
         self.frame_id = frame_id
-        self._message = camera_info_cdr(intrinsics, frame_id, (0, 0))
+        writer = ros_writer(CAMERA_INFO, ("header.stamp",))
+        message, marks = writer.write_marked(_camera_info(intrinsics, frame_id, (0, 0)))
+        at = len(CDR_LE) + marks["header.stamp"][0]  # marks count from after the encapsulation
+        self._head, self._tail = message[:at], message[at + CDR_TIME.size :]
 
     def encode(self, stamp: tuple[int, int]) -> bytes:
-        head = 4  # the CDR encapsulation
-        return b"".join((self._message[:head], CDR_TIME.pack(*stamp), self._message[head + CDR_TIME.size :]))
+        return b"".join((self._head, CDR_TIME.pack(*stamp), self._tail))
 
 
 def camera_info_cdr(intrinsics: Intrinsics, frame_id: str, stamp: tuple[int, int]) -> bytes:
-    """A `CameraInfo` (plumb_bob with zero distortion) by rosbags: the reference, and the template."""
-    from viewer_bridge.formats.ros.messages import make, to_cdr  # rosbags, loaded when first needed
+    """A `CameraInfo`: a pinhole (plumb_bob with zero distortion), K, R = I, P = [K | 0]."""
+    return ros_writer(CAMERA_INFO).write(_camera_info(intrinsics, frame_id, stamp))
 
+
+def _camera_info(intrinsics: Intrinsics, frame_id: str, stamp: tuple[int, int]) -> tuple[object, ...]:
     model, coefficients = NO_DISTORTION
-    return to_cdr(
-        make(
-            CAMERA_INFO,
-            header=make(
-                "std_msgs/msg/Header",
-                stamp=make("builtin_interfaces/msg/Time", sec=stamp[0], nanosec=stamp[1]),
-                frame_id=frame_id,
-            ),
-            height=intrinsics.height,
-            width=intrinsics.width,
-            distortion_model=model,
-            d=coefficients,
-            k=intrinsics.k(),
-            r=NO_ROTATION,
-            p=intrinsics.p(),
-        )
-    )
+    no_region = (0, 0, 0, 0, False)  # roi: the whole image
+    return ((stamp, frame_id), intrinsics.height, intrinsics.width, model, coefficients, intrinsics.k(),
+            NO_ROTATION, intrinsics.p(), 0, 0, no_region)  # fmt: skip
 
 
 # --- reading (the way back to Drake) ------------------------------------------------------------------

@@ -9,8 +9,6 @@ depth camera's "no return") are left out, since a scene holds only finite points
 
 from __future__ import annotations
 
-import struct
-
 from viewer_bridge.formats.point_fields import (
     FLOAT32,
     PCL_RGB_BIG,
@@ -20,32 +18,22 @@ from viewer_bridge.formats.point_fields import (
     read_points,
     write_points,
 )
-from viewer_bridge.formats.ros.cdr import CDR_TIME, U32, CdrReader, CdrWriter, time_parts_from_us
+from viewer_bridge.formats.ros.cdr import CdrReader, time_parts_from_us
 from viewer_bridge.formats.ros.message_types import POINT_CLOUD2
+from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.scene import StampedPointCloud
 
-_TWO_U32 = struct.Struct("<II")
 _SMALLEST_POINT_FIELD = 13  # name (length + NUL), offset, datatype, count: never fewer bytes
 
 
 def cloud_to_cdr(stamped: StampedPointCloud, default_frame: str = "world") -> bytes:
     """A stamped cloud as PointCloud2 CDR (frame `default_frame` when the cloud names none)."""
     fields, point_step, data = write_points(stamped.cloud, PCL_RGB_LITTLE, FLOAT32)
-    writer = CdrWriter()
-    writer.pack(CDR_TIME, *time_parts_from_us(stamped.time_us))
-    writer.string(stamped.frame or default_frame, "header.frame_id")
-    writer.pack(_TWO_U32, 1, len(stamped.cloud))  # height, width
-    writer.pack(U32, len(fields))
-    for field in fields:
-        writer.string(field.name, "fields.name")
-        writer.pack(U32, field.offset)
-        writer.add(bytes((field.datatype,)))
-        writer.pack(U32, field.count)
-    writer.add(b"\0")  # is_bigendian
-    writer.pack(_TWO_U32, point_step, len(data))  # point_step, row_step
-    writer.octets(data)
-    writer.add(b"\1")  # is_dense
-    return writer.getvalue()
+    header = (time_parts_from_us(stamped.time_us), stamped.frame or default_frame)
+    point_fields = [(field.name, field.offset, field.datatype, field.count) for field in fields]
+    big_endian, dense = False, True
+    value = (header, 1, len(stamped.cloud), point_fields, big_endian, point_step, len(data), data, dense)
+    return ros_writer(POINT_CLOUD2).write(value)  # height 1, width: one unorganised row
 
 
 def cloud_from_cdr(data: bytes | memoryview) -> StampedPointCloud:

@@ -15,8 +15,9 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, FRONT_PADDING, U32, cdr_string_4, time_parts
+from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, FRONT_PADDING, time_parts
 from viewer_bridge.formats.ros.message_types import POSE_ARRAY
+from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.pose_math import write_pose_rows_xyzw
 from viewer_bridge.model.scene import FloatArray, LinkPoses, Pose, link_poses_from_xyzw, pose_from_xyzw
 from viewer_bridge.model.sim_time import ms_from_sec_nsec
@@ -35,18 +36,16 @@ def _stamp_bytes(timestamp_ms: int) -> bytes:
 class PoseArrayEncoder:
     """draw arrays -> `geometry_msgs/PoseArray` CDR, without building a message per link.
 
-    Layout (payload offsets after the 4-byte encapsulation header): stamp (int32 sec, uint32
-    nanosec), frame_id string, pad to 4, uint32 count, pad to 8, then per pose 7 float64
-    (position x y z, orientation x y z w). The bytes up to the count depend only on the frame id.
-    The message is kept in one buffer per pose count: a draw writes its stamp and rows there and
-    returns a copy. One encoder serves one thread at a time (a route's translations are serialised).
+    The message is written once per pose count by the generated writer, which marks where the
+    stamp and the first pose are (per pose 7 float64: position x y z, orientation x y z w), into
+    a buffer 4 bytes in, so that the poses are aligned for numpy: a draw writes its stamp and rows
+    there and returns a copy. One encoder serves one thread at a time (a route's translations are
+    serialised).
     """
 
     def __init__(self, frame_id: str = "world") -> None:
         """Made once per frame id: `EncodeError` when a CDR string cannot carry it (a NUL)."""
         self.frame_id = frame_id
-        self._frame = cdr_string_4(frame_id, "header.frame_id")
-        self._padding = b"\0" * (-(8 + len(self._frame) + 4) % 8)
         self._layout(0)
 
     def encode(self, poses: LinkPoses, stamp: tuple[int, int] | None = None) -> bytes:
@@ -58,16 +57,25 @@ class PoseArrayEncoder:
         if len(poses) != len(self._rows):
             self._layout(len(poses))
         stamp_bytes = _stamp_bytes(poses.timestamp_ms) if stamp is None else CDR_TIME.pack(*stamp)
-        self._buffer[FRONT_PADDING + 4 : FRONT_PADDING + 12] = stamp_bytes
+        self._buffer[self._stamp_at : self._stamp_at + CDR_TIME.size] = stamp_bytes
         write_pose_rows_xyzw(self._rows, poses.positions, poses.quaternions_wxyz)
         return bytes(self._message)
 
     def _layout(self, count: int) -> None:
-        head = b"".join((CDR_LE, bytes(8), self._frame, U32.pack(count), self._padding))
-        self._buffer = bytearray(b"\0" * FRONT_PADDING + head + bytes(56 * count))
+        # The poses as tuples, so that the writer marks the first (an array would be one copy).
+        poses = [((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0))] * count
+        message, marks = ros_writer(POSE_ARRAY, _MARKS).write_marked((((0, 0), self.frame_id), poses))
+        front = FRONT_PADDING + len(CDR_LE)  # the buffer's index of payload offset 0
+        self._buffer = bytearray(bytes(FRONT_PADDING) + message)
         self._message = memoryview(self._buffer)[FRONT_PADDING:]
-        rows_at = FRONT_PADDING + len(head)
-        self._rows = np.frombuffer(self._buffer, dtype="<f8", offset=rows_at).reshape(count, 7)
+        self._stamp_at = front + marks["header.stamp"][0]
+        rows_at = front + (marks["poses.position"][0] if count else len(message) - len(CDR_LE))
+        self._rows = np.frombuffer(self._buffer, dtype="<f8", count=7 * count, offset=rows_at).reshape(
+            count, 7
+        )
+
+
+_MARKS = ("header.stamp", "poses.position")
 
 
 def pose_array_arrays(data: bytes | memoryview) -> tuple[int, str, FloatArray, FloatArray]:
@@ -92,8 +100,10 @@ def pose_array_arrays(data: bytes | memoryview) -> tuple[int, str, FloatArray, F
     if count_at + 4 > end:
         raise fail("poses", count_at, "truncated before the count")
     (count,) = struct.unpack_from("<I", buffer, count_at)
-    poses_at = _aligned(count_at + 4, 8)
-    if end - poses_at != 56 * count:
+    # An empty sequence is not aligned (as rosbags and Fast CDR write it); earlier versions of this
+    # bridge padded it anyway: both are read.
+    poses_at = _aligned(count_at + 4, 8) if count else count_at + 4
+    if end - poses_at != 56 * count and not (count == 0 and end - poses_at < 8):
         raise fail("poses", count_at, f"count {count} needs {56 * count} bytes, {end - poses_at} follow")
     values = np.frombuffer(buffer, dtype="<f8", count=7 * count, offset=poses_at).reshape(count, 7)
     timestamp_ms = ms_from_sec_nsec(seconds, nanoseconds)

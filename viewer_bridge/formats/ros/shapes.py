@@ -2,12 +2,11 @@
 shape_msgs message back as a scene shape.
 
 Which shape becomes which message, with which fields, is the `shape` table of `mappings/ros.yaml`;
-`shapes_cdr` writes the bytes straight from the table's values and the mesh arrays.
+`shapes_cdr` writes the bytes from the table's values and the mesh arrays (the generated writer).
 """
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Callable
 from typing import Any
 
@@ -15,9 +14,9 @@ import numpy as np
 
 from viewer_bridge.errors import SceneError
 from viewer_bridge.formats.mappings import ShapeRule
-from viewer_bridge.formats.ros.cdr import CDR_LE, U32, CdrWriter
 from viewer_bridge.formats.ros.message_types import MESH, PLANE, SOLID_PRIMITIVE, TypedCdr
 from viewer_bridge.formats.ros.tables import TABLES
+from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.scene import Geometry, Scene, Shape, TriangleMesh
 from viewer_bridge.model.skipped import per_geometry
 
@@ -39,11 +38,11 @@ def shapes_cdr(scene: Scene) -> list[TypedCdr]:
         for rule, shape, _pose in table.expand(geometry.shape, geometry.pose):
             typename = rule.message or table.target
             if typename != MESH:
-                data = _SHAPE_WRITERS[typename](rule, shape)
+                data = _shape_cdr(rule, shape, typename)
             elif id(shape) in written:
                 data = written[id(shape)][1]
             else:
-                data = _mesh_cdr(rule, shape)
+                data = _shape_cdr(rule, shape, typename)
                 written[id(shape)] = (shape, data)
             parts.append(TypedCdr(typename, data))
         return parts
@@ -54,45 +53,12 @@ def shapes_cdr(scene: Scene) -> list[TypedCdr]:
     return out
 
 
-_TYPE_AND_COUNT = struct.Struct("<B3xI")
-
-
-def _solid_primitive_cdr(rule: ShapeRule, shape: Shape) -> bytes:
-    """type (uint8), dimensions (float64[<=3], 8-aligned after its count), polygon (no points)."""
-    dimensions = rule.values(shape)["dimensions"]
-    count = len(dimensions)
-    return b"".join(
-        (
-            CDR_LE,
-            _TYPE_AND_COUNT.pack(rule.type_code, count),
-            struct.pack(f"<{count}d", *dimensions),
-            U32.pack(0),
-        )
-    )
-
-
-def _plane_cdr(rule: ShapeRule, shape: Shape) -> bytes:
-    return CDR_LE + struct.pack("<4d", *rule.values(shape)["coef"])
-
-
-def _mesh_cdr(rule: ShapeRule, shape: Shape) -> bytes:
-    """triangles (uint32 count, 3 uint32 each), vertices (uint32 count, 8-aligned, 3 float64 each)."""
-    assert isinstance(shape, TriangleMesh)
-    writer = CdrWriter()
-    writer.pack(U32, len(shape.triangles))
-    writer.add(np.ascontiguousarray(shape.triangles, dtype="<u4").tobytes())
-    writer.pack(U32, len(shape.vertices))
-    if len(shape.vertices):
-        writer.align(8)
-        writer.add(np.ascontiguousarray(shape.vertices, dtype="<f8").tobytes())
-    return writer.getvalue()
-
-
-_SHAPE_WRITERS: dict[str, Callable[[ShapeRule, Shape], bytes]] = {
-    SOLID_PRIMITIVE: _solid_primitive_cdr,
-    PLANE: _plane_cdr,
-    MESH: _mesh_cdr,
-}
+def _shape_cdr(rule: ShapeRule, shape: Shape, typename: str) -> bytes:
+    """One shape's message, written from its rule's values (the table's fields, the mesh arrays)."""
+    values = rule.values(shape, {})
+    if rule.type_code is not None:
+        values["type"] = rule.type_code
+    return ros_writer(typename).write_fields(values)
 
 
 def shape_from_message(message: Any) -> Shape:

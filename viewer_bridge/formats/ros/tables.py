@@ -1,6 +1,6 @@
 """`mappings/ros.yaml` bound to the functions that write what its tables cannot express: `TABLES`.
 
-The `shape` table's `mesh` (a `shape_msgs/Mesh`'s vertices and triangles as rosbags messages),
+The `shape` table's `mesh` (a `shape_msgs/Mesh`'s triangles and vertices as N x 3 arrays),
 and the `marker` table's mesh resources, TRIANGLE_LIST, POINTS, the triad's LINE_LIST and lines
 (an arrow becomes ARROW). Each returns the values its rule adds to the message or marker.
 """
@@ -17,15 +17,9 @@ from viewer_bridge.formats.mappings import FormatTables
 from viewer_bridge.model.scene import InMemoryMesh, Line, MeshFile, PointCloud, Triad, TriangleMesh
 
 
-def _mesh_message(shape: TriangleMesh, options: dict[str, Any]) -> dict[str, Any]:
-    from viewer_bridge.formats.ros.messages import make  # rosbags' type store: loaded when first needed
-
-    vertices = [make("geometry_msgs/msg/Point", x=x, y=y, z=z) for x, y, z in shape.vertices.tolist()]
-    triangles = [
-        make("shape_msgs/msg/MeshTriangle", vertex_indices=np.asarray(row, dtype=np.uint32))
-        for row in shape.triangles
-    ]
-    return {"vertices": vertices, "triangles": triangles}
+def _mesh(shape: TriangleMesh, options: dict[str, Any]) -> dict[str, Any]:
+    # Arrays, which the CDR writer takes for sequences of Point and MeshTriangle in one copy each.
+    return {"triangles": shape.triangles, "vertices": shape.vertices}
 
 
 def _mesh_resource(shape: MeshFile, options: dict[str, Any]) -> dict[str, Any]:
@@ -89,7 +83,7 @@ def _triangle_list(shape: TriangleMesh, options: dict[str, Any]) -> dict[str, An
 TABLES = FormatTables(
     "ros",
     {
-        "mesh": _mesh_message,
+        "mesh": _mesh,
         "mesh_resource": _mesh_resource,
         "embedded_mesh": _embedded_mesh,
         "triangle_list": _triangle_list,

@@ -6,22 +6,23 @@ an optional prefix that keeps the trees of several scenes (Drake's illustration,
 perception roles) apart on one `/tf`. Drake's `world` link is the world frame itself.
 
 `TransformsEncoder` writes the CDR straight from the arrays: the per-link layout (stamps,
-frame names, where each transform's seven doubles sit) is a message made once per set of link
-names; a draw writes the stamps and the doubles into it and returns a copy.
+frame names, where each transform's seven doubles sit) is a message written once per set of link
+names by the generated writer, which marks where the stamps and transforms are; a draw writes
+the stamps and the doubles there and returns a copy.
 """
 
 from __future__ import annotations
 
-import struct
-
 import numpy as np
 
-from viewer_bridge.formats.ros.cdr import CDR_TIME, POSE_ITEM, U32, CdrWriter, payload_items
-from viewer_bridge.formats.ros.message_types import WORLD
+from viewer_bridge.formats.ros.cdr import CDR_TIME, POSE_ITEM, payload_items
+from viewer_bridge.formats.ros.message_types import TF_MESSAGE, WORLD
+from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.pose_math import write_pose_rows_xyzw
 from viewer_bridge.model.scene import LinkPoses, frame_name
 
-_TRANSFORM = struct.Struct("<7d")
+_MARKS = ("transforms.header.stamp", "transforms.transform")
+_ZERO = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0))  # a transform, until a draw writes its own
 
 
 class FrameNames:
@@ -61,27 +62,17 @@ class TransformsEncoder:
         return bytes(self._message)
 
     def _layout(self, names: tuple[str, ...]) -> None:
-        writer = CdrWriter()
-        writer.pack(U32, len(names))
         parent = self.frames.world_frame
-        stamp_at, transform_at = [], []
-        for name in names:
-            writer.align(4)
-            stamp_at.append(writer.size // 4)
-            writer.pack(CDR_TIME, 0, 0)
-            writer.string(parent, "header.frame_id")
-            writer.string(self.frames(name), "child_frame_id")
-            writer.align(8)
-            transform_at.append(writer.size // 8)
-            writer.add(_TRANSFORM.pack(*([0.0] * 7)))
-        self._message = bytearray(writer.getvalue())
+        transforms = [(((0, 0), parent), self.frames(name), _ZERO) for name in names]
+        message, marks = ros_writer(TF_MESSAGE, _MARKS).write_marked((transforms,))
+        self._message = bytearray(message)
         # Each stamp (8 bytes, 4-aligned in the payload) and each transform (56 bytes, 8-aligned)
         # is one item: one scatter of N items each, where a scatter of the 7N doubles costs
         # several times more.
         self._stamps = payload_items(self._message, _STAMP_ITEM, 4)
         self._transforms = payload_items(self._message, POSE_ITEM, 8)
-        self._stamp_at = np.asarray(stamp_at, dtype=np.intp)
-        self._transform_at = np.asarray(transform_at, dtype=np.intp)
+        self._stamp_at = np.asarray(marks["transforms.header.stamp"], dtype=np.intp) // 4
+        self._transform_at = np.asarray(marks["transforms.transform"], dtype=np.intp) // 8
         self._rows = np.empty((len(names), 7), dtype="<f8")
         self._names = names
 
