@@ -266,6 +266,12 @@ class DamagedChunk(BridgeError):
     not decompress, or fails its CRC): it is skipped, and the records around it still read."""
 
 
+class SummaryTooLarge(BridgeError):
+    """An MCAP file whose summary section (its index: schemas, channels, statistics, chunk indexes)
+    is larger than the reader holds in memory: the summary is not read, the file's messages are,
+    from its records."""
+
+
 class Interrupted(BridgeError):
     """A conversion stopped midway; `path` (`OUT.partial`) is a valid file of `messages` messages,
     or, when none was written yet, removed (util/partial.py)."""
@@ -310,6 +316,7 @@ __all__ = [
     "SceneError",
     "SchemaError",
     "ShapeDataError",
+    "SummaryTooLarge",
     "TransportUnavailable",
     "UnknownName",
     "UsageError",

@@ -356,17 +356,17 @@ def test_a_rosbag2_folders_mcap_chunk_is_inflated_no_further_than_its_declared_s
     assert converted(tmp_path / "out.lcmlog") == [*range(first), *range(last + 1, 200)]
 
 
-def big_joint_states_mcap(path: Path, count: int, joints: int) -> None:
+def big_joint_states_mcap(path: Path, count: int, joints: int, compressed: bool = True) -> None:
     """`count` JointStates of `joints` joints each (one CDR message, written again and again: quick
-    to write, slow enough to convert that an interrupt comes midway)."""
-    from mcap.writer import Writer
+    to write, slow enough to convert that an interrupt comes midway), in zstd chunks or plain ones."""
+    from mcap.writer import CompressionType, Writer
 
     store = typestore()
     message = {**JOINTS, "name": [f"joint{i}" for i in range(joints)], "position": [0.5] * joints,
                "velocity": [0.25] * joints, "effort": [1.0] * joints}  # fmt: skip
     data = serialized("sensor_msgs/msg/JointState", message)
     with path.open("wb") as stream:
-        writer = Writer(stream)
+        writer = Writer(stream, compression=CompressionType.ZSTD if compressed else CompressionType.NONE)
         writer.start(profile="ros2")
         msgdef = store.generate_msgdef("sensor_msgs/msg/JointState", ros_version=2)[0]
         schema = writer.register_schema("sensor_msgs/msg/JointState", "ros2msg", msgdef.encode())
@@ -493,3 +493,83 @@ def test_a_bag_convert_on_a_pipe_says_its_progress_per_tenth_of_the_chosen_topic
         "viewer-bridge convert: converting: 60%: 2 of 3 messages",
         "viewer-bridge convert: converting: 100%: 3 of 3 messages",
     ]
+
+
+def summary_at(path: Path) -> tuple[int, int]:
+    """Where an MCAP file's summary section starts and ends (its footer's first field, and the
+    summary offsets' start), by mcap.dev's layout: the footer record, then the end magic."""
+    import struct
+
+    data = path.read_bytes()
+    start, offsets, _ = struct.unpack_from("<QQI", data, len(data) - 8 - 20)
+    return start, offsets
+
+
+def test_an_mcap_summary_past_the_bound_is_not_read_whole_and_the_records_give_the_messages(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A footer that says the summary starts at the file's first record (a summary of 70 MB):
+    read whole, the reader would hold the file; it is refused by its size, said with the file's
+    name, and the messages come from the records, a chunk at a time."""
+    import struct
+    import tracemalloc
+
+    from viewer_bridge.cli.bag_files import DirectReader
+
+    bag = tmp_path / "bag.mcap"
+    big_joint_states_mcap(bag, 10_000, 200, compressed=False)
+    data = bytearray(bag.read_bytes())
+    assert len(data) > 64 << 20
+    struct.pack_into("<QQ", data, len(data) - 8 - 20, 8, 0)  # the summary: from byte 8 to the footer
+    bag.write_bytes(bytes(data))
+    tracemalloc.start()
+    try:
+        reader = DirectReader(bag)
+        read = sum(1 for _ in reader.messages(reader.connections))
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert [c.topic for c in reader.connections] == ["/joint_states"] and read == 10_000
+    assert peak < 16 << 20, peak  # a chunk of 1 MiB at a time, not the 70 MB "summary"
+    [why] = reader.unread_summaries
+    summary = len(data) - 8 - 20 - 9 - 8
+    assert why == (
+        f"bag.mcap: its summary section of {summary} bytes (from byte 8) is past the 64 MiB read whole: "
+        "its records are read instead"
+    )
+    assert reader.message_count(reader.connections) is None  # no total: the statistics were not read
+    out = tmp_path / "out.lcmlog"
+    assert main(["convert", str(bag), str(out), "--topics", "/joint_states"]) == 0  # nothing lost
+    assert f"{bag}: {why}" in capsys.readouterr().err
+    assert sum(1 for _ in read_log(out)) == 10_000
+
+
+def test_an_mcap_statistics_record_that_claims_more_than_it_holds_gives_no_total_and_loses_nothing(
+    tmp_path: Path,
+) -> None:
+    """A Statistics record whose per-channel counts claim 4 GiB in a file of a few KB: the summary
+    is not trusted (no total), and every message is read from the records."""
+    import struct
+
+    from viewer_bridge.cli.bag_files import DirectReader
+
+    bag = tmp_path / "bag.mcap"
+    joints_mcap_as(bag, "", 200)
+    data = bytearray(bag.read_bytes())
+    at, end = summary_at(bag)
+    found = []
+    while at < end:  # the summary's records: opcode, uint64 length, content
+        op, length = struct.unpack_from("<BQ", data, at)
+        if op == 0x0B:  # Statistics: 42 bytes of counts and times, then the per-channel map's length
+            found.append(at)
+            struct.pack_into("<I", data, at + 9 + 42, 0xFFFF_FFFF)
+        at += 9 + length
+    assert len(found) == 1
+    assert DirectReader(bag).message_count(DirectReader(bag).connections) == 200  # before
+    bag.write_bytes(bytes(data))
+    reader = DirectReader(bag)
+    assert [c.topic for c in reader.connections] == ["/joint_states"] and not reader.unread_summaries
+    assert reader.message_count(reader.connections) is None
+    assert sum(1 for _ in reader.messages(reader.connections)) == 200
+    result = bag_to_lcm(bag, tmp_path / "out.lcmlog")
+    assert result.complete and result.written == {"/joint_states": 200}

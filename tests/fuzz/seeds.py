@@ -51,8 +51,8 @@ def write_seeds(folder: Path) -> dict[str, int]:
         seeds[kind] += inputs
         for data in inputs:
             codec = codec_for(data)
-            for nested in _nested_structs(codec.decode(data)) if codec is not None else ():
-                seeds[nested._type_name].append(nested.encode())
+            for type_name, encoded in _nested_encoded(codec.decode(data)) if codec is not None else ():
+                seeds[type_name].append(encoded)
     seeds["config"] = [text.encode() for text in BUILTIN_CONFIGS.values()]
     seeds.update(zenoh_seeds())
     seeds.update(foxglove_seeds())
@@ -85,12 +85,21 @@ def drake_lcm_seeds(mesh_dir: Path, draws_per_channel: int = 3) -> Seeds:
             continue
         if len(seeds[codec.type_name]) < draws_per_channel * 4:  # the draws repeat; a few suffice
             seeds[codec.type_name].append(data)
-        for nested in _nested_structs(codec.decode(data)):
-            kind = seeds[nested._type_name]
-            encoded = nested.encode()
+        for type_name, encoded in _nested_encoded(codec.decode(data)):
+            kind = seeds[type_name]
             if encoded not in kind and len(kind) < 40:
                 kind.append(encoded)
     return seeds
+
+
+def _nested_encoded(message: LcmMessage) -> Iterator[tuple[str, bytes]]:
+    """Each struct nested in `message`, as its type's name (its codec's, found by the bytes'
+    fingerprint) and its LCM bytes."""
+    for nested in _nested_structs(message):
+        encoded = nested.encode()
+        codec = codec_for(encoded)
+        assert codec is not None, f"a nested struct of no known type: {nested!r}"
+        yield codec.type_name, encoded
 
 
 def _nested_structs(message: LcmMessage) -> Iterator[LcmMessage]:

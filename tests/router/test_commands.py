@@ -212,7 +212,13 @@ def test_streams_quiet_for_stream_idle_s_give_their_lanes_to_a_channel_that_come
     )  # fmt: skip
     assert route.stream_idle_s == 30.0
     now = [0.0]
-    runner = RouteRunner(route, lambda: PassThrough({}), publisher, clock=lambda: now[0])
+    translators: list[PassThrough] = []  # one per stream the route opens
+
+    def pass_through() -> PassThrough:
+        translators.append(PassThrough({}))
+        return translators[-1]
+
+    runner = RouteRunner(route, pass_through, publisher, clock=lambda: now[0])
 
     def too_many() -> int:
         return sum(kinds.get("too_many_streams", 0) for kinds in runner.snapshot()["held"].values())
@@ -236,7 +242,7 @@ def test_streams_quiet_for_stream_idle_s_give_their_lanes_to_a_channel_that_come
     runner.feed(Received("IIWA_STATUS", b"real"))
     assert runner.stats.messages_out == 1002 + 998 + 1
     assert len(made) - len(closed) == route.max_streams  # publishers open
-    assert len(runner._lanes) == route.max_streams
+    assert len(translators) - runner.snapshot()["streams_reclaimed"] == route.max_streams  # streams open
     # Publishers that cannot free their transport's state (Zenoh's, gz's) keep their lanes
     kept = RouteRunner(route.model_copy(update={"max_streams": 2}), lambda: PassThrough({}),
                        lambda name, output: CallPublisher(lambda data: None), clock=lambda: now[0])  # fmt: skip

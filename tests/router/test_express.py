@@ -14,7 +14,7 @@ from tests.router.test_runner import generic_route
 from viewer_bridge.config.bridge import Route
 from viewer_bridge.router.flow import InlineBudget
 from viewer_bridge.router.runner import EXPRESS_MAX_BYTES, EXPRESS_SAMPLE, RouteRunner
-from viewer_bridge.translators.base import Output
+from viewer_bridge.translators.base import Output, Translator
 from viewer_bridge.translators.registry import TRANSLATORS
 from viewer_bridge.transports.base import CallPublisher, ClosingPublisher, Qos, Received
 from viewer_bridge.transports.lcm import LcmSettings, LcmTransport
@@ -167,16 +167,22 @@ def test_a_channel_of_one_type_is_transcoded_directly_and_another_type_takes_the
     (`Translator.direct`), and a message it cannot make (another fingerprint, the same size: the
     kept layout compares it) goes to the full path, which holds it as an unknown type."""
     published: list[bytes] = []
+    made: list[Translator] = []
+
+    def lcm_to_ros() -> Translator:
+        made.append(TRANSLATORS.get("lcm_to_ros")({}))
+        return made[-1]
+
     runner = RouteRunner(
         generic_route(lazy=False),
-        lambda: TRANSLATORS.get("lcm_to_ros")({}),
+        lcm_to_ros,
         lambda name, output: CallPublisher(published.append, lambda: 1),
         InlineBudget(),
         plain_destination=True,
     )
     data = drake_lcmtypes.lcmt_iiwa_status().encode()
     carry(runner, "IIWA_STATUS", data)
-    translator = runner._lanes[("IIWA_STATUS",)].translator
+    [translator] = made  # the route's one translator, its channel's
     index, make = translator.direct() or (None, None)
     assert index == 0 and make is not None and make(data) == published[0]
     assert carry(runner, "IIWA_STATUS", data) and published[1] == published[0]  # express, same CDR

@@ -93,3 +93,17 @@ def test_the_default_config_keeps_every_route_of_drakes_draws_on_one_worker() ->
     draws = {"tf", "link_markers", "markers", "poses", "foxglove_scene", "foxglove_transforms"}
     assert draws <= set(first)
     assert all(not draws & set(routes) for routes in rest)
+
+
+def test_patterns_of_every_form_a_source_uses_are_placed_by_what_they_read() -> None:
+    # Sets, classes, repeats, named groups, flags and lookaheads are sampled: "DRAW_[AB]\d{2}"
+    # reads DRAW_A00, which "(?P<kind>DRAW|LOAD)_A\d+" reads too; "(?i)other" reads other, which
+    # "(?!DRAW|LOAD).*" reads, and OTHER, which "OTHER(_X)?" reads. A backreference gives no sample
+    # of its own: "(AB)\1" reads ABAB, which the lookahead's route reads too, an overlap missed
+    # (it costs a second receive, never a message).
+    config = BridgeConfig.model_validate({"routes": [
+        relay("set", r"DRAW_[AB]\d{2}"), relay("named", r"(?P<kind>DRAW|LOAD)_A\d+"),
+        relay("flagged", "(?i)other"), relay("rest", "(?!DRAW|LOAD).*"), relay("other", "OTHER(_X)?"),
+        relay("twice", r"(AB)\1"),
+    ]})  # fmt: skip
+    assert placed(config, 3) == [["set", "named"], ["flagged", "rest", "other"], ["twice"]]

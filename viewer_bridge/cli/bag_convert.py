@@ -63,6 +63,8 @@ def run(args: Any, stop: threading.Event | None = None) -> int:
         print(f"viewer-bridge convert: {args.log}: {len(result.damaged_chunks)} chunks are damaged and skipped, "
               f"the first: {result.damaged_chunks[0]}",
               file=sys.stderr)  # fmt: skip
+    for why in result.unread_summaries:  # nothing lost: said, not failed
+        print(f"viewer-bridge convert: {args.log}: {why}", file=sys.stderr)
     if result.cut is not None:
         print(f"viewer-bridge convert: {args.log} is damaged: {result.cut}", file=sys.stderr)
     for path in result.lcm_files:

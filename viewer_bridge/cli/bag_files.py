@@ -10,7 +10,8 @@ recording killed mid-chunk: no summary, no end magic) or a `.db3` with a damaged
 messages. An MCAP chunk whose records cannot be trusted (it inflates past the size it declares,
 does not decompress, fails its CRC) is skipped and said in `damaged`: the file's own record
 lengths still frame the records after it. A chunk is inflated at most to the size it declares
-(plus one byte, to see that it goes on), so a small file cannot make the reader hold gigabytes.
+(plus one byte, to see that it goes on), so a small file cannot make the reader hold gigabytes;
+a summary section is read whole only up to `_SUMMARY_LIMIT` bytes, else the file's records are.
 The reader gives what rosbags' does: connections, then `(connection, log time ns, data)`.
 """
 
@@ -27,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from viewer_bridge.errors import CutShort, DamagedChunk
+from viewer_bridge.errors import CutShort, DamagedChunk, SummaryTooLarge
 
 
 @dataclass(frozen=True)
@@ -60,17 +61,21 @@ class DirectReader:
         self.files = _storage_files(bag)
         self.cut: str | None = None
         self.damaged: list[str] = []  # the chunks skipped, each `file: the chunk at byte N: why`
+        self.unread_summaries: list[str] = []  # MCAP summaries past `_SUMMARY_LIMIT`, each `file: why`
         self.connections: list[Connection] = []
         # the same topic in several files (or found twice): one connection, the same id on every read
         self._known: dict[tuple[str, str, str], Connection] = {}
         # messages per connection id as the files say (an MCAP summary's statistics, a .db3's rows)
         self._counts: Counter[int] | None = Counter()
+        counts: Counter[int] | None
         for path in self.files:
-            listed, counts = (
-                _summary_connections(path, self._known, self.connections)
-                if path.suffix == ".mcap"
-                else (False, Counter[int]())
-            )
+            listed, counts = False, Counter[int]()
+            if path.suffix == ".mcap":
+                try:
+                    listed, counts = _summary_connections(path, self._known, self.connections)
+                except SummaryTooLarge as error:  # an index too large to hold: the records say the same
+                    self.unread_summaries.append(str(error))
+                    counts = None
             if not listed:  # its records are read for its channels (a .db3's rows counted meanwhile)
                 for _ in self._read([path], None, counts):
                     pass
@@ -143,7 +148,9 @@ def _summary_connections(
     repeats its schemas and channels), without inflating a chunk; False when the file has no
     footer, no summary or no channel in it (cut short, or written without): then its records are
     read. Whatever the summary says, the messages are still read from the data section. With it,
-    the messages per connection id its Statistics record counts (None without one)."""
+    the messages per connection id its Statistics record counts (None without one).
+    `SummaryTooLarge` when the footer puts more than `_SUMMARY_LIMIT` bytes in the summary: read
+    whole, a made-up footer would have the reader hold the file."""
     with path.open("rb") as stream:
         size = os.fstat(stream.fileno()).st_size
         footer_at = size - len(_MAGIC) - _RECORD.size - _FOOTER.size
@@ -157,40 +164,54 @@ def _summary_connections(
         summary_end = offsets_start or footer_at
         if not len(_MAGIC) <= summary_start < summary_end <= footer_at:
             return False, None
+        if summary_end - summary_start > _SUMMARY_LIMIT:
+            raise SummaryTooLarge(
+                f"{path.name}: its summary section of {summary_end - summary_start} bytes (from byte "
+                f"{summary_start}) is past the {_SUMMARY_LIMIT >> 20} MiB read whole: its records are read instead"
+            )
         stream.seek(summary_start)
         records = memoryview(stream.read(summary_end - summary_start))
-    schemas: dict[int, tuple[str, str]] = {}
-    channels: dict[int, Connection] = {}
     try:
-        for _ in _chunk_messages(records, schemas, channels, known, found, None):
-            pass
-        return bool(channels), _statistics(records, channels)
-    except (DamagedChunk, struct.error, ValueError):
+        channels, statistics = _summary(records, known, found)
+        return bool(channels), None if statistics is None else _statistics(statistics, channels)
+    except (struct.error, ValueError):
         return False, None
 
 
-def _statistics(records: memoryview, channels: dict[int, Connection]) -> Counter[int] | None:
-    """The messages per connection id of the Statistics record among a summary's `records` (its
-    `channel_message_counts`: a uint32 byte length, then uint16 channel id, uint64 count pairs);
-    None without one, or when it counts messages but not per channel (the map is optional)."""
+def _summary(records: memoryview, known: dict[tuple[str, str, str], Connection],
+             found: list[Connection]) -> tuple[dict[int, Connection], memoryview | None]:  # fmt: skip
+    """A summary's channels (by channel id) and its Statistics record (None without one), in one
+    walk over its records; ValueError when a record runs past the summary's end."""
+    schemas: dict[int, tuple[str, str]] = {}
+    channels: dict[int, Connection] = {}
+    statistics = None
     at = 0
-    while at + _RECORD.size <= len(records):
+    while at < len(records):
         op, length = _RECORD.unpack_from(records, at)
         start, at = at + _RECORD.size, at + _RECORD.size + length
-        if op != _OP_STATISTICS:
-            continue
-        record = records[start:at]
-        (messages,) = _U64.unpack_from(record)
-        pairs = _sized(record, _STATISTICS.size, 4)
-        if messages and not pairs:
-            return None
-        counts: Counter[int] = Counter()
-        for pair in range(0, len(pairs) - _COUNT.size + 1, _COUNT.size):
-            channel_id, count = _COUNT.unpack_from(pairs, pair)
-            if channel_id in channels:
-                counts[channels[channel_id].id] += count
-        return counts
-    return None
+        if at > len(records):
+            raise ValueError(f"its record of {length} bytes runs past its end")
+        if op == _OP_STATISTICS:
+            statistics = records[start:at]  # read once the channels are known: it may come first
+        else:
+            _definition(op, records[start:at], schemas, channels, known, found)
+    return channels, statistics
+
+
+def _statistics(record: memoryview, channels: dict[int, Connection]) -> Counter[int] | None:
+    """The messages per connection id a Statistics `record` counts (its `channel_message_counts`:
+    a uint32 byte length, then uint16 channel id, uint64 count pairs); None when it counts
+    messages but not per channel (the map is optional)."""
+    (messages,) = _U64.unpack_from(record)
+    pairs = _sized(record, _STATISTICS.size, 4)
+    if messages and not pairs:
+        return None
+    counts: Counter[int] = Counter()
+    for pair in range(0, len(pairs) - _COUNT.size + 1, _COUNT.size):
+        channel_id, count = _COUNT.unpack_from(pairs, pair)
+        if channel_id in channels:
+            counts[channels[channel_id].id] += count
+    return counts
 
 
 def _mcap(path: Path, known: dict[tuple[str, str, str], Connection], found: list[Connection],
@@ -356,6 +377,9 @@ def _inflated(compression: str, data: memoryview, size: int) -> bytes:
 
 
 _INFLATE_STEP = 1 << 20
+# The most of an MCAP summary read into memory: a 100 GB recording of 50 topics in 1 MiB chunks
+# indexes them in at most about 55 MB; past it, the file's records give its topics (no total).
+_SUMMARY_LIMIT = 64 << 20
 
 
 def _decompressor(compression: str) -> tuple[Any, tuple[type[Exception], ...]]:

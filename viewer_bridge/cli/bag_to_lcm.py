@@ -49,6 +49,8 @@ class BagConversion:
     first_damage: dict[str, str] = field(default_factory=dict)  # by topic
     cut: str | None = None  # where the bag's readable part ends, when it ends before the bag does
     damaged_chunks: list[str] = field(default_factory=list)  # MCAP chunks skipped, each with why
+    # MCAP summaries too large to read whole, each with why: their files' records were read instead
+    unread_summaries: list[str] = field(default_factory=list)
 
     @property
     def complete(self) -> bool:
@@ -149,6 +151,7 @@ def _readable(reader: Any, connections: list[Any], result: BagConversion) -> Ite
     if result.cut is None:
         result.cut = getattr(reader, "cut", None)  # the direct reader stops by itself and says where
     result.damaged_chunks = list(getattr(reader, "damaged", []))  # and skips a damaged chunk
+    result.unread_summaries = list(getattr(reader, "unread_summaries", []))
 
 
 def _definitions(connections: list[Any]) -> tuple[dict[str, tuple[list[Any], list[Any]]], dict[str, str]]:

@@ -32,6 +32,7 @@ import multiprocessing
 import os
 import re
 import signal
+import string
 import threading
 import time
 from collections import Counter
@@ -39,9 +40,7 @@ from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
 from pathlib import Path
-from re import _constants as re_constants  # type: ignore[attr-defined]  # `_examples` reads a pattern
-from re import _parser as re_parser  # type: ignore[attr-defined]
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 from viewer_bridge.config.bridge import BridgeConfig, Route
 from viewer_bridge.errors import BridgeError, UsageError
@@ -131,59 +130,134 @@ def _overlap(one: Route, other: Route) -> bool:
 
 
 _MAX_EXAMPLES = 64
+_MAX_REPEAT = 64  # a `{m}` past this: no sample (a name m characters long is no likely channel)
+# A character an item like `.`, `[^<>]` or `\d` matches: the first of these it takes.
+_CANDIDATES = "x0_Z/-." + string.ascii_letters + string.digits + string.punctuation + " "
+_REPEAT = re.compile(r"(?:(?P<none>[?*])|(?P<once>\+)|\{(?P<low>\d*)(?:,\d*)?\})[?+]?")
+_LOOKAROUND = ("(?=", "(?!", "(?<=", "(?<!")
+_FLAGS = re.compile(r"\(\?[aiLmsux]*(?:-[imsx]+)?[:)]")
+
+# `_examples` reads a pattern with a reader of its own, small and of the forms a source pattern
+# uses (CPython's own parser, `re._parser`, is private and changes between versions): literal
+# characters and escaped punctuation, groups `(...)`, `(?:...)`, `(?P<name>...)`, alternatives,
+# `? * + {m,n}`, `.`, sets `[...]`, `\d \w \s` and flags `(?i)`; anchors and lookarounds stand for
+# no character. Any other form (a backreference, a comment) gives no sample: the other route's names are
+# still tried against the pattern, and an overlap missed costs a second receive (see `_overlap`).
+_Names = list[str] | None  # the names a part of a pattern stands for (a sample); None: a form not read
 
 
 @functools.cache
 def _examples(pattern: str) -> frozenset[str]:
     """Names `pattern` matches, a sample: each branch's, an optional part with and without, the
-    fewest repeats otherwise, a set's first member. Lookarounds and anchors are left out, so a
-    name may not match in the end (`_overlap` checks with the pattern itself)."""
-    return frozenset(_expand(list(re_parser.parse(pattern))))
+    fewest repeats otherwise, a set's first member; none for a form not read. Lookarounds and
+    anchors are left out while sampling, so a name is kept only when the pattern matches it."""
+    names, end = _alternatives(pattern, 0)
+    if names is None or end != len(pattern):
+        return frozenset()
+    whole = re.compile(pattern)
+    return frozenset(name for name in names if whole.fullmatch(name))
 
 
-def _expand(items: list[tuple[Any, Any]]) -> list[str]:
+def _alternatives(pattern: str, at: int) -> tuple[_Names, int]:
+    """The names of the `|`-separated branches from `at` to a `)` or the end, and where they stop."""
+    names: list[str] = []
+    while True:
+        branch, at = _sequence(pattern, at)
+        if branch is None:
+            return None, at
+        names = (names + branch)[:_MAX_EXAMPLES]
+        if not pattern.startswith("|", at):
+            return names, at
+        at += 1
+
+
+def _sequence(pattern: str, at: int) -> tuple[_Names, int]:
+    """The names of the items from `at` to a `|`, a `)` or the end, each repeated as it says."""
     names = [""]
-    for opcode, argument in items:
-        choices = _choices(opcode, argument)
-        if not choices:
-            continue
+    while at < len(pattern) and pattern[at] not in "|)":
+        choices, at = _item(pattern, at)
+        if choices is None:
+            return None, at
+        repeat = _REPEAT.match(pattern, at)
+        if repeat is not None:
+            at = repeat.end()
+            low = 1 if repeat["once"] else 0 if repeat["none"] or not repeat["low"] else int(repeat["low"])
+            if low > _MAX_REPEAT:
+                return None, at
+            choices = ([""] if low == 0 else []) + [choice * max(low, 1) for choice in choices]
         names = [name + choice for name in names for choice in choices][:_MAX_EXAMPLES]
-    return names
+    return names, at
 
 
-def _member(items: list[tuple[Any, Any]]) -> str:
-    """A character a set `[...]` matches: its first member, or for `[^...]` one it does not list."""
-    if items and items[0][0] is re_constants.NEGATE:
-        listed = {chr(value) for kind, value in items if kind is re_constants.LITERAL}
-        return next(character for character in "x_0Z" if character not in listed)
-    for kind, value in items:
-        if kind is re_constants.LITERAL:
-            return chr(value)
-        if kind is re_constants.RANGE:
-            return chr(value[0])
-        if kind is re_constants.CATEGORY:
-            return "0" if "DIGIT" in str(value) else "x"
-    return "x"
+def _item(pattern: str, at: int) -> tuple[_Names, int]:
+    """The names one item at `at` stands for (a group, a set, an escape, a character), and its end."""
+    char = pattern[at]
+    if char == "(":
+        return _group(pattern, at)
+    if char == "[":
+        end = _set_end(pattern, at)
+        return _one_character(pattern[at:end]), end
+    if char == "\\":
+        return _escape(pattern[at : at + 2]), at + 2
+    if char in "^$":
+        return [""], at + 1  # an anchor: no character of its own
+    if char == ".":
+        return _one_character(char), at + 1
+    if char in "*+?":
+        return None, at  # a repeat of nothing: no pattern `re` compiles
+    return [char], at + 1
 
 
-def _choices(opcode: Any, argument: Any) -> list[str]:
-    """The strings one parsed regex item stands for, a sample; [] for what matches no character."""
-    if opcode is re_constants.LITERAL:
-        return [chr(argument)]
-    if opcode is re_constants.ANY:
-        return ["x"]
-    if opcode is re_constants.IN:
-        return [_member(argument)]
-    if opcode is re_constants.BRANCH:
-        return [name for branch in argument[1] for name in _expand(list(branch))][:_MAX_EXAMPLES]
-    if opcode is re_constants.SUBPATTERN:
-        return _expand(list(argument[-1]))
-    if opcode in (re_constants.MAX_REPEAT, re_constants.MIN_REPEAT):
-        low, _, item = argument
-        once = _expand(list(item))
-        many = [name * max(low, 1) for name in once]
-        return ([""] if low == 0 else []) + many
-    return []  # anchors, lookarounds, group references: no character of their own
+def _escape(pair: str) -> _Names:
+    r"""What an escape stands for: an anchor (`\A \Z \b \B`) no character, a class (`\d \w \s`,
+    their opposites) one, an escaped punctuation character itself; None for any other form (a
+    backreference, a character by its code)."""
+    if pair in ("\\A", "\\Z", "\\b", "\\B"):
+        return [""]
+    if pair in ("\\d", "\\D", "\\w", "\\W", "\\s", "\\S"):
+        return _one_character(pair)
+    return [pair[1]] if len(pair) == 2 and not pair[1].isalnum() else None
+
+
+def _group(pattern: str, at: int) -> tuple[_Names, int]:
+    """The names of the group at `at` (a lookaround: none of its own, "") and where it ends."""
+    if pattern.startswith(_LOOKAROUND, at):
+        inner = at + (4 if pattern.startswith("(?<", at) else 3)
+    elif pattern.startswith("(?:", at):
+        inner = at + 3
+    elif pattern.startswith("(?P<", at) and ">" in pattern[at:]:
+        inner = pattern.index(">", at) + 1
+    elif flags := _FLAGS.match(pattern, at):  # `(?i)` no character of its own; `(?i:...)` a group
+        if flags[0].endswith(")"):
+            return [""], flags.end()
+        inner = flags.end()
+    elif pattern.startswith("(?", at):
+        return None, at  # a backreference by name, a comment, a condition
+    else:
+        inner = at + 1
+    names, end = _alternatives(pattern, inner)
+    if names is None or not pattern.startswith(")", end):
+        return None, end
+    return ([""] if pattern.startswith(_LOOKAROUND, at) else names), end + 1
+
+
+def _set_end(pattern: str, at: int) -> int:
+    """Where the set `[...]` at `at` ends (past its `]`; a `]` first in it is a member)."""
+    end = at + 1
+    end += pattern.startswith("^", end)
+    end += pattern.startswith("]", end)
+    while end < len(pattern) and pattern[end] != "]":
+        end += 2 if pattern[end] == "\\" else 1
+    return end + 1
+
+
+def _one_character(item: str) -> _Names:
+    """The first candidate character a one-character `item` (`.`, a set, a digit's escape) matches."""
+    try:
+        matches = re.compile(item).fullmatch
+    except re.error:
+        return None
+    return next(([char] for char in _CANDIDATES if matches(char)), None)
 
 
 def _spreadable(route: Route) -> bool:
