@@ -14,7 +14,9 @@ action, pose, scale, colour and lifetime) is one `struct` pack. Strings are `str
 arrays and sequences are any sequence of numbers or a numpy array (bytes for uint8, byte, char
 and int8); a sequence of messages is a list of tuples, or, for messages of one primitive type
 only (`geometry_msgs/Point`, `std_msgs/ColorRGBA`, `shape_msgs/MeshTriangle`), an N x k numpy
-array written in one copy.
+array written in one copy. Any empty value with a length (`()`, `[]`, an empty array) is an empty
+sequence. Short strings are encoded once and kept (a few thousand, then the cache starts over):
+a scene writes the same frame ids, namespaces and empty strings over and over.
 
 `marks` name fields (dotted paths from the root, through sequences too: `transforms.transform`)
 whose payload offsets `write_marked` reports, one per time the field is written: a message
@@ -414,8 +416,8 @@ _Unpacking = (TypeError, ValueError)  # a value that does not unpack into its ty
 
 # Texts -> their CDR strings at each position modulo 4 (padding to 4, uint32 length counting the
 # NUL, the UTF-8 bytes, the NUL): the frame ids, namespaces and empty strings a scene writes over
-# and over are encoded once. Up to `_TEXTS_KEPT` texts of `_TEXT_KEPT_BYTES` at most; then the
-# cache starts over.
+# and over are encoded once. Up to `_TEXTS_KEPT` texts of `_TEXT_KEPT_BYTES` at most (4 MB at
+# worst, tens of kB for a scene's names); then the cache starts over.
 _TEXTS: dict[str, list[bytes]] = {}
 _TEXTS_KEPT = 4096
 _TEXT_KEPT_BYTES = 256
