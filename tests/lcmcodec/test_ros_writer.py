@@ -112,6 +112,32 @@ def test_marks_say_where_fields_were_written() -> None:
         ros_writer("tf2_msgs/msg/TFMessage", ("transforms.child",))
 
 
+def test_strings_of_any_length_count_and_alignment_are_written_as_rosbags_writes_them() -> None:
+    # The writer keeps short texts' bytes (by text, for each position modulo 4) up to a bound:
+    # short and long texts, more distinct ones than it keeps, one after another at every alignment.
+    writer = ros_writer("diagnostic_msgs/msg/KeyValue")
+    key_value = STORE.types["diagnostic_msgs/msg/KeyValue"]
+    texts = ["", "a", "ab", "abc", "héllo", "x" * 300, *(f"frame_{index}" for index in range(5000))]
+    for key, value in zip(texts, texts[1:] + texts[:1], strict=True):
+        reference = bytes(STORE.serialize_cdr(key_value(key, value), "diagnostic_msgs/msg/KeyValue"))
+        assert writer.write((key, value)) == reference
+    with pytest.raises(EncodeError, match=r"KeyValue\.value: a string is expected, not list"):
+        writer.write(("key", ["not", "text"]))
+
+
+def test_an_empty_sequence_may_be_any_empty_value() -> None:
+    writer = ros_writer("visualization_msgs/msg/Marker")
+    texture = (((0, 0), ""), "", b"")
+    pose = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+    marker: tuple[Any, ...] = (((0, 0), "world"), "ns", 0, 1, 0, pose, (1.0, 1.0, 1.0), (1.0, 1.0, 1.0, 1.0),
+                               (0, 0), False, [], [], "", texture, [], "", "", ("", b""), False)  # fmt: skip
+    reference = writer.write(marker)
+    for empty in ((), np.zeros((0, 3))):
+        assert writer.write(marker[:10] + (empty,) + marker[11:]) == reference
+    with pytest.raises(EncodeError, match=r"Marker\.points: a sequence is expected, not int"):
+        writer.write(marker[:10] + (0,) + marker[11:])
+
+
 @pytest.mark.parametrize(
     ("value", "field", "reason"),
     [

@@ -14,7 +14,9 @@ action, pose, scale, colour and lifetime) is one `struct` pack. Strings are `str
 arrays and sequences are any sequence of numbers or a numpy array (bytes for uint8, byte, char
 and int8); a sequence of messages is a list of tuples, or, for messages of one primitive type
 only (`geometry_msgs/Point`, `std_msgs/ColorRGBA`, `shape_msgs/MeshTriangle`), an N x k numpy
-array written in one copy.
+array written in one copy. Any empty value with a length (`()`, `[]`, an empty array) is an empty
+sequence. Short strings are encoded once and kept (a few thousand, then the cache starts over):
+a scene writes the same frame ids, namespaces and empty strings over and over.
 
 `marks` name fields (dotted paths from the root, through sequences too: `transforms.transform`)
 whose payload offsets `write_marked` reports, one per time the field is written: a message
@@ -230,6 +232,8 @@ class _Generator:
                 self._run(type_name, run, out)
                 run = []
             self._mark(leaf, out, self._start(leaf))
+            if leaf.field.kind == "sequence":
+                self._unless_empty(leaf, out)
             if leaf.kind == "string":
                 self._string(type_name, leaf, out)
             elif leaf.kind == "numbers":
@@ -240,21 +244,39 @@ class _Generator:
                          f"{field.kind == 'array'}, {field.count})")  # fmt: skip
             else:
                 self._structs(type_name, leaf, out)
+            if leaf.field.kind == "sequence":
+                out.depth -= 1
         if run:
             self._run(type_name, run, out)
 
-    def _string(self, type_name: str, leaf: _Leaf, out: SourceWriter) -> None:
-        """A string, inline (a viewer's marker has eight): `_string` names what is wrong."""
+    def _unless_empty(self, leaf: _Leaf, out: SourceWriter) -> None:
+        """An empty sequence, the usual value of many (a marker's points, colours, texture and mesh
+        data), as its count from a table; the code after this, for the others, is indented."""
         out.line("try:")
         with out.indent():
-            out.line(f"d = {leaf.var}.encode()")
-            out.line("if b'\\0' in d: raise ValueError")
-        out.line("except (AttributeError, UnicodeEncodeError, ValueError):")
+            out.line(f"n = len({leaf.var})")
+        out.line("except TypeError:")  # no sequence: the code for the others says so
         with out.indent():
-            out.line(f"_string({leaf.var}, out, pos, {type_name!r}, {leaf.path!r})")
-        out.line("p = -pos & 3")
-        out.line("out += (_COUNT_AFTER_PAD[p].pack(len(d) + 1), d, b'\\0')")
-        out.line("pos += p + 5 + len(d)")
+            out.line("n = -1")
+        out.line("if n == 0:")
+        with out.indent():
+            out.line("s = _NO_ITEMS[pos & 3]")
+            out.line("out.append(s)")
+            out.line("pos += len(s)")
+        out.line("else:")
+        out.depth += 1
+
+    def _string(self, type_name: str, leaf: _Leaf, out: SourceWriter) -> None:
+        """A string, inline (a viewer's marker has eight): its bytes, padding first, from `_TEXTS`
+        (`_text` encodes, checks and keeps those not there)."""
+        out.line("try:")
+        with out.indent():
+            out.line(f"s = _TEXTS[{leaf.var}][pos & 3]")
+        out.line("except _NOT_KEPT:")
+        with out.indent():
+            out.line(f"s = _text({leaf.var}, pos, {type_name!r}, {leaf.path!r})")
+        out.line("out.append(s)")
+        out.line("pos += len(s)")
 
     def _start(self, leaf: _Leaf) -> str:
         """Where a leaf written on its own starts: a string's or sequence's count, 4-aligned, or a
@@ -279,11 +301,18 @@ class _Generator:
             codes += [(code, size)] * count
             args.append(f"*{leaf.var}" if leaf.field.kind == "array" else leaf.var)
         name = f"R{len(self.names)}"
-        self.names[name], self.names[name + "_N"] = cdr_packers(codes)
-        out.line("k = pos & 7")
+        packers, sizes = cdr_packers(codes)
+        unpadded = all(size == 1 for _, size in codes)  # bytes only (a bool): the same at every position
+        if unpadded:
+            self.names[name] = packers[0]
+            packer, step = name, str(sizes[0])
+        else:
+            self.names[name], self.names[name + "_N"] = packers, sizes
+            out.line("k = pos & 7")
+            packer, step = f"{name}[k]", f"{name}_N[k]"
         out.line("try:")
         with out.indent():
-            out.line(f"out.append({name}[k].pack({', '.join(args)}))")
+            out.line(f"out.append({packer}.pack({', '.join(args)}))")
         out.line("except _PACK_ERRORS:")
         with out.indent():
             paths = tuple((leaf.path, leaf.field.base, leaf.field.count if leaf.field.kind == "array" else 0)
@@ -291,11 +320,13 @@ class _Generator:
             out.line(f"raise _run_error({type_name!r}, {paths!r}, ({', '.join(leaf.var for leaf in run)},)) "
                      "from None")  # fmt: skip
         for leaf, first in zip(run, firsts, strict=True):
-            if leaf.marks:
+            if leaf.marks and unpadded:
+                self._mark(leaf, out, f"pos + {first}")
+            elif leaf.marks:
                 starts = [aligned_starts(phase, [size for _, size in codes])[first] for phase in range(8)]
                 self.names[f"{name}_AT{first}"] = starts
                 self._mark(leaf, out, f"pos + {name}_AT{first}[k]")
-        out.line(f"pos += {name}_N[k]")
+        out.line(f"pos += {step}")
 
     def _numbers(self, type_name: str, leaf: _Leaf, out: SourceWriter) -> None:
         field = leaf.field
@@ -413,8 +444,19 @@ def _with_mark(leaf: _Leaf, path: str) -> _Leaf:
 _Unpacking = (TypeError, ValueError)  # a value that does not unpack into its type's fields
 
 
-def _string(text: Any, out: list[Any], pos: int, type_name: str, field: str) -> int:
-    """A CDR string: uint32 length counting the NUL, the UTF-8 bytes, the NUL."""
+# Texts -> their CDR strings at each position modulo 4 (padding to 4, uint32 length counting the
+# NUL, the UTF-8 bytes, the NUL): the frame ids, namespaces and empty strings a scene writes over
+# and over are encoded once. Up to `_TEXTS_KEPT` texts of `_TEXT_KEPT_BYTES` at most (4 MB at
+# worst, tens of kB for a scene's names); then the cache starts over.
+_TEXTS: dict[str, list[bytes]] = {}
+_TEXTS_KEPT = 4096
+_TEXT_KEPT_BYTES = 256
+_NOT_KEPT = (KeyError, TypeError)  # TypeError: unhashable, so no string (`_text` says so)
+_NO_ITEMS = [COUNT_AFTER_PAD[-phase & 3].pack(0) for phase in range(4)]  # an empty sequence, by pos % 4
+
+
+def _text(text: Any, pos: int, type_name: str, field: str) -> bytes:
+    """A CDR string at `pos` (see `_TEXTS`), kept in `_TEXTS` when short."""
     if not isinstance(text, str):
         raise EncodeError(type_name, field, f"a string is expected, not {type(text).__name__}")
     try:
@@ -425,11 +467,13 @@ def _string(text: Any, out: list[Any], pos: int, type_name: str, field: str) -> 
         raise EncodeError(
             type_name, field, f"{text!r} contains a NUL character, which a CDR string cannot carry"
         )
-    pad = -pos & 3
-    out.append(COUNT_AFTER_PAD[pad].pack(len(data) + 1))
-    out.append(data)
-    out.append(b"\0")
-    return pos + pad + 5 + len(data)
+    if len(data) > _TEXT_KEPT_BYTES:
+        return COUNT_AFTER_PAD[-pos & 3].pack(len(data) + 1) + data + b"\0"
+    forms = [COUNT_AFTER_PAD[-phase & 3].pack(len(data) + 1) + data + b"\0" for phase in range(4)]
+    if len(_TEXTS) >= _TEXTS_KEPT:
+        _TEXTS.clear()
+    _TEXTS[text] = forms
+    return forms[pos & 3]
 
 
 def _strings(
@@ -441,7 +485,12 @@ def _strings(
         out.append(COUNT_AFTER_PAD[pad].pack(n))
         pos += pad + 4
     for index, text in enumerate(values):
-        pos = _string(text, out, pos, type_name, f"{field}[{index}]")
+        try:
+            data = _TEXTS[text][pos & 3]
+        except _NOT_KEPT:
+            data = _text(text, pos, type_name, f"{field}[{index}]")
+        out.append(data)
+        pos += len(data)
     return pos
 
 
@@ -563,7 +612,10 @@ _HELPERS: dict[str, object] = {
     "_PACK_ERRORS": _PACK_ERRORS,
     "_Unpacking": _Unpacking,
     "_COUNT_AFTER_PAD": COUNT_AFTER_PAD,
-    "_string": _string,
+    "_TEXTS": _TEXTS,
+    "_NOT_KEPT": _NOT_KEPT,
+    "_text": _text,
+    "_NO_ITEMS": _NO_ITEMS,
     "_strings": _strings,
     "_numbers": _numbers,
     "_count": _count,

@@ -17,8 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, cdr_string
+from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME
 from viewer_bridge.formats.ros.markers import marker_array_cdr
+from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene
 
 
@@ -36,15 +37,26 @@ def contact_wrenches(results: ContactResults) -> np.ndarray[Any, Any]:
     return np.concatenate((point, np.array(hydroelastic).reshape(-1, 6)))
 
 
+_NO_WRENCH = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+
+
 class WrenchEncoder:
-    """One WrenchStamped CDR per contact pair, all in `frame_id`, from a pre-packed header."""
+    """One WrenchStamped CDR per contact pair, all in `frame_id`: written once, then each call's
+    stamp and each pair's six numbers where the writer marked them.
+
+    Raises `EncodeError` for a frame id that is no CDR string.
+    """
 
     def __init__(self, frame_id: str = "world") -> None:
-        frame = cdr_string(frame_id, "header.frame_id")
-        header_size = CDR_TIME.size + len(frame)
-        self._frame = frame + b"\0" * (-header_size % 8)  # the wrench's doubles are 8-aligned
+        writer = ros_writer("geometry_msgs/msg/WrenchStamped", ("header.stamp", "wrench"))
+        message, marks = writer.write_marked((((0, 0), frame_id), _NO_WRENCH))
+        stamp_at = len(CDR_LE) + marks["header.stamp"][0]  # marks count from after the encapsulation
+        wrench_at = len(CDR_LE) + marks["wrench"][0]
+        self._head = message[:stamp_at]
+        # From the stamp to the wrench: the frame id, padded. The wrench, 6 float64, ends the message.
+        self._frame = message[stamp_at + CDR_TIME.size : wrench_at]
 
     def encode(self, results: ContactResults, stamp: tuple[int, int]) -> list[bytes]:
-        prefix = CDR_LE + CDR_TIME.pack(*stamp) + self._frame
+        header = b"".join((self._head, CDR_TIME.pack(*stamp), self._frame))
         rows = np.ascontiguousarray(contact_wrenches(results), dtype="<f8")
-        return [prefix + row.tobytes() for row in rows]
+        return [header + row.tobytes() for row in rows]

@@ -1,9 +1,11 @@
-"""A scene's markers as a ROS 2 `visualization_msgs/MarkerArray`, written as CDR directly.
+"""A scene's markers as a ROS 2 `visualization_msgs/MarkerArray`, written as CDR by the generated
+writer (`lcmcodec.ros_writer`), without message objects.
 
 `marker_specs` makes one `MarkerSpec` per marker from the `marker` table of `mappings/ros.yaml`;
 `marker_array_cdr` writes them in the world frame (`marker_array_in_link_frames_cdr`: in their
-links' frames). `MarkerStream`: one load -> a CDR template of the array, then each draw only
-writes the markers' world poses into it.
+links' frames). The markers are written at the origin and their poses put in afterwards, all
+at once, where the writer marked them. `MarkerStream`: one load -> a CDR template of the array,
+then each draw only writes the markers' world poses into it.
 """
 
 from __future__ import annotations
@@ -15,17 +17,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from viewer_bridge.formats.ros.cdr import (
-    CDR_LE,
-    CDR_TIME,
-    FRONT_PADDING,
-    POSE_ITEM,
-    U32,
-    CdrWriter,
-    cdr_string_4,
-    payload_items,
-)
+from viewer_bridge.formats.ros.cdr import FRONT_PADDING, POSE_ITEM, payload_items
 from viewer_bridge.formats.ros.tables import TABLES
+from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.pose_math import PartsOnLinks, pose_rows_xyzw, wxyz_from_xyzw
 from viewer_bridge.model.scene import FloatArray, Geometry, LinkPoses, Pose, Scene
 from viewer_bridge.model.skipped import per_geometry
@@ -57,7 +51,6 @@ class MarkerSpec(NamedTuple):
 
 
 # The marker that starts a new load's array: RViz drops every marker it has.
-_IDENTITY_XYZW = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
 DELETE_ALL = MarkerSpec("", "", 0, 0, Pose(), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0), action=3)
 
 
@@ -135,103 +128,48 @@ def marker_settings(options: dict[str, Any] | None) -> dict[str, Any]:
     return {**TABLES["marker"].options, **(options or {})}
 
 
-_ID_TYPE_ACTION = struct.Struct("<iii")
-# pose (7), scale (3), color (4 float32), lifetime (sec, nanosec): one block, 8-aligned.
-_POSE_TO_LIFETIME = struct.Struct("<10d4fiI")
+_POSE = "markers.pose"  # marked: every marker's pose is written after the rest, all at once
+_ORIGIN = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+_STAMP = (0, 0)  # header.stamp and lifetime: none (a lifetime of 0 is forever)
+_NO_TEXTURE = ((_STAMP, ""), "", b"")  # sensor_msgs/CompressedImage
 
 
-def _marker_tail(spec: MarkerSpec, frame_locked: bool) -> bytes:
-    """Everything after a marker's lifetime. It starts 8-aligned, so its bytes never change."""
-    writer = CdrWriter()
-    writer.add(b"\1" if frame_locked else b"\0")  # frame_locked: follow the frame as TF moves it
-    points = spec.points if spec.points is not None else np.zeros((0, 3))
-    writer.pack(U32, len(points))
-    if len(points):
-        writer.align(8)
-        writer.add(np.ascontiguousarray(points, dtype="<f8").tobytes())
-    colors = spec.colors if spec.colors is not None else np.zeros((0, 4))
-    writer.pack(U32, len(colors))
-    writer.add(np.ascontiguousarray(colors, dtype="<f4").tobytes())
-    writer.string("")  # texture_resource
-    writer.pack(CDR_TIME, 0, 0)  # texture.header.stamp
-    writer.string("")  # texture.header.frame_id
-    writer.string("")  # texture.format
-    writer.octets(b"")  # texture.data
-    writer.pack(U32, 0)  # uv_coordinates
-    writer.string("")  # text
-    writer.string(spec.mesh_resource)
-    writer.string(spec.mesh_file[0])
-    writer.octets(spec.mesh_file[1])
-    writer.add(b"\0")  # mesh_use_embedded_materials
-    return writer.getvalue()[len(CDR_LE) :]
-
-
-def _write_markers(
-    specs: Sequence[MarkerSpec],
-    poses: FloatArray,
-    frame_id: str | Sequence[str],
-    delete_all: bool,
-    frame_locked: bool = False,
+def _marker_array(
+    specs: Sequence[MarkerSpec], frame_id: str | Sequence[str], delete_all: bool, frame_locked: bool = False
 ) -> tuple[bytes, list[int]]:
-    """A MarkerArray's CDR (Jazzy field order) and the payload offset of each spec's pose.
+    """A MarkerArray's CDR with every marker at the origin, and the payload offset of each spec's
+    pose (`_posed` writes them in).
 
     `frame_id` is every marker's frame, or one frame per spec (markers in their links' frames,
-    then `frame_locked`). Written a marker at a time from a few pre-packed blocks: the header
-    (cached per frame), the namespace, one struct for pose to lifetime, and the tail (cached per
-    kind of marker).
+    then `frame_locked`). With `delete_all` a DELETEALL marker comes first.
     """
-    frames = [frame_id] * len(specs) if isinstance(frame_id, str) else list(frame_id)
+    one_frame = isinstance(frame_id, str)
+    headers = [(_STAMP, frame_id)] * len(specs) if one_frame else [(_STAMP, frame) for frame in frame_id]
     if delete_all:
         specs = [DELETE_ALL, *specs]
-        frames = [frames[0] if frames else "", *frames]
-        poses = np.concatenate((_IDENTITY_XYZW[None, :], poses))
-    prefixes: dict[tuple[str, str], bytes] = {}  # stamp, frame_id, ns: a link's markers share one
-    tails: dict[tuple[str, str, int], bytes] = {}
-    blocks = _blocks(specs, poses)
-    block_size = _POSE_TO_LIFETIME.size
-    chunks = [CDR_LE, U32.pack(len(specs))]
-    size = 4  # payload bytes so far
-    offsets = []
-    for index, (spec, frame) in enumerate(zip(specs, frames, strict=True)):
-        if size % 4:  # the previous marker ended on a bool
-            chunks.append(_PADDING[-size % 4])
-            size += -size % 4
-        prefix = prefixes.get((frame, spec.ns))
-        if prefix is None:
-            prefix = CDR_TIME.pack(0, 0) + cdr_string_4(frame, "header.frame_id") + cdr_string_4(spec.ns)
-            prefixes[(frame, spec.ns)] = prefix
-        head = prefix + _ID_TYPE_ACTION.pack(spec.id, spec.type, spec.action)
-        head_end = size + len(head)
-        padding = -head_end % 8
-        if spec.points is None and spec.colors is None:  # the tail depends on the mesh fields only
-            key = (spec.mesh_resource, spec.mesh_file[0], id(spec.mesh_file[1]))
-            tail = tails.get(key)
-            if tail is None:
-                tail = tails[key] = _marker_tail(spec, frame_locked)
-        else:
-            tail = _marker_tail(spec, frame_locked)
-        offsets.append(head_end + padding)
-        chunks += (head, _PADDING[padding], blocks[index * block_size : (index + 1) * block_size], tail)
-        size = head_end + padding + block_size + len(tail)
-    return b"".join(chunks), offsets[1:] if delete_all else offsets
+        headers = [headers[0] if headers else (_STAMP, ""), *headers]
+    # Jazzy's Marker field by field: header, ns, id, type, action, pose, scale, color, lifetime,
+    # frame_locked, points, colors, texture_resource, texture, uv_coordinates, text,
+    # mesh_resource, mesh_file, mesh_use_embedded_materials.
+    markers = [
+        (header, ns, id_, type_, action, _ORIGIN, scale, color, _STAMP, frame_locked,
+         () if points is None else points, () if colors is None else colors, "", _NO_TEXTURE, (), "",
+         mesh_resource, mesh_file, False)
+        for (_, ns, id_, type_, _, scale, color, points, colors, mesh_resource, mesh_file, action), header
+        in zip(specs, headers, strict=True)
+    ]  # fmt: skip
+    data, marks = ros_writer("visualization_msgs/msg/MarkerArray", (_POSE,)).write_marked((markers,))
+    return data, marks[_POSE][1:] if delete_all else marks[_POSE]
 
 
-_PADDING = [b"\0" * count for count in range(8)]
-
-# `_POSE_TO_LIFETIME` as a numpy record, to write every marker's block at once.
-_BLOCK = np.dtype([("pose", "<f8", 7), ("scale", "<f8", 3), ("color", "<f4", 4), ("lifetime", "<u4", 2)])
-assert _BLOCK.itemsize == _POSE_TO_LIFETIME.size
-
-
-def _blocks(specs: Sequence[MarkerSpec], poses: FloatArray) -> bytes:
-    """Every marker's pose, scale, colour and lifetime (zero), packed as `_POSE_TO_LIFETIME`."""
-    blocks = np.zeros(len(specs), dtype=_BLOCK)
-    if not specs:
-        return b""
-    blocks["pose"] = poses
-    blocks["scale"] = [spec.scale for spec in specs]
-    blocks["color"] = [spec.color for spec in specs]  # float32 values already (see marker_specs)
-    return blocks.tobytes()
+def _posed(data: bytes, offsets: list[int], poses: FloatArray) -> bytes:
+    """`data` with pose k (M x 7 rows: position, quaternion x y z w) at payload offset `offsets[k]`."""
+    if not offsets:
+        return data
+    buffer = bytearray(data)
+    rows = np.ascontiguousarray(poses, dtype="<f8").view(POSE_ITEM).reshape(-1)
+    payload_items(buffer, POSE_ITEM, 8)[np.asarray(offsets) // 8] = rows
+    return bytes(buffer)
 
 
 def marker_array_cdr(scene: Scene, options: dict[str, Any] | None = None, delete_all: bool = True) -> bytes:
@@ -245,7 +183,7 @@ def marker_array_cdr(scene: Scene, options: dict[str, Any] | None = None, delete
     frame_id = str(marker_settings(options)["frame_id"])
     specs = marker_specs(scene, options)
     positions, wxyz = world_poses(scene, specs)
-    return _write_markers(specs, pose_rows_xyzw(positions, wxyz), frame_id, delete_all)[0]
+    return _posed(*_marker_array(specs, frame_id, delete_all), pose_rows_xyzw(positions, wxyz))
 
 
 def marker_array_in_link_frames_cdr(
@@ -259,7 +197,7 @@ def marker_array_in_link_frames_cdr(
     specs = marker_specs(scene, options)
     positions, wxyz = _part_poses(specs)
     frames = [frame_of(spec.link_name) for spec in specs]
-    return _write_markers(specs, pose_rows_xyzw(positions, wxyz), frames, True, frame_locked=True)[0]
+    return _posed(*_marker_array(specs, frames, True, frame_locked=True), pose_rows_xyzw(positions, wxyz))
 
 
 class MarkerStream:
@@ -275,9 +213,8 @@ class MarkerStream:
         frame_id = str(marker_settings(options)["frame_id"])
         self._specs = marker_specs(scene, options)
         positions, wxyz = world_poses(scene, self._specs)
-        poses = pose_rows_xyzw(positions, wxyz)
-        self.load_cdr = _write_markers(self._specs, poses, frame_id, delete_all=True)[0]
-        self._template, offsets = _write_markers(self._specs, poses, frame_id, delete_all=False)
+        self.load_cdr = _posed(*_marker_array(self._specs, frame_id, True), pose_rows_xyzw(positions, wxyz))
+        self._template, offsets = _marker_array(self._specs, frame_id, False)  # each update poses it
         # Poses are 8-aligned in the payload, which starts after the 4-byte encapsulation: in a
         # buffer with 4 bytes in front of the message, they are aligned for numpy. The buffer is
         # kept: every update rewrites all the poses and nothing else, then copies the message
