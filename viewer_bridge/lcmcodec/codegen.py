@@ -281,6 +281,7 @@ def scalar_runs(definition: StructDef) -> Iterator[tuple[bool, list[tuple[int, M
 
 # --- writing CDR: what the LCM -> CDR transcoders and the value writers emit alike ---------------
 
+CDR_LE = b"\x00\x01\x00\x00"  # the encapsulation header: little-endian plain CDR
 COUNT_AFTER_PAD = [struct.Struct(f"<{pad}xI") for pad in range(4)]  # a uint32 after `pad` zero bytes
 
 

@@ -40,6 +40,7 @@ import numpy as np
 
 from viewer_bridge.errors import EncodeError, SchemaError
 from viewer_bridge.lcmcodec.codegen import (
+    CDR_LE,
     COUNT_AFTER_PAD,
     SourceWriter,
     aligned_starts,
@@ -48,7 +49,6 @@ from viewer_bridge.lcmcodec.codegen import (
 )
 from viewer_bridge.lcmcodec.from_ros import RosField, RosStruct, wire_structs
 
-CDR_LE = b"\x00\x01\x00\x00"  # the encapsulation header: little-endian plain CDR
 # ROS 2 primitive -> (little-endian struct code, size, numpy type)
 _PRIMITIVES: Mapping[str, tuple[str, int, str]] = {
     "bool": ("?", 1, "?"), "byte": ("B", 1, "u1"), "char": ("B", 1, "u1"), "uint8": ("B", 1, "u1"),

@@ -6,12 +6,13 @@ from typing import Any
 
 from viewer_bridge.formats.drake.draw import DrawEncoder
 from viewer_bridge.formats.drake.load import link_from_lcm
-from viewer_bridge.formats.ros.cdr import CDR_LE, U32, time_parts, time_parts_from_us
+from viewer_bridge.formats.ros.cdr import U32, time_parts, time_parts_from_us
 from viewer_bridge.formats.ros.markers import MarkerStream, marker_array_cdr
 from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, MESH, PLANE, POSE_ARRAY, SOLID_PRIMITIVE
 from viewer_bridge.formats.ros.poses import PoseArrayEncoder, pose_array_arrays, poses_from_pose_array_cdr
 from viewer_bridge.formats.ros.shapes import shapes_cdr
 from viewer_bridge.lcmcodec.codecs import LINK_DATA
+from viewer_bridge.lcmcodec.codegen import CDR_LE
 from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.scene import Scene
 from viewer_bridge.translators.base import Output, Outputs, Translator, TranslatorOptions

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.formats.mappings import ShapeRule
-from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, time_parts
+from viewer_bridge.formats.ros.cdr import CDR_TIME, time_parts
 from viewer_bridge.formats.ros.markers import (
     DELETE_ALL,
     MarkerSpec,
@@ -26,6 +26,7 @@ from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, POSE_ARRAY, TF
 from viewer_bridge.formats.ros.messages import make
 from viewer_bridge.formats.ros.tables import TABLES
 from viewer_bridge.formats.ros.tf import FrameNames
+from viewer_bridge.lcmcodec.codegen import CDR_LE
 from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene
 from viewer_bridge.model.pose_math import pose_rows_xyzw

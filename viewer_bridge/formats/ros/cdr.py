@@ -1,8 +1,9 @@
-"""ROS 2 CDR written and read directly, for the fast paths: the little-endian header, the
-`builtin_interfaces/Time` stamp (`CDR_TIME`, `time_parts`), strings, a chunked writer, a checked
-reader, and numpy views of a message's poses and stamps.
+"""ROS 2 CDR read directly, for the fast paths, and what the templates of the writers share: the
+`builtin_interfaces/Time` stamp (`CDR_TIME`, `time_parts`), a checked reader, and numpy views of a
+message's poses and stamps.
 
-Messages as rosbags objects (`make`, `to_cdr`, ...) are in `viewer_bridge.formats.ros.messages`.
+CDR is written by the generated writer (`viewer_bridge.lcmcodec.ros_writer`); messages as
+rosbags objects (`make`, `to_cdr`, ...) are in `viewer_bridge.formats.ros.messages`.
 """
 
 from __future__ import annotations
@@ -13,9 +14,9 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import DecodeError, EncodeError
+from viewer_bridge.lcmcodec.codegen import CDR_LE
 from viewer_bridge.model.sim_time import sec_nsec_from_ms, sec_nsec_from_us, us_from_sec_nsec
 
-CDR_LE = b"\x00\x01\x00\x00"  # the encapsulation header: little-endian plain CDR
 U32 = struct.Struct("<I")
 CDR_TIME = struct.Struct("<iI")  # builtin_interfaces/Time in little-endian CDR: int32 sec, uint32 nanosec
 POSE_ITEM = np.dtype((np.void, 56))  # geometry_msgs/Pose or Transform: 7 float64, as one item
@@ -50,59 +51,6 @@ def payload_items(buffer: Any, item: np.dtype[Any], step: int, front: int = 0) -
     payload = front + len(CDR_LE)
     count = max(0, (len(buffer) - payload - item.itemsize) // step + 1)
     return np.ndarray((count,), dtype=item, buffer=buffer, offset=payload, strides=(step,))
-
-
-def cdr_string(text: str, field: str = "string") -> bytes:
-    """A CDR string: uint32 length counting the NUL, the UTF-8 bytes, the NUL.
-
-    Raises `EncodeError` for text with a NUL in it (a reader would stop there) or that is not
-    valid Unicode.
-    """
-    if "\0" in text:
-        raise EncodeError("CDR", field, f"{text!r} contains a NUL character, which a CDR string cannot carry")
-    try:
-        data = text.encode("utf-8") + b"\0"
-    except UnicodeEncodeError as error:  # a lone surrogate
-        raise EncodeError("CDR", field, f"{text!r} is not valid Unicode ({error.reason})") from None
-    return U32.pack(len(data)) + data
-
-
-def cdr_string_4(text: str, field: str = "string") -> bytes:
-    """A CDR string padded to a multiple of 4, for a string that starts 4-aligned."""
-    data = cdr_string(text, field)
-    return data + b"\0" * (-len(data) % 4)
-
-
-class CdrWriter:
-    """Little-endian CDR into a list of chunks; `size` is the payload offset alignment counts from."""
-
-    def __init__(self) -> None:
-        self.chunks: list[bytes] = [CDR_LE]
-        self.size = 0
-
-    def add(self, data: bytes) -> None:
-        self.chunks.append(data)
-        self.size += len(data)
-
-    def align(self, boundary: int) -> None:
-        padding = -self.size % boundary
-        if padding:
-            self.add(b"\0" * padding)
-
-    def pack(self, layout: struct.Struct, *values: Any) -> None:
-        self.align(4)  # every layout used here starts with a 4-byte value
-        self.add(layout.pack(*values))
-
-    def string(self, text: str, field: str = "string") -> None:
-        self.align(4)
-        self.add(cdr_string(text, field))  # checked: no NUL, valid Unicode
-
-    def octets(self, data: bytes) -> None:
-        self.pack(U32, len(data))
-        self.add(data)
-
-    def getvalue(self) -> bytes:
-        return b"".join(self.chunks)
 
 
 class CdrReader:

@@ -17,8 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME
+from viewer_bridge.formats.ros.cdr import CDR_TIME
 from viewer_bridge.formats.ros.markers import marker_array_cdr
+from viewer_bridge.lcmcodec.codegen import CDR_LE
 from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene
 

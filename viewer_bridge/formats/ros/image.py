@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import DecodeError, EncodeError
-from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, CdrReader
+from viewer_bridge.formats.ros.cdr import CDR_TIME, CdrReader
+from viewer_bridge.lcmcodec.codegen import CDR_LE
 from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.image import (
     NO_DISTORTION,

@@ -15,8 +15,9 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import DecodeError
-from viewer_bridge.formats.ros.cdr import CDR_LE, CDR_TIME, FRONT_PADDING, time_parts
+from viewer_bridge.formats.ros.cdr import CDR_TIME, FRONT_PADDING, time_parts
 from viewer_bridge.formats.ros.message_types import POSE_ARRAY
+from viewer_bridge.lcmcodec.codegen import CDR_LE
 from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.pose_math import write_pose_rows_xyzw
 from viewer_bridge.model.scene import FloatArray, LinkPoses, Pose, link_poses_from_xyzw, pose_from_xyzw
