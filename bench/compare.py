@@ -14,9 +14,17 @@ mmap threshold to that size and its trim threshold to twice it (as all.py's proc
 first scripts have freed their big buffers). Without it, a row whose temporaries take a few MB
 (point_cloud's) hands them back to the kernel and faults them in again on every call, by an
 amount set by where the heap's top happens to lie: 1234 or 1333 page faults a call for the same
-code, two thirds of the row's time, in the kernel. A script that the other checkout has without
-`measures` (it predates them) is measured there by this checkout's script, on that checkout's
-code and bench helpers.
+code, two thirds of the row's time, in the kernel.
+
+Where things lie in memory moves a short row by a few percent, and it is fixed for a checkout
+(its imports map the same libraries in the same order, and fill the heap the same way): a kept
+layout's move of a JointState takes 226 to 245 ns for the same program by its address modulo 64,
+and its whole conversion 345 or 365 ns by where the compiled mover is mapped. So each child
+first reserves 4 to 8 MiB of address space and keeps a heap block, both of random size: every
+library loaded afterwards and every block lies elsewhere each round, and that shows as spread.
+
+A script that the other checkout has without `measures` (it predates them) is measured there by
+this checkout's script, on that checkout's code and bench helpers.
 """
 
 from __future__ import annotations
@@ -30,8 +38,12 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 CHILD = """
+import mmap, random
+# Kept: where the code loaded next and the heap's blocks lie differs each round (the docstring says why).
+shift = mmap.mmap(-1, random.randrange(1024, 2048) * mmap.PAGESIZE)
+bytes(31 << 20)  # freed at once: glibc's thresholds raised
+heap_shift = bytes(random.randrange(1024, 1024 + 4096, 16))
 import dataclasses, importlib.util, inspect, json, sys
-bytes(31 << 20)  # freed at once: glibc's thresholds raised (the module's docstring says why)
 sys.path[:0] = [sys.argv[1]]
 if len(sys.argv) > 4:  # this checkout's script, on the other checkout's code
     spec = importlib.util.spec_from_file_location(sys.argv[2], sys.argv[4])
