@@ -8,6 +8,24 @@ PYTHONPATH), `--rounds` times each, the two sides taking turns. The table gives 
 to its own baseline (measured in the same process; `x`) and its own figure, for both checkouts,
 with half their spread over the rounds, and the change: a restructure whose changes stay within
 the spread changed nothing measurable.
+
+Both sides meet the same allocator: each child first frees one 31 MiB block, which raises glibc's
+mmap threshold to that size and its trim threshold to twice it (as all.py's process is once its
+first scripts have freed their big buffers). Without it, a row whose temporaries take a few MB
+(point_cloud's) hands them back to the kernel and faults them in again on every call, by an
+amount set by where the heap's top happens to lie: 1234 or 1333 page faults a call for the same
+code, two thirds of the row's time, in the kernel.
+
+Where things lie in memory moves a short row by a few percent, and without help it is the same
+in every round of a checkout (its imports map the same libraries in the same order and fill the
+heap the same way): the kept-layout JointState move takes 226 to 245 ns for the same program by
+its address modulo 64 alone, and that row read 0.351 against 0.369 us with the same instructions
+a call. So each child first reserves 4 to 8 MiB of address space and keeps a heap block, both of
+random size: the libraries loaded afterwards and the blocks lie elsewhere each round, and that
+shows as spread.
+
+A script that the other checkout has without `measures` (it predates them) is measured there by
+this checkout's script, on that checkout's code and bench helpers.
 """
 
 from __future__ import annotations
@@ -21,9 +39,19 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 CHILD = """
-import dataclasses, inspect, json, sys
+import mmap, random
+# Kept: where the code loaded next and the heap's blocks lie differs each round (the docstring says why).
+shift = mmap.mmap(-1, random.randrange(1024, 2048) * mmap.PAGESIZE)
+bytes(31 << 20)  # freed at once: glibc's thresholds raised
+heap_shift = bytes(random.randrange(1024, 1024 + 4096, 16))
+import dataclasses, importlib.util, inspect, json, sys
 sys.path[:0] = [sys.argv[1]]
-module = __import__(sys.argv[2])
+if len(sys.argv) > 4:  # this checkout's script, on the other checkout's code
+    spec = importlib.util.spec_from_file_location(sys.argv[2], sys.argv[4])
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+else:
+    module = __import__(sys.argv[2])
 quick = sys.argv[3] == "1"
 if "size" in inspect.signature(module.measures).parameters:
     from common import Size
@@ -47,9 +75,13 @@ def _environment(checkout: Path) -> dict[str, str]:
 
 
 def measure(checkout: Path, script: str, quick: bool) -> list[dict[str, object]]:
-    """One script's rows as `checkout` measures them, in a child process."""
-    result = subprocess.run([sys.executable, "-c", CHILD, str(checkout / "bench"), script, "1" if quick else "0"],
-                            capture_output=True, text=True, env=_environment(checkout), cwd=checkout)  # fmt: skip
+    """One script's rows as `checkout` measures them, in a child process: with its own script, or
+    with this checkout's where its own has no `measures`."""
+    own = checkout / "bench" / f"{script}.py"
+    borrowed = [] if "\ndef measures(" in own.read_text() else [str(HERE / f"{script}.py")]
+    result = subprocess.run([sys.executable, "-c", CHILD, str(checkout / "bench"), script, "1" if quick else "0",
+                             *borrowed], capture_output=True, text=True, env=_environment(checkout),
+                            cwd=checkout)  # fmt: skip
     for line in result.stdout.splitlines():
         if line.startswith("ROWS"):
             return list(json.loads(line[4:]))

@@ -196,6 +196,25 @@ static int borrow(PyObject *object, Py_buffer *view, const unsigned char **bytes
     return 0;
 }
 
+/* `input` converted by the program in `program_bytes`: new bytes, None when it does not fit, or
+ * NULL with an error set (a malformed program). */
+static PyObject *convert(const unsigned char *program_bytes, Py_ssize_t program_length,
+                         const unsigned char *input, Py_ssize_t input_length) {
+    Program program;
+    if (parse(program_bytes, program_length, &program) < 0)
+        return NULL;
+    int fit = input_length == (Py_ssize_t)program.input_size ? passes(&program, input) : 0;
+    if (fit <= 0)
+        return fit < 0 ? NULL : Py_NewRef(Py_None);
+    PyObject *result = PyBytes_FromStringAndSize(NULL, program.output_size);
+    if (result != NULL) {
+        unsigned char *output = (unsigned char *)PyBytes_AS_STRING(result);
+        memcpy(output, program.template, program.output_size);
+        run_moves(&program, input, output);
+    }
+    return result;
+}
+
 static PyObject *move(PyObject *module, PyObject *const *args, Py_ssize_t nargs) {
     (void)module;
     if (nargs != 2) {
@@ -211,24 +230,7 @@ static PyObject *move(PyObject *module, PyObject *const *args, Py_ssize_t nargs)
         PyBuffer_Release(&program_view); /* a no-op when obj is NULL */
         return NULL;
     }
-    PyObject *result = NULL;
-    Program program;
-    if (parse(program_bytes, program_length, &program) < 0)
-        goto done;
-    int fit = input_length == (Py_ssize_t)program.input_size ? passes(&program, input) : 0;
-    if (fit < 0)
-        goto done;
-    if (fit == 0) {
-        result = Py_NewRef(Py_None);
-        goto done;
-    }
-    result = PyBytes_FromStringAndSize(NULL, program.output_size);
-    if (result != NULL) {
-        unsigned char *output = (unsigned char *)PyBytes_AS_STRING(result);
-        memcpy(output, program.template, program.output_size);
-        run_moves(&program, input, output);
-    }
-done:
+    PyObject *result = convert(program_bytes, program_length, input, input_length);
     PyBuffer_Release(&data_view);
     PyBuffer_Release(&program_view);
     return result;
@@ -239,6 +241,7 @@ done:
  * Python layout) or the program does not fit: what a kept layout's converter does before its
  * generated code, in one call (the express path's, viewer_bridge/router/runner.py). */
 static PyObject *move_kept(PyObject *module, PyObject *const *args, Py_ssize_t nargs) {
+    (void)module;
     if (nargs != 2 || !PyDict_Check(args[0])) {
         PyErr_SetString(PyExc_TypeError, "move_kept(programs, data) takes a dict and the data");
         return NULL;
@@ -255,8 +258,9 @@ static PyObject *move_kept(PyObject *module, PyObject *const *args, Py_ssize_t n
     if (!PyBytes_Check(program)) /* a Python layout (a tuple), or None: no program */
         return Py_NewRef(Py_None);
     Py_INCREF(program); /* held while it runs, whatever happens to the dict */
-    PyObject *pair[2] = {program, args[1]};
-    PyObject *result = move(module, pair, 2);
+    /* both are bytes: their own buffers, nothing to borrow or release */
+    PyObject *result = convert((const unsigned char *)PyBytes_AS_STRING(program), PyBytes_GET_SIZE(program),
+                               (const unsigned char *)PyBytes_AS_STRING(args[1]), PyBytes_GET_SIZE(args[1]));
     Py_DECREF(program);
     return result;
 }
