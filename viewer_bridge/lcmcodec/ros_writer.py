@@ -71,23 +71,27 @@ class RosWriter:
         self.default = default  # the message with every field at ROS's default (0, "", empty)
         self._body = body
         self._shape = shape  # the field names, nested as the value is: for naming a bad value
-        self._index = {name: index for index, (name, _) in enumerate(shape)}
+        self._names = frozenset(name for name, _ in shape)
+        self._compose = _composer([name for name, _ in shape], default)
 
     def write_fields(self, fields: Mapping[str, Any]) -> bytes:
         """The CDR of the message whose top-level fields are `fields` by name, the others at
         their defaults (for messages made field by field, e.g. from a table's values)."""
-        value = list(self.default)
-        for name, field in fields.items():
-            index = self._index.get(name)
-            if index is None:
-                raise EncodeError(self.type_name, name, "no such field")
-            value[index] = field
-        return self.write(tuple(value))
+        if not self._names.issuperset(fields):
+            unknown = sorted(set(fields) - self._names)[0]
+            raise EncodeError(self.type_name, unknown, "no such field")
+        value = self._compose(fields)
+        out: list[Any] = [CDR_LE]
+        self._call(value, out, None)
+        return b"".join(out)
 
     def write(self, value: Any) -> bytes:
         """The CDR of `value`, with its encapsulation header. Raises `EncodeError` (see the module)."""
         out: list[Any] = [CDR_LE]
-        self._call(value, out, None)
+        try:  # `_call`'s, inline: this is the path of every message
+            self._body(value, out, 0, None)
+        except _Unpacking:
+            raise _shape_error(self.type_name, self._shape, value, "") from None
         return b"".join(out)
 
     def write_marked(self, value: Any) -> tuple[bytes, dict[str, list[int]]]:
@@ -339,10 +343,38 @@ class _Generator:
                 out.line(f"pos += p + 4 + len({leaf.var})")
             out.line("else:")
             out.depth += 1
-        out.line(f"pos = _numbers({leaf.var}, {self._dtype(field.base)}, out, pos, {type_name!r}, {leaf.path!r}, "
-                 f"{fixed}, {field.count}, 1)")  # fmt: skip
+        numbers = (f"pos = _numbers({leaf.var}, {self._dtype(field.base)}, out, pos, {type_name!r}, {leaf.path!r}, "
+                   f"{fixed}, {field.count}, 1)")  # fmt: skip
+        if not fixed and field.base != "bool":  # `n` is its length (`_unless_empty`)
+            self._short_list(leaf, numbers, out)
+        else:
+            out.line(numbers)
         if not fixed and not field.count and field.base in ("uint8", "byte", "char", "int8"):
             out.depth -= 1
+
+    def _short_list(self, leaf: _Leaf, numbers: str, out: SourceWriter) -> None:
+        """A short list of numbers (a shape's dimensions, a camera's distortion) in one `struct`
+        pack; anything else, or a value that does not pack, through `numbers` (`_numbers`)."""
+        code, size, _ = _PRIMITIVES[leaf.field.base]
+        name = f"P_{leaf.field.base}"
+        self.names[name] = [struct.Struct(f"<{count}{code}") for count in range(_SHORT + 1)]
+        limit = min(_SHORT, leaf.field.count or _SHORT)  # a bounded sequence: longer ones are refused there
+        out.line(f"if type({leaf.var}) is list and n <= {limit}:")
+        with out.indent():
+            out.line("try:")
+            with out.indent():
+                out.line(f"s = {name}[n].pack(*{leaf.var})")
+            out.line("except _PACK_ERRORS:")
+            with out.indent():
+                out.line(numbers)  # names what is wrong
+            out.line("else:")
+            with out.indent():
+                out.line(f"g, step = _glue(pos & 7, n, {size}, True)")
+                out.line("out += (g, s)")
+                out.line("pos += step")
+        out.line("else:")
+        with out.indent():
+            out.line(numbers)
 
     def _dtype(self, base: str) -> str:
         """The name under which the generated code finds the numpy type of primitive `base`."""
@@ -396,6 +428,15 @@ class _Generator:
         if not bases or len(set(bases)) != 1:
             return None
         return bases[0], len(bases)
+
+
+def _composer(names: list[str], default: tuple[Any, ...]) -> Any:
+    """A function of a mapping of fields by name to the message's value, defaults where absent:
+    generated, one `get` per field (a loop over the names costs three times as much)."""
+    gets = ", ".join(f"get({name!r}, d[{index}])" for index, name in enumerate(names))
+    namespace: dict[str, Any] = {"d": default}
+    exec(f"def compose(fields):\n    get = fields.get\n    return ({gets},)\n", namespace)  # noqa: S102
+    return namespace["compose"]
 
 
 def _default(structs: Mapping[str, RosStruct], type_name: str) -> tuple[Any, ...]:
@@ -535,6 +576,9 @@ def _numbers(values: Any, dtype: np.dtype[Any], out: list[Any], pos: int, type_n
     return pos + step
 
 
+_SHORT = 16  # elements: a list this short is packed by `struct`, faster than through numpy
+
+
 def _as_array(values: Any, dtype: np.dtype[Any], type_name: str, field: str) -> np.ndarray[Any, Any]:
     """`values` as a contiguous array of `dtype`, refusing what would change on the way: floats
     for integers, integers outside the type's range."""
@@ -616,6 +660,7 @@ _HELPERS: dict[str, object] = {
     "_NOT_KEPT": _NOT_KEPT,
     "_text": _text,
     "_NO_ITEMS": _NO_ITEMS,
+    "_glue": cdr_glue,
     "_strings": _strings,
     "_numbers": _numbers,
     "_count": _count,
