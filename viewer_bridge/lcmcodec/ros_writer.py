@@ -80,10 +80,7 @@ class RosWriter:
         if not self._names.issuperset(fields):
             unknown = sorted(set(fields) - self._names)[0]
             raise EncodeError(self.type_name, unknown, "no such field")
-        value = self._compose(fields)
-        out: list[Any] = [CDR_LE]
-        self._call(value, out, None)
-        return b"".join(out)
+        return self.write(self._compose(fields))
 
     def write(self, value: Any) -> bytes:
         """The CDR of `value`, with its encapsulation header. Raises `EncodeError` (see the module)."""
@@ -358,6 +355,9 @@ class _Generator:
         code, size, _ = _PRIMITIVES[leaf.field.base]
         name = f"P_{leaf.field.base}"
         self.names[name] = [struct.Struct(f"<{count}{code}") for count in range(_SHORT + 1)]
+        # Each count's glue (padding, count, padding) by position modulo 8, looked up, not computed.
+        self.names[f"G_{size}"] = [[cdr_glue(phase, count, size, True) for count in range(_SHORT + 1)]
+                                   for phase in range(8)]  # fmt: skip
         limit = min(_SHORT, leaf.field.count or _SHORT)  # a bounded sequence: longer ones are refused there
         out.line(f"if type({leaf.var}) is list and n <= {limit}:")
         with out.indent():
@@ -369,7 +369,7 @@ class _Generator:
                 out.line(numbers)  # names what is wrong
             out.line("else:")
             with out.indent():
-                out.line(f"g, step = _glue(pos & 7, n, {size}, True)")
+                out.line(f"g, step = G_{size}[pos & 7][n]")
                 out.line("out += (g, s)")
                 out.line("pos += step")
         out.line("else:")
@@ -660,7 +660,6 @@ _HELPERS: dict[str, object] = {
     "_NOT_KEPT": _NOT_KEPT,
     "_text": _text,
     "_NO_ITEMS": _NO_ITEMS,
-    "_glue": cdr_glue,
     "_strings": _strings,
     "_numbers": _numbers,
     "_count": _count,
