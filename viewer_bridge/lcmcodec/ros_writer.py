@@ -44,6 +44,7 @@ from viewer_bridge.lcmcodec.codegen import (
     COUNT_AFTER_PAD,
     SourceWriter,
     aligned_starts,
+    call_child,
     cdr_glue,
     cdr_packers,
 )
@@ -85,10 +86,7 @@ class RosWriter:
     def write(self, value: Any) -> bytes:
         """The CDR of `value`, with its encapsulation header. Raises `EncodeError` (see the module)."""
         out: list[Any] = [CDR_LE]
-        try:  # `_call`'s, inline: this is the path of every message
-            self._body(value, out, 0, None)
-        except _Unpacking:
-            raise _shape_error(self.type_name, self._shape, value, "") from None
+        self._call(value, out, None)
         return b"".join(out)
 
     def write_marked(self, value: Any) -> tuple[bytes, dict[str, list[int]]]:
@@ -404,16 +402,13 @@ class _Generator:
         element = self.function(field.nested, leaf.full)
         out.line(f"for i, e in enumerate({leaf.var}):")
         with out.indent():
-            out.line("try:")
+            index = f"{leaf.path!r} + '[%d]' % i"
+            call_child(out, f"pos = {element}(e, out, pos, marks)", "EncodeError", repr(type_name), index)
+            out.line("except _Unpacking:")  # a second clause of call_child's `try`
             with out.indent():
-                out.line(f"pos = {element}(e, out, pos, marks)")
-            out.line("except EncodeError as error:")
-            with out.indent():
-                out.line(f"raise error.within({type_name!r}, {leaf.path!r} + '[%d]' % i) from None")
-            out.line("except _Unpacking:")
-            with out.indent():
-                out.line(f"raise _shape_error({type_name!r}, {self.shape(field.nested)!r}, e, "
-                         f"{leaf.path!r} + '[%d]' % i) from None")  # fmt: skip
+                out.line(
+                    f"raise _shape_error({type_name!r}, {self.shape(field.nested)!r}, e, {index}) from None"
+                )
         if plain is not None:
             out.depth -= 1
 
@@ -541,6 +536,11 @@ def _count(values: Any, type_name: str, field: str, fixed: bool, count: int) -> 
         n = len(values)
     except TypeError:
         raise EncodeError(type_name, field, f"a sequence is expected, not {type(values).__name__}") from None
+    return _checked_length(n, type_name, field, fixed, count)
+
+
+def _checked_length(n: int, type_name: str, field: str, fixed: bool, count: int) -> int:
+    """`n` elements, refused unless a fixed array's `count`, or within a bounded sequence's."""
     if fixed and n != count:
         raise EncodeError(type_name, field, f"a fixed array of {count} elements is given {n}")
     if not fixed and count and n > count:
@@ -562,11 +562,7 @@ def _numbers(values: Any, dtype: np.dtype[Any], out: list[Any], pos: int, type_n
             raise EncodeError(
                 type_name, field, f"an N x {width} array is expected, not one of shape {data.shape}"
             )
-    n = total // width
-    if fixed and n != count:
-        raise EncodeError(type_name, field, f"a fixed array of {count} elements is given {n}")
-    if not fixed and count and n > count:
-        raise EncodeError(type_name, field, f"{n} elements, more than the sequence's bound of {count}")
+    n = _checked_length(total // width, type_name, field, fixed, count)
     glue, step = cdr_glue(pos & 7, total, dtype.itemsize, not fixed)
     if width > 1 and not fixed:  # the count written is of structs, not of primitives
         pad = -pos & 3
