@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.formats.mappings import ShapeRule
-from viewer_bridge.formats.ros.cdr import CDR_TIME, time_parts
+from viewer_bridge.formats.ros.cdr import StampedTemplate, time_parts
 from viewer_bridge.formats.ros.markers import (
     DELETE_ALL,
     MarkerSpec,
@@ -26,8 +26,6 @@ from viewer_bridge.formats.ros.message_types import MARKER_ARRAY, POSE_ARRAY, TF
 from viewer_bridge.formats.ros.messages import make
 from viewer_bridge.formats.ros.tables import TABLES
 from viewer_bridge.formats.ros.tf import FrameNames
-from viewer_bridge.lcmcodec.codegen import CDR_LE
-from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene
 from viewer_bridge.model.pose_math import pose_rows_xyzw
 from viewer_bridge.model.scene import Geometry, LinkPoses, Pose, Scene, Shape, link_poses_from_xyzw
@@ -101,14 +99,11 @@ class PoseStampedEncoder:
 
     def __init__(self, frame_id: str = "world") -> None:
         self.frame_id = frame_id
-        writer = ros_writer(POSE_STAMPED, ("header.stamp", "pose"))
-        message, marks = writer.write_marked((((0, 0), frame_id), ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0))))
-        self._stamp_at = len(CDR_LE) + marks["header.stamp"][0]
-        self._head = message[: len(CDR_LE) + marks["pose"][0]]
+        origin = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 0.0))
+        self._template = StampedTemplate(POSE_STAMPED, (((0, 0), frame_id), origin), ("pose",))
 
     def encode(self, poses: LinkPoses) -> list[bytes]:
-        stamp = CDR_TIME.pack(*time_parts(poses.timestamp_ms))
-        prefix = self._head[: self._stamp_at] + stamp + self._head[self._stamp_at + len(stamp) :]
+        prefix = self._template.stamped(time_parts(poses.timestamp_ms))[: self._template.at["pose"]]
         return [prefix + row for row in map(bytes, pose_rows_xyzw(poses.positions, poses.quaternions_wxyz))]
 
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from viewer_bridge.errors import DecodeError, EncodeError
 from viewer_bridge.lcmcodec.codegen import CDR_LE
+from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.sim_time import sec_nsec_from_ms, sec_nsec_from_us, us_from_sec_nsec
 
 U32 = struct.Struct("<I")
@@ -41,6 +42,22 @@ def _int32_seconds(parts: tuple[int, int], what: str) -> tuple[int, int]:
     if not -(2**31) <= parts[0] < 2**31:
         raise EncodeError("builtin_interfaces/msg/Time", "sec", f"{what} does not fit int32 seconds")
     return parts
+
+
+class StampedTemplate:
+    """A message with a `header` written once by the generated writer, whose stamp each call
+    replaces (`stamped`); `at[path]` is where each other marked field starts in the message's
+    bytes (the encapsulation counted), e.g. a last field cut off and written per call."""
+
+    def __init__(self, type_name: str, value: Any, marks: tuple[str, ...] = ()) -> None:
+        message, found = ros_writer(type_name, ("header.stamp", *marks)).write_marked(value)
+        start = len(CDR_LE) + found["header.stamp"][0]  # marks count from after the encapsulation
+        self._head, self._tail = message[:start], message[start + CDR_TIME.size :]
+        self.at = {path: len(CDR_LE) + found[path][0] for path in marks}
+
+    def stamped(self, stamp: tuple[int, int]) -> bytes:
+        """The message stamped `stamp` (sec, nanosec)."""
+        return b"".join((self._head, CDR_TIME.pack(*stamp), self._tail))
 
 
 def payload_items(buffer: Any, item: np.dtype[Any], step: int, front: int = 0) -> np.ndarray[Any, Any]:

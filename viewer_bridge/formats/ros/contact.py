@@ -17,10 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from viewer_bridge.formats.ros.cdr import CDR_TIME
+from viewer_bridge.formats.ros.cdr import StampedTemplate
 from viewer_bridge.formats.ros.markers import marker_array_cdr
-from viewer_bridge.lcmcodec.codegen import CDR_LE
-from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.contact import ContactDrawOptions, ContactResults, contact_scene
 
 
@@ -49,15 +47,12 @@ class WrenchEncoder:
     """
 
     def __init__(self, frame_id: str = "world") -> None:
-        writer = ros_writer("geometry_msgs/msg/WrenchStamped", ("header.stamp", "wrench"))
-        message, marks = writer.write_marked((((0, 0), frame_id), _NO_WRENCH))
-        stamp_at = len(CDR_LE) + marks["header.stamp"][0]  # marks count from after the encapsulation
-        wrench_at = len(CDR_LE) + marks["wrench"][0]
-        self._head = message[:stamp_at]
-        # From the stamp to the wrench: the frame id, padded. The wrench, 6 float64, ends the message.
-        self._frame = message[stamp_at + CDR_TIME.size : wrench_at]
+        self._template = StampedTemplate(
+            "geometry_msgs/msg/WrenchStamped", (((0, 0), frame_id), _NO_WRENCH), ("wrench",)
+        )
+        self._wrench_at = self._template.at["wrench"]  # the wrench, 6 float64, ends the message
 
     def encode(self, results: ContactResults, stamp: tuple[int, int]) -> list[bytes]:
-        header = b"".join((self._head, CDR_TIME.pack(*stamp), self._frame))
+        header = self._template.stamped(stamp)[: self._wrench_at]
         rows = np.ascontiguousarray(contact_wrenches(results), dtype="<f8")
         return [header + row.tobytes() for row in rows]

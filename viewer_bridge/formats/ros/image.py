@@ -19,8 +19,7 @@ from typing import Any
 import numpy as np
 
 from viewer_bridge.errors import DecodeError, EncodeError
-from viewer_bridge.formats.ros.cdr import CDR_TIME, CdrReader
-from viewer_bridge.lcmcodec.codegen import CDR_LE
+from viewer_bridge.formats.ros.cdr import CdrReader, StampedTemplate
 from viewer_bridge.lcmcodec.ros_writer import ros_writer
 from viewer_bridge.model.image import (
     NO_DISTORTION,
@@ -94,13 +93,10 @@ class CameraInfoEncoder:
     def __init__(self, intrinsics: Intrinsics, frame_id: str) -> None:
         self.intrinsics = intrinsics
         self.frame_id = frame_id
-        writer = ros_writer(CAMERA_INFO, ("header.stamp",))
-        message, marks = writer.write_marked(_camera_info(intrinsics, frame_id, (0, 0)))
-        at = len(CDR_LE) + marks["header.stamp"][0]  # marks count from after the encapsulation
-        self._head, self._tail = message[:at], message[at + CDR_TIME.size :]
+        self._template = StampedTemplate(CAMERA_INFO, _camera_info(intrinsics, frame_id, (0, 0)))
 
     def encode(self, stamp: tuple[int, int]) -> bytes:
-        return b"".join((self._head, CDR_TIME.pack(*stamp), self._tail))
+        return self._template.stamped(stamp)
 
 
 def camera_info_cdr(intrinsics: Intrinsics, frame_id: str, stamp: tuple[int, int]) -> bytes:
