@@ -11,7 +11,17 @@ from viewer_bridge.cli.main import main
 from viewer_bridge.errors import ConfigError
 from viewer_bridge.formats.mappings import format_names, load_tables, reference_markdown, tables
 from viewer_bridge.lcmcodec.codecs import GEOMETRY_DATA
-from viewer_bridge.model.scene import SHAPE_KINDS, Box, Capsule, Cylinder, Ellipsoid, MeshFile, Sphere
+from viewer_bridge.model.scene import (
+    SHAPE_KINDS,
+    Box,
+    Capsule,
+    Cylinder,
+    Ellipsoid,
+    HalfSpace,
+    MeshFile,
+    Pose,
+    Sphere,
+)
 from viewer_bridge.util.resources import data_dir
 from viewer_bridge.util.yamldoc import YamlDocument
 
@@ -38,6 +48,21 @@ def test_every_table_covers_every_shape() -> None:
     for format_name in format_names():
         for table in tables(format_name).values():
             assert set(table.rules) == set(SHAPE_KINDS)
+
+
+def test_expanding_without_poses_gives_the_same_rules_and_shapes() -> None:
+    # A capsule lowered to three parts, an ellipsoid to a mesh, a half-space to a box, in every table.
+    shapes = [Box((1.0, 2.0, 3.0)), Capsule(0.5, 2.0), Ellipsoid((1.0, 2.0, 3.0)), HalfSpace()]
+    lowered = 0
+    for format_name in format_names():
+        for table in tables(format_name).values():
+            for shape in shapes:
+                if table.rule_for(shape).unsupported is not None:
+                    continue
+                posed = table.expand(shape, Pose((1.0, 0.0, 0.0)))
+                assert table.expand_unposed(shape) == [(rule, part) for rule, part, _ in posed]
+                lowered += len(posed) > 1 or posed[0][1] is not shape
+    assert lowered >= 5
 
 
 @pytest.mark.parametrize(

@@ -32,8 +32,10 @@ TYPES = sorted(name for name, definition in STORE.fielddefs.items() if "wstring"
 class Values:
     """Random values of a type, as the writer takes them and as rosbags' message objects."""
 
-    def __init__(self, seed: int) -> None:
+    def __init__(self, seed: int, hashable: bool = False) -> None:
         self.rng = random.Random(seed)
+        # Sequences as values a kept stretch may hold: empty ones as `()`, bytes as bytes.
+        self.hashable = hashable
 
     def primitive(self, base: str) -> Any:
         if base == "bool":
@@ -59,8 +61,12 @@ class Values:
         if element[0] == Nodetype.BASE and element[1][0] != "string":
             items = [self.primitive(element[1][0]) for _ in range(count)]
             array = np.array(items, dtype=_NUMPY[element[1][0]])
+            if self.hashable and (not count or element[1][0] in ("uint8", "byte", "char", "int8")):
+                return (bytes(array) if count else ()), array
             return (items if self.rng.random() < 0.5 else array), array
         pairs = [self.field(element) for _ in range(count)]
+        if self.hashable and not count:
+            return (), []
         return [ours for ours, _ in pairs], [theirs for _, theirs in pairs]
 
     def message(self, name: str) -> tuple[Any, Any]:
@@ -77,6 +83,72 @@ def test_every_jazzy_type_is_written_as_rosbags_writes_it(seed: int) -> None:
         for _ in range(3):
             ours, theirs = values.message(name)
             assert writer.write(ours) == bytes(STORE.serialize_cdr(theirs, name)), name
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_stretches_of_strings_and_sequences_are_kept_and_written_again_as_rosbags_writes_them(
+    seed: int,
+) -> None:
+    # Three or more strings and sequences between two runs are kept by their values and position
+    # modulo 4 when those are strings, bytes and empty tuples: each value is written twice.
+    values = Values(seed, hashable=True)
+    for name in TYPES:
+        writer = ros_writer(name)
+        for _ in range(4):
+            ours, theirs = values.message(name)
+            reference = bytes(STORE.serialize_cdr(theirs, name))
+            assert writer.write(ours) == reference, name
+            assert writer.write(ours) == reference, name
+    # The same stretch (a status's name, message, hardware id and values) at every position
+    # modulo 4: after a status whose last value has 0 to 7 characters.
+    status, key_value = (
+        STORE.types["diagnostic_msgs/msg/DiagnosticStatus"],
+        STORE.types["diagnostic_msgs/msg/KeyValue"],
+    )
+    ours_statuses: list[Any] = []
+    theirs_statuses = []
+    for length in range(8):
+        ours_statuses += [(1, "arm", "ok", "", [("k", "v" * length)]), (0, "arm", "ok", "", ())]
+        theirs_statuses += [
+            status(1, "arm", "ok", "", [key_value("k", "v" * length)]),
+            status(0, "arm", "ok", "", []),
+        ]
+    header = STORE.types["std_msgs/msg/Header"](STORE.types["builtin_interfaces/msg/Time"](0, 0), "")
+    array = STORE.types["diagnostic_msgs/msg/DiagnosticArray"](header, theirs_statuses)
+    reference = bytes(STORE.serialize_cdr(array, "diagnostic_msgs/msg/DiagnosticArray"))
+    assert ros_writer("diagnostic_msgs/msg/DiagnosticArray").write((((0, 0), ""), ours_statuses)) == reference
+
+
+def test_equal_values_in_two_stretches_are_written_each_as_its_own_fields() -> None:
+    # Joy's frame id, axes and buttons and WriteSplitEvent's three strings, all at position 0
+    # modulo 4, given the same values: "" is an empty sequence in one, an empty string in the other.
+    joy = ros_writer("sensor_msgs/msg/Joy").write((((0, 0), ""), "", ""))
+    split = ros_writer("rosbag2_interfaces/msg/WriteSplitEvent").write(("", "", ""))
+    theirs_joy = STORE.types["sensor_msgs/msg/Joy"](
+        STORE.types["std_msgs/msg/Header"](STORE.types["builtin_interfaces/msg/Time"](0, 0), ""),
+        np.zeros(0, dtype=np.float32),
+        np.zeros(0, dtype=np.int32),
+    )
+    assert joy == bytes(STORE.serialize_cdr(theirs_joy, "sensor_msgs/msg/Joy"))
+    theirs_split = STORE.types["rosbag2_interfaces/msg/WriteSplitEvent"]("", "", "")
+    assert split == bytes(STORE.serialize_cdr(theirs_split, "rosbag2_interfaces/msg/WriteSplitEvent"))
+
+
+def test_a_kept_stretch_refuses_values_as_the_writer_does() -> None:
+    writer = ros_writer("visualization_msgs/msg/Marker")
+    texture = (((0, 0), ""), "", b"")
+    pose = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+    marker: tuple[Any, ...] = (((0, 0), "world"), "ns", 0, 1, 0, pose, (1.0, 1.0, 1.0), (1.0, 1.0, 1.0, 1.0),
+                               (0, 0), False, (), (), "", texture, (), "", "", ("", b""), False)  # fmt: skip
+    reference = writer.write(marker)
+    assert writer.write(marker) == reference
+    with pytest.raises(EncodeError, match=r"Marker\.text: .* contains a NUL character"):
+        writer.write(marker[:15] + ("a\0b",) + marker[16:])
+    with pytest.raises(
+        EncodeError, match=r"Marker\.uv_coordinates\[0\]: expects the fields \(u, v\), got 1 values"
+    ):
+        writer.write(marker[:14] + (((1.0,),),) + marker[15:])
+    assert writer.write(marker) == reference
 
 
 def test_a_sequence_of_plain_messages_may_be_an_array() -> None:

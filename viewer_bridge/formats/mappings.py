@@ -219,14 +219,28 @@ class Table:
         A capsule that a table lowers to a cylinder and two spheres expands to three entries,
         each posed in the frame `pose` is expressed in.
         """
-        rule = self.rule_for(shape)
+        rule = self._supported_rule(shape)
         pose = pose or Pose()
-        if rule.unsupported is not None:
-            raise SceneError(f"{self.target} has no {rule.kind}: {rule.unsupported}")
         if rule.lower is None:
             return [(rule, shape, pose)]
         parts = LOWERINGS[rule.lower].function(shape)
         return [entry for part, offset in parts for entry in self.expand(part, pose.compose(offset))]
+
+    def expand_unposed(self, shape: Shape) -> list[tuple[ShapeRule, Shape]]:
+        """`expand` without the poses, for messages that carry none (shape_msgs): composing
+        them cost a load more than writing its messages."""
+        rule = self._supported_rule(shape)
+        if rule.lower is None:
+            return [(rule, shape)]
+        return [
+            entry for part, _ in LOWERINGS[rule.lower].function(shape) for entry in self.expand_unposed(part)
+        ]
+
+    def _supported_rule(self, shape: Shape) -> ShapeRule:
+        rule = self.rule_for(shape)
+        if rule.unsupported is not None:
+            raise SceneError(f"{self.target} has no {rule.kind}: {rule.unsupported}")
+        return rule
 
     def decode(self, type_code: Any, values: Mapping[str, Any]) -> Shape:
         """The shape written as `type_code` with `values`, by the first invertible rule of that type.

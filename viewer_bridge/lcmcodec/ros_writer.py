@@ -16,7 +16,9 @@ and int8); a sequence of messages is a list of tuples, or, for messages of one p
 only (`geometry_msgs/Point`, `std_msgs/ColorRGBA`, `shape_msgs/MeshTriangle`), an N x k numpy
 array written in one copy. Any empty value with a length (`()`, `[]`, an empty array) is an empty
 sequence. Short strings are encoded once and kept (a few thousand, then the cache starts over):
-a scene writes the same frame ids, namespaces and empty strings over and over.
+a scene writes the same frame ids, namespaces and empty strings over and over. Three or more
+strings and sequences in a row (a marker's texture, text and mesh fields) are kept the same way,
+as one piece, when their values are strings, empty bytes and empty tuples.
 
 `marks` name fields (dotted paths from the root, through sequences too: `transforms.transform`)
 whose payload offsets `write_marked` reports, one per time the field is written: a message
@@ -30,6 +32,7 @@ is no valid Unicode.
 
 from __future__ import annotations
 
+import itertools
 import struct
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
@@ -222,31 +225,58 @@ class _Generator:
     # --- writing a struct's leaves ----------------------------------------------------------------
 
     def _body(self, type_name: str, leaves: list[_Leaf], out: SourceWriter) -> None:
-        run: list[_Leaf] = []
-        for leaf in leaves:
-            if leaf.kind == "scalar":
-                run.append(leaf)
+        """The leaves in order (`_sort`): scalars in runs, one pack each; strings and sequences
+        as a kept stretch where `_STRETCH_MIN` of them or more come in a row, else one by one."""
+        for sort, group in itertools.groupby(leaves, _sort):
+            if sort == "run":
+                self._run(type_name, list(group), out)
                 continue
-            if run:
-                self._run(type_name, run, out)
-                run = []
-            self._mark(leaf, out, self._start(leaf))
-            if leaf.field.kind == "sequence":
-                self._unless_empty(leaf, out)
-            if leaf.kind == "string":
-                self._string(type_name, leaf, out)
-            elif leaf.kind == "numbers":
-                self._numbers(type_name, leaf, out)
-            elif leaf.kind == "strings":
-                field = leaf.field
-                out.line(f"pos = _strings({leaf.var}, out, pos, {type_name!r}, {leaf.path!r}, "
-                         f"{field.kind == 'array'}, {field.count})")  # fmt: skip
+            group_leaves = list(group)
+            if sort == "stretch" and len(group_leaves) >= _STRETCH_MIN:
+                self._stretch(type_name, group_leaves, out)
             else:
-                self._structs(type_name, leaf, out)
-            if leaf.field.kind == "sequence":
-                out.depth -= 1
-        if run:
-            self._run(type_name, run, out)
+                for leaf in group_leaves:
+                    self._leaf(type_name, leaf, out)
+
+    def _stretch(self, type_name: str, group: list[_Leaf], out: SourceWriter) -> None:
+        """Strings and sequences in a row (a marker's texture, text and mesh fields): their bytes
+        from `_STRETCHES` when the same values were written before at the same position modulo 4,
+        else written one by one and kept (`_keep`)."""
+        # The stretch's own number first: the same values may be written otherwise elsewhere
+        # ("" is an empty string in one place, an empty sequence in another).
+        values = ", ".join(_key_value(leaf) for leaf in group)
+        out.line(f"key = ({next(_STRETCH_NUMBERS)}, {values}, pos & 3)")
+        out.line("try:")
+        with out.indent():
+            out.line("s = _STRETCHES[key]")
+        out.line("except _NOT_KEPT:")  # new values, or a list or array among them: unhashable
+        with out.indent():
+            out.line("first = len(out)")
+            for leaf in group:
+                self._leaf(type_name, leaf, out)
+            out.line("_keep(key, out, first)")
+        out.line("else:")
+        with out.indent():
+            out.line("out.append(s)")
+            out.line("pos += len(s)")
+
+    def _leaf(self, type_name: str, leaf: _Leaf, out: SourceWriter) -> None:
+        """One string, array or sequence."""
+        self._mark(leaf, out, self._start(leaf))
+        if leaf.field.kind == "sequence":
+            self._unless_empty(leaf, out)
+        if leaf.kind == "string":
+            self._string(type_name, leaf, out)
+        elif leaf.kind == "numbers":
+            self._numbers(type_name, leaf, out)
+        elif leaf.kind == "strings":
+            field = leaf.field
+            out.line(f"pos = _strings({leaf.var}, out, pos, {type_name!r}, {leaf.path!r}, "
+                     f"{field.kind == 'array'}, {field.count})")  # fmt: skip
+        else:
+            self._structs(type_name, leaf, out)
+        if leaf.field.kind == "sequence":
+            out.depth -= 1
 
     def _unless_empty(self, leaf: _Leaf, out: SourceWriter) -> None:
         """An empty sequence, the usual value of many (a marker's points, colours, texture and mesh
@@ -448,6 +478,23 @@ def _default(structs: Mapping[str, RosStruct], type_name: str) -> tuple[Any, ...
     return tuple(values)
 
 
+def _sort(leaf: _Leaf) -> str:
+    """How a leaf is written: in a "run" of scalars, in a "stretch" of strings and sequences kept
+    by value, or "alone" when marked (its offset is wanted each time it is written)."""
+    if leaf.kind == "scalar":
+        return "run"
+    return "alone" if leaf.marks else "stretch"
+
+
+def _key_value(leaf: _Leaf) -> str:
+    """A stretch leaf's part of the stretch's key. Bytes (an image's, a mesh file's) only when
+    empty: hashing them to look them up would cost more than writing them; any other value there
+    makes the key unhashable (`_UNKEPT`), and the stretch is written leaf by leaf."""
+    if leaf.kind == "numbers" and _PRIMITIVES[leaf.field.base][1] == 1:
+        return f"({leaf.var} if type({leaf.var}) is bytes and not {leaf.var} else _UNKEPT)"
+    return leaf.var
+
+
 def _walk(structs: Mapping[str, RosStruct], type_name: str) -> Iterator[RosField]:
     """The fields of `type_name`, nested single structs replaced by theirs; a nested struct that
     is an array or sequence is one field (with no primitive base)."""
@@ -506,10 +553,37 @@ def _text(text: Any, pos: int, type_name: str, field: str) -> bytes:
     if len(data) > _TEXT_KEPT_BYTES:
         return COUNT_AFTER_PAD[-pos & 3].pack(len(data) + 1) + data + b"\0"
     forms = [COUNT_AFTER_PAD[-phase & 3].pack(len(data) + 1) + data + b"\0" for phase in range(4)]
-    if len(_TEXTS) >= _TEXTS_KEPT:
-        _TEXTS.clear()
-    _TEXTS[text] = forms
+    _hold(_TEXTS, text, forms)
     return forms[pos & 3]
+
+
+def _hold(kept: dict[Any, Any], key: Any, value: Any) -> None:
+    """`kept[key] = value`, `kept` emptied first when it holds `_TEXTS_KEPT` entries: a bound
+    without the cost of an LRU's bookkeeping on the hits, which are all but every lookup."""
+    if len(kept) >= _TEXTS_KEPT:
+        kept.clear()
+    kept[key] = value
+
+
+# Stretches of strings and sequences (see `_Generator._stretch`) by their values and position
+# modulo 4 -> their bytes: a marker's ten empty texture, text and mesh fields are one lookup.
+# Kept only when every value is a string, bytes or an empty tuple (equal values of those write
+# equal bytes), up to `_TEXT_KEPT_BYTES` each and `_TEXTS_KEPT` of them, then it starts over.
+_STRETCHES: dict[tuple[Any, ...], bytes] = {}
+_STRETCH_MIN = 3  # leaves: two strings (a frame id and a namespace) vary too often to be worth it
+_KEEPABLE = (str, bytes)
+_STRETCH_NUMBERS = itertools.count()
+_UNKEPT: list[Any] = []  # unhashable: a key holding it is never looked up
+
+
+def _keep(key: tuple[Any, ...], out: list[Any], first: int) -> None:
+    """Keep the stretch just written (`out[first:]`) under `key`: its number, values and phase."""
+    for value in key[1:-1]:
+        if type(value) not in _KEEPABLE and not (type(value) is tuple and not value):
+            return
+    data = b"".join(out[first:])
+    if len(data) <= _TEXT_KEPT_BYTES:
+        _hold(_STRETCHES, key, data)
 
 
 def _strings(
@@ -656,6 +730,9 @@ _HELPERS: dict[str, object] = {
     "_NOT_KEPT": _NOT_KEPT,
     "_text": _text,
     "_NO_ITEMS": _NO_ITEMS,
+    "_STRETCHES": _STRETCHES,
+    "_keep": _keep,
+    "_UNKEPT": _UNKEPT,
     "_strings": _strings,
     "_numbers": _numbers,
     "_count": _count,

@@ -35,7 +35,7 @@ def shapes_cdr(scene: Scene) -> list[TypedCdr]:
 
     def messages(_: int, geometry: Geometry) -> list[TypedCdr]:
         parts = []
-        for rule, shape, _pose in table.expand(geometry.shape, geometry.pose):
+        for rule, shape in table.expand_unposed(geometry.shape):
             typename = rule.message or table.target
             if typename != MESH:
                 data = _shape_cdr(rule, shape, typename)
