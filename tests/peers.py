@@ -6,7 +6,10 @@ process's own (set in conftest before rclpy loads), LCM uses a private multicast
 
 from __future__ import annotations
 
+import contextlib
+import os
 import resource
+import signal
 import subprocess
 import sys
 import threading
@@ -114,12 +117,13 @@ class BridgeProcess:
                 resource.setrlimit(resource.RLIMIT_NOFILE, (max_files, max_files))
 
         # stdout to nowhere: a pipe nobody reads fills (64 KiB) and then blocks the bridge for good.
+        # faulthandler on: a bridge that does not stop is asked for its threads' stacks (`stop`).
         self.process = subprocess.Popen(
             command,
             stderr=subprocess.PIPE,
             stdout=subprocess.DEVNULL,
             text=True,
-            env=env,
+            env={**(os.environ if env is None else env), "PYTHONFAULTHANDLER": "1"},
             preexec_fn=limit_files if max_files is not None else None,
         )
         self.lines: list[str] = []
@@ -143,13 +147,28 @@ class BridgeProcess:
         raise AssertionError(f"bridge never logged {text!r}; its log:\n" + "\n".join(self.lines))
 
     def stop(self) -> int:
-        """SIGINT, as Ctrl-C would; returns the exit code."""
+        """SIGINT, as Ctrl-C would; returns the exit code. A bridge still running `stop_s` later
+        fails the test with its threads' stacks."""
         if self.process.poll() is None:
-            self.process.send_signal(2)
+            self.process.send_signal(signal.SIGINT)
         try:
             return self.process.wait(timeout=self.stop_s)
+        except subprocess.TimeoutExpired:
+            raise AssertionError(
+                f"the bridge did not stop within {self.stop_s:.0f} s of SIGINT; its log and threads:\n"
+                + self._stacks()
+            ) from None
         finally:
             self._reader.join(timeout=2)
+
+    def _stacks(self) -> str:
+        """The end of the log, with every thread's stack: faulthandler prints them on SIGABRT,
+        which ends the process."""
+        self.process.send_signal(signal.SIGABRT)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self.process.wait(timeout=10)
+        self._reader.join(timeout=2)
+        return "\n".join(self.lines[-120:])
 
 
 def write_config(folder: Path, text: str) -> Path:
