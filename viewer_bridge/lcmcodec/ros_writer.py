@@ -60,6 +60,7 @@ _PRIMITIVES: Mapping[str, tuple[str, int, str]] = {
     "uint32": ("I", 4, "<u4"), "int64": ("q", 8, "<i8"), "uint64": ("Q", 8, "<u8"), "float32": ("f", 4, "<f4"),
     "float64": ("d", 8, "<f8"),
 }  # fmt: skip
+_BYTE_BASES = frozenset(("uint8", "byte", "char", "int8"))  # their arrays and sequences may be bytes
 _RUN_ARRAY_MAX = 16  # a fixed array this short is packed inside its run of scalars
 _PACK_ERRORS = (struct.error, TypeError, OverflowError, ValueError)
 
@@ -360,7 +361,7 @@ class _Generator:
     def _numbers(self, type_name: str, leaf: _Leaf, out: SourceWriter) -> None:
         field = leaf.field
         fixed = field.kind == "array"
-        if not fixed and not field.count and field.base in ("uint8", "byte", "char", "int8"):
+        if not fixed and not field.count and field.base in _BYTE_BASES:
             out.line(f"if type({leaf.var}) is bytes:")  # the bytes of an image, a cloud, a mesh file
             with out.indent():
                 out.line("p = -pos & 3")
@@ -374,7 +375,7 @@ class _Generator:
             self._short_list(leaf, numbers, out)
         else:
             out.line(numbers)
-        if not fixed and not field.count and field.base in ("uint8", "byte", "char", "int8"):
+        if not fixed and not field.count and field.base in _BYTE_BASES:
             out.depth -= 1
 
     def _short_list(self, leaf: _Leaf, numbers: str, out: SourceWriter) -> None:
@@ -490,7 +491,7 @@ def _key_value(leaf: _Leaf) -> str:
     """A stretch leaf's part of the stretch's key. Bytes (an image's, a mesh file's) only when
     empty: hashing them to look them up would cost more than writing them; any other value there
     makes the key unhashable (`_UNKEPT`), and the stretch is written leaf by leaf."""
-    if leaf.kind == "numbers" and _PRIMITIVES[leaf.field.base][1] == 1:
+    if leaf.kind == "numbers" and leaf.field.base in _BYTE_BASES:
         return f"({leaf.var} if type({leaf.var}) is bytes and not {leaf.var} else _UNKEPT)"
     return leaf.var
 
