@@ -9,6 +9,7 @@ the type and the field named.
 from __future__ import annotations
 
 import random
+import tracemalloc
 from typing import Any
 
 import numpy as np
@@ -132,6 +133,26 @@ def test_equal_values_in_two_stretches_are_written_each_as_its_own_fields() -> N
     assert joy == bytes(STORE.serialize_cdr(theirs_joy, "sensor_msgs/msg/Joy"))
     theirs_split = STORE.types["rosbag2_interfaces/msg/WriteSplitEvent"]("", "", "")
     assert split == bytes(STORE.serialize_cdr(theirs_split, "rosbag2_interfaces/msg/WriteSplitEvent"))
+
+
+def test_kept_stretches_are_bounded_and_stay_right_past_the_bound() -> None:
+    # More distinct stretches than are kept (4096), and one longer than is kept (256 bytes): each
+    # written as rosbags writes it, the memory kept bounded however many went by.
+    writer = ros_writer("rosbag2_interfaces/msg/WriteSplitEvent")
+    event = STORE.types["rosbag2_interfaces/msg/WriteSplitEvent"]
+    for values in [("a" * 300, "b", "c"), *((f"closed_{k}", f"opened_{k}", "node") for k in range(5000))]:
+        reference = bytes(STORE.serialize_cdr(event(*values), "rosbag2_interfaces/msg/WriteSplitEvent"))
+        assert writer.write(values) == reference
+        assert writer.write(values) == reference
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        for k in range(20000):
+            writer.write((f"c{k}", f"o{k}", "n"))
+        grown = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+    assert grown < 8 << 20, grown  # 20,000 stretches kept whole would be well over that
 
 
 def test_a_kept_stretch_refuses_values_as_the_writer_does() -> None:
